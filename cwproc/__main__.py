@@ -1,0 +1,5 @@
+"""``python -m cwproc`` runs the command line."""
+
+from cwproc.cli import main
+
+main()

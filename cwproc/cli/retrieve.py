@@ -1,0 +1,62 @@
+"""``cwproc retrieve``: wind and turbulence products from instrument files."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from cwproc.cli._common import config_option, load_config_or_fail, report_failure
+from cwproc.pipeline import retrieve_files
+
+
+def expand_inputs(inputs: tuple[str, ...]) -> list[Path]:
+    """Files given on the command line; directories are searched recursively."""
+    out: list[Path] = []
+    for item in inputs:
+        p = Path(item)
+        if p.is_dir():
+            out.extend(sorted(q for q in p.rglob("*") if q.is_file() and not q.name.startswith(".")))
+        else:
+            out.append(p)
+    return out
+
+
+@click.command("retrieve")
+@click.argument("inputs", nargs=-1, required=True, metavar="FILES...")
+@click.option(
+    "-o",
+    "--output",
+    "outdir",
+    required=True,
+    type=click.Path(file_okay=False),
+    help="Directory for the NetCDF products (created if missing).",
+)
+@config_option()
+@click.option("-q", "--quiet", is_flag=True, help="Print only failures.")
+def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bool) -> None:
+    """Wind profile and turbulence products from lidar or sonic FILES (or directories).
+
+    \b
+    The format of each file is recognised from its content. Scan files (Stream Line
+    .hpl, cwproc scan NetCDF) of one instrument and UTC day make one unit, written as
+    <unit>_wind.nc and <unit>_turbulence.nc; ZephIR/WindCube exports give <name>_wind.nc;
+    sonic logs give <name>_sf.nc. Exit status 0 when every input was processed, 1
+    otherwise, with one line per failed input naming the file, the line and the problem.
+    """
+    cfg = load_config_or_fail(config)
+    files = expand_inputs(inputs)
+    if not files:
+        raise click.UsageError("no input files found")
+    report = retrieve_files(files, outdir, cfg)
+    for line in report.failures:
+        report_failure(line)
+    if not quiet:
+        for path in report.written:
+            click.echo(f"wrote {path}")
+        click.echo(
+            f"{len(files)} input(s), {len(report.written)} product(s) written, "
+            f"{len(report.failures)} failure(s)"
+        )
+    sys.exit(0 if report.ok else 1)

@@ -1,0 +1,407 @@
+"""Configuration: TOML files -> frozen dataclasses, validated once at the edge.
+
+A configuration is a TOML file with one table per section (``[instrument]``,
+``[qc]``, ``[vad]``, ...). Every key is optional: missing keys take the defaults
+declared below, which are the documented defaults of cwproc. Unknown keys, wrong
+types and impossible values raise :class:`cwproc.errors.ConfigError` naming the
+file and the dotted key. Presets live in ``cwproc/configs/*.toml`` (also reachable
+as ``configs/`` at the top of the source tree) and are selected by name
+(``streamline``, ``zephir300``, ``meteo2``, ...).
+
+Stages never see these objects: :mod:`cwproc.pipeline` unpacks them into plain
+typed keyword arguments.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import tomllib
+import types
+import typing
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any, Literal, get_args, get_origin
+
+from cwproc.errors import ConfigError
+
+# --------------------------------------------------------------------------------------
+# sections
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class InstrumentConfig:
+    """What made the data: the probe-volume and scan parameters the physics needs."""
+
+    name: str = "Halo Photonics Stream Line"
+    #: "pulsed" (Stream Line, WindCube), "cw" (ZephIR), "sonic" (anemometers)
+    kind: Literal["pulsed", "cw", "sonic"] = "pulsed"
+    #: reader to use; "auto" detects the format from the file content
+    format: Literal[
+        "auto",
+        "hpl",
+        "scan_netcdf",
+        "zephir_csv",
+        "windcube_sta",
+        "toa5",
+        "tob1",
+        "ghg",
+        "meteo2",
+        "gill",
+    ] = "auto"
+    #: laser wavelength (m)
+    wavelength_m: float = 1.5e-6
+    #: pulsed lidar: Delta_p = c sigma_p / 2 (m), Smalikho (2020) eq. 19; Stream Line 15.3 m
+    delta_p_m: float = 15.3
+    #: pulsed lidar: Delta_R = c T_w / 2 (m), Smalikho (2020) eq. 19; Stream Line 18 m
+    delta_r_m: float = 18.0
+    #: cw lidar: Rayleigh-range coefficient c in Z_R = c R^2 (1/m); ZephIR 0.0013
+    z_r_coefficient: float = 0.0013
+    #: cw lidar: beam radius a0 at the telescope (m); when set, Z_R = lambda R^2/(2 pi a0^2)
+    beam_radius_m: float | None = None
+    #: cw homodyne detection: only |V_r| is measured (ZephIR)
+    homodyne: bool = False
+    #: sonic: orientation of the instrument frame (degrees clockwise from north of +u)
+    sonic_orientation_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        _positive(self, "wavelength_m", "delta_p_m", "delta_r_m", "z_r_coefficient")
+        if self.beam_radius_m is not None and not self.beam_radius_m > 0:
+            raise ValueError("beam_radius_m: must be > 0")
+
+
+@dataclass(frozen=True)
+class QCConfig:
+    """Screening of radial velocities (stage ``qc``)."""
+
+    #: minimum linear SNR (Halo intensity - 1) for a gate to be used; -20 dB = 0.01
+    snr_min: float = 0.008
+    #: robust outlier threshold in units of the scaled MAD of the residuals of a first fit
+    outlier_threshold: float = 4.0
+
+    def __post_init__(self) -> None:
+        _positive(self, "outlier_threshold")
+        if not self.snr_min >= 0:
+            raise ValueError("snr_min: must be >= 0")
+
+
+@dataclass(frozen=True)
+class VADConfig:
+    """Wind-vector fit (stage ``vad``), Smalikho (2020) eq. 1."""
+
+    #: fewest valid rays for a fit
+    min_rays: int = 6
+    #: largest azimuth gap (deg) accepted before the fit is flagged
+    max_gap_deg: float = 120.0
+    #: homodyne cw data: direction (deg, from north, "from") used to resolve the 180 deg
+    #: ambiguity when no measured reference is available
+    reference_direction_deg: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.min_rays < 3:
+            raise ValueError("min_rays: must be >= 3 (three unknowns u, v, w)")
+        if not 0 < self.max_gap_deg <= 360:
+            raise ValueError("max_gap_deg: must be in (0, 360]")
+
+
+@dataclass(frozen=True)
+class TurbulenceConfig:
+    """Azimuth structure function and dissipation rate (stages ``structure``, ``epsilon``)."""
+
+    enabled: bool = True
+    #: scans per block (N of Smalikho (2020) eq. 2)
+    n_scans: int = 10
+    #: largest azimuth lag l*dtheta (deg); Smalikho (2020) requires <= 9 deg
+    max_lag_deg: float = 9.0
+    #: lag number l of the two-lag estimate, Smalikho (2020) eq. 5
+    lag_number: int = 3
+    #: spectrum model of the A-functions: "inertial" (Kolmogorov), "von_karman",
+    #: "exponential" (Banakh et al. (1999) eq. 17)
+    model: Literal["inertial", "von_karman", "exponential"] = "von_karman"
+    #: longitudinal pulsed transfer function: "physical" (with the pi of the Gaussian term)
+    #: or "printed" (Smalikho (2020) eq. 19 exactly as printed)
+    pulse_transfer: Literal["physical", "printed"] = "physical"
+
+    def __post_init__(self) -> None:
+        if self.n_scans < 1:
+            raise ValueError("n_scans: must be >= 1")
+        if not 0 < self.max_lag_deg <= 9.0:
+            raise ValueError("max_lag_deg: must be in (0, 9] (Smalikho (2020), after eq. 4)")
+        if self.lag_number < 2:
+            raise ValueError("lag_number: must be >= 2 (Smalikho (2020) eq. 5 needs l > 1)")
+
+
+@dataclass(frozen=True)
+class SonicConfig:
+    """Structure-function typing of sonic data (stage ``sonic_sf``), Gladkikh et al. (2014)."""
+
+    #: analysis window (s)
+    window_s: float = 600.0
+    #: running-mean window removed before the structure functions (s)
+    running_mean_s: float = 60.0
+    #: largest lag as a fraction of the window
+    max_lag_fraction: float = 0.1
+    #: determination-coefficient threshold k_dL
+    kd_threshold: float = 0.99850
+    #: lag (m) at which the structure function is normalised
+    normalisation_lag_m: float = 1.0
+    #: precedence: a simpler type wins when its r_max reaches this fraction (in lg r) of
+    #: the more complex type's r_max
+    precedence_tolerance: float = 0.05
+
+    def __post_init__(self) -> None:
+        _positive(self, "window_s", "running_mean_s", "max_lag_fraction", "normalisation_lag_m")
+        if not 0 < self.kd_threshold < 1:
+            raise ValueError("kd_threshold: must be in (0, 1)")
+
+
+@dataclass(frozen=True)
+class ZephirConfig:
+    """QC of ZephIR wind records."""
+
+    #: fewest packets in a 10-min average
+    min_packets: int = 100
+    #: largest proportion of packets with rain (%)
+    max_rain_percent: float = 50.0
+
+
+@dataclass(frozen=True)
+class OutputConfig:
+    """Global attributes of the products (ACDD-1.3)."""
+
+    institution: str = ""
+    creator_name: str = ""
+    creator_email: str = ""
+    project: str = ""
+    site: str = ""
+    #: zlib compression level of the NetCDF variables (0 = none)
+    compression_level: int = 4
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.compression_level <= 9:
+            raise ValueError("compression_level: must be in 0..9")
+
+
+@dataclass(frozen=True)
+class Config:
+    """The whole configuration. ``source`` names the file or preset it came from."""
+
+    instrument: InstrumentConfig = field(default_factory=InstrumentConfig)
+    qc: QCConfig = field(default_factory=QCConfig)
+    vad: VADConfig = field(default_factory=VADConfig)
+    turbulence: TurbulenceConfig = field(default_factory=TurbulenceConfig)
+    sonic: SonicConfig = field(default_factory=SonicConfig)
+    zephir: ZephirConfig = field(default_factory=ZephirConfig)
+    output: OutputConfig = field(default_factory=OutputConfig)
+    #: reader options per format (free-form tables, validated by the reader), e.g.
+    #: ``[reader.meteo2] delimiter = ","``
+    reader: dict[str, dict[str, Any]] = field(default_factory=dict)
+    source: str = "<defaults>"
+
+    def to_toml(self) -> str:
+        """The configuration as TOML text (what a product records as provenance)."""
+        return dump_toml(self)
+
+
+def _positive(obj: Any, *names: str) -> None:
+    for name in names:
+        value = getattr(obj, name)
+        if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+            raise ValueError(f"{name}: must be a finite number > 0, got {value!r}")
+
+
+# --------------------------------------------------------------------------------------
+# loading
+# --------------------------------------------------------------------------------------
+
+PRESET_PACKAGE = "cwproc.configs"
+
+
+def preset_names() -> list[str]:
+    """Names of the configuration presets shipped with cwproc."""
+    files = resources.files(PRESET_PACKAGE)
+    return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".toml"))
+
+
+def load_config(path_or_preset: str | os.PathLike | None = None) -> Config:
+    """Load a configuration from a TOML file or a preset name.
+
+    Parameters
+    ----------
+    path_or_preset : str or path, optional
+        A path to a TOML file, or the name of a preset (see :func:`preset_names`).
+        ``None`` gives the defaults (Stream Line).
+
+    Returns
+    -------
+    Config
+
+    Raises
+    ------
+    ConfigError
+        File missing, TOML syntax error, unknown key, wrong type or impossible value.
+    """
+    if path_or_preset is None:
+        return Config()
+    text: str
+    source: str
+    candidate = Path(path_or_preset)
+    if candidate.suffix == ".toml" or candidate.exists() or os.sep in str(path_or_preset):
+        source = str(candidate)
+        try:
+            text = candidate.read_text(encoding="utf-8")
+        except OSError as exc:
+            raise ConfigError(source, "-", f"cannot read: {exc.strerror or exc}") from None
+        except UnicodeDecodeError:
+            raise ConfigError(source, "-", "not UTF-8 text") from None
+    else:
+        name = str(path_or_preset)
+        if name not in preset_names():
+            raise ConfigError(
+                f"<{name}>", "-", f"no such preset; choose one of {', '.join(preset_names())}"
+            )
+        source = f"<preset {name}>"
+        text = resources.files(PRESET_PACKAGE).joinpath(f"{name}.toml").read_text("utf-8")
+    return config_from_toml(text, source=source)
+
+
+def config_from_toml(text: str, *, source: str = "<string>") -> Config:
+    """Parse and validate TOML text into a :class:`Config`."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(source, "-", f"TOML syntax error: {exc}") from None
+    return config_from_dict(data, source=source)
+
+
+def config_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Config:
+    """Validate a nested dict (as read from TOML) into a :class:`Config`."""
+    data = dict(data)
+    data.pop("source", None)
+    cfg = _build(Config, data, source, "")
+    return dataclasses.replace(cfg, source=source)
+
+
+def _build(cls: type, data: Any, source: str, prefix: str) -> Any:
+    if not isinstance(data, dict):
+        raise ConfigError(source, prefix.rstrip(".") or "-", "must be a table")
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    unknown = sorted(set(data) - set(fields))
+    if unknown:
+        key = prefix + unknown[0]
+        raise ConfigError(
+            source, key, f"unknown key; known keys here: {', '.join(sorted(fields))}"
+        )
+    kwargs = {}
+    for name, value in data.items():
+        kwargs[name] = _convert(hints[name], value, source, prefix + name)
+    try:
+        return cls(**kwargs)
+    except ValueError as exc:
+        msg = str(exc)
+        key, _, problem = msg.partition(": ")
+        if key in fields and problem:
+            raise ConfigError(source, prefix + key, problem) from None
+        raise ConfigError(source, prefix.rstrip(".") or "-", msg) from None
+
+
+def _convert(tp: Any, value: Any, source: str, key: str) -> Any:
+    origin = get_origin(tp)
+    if dataclasses.is_dataclass(tp):
+        return _build(tp, value, source, key + ".")
+    if origin in (typing.Union, types.UnionType):
+        args = get_args(tp)
+        if value is None and type(None) in args:
+            return None
+        errors = []
+        for arg in args:
+            if arg is type(None):
+                continue
+            try:
+                return _convert(arg, value, source, key)
+            except ConfigError as exc:
+                errors.append(exc.problem)
+        raise ConfigError(source, key, "; ".join(errors))
+    if origin is Literal:
+        allowed = get_args(tp)
+        if value not in allowed:
+            raise ConfigError(
+                source, key, f"must be one of {', '.join(map(repr, allowed))}, got {value!r}"
+            )
+        return value
+    if origin is dict:
+        if not isinstance(value, dict):
+            raise ConfigError(source, key, f"must be a table, got {type(value).__name__}")
+        return {str(k): v for k, v in value.items()}
+    if origin in (tuple, list):
+        if not isinstance(value, list | tuple):
+            raise ConfigError(source, key, f"must be an array, got {type(value).__name__}")
+        (item_tp, *_rest) = get_args(tp) or (Any,)
+        return tuple(_convert(item_tp, v, source, f"{key}[{i}]") for i, v in enumerate(value))
+    if tp is Any:
+        return value
+    if tp is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(source, key, f"must be true or false, got {value!r}")
+        return value
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(source, key, f"must be an integer, got {value!r}")
+        return value
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ConfigError(source, key, f"must be a number, got {value!r}")
+        if not math.isfinite(value):
+            raise ConfigError(source, key, f"must be finite, got {value!r}")
+        return float(value)
+    if tp is str:
+        if not isinstance(value, str):
+            raise ConfigError(source, key, f"must be a string, got {value!r}")
+        return value
+    raise ConfigError(source, key, f"unsupported type {tp!r}")  # a bug in cwproc, not in input
+
+
+# --------------------------------------------------------------------------------------
+# dumping (provenance)
+# --------------------------------------------------------------------------------------
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(value)
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {value!r} as TOML")
+
+
+def dump_toml(cfg: Config) -> str:
+    """Write a :class:`Config` as TOML (``None`` values are omitted)."""
+    lines = [f"# cwproc configuration (from {cfg.source})"]
+    for f in dataclasses.fields(cfg):
+        value = getattr(cfg, f.name)
+        if f.name == "source":
+            continue
+        if dataclasses.is_dataclass(value):
+            lines.append(f"\n[{f.name}]")
+            for sub in dataclasses.fields(value):
+                v = getattr(value, sub.name)
+                if v is not None:
+                    lines.append(f"{sub.name} = {_toml_value(v)}")
+        elif isinstance(value, dict):
+            for table, entries in value.items():
+                lines.append(f"\n[{f.name}.{table}]")
+                for k, v in entries.items():
+                    if isinstance(v, dict):
+                        inner = ", ".join(f"{kk} = {_toml_value(vv)}" for kk, vv in v.items())
+                        lines.append(f"{k} = {{ {inner} }}")
+                    else:
+                        lines.append(f"{k} = {_toml_value(v)}")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,1 @@
+"""Configuration presets (TOML) shipped with cwproc."""

@@ -1,0 +1,123 @@
+"""Readers of instrument files (one module per format) and the product writer.
+
+:func:`detect_format` recognises a file by its content (not its name) and
+:func:`read` dispatches to the reader of that format. Every reader has the signature
+``read_<format>(path, **options) -> xarray.Dataset`` and returns one of the
+canonical datasets of DESIGN.md section 2 (scan, wind-record or sonic), raising
+:class:`cwproc.errors.InputFileError` (file, line, problem) on bad input.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from enum import StrEnum
+from typing import Any
+
+import xarray as xr
+
+from cwproc.errors import InputFileError
+
+
+class Format(StrEnum):
+    """File formats cwproc reads."""
+
+    HPL = "hpl"  # Halo Photonics Stream Line
+    SCAN_NETCDF = "scan_netcdf"  # cwproc canonical scan dataset (e.g. cw line of sight)
+    ZEPHIR_CSV = "zephir_csv"  # ZephIR 300 Waltz / CSV Converter export
+    WINDCUBE_STA = "windcube_sta"  # Leosphere WindCube v1 10-min statistics
+    TOA5 = "toa5"  # Campbell Scientific ASCII
+    TOB1 = "tob1"  # Campbell Scientific binary
+    GHG = "ghg"  # LI-COR GHG .data text
+    METEO2 = "meteo2"  # IAO SB RAS Meteo-2 text log (configurable layout)
+    GILL = "gill"  # Gill WindMaster / R3 UVW ASCII
+
+
+#: format -> "module:function" of its reader
+READERS: dict[Format, str] = {
+    Format.HPL: "cwproc.io.halo:read_hpl",
+    Format.SCAN_NETCDF: "cwproc.io.scan_netcdf:read_scan_netcdf",
+    Format.ZEPHIR_CSV: "cwproc.io.zephir:read_zephir_csv",
+    Format.WINDCUBE_STA: "cwproc.io.windcube:read_windcube_sta",
+    Format.TOA5: "cwproc.io.campbell:read_toa5",
+    Format.TOB1: "cwproc.io.campbell:read_tob1",
+    Format.GHG: "cwproc.io.licor:read_ghg",
+    Format.METEO2: "cwproc.io.meteo2:read_meteo2",
+    Format.GILL: "cwproc.io.gill:read_gill",
+}
+
+#: what each format holds: "scan", "wind_record" or "sonic"
+KIND: dict[Format, str] = {
+    Format.HPL: "scan",
+    Format.SCAN_NETCDF: "scan",
+    Format.ZEPHIR_CSV: "wind_record",
+    Format.WINDCUBE_STA: "wind_record",
+    Format.TOA5: "sonic",
+    Format.TOB1: "sonic",
+    Format.GHG: "sonic",
+    Format.METEO2: "sonic",
+    Format.GILL: "sonic",
+}
+
+_HEAD_BYTES = 4096
+
+
+def sniff_format(head: bytes) -> Format | None:
+    """The format of a file from its first bytes, or ``None`` when not recognised."""
+    if head.startswith(b"\x89HDF\r\n\x1a\n") or head.startswith(b"CDF\x01") or head.startswith(
+        b"CDF\x02"
+    ):
+        return Format.SCAN_NETCDF
+    text = head.decode("latin-1")
+    first = text.split("\n", 1)[0]
+    if first.startswith("Filename:"):
+        return Format.HPL
+    if first.startswith('"TOA5"'):
+        return Format.TOA5
+    if first.startswith('"TOB1"'):
+        return Format.TOB1
+    if first.startswith(("HeaderSize=", "HeaderLength=")):
+        return Format.WINDCUBE_STA
+    if "CSV Converter" in first or ("Time and Date" in text and ";" in text):
+        return Format.ZEPHIR_CSV
+    if first.startswith("Model:") or "\nDATAH\t" in text:
+        return Format.GHG
+    if first.startswith("# cwproc meteo2") or first.startswith("#meteo2"):
+        return Format.METEO2
+    stripped = first.lstrip("\x02")
+    if len(stripped) > 2 and stripped[1] == "," and stripped[0].isalpha() and ",M," in stripped:
+        return Format.GILL
+    return None
+
+
+def detect_format(path: str | os.PathLike) -> Format:
+    """Recognise the format of ``path`` from its content.
+
+    Raises
+    ------
+    InputFileError
+        The file cannot be read, is empty, or is of no format cwproc reads.
+    """
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(_HEAD_BYTES)
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    if not head:
+        raise InputFileError(path, "file is empty")
+    fmt = sniff_format(head)
+    if fmt is None:
+        raise InputFileError(path, "not a format cwproc reads (unrecognised first line)", 1)
+    return fmt
+
+
+def get_reader(fmt: Format | str):
+    """The reader function of a format."""
+    module_name, func = READERS[Format(fmt)].split(":")
+    return getattr(importlib.import_module(module_name), func)
+
+
+def read(path: str | os.PathLike, fmt: Format | str | None = None, **options: Any) -> xr.Dataset:
+    """Read one file with the reader of its format (detected when ``fmt`` is None)."""
+    fmt = detect_format(path) if fmt in (None, "auto") else Format(fmt)
+    return get_reader(fmt)(path, **options)

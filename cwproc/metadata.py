@@ -1,0 +1,254 @@
+"""One declaration per variable that cwproc writes: CF-1.10 attributes of every product.
+
+Stages and readers never write ``units``/``standard_name``/``long_name`` strings
+themselves: they name variables as listed here and :func:`apply_metadata` (called by
+the NetCDF writer) attaches the attributes. A test checks that every variable of
+every product is declared here. Stage-specific attributes that describe *what was
+done* (method, parameters, references) are set by the stages in ``attrs`` and are
+kept.
+
+To add a variable: add one :class:`VarMeta` entry to ``VARIABLES`` (keep the table
+grouped by product).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import xarray as xr
+
+
+@dataclass(frozen=True)
+class VarMeta:
+    """CF attributes of one variable."""
+
+    long_name: str
+    units: str | None
+    standard_name: str | None = None
+    comment: str | None = None
+    references: str | None = None
+    #: flag variables: values and their meanings (CF flag_values / flag_meanings)
+    flag_values: tuple[int, ...] | None = None
+    flag_meanings: str | None = None
+    #: CF "positive" attribute for vertical coordinates
+    positive: str | None = None
+    axis: str | None = None
+
+    def attrs(self) -> dict[str, object]:
+        """The attributes as a dict, without the ``None`` entries."""
+        out: dict[str, object] = {"long_name": self.long_name}
+        if self.units is not None:
+            out["units"] = self.units
+        for key in ("standard_name", "comment", "references", "flag_meanings", "positive", "axis"):
+            value = getattr(self, key)
+            if value is not None:
+                out[key] = value
+        if self.flag_values is not None:
+            out["flag_values"] = list(self.flag_values)
+        return out
+
+
+SMALIKHO_2020 = (
+    "Smalikho I.N. (2020), Wind transfer of turbulent inhomogeneities when estimating the "
+    "dissipation rate from a conically scanning coherent Doppler lidar. Part I. Theory, "
+    "Atmos. Oceanic Opt."
+)
+BANAKH_1999 = (
+    "Banakh V.A., Werner Ch., Krivolutskii N.P., Smalikho I.N. (1999), Computer simulation "
+    "of cw Doppler wind lidar operation in a turbulent atmosphere, Atmos. Oceanic Opt."
+)
+GLADKIKH_2014 = (
+    "Gladkikh V.A., Nevzorova I.V., Odintsov S.L., Fedorov V.A. (2014), Structure functions "
+    "of wind velocity components over an inhomogeneous underlying surface, Atmos. Oceanic Opt."
+)
+WAGNER_DTU = (
+    "Wagner R., Mikkelsen T., Courtney M. (DTU), Investigation of turbulence measurements "
+    "with a continuous wave, conically scanning lidar, Risoe-R report."
+)
+
+#: VAD qc flag meanings (bits may combine; 0 = good)
+VAD_FLAG_MEANINGS = "good too_few_rays azimuth_gap_too_large bad_fit"
+
+VARIABLES: dict[str, VarMeta] = {
+    # ---------------------------------------------------------------- coordinates
+    "time": VarMeta("time (UTC)", None, "time", axis="T"),
+    "height": VarMeta(
+        "height above the instrument", "m", "height", positive="up", axis="Z"
+    ),
+    "range": VarMeta("distance from the lidar to the centre of the range gate", "m"),
+    "azimuth": VarMeta(
+        "azimuth of the beam, clockwise from north", "degree", "sensor_azimuth_angle"
+    ),
+    "elevation": VarMeta("elevation of the beam above the horizon", "degree"),
+    "scan": VarMeta("index of the 360 degree rotation the ray belongs to", "1"),
+    "lag": VarMeta("azimuth lag number l of the structure function", "1"),
+    "ray": VarMeta("ray index", "1"),
+    # ---------------------------------------------------------------- scan dataset
+    "radial_velocity": VarMeta(
+        "radial (line-of-sight) velocity, positive away from the lidar",
+        "m s-1",
+        "radial_velocity_of_scatterers_away_from_instrument",
+    ),
+    "snr": VarMeta("signal-to-noise ratio (Halo intensity minus 1)", "1"),
+    "beta": VarMeta("attenuated backscatter coefficient", "m-1 sr-1"),
+    "spectral_width": VarMeta("Doppler spectral width", "m s-1"),
+    "pitch": VarMeta("instrument pitch from the internal inclinometer", "degree", "platform_pitch"),
+    "roll": VarMeta("instrument roll from the internal inclinometer", "degree", "platform_roll"),
+    "qc_flag_radial": VarMeta(
+        "radial velocity screening flag",
+        "1",
+        comment="0 good, 1 snr below threshold, 2 robust outlier, 4 not finite",
+        flag_values=(0, 1, 2, 4),
+        flag_meanings="good low_snr outlier not_finite",
+    ),
+    # ---------------------------------------------------------------- wind product
+    "u": VarMeta("eastward wind", "m s-1", "eastward_wind"),
+    "v": VarMeta("northward wind", "m s-1", "northward_wind"),
+    "w": VarMeta("upward air velocity", "m s-1", "upward_air_velocity"),
+    "wind_speed": VarMeta("horizontal wind speed", "m s-1", "wind_speed"),
+    "wind_direction": VarMeta(
+        "wind direction (from which the wind blows, clockwise from north)",
+        "degree",
+        "wind_from_direction",
+    ),
+    "u_error": VarMeta(
+        "standard error of the eastward wind", "m s-1", "eastward_wind standard_error"
+    ),
+    "v_error": VarMeta(
+        "standard error of the northward wind", "m s-1", "northward_wind standard_error"
+    ),
+    "w_error": VarMeta(
+        "standard error of the upward air velocity",
+        "m s-1",
+        "upward_air_velocity standard_error",
+    ),
+    "wind_speed_error": VarMeta(
+        "standard error of the horizontal wind speed", "m s-1", "wind_speed standard_error"
+    ),
+    "wind_direction_error": VarMeta(
+        "standard error of the wind direction", "degree", "wind_from_direction standard_error"
+    ),
+    "residual_std": VarMeta(
+        "standard deviation of the radial-velocity residuals about the VAD fit", "m s-1"
+    ),
+    "n_rays": VarMeta("number of rays used in the VAD fit", "1"),
+    "max_azimuth_gap": VarMeta("largest azimuth gap between rays used in the fit", "degree"),
+    "qc_flag": VarMeta(
+        "VAD fit quality flag (bits combine)",
+        "1",
+        flag_values=None,
+        flag_meanings=None,
+        comment="0 good; bit 1 too few rays; bit 2 azimuth gap too large; bit 4 bad fit",
+    ),
+    # ---------------------------------------------------------------- turbulence product
+    "structure_function": VarMeta(
+        "azimuth structure function of the radial velocity D_L(l dtheta)",
+        "m2 s-2",
+        references=SMALIKHO_2020 + ", eqs. 1-2",
+    ),
+    "n_pairs": VarMeta("number of ray pairs in the structure function", "1"),
+    "epsilon": VarMeta(
+        "turbulent kinetic energy dissipation rate (method 2: volume averaging and wind "
+        "transport accounted for)",
+        "m2 s-3",
+        references=SMALIKHO_2020 + ", eqs. 5, 15-20",
+    ),
+    "epsilon_method1": VarMeta(
+        "turbulent kinetic energy dissipation rate (method 1: no wind transport)",
+        "m2 s-3",
+        references=SMALIKHO_2020 + ", eq. 5 with A_1 = A_perp",
+    ),
+    "epsilon_ratio": VarMeta(
+        "ratio of the method-1 to the method-2 dissipation rate estimates",
+        "1",
+        references=SMALIKHO_2020 + ", eq. 21",
+    ),
+    "mu": VarMeta("ratio of the mean wind speed to the linear scanning speed, U/V_s", "1"),
+    "scan_speed": VarMeta("linear scanning speed V_s = 2 pi h/(T_scan tan phi)", "m s-1"),
+    "transverse_resolution": VarMeta(
+        "transverse sampling interval dy = dtheta R'", "m", references=SMALIKHO_2020
+    ),
+    "noise_std": VarMeta(
+        "instrumental error of the radial velocity sigma_e", "m s-1", references=SMALIKHO_2020
+    ),
+    "velocity_variance": VarMeta(
+        "variance of the radial velocity, corrected for noise and volume averaging",
+        "m2 s-2",
+        references=BANAKH_1999,
+    ),
+    "integral_scale": VarMeta(
+        "integral scale of turbulence L_V", "m", references=BANAKH_1999 + ", eq. 19"
+    ),
+    "n_scans": VarMeta("number of scans in the block", "1"),
+    "turbulence_flag": VarMeta(
+        "dissipation-rate quality flag (bits combine)",
+        "1",
+        comment=(
+            "0 good; bit 1 too few pairs; bit 2 lag beyond the inertial range; "
+            "bit 4 mu beyond method 1 validity; bit 8 fit failed"
+        ),
+    ),
+    # ---------------------------------------------------------------- sonic SF product
+    "sf_type": VarMeta(
+        "structure-function type",
+        "1",
+        flag_values=(0, 1, 2, 3),
+        flag_meanings="none linear parabolic parabolic_then_linear",
+        references=GLADKIKH_2014 + ", eqs. 4-6",
+    ),
+    "r_min": VarMeta("smallest lag of the fit", "m", references=GLADKIKH_2014),
+    "r_max": VarMeta("largest lag of the fit", "m", references=GLADKIKH_2014),
+    "r_s": VarMeta("lag of the structure-function normalisation", "m", references=GLADKIKH_2014),
+    "k_d": VarMeta("determination coefficient of the fit", "1", references=GLADKIKH_2014),
+    "mean_horizontal_wind": VarMeta("mean horizontal wind speed of the window", "m s-1",
+                                    "wind_speed"),
+    # ---------------------------------------------------------------- sonic dataset
+    "temperature": VarMeta("sonic temperature", "degC", "virtual_temperature"),
+    "diagnostic": VarMeta("instrument diagnostic word (0 = good)", "1"),
+    # ---------------------------------------------------------------- Monte-Carlo product
+    "epsilon_rel_error": VarMeta(
+        "relative RMS error of the dissipation rate estimate", "1", references=BANAKH_1999
+    ),
+    "variance_rel_error": VarMeta(
+        "relative RMS error of the velocity variance estimate", "1", references=BANAKH_1999
+    ),
+    "integral_scale_rel_error": VarMeta(
+        "relative RMS error of the integral scale estimate", "1", references=BANAKH_1999
+    ),
+}
+
+
+def apply_metadata(ds: xr.Dataset, table: Mapping[str, VarMeta] = VARIABLES) -> xr.Dataset:
+    """Attach the declared CF attributes to every variable and coordinate of ``ds``.
+
+    Attributes already set by a stage (method, parameters, references) are kept;
+    the declared ``long_name``/``units``/``standard_name`` take precedence.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+    table : mapping, optional
+        The metadata table (default: :data:`VARIABLES`).
+
+    Returns
+    -------
+    xarray.Dataset
+        A shallow copy with attributes set.
+    """
+    out = ds.copy()
+    for name in list(out.variables):
+        meta = table.get(str(name))
+        if meta is None:
+            continue
+        attrs = dict(out[name].attrs)
+        attrs.update(meta.attrs())
+        if name == "time":
+            attrs.pop("units", None)  # set through the encoding by the writer
+        out[name].attrs = attrs
+    return out
+
+
+def undeclared_variables(ds: xr.Dataset, table: Mapping[str, VarMeta] = VARIABLES) -> list[str]:
+    """Names of the variables and coordinates of ``ds`` that have no declaration."""
+    return sorted(str(n) for n in ds.variables if str(n) not in table)

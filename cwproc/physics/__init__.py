@@ -1,0 +1,1 @@
+"""Pure physics: geometry, spectra, probe-volume transfer functions, A-functions, VAD errors."""

@@ -1,0 +1,341 @@
+"""Composition of the stages: the only module that knows their order.
+
+``retrieve_files`` is what ``cwproc retrieve`` and ``cwproc batch`` call. It reads
+every input on its own (a bad file fails alone, with one line naming the file, the
+line and the problem), groups what belongs together into *product units*, runs the
+stage chain of each unit and writes the products atomically.
+
+Stage chains
+------------
+scan data (Stream Line ``.hpl``, cw line-of-sight NetCDF)::
+
+    read -> concat_scans -> qc.screen_radial_velocity -> vad.fit_vad          -> wind product
+                                                   \\-> structure.azimuth_structure_function
+                                                        -> epsilon.estimate_epsilon -> turbulence product
+wind records (ZephIR, WindCube)::
+
+    read -> zephir.wind_record_product (qc, TI corrected for volume averaging) -> wind product
+sonic data::
+
+    read -> sonic_sf.structure_function_types -> sonic SF product (+ summary tables)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections import defaultdict
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from cwproc.config import Config
+from cwproc.errors import CwprocError, InputFileError
+from cwproc.io import KIND, Format, detect_format, get_reader
+from cwproc.io.netcdf import sha256_file, write_product
+from cwproc.metadata import BANAKH_1999, GLADKIKH_2014, SMALIKHO_2020, WAGNER_DTU
+
+
+@dataclass
+class InputFile:
+    """One input: its path, format, checksum and (once read) dataset."""
+
+    path: Path
+    format: Format
+    sha256: str
+    dataset: xr.Dataset | None = None
+
+
+@dataclass
+class ProductUnit:
+    """Inputs that make one set of products (e.g. one instrument-day of scans)."""
+
+    key: str
+    kind: str
+    inputs: list[InputFile] = field(default_factory=list)
+
+
+@dataclass
+class RunReport:
+    """What a run did: products written and one line per failure."""
+
+    written: list[Path] = field(default_factory=list)
+    failures: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.failures
+
+    def extend(self, other: RunReport) -> None:
+        self.written.extend(other.written)
+        self.failures.extend(other.failures)
+
+
+# --------------------------------------------------------------------------------------
+# reading and grouping
+# --------------------------------------------------------------------------------------
+
+
+def reader_options(config: Config, fmt: Format) -> dict:
+    """Options of the reader of ``fmt`` from the ``[reader.<format>]`` config table."""
+    return dict(config.reader.get(fmt.value, {}))
+
+
+def read_input(path: str | os.PathLike, config: Config) -> InputFile:
+    """Detect the format of one file, checksum it and read it.
+
+    Raises
+    ------
+    InputFileError
+        Whatever the reader found wrong with the file.
+    """
+    path = Path(path)
+    fmt = (
+        detect_format(path)
+        if config.instrument.format == "auto"
+        else Format(config.instrument.format)
+    )
+    try:
+        checksum = sha256_file(path)
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    ds = get_reader(fmt)(path, **reader_options(config, fmt))
+    return InputFile(path=path, format=fmt, sha256=checksum, dataset=ds)
+
+
+def _day(ds: xr.Dataset) -> str:
+    t = ds["time"].values
+    t = t[~np.isnat(t)]
+    if t.size == 0:
+        return "nodate"
+    return np.datetime_as_string(np.min(t), unit="D").replace("-", "")
+
+
+def unit_key(item: InputFile) -> tuple[str, str]:
+    """(kind, key) of the product unit an input belongs to.
+
+    Scan files group by instrument, system id, scan elevation and UTC day; wind
+    records and sonic files are one unit each (named after the file).
+    """
+    kind = KIND[item.format]
+    ds = item.dataset
+    assert ds is not None
+    if kind == "scan":
+        system = str(ds.attrs.get("system_id", "")) or "x"
+        instrument = str(ds.attrs.get("instrument_kind", item.format.value))
+        return kind, f"{instrument}_{system}_{_day(ds)}"
+    return kind, Path(item.path).name.split(".")[0]
+
+
+def group_units(items: Iterable[InputFile]) -> list[ProductUnit]:
+    """Group read inputs into product units, in a stable order."""
+    units: dict[tuple[str, str], ProductUnit] = {}
+    for item in items:
+        kind, key = unit_key(item)
+        units.setdefault((kind, key), ProductUnit(key=key, kind=kind)).inputs.append(item)
+    return [units[k] for k in sorted(units)]
+
+
+# --------------------------------------------------------------------------------------
+# stage chains (pure: Dataset -> Datasets)
+# --------------------------------------------------------------------------------------
+
+
+def probe_for(config: Config):
+    """The probe-volume description of the configured instrument (physics object)."""
+    from cwproc.physics.transfer import probe_from_config
+
+    return probe_from_config(config.instrument, pulse_transfer=config.turbulence.pulse_transfer)
+
+
+def process_scans(scans: xr.Dataset, config: Config) -> dict[str, xr.Dataset]:
+    """Wind and turbulence products from a scan dataset (already concatenated)."""
+    from cwproc.stages import epsilon, qc, structure, vad
+
+    screened = qc.screen_radial_velocity(
+        scans, snr_min=config.qc.snr_min, outlier_threshold=config.qc.outlier_threshold
+    )
+    wind = vad.fit_vad(
+        screened,
+        min_rays=config.vad.min_rays,
+        max_gap_deg=config.vad.max_gap_deg,
+        reference_direction_deg=config.vad.reference_direction_deg,
+    )
+    products = {"wind": wind}
+    if config.turbulence.enabled and int(wind.sizes.get("time", 0)) >= 1:
+        sf = structure.azimuth_structure_function(
+            screened,
+            wind,
+            n_scans=config.turbulence.n_scans,
+            max_lag_deg=config.turbulence.max_lag_deg,
+        )
+        if int(sf.sizes.get("time", 0)) >= 1:
+            products["turbulence"] = epsilon.estimate_epsilon(
+                sf,
+                probe=probe_for(config),
+                lag_number=config.turbulence.lag_number,
+                model=config.turbulence.model,
+            )
+    return products
+
+
+def process_wind_record(record: xr.Dataset, config: Config) -> dict[str, xr.Dataset]:
+    """Wind product from an instrument's own 10-min/1-s wind records (ZephIR, WindCube)."""
+    from cwproc.stages import zephir
+
+    return {
+        "wind": zephir.wind_record_product(
+            record,
+            min_packets=config.zephir.min_packets,
+            max_rain_percent=config.zephir.max_rain_percent,
+            z_r_coefficient=config.instrument.z_r_coefficient,
+        )
+    }
+
+
+def process_sonic(sonic: xr.Dataset, config: Config) -> dict[str, xr.Dataset]:
+    """Structure-function-type product of a sonic dataset."""
+    from cwproc.stages import sonic_sf
+
+    s = config.sonic
+    return {
+        "sf": sonic_sf.structure_function_types(
+            sonic,
+            window_s=s.window_s,
+            running_mean_s=s.running_mean_s,
+            max_lag_fraction=s.max_lag_fraction,
+            kd_threshold=s.kd_threshold,
+            normalisation_lag_m=s.normalisation_lag_m,
+            precedence_tolerance=s.precedence_tolerance,
+        )
+    }
+
+
+def concat_unit(unit: ProductUnit) -> xr.Dataset:
+    """The datasets of a unit as one (scans: concatenated in time order)."""
+    datasets = [i.dataset for i in unit.inputs if i.dataset is not None]
+    if unit.kind == "scan":
+        from cwproc.stages.scans import concat_scans
+
+        return concat_scans(datasets)
+    if len(datasets) != 1:
+        raise CwprocError(f"unit {unit.key}: expected one input, got {len(datasets)}")
+    return datasets[0]
+
+
+def process_unit(unit: ProductUnit, config: Config) -> dict[str, xr.Dataset]:
+    """Run the stage chain of one unit; returns ``{product_name: dataset}``."""
+    ds = concat_unit(unit)
+    if unit.kind == "scan":
+        return process_scans(ds, config)
+    if unit.kind == "wind_record":
+        return process_wind_record(ds, config)
+    return process_sonic(ds, config)
+
+
+# --------------------------------------------------------------------------------------
+# writing
+# --------------------------------------------------------------------------------------
+
+_TITLES = {
+    "wind": ("Wind profile", "Horizontal and vertical wind from VAD fits of conical scans"),
+    "turbulence": (
+        "Turbulence from conical scans",
+        "Azimuth structure function, dissipation rate (methods 1 and 2), noise, velocity "
+        "variance and integral scale",
+    ),
+    "sf": (
+        "Structure-function types of sonic anemometer data",
+        "Types and fitted coefficients of the normalised structure functions of the wind "
+        "components per 10-minute window",
+    ),
+}
+_REFERENCES = {
+    "wind": SMALIKHO_2020,
+    "turbulence": SMALIKHO_2020 + "; " + BANAKH_1999,
+    "sf": GLADKIKH_2014,
+}
+
+
+def product_path(outdir: str | os.PathLike, unit: ProductUnit, name: str) -> Path:
+    """``OUTDIR/<unit key>_<product>.nc``."""
+    return Path(outdir) / f"{unit.key}_{name}.nc"
+
+
+def write_unit_products(
+    unit: ProductUnit, products: dict[str, xr.Dataset], outdir: str | os.PathLike, config: Config
+) -> list[Path]:
+    """Write the products of one unit atomically with provenance; returns the paths."""
+    written = []
+    instrument_attrs = {}
+    first = unit.inputs[0].dataset if unit.inputs else None
+    if first is not None:
+        instrument_attrs["instrument"] = str(first.attrs.get("instrument", ""))
+    for name, ds in products.items():
+        title, summary = _TITLES.get(name, (name, name))
+        if unit.kind == "wind_record":
+            title, summary = "Wind profile (instrument wind records)", (
+                "Wind speed, direction and turbulence intensity from the instrument's own "
+                "averages, with the turbulence intensity corrected for volume averaging"
+            )
+            refs = WAGNER_DTU
+        else:
+            refs = _REFERENCES.get(name, "")
+        path = product_path(outdir, unit, name)
+        written.append(
+            write_product(
+                ds,
+                path,
+                title=f"cwproc {title}: {unit.key}",
+                summary=summary,
+                inputs=[i.path for i in unit.inputs],
+                checksums={os.fspath(i.path): i.sha256 for i in unit.inputs},
+                config_toml=config.to_toml(),
+                references=refs,
+                extra_attrs=instrument_attrs,
+                compression_level=config.output.compression_level,
+            )
+        )
+    return written
+
+
+def retrieve_files(
+    paths: Sequence[str | os.PathLike], outdir: str | os.PathLike, config: Config
+) -> RunReport:
+    """Read, process and write everything; never stops at the first bad input.
+
+    Returns
+    -------
+    RunReport
+        Products written and one line per failed input or unit.
+    """
+    report = RunReport()
+    items = []
+    for p in paths:
+        try:
+            items.append(read_input(p, config))
+        except CwprocError as exc:
+            report.failures.append(str(exc))
+    for unit in group_units(items):
+        try:
+            products = process_unit(unit, config)
+            report.written.extend(write_unit_products(unit, products, outdir, config))
+        except CwprocError as exc:
+            report.failures.append(str(exc))
+    return report
+
+
+def replace_config(config: Config, **sections) -> Config:
+    """A copy of ``config`` with whole sections replaced (helper for callers and tests)."""
+    return dataclasses.replace(config, **sections)
+
+
+def unit_inputs(units: Iterable[ProductUnit]) -> dict[str, list[str]]:
+    """``{unit key: [input paths]}`` (for reports and the batch ledger)."""
+    out: dict[str, list[str]] = defaultdict(list)
+    for u in units:
+        out[u.key].extend(os.fspath(i.path) for i in u.inputs)
+    return dict(out)

@@ -1,0 +1,1 @@
+"""The virtual instrument: turbulent wind fields, cw and pulsed lidars, sonic series."""

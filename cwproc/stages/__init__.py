@@ -1,0 +1,1 @@
+"""Processing stages: ``f(ds: xarray.Dataset, *, params) -> xarray.Dataset``, no I/O."""

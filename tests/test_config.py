@@ -1,0 +1,56 @@
+"""Configuration: presets load, bad keys/types/values give one clear ConfigError."""
+
+from __future__ import annotations
+
+import pytest
+
+from cwproc.config import Config, config_from_toml, load_config, preset_names
+from cwproc.errors import ConfigError
+
+
+@pytest.mark.parametrize("name", preset_names())
+def test_every_preset_loads_and_round_trips(name):
+    cfg = load_config(name)
+    again = config_from_toml(cfg.to_toml(), source="roundtrip")
+    assert again.instrument == cfg.instrument
+    assert again.turbulence == cfg.turbulence
+    assert again.reader == cfg.reader
+
+
+def test_defaults_are_stream_line():
+    cfg = Config()
+    assert cfg.instrument.delta_p_m == 15.3
+    assert cfg.instrument.delta_r_m == 18.0
+
+
+@pytest.mark.parametrize(
+    ("text", "key", "words"),
+    [
+        ("[qc]\nsnr_minn = 1", "qc.snr_minn", "unknown key"),
+        ("[qc]\nsnr_min = 'high'", "qc.snr_min", "must be a number"),
+        ("[instrument]\ndelta_r_m = -18.0", "instrument.delta_r_m", "> 0"),
+        ("[turbulence]\nmax_lag_deg = 20", "turbulence.max_lag_deg", "9"),
+        ("[turbulence]\nmodel = 'kolmogorov'", "turbulence.model", "one of"),
+        ("[vad]\nmin_rays = 2.5", "vad.min_rays", "integer"),
+        ("[nosuch]\na = 1", "nosuch", "unknown key"),
+        ("qc = 3", "qc", "table"),
+    ],
+)
+def test_bad_config_names_key_and_problem(text, key, words):
+    with pytest.raises(ConfigError) as err:
+        config_from_toml(text, source="my.toml")
+    assert err.value.key == key
+    assert words in err.value.problem
+    assert str(err.value).startswith("my.toml: ")
+
+
+def test_toml_syntax_error_names_file():
+    with pytest.raises(ConfigError, match="bad.toml.*TOML syntax"):
+        config_from_toml("[qc\n", source="bad.toml")
+
+
+def test_missing_file_and_unknown_preset(tmp_path):
+    with pytest.raises(ConfigError, match="cannot read"):
+        load_config(tmp_path / "nope.toml")
+    with pytest.raises(ConfigError, match="no such preset"):
+        load_config("nosuchpreset")
