@@ -9,9 +9,9 @@ Stage chains
 ------------
 scan data (Stream Line ``.hpl``, cw line-of-sight NetCDF)::
 
-    read -> concat_scans -> qc.screen_radial_velocity -> vad.fit_vad          -> wind product
-                                                   \\-> structure.azimuth_structure_function
-                                                        -> epsilon.estimate_epsilon -> turbulence product
+    read -> concat_scans -> qc.screen_radial_velocity -> vad.fit_vad -> wind product
+    screened scans + wind -> structure.azimuth_structure_function
+                          -> epsilon.estimate_epsilon -> turbulence product
 wind records (ZephIR, WindCube)::
 
     read -> zephir.wind_record_product (qc, TI corrected for volume averaging) -> wind product

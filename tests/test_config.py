@@ -45,7 +45,7 @@ def test_bad_config_names_key_and_problem(text, key, words):
 
 
 def test_toml_syntax_error_names_file():
-    with pytest.raises(ConfigError, match="bad.toml.*TOML syntax"):
+    with pytest.raises(ConfigError, match=r"bad\.toml.*TOML syntax"):
         config_from_toml("[qc\n", source="bad.toml")
 
 

@@ -17,7 +17,8 @@ def expand_inputs(inputs: tuple[str, ...]) -> list[Path]:
     for item in inputs:
         p = Path(item)
         if p.is_dir():
-            out.extend(sorted(q for q in p.rglob("*") if q.is_file() and not q.name.startswith(".")))
+            found = (q for q in p.rglob("*") if q.is_file() and not q.name.startswith("."))
+            out.extend(sorted(found))
         else:
             out.append(p)
     return out
