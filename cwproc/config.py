@@ -177,12 +177,21 @@ class OutputConfig:
     creator_email: str = ""
     project: str = ""
     site: str = ""
+    #: instrument position (decimal degrees north / east, metres above sea level); when
+    #: set, the products carry ACDD geospatial attributes
+    latitude: float | None = None
+    longitude: float | None = None
+    altitude_m: float | None = None
     #: zlib compression level of the NetCDF variables (0 = none)
     compression_level: int = 4
 
     def __post_init__(self) -> None:
         if not 0 <= self.compression_level <= 9:
             raise ValueError("compression_level: must be in 0..9")
+        if self.latitude is not None and not -90 <= self.latitude <= 90:
+            raise ValueError("latitude: must be in [-90, 90]")
+        if self.longitude is not None and not -180 <= self.longitude <= 360:
+            raise ValueError("longitude: must be in [-180, 360]")
 
 
 @dataclass(frozen=True)
@@ -293,9 +302,7 @@ def _build(cls: type, data: Any, source: str, prefix: str) -> Any:
     unknown = sorted(set(data) - set(fields))
     if unknown:
         key = prefix + unknown[0]
-        raise ConfigError(
-            source, key, f"unknown key; known keys here: {', '.join(sorted(fields))}"
-        )
+        raise ConfigError(source, key, f"unknown key; known keys here: {', '.join(sorted(fields))}")
     kwargs = {}
     for name, value in data.items():
         kwargs[name] = _convert(hints[name], value, source, prefix + name)

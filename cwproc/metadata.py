@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+import numpy as np
 import xarray as xr
 
 
@@ -30,22 +31,38 @@ class VarMeta:
     references: str | None = None
     #: flag variables: values and their meanings (CF flag_values / flag_meanings)
     flag_values: tuple[int, ...] | None = None
+    #: bit flags: the masks (CF flag_masks) whose meanings ``flag_meanings`` lists
+    flag_masks: tuple[int, ...] | None = None
     flag_meanings: str | None = None
     #: CF "positive" attribute for vertical coordinates
     positive: str | None = None
     axis: str | None = None
+    #: ACDD coverage_content_type: physicalMeasurement, qualityInformation,
+    #: auxiliaryInformation, coordinate, modelResult, referenceInformation
+    coverage_content_type: str = "physicalMeasurement"
 
     def attrs(self) -> dict[str, object]:
         """The attributes as a dict, without the ``None`` entries."""
         out: dict[str, object] = {"long_name": self.long_name}
         if self.units is not None:
             out["units"] = self.units
-        for key in ("standard_name", "comment", "references", "flag_meanings", "positive", "axis"):
+        keys = (
+            "standard_name",
+            "comment",
+            "references",
+            "flag_meanings",
+            "positive",
+            "axis",
+            "coverage_content_type",
+        )
+        for key in keys:
             value = getattr(self, key)
             if value is not None:
                 out[key] = value
         if self.flag_values is not None:
             out["flag_values"] = list(self.flag_values)
+        if self.flag_masks is not None:
+            out["flag_masks"] = list(self.flag_masks)
         return out
 
 
@@ -67,14 +84,17 @@ WAGNER_DTU = (
     "with a continuous wave, conically scanning lidar, Risoe-R report."
 )
 
-#: VAD qc flag meanings (bits may combine; 0 = good)
-VAD_FLAG_MEANINGS = "good too_few_rays azimuth_gap_too_large bad_fit"
 
 VARIABLES: dict[str, VarMeta] = {
     # ---------------------------------------------------------------- coordinates
-    "time": VarMeta("time (UTC)", None, "time", axis="T"),
+    "time": VarMeta("time (UTC)", None, "time", axis="T", coverage_content_type="coordinate"),
     "height": VarMeta(
-        "height above the instrument", "m", "height", positive="up", axis="Z"
+        "height above the instrument",
+        "m",
+        "height",
+        positive="up",
+        axis="Z",
+        coverage_content_type="coordinate",
     ),
     "range": VarMeta("distance from the lidar to the centre of the range gate", "m"),
     "azimuth": VarMeta(
@@ -96,11 +116,11 @@ VARIABLES: dict[str, VarMeta] = {
     "pitch": VarMeta("instrument pitch from the internal inclinometer", "degree", "platform_pitch"),
     "roll": VarMeta("instrument roll from the internal inclinometer", "degree", "platform_roll"),
     "qc_flag_radial": VarMeta(
-        "radial velocity screening flag",
+        "radial velocity screening flag (bits combine; 0 = good)",
         "1",
-        comment="0 good, 1 snr below threshold, 2 robust outlier, 4 not finite",
-        flag_values=(0, 1, 2, 4),
-        flag_meanings="good low_snr outlier not_finite",
+        comment="0 good; bit 1 SNR below threshold; bit 2 robust outlier; bit 4 not finite",
+        flag_masks=(1, 2, 4),
+        flag_meanings="low_snr outlier not_finite",
     ),
     # ---------------------------------------------------------------- wind product
     "u": VarMeta("eastward wind", "m s-1", "eastward_wind"),
@@ -135,10 +155,10 @@ VARIABLES: dict[str, VarMeta] = {
     "n_rays": VarMeta("number of rays used in the VAD fit", "1"),
     "max_azimuth_gap": VarMeta("largest azimuth gap between rays used in the fit", "degree"),
     "qc_flag": VarMeta(
-        "VAD fit quality flag (bits combine)",
+        "wind quality flag (bits combine; 0 = good)",
         "1",
-        flag_values=None,
-        flag_meanings=None,
+        flag_masks=(1, 2, 4),
+        flag_meanings="too_few_rays azimuth_gap_too_large bad_fit",
         comment="0 good; bit 1 too few rays; bit 2 azimuth gap too large; bit 4 bad fit",
     ),
     # ---------------------------------------------------------------- turbulence product
@@ -184,6 +204,8 @@ VARIABLES: dict[str, VarMeta] = {
     "turbulence_flag": VarMeta(
         "dissipation-rate quality flag (bits combine)",
         "1",
+        flag_masks=(1, 2, 4, 8),
+        flag_meanings="too_few_pairs lag_beyond_inertial_range mu_beyond_method1 fit_failed",
         comment=(
             "0 good; bit 1 too few pairs; bit 2 lag beyond the inertial range; "
             "bit 4 mu beyond method 1 validity; bit 8 fit failed"
@@ -201,8 +223,9 @@ VARIABLES: dict[str, VarMeta] = {
     "r_max": VarMeta("largest lag of the fit", "m", references=GLADKIKH_2014),
     "r_s": VarMeta("lag of the structure-function normalisation", "m", references=GLADKIKH_2014),
     "k_d": VarMeta("determination coefficient of the fit", "1", references=GLADKIKH_2014),
-    "mean_horizontal_wind": VarMeta("mean horizontal wind speed of the window", "m s-1",
-                                    "wind_speed"),
+    "mean_horizontal_wind": VarMeta(
+        "mean horizontal wind speed of the window", "m s-1", "wind_speed"
+    ),
     # ---------------------------------------------------------------- sonic dataset
     "temperature": VarMeta("sonic temperature", "degC", "virtual_temperature"),
     "diagnostic": VarMeta("instrument diagnostic word (0 = good)", "1"),
@@ -243,9 +266,29 @@ def apply_metadata(ds: xr.Dataset, table: Mapping[str, VarMeta] = VARIABLES) -> 
             continue
         attrs = dict(out[name].attrs)
         attrs.update(meta.attrs())
+        attrs.update(_derived_attrs(str(name), meta, is_coord=name in out.coords))
+        for key in ("flag_values", "flag_masks"):
+            if key in attrs and out[name].dtype.kind in "iu":
+                attrs[key] = np.asarray(attrs[key], dtype=out[name].dtype)
         if name == "time":
             attrs.pop("units", None)  # set through the encoding by the writer
         out[name].attrs = attrs
+    return out
+
+
+def _derived_attrs(name: str, meta: VarMeta, *, is_coord: bool) -> dict[str, str]:
+    """ACDD attributes that follow from the kind of variable (flags, counts, coordinates)."""
+    out: dict[str, str] = {}
+    if is_coord:
+        out["coverage_content_type"] = "coordinate"
+    elif "flag" in name or name == "sf_type":
+        out["coverage_content_type"] = "qualityInformation"
+        if meta.standard_name is None and name != "sf_type":
+            out["standard_name"] = "status_flag"
+    elif name.startswith("n_"):
+        out["coverage_content_type"] = "auxiliaryInformation"
+        if meta.standard_name is None:
+            out["standard_name"] = "number_of_observations"
     return out
 
 

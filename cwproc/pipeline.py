@@ -35,7 +35,7 @@ import xarray as xr
 from cwproc.config import Config
 from cwproc.errors import CwprocError, InputFileError
 from cwproc.io import KIND, Format, detect_format, get_reader
-from cwproc.io.netcdf import sha256_file, write_product
+from cwproc.io.netcdf import sha256_file, site_attributes, write_product
 from cwproc.metadata import BANAKH_1999, GLADKIKH_2014, SMALIKHO_2020, WAGNER_DTU
 
 
@@ -270,16 +270,19 @@ def write_unit_products(
 ) -> list[Path]:
     """Write the products of one unit atomically with provenance; returns the paths."""
     written = []
-    instrument_attrs = {}
+    instrument_attrs = site_attributes(config.output)
     first = unit.inputs[0].dataset if unit.inputs else None
-    if first is not None:
-        instrument_attrs["instrument"] = str(first.attrs.get("instrument", ""))
+    if first is not None and first.attrs.get("instrument"):
+        instrument_attrs["instrument"] = str(first.attrs["instrument"])
     for name, ds in products.items():
         title, summary = _TITLES.get(name, (name, name))
         if unit.kind == "wind_record":
-            title, summary = "Wind profile (instrument wind records)", (
-                "Wind speed, direction and turbulence intensity from the instrument's own "
-                "averages, with the turbulence intensity corrected for volume averaging"
+            title, summary = (
+                "Wind profile (instrument wind records)",
+                (
+                    "Wind speed, direction and turbulence intensity from the instrument's own "
+                    "averages, with the turbulence intensity corrected for volume averaging"
+                ),
             )
             refs = WAGNER_DTU
         else:

@@ -20,10 +20,14 @@ import numpy as np
 import xarray as xr
 
 from cwproc import __version__
+from cwproc.config import OutputConfig
 from cwproc.errors import ProductError
 from cwproc.metadata import apply_metadata
 
 CONVENTIONS = "CF-1.10, ACDD-1.3"
+
+#: value of ACDD attributes the user did not configure ([output] table of the config)
+NOT_SPECIFIED = "not specified"
 
 _CHUNK = 1 << 20
 
@@ -90,7 +94,6 @@ def global_attributes(
         "keywords": keywords or "Doppler lidar, wind, turbulence, dissipation rate",
         "keywords_vocabulary": "free text",
         "naming_authority": "org.cwproc",
-        "id": "",
         "source": "cwproc " + __version__,
         "processing_level": "L2",
         "product_version": __version__,
@@ -105,28 +108,25 @@ def global_attributes(
         "license": "Data license as agreed with the data provider",
         "acknowledgement": "Processed with cwproc",
         "creator_type": "person",
-        "creator_name": "",
-        "creator_email": "",
-        "creator_url": "",
-        "creator_institution": "",
-        "institution": "",
-        "project": "",
-        "publisher_name": "",
-        "publisher_email": "",
-        "publisher_url": "",
-        "publisher_institution": "",
+        "creator_name": NOT_SPECIFIED,
+        "creator_email": NOT_SPECIFIED,
+        "creator_url": NOT_SPECIFIED,
+        "creator_institution": NOT_SPECIFIED,
+        "institution": NOT_SPECIFIED,
+        "project": NOT_SPECIFIED,
+        "publisher_name": NOT_SPECIFIED,
+        "publisher_email": NOT_SPECIFIED,
+        "publisher_url": NOT_SPECIFIED,
+        "publisher_institution": NOT_SPECIFIED,
         "publisher_type": "institution",
-        "contributor_name": "",
-        "contributor_role": "",
-        "program": "",
-        "platform": "",
-        "platform_vocabulary": "",
-        "instrument": "",
-        "instrument_vocabulary": "",
+        "instrument": NOT_SPECIFIED,
         "cdm_data_type": "Profile",
-        "featureType": "timeSeriesProfile",
-        "comment": "",
-        "metadata_link": "",
+        "comment": (
+            "Produced by cwproc from the files listed in input_files (SHA-256 checksums in "
+            "input_sha256) with the configuration in cwproc_config; methods, parameters and "
+            "references of each variable are in its attributes."
+        ),
+        "metadata_link": "https://pypi.org/project/cwproc/",
         "input_files": ", ".join(names),
         "input_sha256": json.dumps(sums, sort_keys=True),
         "cwproc_config": config_toml,
@@ -140,16 +140,55 @@ def global_attributes(
             attrs["time_coverage_end"] = _iso(end)
             seconds = int((end - start) / np.timedelta64(1, "s"))
             attrs["time_coverage_duration"] = f"PT{seconds}S"
-            attrs["time_coverage_resolution"] = ""
+            if len(t) > 1:
+                step = np.median(np.diff(np.sort(t))) / np.timedelta64(1, "s")
+                attrs["time_coverage_resolution"] = f"PT{float(step):g}S"
     if "height" in ds.coords and ds.sizes.get("height", 0) > 0:
         h = np.asarray(ds["height"].values, dtype=float)
         attrs["geospatial_vertical_min"] = float(np.nanmin(h))
         attrs["geospatial_vertical_max"] = float(np.nanmax(h))
         attrs["geospatial_vertical_units"] = "m"
         attrs["geospatial_vertical_positive"] = "up"
-        attrs["geospatial_vertical_resolution"] = ""
+        if h.size > 1:
+            attrs["geospatial_vertical_resolution"] = f"{float(np.median(np.diff(h))):g} m"
     if extra:
         attrs.update({k: v for k, v in extra.items() if v is not None})
+    return attrs
+
+
+def site_attributes(output: OutputConfig) -> dict[str, object]:
+    """ACDD attributes from the ``[output]`` table: who made the data, where.
+
+    Position attributes (``geospatial_lat_min`` ...) are written only when the
+    configuration gives the instrument position.
+    """
+    attrs: dict[str, object] = {}
+    for key in ("institution", "creator_name", "creator_email", "project"):
+        value = getattr(output, key)
+        if value:
+            attrs[key] = value
+    if output.institution:
+        attrs["creator_institution"] = output.institution
+        attrs["publisher_institution"] = output.institution
+        attrs["publisher_name"] = output.institution
+    if output.creator_email:
+        attrs["publisher_email"] = output.creator_email
+    if output.site:
+        attrs["platform"] = output.site
+    if output.latitude is not None and output.longitude is not None:
+        lat, lon = output.latitude, output.longitude
+        attrs.update(
+            geospatial_lat_min=lat,
+            geospatial_lat_max=lat,
+            geospatial_lon_min=lon,
+            geospatial_lon_max=lon,
+            geospatial_lat_units="degrees_north",
+            geospatial_lon_units="degrees_east",
+            geospatial_bounds=f"POINT({lat} {lon})",
+            geospatial_bounds_crs="EPSG:4326",
+        )
+        if output.altitude_m is not None:
+            attrs["geospatial_bounds_vertical_crs"] = "EPSG:5829"
     return attrs
 
 
@@ -175,6 +214,8 @@ def encoding_for(ds: xr.Dataset, compression_level: int = 4) -> dict[str, dict[s
             e["units"] = "seconds since 1970-01-01 00:00:00"
             e["calendar"] = "standard"
             e["dtype"] = "float64"
+            if name in ds.coords:
+                e["_FillValue"] = None
         elif np.issubdtype(var.dtype, np.floating):
             e["_FillValue"] = np.nan if name not in ds.coords else None
         elif var.dtype.kind in "iub" and name not in ds.coords:
@@ -269,6 +310,7 @@ def write_product(
             extra=extra_attrs,
         )
     )
+    attrs["id"] = Path(path).stem
     out.attrs = attrs
     return write_netcdf_atomic(out, path, compression_level=compression_level)
 
