@@ -1,0 +1,356 @@
+"""Quicklooks of cwproc products (matplotlib, PNG).
+
+Each ``plot_*`` function takes a product Dataset and returns a matplotlib Figure;
+:func:`render` picks the function for a ``kind`` and checks that the product holds the
+variables it needs, raising :class:`cwproc.errors.ProductError` with the missing names
+otherwise. Colour maps are perceptually uniform and readable with colour-vision
+deficiencies (cividis, viridis; RdBu_r for signed quantities); missing data are
+drawn as gaps, never as zeros.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from cwproc.errors import ProductError
+
+#: figure size in inches and resolution of every quicklook
+FIGSIZE = (10.0, 6.0)
+DPI = 100
+
+SEQUENTIAL = "cividis"
+SEQUENTIAL_LOG = "viridis"
+DIVERGING = "RdBu_r"
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _units(da: xr.DataArray) -> str:
+    units = da.attrs.get("units", "")
+    return f" ({units})" if units and units != "1" else ""
+
+
+def _label(da: xr.DataArray, fallback: str) -> str:
+    return str(da.attrs.get("long_name", fallback)) + _units(da)
+
+
+def _time_height_mesh(ax, ds: xr.DataArray, *, cmap: str, norm=None, label: str):
+    """pcolormesh of a (time, height) field; NaN stays blank."""
+    plt = _pyplot()
+    data = np.ma.masked_invalid(ds.transpose("height", "time").values)
+    mesh = ax.pcolormesh(
+        ds["time"].values, ds["height"].values, data, cmap=cmap, norm=norm, shading="nearest"
+    )
+    cbar = plt.colorbar(mesh, ax=ax, pad=0.01)
+    cbar.set_label(label)
+    ax.set_ylabel("height above instrument (m)")
+    import matplotlib.dates as mdates
+
+    locator = mdates.AutoDateLocator()
+    ax.xaxis.set_major_locator(locator)
+    ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator))
+    return mesh
+
+
+def plot_wind(ds: xr.Dataset):
+    """Time-height of horizontal wind speed with direction barbs, and of w."""
+    plt = _pyplot()
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=FIGSIZE, sharex=True, constrained_layout=True)
+    _time_height_mesh(
+        ax1, ds["wind_speed"], cmap=SEQUENTIAL, label=_label(ds["wind_speed"], "wind speed")
+    )
+    # barbs on a thinned grid (at most ~25 x 15), only where the wind is defined
+    nt, nh = ds.sizes["time"], ds.sizes["height"]
+    st, sh = max(1, nt // 25), max(1, nh // 15)
+    sub = ds.isel(time=slice(None, None, st), height=slice(None, None, sh))
+    u = sub["u"].transpose("height", "time").values
+    v = sub["v"].transpose("height", "time").values
+    tt, hh = np.meshgrid(sub["time"].values, sub["height"].values)
+    ok = np.isfinite(u) & np.isfinite(v)
+    if ok.any():
+        # barbs in knots-free convention: full barb = 10 m/s, half = 5 m/s
+        ax1.barbs(
+            tt[ok],
+            hh[ok],
+            u[ok],
+            v[ok],
+            length=5,
+            linewidth=0.6,
+            barb_increments={"half": 5, "full": 10, "flag": 50},
+        )
+    ax1.set_title("horizontal wind speed (barbs: direction, full barb = 10 m s$^{-1}$)")
+    w = ds["w"]
+    lim = float(np.nanmax(np.abs(w.values))) if np.isfinite(w.values).any() else 1.0
+    from matplotlib.colors import Normalize
+
+    _time_height_mesh(
+        ax2, w, cmap=DIVERGING, norm=Normalize(-lim, lim), label=_label(w, "vertical wind")
+    )
+    ax2.set_title("vertical wind w")
+    ax2.set_xlabel("time (UTC)")
+    return fig
+
+
+def plot_epsilon(ds: xr.Dataset):
+    """Time-height of the dissipation rate (method 2, log scale) and of eps1/eps2."""
+    plt = _pyplot()
+    from matplotlib.colors import LogNorm, TwoSlopeNorm
+
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=FIGSIZE, sharex=True, constrained_layout=True)
+    eps = ds["epsilon"].where(ds["epsilon"] > 0)
+    finite = eps.values[np.isfinite(eps.values)]
+    norm = LogNorm(*np.percentile(finite, [2, 98])) if finite.size else None
+    _time_height_mesh(
+        ax1, eps, cmap=SEQUENTIAL_LOG, norm=norm, label=_label(ds["epsilon"], "dissipation rate")
+    )
+    ax1.set_title("dissipation rate $\\varepsilon$ (method 2: volume averaging + wind transport)")
+    ratio = ds["epsilon_ratio"]
+    rmax = float(np.nanmax(ratio.values)) if np.isfinite(ratio.values).any() else 2.0
+    _time_height_mesh(
+        ax2,
+        ratio,
+        cmap=DIVERGING,
+        norm=TwoSlopeNorm(
+            vcenter=1.0,
+            vmin=min(
+                0.5, float(np.nanmin(ratio.values)) if np.isfinite(ratio.values).any() else 0.5
+            ),
+            vmax=max(rmax, 1.5),
+        ),
+        label="$\\varepsilon_1/\\varepsilon_2$",
+    )
+    ax2.set_title("bias of method 1 (no wind transport): $\\varepsilon_1/\\varepsilon_2$")
+    ax2.set_xlabel("time (UTC)")
+    return fig
+
+
+def plot_structure_function(ds: xr.Dataset, *, time_index: int = 0, height: float | None = None):
+    """D_L against lag for one block and height, with the fitted model and the noise floor."""
+    plt = _pyplot()
+    blk = ds.isel(time=time_index)
+    if height is None:
+        finite = np.isfinite(blk["epsilon"].values)
+        idx = int(np.flatnonzero(finite)[len(np.flatnonzero(finite)) // 2]) if finite.any() else 0
+        blk = blk.isel(height=idx)
+    else:
+        blk = blk.sel(height=height, method="nearest")
+    fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
+    lag = blk["lag"].values
+    dy = float(blk["transverse_resolution"]) if "transverse_resolution" in blk else np.nan
+    x = lag * dy if np.isfinite(dy) else lag
+    ax.plot(x, blk["structure_function"].values, "o", label="measured $D_L$")
+    if "structure_function_model" in blk:
+        ax.plot(x, blk["structure_function_model"].values, "-", label="fitted model")
+    if "noise_std" in blk and np.isfinite(float(blk["noise_std"])):
+        floor = 2 * float(blk["noise_std"]) ** 2
+        ax.axhline(floor, ls="--", color="0.4", label="noise floor $2\\sigma_e^2$")
+    ax.set_xlabel("transverse lag $l\\Delta y$ (m)" if np.isfinite(dy) else "lag number l")
+    ax.set_ylabel("$D_L$ (m$^2$ s$^{-2}$)")
+    t = np.datetime_as_string(blk["time"].values, unit="m")
+    eps = float(blk["epsilon"]) if "epsilon" in blk else np.nan
+    ax.set_title(
+        f"azimuth structure function, {t} UTC, h = {float(blk['height']):.0f} m, "
+        f"$\\varepsilon$ = {eps:.2e} m$^2$ s$^{{-3}}$"
+    )
+    ax.legend()
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def plot_vad_fit(
+    scans: xr.Dataset, wind: xr.Dataset, *, scan: int | None = None, height: float | None = None
+):
+    """One scan's radial velocities against azimuth with the fitted VAD curve and residuals."""
+    plt = _pyplot()
+    if scan is None:
+        scan = int(wind["scan"].values[len(wind["scan"]) // 2])
+    row = wind.where(wind["scan"] == scan, drop=True).isel(time=0)
+    if height is None:
+        height = float(row["height"].values[len(row["height"]) // 4])
+    row = row.sel(height=height, method="nearest")
+    gate = int(np.argmin(np.abs(scans["range"].values - float(row["range"]))))
+    rays = scans.where(scans["scan"] == scan, drop=True).isel(range=gate)
+    az = rays["azimuth"].values
+    vr = rays["radial_velocity"].values
+    good = np.ones_like(vr, dtype=bool)
+    if "qc_flag_radial" in rays:
+        good = rays["qc_flag_radial"].values == 0
+    el = np.radians(float(row["elevation"]))
+    theta = np.radians(np.linspace(0, 360, 361))
+    model = float(row["w"]) * np.sin(el) + np.cos(el) * (
+        float(row["u"]) * np.sin(theta) + float(row["v"]) * np.cos(theta)
+    )
+    fitted = float(row["w"]) * np.sin(el) + np.cos(el) * (
+        float(row["u"]) * np.sin(np.radians(az)) + float(row["v"]) * np.cos(np.radians(az))
+    )
+    fig, (ax1, ax2) = plt.subplots(
+        2,
+        1,
+        figsize=FIGSIZE,
+        sharex=True,
+        gridspec_kw={"height_ratios": [3, 1]},
+        constrained_layout=True,
+    )
+    ax1.plot(az[good], vr[good], "o", label="radial velocity (used)")
+    if (~good).any():
+        ax1.plot(az[~good], vr[~good], "x", color="0.5", label="screened out")
+    ax1.plot(np.degrees(theta), model, "-", label="VAD fit")
+    ax1.set_ylabel("radial velocity (m s$^{-1}$)")
+    ax1.set_title(
+        f"scan {scan}, h = {float(row['height']):.0f} m: U = {float(row['wind_speed']):.2f} "
+        f"m s$^{{-1}}$ from {float(row['wind_direction']):.0f}°, w = {float(row['w']):.2f} "
+        "m s$^{-1}$"
+    )
+    ax1.legend()
+    ax2.axhline(0, color="0.4", lw=0.8)
+    ax2.plot(az[good], (vr - fitted)[good], "o")
+    ax2.set_xlabel("azimuth (degree from north)")
+    ax2.set_ylabel("residual (m s$^{-1}$)")
+    ax2.set_xlim(0, 360)
+    return fig
+
+
+def plot_sf_types(ds: xr.Dataset):
+    """Occurrence of each structure-function type per wind component (bar chart)."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
+    comps = [str(c) for c in ds["component"].values]
+    types = [0, 1, 2, 3]
+    names = ["none", "type 1 (line)", "type 2 (parabola)", "type 3 (parabola + line)"]
+    width = 0.2
+    sf = ds["sf_type"]
+    for k, (t, name) in enumerate(zip(types, names, strict=True)):
+        share = [(sf.sel(component=c) == t).mean().item() * 100 for c in ds["component"].values]
+        ax.bar(np.arange(len(comps)) + (k - 1.5) * width, share, width, label=name)
+    ax.set_xticks(np.arange(len(comps)), comps)
+    ax.set_ylabel("share of windows (%)")
+    ax.set_title(f"structure-function types, {ds.sizes['window']} windows")
+    ax.legend()
+    return fig
+
+
+def plot_sf_window(ds: xr.Dataset, *, window: int | None = None, component: str | None = None):
+    """One window's normalised structure function in lg-lg axes with its fit and r_max."""
+    plt = _pyplot()
+    if window is None:
+        typed = np.flatnonzero((ds["sf_type"] > 0).any("component").values)
+        window = int(typed[0]) if typed.size else 0
+    w = ds.isel(window=window)
+    comps = [str(c) for c in w["component"].values] if component is None else [component]
+    fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
+    for c in comps:
+        wc = w.sel(component=c)
+        r = wc["lag_distance"].values
+        d = wc["normalised_sf"].values
+        (line,) = ax.loglog(r, d, ".", ms=3, label=f"{c}: type {int(wc['sf_type'])}")
+        if "normalised_sf_fit" in wc:
+            ax.loglog(r, wc["normalised_sf_fit"].values, "-", color=line.get_color())
+        if np.isfinite(float(wc["r_max"])):
+            ax.axvline(float(wc["r_max"]), ls=":", color=line.get_color())
+    ax.set_xlabel("lag r (m)")
+    ax.set_ylabel("normalised structure function D(r)/D(r$_S$)")
+    t = np.datetime_as_string(w["time"].values, unit="m") if "time" in w else str(window)
+    ax.set_title(f"window {window} ({t}): dotted lines mark r$_{{max}}$")
+    ax.legend()
+    ax.grid(alpha=0.3, which="both")
+    return fig
+
+
+def plot_montecarlo(ds: xr.Dataset):
+    """Relative RMS errors of epsilon, variance and integral scale against N, per height."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 3, figsize=(12, 4.5), sharex=True, constrained_layout=True)
+    names = [
+        ("epsilon_rel_error", "$\\sigma_\\varepsilon$"),
+        ("variance_rel_error", "$\\sigma_{\\sigma^2}$"),
+        ("integral_scale_rel_error", "$\\sigma_L$"),
+    ]
+    cmap = plt.get_cmap(SEQUENTIAL_LOG)
+    heights = ds["height"].values
+    for ax, (name, label) in zip(axes, names, strict=True):
+        for k, h in enumerate(heights):
+            ax.plot(
+                ds["n_scans"].values,
+                100 * ds[name].sel(height=h).values,
+                "o-",
+                color=cmap(k / max(1, len(heights) - 1)),
+                label=f"{h:.0f} m",
+            )
+        ax.set_xlabel("number of scans N")
+        ax.set_ylabel(f"{label} (%)")
+        ax.grid(alpha=0.3)
+    axes[0].legend(title="height")
+    fig.suptitle("Monte-Carlo relative errors (Banakh et al. (1999))")
+    return fig
+
+
+#: kind -> (function, variables the product must have)
+KINDS: dict[str, tuple[Callable, tuple[str, ...]]] = {
+    "wind": (plot_wind, ("u", "v", "w", "wind_speed")),
+    "epsilon": (plot_epsilon, ("epsilon", "epsilon_ratio")),
+    "structure": (plot_structure_function, ("structure_function", "epsilon")),
+    "sf-types": (plot_sf_types, ("sf_type",)),
+    "sf-window": (plot_sf_window, ("sf_type", "normalised_sf", "lag_distance", "r_max")),
+    "montecarlo": (
+        plot_montecarlo,
+        ("epsilon_rel_error", "variance_rel_error", "integral_scale_rel_error"),
+    ),
+}
+
+
+def default_kind(ds: xr.Dataset) -> str:
+    """The quicklook a product is best shown by."""
+    for kind in ("montecarlo", "epsilon", "wind", "sf-types"):
+        if all(v in ds.variables for v in KINDS[kind][1]):
+            return kind
+    raise ProductError(
+        "not a cwproc product this command can plot (no wind, epsilon, sonic SF or "
+        "Monte-Carlo variables)"
+    )
+
+
+def check_variables(ds: xr.Dataset, kind: str, source: str = "product") -> None:
+    """Raise ProductError naming the variables ``kind`` needs and ``ds`` lacks."""
+    missing = [v for v in KINDS[kind][1] if v not in ds.variables]
+    if missing:
+        raise ProductError(
+            f"{source}: cannot draw '{kind}': missing variable(s) {', '.join(missing)}"
+        )
+
+
+def render(
+    ds: xr.Dataset, kind: str, out: str | os.PathLike, *, source: str = "product", **options
+) -> Path:
+    """Draw ``kind`` of ``ds`` into the PNG ``out`` (written atomically)."""
+    check_variables(ds, kind, source)
+    fig = KINDS[kind][0](ds, **options)
+    return save_png(fig, out)
+
+
+def save_png(fig, out: str | os.PathLike) -> Path:
+    """Save a figure as PNG through a temporary file, then close it."""
+    plt = _pyplot()
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.name}.tmp.png")
+    try:
+        fig.savefig(tmp, dpi=DPI, format="png")
+        os.replace(tmp, out)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise ProductError(f"{out}: cannot write picture: {exc.strerror or exc}") from None
+    finally:
+        plt.close(fig)
+    return out

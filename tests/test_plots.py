@@ -1,0 +1,168 @@
+"""Quicklooks: every kind renders a non-blank PNG of the expected size; missing variables
+give a clear error."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+import xarray as xr
+from click.testing import CliRunner
+
+from cwproc import plots
+from cwproc.cli import main
+from cwproc.errors import ProductError
+from cwproc.io.netcdf import write_product
+
+pytest.importorskip("matplotlib")
+
+
+def _th(n_time=12, n_height=8):
+    t = pd.date_range("2024-06-01", periods=n_time, freq="10min").values
+    h = 50.0 + 30.0 * np.arange(n_height)
+    return t, h
+
+
+def wind_product() -> xr.Dataset:
+    t, h = _th()
+    rng = np.random.default_rng(0)
+    speed = 5 + 0.02 * h[None, :] + rng.normal(0, 0.3, (t.size, h.size))
+    dirn = np.full_like(speed, 240.0)
+    u = -speed * np.sin(np.radians(dirn))
+    v = -speed * np.cos(np.radians(dirn))
+    ds = xr.Dataset(
+        {
+            "u": (("time", "height"), u),
+            "v": (("time", "height"), v),
+            "w": (("time", "height"), rng.normal(0, 0.2, speed.shape)),
+            "wind_speed": (("time", "height"), speed),
+            "wind_direction": (("time", "height"), dirn),
+        },
+        coords={"time": t, "height": h},
+    )
+    ds["wind_speed"][3:5, 4:] = np.nan  # a gap must stay a gap
+    return ds
+
+
+def turbulence_product() -> xr.Dataset:
+    t, h = _th()
+    lag = np.arange(1, 6)
+    eps = 1e-3 * np.exp(-h / 300)[None, :] * np.ones((t.size, 1))
+    a = 2.0 * (lag * 3.0) ** (2 / 3)
+    sf = eps[..., None] ** (2 / 3) * a + 2 * 0.1**2
+    return xr.Dataset(
+        {
+            "epsilon": (("time", "height"), eps),
+            "epsilon_ratio": (
+                ("time", "height"),
+                1 + 0.5 * np.random.default_rng(1).random(eps.shape),
+            ),
+            "structure_function": (("time", "height", "lag"), sf),
+            "structure_function_model": (("time", "height", "lag"), sf * 1.01),
+            "noise_std": (("time", "height"), np.full(eps.shape, 0.1)),
+            "transverse_resolution": (("time", "height"), np.full(eps.shape, 3.0)),
+        },
+        coords={"time": t, "height": h, "lag": lag},
+    )
+
+
+def sf_product() -> xr.Dataset:
+    rng = np.random.default_rng(2)
+    n_w, comps = 6, ["longitudinal", "transverse", "vertical"]
+    r = np.geomspace(0.2, 30, 50)
+    d = np.broadcast_to((r / 1.0) ** (2 / 3), (n_w, 3, r.size))
+    return xr.Dataset(
+        {
+            "sf_type": (("window", "component"), rng.integers(0, 4, (n_w, 3))),
+            "r_max": (("window", "component"), np.full((n_w, 3), 20.0)),
+            "normalised_sf": (("window", "component", "lag"), d),
+            "normalised_sf_fit": (("window", "component", "lag"), d),
+            "lag_distance": (("window", "component", "lag"), np.broadcast_to(r, d.shape)),
+        },
+        coords={"component": comps, "window": np.arange(n_w)},
+    )
+
+
+def montecarlo_product() -> xr.Dataset:
+    n = np.arange(1, 11)
+    h = np.array([50.0, 100, 200, 300, 400, 500])
+    base = 0.35 / np.sqrt(n)[:, None] * np.ones((1, h.size))
+    return xr.Dataset(
+        {
+            k: (("n_scans", "height"), base * f)
+            for k, f in [
+                ("epsilon_rel_error", 1.0),
+                ("variance_rel_error", 0.6),
+                ("integral_scale_rel_error", 1.2),
+            ]
+        },
+        coords={"n_scans": n, "height": h},
+    )
+
+
+def _assert_png(path, size=(plots.FIGSIZE[0] * plots.DPI, plots.FIGSIZE[1] * plots.DPI)):
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(path)
+    assert img.shape[1] == int(size[0]) and img.shape[0] == int(size[1])
+    assert img[..., :3].std() > 0.02  # not blank
+
+
+@pytest.mark.parametrize(
+    ("kind", "factory"),
+    [
+        ("wind", wind_product),
+        ("epsilon", turbulence_product),
+        ("structure", turbulence_product),
+        ("sf-types", sf_product),
+        ("sf-window", sf_product),
+    ],
+)
+def test_every_kind_renders(tmp_path, kind, factory):
+    out = plots.render(factory(), kind, tmp_path / f"{kind}.png")
+    _assert_png(out)
+
+
+def test_montecarlo_renders(tmp_path):
+    out = plots.render(montecarlo_product(), "montecarlo", tmp_path / "mc.png")
+    _assert_png(out, size=(1200, 450))
+
+
+def test_missing_variables_named(tmp_path):
+    with pytest.raises(ProductError, match="missing variable\\(s\\) epsilon_ratio"):
+        plots.render(
+            turbulence_product().drop_vars("epsilon_ratio"),
+            "epsilon",
+            tmp_path / "x.png",
+            source="p.nc",
+        )
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_default_kind():
+    assert plots.default_kind(wind_product()) == "wind"
+    assert plots.default_kind(turbulence_product()) == "epsilon"
+    assert plots.default_kind(montecarlo_product()) == "montecarlo"
+    with pytest.raises(ProductError):
+        plots.default_kind(xr.Dataset({"x": ("a", [1.0])}))
+
+
+def test_cli_plot_product_and_missing_variables(tmp_path):
+    wind = write_product(wind_product(), tmp_path / "w.nc", title="t", summary="s")
+    res = CliRunner().invoke(main, ["plot", str(wind), "-o", str(tmp_path / "w.png")])
+    assert res.exit_code == 0, res.output
+    _assert_png(tmp_path / "w.png")
+    res = CliRunner().invoke(
+        main, ["plot", str(wind), "-o", str(tmp_path / "e.png"), "--kind", "epsilon"]
+    )
+    assert res.exit_code == 1
+    assert "missing variable(s) epsilon, epsilon_ratio" in res.output
+    assert not (tmp_path / "e.png").exists()
+
+
+def test_cli_plot_not_a_product(tmp_path):
+    junk = tmp_path / "junk.nc"
+    junk.write_text("not netcdf")
+    res = CliRunner().invoke(main, ["plot", str(junk), "-o", str(tmp_path / "j.png")])
+    assert res.exit_code == 1
+    assert "junk.nc" in res.output and "not a readable NetCDF product" in res.output
