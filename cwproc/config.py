@@ -36,6 +36,7 @@ from cwproc.errors import ConfigError
 class InstrumentConfig:
     """What made the data: the probe-volume and scan parameters the physics needs."""
 
+    #: instrument name written to the products
     name: str = "Halo Photonics Stream Line"
     #: "pulsed" (Stream Line, WindCube), "cw" (ZephIR), "sonic" (anemometers)
     kind: Literal["pulsed", "cw", "sonic"] = "pulsed"

@@ -1,0 +1,133 @@
+"""Reference pages generated from the code: product variables and configuration options.
+
+``python -m cwproc.reference_docs docs/`` rewrites ``docs/variables.md`` and
+``docs/config.md``; a test checks that the committed pages equal what the code
+generates, so the documentation cannot drift from the metadata table and the
+configuration dataclasses.
+"""
+
+from __future__ import annotations
+
+import ast
+import dataclasses
+import inspect
+import sys
+import typing
+from pathlib import Path
+
+from cwproc import config as config_module
+from cwproc.config import Config, preset_names
+from cwproc.metadata import VARIABLES
+
+
+def variables_markdown() -> str:
+    """Markdown table of every variable cwproc writes (name, units, standard name, meaning)."""
+    lines = [
+        "# Product variables",
+        "",
+        "Generated from `cwproc/metadata.py` by `python -m cwproc.reference_docs docs/`;",
+        "do not edit by hand.",
+        "",
+        "| variable | units | standard_name | long_name | notes |",
+        "|---|---|---|---|---|",
+    ]
+    for name, meta in VARIABLES.items():
+        notes = meta.comment or ""
+        if meta.flag_meanings:
+            notes = (notes + "; " if notes else "") + f"flags: {meta.flag_meanings}"
+        lines.append(
+            f"| `{name}` | {meta.units or ''} | {meta.standard_name or ''} | "
+            f"{_cell(meta.long_name)} | {_cell(notes)} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _field_comments(cls: type) -> dict[str, str]:
+    """The ``#:`` comments written above each field of a dataclass in its source."""
+    source = inspect.getsource(cls)
+    lines = source.splitlines()
+    tree = ast.parse(source)
+    out: dict[str, str] = {}
+    body = tree.body[0].body  # type: ignore[attr-defined]
+    for node in body:
+        if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
+            k = node.lineno - 2
+            doc: list[str] = []
+            while k >= 0 and lines[k].strip().startswith("#:"):
+                doc.insert(0, lines[k].strip()[2:].strip())
+                k -= 1
+            out[node.target.id] = " ".join(doc)
+    return out
+
+
+def _type_name(tp: object) -> str:
+    text = str(tp).replace("typing.", "")
+    return _cell(text.replace("<class '", "").replace("'>", ""))
+
+
+def _cell(text: str) -> str:
+    """Text safe inside a Markdown table cell."""
+    return text.replace("|", "\\|")
+
+
+def config_markdown() -> str:
+    """Markdown reference of every configuration section, option, type and default."""
+    lines = [
+        "# Configuration reference",
+        "",
+        "Generated from `cwproc/config.py` by `python -m cwproc.reference_docs docs/`;",
+        "do not edit by hand. A configuration is a TOML file with the sections below; every",
+        "key is optional and unknown keys, wrong types and impossible values are refused",
+        "with a message naming the file and the key. Presets: "
+        + ", ".join(f"`{p}`" for p in preset_names())
+        + " (`cwproc retrieve -c streamline ...`; files in `configs/`).",
+        "",
+    ]
+    hints = typing.get_type_hints(Config)
+    for f in dataclasses.fields(Config):
+        if f.name == "source":
+            continue
+        section = hints[f.name]
+        if not dataclasses.is_dataclass(section):
+            lines += [
+                f"## [{f.name}.<format>]",
+                "",
+                "Options of the reader of one format (validated by that reader), e.g. "
+                "`[reader.meteo2]`, `[reader.toa5]`; see the reader's page in `docs/`.",
+                "",
+            ]
+            continue
+        lines += [f"## [{f.name}]", "", (section.__doc__ or "").strip(), ""]
+        lines += ["| key | type | default | meaning |", "|---|---|---|---|"]
+        comments = _field_comments(section)
+        sub_hints = typing.get_type_hints(section)
+        for sub in dataclasses.fields(section):
+            default = sub.default if sub.default is not dataclasses.MISSING else ""
+            lines.append(
+                f"| `{sub.name}` | {_type_name(sub_hints[sub.name])} | `{default!r}` | "
+                f"{_cell(comments.get(sub.name, ''))} |"
+            )
+        lines.append("")
+    return "\n".join(lines)
+
+
+PAGES = {"variables.md": variables_markdown, "config.md": config_markdown}
+
+
+def write_pages(directory: str | Path) -> list[Path]:
+    """Write the generated pages into ``directory``."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, make in PAGES.items():
+        path = directory / name
+        path.write_text(make(), encoding="utf-8")
+        written.append(path)
+    return written
+
+
+if __name__ == "__main__":  # pragma: no cover - exercised by the docs test through the API
+    for page in write_pages(sys.argv[1] if len(sys.argv) > 1 else "docs"):
+        print(f"wrote {page}")
+
+__all__ = ["config_markdown", "config_module", "variables_markdown", "write_pages"]
