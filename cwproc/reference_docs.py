@@ -111,7 +111,42 @@ def config_markdown() -> str:
     return "\n".join(lines)
 
 
-PAGES = {"variables.md": variables_markdown, "config.md": config_markdown}
+def _command_sections(cmd, path: str, ctx) -> list[str]:
+    import click
+
+    lines = [f"## `{path}`", "", "```text", cmd.get_help(ctx).rstrip(), "```", ""]
+    if isinstance(cmd, click.Group):
+        for name in sorted(cmd.commands):
+            sub = cmd.commands[name]
+            sub_ctx = click.Context(sub, info_name=name, parent=ctx)
+            lines += _command_sections(sub, f"{path} {name}", sub_ctx)
+    return lines
+
+
+def commands_markdown() -> str:
+    """Every command's ``--help``, as one page."""
+    import click
+
+    from cwproc.cli import main
+
+    ctx = click.Context(main, info_name="cwproc", terminal_width=100, max_content_width=100)
+    lines = [
+        "# Commands",
+        "",
+        "Generated from the command-line help by `python -m cwproc.reference_docs docs/`;",
+        "do not edit by hand. Every command exits 0 when all inputs were processed and",
+        "non-zero otherwise, with one line per failed input naming the file, the line and",
+        "the problem.",
+        "",
+    ]
+    return "\n".join(lines + _command_sections(main, "cwproc", ctx))
+
+
+PAGES = {
+    "variables.md": variables_markdown,
+    "config.md": config_markdown,
+    "commands.md": commands_markdown,
+}
 
 
 def write_pages(directory: str | Path) -> list[Path]:
