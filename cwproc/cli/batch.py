@@ -1,11 +1,230 @@
-"""``cwproc batch`` (being built; see docs/DEVELOPING.md for the owner)."""
+"""``cwproc batch``: incremental, locked, idempotent runs over an archive (cron)."""
 
 from __future__ import annotations
 
+import datetime as _dt
+import logging
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
 import click
+
+from cwproc.batch import (
+    EXIT_LOCKED,
+    BatchReport,
+    DaskNotInstalledError,
+    LockBusyError,
+    UnitOutcome,
+    close_client,
+    dask_client,
+    run_batch,
+)
+from cwproc.cli._common import config_option, load_config_or_fail, report_failure
+from cwproc.errors import CwprocError
+
+_LOG_FORMAT = "%(asctime)s %(levelname)s %(message)s"
+
+
+@contextmanager
+def batch_logging(log_file: str | None, verbose: bool) -> Iterator[None]:
+    """Send the ``cwproc.batch`` log lines to ``log_file`` and, with ``verbose``, stderr."""
+    logger = logging.getLogger("cwproc.batch")
+    handlers: list[logging.Handler] = []
+    if log_file:
+        try:
+            handler: logging.Handler = logging.FileHandler(log_file, encoding="utf-8")
+        except OSError as exc:
+            raise click.UsageError(f"--log-file {log_file}: {exc.strerror or exc}") from None
+        handler.setLevel(logging.DEBUG if verbose else logging.INFO)
+        handlers.append(handler)
+    if verbose:
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setLevel(logging.DEBUG)
+        handlers.append(handler)
+    if not handlers:
+        handlers.append(logging.NullHandler())  # keep logging's last-resort stderr quiet
+    formatter = logging.Formatter(_LOG_FORMAT, datefmt="%Y-%m-%dT%H:%M:%SZ")
+    formatter.converter = _utc_struct_time
+    for handler in handlers:
+        handler.setFormatter(formatter)
+        logger.addHandler(handler)
+    old_level, old_propagate = logger.level, logger.propagate
+    logger.setLevel(logging.DEBUG)
+    logger.propagate = False
+    try:
+        yield
+    finally:
+        for handler in handlers:
+            logger.removeHandler(handler)
+            handler.close()
+        logger.setLevel(old_level)
+        logger.propagate = old_propagate
+
+
+def _utc_struct_time(seconds: float | None) -> Any:
+    import time
+
+    return time.gmtime(seconds)
+
+
+class _Progress:
+    """A click progress bar on stderr, shown only when stderr is a terminal."""
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled = enabled
+        self.bar: Any = None
+
+    def start(self, n_units: int) -> None:
+        if self.enabled and n_units > 0:
+            self.bar = click.progressbar(
+                length=n_units, label="units", file=sys.stderr, show_pos=True, show_eta=True
+            )
+            self.bar.__enter__()
+
+    def advance(self, _outcome: UnitOutcome) -> None:
+        if self.bar is not None:
+            self.bar.update(1)
+
+    def finish(self) -> None:
+        if self.bar is not None:
+            self.bar.__exit__(None, None, None)
+            self.bar = None
+
+
+def summary_lines(report: BatchReport, verbose: bool) -> list[str]:
+    """The human summary printed at the end of a run."""
+    lines = []
+    if verbose:
+        lines += [f"unrecognised: {info.error or info.path}" for info in report.unrecognised]
+    lines.append(
+        f"{report.discovered} file(s): {len(report.unrecognised)} unrecognised, "
+        f"{len(report.file_failures)} unreadable; {report.units_total} unit(s): "
+        f"{len(report.succeeded)} processed, {report.units_up_to_date} up to date, "
+        f"{len(report.failed)} failed"
+        + (f", {report.skipped_since} skipped (--since)" if report.skipped_since else "")
+        + f" [{report.seconds:.1f} s]"
+    )
+    return lines
 
 
 @click.command("batch")
-def batch() -> None:
-    """Not available in this build yet."""
-    raise click.ClickException("'batch' is not available in this build yet")
+@click.argument("input_dir", type=click.Path(exists=True, file_okay=False))
+@click.argument("output_dir", type=click.Path(file_okay=False))
+@config_option()
+@click.option(
+    "--since",
+    type=click.DateTime(formats=["%Y-%m-%d"]),
+    default=None,
+    metavar="YYYY-MM-DD",
+    help="Only units whose data begin on or after this UTC day (older files are not read).",
+)
+@click.option(
+    "--workers",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Run on a local Dask cluster of N single-threaded worker processes.",
+)
+@click.option(
+    "--scheduler",
+    default=None,
+    metavar="ADDRESS",
+    help="Run on an existing Dask cluster (e.g. tcp://host:8786).",
+)
+@click.option(
+    "--pattern",
+    "patterns",
+    multiple=True,
+    metavar="GLOB",
+    help="Consider only files matching GLOB (file name, or end of the path below "
+    "INPUT_DIR); repeatable. Default: every file.",
+)
+@click.option(
+    "--wait",
+    "wait_s",
+    type=click.FloatRange(min=0),
+    default=0.0,
+    show_default=True,
+    metavar="SECONDS",
+    help="When another run holds OUTPUT_DIR, wait this long for it before giving up.",
+)
+@click.option(
+    "--log-file",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Append one key=value line per unit (and per failed file) to this file.",
+)
+@click.option("-q", "--quiet", is_flag=True, help="Print only failures.")
+@click.option("-v", "--verbose", is_flag=True, help="Log every unit and list unrecognised files.")
+def batch(
+    input_dir: str,
+    output_dir: str,
+    config: str | None,
+    since: _dt.datetime | None,
+    workers: int | None,
+    scheduler: str | None,
+    patterns: tuple[str, ...],
+    wait_s: float,
+    log_file: str | None,
+    quiet: bool,
+    verbose: bool,
+) -> None:
+    """Process every new or changed input under INPUT_DIR into OUTPUT_DIR.
+
+    \b
+    Inputs are recognised by content anywhere under INPUT_DIR and grouped into product
+    units as `cwproc retrieve` does (scan files: one unit per instrument and UTC day).
+    A ledger in OUTPUT_DIR/.cwproc/ remembers each unit's input checksums and the
+    configuration: units already done are skipped, failed ones are retried next run.
+    A lock (OUTPUT_DIR/.cwproc/lock) keeps two runs off the same OUTPUT_DIR.
+    Exit status: 0 all done, 1 some input or unit failed, 2 usage error,
+    75 another run holds the lock.
+    """
+    if workers is not None and scheduler:
+        raise click.UsageError("give --workers or --scheduler, not both")
+    if quiet and verbose:
+        raise click.UsageError("give --quiet or --verbose, not both")
+    cfg = load_config_or_fail(config)
+    client = None
+    if workers is not None or scheduler:
+        try:
+            client = dask_client(workers=workers, scheduler=scheduler)
+        except DaskNotInstalledError as exc:
+            report_failure(str(exc))
+            sys.exit(2)
+        except CwprocError as exc:
+            report_failure(str(exc))
+            sys.exit(2)
+    progress = _Progress(enabled=not quiet and not verbose and sys.stderr.isatty())
+    try:
+        with batch_logging(log_file, verbose):
+            report = run_batch(
+                input_dir,
+                output_dir,
+                cfg,
+                patterns=patterns or ("*",),
+                since=since.date() if since else None,
+                client=client,
+                wait_s=wait_s,
+                on_plan=progress.start,
+                on_unit=progress.advance,
+            )
+    except LockBusyError as exc:
+        click.echo(str(exc), err=True)
+        sys.exit(EXIT_LOCKED)
+    except CwprocError as exc:
+        report_failure(str(exc))
+        sys.exit(1)
+    finally:
+        progress.finish()
+        if client is not None:
+            close_client(client)
+    if report.stale_lock and not quiet:
+        click.echo(f"took over the lock of a run that ended abnormally ({report.stale_lock})")
+    for line in report.failure_lines():
+        report_failure(line)
+    if not quiet:
+        for line in summary_lines(report, verbose):
+            click.echo(line)
+    sys.exit(0 if report.ok else 1)
