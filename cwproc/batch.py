@@ -546,6 +546,23 @@ def record_outcome(ledger: Ledger, task: UnitTask, outcome: UnitOutcome) -> None
         }
 
 
+def remove_leftover_temporaries(outdir: str | os.PathLike) -> list[Path]:
+    """Delete temporary files a killed run left in ``outdir`` and its state folder.
+
+    Only names made by cwproc's atomic writers are touched (``.<name>.nc.<random>.tmp``
+    from :func:`cwproc.io.netcdf.write_netcdf_atomic`, ``.ledger.json.<random>.tmp``
+    from :func:`save_ledger`). Call it only while holding the lock.
+    """
+    removed = []
+    for folder in (Path(outdir), Path(outdir) / STATE_DIR):
+        for path in folder.glob(".*.tmp"):
+            if (".nc." in path.name or path.name.startswith(f".{LEDGER_NAME}.")) and path.is_file():
+                with contextlib.suppress(FileNotFoundError):
+                    path.unlink()
+                    removed.append(path)
+    return removed
+
+
 # --------------------------------------------------------------------------------------
 # the lock
 # --------------------------------------------------------------------------------------
@@ -812,6 +829,8 @@ def run_batch(
         report.stale_lock = stale
         if stale:
             log.warning(kv_line("stale_lock", lock=state_dir / LOCK_NAME, previous=stale))
+        for path in remove_leftover_temporaries(outdir):
+            log.warning(kv_line("removed_temporary", path=path))
         ledger = load_ledger(ledger_path)
         cfg_hash = config_hash(config)
         toml = config.to_toml()
