@@ -1,0 +1,189 @@
+"""Geometry of conical (VAD) scanning: beam direction, heights, scan circle, sampling.
+
+Smalikho (2020), eqs. 3 and 6-8, with azimuth ``theta`` measured clockwise from north
+and elevation ``phi`` above the horizon. Components are returned in the order
+(east, north, up) = (u, v, w), so that the radial velocity (positive away from the
+lidar) is
+
+.. math:: V_r = \\mathbf{S}\\cdot\\mathbf{V}
+              = w \\sin\\phi + \\cos\\phi (u \\sin\\theta + v \\cos\\theta).
+
+(Smalikho (2020), eq. 8 writes the same with x along ``theta = 0``.)
+All functions are pure and broadcast over numpy arrays; angles are in degrees.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+FloatArray = NDArray[np.float64]
+
+
+def normalise_pointing(
+    azimuth_deg: ArrayLike, elevation_deg: ArrayLike
+) -> tuple[FloatArray, FloatArray]:
+    """Rewrite over-the-zenith pointing (elevation > 90 deg) as azimuth+180, 180-elevation.
+
+    Halo scanners write the same direction either way (``FORMATS.md`` 1.3); the result
+    has elevation in [-90, 90] deg and azimuth in [0, 360) deg.
+
+    Parameters
+    ----------
+    azimuth_deg, elevation_deg : array_like
+        Pointing angles (deg).
+
+    Returns
+    -------
+    (azimuth_deg, elevation_deg) : tuple of ndarray
+    """
+    az = np.asarray(azimuth_deg, dtype=float)
+    el = np.asarray(elevation_deg, dtype=float)
+    over = el > 90.0
+    az = np.where(over, az + 180.0, az) % 360.0
+    el = np.where(over, 180.0 - el, el)
+    return az, el
+
+
+def beam_unit_vector(azimuth_deg: ArrayLike, elevation_deg: ArrayLike) -> FloatArray:
+    """Unit vector S of the beam in (east, north, up) components.
+
+    ``S = (cos(phi) sin(theta), cos(phi) cos(theta), sin(phi))``, Smalikho (2020),
+    eq. 6 (r_c = R S(theta)) and eq. 8 (V_r = S . V).
+
+    Parameters
+    ----------
+    azimuth_deg : array_like
+        Azimuth theta, clockwise from north (deg).
+    elevation_deg : array_like
+        Elevation phi above the horizon (deg).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Broadcast shape of the inputs plus a last axis of length 3 (dimensionless).
+    """
+    theta = np.deg2rad(np.asarray(azimuth_deg, dtype=float))
+    phi = np.deg2rad(np.asarray(elevation_deg, dtype=float))
+    theta, phi = np.broadcast_arrays(theta, phi)
+    return np.stack(
+        [np.cos(phi) * np.sin(theta), np.cos(phi) * np.cos(theta), np.sin(phi)], axis=-1
+    )
+
+
+def radial_velocity(
+    u: ArrayLike, v: ArrayLike, w: ArrayLike, azimuth_deg: ArrayLike, elevation_deg: ArrayLike
+) -> FloatArray:
+    """Projection of the wind on the beam, positive away from the lidar.
+
+    ``V_r = w sin(phi) + cos(phi) (u sin(theta) + v cos(theta))``,
+    Smalikho (2020), eq. 8; Smalikho (2020), eq. 1 (VAD model).
+
+    Parameters
+    ----------
+    u, v, w : array_like
+        Eastward, northward and upward wind (m s-1).
+    azimuth_deg : array_like
+        Azimuth, clockwise from north (deg).
+    elevation_deg : array_like
+        Elevation (deg).
+
+    Returns
+    -------
+    ndarray
+        Radial velocity (m s-1), broadcast shape of the inputs.
+    """
+    theta = np.deg2rad(np.asarray(azimuth_deg, dtype=float))
+    phi = np.deg2rad(np.asarray(elevation_deg, dtype=float))
+    return np.asarray(w) * np.sin(phi) + np.cos(phi) * (
+        np.asarray(u) * np.sin(theta) + np.asarray(v) * np.cos(theta)
+    )
+
+
+def height_from_range(range_m: ArrayLike, elevation_deg: ArrayLike) -> FloatArray:
+    """Height of a gate above the instrument, ``h = R sin(phi)`` (m).
+
+    Smalikho (2020), eq. 6 (the z component of r_c = R S).
+
+    Parameters
+    ----------
+    range_m : array_like
+        Distance along the beam (m).
+    elevation_deg : array_like
+        Elevation (deg).
+
+    Returns
+    -------
+    ndarray
+        Height (m).
+    """
+    return np.asarray(range_m, dtype=float) * np.sin(np.deg2rad(elevation_deg))
+
+
+def scan_circle_radius(height_m: ArrayLike, elevation_deg: ArrayLike) -> FloatArray:
+    """Radius of the scan circle at height h, ``R' = h / tan(phi)`` (m).
+
+    Smalikho (2020), eq. 7 (the horizontal circle of radius R' swept by r_c).
+
+    Parameters
+    ----------
+    height_m : array_like
+        Height above the instrument (m).
+    elevation_deg : array_like
+        Elevation (deg), 0 < phi < 90.
+
+    Returns
+    -------
+    ndarray
+        R' (m).
+    """
+    return np.asarray(height_m, dtype=float) / np.tan(np.deg2rad(elevation_deg))
+
+
+def linear_scan_speed(
+    height_m: ArrayLike, elevation_deg: ArrayLike, scan_period_s: ArrayLike
+) -> FloatArray:
+    """Linear speed of the probe volume on the scan circle, ``V_s = 2 pi h / (T tan phi)``.
+
+    Smalikho (2020), eq. 3.
+
+    Parameters
+    ----------
+    height_m : array_like
+        Height (m).
+    elevation_deg : array_like
+        Elevation (deg).
+    scan_period_s : array_like
+        Duration T_scan of one 360 deg rotation (s).
+
+    Returns
+    -------
+    ndarray
+        V_s (m s-1).
+    """
+    return (
+        2.0
+        * np.pi
+        * scan_circle_radius(height_m, elevation_deg)
+        / np.asarray(scan_period_s, dtype=float)
+    )
+
+
+def transverse_sampling(azimuth_step_deg: ArrayLike, radius_m: ArrayLike) -> FloatArray:
+    """Arc length between neighbouring rays on the scan circle, ``dy = dtheta R'`` (m).
+
+    Smalikho (2020), eq. 7 and the definition of Delta y before eq. 15.
+
+    Parameters
+    ----------
+    azimuth_step_deg : array_like
+        Azimuth step dtheta between rays (deg).
+    radius_m : array_like
+        Scan-circle radius R' (m).
+
+    Returns
+    -------
+    ndarray
+        dy (m).
+    """
+    return np.deg2rad(np.asarray(azimuth_step_deg, dtype=float)) * np.asarray(radius_m, dtype=float)

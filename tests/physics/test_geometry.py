@@ -1,0 +1,74 @@
+"""Geometry of conical scanning (Smalikho (2020), eqs. 3, 6-8)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cwproc.physics import geometry as g
+
+angles = st.floats(-720.0, 720.0, allow_nan=False)
+elevations = st.floats(-89.0, 179.0, allow_nan=False)
+
+
+@settings(max_examples=200, deadline=None)
+@given(azimuth=angles, elevation=elevations)
+def test_beam_unit_vector_has_unit_length(azimuth: float, elevation: float) -> None:
+    assert np.linalg.norm(g.beam_unit_vector(azimuth, elevation)) == pytest.approx(1.0, 1e-12)
+
+
+def test_beam_unit_vector_cardinal_directions() -> None:
+    # (east, north, up): north at the horizon, east at the horizon, zenith
+    np.testing.assert_allclose(g.beam_unit_vector(0.0, 0.0), [0, 1, 0], atol=1e-15)
+    np.testing.assert_allclose(g.beam_unit_vector(90.0, 0.0), [1, 0, 0], atol=1e-15)
+    np.testing.assert_allclose(g.beam_unit_vector(123.0, 90.0), [0, 0, 1], atol=1e-15)
+    assert g.beam_unit_vector(np.zeros((4, 5)), 30.0).shape == (4, 5, 3)
+
+
+@settings(max_examples=200, deadline=None)
+@given(u=st.floats(-40, 40), v=st.floats(-40, 40), w=st.floats(-5, 5), az=angles, el=elevations)
+def test_radial_velocity_is_projection_on_beam(
+    u: float, v: float, w: float, az: float, el: float
+) -> None:
+    # Smalikho (2020), eq. 8: V_r = S . V
+    expected = g.beam_unit_vector(az, el) @ np.array([u, v, w])
+    assert g.radial_velocity(u, v, w, az, el) == pytest.approx(expected, abs=1e-9)
+
+
+def test_wind_from_north_seen_by_north_beam_is_negative() -> None:
+    # a northerly wind (v < 0) blows towards a north-pointing beam: V_r < 0
+    assert g.radial_velocity(0.0, -10.0, 0.0, 0.0, 0.0) == pytest.approx(-10.0)
+    assert g.radial_velocity(0.0, 0.0, 2.0, 77.0, 90.0) == pytest.approx(2.0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(az=st.floats(0.0, 360.0), el=st.floats(-89.0, 179.0))
+def test_normalise_pointing_keeps_direction(az: float, el: float) -> None:
+    az2, el2 = g.normalise_pointing(az, el)
+    assert -90.0 <= el2 <= 90.0
+    assert 0.0 <= az2 < 360.0
+    np.testing.assert_allclose(g.beam_unit_vector(az2, el2), g.beam_unit_vector(az, el), atol=1e-12)
+
+
+def test_heights_radius_speed_sampling() -> None:
+    # phi = 30 deg, R = 1000 m: h = 500 m, R' = 866.03 m
+    h = g.height_from_range(1000.0, 30.0)
+    assert h == pytest.approx(500.0, rel=1e-12)
+    radius = g.scan_circle_radius(h, 30.0)
+    assert radius == pytest.approx(1000.0 * np.cos(np.deg2rad(30.0)), rel=1e-12)
+    # Smalikho (2020), eq. 3: V_s = 2 pi h / (T tan phi); T = 60 s
+    assert g.linear_scan_speed(h, 30.0, 60.0) == pytest.approx(2 * np.pi * 866.0254 / 60, 1e-6)
+    # dy = dtheta R': 1 deg at R' = 100 m -> 1.74533 m; a full turn -> circumference
+    assert g.transverse_sampling(1.0, 100.0) == pytest.approx(1.745329, rel=1e-6)
+    assert g.transverse_sampling(360.0, radius) == pytest.approx(2 * np.pi * radius)
+
+
+def test_functions_broadcast() -> None:
+    h = g.height_from_range(np.array([100.0, 200.0])[:, None], np.array([15.0, 45.0, 75.0]))
+    assert h.shape == (2, 3)
+    np.testing.assert_allclose(
+        g.scan_circle_radius(h, [15.0, 45.0, 75.0]),
+        np.array([100.0, 200.0])[:, None] * np.cos(np.deg2rad([15.0, 45.0, 75.0])),
+    )
