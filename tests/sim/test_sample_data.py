@@ -1,0 +1,55 @@
+"""The shipped sample data: deterministic regeneration, format and truth."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cwproc.sim.sample_data import SAMPLE_SPEC, write_sample_data
+
+SAMPLE = Path(__file__).resolve().parents[2] / "sample_data"
+
+
+def test_sample_folder_holds_only_hpl_files_under_4_mb():
+    files = sorted((SAMPLE / "streamline").iterdir())
+    assert files, "sample_data/streamline is empty"
+    assert all(f.suffix == ".hpl" for f in files)
+    assert sum(f.stat().st_size for f in files) <= 4 * 1024 * 1024
+
+
+@pytest.mark.slow
+def test_regeneration_is_byte_identical(tmp_path):
+    write_sample_data(tmp_path)
+    shipped = sorted((SAMPLE / "streamline").glob("*.hpl"))
+    fresh = sorted((tmp_path / "streamline").glob("*.hpl"))
+    assert [f.name for f in fresh] == [f.name for f in shipped]
+    for a, b in zip(shipped, fresh, strict=True):
+        assert a.read_bytes() == b.read_bytes(), a.name
+    assert (tmp_path / "streamline_truth.json").read_bytes() == (
+        SAMPLE / "streamline_truth.json"
+    ).read_bytes()
+
+
+def test_sample_files_read_back_with_enough_scans_and_the_true_mean_wind():
+    from cwproc.io.halo import read_hpl
+
+    truth = json.loads((SAMPLE / "streamline_truth.json").read_text())
+    datasets = [read_hpl(p) for p in sorted((SAMPLE / "streamline").glob("*.hpl"))]
+    n_scans = sum(int(ds["scan"].max()) + 1 for ds in datasets)
+    assert n_scans >= 10  # the turbulence block (N = 10 scans) runs
+    assert n_scans == SAMPLE_SPEC.n_scans
+    # the radial velocities average to the projection of the true wind: least squares of
+    # V_r = cos(phi) (u sin(theta) + v cos(theta)) + w sin(phi) over all rays and gates
+    az = np.deg2rad(np.concatenate([ds["azimuth"].values for ds in datasets]))
+    el = np.deg2rad(np.concatenate([ds["elevation"].values for ds in datasets]))
+    vr = np.concatenate([ds["radial_velocity"].values for ds in datasets]).mean(axis=1)
+    design = np.column_stack([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)])
+    (u, v, w), *_ = np.linalg.lstsq(design, vr, rcond=None)
+    # turbulence sigma_V ~ 1.2 m/s averaged over 24 gates and 12 scans of a field with
+    # L_V = 150 m: the mean over the box is uncertain by a few tenths of a m/s
+    assert u == pytest.approx(truth["u_m_s"], abs=0.6)
+    assert v == pytest.approx(truth["v_m_s"], abs=0.6)
+    assert w == pytest.approx(0.0, abs=0.6)
