@@ -1,0 +1,390 @@
+"""Leosphere WindCube v1 (WLS7) ``.sta`` 10-min statistics -> wind record.
+
+Layout (``real_data/FORMATS.md`` §3): Latin-1 text (``°`` is byte 0xB0), TAB-separated.
+Line 1 gives the header length ``N`` (``HeaderSize=40`` in software 1.x,
+``HeaderLength=55`` in 3.x); lines 2..N+1 hold ``Key=value`` items and ``****``
+section lines; line ``N + 2`` holds the column names and the records follow it.
+Every height block ends with an empty column (trailing TABs).
+
+Two generations of column names:
+
+* 1.x: ``Timestamp (end of interval)`` (``yyyy/mm/dd HH:MM``), met columns
+  (``Int Temp (°C)``, ``Ext Temp (°C)``, ``Pressure (hPa)``, ``Rel Humidity (%)``,
+  ``Wiper count``, ``Vbatt (V)``), then per altitude ``<H>m Wind Speed (m/s)``,
+  ``<H>m Wind Speed Dispersion (m/s)``, ... ``<H>m Data Availability (%)``;
+* 3.x: ``Date`` (``dd/mm/yyyy HH:MM:SS``), ``WiperCount``, ``Tm``, then per height
+  index ``k`` a block ``Vhm k, dVh k, VhMax k, VhMin k, Azim k, um k, du k, vm k, dv k,
+  wm k, dw k, CNRm, dCNR, CNRmax, CNRmin, spectral_broadening, dspectral_broadening,
+  Avail. k`` matched by position to ``Altitudes(m)=`` of the header.
+
+Notes
+-----
+Stamps mark the **end** of the 10-min interval (1.x says so; 3.x starts at 00:10 and
+ends at 00:00 next day). 1.x states ``timezone=UTC+0``; 3.x states no zone and is
+taken as UTC (``attrs["time_sync"] = "absent"``) unless the reader option
+``utc_offset_hours`` says otherwise. Missing values are written ``NaN`` and counted in
+``attrs["n_missing"]``.
+
+In 3.x, ``um = Vhm cos(Azim)`` and ``vm = Vhm sin(Azim)`` hold in the file; ``Azim``
+is read as the direction the wind comes from (as ``Wind Direction`` of 1.x), and
+``um``/``vm`` are kept as ``u_instrument``/``v_instrument`` without a sign
+convention being claimed. ``Tm`` is read as the air temperature (its values follow
+outdoor December temperatures, 1-2 °C, unlike the 25 °C internal temperature of 1.x).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+from cwproc.errors import InputFileError
+
+#: 1.x per-altitude column suffix -> canonical name
+LONG_HEIGHT_COLUMNS: dict[str, str] = {
+    "Wind Speed (m/s)": "wind_speed",
+    "Wind Speed Dispersion (m/s)": "wind_speed_std",
+    "Wind Speed min (m/s)": "wind_speed_min",
+    "Wind Speed max (m/s)": "wind_speed_max",
+    "Wind Direction (°)": "wind_direction",
+    "Z-wind (m/s)": "w",
+    "Z-wind Dispersion (m/s)": "w_std",
+    "CNR (dB)": "cnr",
+    "CNR min (dB)": "cnr_min",
+    "Dopp Spect Broad (m/s)": "spectral_broadening",
+    "Data Availability (%)": "data_availability",
+}
+
+#: 3.x per-height block, in file order (index suffix stripped) -> canonical name
+SHORT_HEIGHT_COLUMNS: dict[str, str] = {
+    "Vhm": "wind_speed",
+    "dVh": "wind_speed_std",
+    "VhMax": "wind_speed_max",
+    "VhMin": "wind_speed_min",
+    "Azim": "wind_direction",
+    "um": "u_instrument",
+    "du": "u_instrument_std",
+    "vm": "v_instrument",
+    "dv": "v_instrument_std",
+    "wm": "w",
+    "dw": "w_std",
+    "CNRm": "cnr",
+    "dCNR": "cnr_std",
+    "CNRmax": "cnr_max",
+    "CNRmin": "cnr_min",
+    "spectral_broadening": "spectral_broadening",
+    "dspectral_broadening": "spectral_broadening_std",
+    "Avail.": "data_availability",
+}
+
+#: per-record columns (both generations) -> canonical name
+RECORD_COLUMNS: dict[str, str] = {
+    "Int Temp (°C)": "internal_temperature",
+    "Ext Temp (°C)": "air_temperature",
+    "Pressure (hPa)": "air_pressure",
+    "Rel Humidity (%)": "relative_humidity",
+    "Wiper count": "wiper_count",
+    "WiperCount": "wiper_count",
+    "Vbatt (V)": "battery_voltage",
+    "Tm": "air_temperature",
+}
+
+_TIME_COLUMNS = ("Timestamp (end of interval)", "Date")
+_TIME_FORMATS = ("%Y/%m/%d %H:%M", "%Y/%m/%d %H:%M:%S", "%d/%m/%Y %H:%M:%S", "%d/%m/%Y %H:%M")
+_LONG_RE = re.compile(r"^(?P<height>\d+(?:\.\d+)?)m (?P<suffix>.+)$")
+_SHORT_RE = re.compile(r"^(?P<name>[A-Za-z_.]+?)(?P<index>\d*)$")
+_TZ_RE = re.compile(r"UTC\s*([+-])\s*(\d+(?:\.\d+)?)", re.IGNORECASE)
+
+
+def parse_header(path: str | os.PathLike, lines: list[str]) -> tuple[int, dict[str, str]]:
+    """Header length and ``Key=value`` items of a ``.sta`` file.
+
+    Returns
+    -------
+    column_line : int
+        1-based number of the column-header line (``N + 2``).
+    items : dict
+        Header items, keys stripped (``"ScanAngle (°)"``, ``"Altitudes(m)"``, ...).
+
+    Raises
+    ------
+    InputFileError
+        Line 1 is not ``HeaderSize=N``/``HeaderLength=N``, or the file ends in the header.
+    """
+    key, sep, value = lines[0].partition("=")
+    if not sep or key.strip() not in ("HeaderSize", "HeaderLength"):
+        raise InputFileError(path, "line 1 is not 'HeaderSize=N' or 'HeaderLength=N'", 1)
+    try:
+        size = int(value.strip())
+    except ValueError:
+        raise InputFileError(
+            path, f"header length {value.strip()!r} is not an integer", 1
+        ) from None
+    if size < 1:
+        raise InputFileError(path, f"header length {size} is not positive", 1)
+    column_line = size + 2
+    if len(lines) < column_line:
+        raise InputFileError(
+            path, f"file ends inside the header ({len(lines)} lines, header needs {size + 1})"
+        )
+    items = {}
+    for line in lines[1 : column_line - 1]:
+        k, s, v = line.partition("=")
+        if s:
+            items[k.strip()] = v
+    return column_line, items
+
+
+def _header_value(items: dict[str, str], *keys: str) -> str | None:
+    for key in keys:
+        if key in items:
+            return items[key].strip()
+    return None
+
+
+def _altitudes(path: str | os.PathLike, items: dict[str, str]) -> np.ndarray | None:
+    value = _header_value(items, "Altitudes (m)", "Altitudes(m)")
+    if value is None:
+        return None
+    try:
+        return np.array([float(v) for v in value.split()], dtype=float)
+    except ValueError:
+        raise InputFileError(path, f"Altitudes {value!r} are not numbers") from None
+
+
+def _layout_long(
+    path: str | os.PathLike, names: list[str], line: int
+) -> tuple[list[float], dict[tuple[str, float], int]]:
+    heights: list[float] = []
+    columns: dict[tuple[str, float], int] = {}
+    for i, name in enumerate(names):
+        m = _LONG_RE.match(name)
+        if m and m.group("suffix") in LONG_HEIGHT_COLUMNS:
+            h = float(m.group("height"))
+            if h not in heights:
+                heights.append(h)
+            columns[(LONG_HEIGHT_COLUMNS[m.group("suffix")], h)] = i
+    for h in heights:
+        missing = [s for s, v in LONG_HEIGHT_COLUMNS.items() if (v, h) not in columns]
+        if missing:
+            raise InputFileError(
+                path, f"altitude {h:g} m lacks the column(s) {', '.join(missing)}", line
+            )
+    return heights, columns
+
+
+def _layout_short(
+    path: str | os.PathLike, names: list[str], line: int, altitudes: np.ndarray | None
+) -> tuple[list[float], dict[tuple[str, float], int]]:
+    if altitudes is None:
+        raise InputFileError(path, "no 'Altitudes(m)=' in the header to match the columns to")
+    starts = [i for i, n in enumerate(names) if re.fullmatch(r"Vhm\d+", n)]
+    order = list(SHORT_HEIGHT_COLUMNS)
+    columns: dict[tuple[str, float], int] = {}
+    if len(starts) != altitudes.size:
+        raise InputFileError(
+            path,
+            f"{len(starts)} height blocks (Vhm1...) but {altitudes.size} altitudes in the header",
+            line,
+        )
+    for k, start in enumerate(starts):
+        block = [_SHORT_RE.match(n) for n in names[start : start + len(order)]]
+        found = [m.group("name") if m else None for m in block]
+        if found != order:
+            raise InputFileError(
+                path,
+                f"height block {k + 1} (column {start + 1}) is not {' '.join(order)}",
+                line,
+            )
+        indexed = [m.group("index") for m in block if m.group("index")]
+        if any(int(i) != k + 1 for i in indexed):
+            raise InputFileError(path, f"height block {k + 1} has index {indexed[0]}", line)
+        for j, name in enumerate(order):
+            columns[(SHORT_HEIGHT_COLUMNS[name], float(altitudes[k]))] = start + j
+    return [float(a) for a in altitudes], columns
+
+
+def _parse_times(path: str | os.PathLike, stamps: pd.Series, first_line: int) -> np.ndarray:
+    stamps = stamps.str.strip()
+    for fmt in _TIME_FORMATS:
+        times = pd.to_datetime(stamps, format=fmt, errors="coerce")
+        if not times.isna().any():
+            return times.to_numpy(dtype="datetime64[ns]")
+    ok = [pd.to_datetime(stamps, format=f, errors="coerce").notna().sum() for f in _TIME_FORMATS]
+    times = pd.to_datetime(stamps, format=_TIME_FORMATS[int(np.argmax(ok))], errors="coerce")
+    row = int(np.flatnonzero(times.isna().to_numpy())[0])
+    raise InputFileError(path, f"time {stamps.iloc[row]!r} is not a date", first_line + row)
+
+
+def _numbers(path: str | os.PathLike, table: pd.DataFrame, first_line: int) -> np.ndarray:
+    text = table.apply(lambda col: col.str.strip())
+    values = text.apply(pd.to_numeric, errors="coerce").to_numpy(dtype=float)
+    raw = text.to_numpy()
+    bad = np.isnan(values) & (raw != "NaN")
+    if bad.any():
+        row, col = np.argwhere(bad)[0]
+        shown = raw[row, col]
+        problem = "is empty" if shown == "" else f"{shown!r} is not a number"
+        raise InputFileError(
+            path,
+            f"column {table.columns[col]!r}: {problem}".replace(": is", " is"),
+            first_line + int(row),
+        )
+    return values
+
+
+def read_windcube_sta(
+    path: str | os.PathLike, *, utc_offset_hours: float | None = None
+) -> xr.Dataset:
+    """Read a WindCube v1 ``.sta`` file (software 1.x or 3.x) into a wind-record dataset.
+
+    Parameters
+    ----------
+    path : path
+        The ``.sta`` file.
+    utc_offset_hours : float, optional
+        Offset of the stamps from UTC (h), overriding ``timezone=`` of the header (3.x
+        files have none); ``[reader.windcube_sta] utc_offset_hours``.
+
+    Returns
+    -------
+    xarray.Dataset
+        dims ``(time, height)``; coords ``time`` (UTC, end of interval), ``height`` (m,
+        ascending); per height ``wind_speed``, ``wind_speed_std``, ``wind_speed_min``,
+        ``wind_speed_max``, ``wind_direction``, ``w``, ``w_std``, ``cnr``,
+        ``spectral_broadening``, ``data_availability`` (%) (+ 3.x extras); per time the
+        met columns. attrs: ``averaging_interval_s``, ``time_stamp_position`` "end",
+        ``utc_offset_applied_h``, ``system_id``, ``scan_angle_deg``, ``n_missing``.
+
+    Raises
+    ------
+    InputFileError
+        Empty, not a ``.sta`` file, column header not where the header length says, a
+        height block incomplete, a record with the wrong number of fields, a bad number
+        or time.
+    """
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    if not raw.strip():
+        raise InputFileError(path, "file is empty")
+    lines = raw.decode("latin-1").replace("\r\n", "\n").split("\n")
+    if lines[-1] == "":
+        lines.pop()
+    column_line, items = parse_header(path, lines)
+    names = lines[column_line - 1].split("\t")
+    time_col = names[0].strip()
+    if time_col not in _TIME_COLUMNS:
+        raise InputFileError(
+            path,
+            f"expected the column header ('Timestamp (end of interval)' or 'Date', "
+            f"TAB-separated) on line {column_line}, found {names[0][:40]!r}",
+            column_line,
+        )
+    altitudes = _altitudes(path, items)
+    if any(_LONG_RE.match(n) for n in names):
+        generation = "1.x"
+        heights, hcols = _layout_long(path, names, column_line)
+        if altitudes is not None and sorted(altitudes) != sorted(heights):
+            raise InputFileError(
+                path,
+                "altitudes of the columns differ from 'Altitudes (m)=' of the header",
+                column_line,
+            )
+    else:
+        generation = "3.x"
+        heights, hcols = _layout_short(path, names, column_line, altitudes)
+    if not heights:
+        raise InputFileError(path, "no per-altitude wind columns", column_line)
+
+    data = lines[column_line:]
+    if not data:
+        raise InputFileError(path, "no data records after the column header", column_line)
+    series = pd.Series(data, dtype=object)
+    counts = series.str.count("\t").to_numpy() + 1
+    wrong = np.flatnonzero(counts != len(names))
+    if wrong.size:
+        i = int(wrong[0])
+        problem = f"record has {counts[i]} fields, expected {len(names)}"
+        if i == len(data) - 1 and counts[i] < len(names):
+            problem += " (file truncated?)"
+        raise InputFileError(path, problem, column_line + 1 + i)
+    table = series.str.split("\t", expand=True, regex=False)
+    first = column_line + 1
+
+    tz = _header_value(items, "timezone", "TimeZone", "Timezone")
+    offset = 0.0
+    sync = "absent"
+    if tz:
+        m = _TZ_RE.search(tz)
+        if m is None:
+            raise InputFileError(path, f"cannot read the time zone {tz!r}")
+        offset = (1 if m.group(1) == "+" else -1) * float(m.group(2))
+        sync = "from file"
+    if utc_offset_hours is not None:
+        offset, sync = float(utc_offset_hours), "reader option utc_offset_hours"
+    times = _parse_times(path, table[0], first)
+    times = times - np.timedelta64(round(offset * 3600e9), "ns")
+    back = np.flatnonzero(np.diff(times) <= np.timedelta64(0, "ns"))
+    if back.size:
+        raise InputFileError(
+            path, "time stamp does not increase over the previous record", first + int(back[0]) + 1
+        )
+
+    record = {
+        i: RECORD_COLUMNS[n.strip()] for i, n in enumerate(names) if n.strip() in RECORD_COLUMNS
+    }
+    heights_sorted = np.array(sorted(heights), dtype=float)
+    variables = sorted({v for v, _ in hcols}, key=list(dict.fromkeys(v for v, _ in hcols)).index)
+    used = list(record) + [hcols[(v, h)] for v in variables for h in heights_sorted]
+    sub = table[used]
+    sub.columns = [names[i] if i in record else f"{names[i]} [{i + 1}]" for i in used]
+    values = _numbers(path, sub, first)
+    n_missing = int(np.isnan(values).sum())
+
+    data_vars: dict[str, Any] = {}
+    for j, i in enumerate(record):
+        data_vars[record[i]] = (("time",), values[:, j])
+    nh = heights_sorted.size
+    base = len(record)
+    for k, var in enumerate(variables):
+        block = values[:, base + k * nh : base + (k + 1) * nh]
+        data_vars[var] = (("time", "height"), block)
+
+    steps = np.diff(times).astype(float) / 1e9
+    interval = float(np.median(steps)) if steps.size else 600.0
+    version = _header_value(items, "Version") or ""
+    attrs: dict[str, Any] = {
+        "instrument": f"Leosphere WindCube v1 (software {version})".strip(),
+        "instrument_kind": "pulsed",
+        "format": "windcube_sta",
+        "column_generation": generation,
+        "source_files": [path.name],
+        "homodyne": 0,
+        "averaging_interval_s": interval,
+        "time_stamp_position": "end",
+        "utc_offset_applied_h": offset,
+        "time_sync": sync,
+        "n_missing": n_missing,
+        "system_id": _header_value(items, "ID System") or "",
+    }
+    angle = _header_value(items, "ScanAngle (°)", "ScanAngle(°)")
+    if angle:
+        try:
+            attrs["scan_angle_deg"] = float(angle)
+        except ValueError:
+            raise InputFileError(path, f"ScanAngle {angle!r} is not a number") from None
+    location = _header_value(items, "Location", "Localisation")
+    if location:
+        attrs["location"] = location
+    gps = _header_value(items, "GPS Location", "GPS Localisation")
+    if gps:
+        attrs["gps_location"] = gps
+    return xr.Dataset(data_vars, coords={"time": times, "height": heights_sorted}, attrs=attrs)
