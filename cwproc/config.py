@@ -137,26 +137,49 @@ class TurbulenceConfig:
 
 @dataclass(frozen=True)
 class SonicConfig:
-    """Structure-function typing of sonic data (stage ``sonic_sf``), Gladkikh et al. (2014)."""
+    """Structure-function typing of sonic data (stage ``sonic_sf``), Gladkikh et al. (2014).
 
-    #: analysis window (s)
+    The two rules the paper leaves unstated are explicit here (docs/sonic.md):
+    precedence among the nested types (``precedence_tolerance``,
+    ``curvature_tolerance``) and how r_p and r_l of type 3 are found (r_p: end of the
+    parabola grown from r_min; r_l: smallest start >= r_p meeting the type-3 rules).
+    """
+
+    #: analysis window Delta t (s); 600 in Gladkikh et al. (2014)
     window_s: float = 600.0
-    #: running-mean window removed before the structure functions (s)
+    #: running-mean window removed before the structure functions (s); 60 in the paper
     running_mean_s: float = 60.0
-    #: largest lag as a fraction of the window
+    #: largest lag as a fraction of the window; 0.1 in the paper
     max_lag_fraction: float = 0.1
-    #: determination-coefficient threshold k_dL
+    #: determination-coefficient threshold k_dL; 0.99850 in the paper
     kd_threshold: float = 0.99850
-    #: lag (m) at which the structure function is normalised
+    #: r_N (m): lag of the normalisation (eq. 3), smallest accepted r_max, largest r_min
     normalisation_lag_m: float = 1.0
-    #: precedence: a simpler type wins when its r_max reaches this fraction (in lg r) of
-    #: the more complex type's r_max
+    #: precedence (decades of r_max): the simplest type whose lg r_max is within this of
+    #: the largest lg r_max wins (nested models: the parabola always reaches farther)
     precedence_tolerance: float = 0.05
+    #: precedence (decades of lg D): a parabola whose curvature term changes lg D by less
+    #: than this over its range, |a2| (x_max - x_min)^2 / 8, counts as a line (type 1)
+    curvature_tolerance: float = 0.03
+    #: fewest lags in a fit and in each part of a type-3 fit
+    min_fit_points: int = 5
+    #: windows with a smaller fraction of valid samples are skipped (window_flag 1)
+    min_valid_fraction: float = 0.9
 
     def __post_init__(self) -> None:
         _positive(self, "window_s", "running_mean_s", "max_lag_fraction", "normalisation_lag_m")
         if not 0 < self.kd_threshold < 1:
             raise ValueError("kd_threshold: must be in (0, 1)")
+        if not 0 < self.max_lag_fraction <= 0.5:
+            raise ValueError("max_lag_fraction: must be in (0, 0.5]")
+        if not self.precedence_tolerance >= 0:
+            raise ValueError("precedence_tolerance: must be >= 0")
+        if not self.curvature_tolerance >= 0:
+            raise ValueError("curvature_tolerance: must be >= 0")
+        if self.min_fit_points < 4:
+            raise ValueError("min_fit_points: must be >= 4 (a parabola has 3 coefficients)")
+        if not 0 < self.min_valid_fraction <= 1:
+            raise ValueError("min_valid_fraction: must be in (0, 1]")
 
 
 @dataclass(frozen=True)
@@ -196,6 +219,74 @@ class OutputConfig:
 
 
 @dataclass(frozen=True)
+class SimulationConfig:
+    """The virtual cw lidar and its Monte-Carlo error study (``cwproc simulate``).
+
+    Defaults are those of Banakh et al. (1999), section 3 and its table of heights.
+    """
+
+    #: beam elevation phi (deg); Banakh et al. (1999): 30
+    elevation_deg: float = 30.0
+    #: duration T of one 360 deg rotation (s); Banakh et al. (1999): 7
+    scan_period_s: float = 7.0
+    #: measuring time t0 of one Doppler spectrum (s); Banakh et al. (1999): 0.05 (140 per scan)
+    spectrum_time_s: float = 0.05
+    #: velocity resolution dV of the Doppler spectra (m s-1), << the spectral width (eq. 9)
+    velocity_resolution_m_s: float = 0.1
+    #: spectral channels M_D (channel 0 at 0 m s-1 for the homodyne system)
+    n_channels: int = 256
+    #: spectra whose peak lies below this velocity are dropped (m s-1); the paper: 1
+    min_peak_velocity_m_s: float = 1.0
+    #: heights h of the profile (m), Banakh et al. (1999), table
+    heights_m: tuple[float, ...] = (50.0, 100.0, 200.0, 300.0, 400.0, 500.0)
+    #: mean wind speed U(h) (m s-1), same table
+    wind_speed_m_s: tuple[float, ...] = (6.90, 7.77, 8.63, 9.14, 9.50, 9.78)
+    #: standard deviation sigma_V(h) (m s-1), same table
+    sigma_v_m_s: tuple[float, ...] = (1.23, 1.20, 1.15, 1.11, 1.07, 1.02)
+    #: integral scale L_V(h) (m), same table (epsilon follows from eq. 19)
+    outer_scale_m: tuple[float, ...] = (133.0, 200.0, 266.0, 300.0, 320.0, 333.0)
+    #: direction the mean wind blows from (deg); not stated in the paper
+    wind_direction_deg: float = 240.0
+    #: independent realisations of the Monte-Carlo study; the paper: 1000
+    realisations: int = 1000
+    #: largest number of scans N averaged; the paper: 10
+    max_scans: int = 10
+    #: azimuth lags l = 1..max_lag of the structure-function fit (l dtheta <= 9 deg at 140
+    #: spectra per scan needs max_lag <= 3; 5 as in REFERENCE_VALUES.md section 3)
+    max_lag: int = 5
+
+    def __post_init__(self) -> None:
+        _positive(
+            self, "elevation_deg", "scan_period_s", "spectrum_time_s", "velocity_resolution_m_s"
+        )
+        if not 0 < self.elevation_deg < 90:
+            raise ValueError("elevation_deg: must be in (0, 90)")
+        if self.spectrum_time_s >= self.scan_period_s:
+            raise ValueError("spectrum_time_s: must be shorter than scan_period_s")
+        n = len(self.heights_m)
+        if n == 0:
+            raise ValueError("heights_m: at least one height is needed")
+        for name in ("wind_speed_m_s", "sigma_v_m_s", "outer_scale_m"):
+            values = getattr(self, name)
+            if len(values) != n:
+                raise ValueError(f"{name}: needs one value per height ({n}), got {len(values)}")
+            if not all(v > 0 for v in values):
+                raise ValueError(f"{name}: values must be > 0")
+        if not all(h > 0 for h in self.heights_m):
+            raise ValueError("heights_m: values must be > 0")
+        if self.n_channels < 16:
+            raise ValueError("n_channels: must be >= 16")
+        if self.realisations < 2:
+            raise ValueError("realisations: must be >= 2")
+        if self.max_scans < 1:
+            raise ValueError("max_scans: must be >= 1")
+        if self.max_lag < 2:
+            raise ValueError("max_lag: must be >= 2 (two parameters are fitted)")
+        if self.min_peak_velocity_m_s < 0:
+            raise ValueError("min_peak_velocity_m_s: must be >= 0")
+
+
+@dataclass(frozen=True)
 class Config:
     """The whole configuration. ``source`` names the file or preset it came from."""
 
@@ -206,6 +297,7 @@ class Config:
     sonic: SonicConfig = field(default_factory=SonicConfig)
     zephir: ZephirConfig = field(default_factory=ZephirConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
+    simulation: SimulationConfig = field(default_factory=SimulationConfig)
     #: reader options per format (free-form tables, validated by the reader), e.g.
     #: ``[reader.meteo2] delimiter = ","``
     reader: dict[str, dict[str, Any]] = field(default_factory=dict)
