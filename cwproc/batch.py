@@ -54,7 +54,7 @@ from typing import Any
 import numpy as np
 
 from cwproc.config import Config, config_from_toml
-from cwproc.errors import CwprocError
+from cwproc.errors import CwprocError, InputFileError, ProductError
 from cwproc.io import Format, sniff_format
 
 log = logging.getLogger(__name__)
@@ -384,17 +384,26 @@ def process_unit_task(task: UnitTask) -> UnitOutcome:
         units = group_units(items)
         if len(units) != 1 or units[0].key != task.key:
             found = ", ".join(u.key for u in units)
-            return outcome(error=f"unit {task.key}: its inputs now group as {found}")
+            return outcome(error=f"{unit_label(task)}: its inputs now group as {found}")
         products = process_unit(units[0], config)
         written = write_unit_products(units[0], products, task.outdir, config)
+    except (InputFileError, ProductError) as exc:
+        return outcome(error=str(exc))  # already names the file
     except CwprocError as exc:
-        return outcome(error=str(exc))
+        return outcome(error=f"{unit_label(task)}: {exc}")
     except Exception as exc:
         return outcome(
-            error=f"unit {task.key}: internal error {type(exc).__name__}: {exc}",
+            error=f"{unit_label(task)}: internal error {type(exc).__name__}: {exc}",
             detail=traceback.format_exc(),
         )
     return outcome(written)
+
+
+def unit_label(task: UnitTask) -> str:
+    """How failure lines name a unit: its key and its (first) input file."""
+    more = f" and {len(task.paths) - 1} more" if len(task.paths) > 1 else ""
+    first = task.paths[0] if task.paths else "no inputs"
+    return f"unit {task.key} ({first}{more})"
 
 
 # --------------------------------------------------------------------------------------
@@ -662,7 +671,9 @@ def run_tasks(
         yield item, result
 
 
-def dask_client(workers: int | None = None, scheduler: str | None = None) -> Any:
+def dask_client(
+    workers: int | None = None, scheduler: str | None = None, timeout_s: float = 10.0
+) -> Any:
     """A ``dask.distributed.Client``: a new ``LocalCluster`` or an existing scheduler.
 
     Parameters
@@ -671,6 +682,8 @@ def dask_client(workers: int | None = None, scheduler: str | None = None) -> Any
         Start a LocalCluster of this many worker processes, one thread each.
     scheduler : str, optional
         Address of a running scheduler (``tcp://host:8786``).
+    timeout_s : float
+        How long to try to reach the scheduler (s).
 
     Raises
     ------
@@ -685,7 +698,7 @@ def dask_client(workers: int | None = None, scheduler: str | None = None) -> Any
         raise DaskNotInstalledError() from None
     if scheduler:
         try:
-            return Client(scheduler, timeout="20s")
+            return Client(scheduler, timeout=f"{timeout_s}s")
         except (OSError, TimeoutError) as exc:
             raise CwprocError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
     cluster = LocalCluster(

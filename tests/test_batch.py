@@ -437,11 +437,14 @@ def test_lock_of_a_killed_process_is_taken_over(tmp_path):
 # the real pipeline on synthetic Stream Line files with a known wind
 # --------------------------------------------------------------------------------------
 
+#: what ``pipeline.process_scans`` imports (structure/epsilon even with turbulence off)
 _PIPELINE_MODULES = (
     "cwproc.io.halo",
     "cwproc.stages.scans",
     "cwproc.stages.qc",
     "cwproc.stages.vad",
+    "cwproc.stages.structure",
+    "cwproc.stages.epsilon",
 )
 
 
@@ -508,9 +511,11 @@ def test_real_pipeline_batch_recovers_the_wind_and_is_incremental(tmp_path):
     truth = {"2024-03-01": (3.0, -4.0), "2024-03-02": (-6.0, 2.5)}
     for day, (u, v) in truth.items():
         for hour in (10, 11):
+            folder = tmp_path / "in" / day
+            folder.mkdir(parents=True, exist_ok=True)
             write_hpl(
                 synthetic_vad_scans(day, hour, u, v),
-                tmp_path / "in" / day / f"VAD_99_{day.replace('-', '')}_{hour}0000.hpl",
+                folder / f"VAD_99_{day.replace('-', '')}_{hour}0000.hpl",
             )
     out = tmp_path / "out"
     config = wind_only_config()

@@ -339,6 +339,7 @@ def test_serial_workers_and_scheduler_give_identical_real_products(tmp_path, sch
     from cwproc.io.halo import write_hpl
 
     inputs = tmp_path / "in"
+    inputs.mkdir()
     for day, (u, v) in {"2024-05-01": (2.0, 7.0), "2024-05-02": (-5.0, -1.0)}.items():
         for hour in (0, 1):
             name = f"VAD_99_{day.replace('-', '')}_{hour:02d}0000.hpl"
