@@ -221,10 +221,101 @@ VARIABLES: dict[str, VarMeta] = {
     ),
     "r_min": VarMeta("smallest lag of the fit", "m", references=GLADKIKH_2014),
     "r_max": VarMeta("largest lag of the fit", "m", references=GLADKIKH_2014),
-    "r_s": VarMeta("lag of the structure-function normalisation", "m", references=GLADKIKH_2014),
+    "r_s": VarMeta(
+        "type 3: lag of the change from the parabolic to the linear part, (r_p + r_l)/2",
+        "m",
+        references=GLADKIKH_2014 + ", eq. 10",
+    ),
     "k_d": VarMeta("determination coefficient of the fit", "1", references=GLADKIKH_2014),
     "mean_horizontal_wind": VarMeta(
         "mean horizontal wind speed of the window", "m s-1", "wind_speed"
+    ),
+    "sf_lag": VarMeta("lag number j of the sonic structure function (time lag j/f_d)", "1"),
+    "component": VarMeta("wind component: longitudinal V_1, transverse V_2, vertical V_3", None),
+    "window": VarMeta("analysis window index", "1"),
+    "sf_b": VarMeta(
+        "type 1: intercept b of lg D_n = b + mu lg r", "1", references=GLADKIKH_2014 + ", eq. 4"
+    ),
+    "sf_mu": VarMeta(
+        "type 1: slope mu of lg D_n = b + mu lg r", "1", references=GLADKIKH_2014 + ", eq. 4"
+    ),
+    "sf_a0": VarMeta(
+        "type 2: coefficient a0 of lg D_n = a0 + a1 x + a2 x^2",
+        "1",
+        references=GLADKIKH_2014 + ", eq. 5",
+    ),
+    "sf_a1": VarMeta(
+        "type 2: coefficient a1 of lg D_n = a0 + a1 x + a2 x^2",
+        "1",
+        references=GLADKIKH_2014 + ", eq. 5",
+    ),
+    "sf_a2": VarMeta(
+        "type 2: coefficient a2 of lg D_n = a0 + a1 x + a2 x^2",
+        "1",
+        references=GLADKIKH_2014 + ", eq. 5",
+    ),
+    "sf_d0": VarMeta(
+        "type 3: coefficient d0 of the parabolic part", "1", references=GLADKIKH_2014 + ", eq. 6"
+    ),
+    "sf_d1": VarMeta(
+        "type 3: coefficient d1 of the parabolic part", "1", references=GLADKIKH_2014 + ", eq. 6"
+    ),
+    "sf_d2": VarMeta(
+        "type 3: coefficient d2 of the parabolic part", "1", references=GLADKIKH_2014 + ", eq. 6"
+    ),
+    "sf_c": VarMeta(
+        "type 3: intercept c of the linear part lg D_n = c + gamma x",
+        "1",
+        references=GLADKIKH_2014 + ", eq. 6",
+    ),
+    "sf_gamma": VarMeta(
+        "type 3: slope gamma of the linear part lg D_n = c + gamma x",
+        "1",
+        references=GLADKIKH_2014 + ", eq. 6",
+    ),
+    "r_p": VarMeta(
+        "type 3: end lag r_p of the parabolic part", "m", references=GLADKIKH_2014 + ", eq. 6"
+    ),
+    "r_l": VarMeta(
+        "type 3: start lag r_l of the linear part", "m", references=GLADKIKH_2014 + ", eq. 6"
+    ),
+    "structure_constant": VarMeta(
+        "C = 10^beta D(r_N) of D(r) = C F(r) r_n^alpha",
+        "m2 s-2",
+        references=GLADKIKH_2014 + ", eq. 7",
+    ),
+    "sf_at_normalisation_lag": VarMeta(
+        "structure function at the lag nearest r_N", "m2 s-2", references=GLADKIKH_2014 + ", eq. 3"
+    ),
+    "r_normalisation": VarMeta(
+        "lag r_j nearest r_N used for the normalisation", "m", references=GLADKIKH_2014 + ", eq. 3"
+    ),
+    "valid_fraction": VarMeta("fraction of the window's samples that are valid", "1"),
+    "window_flag": VarMeta(
+        "sonic window flag (bits combine)",
+        "1",
+        comment=(
+            "0 analysed; bit 1 too few valid samples; bit 2 r_min > r_N (strong wind); "
+            "bit 4 largest lag < r_N (calm)"
+        ),
+    ),
+    "lag_distance": VarMeta(
+        "spatial lag r_j = j V_h / f_d", "m", references=GLADKIKH_2014 + ", eq. 2"
+    ),
+    "normalised_sf": VarMeta(
+        "normalised structure function D_n(r_j)", "1", references=GLADKIKH_2014 + ", eq. 3"
+    ),
+    "normalised_sf_fit": VarMeta(
+        "fitted model of the normalised structure function up to r_max",
+        "1",
+        references=GLADKIKH_2014 + ", eqs. 4-6",
+    ),
+    "sample_flag": VarMeta(
+        "sonic sample flag (bits combine)",
+        "1",
+        comment=(
+            "0 good; bit 1 non-zero instrument diagnostic; bit 2 spike; bit 4 missing or not finite"
+        ),
     ),
     # ---------------------------------------------------------------- sonic dataset
     "temperature": VarMeta("sonic temperature", "degC", "virtual_temperature"),
@@ -238,6 +329,22 @@ VARIABLES: dict[str, VarMeta] = {
     ),
     "integral_scale_rel_error": VarMeta(
         "relative RMS error of the integral scale estimate", "1", references=BANAKH_1999
+    ),
+    # ---------------------------------------------------------------- turbulence (stages
+    # structure/epsilon): block quantities
+    "radial_velocity_variance": VarMeta(
+        "variance of the radial-velocity deviations V'_L from the block-mean wind "
+        "(noise and volume averaging not corrected)",
+        "m2 s-2",
+        references=SMALIKHO_2020 + ", eq. 1",
+    ),
+    "azimuth_step": VarMeta("azimuth step dtheta between rays", "degree"),
+    "scan_period": VarMeta("duration T_scan of one 360 degree rotation", "s"),
+    "epsilon_fit": VarMeta(
+        "turbulent kinetic energy dissipation rate from the least-squares fit of "
+        "eps^(2/3) A_2 + 2 sigma_e^2 over all lags (method 2)",
+        "m2 s-3",
+        references=SMALIKHO_2020 + ", eqs. 4, 15",
     ),
 }
 

@@ -1,0 +1,287 @@
+"""Azimuth structure function of the radial velocity (stage ``structure``).
+
+For every height and every block of N consecutive conical scans, Smalikho (2020),
+eqs. 1-2:
+
+.. math::
+
+    V'_L(\\theta_m; n) = V_L(\\theta_m; n) - \\mathbf S(\\theta_m)\\cdot\\langle\\mathbf V\\rangle_N
+
+    \\bar D_L(l\\Delta\\theta) = \\Big\\langle \\frac{1}{M-l}\\sum_{m=0}^{M-l-1}
+        [V'_L(\\theta_m + l\\Delta\\theta; n) - V'_L(\\theta_m; n)]^2 \\Big\\rangle_N,
+    \\qquad l = 1 \\dots L,\\ l\\Delta\\theta \\le \\text{max\\_lag\\_deg},
+
+with ``<V>_N`` the mean of the N per-scan VAD wind vectors of the block (stage
+``vad``). Rays are placed on the azimuth grid ``theta_m = theta_0 + m dtheta`` of their
+own scan (``m`` counted in the direction of rotation from the scan's first ray), so
+pairs are ``l`` steps apart both in azimuth and in time, whatever the start azimuth and
+the direction of rotation. Missing or flagged rays (``qc_flag_radial != 0``) are
+skipped pairwise; the average over the block pools all valid pairs (equal to eq. 2
+when none is missing) and their number is kept as ``n_pairs``.
+
+The block also yields what the dissipation-rate stage needs: the variance of
+``V'_L`` (for sigma_V^2), the azimuth step dtheta, the scan period T_scan (from the ray
+times) and the block-mean horizontal wind speed U.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+from cwproc.errors import CwprocError
+from cwproc.metadata import SMALIKHO_2020
+
+#: largest relative mismatch (m) between wind-product gate ranges and scan gate ranges
+_RANGE_TOLERANCE_M = 0.5
+
+
+def wrapped_azimuth_difference(a_deg: np.ndarray, b_deg: np.ndarray) -> np.ndarray:
+    """``a - b`` wrapped into [-180, 180) degrees."""
+    return (np.asarray(a_deg) - np.asarray(b_deg) + 180.0) % 360.0 - 180.0
+
+
+def azimuth_step(azimuth_deg: np.ndarray, scan: np.ndarray) -> tuple[float, float]:
+    """Azimuth step dtheta (deg) and rotation sign from consecutive rays of the same scan.
+
+    Parameters
+    ----------
+    azimuth_deg : numpy.ndarray
+        Ray azimuths (deg) in time order.
+    scan : numpy.ndarray
+        Scan index of each ray.
+
+    Returns
+    -------
+    (dtheta_deg, sign) : tuple of float
+        Median absolute step (deg) and +1 for clockwise (increasing azimuth), -1 otherwise.
+    """
+    same = scan[1:] == scan[:-1]
+    d = wrapped_azimuth_difference(azimuth_deg[1:], azimuth_deg[:-1])[same]
+    d = d[np.abs(d) > 1e-6]
+    if d.size == 0:
+        raise CwprocError("cannot determine the azimuth step: no scan has two distinct rays")
+    return float(np.median(np.abs(d))), float(np.sign(np.median(d)))
+
+
+def azimuth_index(
+    azimuth_deg: np.ndarray, first_azimuth_deg: np.ndarray, dtheta_deg: float, sign: float
+) -> np.ndarray:
+    """Index m of each ray on its scan's grid theta_0 + sign m dtheta (Smalikho (2020), eq. 2)."""
+    offset = (sign * (np.asarray(azimuth_deg) - np.asarray(first_azimuth_deg))) % 360.0
+    return np.rint(offset / dtheta_deg).astype(np.int64)
+
+
+def _block_sum(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Sum over consecutive scans (axis 0) within blocks starting at ``starts``."""
+    return np.add.reduceat(values, starts, axis=0)
+
+
+def _match_gates(scan_range: np.ndarray, wind_range: np.ndarray) -> np.ndarray:
+    idx = np.clip(np.searchsorted(scan_range, wind_range), 1, max(scan_range.size - 1, 1))
+    idx = (
+        np.where(
+            np.abs(scan_range[idx - 1] - wind_range) <= np.abs(scan_range[idx] - wind_range),
+            idx - 1,
+            idx,
+        )
+        if scan_range.size > 1
+        else np.zeros(wind_range.size, dtype=np.int64)
+    )
+    if np.any(np.abs(scan_range[idx] - wind_range) > _RANGE_TOLERANCE_M):
+        raise CwprocError(
+            "the wind product's gates do not match the scan gates: cannot compute the "
+            "azimuth structure function"
+        )
+    return idx
+
+
+def azimuth_structure_function(
+    screened_ds: xr.Dataset, wind: xr.Dataset, *, n_scans: int, max_lag_deg: float
+) -> xr.Dataset:
+    """Azimuth structure function D_L(l dtheta) per block of scans and height.
+
+    Smalikho (2020), eqs. 1-2 (see the module docstring).
+
+    Parameters
+    ----------
+    screened_ds : xarray.Dataset
+        Scan dataset with ``radial_velocity(ray, range)`` (m s-1), ``qc_flag_radial``
+        (0 = good), coords ``time``, ``azimuth`` (deg), ``elevation`` (deg), ``scan``.
+    wind : xarray.Dataset
+        Wind product of stage ``vad``: dims ``(time, height)``, coords ``scan(time)``,
+        ``range(height)`` (m), ``elevation(time)`` (deg); vars ``u``, ``v``, ``w``
+        (m s-1).
+    n_scans : int
+        N, scans per block (consecutive in time; a shorter last block is kept and its
+        ``n_scans`` recorded).
+    max_lag_deg : float
+        Largest azimuth lag l dtheta (deg), at most 9 deg (Smalikho (2020), after
+        eq. 4).
+
+    Returns
+    -------
+    xarray.Dataset
+        Dims ``(time, height, lag)``; coords ``time`` (block centre), ``height`` (m),
+        ``range(height)`` (m), ``lag`` (1..L), ``elevation(time)`` (deg); vars
+        ``structure_function`` (m2 s-2), ``n_pairs``, ``radial_velocity_variance``
+        (variance of V'_L, m2 s-2, noise included), ``wind_speed`` (block-mean U,
+        m s-1), ``azimuth_step`` (deg), ``scan_period`` (s), ``n_scans``.
+
+    Raises
+    ------
+    CwprocError
+        No ray of the scan dataset belongs to a scan of the wind product, the gates do
+        not match, or the azimuth step exceeds ``max_lag_deg``.
+    """
+    if n_scans < 1:
+        raise CwprocError(f"n_scans must be >= 1, got {n_scans}")
+    for name in ("radial_velocity", "qc_flag_radial"):
+        if name not in screened_ds:
+            raise CwprocError(f"scan dataset has no '{name}': run the qc stage first")
+    for name in ("u", "v", "w"):
+        if name not in wind:
+            raise CwprocError(f"wind product has no '{name}'")
+
+    wind = wind.sortby("time")
+    wind_scan = wind["scan"].values.astype(np.int64)
+    n_time = wind_scan.size
+    order = np.argsort(wind_scan, kind="stable")
+    ray_scan = screened_ds["scan"].values.astype(np.int64)
+    pos_sorted = np.clip(np.searchsorted(wind_scan[order], ray_scan), 0, max(n_time - 1, 0))
+    keep = (ray_scan >= 0) & (n_time > 0) & (wind_scan[order][pos_sorted] == ray_scan)
+    if not np.any(keep):
+        raise CwprocError(
+            "no conical-scan ray belongs to a scan of the wind product: no structure function"
+        )
+    rays = np.flatnonzero(keep)
+    rays = rays[np.argsort(screened_ds["time"].values[rays], kind="stable")]
+    scan_pos = order[pos_sorted[rays]]  # wind time index of each kept ray
+    az = screened_ds["azimuth"].values[rays].astype(float)
+    el = screened_ds["elevation"].values[rays].astype(float)
+    t_ray = screened_ds["time"].values[rays]
+
+    dtheta, sign = azimuth_step(az, scan_pos)
+    n_lags = int(np.floor(max_lag_deg / dtheta + 1e-9))
+    if n_lags < 1:
+        raise CwprocError(
+            f"azimuth step {dtheta:.2f} deg exceeds max_lag_deg = {max_lag_deg} deg: "
+            "no structure-function lag available"
+        )
+    n_az = int(np.rint(360.0 / dtheta))
+
+    # first ray of each scan (rays are time-ordered, so np.unique's first index)
+    _, first = np.unique(scan_pos, return_index=True)
+    first_of = np.full(n_time, -1, dtype=np.int64)
+    first_of[scan_pos[first]] = first
+    m = azimuth_index(az, az[first_of[scan_pos]], dtheta, sign)
+    cell = scan_pos * n_az + m
+    valid_cell = m < n_az
+    _, uniq = np.unique(np.where(valid_cell, cell, -1), return_index=True)
+    uniq = uniq[valid_cell[uniq]]  # first ray of each occupied (scan, m) cell
+
+    gates = _match_gates(screened_ds["range"].values.astype(float), wind["range"].values)
+    n_h = gates.size
+    vr = screened_ds["radial_velocity"].values[rays[uniq]][:, gates].astype(float)
+    flag = screened_ds["qc_flag_radial"].values[rays[uniq]][:, gates]
+    vr = np.where((flag == 0) & np.isfinite(vr), vr, np.nan)
+
+    # block-mean wind vector <V>_N per block and height (Smalikho (2020), eq. 1)
+    starts = np.arange(0, n_time, n_scans)
+    block_of_time = np.arange(n_time) // n_scans
+    n_blocks = starts.size
+
+    def block_mean(values: np.ndarray) -> np.ndarray:
+        ok = np.isfinite(values)
+        total = _block_sum(np.where(ok, values, 0.0), starts)
+        count = _block_sum(ok.astype(float), starts)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return total / count
+
+    u_b = block_mean(wind["u"].transpose("time", "height").values.astype(float))
+    v_b = block_mean(wind["v"].transpose("time", "height").values.astype(float))
+    w_b = block_mean(wind["w"].transpose("time", "height").values.astype(float))
+
+    theta = np.deg2rad(az[uniq])[:, None]
+    phi = np.deg2rad(el[uniq])[:, None]
+    b = block_of_time[scan_pos[uniq]]
+    model = w_b[b] * np.sin(phi) + np.cos(phi) * (u_b[b] * np.sin(theta) + v_b[b] * np.cos(theta))
+    if bool(screened_ds.attrs.get("homodyne", 0)):
+        vr = np.abs(vr) * np.sign(model)  # homodyne: only |V_r| measured
+    vprime = np.full((n_time, n_az, n_h), np.nan)
+    vprime[scan_pos[uniq], m[uniq]] = vr - model
+
+    # structure function, pooled over the valid pairs of the block (eq. 2)
+    sf = np.empty((n_blocks, n_h, n_lags))
+    pairs = np.empty((n_blocks, n_h, n_lags), dtype=np.int64)
+    for lag in range(1, n_lags + 1):  # L <= 9 / dtheta lags, each vectorised
+        d2 = (vprime[:, lag:, :] - vprime[:, :-lag, :]) ** 2
+        ok = np.isfinite(d2)
+        total = _block_sum(np.where(ok, d2, 0.0).sum(axis=1), starts)
+        count = _block_sum(ok.sum(axis=1), starts)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            sf[:, :, lag - 1] = np.where(count > 0, total / count, np.nan)
+        pairs[:, :, lag - 1] = count
+
+    ok = np.isfinite(vprime)
+    n_val = _block_sum(ok.sum(axis=1), starts).astype(float)
+    s1 = _block_sum(np.where(ok, vprime, 0.0).sum(axis=1), starts)
+    s2 = _block_sum(np.where(ok, vprime**2, 0.0).sum(axis=1), starts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        variance = np.where(n_val > 1, (s2 - s1**2 / n_val) / (n_val - 1), np.nan)
+
+    # scan period from the ray times: median time per azimuth step, times M
+    t_sec = (t_ray - t_ray[0]) / np.timedelta64(1, "s")
+    same = scan_pos[1:] == scan_pos[:-1]
+    dm = (sign * wrapped_azimuth_difference(az[1:], az[:-1]) / dtheta)[same]
+    dt = np.diff(t_sec)[same]
+    good = (dm > 0.5) & (dt > 0)
+    per_step = (
+        pd.Series(dt[good] / np.rint(dm[good]))
+        .groupby(block_of_time[scan_pos[1:][same][good]])
+        .median()
+    )
+    step_time = per_step.reindex(np.arange(n_blocks)).to_numpy()
+    scan_period = step_time * n_az
+
+    wind_time = wind["time"].values
+    t0 = wind_time[0]
+    rel = (wind_time - t0) / np.timedelta64(1, "ns")
+    centre = t0 + np.rint(block_mean(rel[:, None].astype(float))[:, 0]).astype("timedelta64[ns]")
+    scans_in_block = _block_sum(np.ones(n_time, dtype=np.int64), starts)
+    elevation = block_mean(wind["elevation"].values.astype(float)[:, None])[:, 0]
+
+    out = xr.Dataset(
+        {
+            "structure_function": (("time", "height", "lag"), sf),
+            "n_pairs": (("time", "height", "lag"), pairs),
+            "radial_velocity_variance": (("time", "height"), variance),
+            "wind_speed": (("time", "height"), np.hypot(u_b, v_b)),
+            "azimuth_step": ("time", np.full(n_blocks, dtheta)),
+            "scan_period": ("time", scan_period),
+            "n_scans": ("time", scans_in_block),
+        },
+        coords={
+            "time": ("time", centre),
+            "height": ("height", wind["height"].values),
+            "range": ("height", wind["range"].values),
+            "lag": ("lag", np.arange(1, n_lags + 1, dtype=np.int64)),
+            "elevation": ("time", elevation),
+        },
+    )
+    out["structure_function"].attrs.update(
+        method="azimuth structure function of V_L minus the block-mean VAD wind, pairs "
+        "pooled over the block, missing rays skipped pairwise",
+        references=SMALIKHO_2020 + ", eqs. 1-2",
+        n_scans_per_block=int(n_scans),
+        max_lag_deg=float(max_lag_deg),
+    )
+    out.attrs.update(
+        {
+            "homodyne": int(bool(screened_ds.attrs.get("homodyne", 0))),
+            "instrument": str(screened_ds.attrs.get("instrument", "")),
+            "rays_per_scan": n_az,
+        }
+    )
+    return out

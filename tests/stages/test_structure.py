@@ -1,0 +1,187 @@
+"""Azimuth structure function (Smalikho (2020), eqs. 1-2) on scans with known content."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from cwproc.errors import CwprocError
+from cwproc.physics.geometry import radial_velocity
+from cwproc.stages.structure import azimuth_structure_function
+
+U0, V0, W0 = 6.0, -3.0, 0.2  # m s-1
+ELEVATION = 35.3  # deg
+RANGES = np.array([200.0, 230.0, 260.0])  # m
+
+
+def ramp_scans(
+    *,
+    n_scans: int = 12,
+    rays: int = 120,
+    period_s: float = 60.0,
+    start_az: float = 100.0,
+    clockwise: bool = False,
+    slope: float = 0.01,
+    wind: tuple[float, float, float] = (U0, V0, W0),
+) -> xr.Dataset:
+    """Scans of V_r = S . V0 + slope * m (m = ray number within the scan).
+
+    With the true wind as the block mean, V'_L = slope * m exactly, so
+    D_L(l) = (slope l)^2 and the variance of V'_L is slope^2 M (M + 1) / 12.
+    """
+    m = np.tile(np.arange(rays), n_scans)
+    scan = np.repeat(np.arange(n_scans), rays).astype(np.int64)
+    sign = 1.0 if clockwise else -1.0
+    az = (start_az + sign * 360.0 * m / rays) % 360.0
+    t = np.datetime64("2024-05-01T00:00:00", "ns") + (
+        np.arange(m.size) * period_s / rays * 1e9
+    ).astype("timedelta64[ns]")
+    vr = radial_velocity(*wind, az[:, None], ELEVATION) + slope * m[:, None] + 0 * RANGES
+    return xr.Dataset(
+        {
+            "radial_velocity": (("ray", "range"), vr),
+            "qc_flag_radial": (("ray", "range"), np.zeros(vr.shape, dtype=np.int8)),
+        },
+        coords={
+            "time": ("ray", t),
+            "azimuth": ("ray", az),
+            "elevation": ("ray", np.full(m.size, ELEVATION)),
+            "range": ("range", RANGES),
+            "scan": ("ray", scan),
+        },
+        attrs={"homodyne": 0, "instrument": "test", "wind": wind},
+    )
+
+
+def true_wind(ds: xr.Dataset) -> xr.Dataset:
+    """A wind product (stage vad schema) holding the true wind for every scan."""
+    scans = np.unique(ds["scan"].values)
+    times = np.array(
+        [ds["time"].values[ds["scan"].values == s].astype("int64").mean() for s in scans]
+    ).astype("datetime64[ns]")
+    shape = (scans.size, RANGES.size)
+    u, v, w = ds.attrs["wind"]
+    return xr.Dataset(
+        {
+            "u": (("time", "height"), np.full(shape, u)),
+            "v": (("time", "height"), np.full(shape, v)),
+            "w": (("time", "height"), np.full(shape, w)),
+        },
+        coords={
+            "time": ("time", times),
+            "height": ("height", RANGES * np.sin(np.deg2rad(ELEVATION))),
+            "range": ("height", RANGES),
+            "scan": ("time", scans),
+            "elevation": ("time", np.full(scans.size, ELEVATION)),
+        },
+    )
+
+
+def test_ramp_gives_exact_structure_function_and_pair_counts():
+    ds = ramp_scans()
+    sf = azimuth_structure_function(ds, true_wind(ds), n_scans=6, max_lag_deg=9.0)
+    # dtheta = 3 deg -> lags 1..3 (3 l <= 9)
+    np.testing.assert_array_equal(sf["lag"].values, [1, 2, 3])
+    expected = (0.01 * sf["lag"].values) ** 2
+    np.testing.assert_allclose(
+        sf["structure_function"].values, np.broadcast_to(expected, (2, 3, 3)), rtol=1e-9
+    )
+    # eq. 2: M - l pairs per scan, N scans per block
+    np.testing.assert_array_equal(sf["n_pairs"].values[0, 0], 6 * (120 - np.array([1, 2, 3])))
+    np.testing.assert_allclose(sf["azimuth_step"].values, 3.0)
+    np.testing.assert_allclose(sf["scan_period"].values, 60.0, rtol=1e-6)
+    np.testing.assert_allclose(sf["wind_speed"].values, np.hypot(U0, V0))
+    # pooled over the 6 x 120 values of the block, ddof = 1
+    pooled = 0.01**2 * (120**2 - 1) / 12 * 720 / 719
+    np.testing.assert_allclose(sf["radial_velocity_variance"].values, pooled, rtol=1e-9)
+    np.testing.assert_array_equal(sf["n_scans"].values, [6, 6])
+    assert sf["structure_function"].dims == ("time", "height", "lag")
+
+
+def test_clockwise_and_start_azimuth_do_not_matter():
+    a = ramp_scans(clockwise=True, start_az=0.0)
+    b = ramp_scans(clockwise=False, start_az=217.0)
+    sa = azimuth_structure_function(a, true_wind(a), n_scans=12, max_lag_deg=9.0)
+    sb = azimuth_structure_function(b, true_wind(b), n_scans=12, max_lag_deg=9.0)
+    np.testing.assert_allclose(sa["structure_function"], sb["structure_function"], rtol=1e-9)
+
+
+def test_missing_and_flagged_rays_are_skipped_pairwise():
+    ds = ramp_scans(n_scans=4)
+    drop = np.zeros(ds.sizes["ray"], dtype=bool)
+    drop[[5, 130, 131]] = True  # scan 0 ray 5; scan 1 rays 10, 11
+    flags = ds["qc_flag_radial"].values.copy()
+    flags[250, :] = 1  # scan 2 ray 10 low SNR
+    ds["qc_flag_radial"] = (("ray", "range"), flags)
+    ds = ds.isel(ray=~drop)
+    sf = azimuth_structure_function(ds, true_wind(ds), n_scans=4, max_lag_deg=9.0)
+    # the ramp survives exactly; lost pairs: each missing ray kills up to 2 pairs per lag
+    np.testing.assert_allclose(sf["structure_function"].values[0, 0], (0.01 * np.arange(1, 4)) ** 2)
+    full = 4 * (120 - np.arange(1, 4))
+    lost_lag1 = 2 + 3 + 2  # isolated ray: 2; adjacent pair: 3 (10-11 counted once); flagged: 2
+    assert sf["n_pairs"].values[0, 0, 0] == full[0] - lost_lag1
+    assert sf["n_pairs"].values[0, 0, 1] == full[1] - (2 + 4 + 2)
+
+
+def test_blind_sector_reduces_pairs_only():
+    ds = ramp_scans(n_scans=3, clockwise=True, start_az=0.0)
+    keep = ~((ds["azimuth"].values >= 90.0) & (ds["azimuth"].values < 150.0))  # 20 rays
+    ds = ds.isel(ray=keep)
+    sf = azimuth_structure_function(ds, true_wind(ds), n_scans=3, max_lag_deg=9.0)
+    np.testing.assert_allclose(sf["structure_function"].values[0, 1], (0.01 * np.arange(1, 4)) ** 2)
+    # pairs (m, m+l) with both ends outside m = 30..49
+    m = np.arange(120)
+    inside = (m >= 30) & (m < 50)
+    expected = [3 * np.sum(~inside[:-lag] & ~inside[lag:]) for lag in (1, 2, 3)]
+    np.testing.assert_array_equal(sf["n_pairs"].values[0, 1], expected)
+
+
+def test_white_noise_structure_function_is_twice_the_variance():
+    rng = np.random.default_rng(42)
+    ds = ramp_scans(n_scans=20, slope=0.0)
+    sigma = 0.3
+    ds["radial_velocity"] = ds["radial_velocity"] + sigma * rng.standard_normal(
+        ds["radial_velocity"].shape
+    )
+    sf = azimuth_structure_function(ds, true_wind(ds), n_scans=20, max_lag_deg=9.0)
+    # 2 sigma^2 at every lag (Smalikho (2020), eq. 4 with eps = 0); ~2400 pairs -> 3 % 1-sigma
+    np.testing.assert_allclose(sf["structure_function"].values, 2 * sigma**2, rtol=0.12)
+    np.testing.assert_allclose(sf["radial_velocity_variance"].values, sigma**2, rtol=0.08)
+
+
+def test_block_partition_keeps_short_last_block():
+    ds = ramp_scans(n_scans=25)
+    sf = azimuth_structure_function(ds, true_wind(ds), n_scans=10, max_lag_deg=6.0)
+    np.testing.assert_array_equal(sf["n_scans"].values, [10, 10, 5])
+    np.testing.assert_array_equal(sf["lag"].values, [1, 2])
+    assert np.all(np.diff(sf["time"].values) > np.timedelta64(0, "s"))
+
+
+def test_homodyne_magnitudes_take_the_sign_of_the_mean_wind():
+    # a wind whose radial component never crosses zero: |V_r| carries all information
+    wind = (1.0, 0.5, 4.0)
+    ds = ramp_scans(wind=wind, slope=0.005)
+    signed = azimuth_structure_function(ds, true_wind(ds), n_scans=12, max_lag_deg=9.0)
+    homo = ds.copy()
+    homo["radial_velocity"] = -np.abs(homo["radial_velocity"])  # sign lost
+    homo.attrs["homodyne"] = 1
+    sf = azimuth_structure_function(homo, true_wind(ds), n_scans=12, max_lag_deg=9.0)
+    np.testing.assert_allclose(sf["structure_function"], signed["structure_function"], rtol=1e-9)
+
+
+def test_impossible_inputs_raise_cwproc_errors():
+    ds = ramp_scans(n_scans=2)
+    wind = true_wind(ds)
+    with pytest.raises(CwprocError, match="qc"):
+        azimuth_structure_function(ds.drop_vars("qc_flag_radial"), wind, n_scans=2, max_lag_deg=9.0)
+    with pytest.raises(CwprocError, match="no conical-scan ray"):
+        azimuth_structure_function(
+            ds, wind.assign_coords(scan=("time", [7, 8])), n_scans=2, max_lag_deg=9.0
+        )
+    with pytest.raises(CwprocError, match="gates"):
+        azimuth_structure_function(
+            ds, wind.assign_coords(range=("height", RANGES + 7.0)), n_scans=2, max_lag_deg=9.0
+        )
+    with pytest.raises(CwprocError, match="max_lag_deg"):
+        azimuth_structure_function(ds, wind, n_scans=2, max_lag_deg=2.0)
