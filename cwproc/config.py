@@ -186,10 +186,18 @@ class SonicConfig:
 class ZephirConfig:
     """QC of ZephIR wind records."""
 
-    #: fewest packets in a 10-min average
-    min_packets: int = 100
-    #: largest proportion of packets with rain (%)
+    #: fewest 1-s scan packets in a 10-min average at one height; ZephIR 300 cycling 11
+    #: heights gets at most 36-37 per 10 min (unit 317 export), and Wagner et al. (DTU),
+    #: sect. 4.1 keep periods with >= 65 % of the possible samples: 0.65 x 37 -> 24
+    min_packets: int = 24
+    #: largest proportion of packets with rain (%) (Wagner et al. (DTU) excluded rain)
     max_rain_percent: float = 50.0
+
+    def __post_init__(self) -> None:
+        if self.min_packets < 0:
+            raise ValueError("min_packets: must be >= 0")
+        if not 0 <= self.max_rain_percent <= 100:
+            raise ValueError("max_rain_percent: must be in [0, 100]")
 
 
 @dataclass(frozen=True)

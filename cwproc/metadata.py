@@ -346,6 +346,38 @@ VARIABLES: dict[str, VarMeta] = {
         "m2 s-3",
         references=SMALIKHO_2020 + ", eqs. 4, 15",
     ),
+    # ---------------------------------------------------------------- wind-record product
+    "wind_speed_std": VarMeta(
+        "standard deviation of the horizontal wind speed over the averaging interval", "m s-1"
+    ),
+    "wind_speed_min": VarMeta("minimum horizontal wind speed in the averaging interval", "m s-1"),
+    "wind_speed_max": VarMeta("maximum horizontal wind speed in the averaging interval", "m s-1"),
+    "n_packets": VarMeta("number of scan packets (1-s rotations) in the average", "1"),
+    "data_availability": VarMeta("proportion of valid measurements in the average", "%"),
+    "rain_percent": VarMeta("proportion of packets with rain", "%"),
+    "raining": VarMeta("rain detected by the instrument (0 no, 1 yes)", "1"),
+    "turbulence_intensity": VarMeta(
+        "turbulence intensity as measured (standard deviation over mean of the horizontal "
+        "wind speed)",
+        "1",
+    ),
+    "volume_averaging_ratio": VarMeta(
+        "predicted ratio of the lidar to the cup standard deviation of the wind speed",
+        "1",
+        references=WAGNER_DTU + ", eqs. 9-11",
+    ),
+    "turbulence_intensity_corrected": VarMeta(
+        "turbulence intensity corrected for the volume averaging of the conically scanning "
+        "cw lidar",
+        "1",
+        references=WAGNER_DTU + ", eqs. 9-11",
+    ),
+    "turbulence_parameter": VarMeta(
+        "turbulence parameter TP: standard deviation of the radial-velocity residuals about "
+        "the fitted cosine over one rotation divided by the mean wind speed",
+        "1",
+        references=WAGNER_DTU + ", eq. 8",
+    ),
 }
 
 
