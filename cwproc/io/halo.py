@@ -1,0 +1,816 @@
+"""Halo Photonics Stream Line ``.hpl`` files: reader and writer.
+
+The layout is described in ``real_data/FORMATS.md`` section 1: a header of 17 lines,
+then one block per ray, made of one *ray line* (decimal hours, azimuth, elevation and,
+on most instruments, pitch and roll) and ``Number of gates`` *gate lines* (gate index,
+Doppler velocity, intensity = SNR + 1, attenuated backscatter and, when spectral width
+is switched on, the spectral width).
+
+:func:`read_hpl` parses the whole body with one call of the pandas C tokenizer, checks
+the block structure with array operations, and only when a check fails walks the
+offending ray block line by line to name the first bad line. :func:`write_hpl` writes
+a canonical scan dataset back in the instrument's layout (used by the simulator and
+the benchmarks).
+
+Notes
+-----
+* **Time.** The ray line gives decimal hours since 00:00 UTC of the date in
+  ``Start time`` (the file states no zone; UTC in practice). A file that crosses
+  midnight has hours >= 24 or wraps back to 0; a wrap (a step back of more than
+  12 h) adds 24 h to the rays after it, and a first ray more than 12 h before the
+  start time belongs to the next day. Times are rounded to the microsecond.
+* **Angles.** Azimuth is clockwise from north, returned in [0, 360) (``360.00`` -> 0).
+  An elevation above 90 deg (beam over the zenith, e.g. ``180.01``) is the direction
+  azimuth + 180 deg at elevation 180 deg - el. ``-0.00`` becomes 0.
+* **Sign.** Doppler velocity is positive away from the lidar (the Halo convention).
+* **Missing data.** There is no fill value: every gate has numbers; noise gates have
+  intensity close to 1 (SNR close to 0) and must be screened by SNR downstream.
+* **Header quirks.** ``No. of rays in file`` (or ``No. of waypoints in file``) is
+  unreliable and only kept as an attribute; the column count of the first gate line
+  (4 or 5), not the header, says whether spectral width is present; header numbers may
+  use a decimal comma (``30,0``, ``14:00:01,23``).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import itertools
+import os
+import re
+import warnings
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+from cwproc.errors import ConfigError, CwprocError, InputFileError
+
+INSTRUMENT = "Halo Photonics Stream Line"
+INSTRUMENT_KIND = "streamline"
+
+#: number of header lines of every .hpl file
+HEADER_LINES = 17
+
+#: focus range written by the instrument for a collimated beam (infinite focus)
+FOCUS_INFINITY = 65535
+
+#: keys of header lines 1-11, in order (line 7 has two spellings)
+_HEADER_KEYS: tuple[tuple[str, ...], ...] = (
+    ("Filename",),
+    ("System ID",),
+    ("Number of gates",),
+    ("Range gate length (m)",),
+    ("Gate length (pts)",),
+    ("Pulses/ray",),
+    ("No. of rays in file", "No. of waypoints in file"),
+    ("Scan type",),
+    ("Focus range",),
+    ("Start time",),
+    ("Resolution (m/s)",),
+)
+
+_RANGE_STANDARD = re.compile(
+    r"^(Altitude|Range) of measurement \(center of gate\) = "
+    r"\(range gate \+ 0[.,]5\) \* Gate length$"
+)
+_RANGE_OVERLAPPING = re.compile(
+    r"^(?:Altitude|Range) of measurement \(center of gate\) = Gate length / "
+    r"(\d+(?:[.,]\d+)?) \+ \(range gate x (\d+(?:[.,]\d+)?)\)$"
+)
+_START_TIME = re.compile(r"^(\d{4})(\d{2})(\d{2}) (\d{1,2}):(\d{2}):(\d{2}(?:[.,]\d*)?)$")
+_SPECTRAL_WIDTH = re.compile(r"^\*{4}\s*Instrument spectral width\s*=\s*(\S+)\s*$")
+
+#: largest gate count accepted (guards against a garbled header asking for absurd memory)
+_MAX_GATES = 100_000
+
+#: bodies larger than this (bytes) are parsed in parallel chunks
+_PARALLEL_BYTES = 1 << 20
+
+#: hours of a step back in decimal time that marks a wrap at midnight
+_WRAP_HOURS = 12.0
+
+
+@dataclass(frozen=True)
+class HplHeader:
+    """The parsed 17-line header of a ``.hpl`` file (units in the field names)."""
+
+    filename: str
+    system_id: str
+    n_gates: int
+    gate_length_m: float
+    points_per_gate: int
+    pulses_per_ray: int
+    rays_in_file: int
+    rays_key: str
+    scan_type: str
+    focus_range_m: float
+    start_time: np.datetime64
+    velocity_resolution_m_s: float
+    range_formula: str
+    #: overlapping gates: range = gate_length / divisor + gate * step_m
+    range_divisor: float | None
+    range_step_m: float | None
+    instrument_spectral_width_m_s: float | None
+
+    def gate_ranges(self) -> np.ndarray:
+        """Range of each gate centre (m) from the header's range formula."""
+        gate = np.arange(self.n_gates, dtype=np.float64)
+        if self.range_divisor is None:
+            return (gate + 0.5) * self.gate_length_m
+        return self.gate_length_m / self.range_divisor + gate * float(self.range_step_m)
+
+
+# --------------------------------------------------------------------------------------
+# header
+# --------------------------------------------------------------------------------------
+
+
+def _number(text: str) -> float:
+    """A header number, accepting a decimal comma (``30,0``); ValueError otherwise."""
+    value = float(text.strip().replace(",", "."))
+    if not np.isfinite(value):
+        raise ValueError(text)
+    return value
+
+
+def _integer(text: str) -> int:
+    text = text.strip()
+    if not re.fullmatch(r"[+]?\d+", text):
+        raise ValueError(text)
+    return int(text)
+
+
+def parse_start_time(text: str) -> np.datetime64:
+    """``yyyymmdd HH:MM:SS.ss`` (decimal point or comma) -> datetime64[us]; ValueError."""
+    m = _START_TIME.match(text.strip())
+    if m is None:
+        raise ValueError(text)
+    year, month, day, hour, minute = (int(g) for g in m.groups()[:5])
+    second = float(m.group(6).replace(",", "."))
+    if not (1 <= month <= 12 and hour < 24 and minute < 60 and second < 61):
+        raise ValueError(text)
+    date = np.datetime64(f"{year:04d}-{month:02d}-{day:02d}", "D")  # ValueError if bad day
+    micro = round((hour * 3600 + minute * 60 + second) * 1e6)
+    return date.astype("datetime64[us]") + np.timedelta64(micro, "us")
+
+
+def parse_header(path: str | os.PathLike, lines: list[str]) -> HplHeader:
+    """Parse and validate the 17 header lines.
+
+    Parameters
+    ----------
+    path : path-like
+        The file (for error messages).
+    lines : list of str
+        The first 17 lines, without line terminators.
+
+    Raises
+    ------
+    InputFileError
+        A key is missing or garbled, a value is not a number, or a fixed line is
+        not what a Stream Line writes; the message names the 1-based line.
+    """
+    values: list[str] = []
+    rays_key = ""
+    for i, keys in enumerate(_HEADER_KEYS):
+        line = lines[i]
+        key, sep, value = line.partition(":")
+        key = key.strip()
+        if not sep or key.lower() not in {k.lower() for k in keys}:
+            expected = " or ".join(f"'{k}:'" for k in keys)
+            raise InputFileError(
+                path, f"header line should start with {expected}, found {line[:40]!r}", i + 1
+            )
+        if i == 6:
+            rays_key = key
+        values.append(value.strip())
+
+    def field(i: int, convert, what: str):
+        try:
+            return convert(values[i])
+        except (ValueError, OverflowError):
+            raise InputFileError(
+                path, f"{_HEADER_KEYS[i][0]}: {values[i]!r} is not {what}", i + 1
+            ) from None
+
+    n_gates = field(2, _integer, "a whole number")
+    if not 1 <= n_gates <= _MAX_GATES:
+        raise InputFileError(path, f"Number of gates: {n_gates} is out of range", 3)
+    gate_length = field(3, _number, "a number")
+    if gate_length <= 0:
+        raise InputFileError(path, f"Range gate length (m): {values[3]!r} must be > 0", 4)
+    points = field(4, _integer, "a whole number")
+    pulses = field(5, _integer, "a whole number")
+    rays = field(6, _integer, "a whole number")
+    focus = field(8, _number, "a number")
+    start = field(9, parse_start_time, "a time 'yyyymmdd HH:MM:SS.ss'")
+    resolution = field(10, _number, "a number")
+
+    formula = lines[11].strip()
+    divisor = step = None
+    if _RANGE_STANDARD.match(formula) is None:
+        m = _RANGE_OVERLAPPING.match(formula)
+        if m is None:
+            raise InputFileError(
+                path, f"unknown range formula {formula[:80]!r} (line 12 of the header)", 12
+            )
+        divisor, step = _number(m.group(1)), _number(m.group(2))
+        if not (0 < divisor < 10 and 0 < step < 100):
+            raise InputFileError(path, f"implausible range formula {formula!r}", 12)
+    for number, prefix in ((13, "Data line 1:"), (15, "Data line 2:")):
+        if not lines[number - 1].startswith(prefix):
+            raise InputFileError(
+                path,
+                f"header line should start with {prefix!r}, found {lines[number - 1][:40]!r}",
+                number,
+            )
+    last = lines[16].strip()
+    if not last.startswith("****"):
+        raise InputFileError(path, f"header should end with a '****' line, found {last[:40]!r}", 17)
+    spectral_width = None
+    if last != "****":
+        m = _SPECTRAL_WIDTH.match(last)
+        try:
+            spectral_width = _number(m.group(1)) if m else None
+        except ValueError:
+            spectral_width = None
+        if spectral_width is None:
+            raise InputFileError(path, f"unexpected end-of-header line {last[:60]!r}", 17)
+    return HplHeader(
+        filename=values[0],
+        system_id=values[1],
+        n_gates=n_gates,
+        gate_length_m=gate_length,
+        points_per_gate=points,
+        pulses_per_ray=pulses,
+        rays_in_file=rays,
+        rays_key=rays_key,
+        scan_type=values[7],
+        focus_range_m=float("inf") if focus == FOCUS_INFINITY else focus,
+        start_time=start,
+        velocity_resolution_m_s=resolution,
+        range_formula=formula,
+        range_divisor=divisor,
+        range_step_m=step,
+        instrument_spectral_width_m_s=spectral_width,
+    )
+
+
+_EOL = re.compile(rb"\r\n|\n|\r")
+
+
+def split_header(path: str | os.PathLike, raw: bytes) -> tuple[list[str], int]:
+    """The 17 header lines (decoded) and the byte offset where the body starts.
+
+    Raises
+    ------
+    InputFileError
+        Empty file, not a ``.hpl`` file, or fewer than 17 lines.
+    """
+    if not raw.strip():
+        raise InputFileError(path, "file is empty", 1)
+    if not raw.startswith(b"Filename:"):
+        raise InputFileError(
+            path, "not a Halo .hpl file (the first line does not start with 'Filename:')", 1
+        )
+    lines: list[str] = []
+    pos = 0
+    for _ in range(HEADER_LINES):
+        m = _EOL.search(raw, pos)
+        end = m.start() if m else len(raw)
+        lines.append(raw[pos:end].decode("latin-1"))
+        if m is None:
+            pos = len(raw)
+            break
+        pos = m.end()
+    if len(lines) < HEADER_LINES:
+        raise InputFileError(
+            path, f"header ends after {len(lines)} lines; a .hpl header has 17", len(lines)
+        )
+    return lines, pos
+
+
+# --------------------------------------------------------------------------------------
+# body
+# --------------------------------------------------------------------------------------
+
+
+def _read_table(body: bytes) -> pd.DataFrame:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return pd.read_csv(
+            io.BytesIO(body),
+            sep=r"\s+",
+            header=None,
+            names=range(5),
+            engine="c",
+            skip_blank_lines=False,
+            quoting=csv.QUOTE_NONE,
+            encoding="latin-1",
+        )
+
+
+def _chunks(body: bytes, n_chunks: int) -> list[tuple[int, int]]:
+    """Byte spans of ``body`` cut at line starts into about ``n_chunks`` equal parts."""
+    if n_chunks <= 1 or b"\n" not in body:
+        return [(0, len(body))]
+    cuts = [0]
+    for k in range(1, n_chunks):
+        nl = body.find(b"\n", k * len(body) // n_chunks)
+        if nl < 0 or nl + 1 >= len(body):
+            break
+        if nl + 1 > cuts[-1]:
+            cuts.append(nl + 1)
+    cuts.append(len(body))
+    return list(itertools.pairwise(cuts))
+
+
+def _tokenize(path: str | os.PathLike, body: bytes) -> np.ndarray:
+    """Every body line as a row of 5 floats (NaN where a line has fewer fields).
+
+    Non-numeric fields are NaN too and are reported by the structure check; a line
+    with more than 5 fields raises here. The pandas C tokenizer does the work; large
+    bodies are cut at line starts and parsed in threads (the tokenizer releases the
+    GIL).
+    """
+    workers = min(os.cpu_count() or 1, max(1, len(body) // _PARALLEL_BYTES))
+    spans = _chunks(body, workers)
+    try:
+        if len(spans) == 1:
+            frames = [_read_table(body)]
+        else:
+            with ThreadPoolExecutor(len(spans)) as pool:
+                frames = list(pool.map(lambda span: _read_table(body[span[0] : span[1]]), spans))
+    except pd.errors.ParserError as exc:
+        m = re.search(r"Expected \d+ fields in line (\d+), saw (\d+)", str(exc))
+        if m is None:
+            raise InputFileError(
+                path, f"cannot parse the data lines ({exc})", HEADER_LINES + 1
+            ) from None
+        # which chunk failed: re-parse the chunks one by one (error path only)
+        for start, end in spans:
+            try:
+                _read_table(body[start:end])
+            except pd.errors.ParserError as chunk_exc:
+                m = re.search(r"Expected \d+ fields in line (\d+), saw (\d+)", str(chunk_exc))
+                if m is None:
+                    break
+                before = body.count(b"\n", 0, start)
+                raise InputFileError(
+                    path,
+                    f"line has {m.group(2)} fields; ray lines have 3 or 5, gate lines 4 or 5",
+                    HEADER_LINES + before + int(m.group(1)),
+                ) from None
+        raise InputFileError(
+            path, f"cannot parse the data lines ({exc})", HEADER_LINES + 1
+        ) from None
+    except (ValueError, UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
+        raise InputFileError(
+            path, f"cannot parse the data lines ({exc})", HEADER_LINES + 1
+        ) from None
+    table = np.empty((sum(len(f) for f in frames), 5), dtype=np.float64)
+    row = 0
+    for frame in frames:
+        for j, name in enumerate(frame.columns):
+            col = frame[name]
+            if col.dtype.kind not in "fiu":
+                col = pd.to_numeric(col, errors="coerce")
+            table[row : row + len(frame), j] = col.to_numpy(dtype=np.float64, na_value=np.nan)
+        row += len(frame)
+    return table
+
+
+def _field_counts(table: np.ndarray) -> np.ndarray:
+    """Number of leading numeric fields of each row (a NaN ends the count)."""
+    present = np.isfinite(table)
+    # leading run of True: cumprod along the row
+    return np.cumprod(present, axis=1).sum(axis=1)
+
+
+def first_bad_row(table: np.ndarray, n_gates: int, ray_fields: int, gate_fields: int) -> int:
+    """Index of the first body row that breaks the ray/gate block structure, or -1.
+
+    A row is good when exactly its first ``ray_fields`` (ray rows, every
+    ``n_gates + 1``-th row) or ``gate_fields`` (gate rows) values are finite numbers and
+    the rest are empty, and, for a gate row, when its gate index equals its position
+    in the block.
+    """
+    n_rows = table.shape[0]
+    block = n_gates + 1
+    n_blocks = -(-n_rows // block)
+    pattern = np.zeros((block, 5), dtype=bool)
+    pattern[0, :ray_fields] = True
+    pattern[1:, :gate_fields] = True
+    expected = np.tile(pattern, (n_blocks, 1))[:n_rows]
+    index = np.tile(np.arange(-1, n_gates, dtype=np.float64), n_blocks)[:n_rows]
+    ok = (np.isfinite(table) == expected).all(axis=1)
+    ok &= (table[:, 0] == index) | (index < 0)
+    bad = np.flatnonzero(~ok)
+    return int(bad[0]) if bad.size else -1
+
+
+_NUMBER = re.compile(rb"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+
+
+def _is_number(token: bytes) -> bool:
+    """Whether a token is a finite decimal number as the instrument writes them."""
+    return _NUMBER.fullmatch(token) is not None and bool(np.isfinite(float(token)))
+
+
+def diagnose(
+    path: str | os.PathLike,
+    body: bytes,
+    start_row: int,
+    n_gates: int,
+    ray_fields: int | None,
+    gate_fields: int | None,
+) -> InputFileError:
+    """Name the first bad line of the ray block that starts at body row ``start_row``.
+
+    Only called when the vectorised structure check failed: walks one ray block
+    (``n_gates + 1`` lines) and returns the error to raise. ``ray_fields`` and
+    ``gate_fields`` are the field counts of the file (``None``: not known yet, 3 or 5
+    and 4 or 5 are accepted).
+    """
+    lines = body.splitlines()
+    block = n_gates + 1
+    first = HEADER_LINES + 1  # file line number of body row 0
+    ray_ok = (3, 5) if ray_fields is None else (ray_fields,)
+    gate_ok = (4, 5) if gate_fields is None else (gate_fields,)
+    for row in range(start_row, min(start_row + block, len(lines))):
+        line_no = first + row
+        tokens = lines[row].split()
+        pos = row - start_row
+        if not tokens:
+            return InputFileError(path, "empty line inside the data", line_no)
+        bad = [t for t in tokens if not _is_number(t)]
+        if bad:
+            token = bad[0].decode("latin-1")
+            return InputFileError(path, f"field {token[:20]!r} is not a number", line_no)
+        if pos == 0:
+            if b"." not in tokens[0]:
+                restart = (
+                    ": the gate index restarts without a ray line"
+                    if row and tokens[0] == b"0"
+                    else ""
+                )
+                return InputFileError(
+                    path,
+                    f"expected a ray line (decimal time, azimuth, elevation) "
+                    f"{f'after {n_gates} gate lines ' if row else ''}but found gate index "
+                    f"{tokens[0].decode('latin-1')}{restart}",
+                    line_no,
+                )
+            if len(tokens) not in ray_ok:
+                return InputFileError(
+                    path,
+                    f"ray line has {len(tokens)} fields, expected " + " or ".join(map(str, ray_ok)),
+                    line_no,
+                )
+            continue
+        gate = pos - 1
+        if b"." in tokens[0] and len(tokens) in (3, 5):
+            return InputFileError(
+                path,
+                f"ray line after only {gate} of {n_gates} gate lines (Number of gates: {n_gates})",
+                line_no,
+            )
+        if len(tokens) not in gate_ok:
+            return InputFileError(
+                path,
+                f"gate line has {len(tokens)} fields, expected " + " or ".join(map(str, gate_ok)),
+                line_no,
+            )
+        if b"." in tokens[0] or float(tokens[0]) != gate:
+            index = tokens[0].decode("latin-1")
+            hint = ": the gate index restarts without a ray line" if index == "0" else ""
+            return InputFileError(
+                path, f"gate index {index} where {gate} was expected{hint}", line_no
+            )
+        if gate_fields is None:
+            gate_ok = (len(tokens),)
+        if ray_fields is None:
+            ray_ok = (len(lines[start_row].split()),)
+    n_rows = len(lines)
+    if start_row + block > n_rows:
+        got = n_rows - start_row - 1
+        return InputFileError(
+            path,
+            f"last ray is truncated: {got} of {n_gates} gate lines after its ray line "
+            "(file cut short, or Number of gates does not match the data)",
+            first + start_row,
+        )
+    return InputFileError(path, "inconsistent ray block", first + start_row)
+
+
+def _fields_of_row(table: np.ndarray, row: int) -> int:
+    return int(_field_counts(table[row : row + 1])[0])
+
+
+def decimal_hours_to_time(hours: np.ndarray, start_time: np.datetime64) -> np.ndarray:
+    """UTC times from Halo decimal hours since 00:00 of the start date.
+
+    Parameters
+    ----------
+    hours : ndarray
+        Decimal time of each ray (h).
+    start_time : datetime64
+        ``Start time`` of the header.
+
+    Returns
+    -------
+    ndarray of datetime64[ns]
+        Monotonic across midnight: a step back of more than 12 h adds 24 h to the
+        following rays, and a first ray more than 12 h before the start time of day
+        is on the next day. Rounded to the microsecond.
+    """
+    day = start_time.astype("datetime64[D]")
+    start_hours = (start_time - day) / np.timedelta64(1, "h")
+    hours = np.asarray(hours, dtype=np.float64)
+    wraps = np.concatenate([[0], np.cumsum(np.diff(hours) < -_WRAP_HOURS)])
+    offset = 24.0 * wraps
+    if hours.size and hours[0] < start_hours - _WRAP_HOURS:
+        offset = offset + 24.0
+    micro = np.rint((hours + offset) * 3.6e9).astype(np.int64)
+    return (day.astype("datetime64[us]") + micro.astype("timedelta64[us]")).astype("datetime64[ns]")
+
+
+def normalise_pointing(azimuth: np.ndarray, elevation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Beam direction with elevation <= 90 deg and azimuth in [0, 360) (degrees).
+
+    An elevation above 90 deg points over the zenith: the same direction is azimuth
+    + 180 deg at elevation 180 deg - el. ``-0.00`` becomes 0 and 360 becomes 0.
+    """
+    azimuth = np.asarray(azimuth, dtype=np.float64)
+    elevation = np.asarray(elevation, dtype=np.float64)
+    over = elevation > 90.0
+    azimuth = np.where(over, azimuth + 180.0, azimuth)
+    elevation = np.where(over, 180.0 - elevation, elevation) + 0.0
+    azimuth = np.mod(azimuth, 360.0) + 0.0
+    azimuth = np.where(azimuth >= 360.0, azimuth - 360.0, azimuth)
+    return azimuth, elevation
+
+
+def _check_options(options: dict) -> None:
+    if options:
+        raise ConfigError(
+            "[reader.hpl]", ", ".join(sorted(options)), "the .hpl reader takes no options"
+        )
+
+
+def read_hpl(path: str | os.PathLike, **options: object) -> xr.Dataset:
+    """Read a Halo Photonics Stream Line ``.hpl`` file into a canonical scan dataset.
+
+    Parameters
+    ----------
+    path : path-like
+        The ``.hpl`` file (any variant of ``real_data/FORMATS.md`` section 1: Stare,
+        VAD, user scans; 3- or 5-field ray lines; 4- or 5-column gate lines; CRLF, LF
+        or CR; with or without a final newline).
+    **options
+        ``[reader.hpl]`` configuration table; the reader takes no options (any key
+        raises :class:`cwproc.errors.ConfigError`).
+
+    Returns
+    -------
+    xarray.Dataset
+        Dims ``ray``, ``range``; coords ``time`` (UTC), ``azimuth`` (deg, [0, 360)),
+        ``elevation`` (deg), ``range`` (m, gate centre), ``scan``; data
+        ``radial_velocity`` (m s-1, positive away from the lidar), ``snr`` (intensity
+        - 1), ``beta`` (m-1 sr-1), ``spectral_width`` (m s-1, when present), ``pitch``
+        and ``roll`` (deg, when present); header values in ``attrs``.
+
+    Raises
+    ------
+    InputFileError
+        Empty file, another format, garbled header, non-numeric field, a gate count
+        that does not match the body, a gate index that restarts without a ray line,
+        a truncated last ray: the message names the file and the 1-based line.
+    """
+    _check_options(options)
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    lines, offset = split_header(path, raw)
+    header = parse_header(path, lines)
+    body = raw[offset:].rstrip()
+    if not body:
+        raise InputFileError(path, "no data after the header", HEADER_LINES + 1)
+    nul = body.find(b"\x00")
+    if nul >= 0:
+        line = HEADER_LINES + 1 + len(_EOL.findall(body, 0, nul))
+        raise InputFileError(path, "NUL byte in the data", line)
+
+    table = _tokenize(path, body)
+    n_gates = header.n_gates
+    ray_fields = _fields_of_row(table, 0)
+    gate_fields = _fields_of_row(table, 1) if table.shape[0] > 1 else 0
+    if ray_fields not in (3, 5) or gate_fields not in (4, 5):
+        raise diagnose(path, body, 0, n_gates, None, None)
+    bad = first_bad_row(table, n_gates, ray_fields, gate_fields)
+    if bad >= 0:
+        block_start = (bad // (n_gates + 1)) * (n_gates + 1)
+        raise diagnose(path, body, block_start, n_gates, ray_fields, gate_fields)
+    block = n_gates + 1
+    if table.shape[0] % block:
+        start = (table.shape[0] // block) * block
+        raise diagnose(path, body, start, n_gates, ray_fields, gate_fields)
+
+    n_rays = table.shape[0] // block
+    blocks = table.reshape(n_rays, block, 5)
+    rays = blocks[:, 0, :]
+    gates = blocks[:, 1:, :]
+    ray_lines = HEADER_LINES + 1 + np.arange(n_rays) * block
+    _check_rays(path, rays, ray_lines)
+
+    time = decimal_hours_to_time(rays[:, 0], header.start_time)
+    azimuth, elevation = normalise_pointing(rays[:, 1], rays[:, 2])
+    data_vars: dict[str, tuple] = {
+        "radial_velocity": (("ray", "range"), np.ascontiguousarray(gates[:, :, 1])),
+        "snr": (("ray", "range"), gates[:, :, 2] - 1.0),
+        "beta": (("ray", "range"), np.ascontiguousarray(gates[:, :, 3])),
+    }
+    if gate_fields == 5:
+        data_vars["spectral_width"] = (("ray", "range"), np.ascontiguousarray(gates[:, :, 4]))
+    if ray_fields == 5:
+        data_vars["pitch"] = (("ray",), rays[:, 3].copy())
+        data_vars["roll"] = (("ray",), rays[:, 4].copy())
+    ds = xr.Dataset(
+        data_vars,
+        coords={
+            "time": (("ray",), time),
+            "azimuth": (("ray",), azimuth),
+            "elevation": (("ray",), elevation),
+            "range": (("range",), header.gate_ranges()),
+        },
+        attrs=_attrs(path, header),
+    )
+    from cwproc.stages.scans import assign_scans
+
+    return assign_scans(ds)
+
+
+def _check_rays(path: str | os.PathLike, rays: np.ndarray, ray_lines: np.ndarray) -> None:
+    """Decimal time and pointing angles within what an instrument can write."""
+    checks = (
+        ((rays[:, 0] < 0) | (rays[:, 0] >= 48), "decimal time {} h is outside 0-48 h", 0),
+        ((rays[:, 1] < -360) | (rays[:, 1] > 720), "azimuth {} deg is out of range", 1),
+        ((rays[:, 2] < -90) | (rays[:, 2] > 270), "elevation {} deg is out of range", 2),
+    )
+    for bad, message, column in checks:
+        idx = np.flatnonzero(bad)
+        if idx.size:
+            i = int(idx[0])
+            raise InputFileError(path, message.format(rays[i, column]), int(ray_lines[i]))
+
+
+def _attrs(path: Path, header: HplHeader) -> dict[str, object]:
+    attrs: dict[str, object] = {
+        "instrument": INSTRUMENT,
+        "instrument_kind": INSTRUMENT_KIND,
+        "system_id": header.system_id,
+        "source_files": [path.name],
+        "scan_type": header.scan_type,
+        "gate_length_m": header.gate_length_m,
+        "homodyne": 0,
+        "points_per_gate": header.points_per_gate,
+        "pulses_per_ray": header.pulses_per_ray,
+        "focus_range_m": header.focus_range_m,
+        "velocity_resolution_m_s": header.velocity_resolution_m_s,
+        "header_filename": header.filename,
+        "header_start_time": np.datetime_as_string(header.start_time, unit="ms") + "Z",
+        "header_rays_in_file": header.rays_in_file,
+        "range_formula": header.range_formula,
+    }
+    if header.instrument_spectral_width_m_s is not None:
+        attrs["instrument_spectral_width_m_s"] = header.instrument_spectral_width_m_s
+    return attrs
+
+
+# --------------------------------------------------------------------------------------
+# writer
+# --------------------------------------------------------------------------------------
+
+
+def _beta_strings(beta: np.ndarray) -> np.ndarray:
+    """Backscatter as the instrument prints it: ``1.569249E-6`` (no exponent padding)."""
+    s = np.char.mod("%.6E", beta)
+    s = np.char.replace(s, "E+0", "E")
+    s = np.char.replace(s, "E+", "E")
+    s = np.char.replace(s, "E-0", "E-")
+    return s
+
+
+def hpl_text(ds: xr.Dataset, filename: str) -> str:
+    """The ``.hpl`` text (CRLF line ends) of a canonical scan dataset.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Canonical scan dataset; ``range`` must be (gate + 0.5) x ``gate_length_m``.
+    filename : str
+        Name written on the ``Filename:`` line.
+
+    Raises
+    ------
+    CwprocError
+        The range grid is not the Stream Line grid, or there are no rays.
+    """
+    n_rays = int(ds.sizes["ray"])
+    n_gates = int(ds.sizes["range"])
+    if n_rays == 0:
+        raise CwprocError(f"write_hpl {filename}: the dataset has no rays")
+    ranges = np.asarray(ds["range"].values, dtype=np.float64)
+    gate_length = float(ds.attrs.get("gate_length_m", 2.0 * ranges[0]))
+    if not np.allclose(ranges, (np.arange(n_gates) + 0.5) * gate_length, rtol=0, atol=1e-6):
+        raise CwprocError(
+            f"write_hpl {filename}: range is not (gate + 0.5) x gate length "
+            f"{gate_length} m, the Stream Line grid"
+        )
+    times = ds["time"].values.astype("datetime64[us]")
+    day = times.min().astype("datetime64[D]")
+    hours = (times - day.astype("datetime64[us]")).astype(np.int64) / 3.6e9
+    az = np.asarray(ds["azimuth"].values, dtype=np.float64)
+    el = np.asarray(ds["elevation"].values, dtype=np.float64)
+    has_pr = "pitch" in ds and "roll" in ds
+    has_sw = "spectral_width" in ds
+    focus = float(ds.attrs.get("focus_range_m", float("inf")))
+    focus_text = str(FOCUS_INFINITY) if not np.isfinite(focus) else f"{focus:g}"
+    start = np.datetime_as_string(times[0], unit="ms")
+    start_text = start[:10].replace("-", "") + " " + start[11:22]
+    scan_type = str(ds.attrs.get("scan_type", "VAD"))
+    which = "Altitude" if scan_type.startswith("Stare") else "Range"
+    res = float(ds.attrs.get("velocity_resolution_m_s", 0.0382))
+    spectral = ds.attrs.get("instrument_spectral_width_m_s")
+    header = [
+        f"Filename:\t{filename}",
+        f"System ID:\t{ds.attrs.get('system_id', '0')}",
+        f"Number of gates:\t{n_gates}",
+        f"Range gate length (m):\t{gate_length:.1f}",
+        f"Gate length (pts):\t{int(ds.attrs.get('points_per_gate', round(gate_length / 3)))}",
+        f"Pulses/ray:\t{int(ds.attrs.get('pulses_per_ray', 10000))}",
+        f"No. of rays in file:\t{n_rays}",
+        f"Scan type:\t{scan_type}",
+        f"Focus range:\t{focus_text}",
+        f"Start time:\t{start_text}",
+        f"Resolution (m/s):\t{res:g}",
+        f"{which} of measurement (center of gate) = (range gate + 0.5) * Gate length",
+        "Data line 1: Decimal time (hours)  Azimuth (degrees)  Elevation (degrees)"
+        + (" Pitch (degrees) Roll (degrees)" if has_pr else ""),
+        "f9.6,1x,f6.2,1x,f6.2",
+        "Data line 2: Range Gate  Doppler (m/s)  Intensity (SNR + 1)  Beta (m-1 sr-1)"
+        + (" Spectral Width" if has_sw else ""),
+        "i3,1x,f6.4,1x,f8.6,1x,e12.6" + (",1x,f6.4" if has_sw else "") + " - repeat for no. gates",
+        "****" + (f" Instrument spectral width = {float(spectral):.6f}" if spectral else ""),
+    ]
+    ray = np.char.add(np.char.mod("%.8f", hours), np.char.mod(" %6.2f", az))
+    ray = np.char.add(ray, np.char.mod(" %6.2f", el))
+    if has_pr:
+        ray = np.char.add(ray, np.char.mod(" %.2f", ds["pitch"].values))
+        ray = np.char.add(ray, np.char.mod(" %.2f", ds["roll"].values))
+    beta = ds["beta"].values if "beta" in ds else np.zeros((n_rays, n_gates))
+    index = np.char.mod("%3d", np.arange(n_gates))
+    gate = np.char.add(
+        np.broadcast_to(index, (n_rays, n_gates)),
+        np.char.mod(" %.4f", ds["radial_velocity"].values),
+    )
+    gate = np.char.add(gate, np.char.mod(" %.6f", ds["snr"].values + 1.0))
+    gate = np.char.add(gate, np.char.mod(" %12s", _beta_strings(beta)))
+    if has_sw:
+        gate = np.char.add(gate, np.char.mod(" %.4f ", ds["spectral_width"].values))
+    block = np.concatenate([ray[:, None], gate], axis=1)
+    return "\r\n".join(header) + "\r\n" + "\r\n".join(block.ravel().tolist()) + "\r\n"
+
+
+def write_hpl(ds: xr.Dataset, path: str | os.PathLike) -> Path:
+    """Write a canonical scan dataset as a Stream Line ``.hpl`` file.
+
+    The layout is the instrument's: 17 header lines, CRLF line ends, ray lines
+    ``hours az el [pitch roll]`` with 8-decimal hours, gate lines
+    ``i3 doppler intensity beta [spectral_width]`` with the backscatter right-aligned
+    in 12 characters (two spaces before a positive value, one before a negative one).
+    Times are written as decimal hours since 00:00 of the first ray's day (hours
+    >= 24 after midnight).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Canonical scan dataset (``snr`` is written as intensity = snr + 1).
+    path : path-like
+        Output file; its name goes on the ``Filename:`` line.
+
+    Returns
+    -------
+    pathlib.Path
+        The path written.
+    """
+    path = Path(path)
+    text = hpl_text(ds, path.name)
+    path.write_bytes(text.encode("ascii"))
+    return path

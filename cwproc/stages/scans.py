@@ -1,0 +1,321 @@
+"""Scan segmentation: which 360 degree rotation of a conical scan each ray belongs to.
+
+The structure function and the VAD fit of Smalikho (2020), eqs. 1-2, work on the
+rays of one full rotation of the cone (azimuth theta_m = m dtheta at a fixed
+elevation phi). A Stream Line writes scans in many ways: one rotation per file
+(step-stare VAD), several or partial rotations per file, continuous scans with the
+azimuth increasing or decreasing, wrapping at 0/360, interleaved with vertical stares.
+:func:`assign_scans` recovers the rotations from the pointing angles alone;
+:func:`concat_scans` joins the datasets of several files in time order first.
+
+Method
+------
+Consecutive rays (in time order) are *linked* when both are below
+``max_elevation_deg``, their elevations agree within ``elevation_tolerance_deg``,
+the azimuth step between them (wrapped into (-180, 180) deg) is at least
+``min_step_deg`` and not 180 deg, the time step is at most ``max_gap_s``, and the step
+turns the same way as the previous linked step. A chain of linked rays is a *sweep*.
+Along a sweep the turned angle is accumulated; a ray belongs to rotation
+``floor((turned + step/2) / 360)`` of the sweep (``step``: the mean azimuth step of the
+sweep, so that the ray that closes the circle, e.g. 359.99 deg after a start at 0,
+opens the next rotation). Every (sweep, rotation) pair gets the next scan index.
+Sweeps with fewer than ``min_rays`` rays (and stares, vertical rays, constant azimuth)
+get scan ``-1``.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+
+import numpy as np
+import xarray as xr
+
+from cwproc.errors import CwprocError
+
+#: scan_type words that declare a conical scan (a 2-ray sweep is then accepted)
+_CONICAL_WORDS = re.compile(r"\b(VAD|PPI|conical|DBS)\b", re.IGNORECASE)
+
+SCAN_REFERENCE = "Smalikho (2020), eqs. 1-2 (one rotation of the conical scan)"
+
+
+def azimuth_steps(azimuth: np.ndarray) -> np.ndarray:
+    """Signed azimuth change between consecutive rays, wrapped into [-180, 180) deg."""
+    az = np.asarray(azimuth, dtype=np.float64)
+    return np.mod(np.diff(az) + 180.0, 360.0) - 180.0
+
+
+def sweep_links(
+    time_s: np.ndarray,
+    azimuth: np.ndarray,
+    elevation: np.ndarray,
+    *,
+    max_elevation_deg: float,
+    elevation_tolerance_deg: float,
+    min_step_deg: float,
+    max_gap_s: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Whether each ray continues the sweep of the ray before it, and the step (deg).
+
+    Parameters
+    ----------
+    time_s : ndarray
+        Ray times (s), increasing.
+    azimuth, elevation : ndarray
+        Pointing (deg).
+    max_elevation_deg, elevation_tolerance_deg, min_step_deg, max_gap_s : float
+        See the module docstring.
+
+    Returns
+    -------
+    link : ndarray of bool, shape (n,)
+        ``link[i]``: ray i continues the sweep of ray i-1 (``link[0]`` is False).
+    step : ndarray, shape (n,)
+        Signed azimuth step from ray i-1 to ray i (deg; 0 for ray 0).
+    """
+    n = len(azimuth)
+    if n < 2:
+        return np.zeros(n, dtype=bool), np.zeros(n)
+    el = np.asarray(elevation, dtype=np.float64)
+    conical = np.isfinite(el) & (el < max_elevation_deg) & np.isfinite(azimuth)
+    step = np.concatenate([[0.0], azimuth_steps(azimuth)])
+    size = np.abs(step)
+    candidate = np.zeros(n, dtype=bool)
+    candidate[1:] = (
+        conical[1:]
+        & conical[:-1]
+        & (np.abs(np.diff(el)) <= elevation_tolerance_deg)
+        & (size[1:] >= min_step_deg)
+        & (size[1:] < 180.0 - 1e-6)
+        & (np.diff(time_s) <= max_gap_s)
+        & (np.diff(time_s) >= 0)
+    )
+    # a reversal of the turning direction starts a new sweep
+    reversal = np.zeros(n, dtype=bool)
+    reversal[2:] = candidate[2:] & candidate[1:-1] & (np.sign(step[2:]) != np.sign(step[1:-1]))
+    return candidate & ~reversal, step
+
+
+def rotation_index(link: np.ndarray, step: np.ndarray, min_rays: int) -> np.ndarray:
+    """Scan index of each ray from the sweep links (see the module docstring).
+
+    Parameters
+    ----------
+    link : ndarray of bool
+        From :func:`sweep_links`.
+    step : ndarray
+        Signed azimuth steps (deg).
+    min_rays : int
+        Shortest sweep that counts as a conical scan.
+
+    Returns
+    -------
+    ndarray of int64
+        0, 1, 2, ... in time order; -1 for rays in no conical scan.
+    """
+    n = len(link)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    sweep = np.cumsum(~link) - 1
+    length = np.bincount(sweep)
+    turned_all = np.cumsum(np.where(link, np.abs(step), 0.0))
+    starts = np.flatnonzero(~link)
+    turned = turned_all - turned_all[starts][sweep]
+    total = turned_all[np.r_[starts[1:] - 1, n - 1]] - turned_all[starts]
+    mean_step = total / np.maximum(length - 1, 1)
+    rotation = np.floor((turned + 0.5 * mean_step[sweep]) / 360.0).astype(np.int64)
+    valid = length[sweep] >= max(min_rays, 2)
+    scan = np.full(n, -1, dtype=np.int64)
+    if valid.any():
+        key = sweep[valid].astype(np.int64) * (1 << 32) + rotation[valid]
+        _, ids = np.unique(key, return_inverse=True)
+        scan[valid] = ids
+    return scan
+
+
+def declares_conical(scan_type: object) -> bool:
+    """Whether a header ``scan_type`` names a conical scan (VAD, PPI, DBS)."""
+    return bool(_CONICAL_WORDS.search(str(scan_type or "")))
+
+
+def assign_scans(
+    ds: xr.Dataset,
+    *,
+    max_elevation_deg: float = 89.0,
+    elevation_tolerance_deg: float = 0.5,
+    min_step_deg: float = 0.2,
+    max_gap_s: float = 120.0,
+    min_rays: int | None = None,
+) -> xr.Dataset:
+    """Set the ``scan(ray)`` coordinate: the index of each 360 degree rotation.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Scan dataset with ``time``, ``azimuth`` (deg) and ``elevation`` (deg) on ``ray``.
+    max_elevation_deg : float
+        Rays at or above this elevation (deg) are stares, not part of a cone; 89 deg
+        keeps vertical stares with inclinometer wobble (90.01) out.
+    elevation_tolerance_deg : float
+        Largest elevation change (deg) between consecutive rays of one cone.
+    min_step_deg : float
+        Smallest azimuth step (deg) of a scan; smaller steps are a stare with jitter.
+    max_gap_s : float
+        Largest time step (s) inside one sweep; a longer pause starts a new scan.
+    min_rays : int, optional
+        Shortest sweep (rays) counted as a conical scan; default 2 when the header's
+        ``scan_type`` declares a conical scan (VAD, PPI, DBS), else 3 (a stepped user
+        scan that visits two azimuths at one elevation is not a cone).
+
+    Returns
+    -------
+    xarray.Dataset
+        ``ds`` with ``scan(ray)`` (int64, 0, 1, ... in time order, -1 for rays in no
+        conical scan). Method and parameters are in ``scan.attrs``.
+    """
+    if min_rays is None:
+        min_rays = 2 if declares_conical(ds.attrs.get("scan_type")) else 3
+    n = int(ds.sizes.get("ray", 0))
+    time = ds["time"].values
+    order = np.argsort(time, kind="stable")
+    time_s = (time[order] - time[order][0]) / np.timedelta64(1, "s") if n else np.zeros(0)
+    link, step = sweep_links(
+        time_s,
+        np.asarray(ds["azimuth"].values, dtype=np.float64)[order],
+        np.asarray(ds["elevation"].values, dtype=np.float64)[order],
+        max_elevation_deg=max_elevation_deg,
+        elevation_tolerance_deg=elevation_tolerance_deg,
+        min_step_deg=min_step_deg,
+        max_gap_s=max_gap_s,
+    )
+    scan = np.empty(n, dtype=np.int64)
+    scan[order] = rotation_index(link, step, min_rays)
+    out = ds.assign_coords(scan=("ray", scan))
+    out["scan"].attrs = {
+        "method": (
+            "consecutive rays at one elevation turning one way form a sweep; "
+            "the turned azimuth angle divided by 360 deg gives the rotation"
+        ),
+        "max_elevation_deg": max_elevation_deg,
+        "elevation_tolerance_deg": elevation_tolerance_deg,
+        "min_step_deg": min_step_deg,
+        "max_gap_s": max_gap_s,
+        "min_rays": min_rays,
+        "references": SCAN_REFERENCE,
+    }
+    return out
+
+
+def _files(ds: xr.Dataset) -> str:
+    files = ds.attrs.get("source_files", [])
+    if isinstance(files, str):
+        files = [files]
+    return ", ".join(map(str, files)) or "<unnamed dataset>"
+
+
+def _source_files(ds: xr.Dataset) -> list[str]:
+    files = ds.attrs.get("source_files", [])
+    if isinstance(files, str):
+        files = [f.strip() for f in files.split(",") if f.strip()]
+    return [str(f) for f in files]
+
+
+def _check_compatible(datasets: Sequence[xr.Dataset]) -> None:
+    first = datasets[0]
+    ref_range = np.asarray(first["range"].values, dtype=np.float64)
+    for other in datasets[1:]:
+        rng = np.asarray(other["range"].values, dtype=np.float64)
+        if rng.shape != ref_range.shape or not np.allclose(rng, ref_range, rtol=0, atol=1e-3):
+            raise CwprocError(
+                f"cannot concatenate scans: range grids differ ({_files(first)}: "
+                f"{ref_range.size} gates from {ref_range[0]:g} m; {_files(other)}: "
+                f"{rng.size} gates from {rng[0] if rng.size else float('nan'):g} m)"
+            )
+        for key in ("system_id", "instrument_kind", "homodyne"):
+            a, b = first.attrs.get(key), other.attrs.get(key)
+            if a is not None and b is not None and str(a) != str(b):
+                raise CwprocError(
+                    f"cannot concatenate scans: {key} differs ({_files(first)}: {a}; "
+                    f"{_files(other)}: {b})"
+                )
+
+
+def concat_scans(datasets: Sequence[xr.Dataset], **assign_options: float) -> xr.Dataset:
+    """Concatenate the scan datasets of several files in time order.
+
+    Parameters
+    ----------
+    datasets : sequence of xarray.Dataset
+        Canonical scan datasets (e.g. one per ``.hpl`` file) on the same range grid.
+    **assign_options
+        Passed to :func:`assign_scans`.
+
+    Returns
+    -------
+    xarray.Dataset
+        One dataset, rays sorted by time, rays with a time already seen dropped (the
+        first occurrence is kept), ``scan`` re-assigned over the whole record,
+        ``source_files`` the files of all inputs. Optional variables present in only
+        some inputs (``spectral_width``, ``pitch``, ``roll``, ``beta``) are NaN for the
+        rays of the others.
+
+    Raises
+    ------
+    CwprocError
+        No datasets, or range grids / system ids / detection (homodyne) differ; the
+        message names the files.
+    """
+    datasets = list(datasets)
+    if not datasets:
+        raise CwprocError("no scan datasets to concatenate")
+    _check_compatible(datasets)
+    first = datasets[0]
+    names: list[str] = []
+    for ds in datasets:
+        names.extend(str(v) for v in ds.data_vars if str(v) not in names)
+    arrays = {}
+    for name in names:
+        template = next(ds[name] for ds in datasets if name in ds)
+        dims = template.dims
+        parts = []
+        for ds in datasets:
+            if name in ds:
+                parts.append(np.asarray(ds[name].transpose(*dims).values))
+            else:
+                shape = [ds.sizes[d] for d in dims]
+                parts.append(np.full(shape, np.nan, dtype=np.float64))
+        arrays[name] = (dims, np.concatenate(parts, axis=dims.index("ray")), template.attrs)
+    time = np.concatenate([ds["time"].values for ds in datasets])
+    azimuth = np.concatenate([np.asarray(ds["azimuth"].values, float) for ds in datasets])
+    elevation = np.concatenate([np.asarray(ds["elevation"].values, float) for ds in datasets])
+
+    order = np.argsort(time, kind="stable")
+    sorted_time = time[order]
+    keep = np.ones(order.size, dtype=bool)
+    keep[1:] = sorted_time[1:] != sorted_time[:-1]
+    order = order[keep]
+
+    data_vars = {}
+    for name, (dims, values, attrs) in arrays.items():
+        axis = dims.index("ray")
+        data_vars[name] = xr.Variable(dims, np.take(values, order, axis=axis), attrs)
+    files: list[str] = []
+    for ds in datasets:
+        files.extend(f for f in _source_files(ds) if f not in files)
+    attrs = dict(first.attrs)
+    attrs["source_files"] = files
+    scan_types = list(dict.fromkeys(str(ds.attrs.get("scan_type", "")) for ds in datasets))
+    attrs["scan_type"] = "; ".join(s for s in scan_types if s)
+    out = xr.Dataset(
+        data_vars,
+        coords={
+            "time": ("ray", time[order]),
+            "azimuth": ("ray", azimuth[order]),
+            "elevation": ("ray", elevation[order]),
+            "range": ("range", np.asarray(first["range"].values)),
+        },
+        attrs=attrs,
+    )
+    for coord in ("time", "azimuth", "elevation", "range"):
+        out[coord].attrs = dict(first[coord].attrs)
+    return assign_scans(out, **assign_options)
