@@ -1,0 +1,260 @@
+"""Probe-volume transfer functions of Doppler lidars (wavenumbers in cycles per metre).
+
+A lidar measures the radial velocity averaged along the beam with a range weighting
+``Q(s)`` (``s`` along the beam from the probe centre) and, while the beam moves during
+the accumulation of one ray, averaged across the scan over the transverse sampling
+``dy``. In the spectral domain these averages multiply the 2-D spectrum of the radial
+velocity by the squared moduli of the Fourier transforms of the weightings: the
+longitudinal transfer function ``H_par(kappa1)`` and the transverse one
+``H_perp(kappa2)`` (Smalikho (2020), eqs. 16-20).
+
+Conventions: ``kappa`` is in cycles per metre, the Fourier transform is
+``int Q(s) exp(-2 pi i kappa s) ds``, so a lag ``r`` enters as ``cos(2 pi r kappa)``.
+
+- Pulsed lidar (Smalikho (2020), eq. 19): Gaussian pulse ``exp(-s^2/dp^2)`` convolved
+  with the range gate of length ``dR``; its transform is ``exp(-(pi dp kappa)^2)
+  sinc(pi dR kappa)``. The extracted eq. 19 prints ``exp(-(dp kappa)^2)``, without the
+  ``pi``; with ``kappa`` in cycles per metre only the form with ``pi`` is the transform of
+  the physical weighting, and only it reproduces the three figure claims of the paper
+  (``reference/REFERENCE_VALUES.md`` section 1.4). ``gaussian="printed"`` keeps the
+  printed form as an option.
+- Continuous-wave lidar (Banakh et al. (1999) Q_s; Wagner et al. (DTU), eq. 2): the
+  Lorentzian ``Q(s) = (Z_R / pi) / (Z_R^2 + s^2)`` with half width
+  ``Z_R = lambda R^2 / (2 pi a0^2)`` (ZephIR: ``Z_R = 0.0013 R^2``); its transform is
+  ``exp(-2 pi Z_R |kappa|)``, so ``H_par = exp(-4 pi Z_R |kappa|)``.
+- Transverse (Smalikho (2020), eq. 20): ``H_perp = sinc^2(pi dy kappa)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from cwproc.config import InstrumentConfig
+
+#: speed of light (m s-1)
+SPEED_OF_LIGHT = 299_792_458.0
+
+
+def _sinc(x: np.ndarray) -> np.ndarray:
+    """``sin(x)/x`` with the value 1 at 0 (numpy's ``sinc`` is ``sin(pi x)/(pi x)``)."""
+    return np.sinc(np.asarray(x, dtype=float) / np.pi)
+
+
+def transverse(kappa: ArrayLike, dy: float) -> np.ndarray:
+    """Transverse transfer function ``H_perp = sinc^2(pi dy kappa)``.
+
+    Smalikho (2020), eq. 20: averaging over the transverse sampling ``dy`` while the beam
+    moves during the accumulation of one ray.
+
+    Parameters
+    ----------
+    kappa : array_like
+        Transverse wavenumber (cycles m-1).
+    dy : float
+        Transverse size of the probe volume, ``dy = dtheta h / tan(phi)`` (m); 0 means no
+        transverse averaging (``H_perp = 1``).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``H_perp`` (1), same shape as ``kappa``.
+    """
+    return _sinc(np.pi * dy * np.asarray(kappa, dtype=float)) ** 2
+
+
+@dataclass(frozen=True)
+class PulsedProbe:
+    """Range weighting of a pulsed coherent Doppler lidar (Smalikho (2020), eq. 19).
+
+    Parameters
+    ----------
+    delta_p_m : float
+        ``dp = c sigma_p / 2`` (m), the 1/e half width of the Gaussian pulse in range;
+        Stream Line 15.3 m.
+    delta_r_m : float
+        ``dR = c T_w / 2`` (m), the range-gate length; Stream Line 18 m.
+    gaussian : {"physical", "printed"}
+        ``"physical"``: ``exp(-(pi dp kappa)^2)``, the transform of the Gaussian weight
+        (default); ``"printed"``: ``exp(-(dp kappa)^2)`` exactly as the extracted eq. 19.
+    """
+
+    delta_p_m: float = 15.3
+    delta_r_m: float = 18.0
+    gaussian: Literal["physical", "printed"] = "physical"
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.delta_p_m) and self.delta_p_m >= 0):
+            raise ValueError(f"delta_p_m must be finite and >= 0, got {self.delta_p_m!r}")
+        if not (math.isfinite(self.delta_r_m) and self.delta_r_m >= 0):
+            raise ValueError(f"delta_r_m must be finite and >= 0, got {self.delta_r_m!r}")
+        if self.gaussian not in ("physical", "printed"):
+            raise ValueError(f"gaussian must be 'physical' or 'printed', got {self.gaussian!r}")
+
+    @property
+    def gaussian_width_m(self) -> float:
+        """Width ``w`` (m) in ``exp(-(w kappa)^2)``: ``pi dp`` (physical) or ``dp`` (printed)."""
+        return math.pi * self.delta_p_m if self.gaussian == "physical" else self.delta_p_m
+
+    def longitudinal(self, kappa: ArrayLike, range_m: ArrayLike | None = None) -> np.ndarray:
+        """Longitudinal transfer function ``H_par(kappa)`` (1), Smalikho (2020), eq. 19.
+
+        ``[exp(-(pi dp kappa)^2) sinc(pi dR kappa)]^2`` (``"physical"``) or
+        ``[exp(-(dp kappa)^2) sinc(pi dR kappa)]^2`` (``"printed"``).
+
+        Parameters
+        ----------
+        kappa : array_like
+            Wavenumber along the beam (cycles m-1).
+        range_m : array_like, optional
+            Ignored (a pulsed probe does not depend on range); accepted so that pulsed
+            and cw probes share one signature.
+        """
+        k = np.asarray(kappa, dtype=float)
+        return (
+            np.exp(-((self.gaussian_width_m * k) ** 2)) * _sinc(np.pi * self.delta_r_m * k)
+        ) ** 2
+
+    def length_scale_m(self, range_m: ArrayLike | None = None) -> np.ndarray:
+        """A length (m) beyond whose inverse ``H_par`` is negligible (for quadrature grids)."""
+        return np.asarray(max(self.gaussian_width_m, self.delta_r_m), dtype=float)
+
+    def key(self) -> tuple:
+        """Parameters that fix the transfer function (for cache keys)."""
+        return ("pulsed", float(self.delta_p_m), float(self.delta_r_m), self.gaussian)
+
+
+@dataclass(frozen=True)
+class CWProbe:
+    """Lorentzian range weighting of a focused continuous-wave lidar.
+
+    Banakh et al. (1999), Q_s (with ``k0 a0^2`` squared, see
+    ``reference/REFERENCE_VALUES.md`` section 3); Wagner et al. (DTU), eq. 2.
+
+    Parameters
+    ----------
+    z_r_coefficient : float
+        ``c`` in ``Z_R = c R^2`` (m-1); ZephIR 0.0013 (Wagner et al. (DTU)).
+    wavelength_m : float, optional
+        Laser wavelength ``lambda`` (m); with ``beam_radius_m`` gives
+        ``Z_R = lambda R^2 / (2 pi a0^2)``.
+    beam_radius_m : float, optional
+        Beam radius ``a0`` at the telescope (m).
+    """
+
+    z_r_coefficient: float = 0.0013
+    wavelength_m: float | None = None
+    beam_radius_m: float | None = None
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.z_r_coefficient) and self.z_r_coefficient > 0):
+            raise ValueError(f"z_r_coefficient must be > 0, got {self.z_r_coefficient!r}")
+        if self.beam_radius_m is not None:
+            if self.wavelength_m is None:
+                raise ValueError("beam_radius_m needs wavelength_m (Z_R = lambda R^2/(2 pi a0^2))")
+            if not (self.beam_radius_m > 0 and self.wavelength_m > 0):
+                raise ValueError("beam_radius_m and wavelength_m must be > 0")
+
+    @property
+    def coefficient(self) -> float:
+        """``c`` (m-1) in ``Z_R = c R^2``: ``lambda/(2 pi a0^2)`` if ``a0`` is given."""
+        if self.beam_radius_m is not None and self.wavelength_m is not None:
+            return self.wavelength_m / (2.0 * math.pi * self.beam_radius_m**2)
+        return self.z_r_coefficient
+
+    def rayleigh_half_width(self, range_m: ArrayLike) -> np.ndarray:
+        """Half width ``Z_R`` (m) of the Lorentzian weighting at focus distance ``range_m`` (m).
+
+        ``Z_R = lambda R^2 / (2 pi a0^2)`` (Banakh et al. (1999), Q_s) when the beam radius
+        is known, else ``Z_R = c R^2`` (Wagner et al. (DTU): ``c = 0.0013`` for ZephIR).
+        """
+        return self.coefficient * np.asarray(range_m, dtype=float) ** 2
+
+    def weighting(self, s: ArrayLike, range_m: float) -> np.ndarray:
+        """Lorentzian range weighting ``Q(s) = (Z_R/pi)/(Z_R^2 + s^2)`` (m-1), unit area.
+
+        Wagner et al. (DTU), eq. 2; ``s`` (m) is the distance from the focus along the beam.
+        """
+        z = self.rayleigh_half_width(range_m)
+        return (z / np.pi) / (z**2 + np.asarray(s, dtype=float) ** 2)
+
+    def longitudinal(self, kappa: ArrayLike, range_m: ArrayLike) -> np.ndarray:
+        """Longitudinal transfer function ``H_par = exp(-4 pi Z_R |kappa|)`` (1).
+
+        The squared modulus of the Fourier transform ``exp(-2 pi Z_R |kappa|)`` of the
+        Lorentzian weighting (Wagner et al. (DTU), eq. 3). ``kappa`` in cycles m-1,
+        ``range_m`` the focus distance (m); both broadcast.
+        """
+        if range_m is None:
+            raise ValueError("a cw probe needs the focus distance range_m")
+        z = self.rayleigh_half_width(range_m)
+        return np.exp(-4.0 * np.pi * z * np.abs(np.asarray(kappa, dtype=float)))
+
+    def length_scale_m(self, range_m: ArrayLike) -> np.ndarray:
+        """A length (m) beyond whose inverse ``H_par`` is negligible (for quadrature grids)."""
+        return 4.0 * np.pi * self.rayleigh_half_width(range_m)
+
+    def key(self) -> tuple:
+        """Parameters that fix the transfer function (for cache keys)."""
+        return ("cw", float(self.coefficient))
+
+
+Probe = PulsedProbe | CWProbe
+
+
+def pulse_parameters(pulse_fwhm_s: float, window_s: float) -> tuple[float, float]:
+    """Probe lengths of a pulsed lidar from its pulse and range-gate durations.
+
+    Smalikho (2020), eq. 19: ``dp = c sigma_p / 2`` with ``sigma_p = tau_p / (2 sqrt(ln 2))``
+    and ``dR = c T_w / 2``.
+
+    Parameters
+    ----------
+    pulse_fwhm_s : float
+        Pulse duration ``tau_p`` (s, full width at half maximum of the power).
+    window_s : float
+        Range-gate (time window) duration ``T_w`` (s).
+
+    Returns
+    -------
+    (float, float)
+        ``(delta_p_m, delta_r_m)`` in metres.
+    """
+    if not (pulse_fwhm_s >= 0 and window_s >= 0):
+        raise ValueError("pulse and window durations must be >= 0")
+    sigma_p = pulse_fwhm_s / (2.0 * math.sqrt(math.log(2.0)))
+    return SPEED_OF_LIGHT * sigma_p / 2.0, SPEED_OF_LIGHT * window_s / 2.0
+
+
+def probe_from_config(
+    instrument: InstrumentConfig, *, pulse_transfer: Literal["physical", "printed"] = "physical"
+) -> Probe:
+    """The probe of an instrument configuration.
+
+    Parameters
+    ----------
+    instrument : cwproc.config.InstrumentConfig
+        ``kind == "pulsed"`` gives a :class:`PulsedProbe` from ``delta_p_m`` and
+        ``delta_r_m``; ``kind == "cw"`` a :class:`CWProbe` from ``beam_radius_m`` and
+        ``wavelength_m`` when the beam radius is set, else from ``z_r_coefficient``.
+    pulse_transfer : {"physical", "printed"}
+        Form of the Gaussian term of a pulsed probe (see :class:`PulsedProbe`).
+
+    Raises
+    ------
+    ValueError
+        For ``kind == "sonic"`` (no probe volume) or an impossible parameter.
+    """
+    if instrument.kind == "pulsed":
+        return PulsedProbe(instrument.delta_p_m, instrument.delta_r_m, pulse_transfer)
+    if instrument.kind == "cw":
+        if instrument.beam_radius_m is not None:
+            return CWProbe(
+                instrument.z_r_coefficient, instrument.wavelength_m, instrument.beam_radius_m
+            )
+        return CWProbe(instrument.z_r_coefficient)
+    raise ValueError(f"instrument kind {instrument.kind!r} has no lidar probe volume")
