@@ -1,0 +1,575 @@
+"""Meteo-2 ultrasonic weather station (IAO SB RAS, Tomsk, ~10.7 Hz) text logs.
+
+No real Meteo-2 file or format description is public (FORMATS.md section 4.6), so
+cwproc defines the text layout below, writes it (:func:`write_meteo2`, used by the
+simulator) and reads it (:func:`read_meteo2`), with every layout choice configurable
+in ``[reader.meteo2]`` (preset ``configs/meteo2.toml``) so that a real export can be
+read by configuration once one is obtained.
+
+Layout (``docs/sonic.md``)::
+
+    # cwproc meteo2 v1
+    # instrument: Meteo-2 ultrasonic weather station (IAO SB RAS)
+    # station: Tomsk
+    # time: UTC
+    time,u,v,w,t,diag
+    2014-06-01 00:00:00.000,1.234,-0.567,0.089,12.34,0
+
+* first line ``# cwproc meteo2`` (what :func:`cwproc.io.sniff_format` recognises);
+  further ``# key: value`` lines become dataset attributes;
+* one header row of column names, then one sample per line, ``,``-separated;
+* ``time``: ISO 8601 (``T`` or space, any number of fractional digits) in UTC unless
+  ``utc_offset_hours`` says otherwise; or ``time_format = "epoch"``: seconds since
+  1970-01-01 UTC;
+* ``u``, ``v``, ``w``: wind components (m s-1) in the instrument frame (x, y, z axes
+  of the sonic array); ``t``: sonic temperature (degC); ``diag``: status word, 0 good;
+* missing values: empty field, ``NaN`` or ``NAN``.
+
+The sample rate is measured from the time stamps (never assumed): Meteo-2 samples at
+about 10.7 Hz, Gladkikh et al. (2014), section 1.
+
+This module also holds the helpers that every sonic reader uses to build the
+canonical sonic dataset (:func:`sonic_dataset`): time ordering, duplicates, gaps,
+spikes and flags are detected and reported there, never silently repaired.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+from cwproc.errors import InputFileError
+
+INSTRUMENT = "Meteo-2 ultrasonic weather station (IAO SB RAS)"
+MAGIC = "# cwproc meteo2"
+
+#: canonical name -> column name in the file (default layout)
+DEFAULT_COLUMNS: dict[str, str] = {
+    "time": "time",
+    "u": "u",
+    "v": "v",
+    "w": "w",
+    "temperature": "t",
+    "diagnostic": "diag",
+}
+
+#: sample_flag bits
+FLAG_DIAGNOSTIC = 1
+FLAG_SPIKE = 2
+FLAG_NOT_FINITE = 4
+
+#: default spike threshold: |x - running median| in units of the robust residual std
+SPIKE_THRESHOLD = 8.0
+#: running-median width for spike detection (s)
+SPIKE_WINDOW_S = 1.0
+
+_NA = ["", "NaN", "NAN", "nan", "NA"]
+
+READER_OPTIONS = {
+    "delimiter",
+    "columns",
+    "time_format",
+    "utc_offset_hours",
+    "comment",
+    "frame",
+    "orientation_deg",
+    "spike_threshold",
+}
+
+
+# --------------------------------------------------------------------------------------
+# shared helpers of the sonic readers
+# --------------------------------------------------------------------------------------
+
+
+def check_options(path: str | os.PathLike, options: Mapping[str, Any], known: set[str]) -> None:
+    """Reject unknown reader options with a message naming the file."""
+    unknown = sorted(set(options) - known)
+    if unknown:
+        raise InputFileError(
+            path,
+            f"unknown reader option {unknown[0]!r}; known: {', '.join(sorted(known))}",
+        )
+
+
+def option_number(path: str | os.PathLike, options: Mapping[str, Any], key: str, default: float):
+    """A finite numeric reader option (or its default)."""
+    value = options.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
+        raise InputFileError(path, f"reader option {key!r} must be a finite number")
+    return float(value)
+
+
+def measure_sampling_rate(time_ns: np.ndarray) -> float:
+    """Sampling rate (Hz) measured from sorted time stamps, leaving gaps out.
+
+    The rate is (number of regular intervals) / (their total duration), where an
+    interval is regular when it is positive and shorter than 1.5 times the median
+    interval; stamp jitter averages out.
+
+    Parameters
+    ----------
+    time_ns : ndarray of int64
+        Sorted time stamps (ns).
+
+    Returns
+    -------
+    float
+        Hz; NaN with fewer than two distinct stamps.
+    """
+    dt = np.diff(time_ns.astype(np.int64))
+    dt = dt[dt > 0]
+    if dt.size == 0:
+        return float("nan")
+    regular = dt[dt < 1.5 * np.median(dt)]
+    return float(regular.size / (regular.sum() * 1e-9))
+
+
+def spike_mask(x: np.ndarray, width: int, threshold: float) -> np.ndarray:
+    """Samples that depart from the centred running median by more than ``threshold``.
+
+    The scale is the robust std of the residuals of the whole series,
+    1.4826 median|x - running median|; NaN never counts as a spike.
+
+    Parameters
+    ----------
+    x : ndarray
+        Series (any unit).
+    width : int
+        Running-median width (samples).
+    threshold : float
+        In robust standard deviations.
+    """
+    med = pd.Series(x).rolling(max(width, 3) | 1, center=True, min_periods=1).median()
+    resid = np.abs(x - med.to_numpy())
+    finite = np.isfinite(resid)
+    if not finite.any():
+        return np.zeros(x.shape, dtype=bool)
+    scale = 1.4826 * np.median(resid[finite])
+    if scale == 0:
+        scale = np.finfo(float).tiny
+    with np.errstate(invalid="ignore"):
+        return finite & (resid > threshold * scale)
+
+
+def sonic_dataset(
+    path: str | os.PathLike,
+    time: np.ndarray,
+    u: np.ndarray,
+    v: np.ndarray,
+    w: np.ndarray,
+    temperature: np.ndarray,
+    diagnostic: np.ndarray,
+    *,
+    instrument: str,
+    frame: str,
+    orientation_deg: float = 0.0,
+    attrs: Mapping[str, Any] | None = None,
+    warnings: Sequence[str] = (),
+    spike_threshold: float = SPIKE_THRESHOLD,
+    sampling_rate_hz: float | None = None,
+) -> xr.Dataset:
+    """Build the canonical sonic dataset, detecting and reporting time and data problems.
+
+    Out-of-order stamps are put in time order and exact duplicates are dropped (first
+    kept); gaps (intervals > 1.5 / f) are counted; samples with a non-zero diagnostic,
+    spikes (:func:`spike_mask`) and non-finite values are flagged in ``sample_flag``
+    (bits 1, 2, 4) and left untouched. Every such finding is counted in the attrs and
+    described in ``attrs["warnings"]``. Nothing is interpolated.
+
+    Parameters
+    ----------
+    path : path
+        The file (for messages).
+    time : ndarray of datetime64
+        UTC stamps, file order.
+    u, v, w : ndarray
+        Wind components (m s-1, instrument frame).
+    temperature : ndarray
+        Sonic temperature (degC).
+    diagnostic : ndarray of int
+        Instrument status word, 0 = good.
+    instrument, frame : str
+        Instrument name and description of the (u, v, w) frame.
+    orientation_deg : float
+        Azimuth of the +u axis (degree clockwise from north).
+    attrs : mapping, optional
+        More attributes (header values).
+    warnings : sequence of str
+        Reader-specific warnings to report as well.
+    spike_threshold : float
+        Spike threshold (robust std).
+    sampling_rate_hz : float, optional
+        Use this rate (Hz) instead of measuring it (formats without time stamps).
+
+    Raises
+    ------
+    InputFileError
+        No samples, or fewer than two distinct time stamps.
+    """
+    t = np.asarray(time).astype("datetime64[ns]")
+    if t.size == 0:
+        raise InputFileError(path, "no data records")
+    if np.isnat(t).any():
+        raise InputFileError(path, "time stamp missing", int(np.flatnonzero(np.isnat(t))[0]))
+    notes = list(warnings)
+    t_ns = t.astype(np.int64)
+    steps = np.diff(t_ns)
+    n_back = int(np.sum(steps < 0))
+    order = np.argsort(t_ns, kind="stable")
+    t_sorted = t_ns[order]
+    dup = np.concatenate([[False], np.diff(t_sorted) == 0])
+    n_dup = int(dup.sum())
+    keep = order[~dup]
+    if n_back:
+        notes.append(f"{n_back} time stamp(s) out of order: samples put in time order")
+    if n_dup:
+        notes.append(f"{n_dup} duplicated time stamp(s): later copies dropped")
+    t_ns = t_ns[keep]
+    rate = sampling_rate_hz if sampling_rate_hz is not None else measure_sampling_rate(t_ns)
+    if not np.isfinite(rate) or rate <= 0:
+        raise InputFileError(path, "fewer than two distinct time stamps: no sampling rate")
+    dt = np.diff(t_ns) * 1e-9
+    gap = dt > 1.5 / rate
+    n_gaps = int(gap.sum())
+    missing = float(np.sum(dt[gap] - 1.0 / rate))
+    if n_gaps:
+        notes.append(f"{n_gaps} gap(s) in the time stamps, {missing:.3f} s missing in total")
+    data = {
+        "u": np.asarray(u, float)[keep],
+        "v": np.asarray(v, float)[keep],
+        "w": np.asarray(w, float)[keep],
+        "temperature": np.asarray(temperature, float)[keep],
+    }
+    diag = np.asarray(diagnostic)[keep]
+    diag = np.where(np.isfinite(diag.astype(float)), diag, -1).astype(np.int64)
+    flag = np.zeros(t_ns.size, dtype=np.int8)
+    flag[diag != 0] |= FLAG_DIAGNOSTIC
+    width = round(SPIKE_WINDOW_S * rate)
+    n_spikes = 0
+    for name in ("u", "v", "w"):
+        x = data[name]
+        flag[~np.isfinite(x)] |= FLAG_NOT_FINITE
+        spikes = spike_mask(x, width, spike_threshold)
+        n_spikes += int(spikes.sum())
+        flag[spikes] |= FLAG_SPIKE
+    n_diag = int(np.sum(diag != 0))
+    n_nonfinite = int(np.sum((flag & FLAG_NOT_FINITE) > 0))
+    if n_diag:
+        notes.append(f"{n_diag} sample(s) with a non-zero diagnostic word")
+    if n_spikes:
+        notes.append(f"{n_spikes} spike value(s) flagged (threshold {spike_threshold:g} std)")
+    if n_nonfinite:
+        notes.append(f"{n_nonfinite} sample(s) with a missing or non-finite wind component")
+    ds = xr.Dataset(
+        {
+            **{k: (("time",), val) for k, val in data.items()},
+            "diagnostic": (("time",), diag),
+            "sample_flag": (("time",), flag),
+        },
+        coords={"time": (("time",), t_ns.astype("datetime64[ns]"))},
+    )
+    ds.attrs.update(dict(attrs or {}))
+    ds.attrs.update(
+        {
+            "instrument": instrument,
+            "frame": frame,
+            "orientation_deg": float(orientation_deg),
+            "sampling_rate_hz": float(rate),
+            "source_files": [os.path.basename(os.fspath(path))],
+            "n_gaps": n_gaps,
+            "gap_seconds": missing,
+            "n_out_of_order": n_back,
+            "n_duplicates": n_dup,
+            "n_spikes": n_spikes,
+            "n_diagnostic": n_diag,
+            "n_not_finite": n_nonfinite,
+            "warnings": notes,
+        }
+    )
+    return ds
+
+
+def first_bad_row(raw: pd.Series, parsed: np.ndarray) -> int | None:
+    """Index of the first row whose text is present but did not parse, else None."""
+    text = raw.astype("string").str.strip()
+    present = text.notna() & ~text.isin(_NA).fillna(False)
+    bad = present.to_numpy(dtype=bool) & ~np.isfinite(parsed) & ~_is_inf_text(text)
+    idx = np.flatnonzero(bad)
+    return int(idx[0]) if idx.size else None
+
+
+def _is_inf_text(text: pd.Series) -> np.ndarray:
+    low = text.str.lower().str.lstrip("+-")
+    return low.isin(["inf", "infinity"]).fillna(False).to_numpy(dtype=bool)
+
+
+def numeric_column(
+    path: str | os.PathLike, frame: pd.DataFrame, column: str, first_line: int
+) -> np.ndarray:
+    """A column as float; a non-numeric entry raises InputFileError with its line."""
+    raw = frame[column]
+    if pd.api.types.is_numeric_dtype(raw):
+        return raw.to_numpy(dtype=float)
+    parsed = pd.to_numeric(raw.astype("string").str.strip(), errors="coerce").to_numpy(
+        dtype=float, na_value=np.nan
+    )
+    bad = first_bad_row(raw, parsed)
+    if bad is not None:
+        raise InputFileError(
+            path, f"column {column!r}: {raw.iloc[bad]!r} is not a number", first_line + bad
+        )
+    return parsed
+
+
+_LINE_RE = re.compile(r"line (\d+)")
+
+
+def read_table(
+    path: str | os.PathLike, text: str, *, delimiter: str, skip: int, names: list[str] | None
+) -> pd.DataFrame:
+    """Parse delimited text with pandas; tokenising errors name the file line.
+
+    Parameters
+    ----------
+    text : str
+        The part of the file after ``skip`` lines.
+    skip : int
+        Lines before ``text`` (for line numbers).
+    names : list of str, optional
+        Column names (then ``text`` has no header row).
+    """
+    try:
+        return pd.read_csv(
+            io.StringIO(text),
+            sep=delimiter,
+            header=None if names is not None else 0,
+            names=names,
+            dtype=str if names is None else None,
+            keep_default_na=False,
+            na_values=_NA,
+            skip_blank_lines=False,
+            engine="c",
+            low_memory=False,
+        )
+    except pd.errors.ParserError as exc:
+        m = _LINE_RE.search(str(exc))
+        line = skip + int(m.group(1)) if m else None
+        detail = str(exc).split("C error:")[-1].strip()
+        raise InputFileError(path, f"malformed data line: {detail}", line) from None
+    except (ValueError, pd.errors.EmptyDataError) as exc:
+        raise InputFileError(path, f"cannot parse the data: {exc}", skip + 1) from None
+
+
+def parse_times(
+    path: str | os.PathLike, raw: pd.Series, first_line: int, *, fmt: str = "ISO8601"
+) -> np.ndarray:
+    """Parse time stamps (flexible fractional seconds); a bad one names its line."""
+    text = raw.astype("string").str.strip().str.strip('"')
+    parsed = pd.to_datetime(text, format=fmt, errors="coerce")
+    bad = np.flatnonzero(parsed.isna().to_numpy())
+    if bad.size:
+        i = int(bad[0])
+        raise InputFileError(path, f"bad time stamp {raw.iloc[i]!r}", first_line + i)
+    if parsed.dt.tz is not None:
+        parsed = parsed.dt.tz_convert("UTC").dt.tz_localize(None)
+    return parsed.to_numpy(dtype="datetime64[ns]")
+
+
+def read_text(path: str | os.PathLike) -> str:
+    """The whole file as text (UTF-8, falling back to Latin-1); I/O errors name the file."""
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read()
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    if b"\x00" in raw:
+        line = raw[: raw.index(b"\x00")].count(b"\n") + 1
+        raise InputFileError(path, "binary data (NUL byte) in a text file", line)
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+def blank_row(path: str | os.PathLike, frame: pd.DataFrame, first_line: int) -> None:
+    """Raise on a completely empty data row (a blank line inside the data)."""
+    empty = frame.isna().all(axis=1).to_numpy()
+    if empty.any():
+        i = int(np.flatnonzero(empty)[0])
+        raise InputFileError(path, "empty data line", first_line + i)
+
+
+# --------------------------------------------------------------------------------------
+# Meteo-2
+# --------------------------------------------------------------------------------------
+
+
+def read_meteo2(path: str | os.PathLike, **options: Any) -> xr.Dataset:
+    """Read a Meteo-2 text log (cwproc layout, module docstring) into a sonic dataset.
+
+    Parameters
+    ----------
+    path : path
+    delimiter : str, optional
+        Field separator (default ``","``).
+    columns : dict, optional
+        Canonical name (``time``, ``u``, ``v``, ``w``, ``temperature``,
+        ``diagnostic``) -> column name in the file; merged over :data:`DEFAULT_COLUMNS`.
+    time_format : {"iso", "epoch"}, optional
+        ISO 8601 stamps (default) or seconds since 1970-01-01.
+    utc_offset_hours : float, optional
+        Offset of the logger clock from UTC (h): UTC = stamp - offset. Default 0.
+    comment : str, optional
+        Prefix of header comment lines (default ``"#"``).
+    frame : str, optional
+        Description of the (u, v, w) frame (attr).
+    orientation_deg : float, optional
+        Azimuth of +u (degree clockwise from north).
+    spike_threshold : float, optional
+        Spike threshold (robust std), default 8.
+
+    Returns
+    -------
+    xarray.Dataset
+        Canonical sonic dataset (``sampling_rate_hz`` measured, about 10.7 Hz).
+
+    Raises
+    ------
+    InputFileError
+        File, line and problem.
+    """
+    check_options(path, options, READER_OPTIONS)
+    delimiter = str(options.get("delimiter", ","))
+    comment = str(options.get("comment", "#"))
+    cols = dict(DEFAULT_COLUMNS)
+    user_cols = options.get("columns", {})
+    if not isinstance(user_cols, Mapping):
+        raise InputFileError(path, "reader option 'columns' must be a table")
+    unknown = sorted(set(user_cols) - set(DEFAULT_COLUMNS))
+    if unknown:
+        raise InputFileError(path, f"reader option columns: unknown name {unknown[0]!r}")
+    cols.update({str(k): str(v) for k, v in user_cols.items()})
+    time_format = options.get("time_format", "iso")
+    if time_format not in ("iso", "epoch"):
+        raise InputFileError(path, "reader option 'time_format' must be 'iso' or 'epoch'")
+    offset_h = option_number(path, options, "utc_offset_hours", 0.0)
+    orientation = option_number(path, options, "orientation_deg", 0.0)
+    spike_threshold = option_number(path, options, "spike_threshold", SPIKE_THRESHOLD)
+
+    text = read_text(path)
+    lines = text.splitlines(keepends=True)
+    header_attrs: dict[str, str] = {}
+    n_comment = 0
+    for line in lines:
+        if not line.startswith(comment):
+            break
+        body = line[len(comment) :].strip()
+        key, sep, value = body.partition(":")
+        if sep and key.strip() and " " not in key.strip():
+            header_attrs[f"meteo2_{key.strip()}"] = value.strip()
+        n_comment += 1
+    if n_comment >= len(lines):
+        raise InputFileError(path, "no column header line", n_comment + 1)
+    header_line = n_comment + 1
+    frame = read_table(
+        path, "".join(lines[n_comment:]), delimiter=delimiter, skip=n_comment, names=None
+    )
+    frame.columns = [str(c).strip() for c in frame.columns]
+    for name in ("time", "u", "v", "w"):
+        if cols[name] not in frame.columns:
+            raise InputFileError(
+                path,
+                f"no column {cols[name]!r} ({name}) in the header; found "
+                f"{', '.join(frame.columns)}",
+                header_line,
+            )
+    if len(frame) == 0:
+        raise InputFileError(path, "no data records", header_line + 1)
+    first = header_line + 1
+    blank_row(path, frame, first)
+    if time_format == "iso":
+        times = parse_times(path, frame[cols["time"]], first)
+    else:
+        secs = numeric_column(path, frame, cols["time"], first)
+        bad = np.flatnonzero(~np.isfinite(secs))
+        if bad.size:
+            raise InputFileError(path, "missing time stamp", first + int(bad[0]))
+        times = (np.rint(secs * 1e9).astype(np.int64)).astype("datetime64[ns]")
+    times = times - np.timedelta64(round(offset_h * 3600e9), "ns")
+    vals = {k: numeric_column(path, frame, cols[k], first) for k in ("u", "v", "w")}
+    n = len(frame)
+    temp = (
+        numeric_column(path, frame, cols["temperature"], first)
+        if cols["temperature"] in frame.columns
+        else np.full(n, np.nan)
+    )
+    if cols["diagnostic"] in frame.columns:
+        diag = numeric_column(path, frame, cols["diagnostic"], first)
+    else:
+        diag = np.zeros(n)
+    return sonic_dataset(
+        path,
+        times,
+        vals["u"],
+        vals["v"],
+        vals["w"],
+        temp,
+        diag,
+        instrument=INSTRUMENT,
+        frame=str(options.get("frame", "instrument x, y, z axes of the Meteo-2 array")),
+        orientation_deg=orientation,
+        attrs=header_attrs,
+        spike_threshold=spike_threshold,
+    )
+
+
+def write_meteo2(
+    ds: xr.Dataset,
+    path: str | os.PathLike,
+    *,
+    station: str = "",
+    decimals: int = 3,
+) -> None:
+    """Write a sonic dataset in the cwproc Meteo-2 layout (module docstring).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        ``time`` (UTC), ``u``, ``v``, ``w`` (m s-1), optional ``temperature`` (degC)
+        and ``diagnostic``.
+    path : path
+        Output file (written through a temporary name, then renamed).
+    station : str
+        Written to the ``# station:`` header line.
+    decimals : int
+        Decimal places of the wind components and temperature.
+    """
+    n = ds.sizes["time"]
+    t = pd.DatetimeIndex(ds["time"].values).strftime("%Y-%m-%d %H:%M:%S.%f").str[:-3]
+    frame = pd.DataFrame(
+        {
+            "time": t,
+            "u": ds["u"].values,
+            "v": ds["v"].values,
+            "w": ds["w"].values,
+            "t": ds["temperature"].values if "temperature" in ds else np.full(n, np.nan),
+            "diag": ds["diagnostic"].values if "diagnostic" in ds else np.zeros(n, int),
+        }
+    )
+    head = (
+        f"{MAGIC} v1\n# instrument: {INSTRUMENT}\n# station: {station}\n# time: UTC\n"
+        "# units: u v w m/s, t degC, diag 0=good\n"
+    )
+    tmp = f"{os.fspath(path)}.part"
+    with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
+        fh.write(head)
+        frame.to_csv(fh, index=False, float_format=f"%.{decimals}f", na_rep="NaN")
+    os.replace(tmp, path)

@@ -1,0 +1,802 @@
+"""Structure-function types of sonic-anemometer wind components (Gladkikh et al. (2014)).
+
+Stage ``sonic_sf``: sonic dataset (dim ``time``) -> SF product (dims ``window``,
+``component``). For every analysis window (10 min by default) and every wind
+component (longitudinal V_1, transverse V_2, vertical V_3):
+
+1. rotate the instrument-frame (u, v) into the window's mean-wind direction
+   (Gladkikh et al. (2014), section 1: V_1 along the mean horizontal wind, V_2
+   across it, V_3 = w);
+2. remove a centred running mean (1 min by default) from every component;
+3. compute the structure function of every lag j = 1..K (K = {max_lag_fraction N},
+   N = {window_s f_d}) by FFT, Gladkikh et al. (2014), eq. 2, skipping missing
+   samples pairwise (O(N log N));
+4. convert time lags into spatial lags r_j = j V_h / f_d (Taylor) and normalise by
+   the value at the lag nearest r_N = 1 m, Gladkikh et al. (2014), eq. 3;
+5. fit, in x = lg(r/r_N), y = lg D_n, the three model types of Gladkikh et al.
+   (2014), eqs. 4-6, growing r_max while the determination coefficient
+   k_d >= k_dL (0.99850);
+6. decide the type with the rules of the paper plus the two rules the paper leaves
+   unstated (precedence among nested types; how r_p and r_l are found), which are
+   described in ``docs/sonic.md`` and in :func:`decide_types`.
+
+Windows are skipped (``sf_type`` 0, reason in ``window_flag``) when too few valid
+samples remain, when r_min = V_h/f_d > r_N (very strong wind: Gladkikh et al.
+(2014) do not analyse them) or when even the largest lag is shorter than r_N (calm:
+the normalisation lag cannot be reached). Samples that are not finite or that the
+reader flagged (``sample_flag`` != 0: diagnostic, spike) are treated as missing;
+they are never interpolated.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+import scipy.fft
+import xarray as xr
+
+from cwproc.errors import CwprocError
+
+REFERENCE = "Gladkikh et al. (2014)"
+COMPONENTS = ("longitudinal", "transverse", "vertical")
+
+#: window_flag values (bits)
+FLAG_FEW_SAMPLES = 1
+FLAG_STRONG_WIND = 2
+FLAG_CALM = 4
+
+#: offsets (in lags) of the candidate starts r_l of the linear part of type 3 beyond r_p:
+#: every lag up to 16, then a geometric grid (see :func:`candidate_offsets`)
+_DENSE_OFFSETS = 16
+
+
+# --------------------------------------------------------------------------------------
+# windows and preprocessing
+# --------------------------------------------------------------------------------------
+
+
+def grid_windows(
+    time: np.ndarray, values: np.ndarray, valid: np.ndarray, *, window_s: float, rate_hz: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Place samples on a regular grid of ``window_s`` windows aligned to UTC multiples.
+
+    Parameters
+    ----------
+    time : ndarray of datetime64
+        Sample times (UTC), any order.
+    values : ndarray, shape (3, n)
+        u, v, w (m s-1).
+    valid : ndarray of bool, shape (3, n)
+        Which samples may be used.
+    window_s : float
+        Window length (s).
+    rate_hz : float
+        Sampling rate f_d (Hz).
+
+    Returns
+    -------
+    starts : ndarray of datetime64[ns], shape (W,)
+        Window start times.
+    grid : ndarray, shape (W, 3, N)
+        Values on the grid; NaN where no valid sample fell.
+    counts : ndarray of int, shape (W,)
+        Number of grid slots holding a valid sample of every component.
+    """
+    t_ns = time.astype("datetime64[ns]").astype(np.int64)
+    win_ns = round(window_s * 1e9)
+    n_slots = int(np.floor(window_s * rate_hz + 1e-9))
+    widx = np.floor_divide(t_ns, win_ns)
+    uniq, inverse = np.unique(widx, return_inverse=True)
+    slot = np.rint((t_ns - widx * win_ns) * 1e-9 * rate_hz).astype(np.int64)
+    inside = slot < n_slots
+    grid = np.full((uniq.size, 3, n_slots), np.nan)
+    for c in range(3):
+        keep = inside & valid[c]
+        grid[inverse[keep], c, slot[keep]] = values[c, keep]
+    counts = np.all(np.isfinite(grid), axis=1).sum(axis=1)
+    starts = (uniq * win_ns).astype("datetime64[ns]")
+    return starts, grid, counts
+
+
+def rotate_to_mean_wind(grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotate (u, v, w) of each window into longitudinal, transverse, vertical components.
+
+    V_1 points along the window-mean horizontal wind, V_2 90 degrees to its left,
+    V_3 = w, Gladkikh et al. (2014), section 1.
+
+    Parameters
+    ----------
+    grid : ndarray, shape (W, 3, N)
+        u, v, w (m s-1) per window, NaN for missing samples.
+
+    Returns
+    -------
+    rotated : ndarray, shape (W, 3, N)
+        V_1, V_2, V_3 (m s-1).
+    mean_speed : ndarray, shape (W,)
+        V_h, the mean horizontal wind speed (m s-1): modulus of the mean vector.
+    """
+    with np.errstate(invalid="ignore"):
+        mu = np.nanmean(grid[:, 0], axis=1)
+        mv = np.nanmean(grid[:, 1], axis=1)
+    speed = np.hypot(mu, mv)
+    safe = np.where(speed > 0, speed, 1.0)
+    cos, sin = (mu / safe)[:, None], (mv / safe)[:, None]
+    out = np.empty_like(grid)
+    out[:, 0] = grid[:, 0] * cos + grid[:, 1] * sin
+    out[:, 1] = -grid[:, 0] * sin + grid[:, 1] * cos
+    out[:, 2] = grid[:, 2]
+    return out, speed
+
+
+def remove_running_mean(x: np.ndarray, width: int) -> np.ndarray:
+    """Subtract a centred running mean of ``width`` samples along the last axis.
+
+    Missing samples (NaN) are left out of the mean and stay NaN; near the ends of the
+    window the mean is taken over the part of the running window that exists.
+    Gladkikh et al. (2014), section 1 (1-min running mean).
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., N)
+    width : int
+        Running-mean width (samples, >= 1).
+
+    Returns
+    -------
+    ndarray, same shape as ``x``.
+    """
+    finite = np.isfinite(x)
+    filled = np.where(finite, x, 0.0)
+    zero = np.zeros((*x.shape[:-1], 1))
+    csum = np.concatenate([zero, np.cumsum(filled, axis=-1)], axis=-1)
+    ccnt = np.concatenate([zero, np.cumsum(finite, axis=-1)], axis=-1)
+    n = x.shape[-1]
+    idx = np.arange(n)
+    lo = np.clip(idx - width // 2, 0, n)
+    hi = np.clip(idx - width // 2 + width, 0, n)
+    cnt = ccnt[..., hi] - ccnt[..., lo]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = (csum[..., hi] - csum[..., lo]) / cnt
+    return np.where(finite, x - mean, np.nan)
+
+
+def structure_function_fft(x: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
+    """Structure function D(j) for lags j = 1..max_lag by FFT, missing samples pairwise.
+
+    D(j) = (1/N_j) sum_m [x(m + j) - x(m)]^2 over the N_j pairs in which both samples
+    exist, Gladkikh et al. (2014), eq. 2, evaluated through three correlation sums
+    (each one FFT product), O(N log N).
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., N)
+        Series (m s-1); NaN marks missing samples.
+    max_lag : int
+        Largest lag K (samples).
+
+    Returns
+    -------
+    d : ndarray, shape (..., K)
+        D(j) (m2 s-2), NaN where no pair exists.
+    pairs : ndarray, shape (..., K)
+        N_j, the number of pairs.
+    """
+    n = x.shape[-1]
+    m = np.isfinite(x).astype(float)
+    a = np.where(m > 0, x, 0.0)
+    s = a * a
+    nfft = scipy.fft.next_fast_len(n + max_lag + 1, real=True)
+    fm, fa, fs = (scipy.fft.rfft(v, nfft, axis=-1) for v in (m, a, s))
+
+    def corr(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+        # sum_i p_i q_{i+j} for j = 1..max_lag
+        return scipy.fft.irfft(np.conj(p) * q, nfft, axis=-1)[..., 1 : max_lag + 1]
+
+    pairs = np.rint(corr(fm, fm))
+    squares = corr(fm, fs) + corr(fs, fm)
+    cross = corr(fa, fa)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        d = (squares - 2.0 * cross) / pairs
+    d = np.where(pairs > 0, np.maximum(d, 0.0), np.nan)
+    return d, pairs
+
+
+# --------------------------------------------------------------------------------------
+# growing fits by running sums
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class GrownFit:
+    """Result of growing a polynomial fit from a start lag (arrays over series)."""
+
+    #: index of the last lag of the accepted fit; -1 when no fit
+    end: np.ndarray
+    #: polynomial coefficients (constant first), shape (S, deg + 1); NaN when no fit
+    coef: np.ndarray
+    #: determination coefficient at ``end``
+    kd: np.ndarray
+
+
+def _prefix(v: np.ndarray) -> np.ndarray:
+    """Cumulative sums along the last axis with a leading zero column (NaN counted as 0)."""
+    v = np.where(np.isfinite(v), v, 0.0)
+    return np.concatenate([np.zeros((*v.shape[:-1], 1)), np.cumsum(v, axis=-1)], axis=-1)
+
+
+def running_sums(x: np.ndarray, y: np.ndarray, deg: int) -> dict[str, np.ndarray]:
+    """Prefix sums of x^p (p <= 2 deg), x^p y (p <= deg), y and y^2 over the lags.
+
+    Parameters
+    ----------
+    x, y : ndarray, shape (S, K)
+        lg r_n and lg D_n; NaN in ``y`` marks an unusable lag.
+
+    Returns
+    -------
+    dict of ndarray, shape (S, K + 1)
+        Key ``"n"`` holds the running count of usable lags.
+    """
+    ok = np.isfinite(y) & np.isfinite(x)
+    xs = np.where(ok, x, 0.0)
+    ys = np.where(ok, y, 0.0)
+    out = {"n": _prefix(ok.astype(float)), "y": _prefix(ys), "yy": _prefix(ys * ys)}
+    for p in range(1, 2 * deg + 1):
+        out[f"x{p}"] = _prefix(xs**p)
+    for p in range(1, deg + 1):
+        out[f"x{p}y"] = _prefix(xs**p * ys)
+    return out
+
+
+def _window_sum(c: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """Sums over lags start..n for every end n: shape (S, K)."""
+    return c[:, 1:] - np.take_along_axis(c, start[:, None], axis=1)
+
+
+def grow_polynomial_fit(
+    sums: dict[str, np.ndarray],
+    start: np.ndarray,
+    deg: int,
+    *,
+    kd_threshold: float,
+    min_points: int,
+) -> GrownFit:
+    """Grow a least-squares polynomial fit of y(x) from lag ``start`` while k_d >= k_dL.
+
+    For every end lag n >= start + min_points - 1 the fit over lags start..n is solved
+    from running sums (no refit loop) and its determination coefficient
+    k_d = 1 - SS_res/SS_tot is computed; the fit grows until the first n where
+    k_d < k_dL, Gladkikh et al. (2014), eqs. 4-6 and the text after eq. 10.
+
+    Parameters
+    ----------
+    sums : dict
+        Output of :func:`running_sums` with at least degree ``deg``.
+    start : ndarray of int, shape (S,)
+        First lag index of the fit per series.
+    deg : int
+        1 (line) or 2 (parabola).
+    kd_threshold : float
+        k_dL (dimensionless).
+    min_points : int
+        Fewest lags of a fit (the first tested end is start + min_points - 1).
+
+    Returns
+    -------
+    GrownFit
+    """
+    n_series, k1 = sums["n"].shape
+    n_lags = k1 - 1
+    start = np.asarray(start, dtype=np.int64)
+    cnt = _window_sum(sums["n"], start)
+    sx = [cnt] + [_window_sum(sums[f"x{p}"], start) for p in range(1, 2 * deg + 1)]
+    sxy = [_window_sum(sums["y"], start)] + [
+        _window_sum(sums[f"x{p}y"], start) for p in range(1, deg + 1)
+    ]
+    syy = _window_sum(sums["yy"], start)
+    ends = np.arange(n_lags)[None, :]
+    testable = (ends >= start[:, None] + min_points - 1) & (cnt >= deg + 2)
+    gram = np.empty((n_series, n_lags, deg + 1, deg + 1))
+    for i in range(deg + 1):
+        for j in range(deg + 1):
+            gram[..., i, j] = sx[i + j]
+    rhs = np.stack(sxy, axis=-1)
+    eye = np.eye(deg + 1)
+    gram = np.where(testable[..., None, None], gram, eye)
+    rhs_t = np.where(testable[..., None], rhs, 0.0)
+    try:
+        beta = np.linalg.solve(gram, rhs_t[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        beta = np.stack(
+            [
+                np.linalg.lstsq(g, r, rcond=None)[0]
+                for g, r in zip(
+                    gram.reshape(-1, deg + 1, deg + 1), rhs_t.reshape(-1, deg + 1), strict=True
+                )
+            ]
+        ).reshape(rhs_t.shape)
+    ss_res = syy - np.sum(beta * rhs, axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ss_tot = syy - sxy[0] ** 2 / cnt
+        kd = 1.0 - ss_res / ss_tot
+    passed = testable & (kd >= kd_threshold)
+    failed = testable & ~passed
+    first_fail = np.where(failed.any(axis=1), np.argmax(failed, axis=1), n_lags)
+    first_test = np.where(testable.any(axis=1), np.argmax(testable, axis=1), n_lags)
+    end = first_fail - 1
+    ok = (end >= first_test) & (first_test < n_lags)
+    end = np.where(ok, end, -1)
+    rows = np.arange(n_series)
+    safe_end = np.clip(end, 0, n_lags - 1)
+    coef = np.where(ok[:, None], beta[rows, safe_end], np.nan)
+    kd_end = np.where(ok, kd[rows, safe_end], np.nan)
+    return GrownFit(end=end, coef=coef, kd=kd_end)
+
+
+def candidate_offsets(n_lags: int) -> np.ndarray:
+    """Offsets (lags) of the candidate starts r_l of the linear part of a type-3 SF.
+
+    Every offset 0..15, then about 24 offsets spaced geometrically up to 0.2 K: the
+    type-3 rule Delta_B/Delta_A < 0.25 (Gladkikh et al. (2014), after eq. 6) cannot
+    hold for r_l - r_p > 0.2 (r_K - r_min).
+    """
+    top = max(int(0.2 * n_lags), 1)
+    dense = np.arange(min(_DENSE_OFFSETS, top + 1))
+    if top <= _DENSE_OFFSETS:
+        return dense
+    sparse = np.unique(np.rint(np.geomspace(_DENSE_OFFSETS, top, 24)).astype(np.int64))
+    return np.unique(np.concatenate([dense, sparse]))
+
+
+# --------------------------------------------------------------------------------------
+# type decision
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TypeDecision:
+    """Per-series type and fit of :func:`decide_types` (arrays over series)."""
+
+    sf_type: np.ndarray
+    r_max: np.ndarray
+    kd: np.ndarray
+    line: GrownFit
+    parabola: GrownFit
+    tail: GrownFit
+    r_p: np.ndarray
+    r_l: np.ndarray
+    type3_ok: np.ndarray
+
+
+def _lag_at(r: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    safe = np.clip(idx, 0, r.shape[1] - 1)
+    return np.where(idx >= 0, r[np.arange(r.shape[0]), safe], np.nan)
+
+
+def decide_types(
+    r: np.ndarray,
+    y: np.ndarray,
+    *,
+    r_norm: float,
+    kd_threshold: float,
+    precedence_tolerance: float,
+    min_points: int,
+    curvature_tolerance: float = 0.03,
+) -> TypeDecision:
+    """Type 1, 2 or 3 (or 0) of normalised structure functions, Gladkikh et al. (2014).
+
+    Fits (x = lg(r/r_N), y = lg D_n), all grown from r_min (the first lag) with
+    :func:`grow_polynomial_fit`:
+
+    * type 1: line y = b + mu x up to r_max1, eq. 4;
+    * type 2: parabola y = a0 + a1 x + a2 x^2 up to r_max2, eq. 5;
+    * type 3: the parabola up to r_p = r_max2 (how r_p is found: rule (b) of DESIGN,
+      the paper does not say), then a line y = c + gamma x grown from the smallest
+      candidate start r_l >= r_p (:func:`candidate_offsets`) for which the type-3 rules
+      of the paper hold: Delta_B/Delta_A < 0.25 with Delta_B = r_l - r_p,
+      Delta_A = r_max - r_l + r_p - r_min, and r_p - r_min <= r_max - r_l, eq. 6;
+      otherwise the SF is type 2 with r_max = r_p.
+
+    A type whose r_max < r_N (1 m) is rejected. Precedence (not stated in the paper,
+    whose models are nested): the candidate with the largest r_max wins, except that a
+    simpler type (1 < 2 < 3) is taken whenever lg r_max(simpler) >= lg r_max(best) -
+    ``precedence_tolerance``; and a type-2 decision falls back to type 1 (with the
+    line's own r_max) when the parabola is not significantly curved: its quadratic
+    term changes lg D by less than ``curvature_tolerance`` decades over its range,
+    |a2| (x_max - x_min)^2 / 8 < curvature_tolerance (the largest departure of a
+    parabola from its least-squares line is about that much).
+
+    Parameters
+    ----------
+    r : ndarray, shape (S, K)
+        Lags r_j (m), increasing along the last axis.
+    y : ndarray, shape (S, K)
+        lg of the normalised structure function; NaN where unusable.
+    r_norm : float
+        r_N (m).
+    kd_threshold : float
+        k_dL.
+    precedence_tolerance : float
+        Tolerance in decades of r_max (see above).
+    min_points : int
+        Fewest lags in any fit (and in each part of a type-3 fit).
+    curvature_tolerance : float
+        Decades (see above).
+
+    Returns
+    -------
+    TypeDecision
+    """
+    n_series, n_lags = r.shape
+    x = np.log10(r / r_norm)
+    sums = running_sums(x, y, 2)
+    zero = np.zeros(n_series, dtype=np.int64)
+    line = grow_polynomial_fit(sums, zero, 1, kd_threshold=kd_threshold, min_points=min_points)
+    para = grow_polynomial_fit(sums, zero, 2, kd_threshold=kd_threshold, min_points=min_points)
+    r_min = r[:, 0]
+    r_max1 = _lag_at(r, line.end)
+    r_p = _lag_at(r, para.end)
+
+    # type 3: line part from the smallest admissible r_l >= r_p
+    tail_end = np.full(n_series, -1)
+    tail_start = np.full(n_series, -1)
+    tail_coef = np.full((n_series, 2), np.nan)
+    tail_kd = np.full(n_series, np.nan)
+    searching = (para.end >= 0) & (para.end < n_lags - min_points)
+    for off in candidate_offsets(n_lags):
+        todo = searching & (tail_end < 0)
+        if not todo.any():
+            break
+        start = np.where(todo, para.end + off, 0)
+        todo &= start <= n_lags - min_points
+        start = np.where(todo, start, 0)
+        fit = grow_polynomial_fit(sums, start, 1, kd_threshold=kd_threshold, min_points=min_points)
+        r_l = _lag_at(r, np.where(todo, start, -1))
+        r_e = _lag_at(r, fit.end)
+        delta_b = r_l - r_p
+        delta_a = (r_e - r_l) + (r_p - r_min)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            accept = todo & (fit.end >= 0) & (delta_b / delta_a < 0.25) & (r_p - r_min <= r_e - r_l)
+        tail_end = np.where(accept, fit.end, tail_end)
+        tail_start = np.where(accept, start, tail_start)
+        tail_coef = np.where(accept[:, None], fit.coef, tail_coef)
+        tail_kd = np.where(accept, fit.kd, tail_kd)
+    type3_ok = tail_end >= 0
+    r_max3 = _lag_at(r, tail_end)
+    r_l = _lag_at(r, tail_start)
+
+    # candidates, rejection r_max < r_N, precedence
+    r_max = np.stack([r_max1, r_p, r_max3], axis=1)  # (S, 3) for types 1, 2, 3
+    r_max = np.where(r_max >= r_norm, r_max, np.nan)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lg = np.log10(r_max)
+    best = np.nanmax(np.where(np.isfinite(lg), lg, -np.inf), axis=1)
+    close = np.isfinite(lg) & (lg >= best[:, None] - precedence_tolerance - 1e-12)
+    sf_type = np.where(close.any(axis=1), np.argmax(close, axis=1) + 1, 0).astype(np.int8)
+    with np.errstate(invalid="ignore"):
+        span = np.log10(r_p / r_min)
+        flat = np.abs(para.coef[:, 2]) * span**2 / 8.0 < curvature_tolerance
+    sf_type = np.where((sf_type == 2) & flat & np.isfinite(r_max[:, 0]), 1, sf_type)
+    sf_type = sf_type.astype(np.int8)
+    chosen_rmax = np.where(
+        sf_type > 0, r_max[np.arange(n_series), np.clip(sf_type - 1, 0, 2)], np.nan
+    )
+    kd = np.select(
+        [sf_type == 1, sf_type == 2, sf_type == 3],
+        [line.kd, para.kd, np.fmin(para.kd, tail_kd)],
+        np.nan,
+    )
+    tail = GrownFit(end=tail_end, coef=tail_coef, kd=tail_kd)
+    return TypeDecision(
+        sf_type=sf_type,
+        r_max=chosen_rmax,
+        kd=kd,
+        line=line,
+        parabola=para,
+        tail=tail,
+        r_p=r_p,
+        r_l=r_l,
+        type3_ok=type3_ok,
+    )
+
+
+# --------------------------------------------------------------------------------------
+# the stage
+# --------------------------------------------------------------------------------------
+
+
+def structure_function_types(
+    sonic: xr.Dataset,
+    *,
+    window_s: float = 600.0,
+    running_mean_s: float = 60.0,
+    max_lag_fraction: float = 0.1,
+    kd_threshold: float = 0.99850,
+    normalisation_lag_m: float = 1.0,
+    precedence_tolerance: float = 0.05,
+    min_fit_points: int = 5,
+    min_valid_fraction: float = 0.9,
+    curvature_tolerance: float = 0.03,
+) -> xr.Dataset:
+    """Structure-function types and fitted parameters per window and wind component.
+
+    Gladkikh et al. (2014), eqs. 2-6 (method in the module docstring).
+
+    Parameters
+    ----------
+    sonic : xarray.Dataset
+        Canonical sonic dataset: ``u``, ``v``, ``w`` (m s-1) on ``time`` (UTC), attr
+        ``sampling_rate_hz`` (f_d, Hz); optional ``sample_flag`` (non-zero: unusable).
+    window_s : float
+        Analysis window Delta t (s), 600 in the paper.
+    running_mean_s : float
+        Width of the running mean removed first (s), 60 in the paper.
+    max_lag_fraction : float
+        Largest lag as a fraction of the window (0.1 in the paper).
+    kd_threshold : float
+        k_dL, the determination-coefficient threshold (0.99850 in the paper).
+    normalisation_lag_m : float
+        r_N (m): normalisation lag of eq. 3, unit of x = lg(r/r_N), smallest accepted
+        r_max and largest accepted r_min (1 m in the paper).
+    precedence_tolerance : float
+        Decades of r_max within which the simpler type wins (see :func:`decide_types`).
+    min_fit_points : int
+        Fewest lags in a fit (and in each part of a type-3 fit).
+    min_valid_fraction : float
+        Windows with a smaller fraction of valid samples are skipped (window_flag 1).
+    curvature_tolerance : float
+        Decades of lg D below which a parabola counts as a line (:func:`decide_types`).
+
+    Returns
+    -------
+    xarray.Dataset
+        dims ``window``, ``component`` (and ``sf_lag`` for the normalised SF itself);
+        see ``docs/sonic.md`` for every variable.
+
+    Raises
+    ------
+    CwprocError
+        The dataset has no sampling rate, or no window could be formed.
+    """
+    rate = float(sonic.attrs.get("sampling_rate_hz", np.nan))
+    if not np.isfinite(rate) or rate <= 0:
+        raise CwprocError("sonic dataset has no valid sampling_rate_hz attribute")
+    if sonic.sizes.get("time", 0) == 0:
+        raise CwprocError("sonic dataset has no samples")
+    n_slots = int(np.floor(window_s * rate + 1e-9))
+    n_lags = int(np.floor(max_lag_fraction * n_slots + 1e-9))
+    if n_lags < min_fit_points + 1:
+        raise CwprocError(
+            f"window of {window_s} s at {rate:g} Hz gives only {n_lags} lags; "
+            f"at least {min_fit_points + 1} are needed"
+        )
+    values = np.stack([np.asarray(sonic[c].values, dtype=float) for c in ("u", "v", "w")])
+    valid = np.isfinite(values)
+    if "sample_flag" in sonic:
+        valid &= (np.asarray(sonic["sample_flag"].values) == 0)[None, :]
+    starts, grid, counts = grid_windows(
+        sonic["time"].values, values, valid, window_s=window_s, rate_hz=rate
+    )
+    n_win = starts.size
+    rotated, speed = rotate_to_mean_wind(grid)
+    detrended = remove_running_mean(rotated, max(round(running_mean_s * rate), 1))
+    d, pairs = structure_function_fft(detrended, n_lags)
+
+    valid_fraction = counts / n_slots
+    j = np.arange(1, n_lags + 1)
+    r_win = speed[:, None] * j[None, :] / rate  # (W, K)
+    r_min = r_win[:, 0]
+    flag = np.zeros(n_win, dtype=np.int8)
+    flag[valid_fraction < min_valid_fraction] |= FLAG_FEW_SAMPLES
+    flag[r_min > normalisation_lag_m] |= FLAG_STRONG_WIND
+    flag[r_win[:, -1] < normalisation_lag_m] |= FLAG_CALM
+
+    jn = np.argmin(np.abs(r_win - normalisation_lag_m), axis=1)
+    d_norm = np.take_along_axis(d, jn[:, None, None], axis=2)[..., 0]  # (W, 3)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dn = d / d_norm[..., None]
+        y = np.where(dn > 0, np.log10(dn), np.nan)
+    analysed = np.repeat(flag == 0, 3)
+    r_s = np.repeat(r_win, 3, axis=0)
+    y_s = y.reshape(n_win * 3, n_lags)
+    y_s = np.where(analysed[:, None], y_s, np.nan)
+    safe_r = np.where(r_s > 0, r_s, np.nan)
+    dec = decide_types(
+        np.where(np.isfinite(safe_r), safe_r, 1.0),
+        y_s,
+        r_norm=normalisation_lag_m,
+        kd_threshold=kd_threshold,
+        precedence_tolerance=precedence_tolerance,
+        min_points=min_fit_points,
+        curvature_tolerance=curvature_tolerance,
+    )
+    sf_type = np.where(analysed, dec.sf_type, 0).astype(np.int8)
+    shape = (n_win, 3)
+
+    def per(v: np.ndarray, t: int | None = None) -> np.ndarray:
+        v = np.where(analysed if t is None else (sf_type == t), v, np.nan)
+        return v.reshape(shape)
+
+    lc, pc, tc = dec.line.coef, dec.parabola.coef, dec.tail.coef
+    t3 = sf_type == 3
+    r_s_transition = np.where(t3, 0.5 * (dec.r_p + dec.r_l), np.nan)
+    beta = np.select([sf_type == 1, sf_type == 2, t3], [lc[:, 0], pc[:, 0], pc[:, 0]], np.nan)
+    structure_constant = 10.0**beta * d_norm.reshape(-1)
+
+    x_s = np.log10(np.where(np.isfinite(safe_r), safe_r, 1.0) / normalisation_lag_m)
+    fit_curve = _fit_curves(x_s, dec, sf_type, normalisation_lag_m)
+    fit_curve = np.where(r_s <= np.where(sf_type > 0, dec.r_max, -1.0)[:, None], fit_curve, np.nan)
+
+    params = {
+        "window_s": window_s,
+        "running_mean_s": running_mean_s,
+        "max_lag_fraction": max_lag_fraction,
+        "kd_threshold": kd_threshold,
+        "normalisation_lag_m": normalisation_lag_m,
+        "precedence_tolerance": precedence_tolerance,
+        "min_fit_points": min_fit_points,
+        "min_valid_fraction": min_valid_fraction,
+        "curvature_tolerance": curvature_tolerance,
+        "sampling_rate_hz": rate,
+    }
+    dims = ("window", "component")
+    ds = xr.Dataset(
+        {
+            "sf_type": (dims, sf_type.reshape(shape)),
+            "sf_b": (dims, per(lc[:, 0], 1)),
+            "sf_mu": (dims, per(lc[:, 1], 1)),
+            "sf_a0": (dims, per(pc[:, 0], 2)),
+            "sf_a1": (dims, per(pc[:, 1], 2)),
+            "sf_a2": (dims, per(pc[:, 2], 2)),
+            "sf_d0": (dims, per(pc[:, 0], 3)),
+            "sf_d1": (dims, per(pc[:, 1], 3)),
+            "sf_d2": (dims, per(pc[:, 2], 3)),
+            "sf_c": (dims, per(tc[:, 0], 3)),
+            "sf_gamma": (dims, per(tc[:, 1], 3)),
+            "r_max": (dims, per(np.where(sf_type > 0, dec.r_max, np.nan))),
+            "r_p": (dims, per(dec.r_p, 3)),
+            "r_l": (dims, per(dec.r_l, 3)),
+            "r_s": (dims, per(r_s_transition, 3)),
+            "k_d": (dims, per(np.where(sf_type > 0, dec.kd, np.nan))),
+            "structure_constant": (dims, per(np.where(sf_type > 0, structure_constant, np.nan))),
+            "sf_at_normalisation_lag": (dims, np.where(flag[:, None] == 0, d_norm, np.nan)),
+            "r_min": (("window",), r_min),
+            "r_normalisation": (
+                ("window",),
+                np.take_along_axis(r_win, jn[:, None], axis=1)[:, 0],
+            ),
+            "mean_horizontal_wind": (("window",), speed),
+            "valid_fraction": (("window",), valid_fraction),
+            "window_flag": (("window",), flag),
+            "lag_distance": (("window", "sf_lag"), r_win),
+            "normalised_sf": (
+                ("window", "component", "sf_lag"),
+                np.where(flag[:, None, None] == 0, dn, np.nan).astype(np.float32),
+            ),
+            "normalised_sf_fit": (
+                ("window", "component", "sf_lag"),
+                (10.0 ** fit_curve.reshape(n_win, 3, n_lags)).astype(np.float32),
+            ),
+            "n_pairs": (("window", "component", "sf_lag"), pairs.astype(np.int32)),
+        },
+        coords={
+            "time": (("window",), starts),
+            "component": (("component",), np.array(COMPONENTS)),
+            "sf_lag": (("sf_lag",), j.astype(np.int32)),
+        },
+    )
+    ds["time"].attrs["comment"] = "start of the analysis window"
+    method = (
+        "1-min running mean removed, FFT structure function (eq. 2), normalised at the "
+        "lag nearest r_N (eq. 3), lg-lg fits grown while k_d >= k_dL (eqs. 4-6); "
+        "precedence: simplest type within precedence_tolerance decades of the largest "
+        "r_max; r_p = end of the parabola grown from r_min, r_l = smallest start >= r_p "
+        "meeting the type-3 rules"
+    )
+    ds["sf_type"].attrs.update({"method": method, "references": REFERENCE + ", eqs. 2-6", **params})
+    ds.attrs.update(
+        {
+            "sampling_rate_hz": rate,
+            "instrument": str(sonic.attrs.get("instrument", "")),
+            "frame": str(sonic.attrs.get("frame", "")),
+            "sonic_sf_parameters": params,
+        }
+    )
+    return ds
+
+
+def _fit_curves(x: np.ndarray, dec: TypeDecision, sf_type: np.ndarray, r_norm: float) -> np.ndarray:
+    """lg D_n of the chosen model at every lag (S, K); NaN for type 0."""
+    lc, pc, tc = dec.line.coef, dec.parabola.coef, dec.tail.coef
+    line = lc[:, :1] + lc[:, 1:2] * x
+    para = pc[:, :1] + pc[:, 1:2] * x + pc[:, 2:3] * x * x
+    tail = tc[:, :1] + tc[:, 1:2] * x
+    with np.errstate(invalid="ignore", divide="ignore"):
+        x_split = np.log10(np.where(sf_type == 3, 0.5 * (dec.r_p + dec.r_l), np.inf) / r_norm)
+        type3 = np.where(x <= x_split[:, None], para, tail)
+    out = np.select(
+        [sf_type[:, None] == 1, sf_type[:, None] == 2, sf_type[:, None] == 3],
+        [line, para, type3],
+        np.nan,
+    )
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# summaries (Gladkikh et al. (2014), Tables 2-5)
+# --------------------------------------------------------------------------------------
+
+#: parameters summarised per type (Tables 3-5)
+TYPE_PARAMETERS = {
+    1: ("sf_mu", "r_max"),
+    2: ("sf_a1", "sf_a2", "r_max"),
+    3: ("sf_d1", "sf_d2", "sf_gamma", "r_max"),
+}
+
+
+def type_occurrence(sf: xr.Dataset) -> pd.DataFrame:
+    """Occurrence of each type per component (%), Gladkikh et al. (2014), Table 2.
+
+    The denominator is every window with enough valid samples (window_flag without
+    bit 1), i.e. the observation time, as in the paper; windows skipped for strong
+    wind or calm count as observed but untyped.
+
+    Returns
+    -------
+    pandas.DataFrame
+        index component; columns ``windows``, ``all_types_pct``, ``type1_pct``,
+        ``type2_pct``, ``type3_pct``.
+    """
+    observed = (np.asarray(sf["window_flag"].values) & FLAG_FEW_SAMPLES) == 0
+    types = np.asarray(sf["sf_type"].values)[observed]
+    n = int(observed.sum())
+    rows = []
+    for k, comp in enumerate(sf["component"].values):
+        t = types[:, k]
+        share = [100.0 * np.mean(t == m) if n else np.nan for m in (1, 2, 3)]
+        rows.append(
+            {
+                "component": str(comp),
+                "windows": n,
+                "all_types_pct": float(np.nansum(share)) if n else np.nan,
+                "type1_pct": share[0],
+                "type2_pct": share[1],
+                "type3_pct": share[2],
+            }
+        )
+    return pd.DataFrame(rows).set_index("component")
+
+
+def parameter_statistics(sf: xr.Dataset) -> pd.DataFrame:
+    """Means and medians of the fitted parameters per type and component (Tables 3-5).
+
+    Gladkikh et al. (2014), Tables 3 (type 1: mu, r_max), 4 (type 2: a1, a2, r_max)
+    and 5 (type 3: d1, d2, gamma, r_max).
+
+    Returns
+    -------
+    pandas.DataFrame
+        columns ``type``, ``component``, ``parameter``, ``count``, ``mean``, ``median``.
+    """
+    rows = []
+    types = np.asarray(sf["sf_type"].values)
+    for t, names in TYPE_PARAMETERS.items():
+        for k, comp in enumerate(sf["component"].values):
+            sel = types[:, k] == t
+            for name in names:
+                vals = np.asarray(sf[name].values)[sel, k]
+                vals = vals[np.isfinite(vals)]
+                rows.append(
+                    {
+                        "type": t,
+                        "component": str(comp),
+                        "parameter": name,
+                        "count": int(vals.size),
+                        "mean": float(np.mean(vals)) if vals.size else np.nan,
+                        "median": float(np.median(vals)) if vals.size else np.nan,
+                    }
+                )
+    return pd.DataFrame(rows)

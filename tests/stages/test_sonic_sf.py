@@ -1,0 +1,264 @@
+"""Stage sonic_sf: structure-function types of Gladkikh et al. (2014), eqs. 2-7."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+import xarray as xr
+
+from cwproc.config import load_config
+from cwproc.errors import CwprocError
+from cwproc.pipeline import process_sonic
+from cwproc.sim.sonic import SFModel, default_models, simulate_sonic_dataset
+from cwproc.stages import sonic_sf as S
+
+
+@pytest.fixture(scope="module")
+def sims() -> dict[int, tuple[xr.Dataset, xr.Dataset]]:
+    """Four hours (24 windows x 3 components) of each type, and their SF products."""
+    out = {}
+    for t in (1, 2, 3):
+        ds = simulate_sonic_dataset(hours=4, sf_type=t, seed=10 + t)
+        out[t] = (ds, S.structure_function_types(ds))
+    return out
+
+
+# ----------------------------------------------------------------------------- pieces
+
+
+def test_fft_structure_function_equals_direct_sum_with_missing_samples():
+    rng = np.random.default_rng(1)
+    x = np.cumsum(rng.standard_normal((2, 500)), axis=1)
+    x[0, rng.choice(500, 60, replace=False)] = np.nan
+    d, pairs = S.structure_function_fft(x, 40)
+    for row in range(2):
+        for j in (1, 7, 40):
+            diff = x[row, j:] - x[row, :-j]
+            ok = np.isfinite(diff)
+            assert pairs[row, j - 1] == ok.sum()
+            assert d[row, j - 1] == pytest.approx(np.mean(diff[ok] ** 2), rel=1e-9)
+
+
+def test_running_mean_matches_pandas_centred_rolling():
+    rng = np.random.default_rng(2)
+    x = rng.standard_normal(300)
+    out = S.remove_running_mean(x[None, :], 21)[0]
+    ref = x - pd.Series(x).rolling(21, center=True, min_periods=1).mean().to_numpy()
+    np.testing.assert_allclose(out, ref, atol=1e-12)
+
+
+def test_rotation_puts_mean_wind_on_the_longitudinal_axis():
+    rng = np.random.default_rng(3)
+    n = 1000
+    u = 3.0 + 0.5 * rng.standard_normal(n)
+    v = -4.0 + 0.5 * rng.standard_normal(n)
+    grid = np.stack([u, v, rng.standard_normal(n)])[None]
+    rot, speed = S.rotate_to_mean_wind(grid)
+    assert speed[0] == pytest.approx(np.hypot(u.mean(), v.mean()), rel=1e-12)
+    assert rot[0, 0].mean() == pytest.approx(speed[0], rel=1e-12)
+    assert abs(rot[0, 1].mean()) < 1e-12
+    np.testing.assert_allclose(rot[0, 0] ** 2 + rot[0, 1] ** 2, u**2 + v**2, rtol=1e-12)
+
+
+def _lags(r_min: float = 0.5, k: int = 200) -> np.ndarray:
+    return (r_min * np.arange(1, k + 1))[None, :]
+
+
+def test_noise_free_power_law_is_type_1_with_its_slope():
+    r = _lags()
+    y = 0.6 * np.log10(r)
+    dec = S.decide_types(
+        r, y, r_norm=1.0, kd_threshold=0.9985, precedence_tolerance=0.05, min_points=5
+    )
+    assert dec.sf_type[0] == 1
+    assert dec.line.coef[0, 1] == pytest.approx(0.6, abs=1e-9)
+    assert dec.r_max[0] == pytest.approx(r[0, -1])
+
+
+def test_noise_free_parabola_is_type_2_with_its_coefficients():
+    r = _lags()
+    x = np.log10(r)
+    y = 0.8 * x - 0.25 * x**2
+    dec = S.decide_types(
+        r, y, r_norm=1.0, kd_threshold=0.9985, precedence_tolerance=0.05, min_points=5
+    )
+    assert dec.sf_type[0] == 2
+    np.testing.assert_allclose(dec.parabola.coef[0], [0.0, 0.8, -0.25], atol=1e-8)
+
+
+def test_noise_free_parabola_then_line_is_type_3_with_break_between_r_p_and_r_l():
+    r = _lags(0.3, 400)
+    x = np.log10(r)
+    xs = np.log10(4.0)
+    y = np.where(x <= xs, 0.8 * x - 0.5 * x**2, 0.8 * xs - 0.5 * xs**2 + 0.7 * (x - xs))
+    dec = S.decide_types(
+        r, y, r_norm=1.0, kd_threshold=0.9985, precedence_tolerance=0.05, min_points=5
+    )
+    assert dec.sf_type[0] == 3
+    assert dec.r_p[0] <= 4.0 * 1.3 and dec.r_l[0] >= dec.r_p[0]
+    assert 0.5 * (dec.r_p[0] + dec.r_l[0]) == pytest.approx(4.0, rel=0.3)
+    assert dec.tail.coef[0, 1] == pytest.approx(0.7, abs=0.01)
+    np.testing.assert_allclose(dec.parabola.coef[0, 1:], [0.8, -0.5], atol=0.05)
+
+
+def test_fit_range_below_r_n_is_rejected():
+    # r_max would stay below 1 m: the line breaks to a flat tail at 0.8 m
+    r = _lags(0.05, 200)
+    x = np.log10(r)
+    y = np.where(r < 0.8, 0.66 * x, 0.66 * np.log10(0.8)) + 0.3 * np.sin(40 * x) * (r > 0.8)
+    dec = S.decide_types(
+        r, y, r_norm=1.0, kd_threshold=0.9985, precedence_tolerance=0.05, min_points=5
+    )
+    assert dec.sf_type[0] == 0
+
+
+# ----------------------------------------------------------------------------- simulated types
+
+
+@pytest.mark.parametrize("sf_type", [1, 2, 3])
+def test_simulated_types_are_recognised_in_95_percent_of_windows(sims, sf_type):
+    _, sf = sims[sf_type]
+    share = float((sf["sf_type"] == sf_type).mean())
+    assert share >= 0.95, f"type {sf_type} recognised in {share:.0%} of windows"
+
+
+def test_kolmogorov_series_gives_slope_two_thirds(sims):
+    _, sf = sims[1]
+    mu = sf["sf_mu"].values[np.isfinite(sf["sf_mu"].values)]
+    assert mu.size >= 60
+    # window-to-window scatter ~0.03 (sampling), mean of ~70 windows within 0.02 of 2/3
+    assert np.mean(mu) == pytest.approx(2.0 / 3.0, abs=0.02)
+    assert np.all(np.abs(mu - 2.0 / 3.0) < 0.12)
+    # the prescribed power law ends (flat) at r_out = 20 m: r_max within 20 m .. 35 m
+    r_max = sf["r_max"].values[sf["sf_type"].values == 1]
+    assert 15.0 < np.median(r_max) < 35.0
+
+
+def test_type2_coefficients_recovered(sims):
+    _, sf = sims[2]
+    model = default_models(2)[0]
+    a1 = sf["sf_a1"].values[np.isfinite(sf["sf_a1"].values)]
+    a2 = sf["sf_a2"].values[np.isfinite(sf["sf_a2"].values)]
+    assert np.mean(a1) == pytest.approx(model.a1, abs=0.03)
+    assert np.mean(a2) == pytest.approx(model.a2, abs=0.03)
+    assert np.percentile(np.abs(a2 - model.a2), 90) < 0.06
+
+
+def test_type3_break_and_coefficients_recovered(sims):
+    _, sf = sims[3]
+    model = default_models(3)[0]
+    t3 = sf["sf_type"].values == 3
+    assert np.median(sf["r_s"].values[t3]) == pytest.approx(model.r_s_m, rel=0.25)
+    assert np.median(sf["sf_gamma"].values[t3]) == pytest.approx(model.slope, abs=0.05)
+    assert np.median(sf["sf_d1"].values[t3]) == pytest.approx(model.a1, abs=0.05)
+    assert np.median(sf["sf_d2"].values[t3]) == pytest.approx(model.a2, abs=0.08)
+    # the acceptance rules of the paper hold for every type-3 window
+    r_min = np.broadcast_to(sf["r_min"].values[:, None], t3.shape)[t3]
+    r_p, r_l, r_max = (sf[k].values[t3] for k in ("r_p", "r_l", "r_max"))
+    assert np.all((r_l - r_p) / ((r_max - r_l) + (r_p - r_min)) < 0.25)
+    assert np.all(r_p - r_min <= r_max - r_l)
+
+
+def test_structure_constant_is_d_at_one_metre(sims):
+    _, sf = sims[1]
+    model = default_models(1)[0]
+    c = sf["structure_constant"].sel(component="longitudinal").values
+    # C = D(1 m) = 0.05 m2 s-2 (prescribed), within sampling scatter
+    assert np.nanmedian(c) == pytest.approx(model.c_m2s2, rel=0.15)
+
+
+# ----------------------------------------------------------------------------- data problems
+
+
+def test_calm_and_strong_wind_windows_are_skipped():
+    # near-calm air: mean wind 5 mm/s, so even the largest lag (60 s) is 0.3 m < r_N
+    calm = simulate_sonic_dataset(hours=0.5, sf_type=1, seed=4)
+    rng = np.random.default_rng(4)
+    for name in ("u", "v", "w"):
+        calm[name] = ("time", 0.004 + 0.002 * rng.standard_normal(calm.sizes["time"]))
+    sf = S.structure_function_types(calm)
+    assert np.all(sf["lag_distance"].values[:, -1] < 1.0)
+    assert np.all(sf["window_flag"].values & S.FLAG_CALM)
+    assert np.all(sf["sf_type"].values == 0)
+    strong = simulate_sonic_dataset(hours=0.5, sf_type=1, seed=5, speed=14.0)
+    sf = S.structure_function_types(strong)
+    assert np.all(sf["r_min"].values > 1.0)
+    assert np.all(sf["window_flag"].values & S.FLAG_STRONG_WIND)
+    assert np.all(sf["sf_type"].values == 0)
+
+
+def test_gaps_nans_and_flagged_spikes(sims):
+    ds, clean = sims[2]
+    ds = ds.isel(time=slice(0, 6 * 6420)).copy(deep=True)
+    n = ds.sizes["time"]
+    rng = np.random.default_rng(6)
+    keep = np.ones(n, bool)
+    keep[6420 : 6420 + 2000] = False  # window 1 loses 31 %: skipped
+    keep[3 * 6420 + 100 : 3 * 6420 + 160] = False  # window 3 loses 1 %: analysed
+    u = ds["u"].values.copy()
+    u[rng.choice(n, n // 200, replace=False)] = np.nan  # 0.5 % NaN everywhere
+    spikes = rng.choice(np.flatnonzero(keep), 30, replace=False)
+    u[spikes] += 25.0
+    flag = np.zeros(n, np.int8)
+    flag[spikes] = 2
+    ds["u"] = ("time", u)
+    ds["sample_flag"] = ("time", flag)
+    sf = S.structure_function_types(ds.isel(time=keep))
+    assert sf.sizes["window"] == 6
+    assert sf["window_flag"].values[1] == S.FLAG_FEW_SAMPLES
+    assert np.all(sf["sf_type"].values[1] == 0)
+    assert sf["valid_fraction"].values[3] == pytest.approx(1 - 60 / 6420 - 0.005, abs=0.004)
+    others = [0, 2, 3, 4, 5]
+    assert np.all(sf["sf_type"].values[others] == 2)
+    # the result barely moves with 0.5 % missing samples
+    np.testing.assert_allclose(sf["sf_a1"].values[others], clean["sf_a1"].values[others], atol=0.03)
+    # without the flag the spikes would be used and change the result
+    unflagged = S.structure_function_types(ds.drop_vars("sample_flag").isel(time=keep))
+    assert not np.allclose(
+        unflagged["sf_at_normalisation_lag"].values[others, 0],
+        sf["sf_at_normalisation_lag"].values[others, 0],
+        rtol=0.05,
+    )
+
+
+def test_missing_rate_is_a_clear_error():
+    ds = simulate_sonic_dataset(hours=0.2, sf_type=1, seed=1)
+    ds.attrs.pop("sampling_rate_hz")
+    with pytest.raises(CwprocError, match="sampling_rate_hz"):
+        S.structure_function_types(ds)
+
+
+# ----------------------------------------------------------------------------- summaries, pipeline
+
+
+def test_summary_tables_count_what_the_product_holds(sims):
+    _, sf = sims[3]
+    occ = S.type_occurrence(sf)
+    assert list(occ.index) == list(S.COMPONENTS)
+    row = occ.loc["longitudinal"]
+    assert row["all_types_pct"] == pytest.approx(
+        row["type1_pct"] + row["type2_pct"] + row["type3_pct"]
+    )
+    n3 = int((sf["sf_type"].sel(component="longitudinal") == 3).sum())
+    assert row["type3_pct"] == pytest.approx(100 * n3 / sf.sizes["window"])
+    stats = S.parameter_statistics(sf)
+    g = stats.query("type == 3 and component == 'longitudinal' and parameter == 'sf_gamma'")
+    assert int(g["count"].iloc[0]) == n3
+    vals = sf["sf_gamma"].sel(component="longitudinal").values
+    assert float(g["median"].iloc[0]) == pytest.approx(np.nanmedian(vals))
+
+
+def test_pipeline_calls_the_stage_with_matching_keywords():
+    ds = simulate_sonic_dataset(hours=0.5, sf_type=2, seed=3)
+    out = process_sonic(ds, load_config("meteo2"))
+    assert set(out) == {"sf"}
+    assert out["sf"].sizes["component"] == 3
+
+
+def test_custom_models_changes_outcome():
+    model = SFModel(1, slope=0.5, r_out_m=20.0)
+    ds = simulate_sonic_dataset(hours=1, seed=8, models=(model, model, model))
+    sf = S.structure_function_types(ds)
+    mu = sf["sf_mu"].values
+    assert np.nanmean(mu) == pytest.approx(0.5, abs=0.03)
