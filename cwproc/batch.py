@@ -58,6 +58,7 @@ from cwproc.errors import CwprocError, InputFileError, ProductError
 from cwproc.io import Format, sniff_format
 
 log = logging.getLogger(__name__)
+log.addHandler(logging.NullHandler())  # a library: the application decides where logs go
 
 #: folder inside OUTPUT_DIR that holds the ledger and the lock
 STATE_DIR = ".cwproc"

@@ -1,0 +1,159 @@
+"""Throughput of ``cwproc batch`` on a synthetic archive, serial and on Dask workers.
+
+The archive: ``--days`` site-days of simulated Stream Line VAD scans (the sample-data
+simulator, :func:`cwproc.sim.sample_data.simulate_streamline`, shifted by whole days;
+two ``.hpl`` files per day) plus, when the Meteo-2 reader exists, ``--sonic-hours`` of
+simulated sonic data per day (one file per day). Each configuration processes the
+archive into a fresh output directory; then the same archive is run again to time a
+run with nothing to do (ledger check only).
+
+Run::
+
+    python benchmarks/bench_batch.py                      # 30 days, 1 and 2 workers
+    python benchmarks/bench_batch.py --days 10 --wind-only
+
+Printed figures: wall time and units per second of the serial run and of LocalClusters
+of 1 and 2 worker processes (one thread each), the speed-up of 2 workers over 1, the
+peak resident memory of each worker process (MiB, ``ru_maxrss``), and the time of a
+run that finds everything up to date. Target: speed-up >= 1.6 on 2 free cores; peak
+memory per worker < 1 GiB for a site-day of scans.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import importlib.util
+import shutil
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from cwproc.batch import BatchReport, close_client, dask_client, run_batch
+from cwproc.config import Config, TurbulenceConfig
+
+
+def write_scan_days(root: Path, days: int) -> int:
+    """``days`` site-days of simulated Stream Line files under ``root/<day>/``."""
+    from cwproc.io.halo import write_hpl
+    from cwproc.sim.sample_data import (
+        StreamLineSpec,
+        hpl_file_name,
+        simulate_streamline,
+        split_files,
+    )
+
+    spec = StreamLineSpec()
+    base = simulate_streamline(spec)
+    n = 0
+    for d in range(days):
+        shifted = base.assign_coords(time=base["time"] + np.timedelta64(d, "D"))
+        for part in split_files(shifted, spec.scans_per_file):
+            folder = root / "lidar" / np.datetime_as_string(part["time"].values[0], unit="D")
+            folder.mkdir(parents=True, exist_ok=True)
+            write_hpl(part, folder / hpl_file_name(part))
+            n += 1
+    return n
+
+
+def write_sonic_days(root: Path, days: int, hours: float) -> int:
+    """One simulated Meteo-2 file of ``hours`` per day (0 when the reader is missing)."""
+    if hours <= 0 or importlib.util.find_spec("cwproc.io.meteo2") is None:
+        return 0
+    from cwproc.sim.sonic import write_simulation
+
+    n = 0
+    for d in range(days):
+        day = np.datetime64("2024-06-01") + np.timedelta64(d, "D")
+        files, truth = write_simulation(
+            root / "sonic", hours=hours, seed=d, start=f"{day}T12:00:00"
+        )
+        truth.unlink()
+        n += len(files)
+    return n
+
+
+def memory_per_worker(report: BatchReport) -> dict[tuple[str, int], float]:
+    """Peak RSS (MiB) of each process that ran units."""
+    peaks: dict[tuple[str, int], float] = defaultdict(float)
+    for o in report.processed:
+        peaks[(o.host, o.pid)] = max(peaks[(o.host, o.pid)], o.peak_rss_mib)
+    return dict(peaks)
+
+
+def timed_run(archive: Path, out: Path, config: Config, workers: int | None) -> BatchReport:
+    client = dask_client(workers=workers) if workers else None
+    try:
+        return run_batch(archive, out, config, client=client)
+    finally:
+        if client is not None:
+            close_client(client)
+
+
+def describe(label: str, report: BatchReport) -> str:
+    n = len(report.processed)
+    peaks = memory_per_worker(report)
+    mem = ", ".join(f"{v:.0f}" for v in sorted(peaks.values()))
+    return (
+        f"{label:<10} {report.seconds:8.2f} s  {n / report.seconds:6.2f} units/s  "
+        f"{len(report.succeeded)} ok, {len(report.failed)} failed  "
+        f"peak RSS per process (MiB): {mem}"
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--days", type=int, default=30, help="site-days of scans (30)")
+    parser.add_argument("--sonic-hours", type=float, default=0.5, help="sonic hours per day")
+    parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    parser.add_argument(
+        "--wind-only", action="store_true", help="turbulence stages off (wind product only)"
+    )
+    parser.add_argument("--workdir", type=Path, default=None, help="keep the files here")
+    args = parser.parse_args(argv)
+
+    work = args.workdir or Path(tempfile.mkdtemp(prefix="cwproc-bench-batch-"))
+    archive = work / "archive"
+    if archive.exists():
+        shutil.rmtree(archive)
+    t0 = time.perf_counter()
+    n_scan = write_scan_days(archive, args.days)
+    n_sonic = write_sonic_days(archive, args.days, args.sonic_hours)
+    size_mib = sum(p.stat().st_size for p in archive.rglob("*") if p.is_file()) / 2**20
+    print(
+        f"archive: {args.days} site-days, {n_scan} .hpl + {n_sonic} sonic files, "
+        f"{size_mib:.1f} MiB (made in {time.perf_counter() - t0:.1f} s)"
+    )
+    config = Config()
+    if args.wind_only:
+        config = dataclasses.replace(config, turbulence=TurbulenceConfig(enabled=False))
+
+    times: dict[str, float] = {}
+    runs = [("serial", None)] + [(f"{w} worker{'s' * (w > 1)}", w) for w in args.workers]
+    for label, workers in runs:
+        out = work / f"out_{workers or 0}"
+        shutil.rmtree(out, ignore_errors=True)
+        report = timed_run(archive, out, config, workers)
+        times[label] = report.seconds
+        print(describe(label, report))
+        for line in report.failure_lines()[:3]:
+            print(f"    failure: {line}")
+    if 1 in args.workers and 2 in args.workers:
+        print(f"speed-up 2 workers / 1 worker: {times['1 worker'] / times['2 workers']:.2f}")
+    print(f"speed-up {runs[-1][0]} / serial: {times['serial'] / times[runs[-1][0]]:.2f}")
+    again = run_batch(archive, work / "out_0", config)
+    print(
+        f"rerun with nothing to do: {again.seconds:.2f} s "
+        f"({again.units_up_to_date} units up to date, {len(again.processed)} processed)"
+    )
+    if args.workdir is None:
+        shutil.rmtree(work)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
