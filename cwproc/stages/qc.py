@@ -28,8 +28,6 @@ noise estimates that pass the SNR test.
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import xarray as xr
 
@@ -84,16 +82,32 @@ def robust_outliers(
     -------
     ndarray of bool, shape (S, R, G)
     """
-    r = np.where(valid, residuals, np.nan)
     enough = valid.sum(axis=1) >= MIN_RAYS_FOR_OUTLIERS
-    r = np.where(enough[:, None, :], r, np.nan)
-    with np.errstate(invalid="ignore"), warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message="All-NaN slice encountered")
-        centre = np.nanmedian(r, axis=1, keepdims=True)
-        deviation = np.abs(r - centre)
-        spread = MAD_TO_STD * np.nanmedian(deviation, axis=1, keepdims=True)
-        spread = np.maximum(spread, min_spread)
-        return deviation > threshold * spread
+    use = valid & enough[:, None, :]
+    centre = median_along_rays(residuals, use)
+    deviation = np.abs(residuals - centre[:, None, :])
+    spread = np.maximum(MAD_TO_STD * median_along_rays(deviation, use), min_spread)
+    return use & (deviation > threshold * spread[:, None, :])
+
+
+def median_along_rays(values: np.ndarray, use: np.ndarray) -> np.ndarray:
+    """Median over axis 1 of the entries where ``use`` is true (NaN for empty groups).
+
+    Parameters
+    ----------
+    values : ndarray, shape (S, R, G)
+    use : ndarray of bool, shape (S, R, G)
+
+    Returns
+    -------
+    ndarray, shape (S, G)
+    """
+    ordered = np.sort(np.where(use, values, np.inf), axis=1)
+    n = use.sum(axis=1)
+    lo = np.take_along_axis(ordered, np.maximum((n - 1) // 2, 0)[:, None, :], axis=1)[:, 0]
+    hi = np.take_along_axis(ordered, np.maximum(n // 2, 0)[:, None, :], axis=1)[:, 0]
+    with np.errstate(invalid="ignore"):
+        return np.where(n > 0, 0.5 * (lo + hi), np.nan)
 
 
 def screen_radial_velocity(
@@ -141,8 +155,6 @@ def screen_radial_velocity(
         ("ray", "range"),
         flag,
         {
-            "flag_masks": np.array([1, 2, 4], dtype=np.int8),
-            "flag_meanings": "low_snr outlier not_finite",
             "method": (
                 "SNR threshold; robust outliers |r - median(r)| > k * 1.4826 MAD(r) of the "
                 f"residuals r about a VAD fit per scan and gate ({OUTLIER_PASSES} passes)"
