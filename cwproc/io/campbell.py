@@ -1,0 +1,381 @@
+"""Campbell Scientific logger files: TOA5 (ASCII) and TOB1 (binary) sonic records.
+
+Formats as seen in the real files (FORMATS.md section 4.1-4.2):
+
+* **TOA5**: CSV, every header field quoted, CRLF. Line 1 environment (``"TOA5",
+  station, logger, serial, OS, program, signature, table``), line 2 field names,
+  line 3 units, line 4 processing (``Smp``), then data rows
+  ``"yyyy-mm-dd HH:MM:SS[.f]",RECORD,v1,...``. Trailing zeros of the fractional
+  seconds are dropped (``12:45:00.05``, ``12:45:00.1``, ``13:00:00``): parsed with a
+  flexible fractional part. Missing values ``"NAN"``; ``INF``/``-INF`` can occur.
+* **TOB1**: five such ASCII header lines (the fifth gives the data types, e.g.
+  ``ULONG``, ``IEEE4``, ``FP2``), then fixed-size little-endian records without
+  separators; SECONDS counts from 1990-01-01 00:00:00 plus NANOSECONDS. A partial
+  trailing record (a cut file) is ignored and reported.
+
+Time stamps are **logger time**; the files state no time zone. UTC = stamp -
+``utc_offset_hours`` (option ``[reader.toa5]`` / ``[reader.tob1]``, default 0).
+RECORD numbers that do not increase by one (lost records, logger restarts) are
+reported in ``attrs["warnings"]``.
+
+CSAT3 conventions [doc]: (Ux, Uy, Uz) is a right-handed instrument frame with Ux along
+the boom into the array; ``Ts`` is sonic temperature (degC); ``diag_csat`` is 0 when
+good, any other value is flagged (``sample_flag`` bit 1).
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+from cwproc.errors import InputFileError
+from cwproc.io.meteo2 import (
+    SPIKE_THRESHOLD,
+    blank_row,
+    check_options,
+    numeric_column,
+    option_number,
+    parse_times,
+    read_table,
+    read_text,
+    sonic_dataset,
+)
+
+INSTRUMENT = "Campbell Scientific CSAT3 (logger {logger}, table {table})"
+FRAME = "CSAT3 instrument frame: Ux along the boom into the array, Uy to its left, Uz up"
+
+#: canonical name -> Campbell field name (CSAT3 defaults)
+DEFAULT_COLUMNS: dict[str, str] = {
+    "u": "Ux",
+    "v": "Uy",
+    "w": "Uz",
+    "temperature": "Ts",
+    "diagnostic": "diag_csat",
+}
+
+OPTIONS = {"utc_offset_hours", "columns", "orientation_deg", "frame", "spike_threshold"}
+
+#: TOB1 data types -> numpy dtypes (FP2 is Campbell's 2-byte float, big-endian)
+TOB1_TYPES: dict[str, str] = {
+    "IEEE4": "<f4",
+    "IEEE4L": "<f4",
+    "IEEE8": "<f8",
+    "IEEE8L": "<f8",
+    "ULONG": "<u4",
+    "UINT4": "<u4",
+    "LONG": "<i4",
+    "INT4": "<i4",
+    "SHORT": "<i2",
+    "INT2": "<i2",
+    "USHORT": "<u2",
+    "UINT2": "<u2",
+    "BOOL": "<i4",
+    "BOOL4": "<i4",
+    "BOOL2": "<i2",
+    "BOOL8": "u1",
+    "FP2": ">u2",
+}
+
+#: TOB1 epoch: SECONDS count from this instant (logger time)
+TOB1_EPOCH = np.datetime64("1990-01-01T00:00:00", "ns")
+
+
+def _columns(path: str | os.PathLike, options: Mapping[str, Any]) -> dict[str, str]:
+    cols = dict(DEFAULT_COLUMNS)
+    user = options.get("columns", {})
+    if not isinstance(user, Mapping):
+        raise InputFileError(path, "reader option 'columns' must be a table")
+    unknown = sorted(set(user) - set(DEFAULT_COLUMNS))
+    if unknown:
+        raise InputFileError(path, f"reader option columns: unknown name {unknown[0]!r}")
+    cols.update({str(k): str(v) for k, v in user.items()})
+    return cols
+
+
+def _header_fields(path: str | os.PathLike, line: str, number: int) -> list[str]:
+    try:
+        fields = next(csv.reader([line.rstrip("\r\n")]))
+    except (csv.Error, StopIteration):
+        raise InputFileError(path, "unreadable header line", number) from None
+    return [f.strip() for f in fields]
+
+
+def record_warnings(record: np.ndarray) -> list[str]:
+    """Describe RECORD numbers that do not step by one (lost records, restarts)."""
+    step = np.diff(record.astype(np.int64))
+    notes = []
+    lost = step > 1
+    if lost.any():
+        notes.append(
+            f"RECORD jumps at {int(lost.sum())} place(s): {int(np.sum(step[lost] - 1))} "
+            "record(s) missing"
+        )
+    back = step < 1
+    if back.any():
+        notes.append(f"RECORD restarts or repeats at {int(back.sum())} place(s)")
+    return notes
+
+
+def _to_celsius(values: np.ndarray, unit: str) -> np.ndarray:
+    return values - 273.15 if unit.strip().upper() == "K" else values
+
+
+def read_toa5(path: str | os.PathLike, **options: Any) -> xr.Dataset:
+    """Read a Campbell TOA5 file of high-rate sonic data into a sonic dataset.
+
+    Parameters
+    ----------
+    path : path
+    utc_offset_hours : float, optional
+        Logger clock minus UTC (h); default 0 (logger time taken as UTC).
+    columns : dict, optional
+        Canonical name (``u``, ``v``, ``w``, ``temperature``, ``diagnostic``) -> field
+        name; defaults are the CSAT3 names ``Ux``, ``Uy``, ``Uz``, ``Ts``, ``diag_csat``.
+    orientation_deg : float, optional
+        Azimuth of +Ux (degree clockwise from north).
+    frame : str, optional
+        Description of the frame (attr).
+    spike_threshold : float, optional
+        Spike threshold (robust std), default 6.
+
+    Returns
+    -------
+    xarray.Dataset
+        Canonical sonic dataset; ``sampling_rate_hz`` measured (20 Hz for the real
+        CSAT3 files); the header values in ``toa5_*`` attrs.
+
+    Raises
+    ------
+    InputFileError
+        File, line and problem.
+    """
+    check_options(path, options, OPTIONS)
+    cols = _columns(path, options)
+    offset_h = option_number(path, options, "utc_offset_hours", 0.0)
+    text = read_text(path)
+    lines = text.splitlines(keepends=True)
+    if len(lines) < 4 or not lines[0].startswith('"TOA5"'):
+        raise InputFileError(path, 'not a TOA5 file (line 1 must start with "TOA5")', 1)
+    env = _header_fields(path, lines[0], 1)
+    names = _header_fields(path, lines[1], 2)
+    units = _header_fields(path, lines[2], 3)
+    if len(units) != len(names):
+        raise InputFileError(path, f"{len(units)} units for {len(names)} fields", 3)
+    if "TIMESTAMP" not in names:
+        raise InputFileError(path, "no TIMESTAMP field", 2)
+    for key in ("u", "v", "w"):
+        if cols[key] not in names:
+            raise InputFileError(path, f"no field {cols[key]!r} ({key})", 2)
+    if len(lines) == 4:
+        raise InputFileError(path, "no data records", 5)
+    body = "".join(lines[4:])
+    counts = pd.Series(lines[4:]).str.count(",").to_numpy()
+    wrong = np.flatnonzero(counts != len(names) - 1)
+    if wrong.size:
+        i = int(wrong[0])
+        raise InputFileError(
+            path, f"data line has {counts[i] + 1} fields, expected {len(names)}", 5 + i
+        )
+    frame = read_table(path, body, delimiter=",", skip=4, names=names)
+    blank_row(path, frame, 5)
+    times = parse_times(path, frame["TIMESTAMP"], 5)
+    times = times - np.timedelta64(round(offset_h * 3600e9), "ns")
+    unit = dict(zip(names, units, strict=True))
+    vals = {k: numeric_column(path, frame, cols[k], 5) for k in ("u", "v", "w")}
+    n = len(frame)
+    temp = (
+        _to_celsius(numeric_column(path, frame, cols["temperature"], 5), unit[cols["temperature"]])
+        if cols["temperature"] in frame.columns
+        else np.full(n, np.nan)
+    )
+    diag = (
+        numeric_column(path, frame, cols["diagnostic"], 5)
+        if cols["diagnostic"] in frame.columns
+        else np.zeros(n)
+    )
+    notes = []
+    if "RECORD" in frame.columns:
+        record = numeric_column(path, frame, "RECORD", 5)
+        if np.isfinite(record).all():
+            notes = record_warnings(record)
+    env = env + [""] * (8 - len(env))
+    attrs = {
+        "toa5_station": env[1],
+        "toa5_logger": env[2],
+        "toa5_serial": env[3],
+        "toa5_os": env[4],
+        "toa5_program": env[5],
+        "toa5_signature": env[6],
+        "toa5_table": env[7],
+        "time_reference": f"logger time minus {offset_h:g} h",
+    }
+    return sonic_dataset(
+        path,
+        times,
+        vals["u"],
+        vals["v"],
+        vals["w"],
+        temp,
+        diag,
+        instrument=INSTRUMENT.format(logger=env[2], table=env[7]),
+        frame=str(options.get("frame", FRAME)),
+        orientation_deg=option_number(path, options, "orientation_deg", 0.0),
+        attrs=attrs,
+        warnings=notes,
+        spike_threshold=option_number(path, options, "spike_threshold", SPIKE_THRESHOLD),
+    )
+
+
+def decode_fp2(raw: np.ndarray) -> np.ndarray:
+    """Decode Campbell FP2 two-byte floats (already read as big-endian uint16).
+
+    Bit 15 sign, bits 13-14 the negative decimal exponent, bits 0-12 the mantissa;
+    0x1FFF is +INF, 0x9FFF is -INF and 0x9FFE is NaN [doc, Campbell manuals].
+    """
+    raw = raw.astype(np.uint16)
+    sign = np.where(raw & 0x8000, -1.0, 1.0)
+    exponent = (raw >> 13) & 0x3
+    mantissa = (raw & 0x1FFF).astype(float)
+    out = sign * mantissa / 10.0**exponent
+    out = np.where(raw == 0x1FFF, np.inf, out)
+    out = np.where(raw == 0x9FFF, -np.inf, out)
+    return np.where(raw == 0x9FFE, np.nan, out)
+
+
+def tob1_dtype(path: str | os.PathLike, names: list[str], types: list[str]) -> np.dtype:
+    """The numpy record dtype of a TOB1 file from its header lines 2 and 5."""
+    if len(types) != len(names):
+        raise InputFileError(path, f"{len(types)} data types for {len(names)} fields", 5)
+    fields = []
+    for name, t in zip(names, types, strict=True):
+        key = t.strip().upper()
+        if key.startswith("ASCII(") and key.endswith(")") and key[6:-1].isdigit():
+            fields.append((name, f"S{int(key[6:-1])}"))
+        elif key in TOB1_TYPES:
+            fields.append((name, TOB1_TYPES[key]))
+        else:
+            raise InputFileError(path, f"unknown TOB1 data type {t!r} of field {name!r}", 5)
+    try:
+        return np.dtype(fields)
+    except (TypeError, ValueError) as exc:
+        raise InputFileError(path, f"bad field list: {exc}", 2) from None
+
+
+def _tob1_column(records: np.ndarray, name: str, type_: str) -> np.ndarray:
+    col = records[name]
+    if type_.strip().upper() == "FP2":
+        return decode_fp2(col)
+    return col.astype(float)
+
+
+def read_tob1(path: str | os.PathLike, **options: Any) -> xr.Dataset:
+    """Read a Campbell TOB1 binary file of high-rate sonic data into a sonic dataset.
+
+    Parameters are those of :func:`read_toa5`. Time = 1990-01-01 + SECONDS +
+    NANOSECONDS (logger time) - ``utc_offset_hours``.
+
+    Raises
+    ------
+    InputFileError
+        Header problems name the header line; data problems name the record number
+        (1-based, ``record N``).
+    """
+    check_options(path, options, OPTIONS)
+    cols = _columns(path, options)
+    offset_h = option_number(path, options, "utc_offset_hours", 0.0)
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read()
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    pos = 0
+    header: list[str] = []
+    for number in range(1, 6):
+        end = raw.find(b"\n", pos)
+        if end < 0:
+            raise InputFileError(path, "file ends inside the 5-line ASCII header", number)
+        header.append(raw[pos : end + 1].decode("latin-1"))
+        pos = end + 1
+    if not header[0].startswith('"TOB1"'):
+        raise InputFileError(path, 'not a TOB1 file (line 1 must start with "TOB1")', 1)
+    env = _header_fields(path, header[0], 1)
+    names = _header_fields(path, header[1], 2)
+    units = _header_fields(path, header[2], 3)
+    types = _header_fields(path, header[4], 5)
+    dtype = tob1_dtype(path, names, types)
+    for key in ("SECONDS", "NANOSECONDS"):
+        if key not in names:
+            raise InputFileError(path, f"no {key} field", 2)
+    for key in ("u", "v", "w"):
+        if cols[key] not in names:
+            raise InputFileError(path, f"no field {cols[key]!r} ({key})", 2)
+    data = raw[pos:]
+    n_rec, extra = divmod(len(data), dtype.itemsize)
+    if n_rec == 0:
+        raise InputFileError(path, "no complete data record", 1, unit="record")
+    records = np.frombuffer(data[: n_rec * dtype.itemsize], dtype=dtype)
+    notes = []
+    if extra:
+        notes.append(
+            f"partial trailing record ({extra} of {dtype.itemsize} bytes) ignored: the file was cut"
+        )
+    typ = dict(zip(names, types, strict=True))
+    nanos = records["NANOSECONDS"].astype(np.int64)
+    bad = np.flatnonzero((nanos < 0) | (nanos >= 1_000_000_000))
+    if bad.size:
+        raise InputFileError(
+            path, f"NANOSECONDS {nanos[bad[0]]} out of range", int(bad[0]) + 1, unit="record"
+        )
+    secs = records["SECONDS"].astype(np.int64)
+    times = TOB1_EPOCH + (secs * 1_000_000_000 + nanos).astype("timedelta64[ns]")
+    times = times - np.timedelta64(round(offset_h * 3600e9), "ns")
+    vals = {k: _tob1_column(records, cols[k], typ[cols[k]]) for k in ("u", "v", "w")}
+    unit = dict(zip(names, units + [""] * (len(names) - len(units)), strict=True))
+    temp = (
+        _to_celsius(
+            _tob1_column(records, cols["temperature"], typ[cols["temperature"]]),
+            unit[cols["temperature"]],
+        )
+        if cols["temperature"] in names
+        else np.full(n_rec, np.nan)
+    )
+    diag = (
+        _tob1_column(records, cols["diagnostic"], typ[cols["diagnostic"]])
+        if cols["diagnostic"] in names
+        else np.zeros(n_rec)
+    )
+    if "RECORD" in names:
+        notes.extend(record_warnings(records["RECORD"]))
+    env = env + [""] * (8 - len(env))
+    attrs = {
+        "tob1_station": env[1],
+        "tob1_logger": env[2],
+        "tob1_serial": env[3],
+        "tob1_os": env[4],
+        "tob1_program": env[5],
+        "tob1_signature": env[6],
+        "tob1_table": env[7],
+        "partial_record_bytes": int(extra),
+        "time_reference": f"logger time minus {offset_h:g} h",
+    }
+    return sonic_dataset(
+        path,
+        times,
+        vals["u"],
+        vals["v"],
+        vals["w"],
+        temp,
+        diag,
+        instrument=INSTRUMENT.format(logger=env[2], table=env[7]),
+        frame=str(options.get("frame", FRAME)),
+        orientation_deg=option_number(path, options, "orientation_deg", 0.0),
+        attrs=attrs,
+        warnings=notes,
+        spike_threshold=option_number(path, options, "spike_threshold", SPIKE_THRESHOLD),
+    )
