@@ -330,6 +330,22 @@ VARIABLES: dict[str, VarMeta] = {
     "integral_scale_rel_error": VarMeta(
         "relative RMS error of the integral scale estimate", "1", references=BANAKH_1999
     ),
+    "epsilon_mean_ratio": VarMeta(
+        "mean over realisations of the estimated to the true dissipation rate (bias)",
+        "1",
+        references=BANAKH_1999,
+    ),
+    "rays_per_scan_used": VarMeta(
+        "mean number of spectra per scan kept (peak velocity not below the threshold)", "1"
+    ),
+    "true_epsilon": VarMeta(
+        "dissipation rate of the simulation, 1.33 sigma_V^3/L_V",
+        "m2 s-3",
+        references=BANAKH_1999 + ", eq. 19",
+    ),
+    "true_velocity_variance": VarMeta("velocity variance sigma_V^2 of the simulation", "m2 s-2"),
+    "true_integral_scale": VarMeta("integral scale L_V of the simulation", "m"),
+    "true_wind_speed": VarMeta("mean horizontal wind speed of the simulation", "m s-1"),
     # ---------------------------------------------------------------- turbulence (stages
     # structure/epsilon): block quantities
     "radial_velocity_variance": VarMeta(

@@ -1,0 +1,478 @@
+"""Virtual continuous-wave (cw) Doppler lidar: Doppler spectra and the centroid estimate.
+
+Banakh et al. (1999), eqs. 2-14: the probe-volume weighting Q_s, the Doppler spectrum
+W_s of eq. 3 built from the radial velocities along the beam, the centroid velocity
+estimator of eq. 4 under conditions (5)-(10), the exclusion of spectra whose peak lies
+below 1 m s-1, and homodyne detection (only |V_r| is measured).
+
+Q_s as printed in Banakh et al. (1999) after eq. 3 lacks a square: with z_d = k0 a0^2,
+k0 = 2 pi / lambda, the weight is
+Q_s(z) = {pi z_d [(1 - z/R)^2 + (z/z_d)^2]}^(-1), a Lorentzian centred at
+z_c = R / (1 + (R/z_d)^2) with half width w = z_R / (1 + (R/z_d)^2),
+z_R = lambda R^2 / (2 pi a0^2) (the paper's Delta z equals pi z_R). The part behind
+the lidar (z < 0, up to 9 % at R = 1000 m) is cut and Q_s renormalised
+(REFERENCE_VALUES.md section 3).
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+import xarray as xr
+
+from cwproc.sim.turbulence import (
+    CorrelationModel,
+    ProbeQuadrature,
+    ScanGeometry,
+    along_beam_fluctuations,
+    beam_vectors,
+    probe_weighted_moments,
+    scan_cholesky,
+    simulate_scan_velocities,
+    wind_vector,
+)
+
+#: exclusion threshold of Banakh et al. (1999), section 3: spectra with k_max dV < 1 m/s
+MIN_PEAK_VELOCITY = 1.0
+
+
+# --------------------------------------------------------------------------------------
+# probe volume Q_s
+# --------------------------------------------------------------------------------------
+
+
+def focal_parameter(wavelength: float, beam_radius: float) -> float:
+    """z_d = k0 a0^2 = 2 pi a0^2 / lambda (m), Banakh et al. (1999), after eq. 3."""
+    return 2.0 * np.pi * beam_radius**2 / wavelength
+
+
+def rayleigh_range(focus_range: np.ndarray, wavelength: float, beam_radius: float) -> np.ndarray:
+    """z_R = lambda R^2 / (2 pi a0^2) (m); ZephIR: z_R = 0.0013 R^2 (Wagner et al. (DTU))."""
+    return np.asarray(focus_range, dtype=float) ** 2 / focal_parameter(wavelength, beam_radius)
+
+
+def lorentzian_parameters(
+    focus_range: float, wavelength: float, beam_radius: float
+) -> tuple[float, float]:
+    """Centre z_c and half width w (m) of the corrected Q_s.
+
+    Banakh et al. (1999), Q_s after eq. 3 with (z/z_d)^2: z_c = R/(1 + (R/z_d)^2),
+    w = z_R/(1 + (R/z_d)^2).
+    """
+    zd = focal_parameter(wavelength, beam_radius)
+    g = 1.0 + (focus_range / zd) ** 2
+    return focus_range / g, focus_range**2 / zd / g
+
+
+def probe_weight(
+    z: np.ndarray, focus_range: float, wavelength: float, beam_radius: float
+) -> np.ndarray:
+    """Q_s(z) (1/m): the cw weighting, cut at z < 0 and renormalised to unit integral.
+
+    Banakh et al. (1999), Q_s after eq. 3 with k0 a0^2 squared (see module notes).
+
+    Parameters
+    ----------
+    z : numpy.ndarray
+        Distance along the beam (m).
+    focus_range : float
+        R (m).
+    wavelength, beam_radius : float
+        lambda (m), a0 (m).
+    """
+    zc, w = lorentzian_parameters(focus_range, wavelength, beam_radius)
+    kept = 0.5 + np.arctan(zc / w) / np.pi
+    z = np.asarray(z, dtype=float)
+    q = w / (np.pi * ((z - zc) ** 2 + w**2)) / kept
+    return np.where(z >= 0, q, 0.0)
+
+
+def fraction_behind_lidar(focus_range: float, wavelength: float, beam_radius: float) -> float:
+    """Share of the uncut Lorentzian Q_s at z < 0 (cut off by :func:`probe_weight`)."""
+    zc, w = lorentzian_parameters(focus_range, wavelength, beam_radius)
+    return float(0.5 - np.arctan(zc / w) / np.pi)
+
+
+@functools.lru_cache(maxsize=8)
+def gauss_legendre(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Legendre nodes and weights on [-1, 1] (cached: costly for n of hundreds)."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    x.setflags(write=False)
+    w.setflags(write=False)
+    return x, w
+
+
+def cw_probe_quadrature(
+    focus_range: float, wavelength: float, beam_radius: float, n: int = 40, n_fine: int = 600
+) -> ProbeQuadrature:
+    """Gauss-Legendre quadrature of the cut Lorentzian Q_s (equal-weight in u).
+
+    With z = z_c + w tan(u), Q_s dz is uniform in u in [atan(-z_c/w), pi/2), so the
+    Gauss-Legendre nodes in u integrate the heavy tails of Q_s exactly in weight.
+
+    Parameters
+    ----------
+    focus_range, wavelength, beam_radius : float
+        R, lambda, a0 (m).
+    n : int
+        Nodes.
+    n_fine : int
+        Nodes of the fine quadrature for the same-beam (zero-lag) integral.
+    """
+    zc, w = lorentzian_parameters(focus_range, wavelength, beam_radius)
+    u0, u1 = np.arctan(-zc / w), 0.5 * np.pi
+
+    def nodes_weights(k: int) -> tuple[np.ndarray, np.ndarray]:
+        x, wt = gauss_legendre(k)
+        u = 0.5 * (u1 - u0) * x + 0.5 * (u1 + u0)
+        return zc + w * np.tan(u), wt / wt.sum()
+
+    z, q = nodes_weights(n)
+    zf, qf = nodes_weights(n_fine)
+    return ProbeQuadrature(tuple(z), tuple(q), tuple(zf), tuple(qf))
+
+
+def probe_grid(
+    focus_range: float, wavelength: float, beam_radius: float, *, points_per_width: float = 3.0
+) -> tuple[float, np.ndarray]:
+    """The discretisation dr, q_i = dr Q_s(dr i) of Banakh et al. (1999), eq. 3.
+
+    dr = w / points_per_width << Delta z = pi z_R; the grid covers 0 ... z_c + 40 w
+    (99 % of Q_s) and q is renormalised to sum 1 (eq. 3 normalisation).
+
+    Returns
+    -------
+    (dr, q) : float, numpy.ndarray
+    """
+    zc, w = lorentzian_parameters(focus_range, wavelength, beam_radius)
+    dr = w / points_per_width
+    z = np.arange(0.0, zc + 40.0 * w, dr)
+    q = probe_weight(z, focus_range, wavelength, beam_radius)
+    return dr, q / q.sum()
+
+
+# --------------------------------------------------------------------------------------
+# Doppler spectra and the centroid estimator
+# --------------------------------------------------------------------------------------
+
+
+def doppler_spectrum(
+    radial_velocity: np.ndarray,
+    q: np.ndarray,
+    *,
+    resolution: float,
+    n_channels: int,
+    first_channel_velocity: float = 0.0,
+    homodyne: bool = True,
+) -> np.ndarray:
+    """Doppler spectrum W_s(k dV), Banakh et al. (1999), eq. 3.
+
+    W_s(k) = sum_i q_i sinc^2{pi (k - V_r,i / dV)}, sum_i q_i = 1 (the factor dr/dV of
+    eq. 3 with q_i = dr Q_s(dr i)); homodyne: V_r,i -> |V_r,i|.
+
+    Parameters
+    ----------
+    radial_velocity : numpy.ndarray
+        V_r along the beam, shape (..., M') (m s-1).
+    q : numpy.ndarray
+        Weights, shape (M',).
+    resolution : float
+        dV (m s-1).
+    n_channels : int
+        M_D.
+    first_channel_velocity : float
+        Velocity of channel 0 (m s-1); 0 for a homodyne system.
+    homodyne : bool
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (..., M_D), in units of 1/(channel): sum over channels ~ 1.
+    """
+    v = np.abs(radial_velocity) if homodyne else np.asarray(radial_velocity)
+    x = (v - first_channel_velocity) / resolution  # (..., M')
+    k = np.arange(n_channels)
+    return np.einsum("...ik,i->...k", np.sinc(k - x[..., None]) ** 2, q)
+
+
+@dataclass(frozen=True)
+class CentroidResult:
+    """Output of :func:`centroid_velocity` (arrays of the leading shape).
+
+    Attributes
+    ----------
+    velocity : numpy.ndarray
+        V_D (m s-1), NaN where excluded.
+    valid : numpy.ndarray
+        bool: conditions (5)-(8), (10) hold and the peak is not below 1 m s-1.
+    width : numpy.ndarray
+        sigma_s from the half-maximum width (m s-1).
+    """
+
+    velocity: np.ndarray
+    valid: np.ndarray
+    width: np.ndarray
+
+
+def centroid_velocity(
+    spectrum: np.ndarray,
+    *,
+    resolution: float,
+    first_channel_velocity: float = 0.0,
+    width_factor: float = 4.0,
+    min_peak_velocity: float = MIN_PEAK_VELOCITY,
+) -> CentroidResult:
+    """Centroid velocity estimate V_D of a Doppler spectrum, Banakh et al. (1999), eq. 4.
+
+    V_D = dV [k_max + sum_{k=-k1}^{k1} k W(k_max + k) / S^], S^ = sum W(k_max + k).
+    sigma_s is the half-maximum width converted to a standard deviation
+    (FWHM / 2.3548); k1 = max(2, ceil(width_factor sigma_s / dV)) so that
+    sigma_s << k1 dV (condition 10). A spectrum is valid when k1 <= k_max (5),
+    k_max + k1 <= M_D - 1 (6) -- which with k1 dV >> sigma_s imply (7), (8) -- and its
+    peak velocity |dV k_max| is not below ``min_peak_velocity`` (section 3: near-zero
+    peaks are dropped because the sign and the estimate are unreliable there).
+
+    Parameters
+    ----------
+    spectrum : numpy.ndarray
+        Shape (..., M_D).
+    resolution : float
+        dV (m s-1).
+    first_channel_velocity : float
+        Velocity of channel 0 (m s-1).
+    width_factor : float
+        k1 dV / sigma_s.
+    min_peak_velocity : float
+        Exclusion threshold (m s-1).
+
+    Returns
+    -------
+    CentroidResult
+    """
+    w = np.asarray(spectrum, dtype=float)
+    n_channels = w.shape[-1]
+    kmax = np.argmax(w, axis=-1)
+    peak = np.take_along_axis(w, kmax[..., None], axis=-1)
+    fwhm = np.sum(w >= 0.5 * peak, axis=-1) * resolution
+    sigma_s = fwhm / (2.0 * np.sqrt(2.0 * np.log(2.0)))
+    k1 = np.maximum(2, np.ceil(width_factor * sigma_s / resolution)).astype(int)
+    k = np.arange(n_channels)
+    offset = k - kmax[..., None]
+    window = np.abs(offset) <= k1[..., None]
+    s_hat = np.sum(np.where(window, w, 0.0), axis=-1)
+    first = np.sum(np.where(window, offset * w, 0.0), axis=-1)
+    velocity = first_channel_velocity + resolution * (kmax + first / s_hat)
+    peak_velocity = first_channel_velocity + resolution * kmax
+    valid = (
+        (k1 <= kmax) & (kmax + k1 <= n_channels - 1) & (np.abs(peak_velocity) >= min_peak_velocity)
+    )
+    return CentroidResult(np.where(valid, velocity, np.nan), valid, sigma_s)
+
+
+# --------------------------------------------------------------------------------------
+# cw scans -> canonical scan dataset
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class CWLidar:
+    """A cw conically scanning lidar (geometry, optics, spectral processing).
+
+    Attributes
+    ----------
+    name : str
+    wavelength_m, beam_radius_m : float
+        lambda and a0 (m).
+    elevation_deg : float
+        phi, beam elevation (deg); seed 000: 30, ZephIR: 60 (30 deg from vertical).
+    scan_period_s : float
+        T (s); seed 000: 7, ZephIR: 1.
+    spectra_per_scan : int
+        T / t0; seed 000: 140 (t0 = 50 ms), ZephIR: 50.
+    velocity_resolution_m_s : float
+        dV (m s-1).
+    n_channels : int
+        M_D.
+    homodyne : bool
+    """
+
+    name: str = "cw Doppler lidar (Banakh et al. 1999)"
+    wavelength_m: float = 10.6e-6
+    beam_radius_m: float = 0.075
+    elevation_deg: float = 30.0
+    scan_period_s: float = 7.0
+    spectra_per_scan: int = 140
+    velocity_resolution_m_s: float = 0.1
+    n_channels: int = 256
+    homodyne: bool = True
+
+    @property
+    def z_r_coefficient(self) -> float:
+        """c of z_R = c R^2 (1/m)."""
+        return 1.0 / focal_parameter(self.wavelength_m, self.beam_radius_m)
+
+    @property
+    def geometry(self) -> ScanGeometry:
+        return ScanGeometry(self.elevation_deg, self.spectra_per_scan, self.scan_period_s)
+
+
+#: ZephIR 300: 1.575 um, Z_R = 0.0013 R^2 -> a0 = sqrt(lambda/(2 pi 0.0013)), 1 s rotation,
+#: 50 line-of-sight spectra per rotation, 30 deg from vertical (Wagner et al. (DTU))
+ZEPHIR = CWLidar(
+    name="ZephIR 300 (cwproc simulator)",
+    wavelength_m=1.575e-6,
+    beam_radius_m=float(np.sqrt(1.575e-6 / (2.0 * np.pi * 0.0013))),
+    elevation_deg=60.0,
+    scan_period_s=1.0,
+    spectra_per_scan=50,
+    velocity_resolution_m_s=0.1,
+    n_channels=256,
+    homodyne=True,
+)
+
+
+def along_beam_offsets(
+    focus_range: float, elevation_deg: float, n_azimuths: int, dr: float
+) -> np.ndarray:
+    """Start index N_m of spectrum m in the along-beam series, Banakh et al. (1999), eq. 14.
+
+    N_m = [2 R cos(phi) (m - 1) dtheta / dr], m = 1..M (as printed).
+    """
+    dtheta = 2.0 * np.pi / n_azimuths
+    m = np.arange(n_azimuths)
+    return np.floor(2.0 * focus_range * np.cos(np.deg2rad(elevation_deg)) * m * dtheta / dr).astype(
+        int
+    )
+
+
+def simulate_cw_height(
+    rng: np.random.Generator,
+    lidar: CWLidar,
+    *,
+    height_m: float,
+    wind_speed: float,
+    wind_direction_deg: float,
+    sigma2: float,
+    outer_scale_m: float,
+    n_scans: int,
+    model: CorrelationModel = "exponential",
+    quadrature_nodes: int = 40,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Centroid velocities of ``n_scans`` independent scans at one height.
+
+    V_r(dr i, m) = V_D(m) + Delta V_r(dr i) (Banakh et al. (1999), eqs. 13-14) with
+    V_D by Cholesky (eqs. 15, 20-21) and Delta V_r from an along-beam FFT series
+    (eq. 23); spectra by eq. 3 and velocities by eq. 4.
+
+    Returns
+    -------
+    (velocity, truth) : numpy.ndarray
+        velocity: centroid estimates (NaN where excluded), shape (n_scans, M);
+        truth: the probe-averaged signed radial velocity V_D, same shape (m s-1).
+    """
+    geometry = lidar.geometry
+    focus = height_m / np.sin(np.deg2rad(lidar.elevation_deg))
+    wind = wind_vector(wind_speed, wind_direction_deg)
+    quad = cw_probe_quadrature(focus, lidar.wavelength_m, lidar.beam_radius_m, quadrature_nodes)
+    factor = scan_cholesky(geometry, quad, float(outer_scale_m), tuple(wind), model)
+    s = beam_vectors(geometry.azimuth_deg, lidar.elevation_deg)
+    vd = s @ wind + simulate_scan_velocities(rng, factor, sigma2, (n_scans,))
+    dr, q = probe_grid(focus, lidar.wavelength_m, lidar.beam_radius_m)
+    offsets = along_beam_offsets(focus, lidar.elevation_deg, geometry.n_azimuths, dr)
+    n = int(offsets[-1] + q.size + 1)
+    series = along_beam_fluctuations(rng, n, dr, sigma2, outer_scale_m, (n_scans,), model)
+    mean, _ = probe_weighted_moments(series, q, offsets)
+    idx = offsets[:, None] + np.arange(q.size)[None, :]
+    velocity = np.empty_like(vd)
+    for scan in range(n_scans):
+        dv = series[scan][idx] - mean[scan][:, None]  # eq. 14
+        vr = vd[scan][:, None] + dv  # eq. 13
+        spec = doppler_spectrum(
+            vr,
+            q,
+            resolution=lidar.velocity_resolution_m_s,
+            n_channels=lidar.n_channels,
+            homodyne=lidar.homodyne,
+        )
+        velocity[scan] = centroid_velocity(spec, resolution=lidar.velocity_resolution_m_s).velocity
+    return velocity, vd
+
+
+def simulate_cw_scans(
+    rng: np.random.Generator,
+    lidar: CWLidar,
+    *,
+    heights_m: np.ndarray,
+    wind_speed: np.ndarray,
+    wind_direction_deg: float,
+    sigma2: np.ndarray,
+    outer_scale_m: np.ndarray,
+    n_scans: int,
+    start: np.datetime64,
+    model: CorrelationModel = "exponential",
+) -> tuple[xr.Dataset, np.ndarray]:
+    """cw line-of-sight scans as a canonical scan dataset (homodyne: |V_r|).
+
+    Every height is scanned with the same ray times (as if the focus were switched
+    instantly; Banakh et al. (1999) simulate each height independently). The
+    ``range`` dimension holds the focus distances R = h / sin(phi).
+
+    Returns
+    -------
+    (dataset, truth) : xarray.Dataset, numpy.ndarray
+        The scan dataset and the true signed V_D, shape (ray, range).
+    """
+    heights_m = np.atleast_1d(np.asarray(heights_m, dtype=float))
+    m = lidar.spectra_per_scan
+    n_rays = n_scans * m
+    velocity = np.empty((n_rays, heights_m.size))
+    truth = np.empty_like(velocity)
+    for j, h in enumerate(heights_m):
+        vel, vd = simulate_cw_height(
+            rng,
+            lidar,
+            height_m=float(h),
+            wind_speed=float(np.atleast_1d(wind_speed)[j % np.size(wind_speed)]),
+            wind_direction_deg=wind_direction_deg,
+            sigma2=float(np.atleast_1d(sigma2)[j % np.size(sigma2)]),
+            outer_scale_m=float(np.atleast_1d(outer_scale_m)[j % np.size(outer_scale_m)]),
+            n_scans=n_scans,
+            model=model,
+        )
+        velocity[:, j] = vel.ravel()
+        truth[:, j] = vd.ravel()
+    t0 = lidar.scan_period_s / m
+    time = np.datetime64(start, "ns") + np.round(np.arange(n_rays) * t0 * 1e9).astype(
+        "timedelta64[ns]"
+    )
+    azimuth = np.tile(lidar.geometry.azimuth_deg, n_scans)
+    ds = xr.Dataset(
+        {
+            "radial_velocity": (("ray", "range"), velocity),
+            "snr": (("ray", "range"), np.where(np.isfinite(velocity), 100.0, 0.0)),
+        },
+        coords={
+            "time": ("ray", time),
+            "azimuth": ("ray", azimuth),
+            "elevation": ("ray", np.full(n_rays, lidar.elevation_deg)),
+            "range": ("range", heights_m / np.sin(np.deg2rad(lidar.elevation_deg))),
+            "scan": ("ray", np.repeat(np.arange(n_scans), m).astype("int64")),
+        },
+        attrs={
+            "instrument": lidar.name,
+            "instrument_kind": "cw",
+            "system_id": "sim",
+            "source_files": [],
+            "scan_type": "VAD",
+            "gate_length_m": 0.0,
+            "homodyne": int(lidar.homodyne),
+            "wavelength_m": lidar.wavelength_m,
+            "beam_radius_m": lidar.beam_radius_m,
+            "z_r_coefficient": lidar.z_r_coefficient,
+            "scan_period_s": lidar.scan_period_s,
+            "velocity_resolution_m_s": lidar.velocity_resolution_m_s,
+        },
+    )
+    return ds, truth
