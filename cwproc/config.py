@@ -78,9 +78,12 @@ class InstrumentConfig:
 class QCConfig:
     """Screening of radial velocities (stage ``qc``)."""
 
-    #: minimum linear SNR (Halo intensity - 1) for a gate to be used; -20 dB = 0.01
+    #: minimum linear SNR (Halo intensity - 1) for a gate to be used; 0.008 = -21 dB, near
+    #: where Stream Line estimates turn from Gaussian noise into uniform noise estimates
     snr_min: float = 0.008
-    #: robust outlier threshold in units of the scaled MAD of the residuals of a first fit
+    #: robust outlier threshold in scaled MADs (1.4826 MAD) of the residuals about a robust
+    #: VAD fit per scan and gate; 4 flags ~0.2-0.4 % of good rays of 24-ray scans and
+    #: catches +-20 m s-1 noise estimates (see cwproc/stages/qc.py)
     outlier_threshold: float = 4.0
 
     def __post_init__(self) -> None:
@@ -93,9 +96,11 @@ class QCConfig:
 class VADConfig:
     """Wind-vector fit (stage ``vad``), Smalikho (2020) eq. 1."""
 
-    #: fewest valid rays for a fit
+    #: fewest valid rays for a fit not flagged "too few rays" (3 unknowns + 3 residual dof)
     min_rays: int = 6
-    #: largest azimuth gap (deg) accepted before the fit is flagged
+    #: largest azimuth gap (deg) accepted before the fit is flagged; with a 120 deg sector
+    #: missing the along-bisector RMS error grows by ~75 % (seed 002, cwproc theory
+    #: vad-errors --sector 120)
     max_gap_deg: float = 120.0
     #: homodyne cw data: direction (deg, from north, "from") used to resolve the 180 deg
     #: ambiguity when no measured reference is available
