@@ -659,6 +659,11 @@ def fit_vad(
         direction.
     """
     _require(ds, ("radial_velocity", "azimuth", "elevation", "scan", "time", "range"))
+    if ds["radial_velocity"].dims != ("ray", "range"):
+        raise CwprocError(
+            "The VAD fit needs radial_velocity with dimensions (ray, range); this input has "
+            f"{ds['radial_velocity'].dims}."
+        )
     azimuth, elevation = pointing(ds)
     layout, phi, scan_elevation, n_other = select_conical_scans(
         scan_layout(ds["scan"].values, np.isfinite(azimuth) & np.isfinite(elevation)),

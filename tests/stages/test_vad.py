@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from cwproc.errors import CwprocError
 from cwproc.metadata import undeclared_variables
@@ -345,3 +347,48 @@ def test_real_files_fail_clearly_or_are_flagged(real_data: Path) -> None:
     assert wind.attrs["vad_elevation_deg"] == pytest.approx(75.0)
     assert np.all(np.isnan(wind["u"].values))
     assert np.all(wind["qc_flag"].values & 1) and np.all(wind["qc_flag"].values & 4)
+
+
+# --------------------------------------------------------------------------------------
+# properties
+# --------------------------------------------------------------------------------------
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    u=st.floats(-30, 30),
+    v=st.floats(-30, 30),
+    w=st.floats(-3, 3),
+    elevation=st.floats(5, 85),
+    n_rays=st.integers(4, 40),
+    offset=st.floats(0, 360),
+)
+def test_noise_free_scans_are_recovered_exactly(
+    u: float, v: float, w: float, elevation: float, n_rays: int, offset: float
+) -> None:
+    ds = scan_dataset(u, v, w, n_scans=2, n_rays=n_rays, n_gates=3, elevation=elevation,
+                      sigma=0.0)  # fmt: skip
+    ds = ds.assign_coords(azimuth=(ds["azimuth"] + offset) % 360.0)
+    ds["radial_velocity"] = (
+        ("ray", "range"),
+        np.broadcast_to(
+            radial_velocity(u, v, w, ds["azimuth"].values, elevation)[:, None], (2 * n_rays, 3)
+        ).copy(),
+    )
+    wind = fit(ds, min_rays=3)
+    np.testing.assert_allclose(wind["u"].values, u, atol=1e-8)
+    np.testing.assert_allclose(wind["v"].values, v, atol=1e-8)
+    np.testing.assert_allclose(wind["w"].values, w, atol=1e-8)
+
+
+def test_ray_order_does_not_matter() -> None:
+    ds = scan_dataset(n_scans=3, seed=12)
+    order = np.random.default_rng(13).permutation(ds.sizes["ray"])
+    shuffled = fit(ds.isel(ray=order))
+    xr.testing.assert_allclose(shuffled, fit(ds))
+
+
+def test_wrong_dimensions_are_a_clear_error() -> None:
+    ds = scan_dataset(n_scans=1).transpose("range", "ray")
+    with pytest.raises(CwprocError, match=r"dimensions \(ray, range\)"):
+        fit(ds)
