@@ -64,6 +64,8 @@ class RunReport:
 
     written: list[Path] = field(default_factory=list)
     failures: list[str] = field(default_factory=list)
+    #: things the user should know that are not failures (e.g. turbulence not computable)
+    notes: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -72,6 +74,7 @@ class RunReport:
     def extend(self, other: RunReport) -> None:
         self.written.extend(other.written)
         self.failures.extend(other.failures)
+        self.notes.extend(other.notes)
 
 
 # --------------------------------------------------------------------------------------
@@ -151,8 +154,16 @@ def probe_for(config: Config):
     return probe_from_config(config.instrument, pulse_transfer=config.turbulence.pulse_transfer)
 
 
-def process_scans(scans: xr.Dataset, config: Config) -> dict[str, xr.Dataset]:
-    """Wind and turbulence products from a scan dataset (already concatenated)."""
+def process_scans(
+    scans: xr.Dataset, config: Config, notes: list[str] | None = None
+) -> dict[str, xr.Dataset]:
+    """Wind and turbulence products from a scan dataset (already concatenated).
+
+    A wind profile that can be fitted is always returned. When the turbulence chain
+    cannot run on these scans (e.g. azimuth steps wider than the 9 degree lag limit of
+    Smalikho (2020)), the reason is appended to ``notes`` and only the wind product is
+    returned.
+    """
     from cwproc.stages import epsilon, qc, structure, vad
 
     screened = qc.screen_radial_velocity(
@@ -165,20 +176,28 @@ def process_scans(scans: xr.Dataset, config: Config) -> dict[str, xr.Dataset]:
         reference_direction_deg=config.vad.reference_direction_deg,
     )
     products = {"wind": wind}
-    if config.turbulence.enabled and int(wind.sizes.get("time", 0)) >= 1:
+    if not config.turbulence.enabled or int(wind.sizes.get("time", 0)) < 1:
+        return products
+    try:
         sf = structure.azimuth_structure_function(
             screened,
             wind,
             n_scans=config.turbulence.n_scans,
             max_lag_deg=config.turbulence.max_lag_deg,
         )
-        if int(sf.sizes.get("time", 0)) >= 1:
-            products["turbulence"] = epsilon.estimate_epsilon(
-                sf,
-                probe=probe_for(config),
-                lag_number=config.turbulence.lag_number,
-                model=config.turbulence.model,
-            )
+    except CwprocError as exc:
+        if notes is not None:
+            notes.append(f"turbulence not computed: {exc}")
+        return products
+    if int(sf.sizes.get("time", 0)) >= 1:
+        products["turbulence"] = epsilon.estimate_epsilon(
+            sf,
+            probe=probe_for(config),
+            lag_number=config.turbulence.lag_number,
+            model=config.turbulence.model,
+        )
+    elif notes is not None:
+        notes.append("turbulence not computed: no complete block of scans")
     return products
 
 
@@ -226,11 +245,16 @@ def concat_unit(unit: ProductUnit) -> xr.Dataset:
     return datasets[0]
 
 
-def process_unit(unit: ProductUnit, config: Config) -> dict[str, xr.Dataset]:
-    """Run the stage chain of one unit; returns ``{product_name: dataset}``."""
+def process_unit(
+    unit: ProductUnit, config: Config, notes: list[str] | None = None
+) -> dict[str, xr.Dataset]:
+    """Run the stage chain of one unit; returns ``{product_name: dataset}``.
+
+    Non-fatal remarks (a product that could not be made) are appended to ``notes``.
+    """
     ds = concat_unit(unit)
     if unit.kind == "scan":
-        return process_scans(ds, config)
+        return process_scans(ds, config, notes)
     if unit.kind == "wind_record":
         return process_wind_record(ds, config)
     return process_sonic(ds, config)
@@ -323,12 +347,23 @@ def retrieve_files(
         except CwprocError as exc:
             report.failures.append(str(exc))
     for unit in group_units(items):
+        names = unit_label(unit)
+        notes: list[str] = []
         try:
-            products = process_unit(unit, config)
+            products = process_unit(unit, config, notes)
             report.written.extend(write_unit_products(unit, products, outdir, config))
         except CwprocError as exc:
-            report.failures.append(str(exc))
+            report.failures.append(f"{names}: {exc}")
+        report.notes.extend(f"{names}: {n}" for n in notes)
     return report
+
+
+def unit_label(unit: ProductUnit) -> str:
+    """The input files of a unit, for messages (the first three and a count)."""
+    paths = [os.fspath(i.path) for i in unit.inputs]
+    if len(paths) <= 3:
+        return ", ".join(paths)
+    return ", ".join(paths[:3]) + f" (+{len(paths) - 3} more)"
 
 
 def replace_config(config: Config, **sections) -> Config:

@@ -8,20 +8,33 @@ from pathlib import Path
 import click
 
 from cwproc.cli._common import config_option, load_config_or_fail, report_failure
+from cwproc.errors import CwprocError
+from cwproc.io import detect_format
 from cwproc.pipeline import retrieve_files
 
 
-def expand_inputs(inputs: tuple[str, ...]) -> list[Path]:
-    """Files given on the command line; directories are searched recursively."""
-    out: list[Path] = []
+def expand_inputs(inputs: tuple[str, ...]) -> tuple[list[Path], list[Path]]:
+    """Files to process and files skipped.
+
+    Files named on the command line are always processed (an unreadable or unknown
+    one is reported as a failure). Directories are searched recursively; there, files
+    of no format cwproc reads (notes, trajectory files, ...) are skipped and counted.
+    """
+    files: list[Path] = []
+    skipped: list[Path] = []
     for item in inputs:
         p = Path(item)
-        if p.is_dir():
-            found = (q for q in p.rglob("*") if q.is_file() and not q.name.startswith("."))
-            out.extend(sorted(found))
-        else:
-            out.append(p)
-    return out
+        if not p.is_dir():
+            files.append(p)
+            continue
+        for q in sorted(q for q in p.rglob("*") if q.is_file() and not q.name.startswith(".")):
+            try:
+                detect_format(q)
+            except CwprocError:
+                skipped.append(q)
+                continue
+            files.append(q)
+    return files, skipped
 
 
 @click.command("retrieve")
@@ -47,17 +60,22 @@ def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bo
     otherwise, with one line per failed input naming the file, the line and the problem.
     """
     cfg = load_config_or_fail(config)
-    files = expand_inputs(inputs)
+    files, skipped = expand_inputs(inputs)
     if not files:
-        raise click.UsageError("no input files found")
+        raise click.UsageError(
+            f"no input files found ({len(skipped)} file(s) of no format cwproc reads)"
+        )
     report = retrieve_files(files, outdir, cfg)
     for line in report.failures:
         report_failure(line)
     if not quiet:
+        for line in report.notes:
+            click.echo(f"note: {line}", err=True)
         for path in report.written:
             click.echo(f"wrote {path}")
+        extra = f", {len(skipped)} file(s) of no known format skipped" if skipped else ""
         click.echo(
             f"{len(files)} input(s), {len(report.written)} product(s) written, "
-            f"{len(report.failures)} failure(s)"
+            f"{len(report.failures)} failure(s){extra}"
         )
     sys.exit(0 if report.ok else 1)
