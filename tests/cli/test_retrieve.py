@@ -1,0 +1,138 @@
+"""End to end: `cwproc retrieve` on .hpl files, good, bad and mixed."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+import xarray as xr
+from click.testing import CliRunner
+
+from cwproc.cli import main
+from cwproc.io.halo import write_hpl
+from cwproc.io.netcdf import read_product
+
+U_TRUE, V_TRUE, W_TRUE = 6.0, -3.0, 0.2
+
+
+def synthetic_vad(
+    n_scans: int = 12,
+    n_rays: int = 24,
+    n_gates: int = 40,
+    seed: int = 3,
+    elevation: float = 60.0,
+    noise: float = 0.15,
+) -> xr.Dataset:
+    """Stream Line step-stare VAD scans of a uniform wind plus Gaussian noise."""
+    rng = np.random.default_rng(seed)
+    az = np.tile(np.arange(n_rays) * 360.0 / n_rays, n_scans)
+    el = np.full(az.size, elevation)
+    t0 = np.datetime64("2024-05-01T10:00:00", "ns")
+    t = t0 + (np.arange(az.size) * 1.5e9).astype("timedelta64[ns]")
+    rng_m = (np.arange(n_gates) + 0.5) * 30.0
+    phi, th = np.radians(el)[:, None], np.radians(az)[:, None]
+    vr = W_TRUE * np.sin(phi) + np.cos(phi) * (U_TRUE * np.sin(th) + V_TRUE * np.cos(th))
+    vr = np.broadcast_to(vr, (az.size, n_gates)) + rng.normal(0, noise, (az.size, n_gates))
+    snr = np.full((az.size, n_gates), 0.5)
+    return xr.Dataset(
+        {
+            "radial_velocity": (("ray", "range"), vr),
+            "snr": (("ray", "range"), snr),
+            "beta": (("ray", "range"), np.full((az.size, n_gates), 1e-6)),
+        },
+        coords={
+            "time": ("ray", t),
+            "azimuth": ("ray", az),
+            "elevation": ("ray", el),
+            "range": rng_m,
+        },
+        attrs={
+            "system_id": "77",
+            "gate_length_m": 30.0,
+            "scan_type": "VAD",
+            "instrument": "Halo Photonics Stream Line",
+        },
+    )
+
+
+@pytest.fixture()
+def vad_files(tmp_path):
+    ds = synthetic_vad()
+    half = ds.sizes["ray"] // 2
+    folder = tmp_path / "in"
+    folder.mkdir()
+    write_hpl(ds.isel(ray=slice(0, half)), folder / "VAD_77_20240501_100000.hpl")
+    write_hpl(ds.isel(ray=slice(half, None)), folder / "VAD_77_20240501_100300.hpl")
+    return folder
+
+
+def run(args):
+    return CliRunner().invoke(main, ["retrieve", *map(str, args)])
+
+
+def test_known_wind_recovered_from_two_files(vad_files, tmp_path):
+    out = tmp_path / "out"
+    res = run([vad_files, "-o", out])
+    assert res.exit_code == 0, res.output
+    winds = sorted(out.glob("*_wind.nc"))
+    assert len(winds) == 1  # both files are one instrument-day unit
+    wind = read_product(winds[0])
+    assert wind.sizes["time"] == 12
+    good = wind.where(wind["qc_flag"] == 0)
+    # 24 rays, sigma 0.15 m/s at 60 deg elevation: predicted std of u ~ 0.15*sqrt(2/24)/0.5
+    assert float(np.abs(good["u"] - U_TRUE).max()) < 5 * 0.15 * np.sqrt(2 / 24) / 0.5
+    assert float(np.abs(good["v"] - V_TRUE).max()) < 5 * 0.15 * np.sqrt(2 / 24) / 0.5
+    assert float(np.abs(good["w"] - W_TRUE).max()) < 5 * 0.15 / np.sqrt(24) / np.sin(np.radians(60))
+    direction = np.degrees(np.arctan2(-U_TRUE, -V_TRUE)) % 360
+    assert float(np.abs(good["wind_direction"] - direction).max()) < 3.0
+    assert (
+        "input_sha256" in wind.attrs and "VAD_77_20240501_100000.hpl" in wind.attrs["input_files"]
+    )
+    assert list(out.glob("*.tmp")) == [] and list(out.glob(".*")) == []
+
+
+def test_bad_file_among_good_ones(vad_files, tmp_path):
+    bad = vad_files / "VAD_77_20240501_100600.hpl"
+    text = (vad_files / "VAD_77_20240501_100000.hpl").read_text().splitlines(keepends=True)
+    text[30] = "  12 abc 1.5 1e-6\r\n"  # non-numeric Doppler on line 31
+    bad.write_text("".join(text))
+    out = tmp_path / "out"
+    res = run([vad_files, "-o", out])
+    assert res.exit_code == 1
+    failures = [ln for ln in res.output.splitlines() if ln.startswith("error:")]
+    assert len(failures) == 1
+    assert "VAD_77_20240501_100600.hpl:31:" in failures[0]
+    assert len(list(out.glob("*_wind.nc"))) == 1  # the good files still processed
+
+
+def test_real_files_each_fail_or_succeed_with_one_line(real_data, tmp_path):
+    out = tmp_path / "out"
+    res = run([real_data / "hpl", "-o", out])
+    assert res.exit_code == 1
+    errors = [ln for ln in res.output.splitlines() if ln.startswith("error:")]
+    corrupt = [e for e in errors if "CORRUPT_warsaw" in e]
+    assert len(corrupt) == 1 and ".hpl:3019:" in corrupt[0]
+    stare = [e for e in errors if "Stare" in e and "CORRUPT" not in e]
+    assert len(stare) == 3 and all("no conical scan" in e for e in stare)
+    assert len(list(out.glob("*.nc"))) >= 1  # the VAD file gives a wind profile
+    for p in out.iterdir():
+        assert p.suffix == ".nc"
+        read_product(p)  # every product opens
+
+
+def test_unknown_file_named_explicitly_fails(tmp_path):
+    f = tmp_path / "notes.txt"
+    f.write_text("hello\n")
+    res = run([f, "-o", tmp_path / "o"])
+    assert res.exit_code == 1
+    assert "notes.txt:1: not a format cwproc reads" in res.output
+
+
+def test_time_order_is_restored_across_files(vad_files, tmp_path):
+    files = sorted(vad_files.glob("*.hpl"))
+    out = tmp_path / "out"
+    res = run([files[1], files[0], "-o", out])
+    assert res.exit_code == 0, res.output
+    wind = read_product(next(out.glob("*_wind.nc")))
+    t = pd.to_datetime(wind["time"].values)
+    assert t.is_monotonic_increasing
