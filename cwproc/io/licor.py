@@ -1,0 +1,157 @@
+"""LI-COR GHG ``.data`` text files (SMARTFlux / LI-7500RS with a sonic on the Aux inputs).
+
+Layout as seen in the real fragment (FORMATS.md section 4.3): TAB-separated, LF;
+metadata lines ``Key:<TAB>value`` (``Model:``, ``SN:``, ``Timezone:``, ...), one
+``DATAH`` line with the column names, then ``DATA`` lines. ``Seconds`` (Unix time,
+**UTC**) + ``Nanoseconds`` give the time; ``Date``/``Time`` are local time (``Timezone``)
+and are not used. The sonic enters on analogue Aux channels: ``Aux 1 - U (m/s)``,
+``Aux 2 - V (m/s)``, ``Aux 3 - W (m/s)``, ``Aux 4 - SOS (m/s)``; the last column
+``CHK`` is a checksum.
+
+Sonic temperature is computed from the speed of sound c: T_s = c^2/403 - 273.15
+(degC; c^2 = 403 T_s for dry air, Kaimal and Gaynor (1991)). The Aux inputs carry no
+sonic diagnostic, so ``diagnostic`` is 0 and ``attrs["diagnostic_source"]`` says so.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+from cwproc.errors import InputFileError
+from cwproc.io.meteo2 import (
+    SPIKE_THRESHOLD,
+    check_options,
+    numeric_column,
+    option_number,
+    read_table,
+    read_text,
+    sonic_dataset,
+)
+
+DEFAULT_COLUMNS: dict[str, str] = {
+    "u": "Aux 1 - U (m/s)",
+    "v": "Aux 2 - V (m/s)",
+    "w": "Aux 3 - W (m/s)",
+    "speed_of_sound": "Aux 4 - SOS (m/s)",
+}
+
+OPTIONS = {"columns", "orientation_deg", "frame", "spike_threshold"}
+
+#: c^2 = GAMMA_R T_s (m2 s-2 K-1), Kaimal and Gaynor (1991)
+SOS_COEFFICIENT = 403.0
+
+
+def sonic_temperature_from_sos(sos: np.ndarray) -> np.ndarray:
+    """Sonic temperature (degC) from the speed of sound c (m s-1): c^2/403 - 273.15."""
+    return np.asarray(sos, dtype=float) ** 2 / SOS_COEFFICIENT - 273.15
+
+
+def read_ghg(path: str | os.PathLike, **options: Any) -> xr.Dataset:
+    """Read a LI-COR GHG ``.data`` file into a sonic dataset.
+
+    Parameters
+    ----------
+    path : path
+    columns : dict, optional
+        Canonical name (``u``, ``v``, ``w``, ``speed_of_sound``) -> column name.
+    orientation_deg : float, optional
+        Azimuth of +u (degree clockwise from north).
+    frame : str, optional
+        Description of the sonic frame (attr).
+    spike_threshold : float, optional
+        Spike threshold (robust std).
+
+    Returns
+    -------
+    xarray.Dataset
+        Canonical sonic dataset; the metadata lines in ``ghg_*`` attrs.
+
+    Raises
+    ------
+    InputFileError
+        File, line and problem.
+    """
+    check_options(path, options, OPTIONS)
+    cols = dict(DEFAULT_COLUMNS)
+    user = options.get("columns", {})
+    if not isinstance(user, Mapping):
+        raise InputFileError(path, "reader option 'columns' must be a table")
+    bad_keys = sorted(set(user) - set(DEFAULT_COLUMNS))
+    if bad_keys:
+        raise InputFileError(path, f"reader option columns: unknown name {bad_keys[0]!r}")
+    cols.update({str(k): str(v) for k, v in user.items()})
+
+    lines = read_text(path).splitlines()
+    attrs: dict[str, str] = {}
+    header_at = None
+    for i, line in enumerate(lines):
+        if line.startswith("DATAH\t"):
+            header_at = i
+            break
+        key, sep, value = line.partition(":")
+        if not sep:
+            raise InputFileError(path, "metadata line without 'Key:' before DATAH", i + 1)
+        attrs["ghg_" + key.strip().lower().replace(" ", "_")] = value.strip()
+    if header_at is None:
+        raise InputFileError(path, "no DATAH column-header line", len(lines) + 1)
+    names = [c.strip() for c in lines[header_at].split("\t")]
+    for key in ("Seconds", "Nanoseconds", cols["u"], cols["v"], cols["w"]):
+        if key not in names:
+            raise InputFileError(path, f"no column {key!r} in the DATAH line", header_at + 1)
+    data_lines = lines[header_at + 1 :]
+    while data_lines and not data_lines[-1].strip():
+        data_lines.pop()
+    first = header_at + 2
+    if not data_lines:
+        raise InputFileError(path, "no DATA lines", first)
+    text = pd.Series(data_lines, dtype="string")
+    not_data = np.flatnonzero(~text.str.startswith("DATA\t").to_numpy(dtype=bool))
+    if not_data.size:
+        raise InputFileError(path, "line does not start with DATA", first + int(not_data[0]))
+    counts = text.str.count("\t").to_numpy()
+    wrong = np.flatnonzero(counts != len(names) - 1)
+    if wrong.size:
+        i = int(wrong[0])
+        raise InputFileError(
+            path, f"data line has {counts[i] + 1} fields, expected {len(names)}", first + i
+        )
+    frame = read_table(
+        path, "\n".join(data_lines) + "\n", delimiter="\t", skip=header_at + 1, names=names
+    )
+    secs = numeric_column(path, frame, "Seconds", first)
+    nanos = numeric_column(path, frame, "Nanoseconds", first)
+    bad = np.flatnonzero(~np.isfinite(secs) | ~np.isfinite(nanos) | (nanos < 0) | (nanos >= 1e9))
+    if bad.size:
+        raise InputFileError(path, "missing or invalid Seconds/Nanoseconds", first + int(bad[0]))
+    ns = secs.astype(np.int64) * 1_000_000_000 + nanos.astype(np.int64)
+    times = ns.astype("datetime64[ns]")
+    vals = {k: numeric_column(path, frame, cols[k], first) for k in ("u", "v", "w")}
+    n = len(frame)
+    if cols["speed_of_sound"] in names:
+        temp = sonic_temperature_from_sos(
+            numeric_column(path, frame, cols["speed_of_sound"], first)
+        )
+    else:
+        temp = np.full(n, np.nan)
+    attrs["diagnostic_source"] = "none: the Aux inputs carry no sonic diagnostic"
+    attrs["time_reference"] = "Seconds + Nanoseconds (Unix time, UTC)"
+    return sonic_dataset(
+        path,
+        times,
+        vals["u"],
+        vals["v"],
+        vals["w"],
+        temp,
+        np.zeros(n),
+        instrument=f"LI-COR {attrs.get('ghg_model', 'GHG')} with sonic on Aux inputs",
+        frame=str(options.get("frame", "sonic frame as wired to Aux 1-3 (U, V, W)")),
+        orientation_deg=option_number(path, options, "orientation_deg", 0.0),
+        attrs=attrs,
+        spike_threshold=option_number(path, options, "spike_threshold", SPIKE_THRESHOLD),
+    )

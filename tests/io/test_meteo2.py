@@ -1,0 +1,151 @@
+"""Meteo-2 text layout (cwproc's own, docs/sonic.md): reader, writer, data problems."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from cwproc.errors import InputFileError
+from cwproc.io import Format, detect_format
+from cwproc.io.meteo2 import measure_sampling_rate, read_meteo2, write_meteo2
+from cwproc.sim.sonic import METEO2_RATE_HZ, simulate_sonic_dataset
+
+FIXTURE_CHECK = HealthCheck.function_scoped_fixture
+
+
+@pytest.fixture(scope="module")
+def sim() -> xr.Dataset:
+    return simulate_sonic_dataset(hours=0.1, sf_type=2, seed=21)
+
+
+@pytest.fixture
+def m2file(tmp_path, sim):
+    p = tmp_path / "m2.txt"
+    write_meteo2(sim, p, station="test")
+    return p
+
+
+def test_round_trip_and_format_detection(m2file, sim):
+    assert detect_format(m2file) == Format.METEO2
+    ds = read_meteo2(m2file)
+    assert ds.sizes["time"] == sim.sizes["time"]
+    np.testing.assert_allclose(ds["u"].values, sim["u"].values, atol=5e-4)
+    np.testing.assert_allclose(ds["temperature"].values, sim["temperature"].values, atol=5e-4)
+    # millisecond stamps of a 10.7 Hz clock: the measured rate is 10.7 Hz within 1e-4
+    assert ds.attrs["sampling_rate_hz"] == pytest.approx(METEO2_RATE_HZ, rel=1e-4)
+    assert ds.attrs["meteo2_station"] == "test"
+    assert ds.attrs["warnings"] == []
+
+
+def test_measured_rate_ignores_gaps():
+    t = np.rint(np.arange(1000) * 1e9 / 10.7).astype(np.int64)
+    t = np.delete(t, np.arange(300, 400))
+    assert measure_sampling_rate(t) == pytest.approx(10.7, rel=1e-6)
+
+
+def _lines(p):
+    return p.read_text().splitlines(keepends=True)
+
+
+def test_gaps_duplicates_order_spikes_and_nan_are_reported(tmp_path, m2file):
+    lines = _lines(m2file)
+    head, data = lines[:6], lines[6:]
+    data[100], data[101] = data[101], data[100]
+    data.insert(200, data[200])
+    del data[400:450]
+    f = data[600].split(",")
+    f[1] = "30.000"
+    data[600] = ",".join(f)
+    f = data[700].split(",")
+    f[2] = "NaN"
+    data[700] = ",".join(f)
+    p = tmp_path / "bad.txt"
+    p.write_text("".join(head + data))
+    ds = read_meteo2(p)
+    a = ds.attrs
+    assert (a["n_out_of_order"], a["n_duplicates"], a["n_gaps"]) == (1, 1, 1)
+    assert a["gap_seconds"] == pytest.approx(50 / METEO2_RATE_HZ, abs=0.002)
+    assert a["n_spikes"] == 1 and a["n_not_finite"] == 1
+    assert len(a["warnings"]) == 5
+    # flagged, never removed or interpolated
+    assert (ds["u"].values == 30.0).sum() == 1
+    assert ds["sample_flag"].values[ds["u"].values == 30.0][0] == 2
+    assert np.isnan(ds["v"].values).sum() == 1
+
+
+def test_configurable_layout(tmp_path, sim):
+    t = sim["time"].values[:50].astype("datetime64[ns]").astype(np.int64) / 1e9 + 7 * 3600
+    body = "\n".join(
+        f"{tt:.3f};{u:.3f};{v:.3f};{w:.3f}"
+        for tt, u, v, w in zip(t, sim["u"].values, sim["v"].values, sim["w"].values, strict=False)
+    )
+    p = tmp_path / "other.txt"
+    p.write_text("% exported\nepoch;vx;vy;vz\n" + body + "\n")
+    ds = read_meteo2(
+        p,
+        delimiter=";",
+        comment="%",
+        time_format="epoch",
+        utc_offset_hours=7,
+        columns={"time": "epoch", "u": "vx", "v": "vy", "w": "vz"},
+    )
+    assert ds.sizes["time"] == 50
+    assert abs(ds["time"].values[0] - sim["time"].values[0]) <= np.timedelta64(1, "ms")
+    assert np.all(np.isnan(ds["temperature"].values))
+
+
+@pytest.mark.parametrize(
+    ("index", "mutate", "match"),
+    [
+        (10, lambda s: s.replace(",", ",x", 1), "not a number"),
+        (12, lambda s: "2014-13-01 00:00:00.000" + s[23:], "bad time stamp"),
+        (14, lambda s: s.rstrip("\n") + ",1,2\n", "malformed"),
+        (15, lambda s: "\n", "empty data line"),
+    ],
+)
+def test_damaged_lines_are_named(tmp_path, m2file, index, mutate, match):
+    lines = _lines(m2file)
+    lines[index - 1] = mutate(lines[index - 1])
+    p = tmp_path / "d.txt"
+    p.write_text("".join(lines))
+    with pytest.raises(InputFileError, match=match) as err:
+        read_meteo2(p)
+    assert err.value.line == index
+
+
+def test_header_and_option_errors(tmp_path, m2file):
+    lines = _lines(m2file)
+    p = tmp_path / "h.txt"
+    p.write_text("".join(lines[:5]))
+    with pytest.raises(InputFileError, match="header"):
+        read_meteo2(p)
+    p.write_text("".join(lines[:6]))
+    with pytest.raises(InputFileError, match="no data records"):
+        read_meteo2(p)
+    p.write_text("".join(lines[:5]) + lines[5].replace("u,", "uu,") + "".join(lines[6:20]))
+    with pytest.raises(InputFileError, match="'u'") as err:
+        read_meteo2(p)
+    assert err.value.line == 6
+    with pytest.raises(InputFileError, match="time_format"):
+        read_meteo2(m2file, time_format="julian")
+    with pytest.raises(InputFileError, match="unknown reader option"):
+        read_meteo2(m2file, sep=";")
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[FIXTURE_CHECK])
+@given(data=st.data())
+def test_mutated_meteo2_gives_dataset_or_input_file_error(tmp_path, m2file, data):
+    blob = bytearray(b"".join(line.encode() for line in _lines(m2file)[:80]))
+    for _ in range(data.draw(st.integers(1, 4))):
+        i = data.draw(st.integers(0, len(blob) - 1))
+        blob[i] = data.draw(st.sampled_from(list(b"0123456789,.:-# \nNaTe\x00")))
+    p = tmp_path / "mut.txt"
+    p.write_bytes(bytes(blob[: data.draw(st.integers(0, len(blob)))]))
+    try:
+        ds = read_meteo2(p)
+    except InputFileError:
+        return
+    assert isinstance(ds, xr.Dataset) and ds.sizes["time"] > 0
