@@ -375,11 +375,15 @@ def _tokenize(path: str | os.PathLike, body: bytes) -> np.ndarray:
     table = np.empty((sum(len(f) for f in frames), 5), dtype=np.float64)
     row = 0
     for frame in frames:
-        for j, name in enumerate(frame.columns):
-            col = frame[name]
-            if col.dtype.kind not in "fiu":
-                col = pd.to_numeric(col, errors="coerce")
-            table[row : row + len(frame), j] = col.to_numpy(dtype=np.float64, na_value=np.nan)
+        if all(dtype.kind in "fiu" for dtype in frame.dtypes):
+            table[row : row + len(frame)] = frame.to_numpy(dtype=np.float64)
+        else:
+            for j, name in enumerate(frame.columns):
+                col = frame[name]
+                if col.dtype.kind not in "fiu":
+                    col = pd.to_numeric(col, errors="coerce")
+                values = col.to_numpy(dtype=np.float64, na_value=np.nan)
+                table[row : row + len(frame), j] = values
         row += len(frame)
     return table
 
@@ -641,19 +645,20 @@ def read_hpl(path: str | os.PathLike, **options: object) -> xr.Dataset:
     if ray_fields == 5:
         data_vars["pitch"] = (("ray",), rays[:, 3].copy())
         data_vars["roll"] = (("ray",), rays[:, 4].copy())
-    ds = xr.Dataset(
+    from cwproc.stages.scans import scan_indices
+
+    scan, scan_attrs = scan_indices(time, azimuth, elevation, scan_type=header.scan_type)
+    return xr.Dataset(
         data_vars,
         coords={
             "time": (("ray",), time),
             "azimuth": (("ray",), azimuth),
             "elevation": (("ray",), elevation),
             "range": (("range",), header.gate_ranges()),
+            "scan": (("ray",), scan, scan_attrs),
         },
         attrs=_attrs(path, header),
     )
-    from cwproc.stages.scans import assign_scans
-
-    return assign_scans(ds)
 
 
 def _check_rays(path: str | os.PathLike, rays: np.ndarray, ray_lines: np.ndarray) -> None:

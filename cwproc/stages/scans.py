@@ -138,6 +138,62 @@ def declares_conical(scan_type: object) -> bool:
     return bool(_CONICAL_WORDS.search(str(scan_type or "")))
 
 
+def scan_indices(
+    time: np.ndarray,
+    azimuth: np.ndarray,
+    elevation: np.ndarray,
+    *,
+    scan_type: object = None,
+    max_elevation_deg: float = 89.0,
+    elevation_tolerance_deg: float = 0.5,
+    min_step_deg: float = 0.2,
+    max_gap_s: float = 120.0,
+    min_rays: int | None = None,
+) -> tuple[np.ndarray, dict[str, object]]:
+    """Scan index of each ray from plain arrays, and the attributes that record the method.
+
+    Parameters are those of :func:`assign_scans`; ``time`` is datetime64, ``scan_type``
+    the header's scan type (used only for the default of ``min_rays``).
+
+    Returns
+    -------
+    scan : ndarray of int64
+        0, 1, ... in time order, -1 for rays in no conical scan.
+    attrs : dict
+        Method, parameters and reference, for ``scan.attrs``.
+    """
+    if min_rays is None:
+        min_rays = 2 if declares_conical(scan_type) else 3
+    time = np.asarray(time)
+    n = time.size
+    order = np.argsort(time, kind="stable")
+    time_s = (time[order] - time[order][0]) / np.timedelta64(1, "s") if n else np.zeros(0)
+    link, step = sweep_links(
+        time_s,
+        np.asarray(azimuth, dtype=np.float64)[order],
+        np.asarray(elevation, dtype=np.float64)[order],
+        max_elevation_deg=max_elevation_deg,
+        elevation_tolerance_deg=elevation_tolerance_deg,
+        min_step_deg=min_step_deg,
+        max_gap_s=max_gap_s,
+    )
+    scan = np.empty(n, dtype=np.int64)
+    scan[order] = rotation_index(link, step, min_rays)
+    attrs = {
+        "method": (
+            "consecutive rays at one elevation turning one way form a sweep; "
+            "the turned azimuth angle divided by 360 deg gives the rotation"
+        ),
+        "max_elevation_deg": max_elevation_deg,
+        "elevation_tolerance_deg": elevation_tolerance_deg,
+        "min_step_deg": min_step_deg,
+        "max_gap_s": max_gap_s,
+        "min_rays": min_rays,
+        "references": SCAN_REFERENCE,
+    }
+    return scan, attrs
+
+
 def assign_scans(
     ds: xr.Dataset,
     *,
@@ -173,37 +229,18 @@ def assign_scans(
         ``ds`` with ``scan(ray)`` (int64, 0, 1, ... in time order, -1 for rays in no
         conical scan). Method and parameters are in ``scan.attrs``.
     """
-    if min_rays is None:
-        min_rays = 2 if declares_conical(ds.attrs.get("scan_type")) else 3
-    n = int(ds.sizes.get("ray", 0))
-    time = ds["time"].values
-    order = np.argsort(time, kind="stable")
-    time_s = (time[order] - time[order][0]) / np.timedelta64(1, "s") if n else np.zeros(0)
-    link, step = sweep_links(
-        time_s,
-        np.asarray(ds["azimuth"].values, dtype=np.float64)[order],
-        np.asarray(ds["elevation"].values, dtype=np.float64)[order],
+    scan, attrs = scan_indices(
+        ds["time"].values,
+        ds["azimuth"].values,
+        ds["elevation"].values,
+        scan_type=ds.attrs.get("scan_type"),
         max_elevation_deg=max_elevation_deg,
         elevation_tolerance_deg=elevation_tolerance_deg,
         min_step_deg=min_step_deg,
         max_gap_s=max_gap_s,
+        min_rays=min_rays,
     )
-    scan = np.empty(n, dtype=np.int64)
-    scan[order] = rotation_index(link, step, min_rays)
-    out = ds.assign_coords(scan=("ray", scan))
-    out["scan"].attrs = {
-        "method": (
-            "consecutive rays at one elevation turning one way form a sweep; "
-            "the turned azimuth angle divided by 360 deg gives the rotation"
-        ),
-        "max_elevation_deg": max_elevation_deg,
-        "elevation_tolerance_deg": elevation_tolerance_deg,
-        "min_step_deg": min_step_deg,
-        "max_gap_s": max_gap_s,
-        "min_rays": min_rays,
-        "references": SCAN_REFERENCE,
-    }
-    return out
+    return ds.assign_coords(scan=("ray", scan, attrs))
 
 
 def _files(ds: xr.Dataset) -> str:

@@ -1,0 +1,214 @@
+"""Benchmark of the Halo .hpl reader: throughput against doppy, and retrieve's peak memory.
+
+Run::
+
+    python benchmarks/bench_read_hpl.py [--repeat 5] [--skip-retrieve]
+
+Prints, in the same run and on the same files:
+
+1. parsing throughput (MB/s) of ``cwproc.io.halo.read_hpl`` on every readable real
+   file of ``../shared/real_data/hpl`` and of doppy's Rust-backed Halo reader
+   (``doppy.raw.HaloHpl.from_src``), and their ratio;
+2. the same on a synthetic day (24 h, one 24-ray VAD every 2 min at 75 deg elevation,
+   200 gates: 720 files) written with :func:`cwproc.io.halo.write_hpl` into a temporary
+   directory, per file and for the whole day (cwproc: read + ``concat_scans``);
+3. peak memory (``ru_maxrss`` of a child process) of ``cwproc retrieve`` on that day,
+   or why it failed.
+
+Target: cwproc at least as fast as doppy (ratio cwproc/doppy throughput >= 1).
+doppy is only needed here (``pip install doppy``); it is not a cwproc dependency.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from cwproc.io.halo import read_hpl, write_hpl
+from cwproc.stages.scans import concat_scans
+
+REAL_HPL = Path(__file__).resolve().parents[1].parent / "shared" / "real_data" / "hpl"
+
+
+def best_time(func: Callable[[], object], repeat: int) -> float:
+    """Shortest wall time (s) of ``repeat`` calls (the least disturbed by other load)."""
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        func()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def doppy_reader() -> Callable[[Path], object] | None:
+    try:
+        from doppy.raw import HaloHpl
+    except ImportError:
+        return None
+    return HaloHpl.from_src
+
+
+def synthetic_vad(start: np.datetime64, seed: int, n_gates: int = 200) -> xr.Dataset:
+    """One 24-ray step-stare VAD (2 s per ray) of a sheared wind with noise, SNR and beta."""
+    rng = np.random.default_rng(seed)
+    n_rays = 24
+    az = np.arange(n_rays) * 15.0
+    el = 75.0
+    rng_m = (np.arange(n_gates) + 0.5) * 30.0
+    height = rng_m * np.sin(np.radians(el))
+    u = 5.0 + 0.004 * height
+    v = -2.0 + 0.002 * height
+    vr = np.cos(np.radians(el)) * (
+        np.outer(np.sin(np.radians(az)), u) + np.outer(np.cos(np.radians(az)), v)
+    )
+    snr = 0.5 * np.exp(-rng_m / 1500.0)[None, :] * rng.uniform(0.8, 1.2, (n_rays, n_gates))
+    vr = vr + rng.normal(0, 0.1, vr.shape) / np.sqrt(snr + 0.01)
+    time_ns = start + (np.arange(n_rays) * 2_000_000_000).astype("timedelta64[ns]")
+    return xr.Dataset(
+        {
+            "radial_velocity": (("ray", "range"), np.round(vr, 4)),
+            "snr": (("ray", "range"), np.round(snr, 6)),
+            "beta": (("ray", "range"), 1e-6 * snr),
+            "pitch": ("ray", np.full(n_rays, -0.1)),
+            "roll": ("ray", np.full(n_rays, 0.2)),
+        },
+        coords={
+            "time": ("ray", time_ns),
+            "azimuth": ("ray", az),
+            "elevation": ("ray", np.full(n_rays, el)),
+            "range": ("range", rng_m),
+        },
+        attrs={
+            "system_id": "999",
+            "scan_type": "VAD",
+            "gate_length_m": 30.0,
+            "points_per_gate": 10,
+            "pulses_per_ray": 10000,
+            "velocity_resolution_m_s": 0.0382,
+        },
+    )
+
+
+def write_synthetic_day(folder: Path) -> list[Path]:
+    day = np.datetime64("2024-06-01T00:00:00", "ns")
+    paths = []
+    for k in range(720):  # one VAD every 2 min
+        start = day + np.timedelta64(120 * k, "s")
+        stamp = str(start.astype("datetime64[s]")).replace("-", "").replace(":", "")
+        name = f"VAD_999_{stamp[:8]}_{stamp[9:15]}.hpl"
+        paths.append(write_hpl(synthetic_vad(start, seed=k), folder / name))
+    return paths
+
+
+def report_throughput(label: str, nbytes: int, t_cwproc: float, t_doppy: float | None) -> None:
+    mb = nbytes / 1e6
+    line = f"{label:<52} {mb:8.2f} MB  cwproc {mb / t_cwproc:7.1f} MB/s"
+    if t_doppy is not None:
+        line += f"  doppy {mb / t_doppy:7.1f} MB/s  ratio cwproc/doppy {t_doppy / t_cwproc:5.2f}"
+    print(line, flush=True)
+
+
+def bench_real(repeat: int, doppy: Callable | None) -> None:
+    print(f"== real files (best of {repeat})")
+    files = sorted(p for p in REAL_HPL.glob("*.hpl") if not p.name.startswith("CORRUPT"))
+    if not files:
+        print(f"   real files not found in {REAL_HPL}")
+        return
+    total_c = total_d = 0.0
+    total_bytes = 0
+    for path in files:
+        size = path.stat().st_size
+        tc = best_time(lambda p=path: read_hpl(p), repeat)
+        td = best_time(lambda p=path: doppy(p), repeat) if doppy else None
+        report_throughput(path.name[:52], size, tc, td)
+        total_c += tc
+        total_d += td or 0.0
+        total_bytes += size
+    report_throughput("all real files", total_bytes, total_c, total_d if doppy else None)
+
+
+def bench_day(paths: list[Path], repeat: int, doppy: Callable | None) -> None:
+    nbytes = sum(p.stat().st_size for p in paths)
+    print(f"== synthetic day: {len(paths)} files, {nbytes / 1e6:.1f} MB (best of {repeat})")
+    tc = best_time(lambda: [read_hpl(p) for p in paths], repeat)
+    td = best_time(lambda: [doppy(p) for p in paths], repeat) if doppy else None
+    report_throughput("read every file", nbytes, tc, td)
+    tcc = best_time(lambda: concat_scans([read_hpl(p) for p in paths]), max(1, repeat // 2))
+    report_throughput("cwproc read + concat_scans (one dataset)", nbytes, tcc, None)
+    if doppy is not None:
+        from doppy.raw import HaloHpl
+
+        tdm = best_time(lambda: HaloHpl.merge(HaloHpl.from_srcs([str(p) for p in paths])), 1)
+        report_throughput("doppy from_srcs (parallel) + merge, for reference", nbytes, tcc, tdm)
+    ds = concat_scans([read_hpl(p) for p in paths])
+    scans = np.unique(ds["scan"].values[ds["scan"].values >= 0]).size
+    print(f"   concatenated: {ds.sizes['ray']} rays x {ds.sizes['range']} gates, {scans} scans")
+
+
+def bench_retrieve_memory(folder: Path) -> None:
+    print("== peak memory of `cwproc retrieve` on the synthetic day")
+    out = folder / "products"
+    cmd = [
+        sys.executable,
+        "-m",
+        "cwproc",
+        "retrieve",
+        str(folder),
+        "-o",
+        str(out),
+        "-q",
+        "-c",
+        "streamline",
+    ]
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    wall = time.perf_counter() - t0
+    peak_mib = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
+    if proc.returncode == 0:
+        products = sorted(p.name for p in out.glob("*.nc"))
+        print(
+            f"   ok in {wall:.1f} s, peak RSS {peak_mib:.0f} MiB, products: {', '.join(products)}"
+        )
+    else:
+        tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
+        print(
+            f"   retrieve failed (exit {proc.returncode}) after {wall:.1f} s, "
+            f"peak RSS {peak_mib:.0f} MiB; last lines:"
+        )
+        for line in tail:
+            print(f"     {line}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--skip-retrieve", action="store_true")
+    args = parser.parse_args()
+    doppy = doppy_reader()
+    print(
+        f"cpus {os.cpu_count()}, load average {os.getloadavg()[0]:.2f}; doppy "
+        + ("available" if doppy else "NOT installed (pip install doppy): no ratio")
+    )
+    bench_real(args.repeat, doppy)
+    with tempfile.TemporaryDirectory(prefix="cwproc_bench_hpl_") as tmp:
+        folder = Path(tmp)
+        t0 = time.perf_counter()
+        paths = write_synthetic_day(folder)
+        print(f"   (wrote the synthetic day with write_hpl in {time.perf_counter() - t0:.1f} s)")
+        bench_day(paths, args.repeat, doppy)
+        if not args.skip_retrieve:
+            bench_retrieve_memory(folder)
+
+
+if __name__ == "__main__":
+    main()
