@@ -15,7 +15,8 @@ The lidar azimuth structure function is ``D = eps^(2/3) A`` (Smalikho (2020), eq
 Numerics. The double integrals are reduced to nested 1-D integrals: an inner integral of
 the 2-D spectrum against one transfer function, then an outer oscillatory integral
 against the other transfer function and ``1 - cos(2 pi r kappa)``. Both use the same
-panels (geometric, ratio 1.25, from ``1e-4/s_max`` to ``2e3/s_min``) with 8 Gauss-Legendre
+panels (geometric, ratio 1.25, from ``1e-5/s_max`` to ``2e3/s_min``, ``2e7/s_min`` when a
+filter is absent; ``s`` are the lags and probe lengths) with 8 Gauss-Legendre
 nodes each; on every panel the smooth factor is represented by its degree-7 Legendre
 interpolant and its product with ``cos(2 pi w kappa)`` is integrated exactly (Filon-type
 quadrature with the moments ``int P_m(x) exp(i a x) dx = 2 i^m j_m(a)``), so arbitrarily
@@ -282,8 +283,8 @@ def a_curves(
     if model != "inertial":
         large.append(outer_scale_m)
     # without one of the filters the integrands decay only as a power law: reach further
-    reach = 2e3 if (probe is not None and dy > 0) else 2e5
-    p = _panels(1e-4 / max(large), reach / min(small))
+    reach = 2e3 if (probe is not None and dy > 0) else 2e7
+    p = _panels(1e-5 / max(large), reach / min(small))
     k = p.kappa
     fac_par, len_par = _longitudinal_factor(probe, p, range_m)
     # inner integrals: G_perp(k2) = int Phi(k1, k2) H_par(k1) dk1,

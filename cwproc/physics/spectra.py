@@ -211,20 +211,20 @@ def _exponential_series(q: np.ndarray, n_terms: int = 90) -> np.ndarray:
     Term-by-term transform of ``exp(-a x^(2/3)) = sum (-a)^n x^(2n/3)/n!`` in
     ``E(k) = (1/pi) int_0^inf B(r) [k r sin(k r) - (k r)^2 cos(k r)] dr`` (per
     ``sigma_V^2 L_V``); the series converges for every ``q > 0`` and agrees with direct
-    quadrature to 1e-9 at ``q >= 0.5``.
+    quadrature to 3e-7 at ``q >= 0.6`` (cancellation grows below).
     """
-    n = np.arange(1, n_terms)
-    n = n[n % 3 != 0]
+    n = np.arange(n_terms)
     b = 2.0 * n / 3.0
     logc = n * math.log(EXPONENTIAL_COEFFICIENT) - special.gammaln(n + 1.0)
     amp = (
         special.gamma(b + 2.0) * np.sin(np.pi * (b + 2.0) / 2.0)
         - special.gamma(b + 3.0) * np.cos(np.pi * (b + 3.0) / 2.0)
     ) / np.pi
-    sign = (-1.0) ** n
-    q = np.asarray(q, dtype=float)[..., None]
-    terms = sign * np.exp(logc) * amp * np.exp(-(b + 1.0) * np.log(q))
-    return terms.sum(axis=-1)
+    coef = (-1.0) ** n * np.exp(logc) * amp
+    coef[n % 3 == 0] = 0.0  # even integer powers of r transform to nothing at k > 0
+    q = np.asarray(q, dtype=float)
+    # sum_n coef_n q^(-2n/3 - 1): a polynomial in z = q^(-2/3), evaluated by Horner's rule
+    return np.polynomial.polynomial.polyval(q ** (-2.0 / 3.0), coef) / q
 
 
 @lru_cache(maxsize=1)
@@ -271,7 +271,7 @@ def energy_spectrum(
     ``int_0^inf E dkappa = (3/2) sigma_V^2``. Inertial: ``alpha (2 pi)^(-2/3)
     kappa^(-5/3)``; von Karman: ``alpha (2 pi)^(-2/3) kappa^4 / (kappa^2 + kappa0^2)^(17/6)``;
     exponential: the transform of Banakh et al. (1999), eq. 17 (series/quadrature, relative
-    accuracy 1e-8).
+    accuracy 3e-7).
     """
     _check_model(model, outer_scale_m)
     kappa = np.abs(np.asarray(kappa, dtype=float))
@@ -297,11 +297,11 @@ def _exponential_plane_splines() -> tuple[interpolate.CubicSpline, interpolate.C
 
     ``I1(q) = (1/2pi q) int_0^inf E(q cosh u) / cosh u du`` and
     ``I2(q) = (1/2pi q^3) int_0^inf E(q cosh u) / cosh^3 u du`` (``E`` in cycles per
-    metre, ``kappa3 = q sinh u``); trapezoid rule in ``u`` with step 0.01 (relative error
+    metre, ``kappa3 = q sinh u``); trapezoid rule in ``u`` with step 0.02 (relative error
     below 1e-7, checked against the closed form of von Karman).
     """
     q = np.geomspace(1e-5, 1e5, 401)
-    u = np.arange(0.0, 40.0, 0.01)
+    u = np.arange(0.0, 36.0, 0.02)
     ch = np.cosh(u)
     out1 = np.empty_like(q)
     out2 = np.empty_like(q)

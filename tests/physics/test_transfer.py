@@ -1,0 +1,120 @@
+"""Probe-volume transfer functions: each is the squared Fourier transform of its weighting."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import integrate
+
+from cwproc.config import InstrumentConfig
+from cwproc.physics.transfer import (
+    SPEED_OF_LIGHT,
+    CWProbe,
+    PulsedProbe,
+    probe_from_config,
+    pulse_parameters,
+    transverse,
+)
+
+
+def _power_transfer(weight, kappa, half_width):
+    """|int Q(s) exp(-2 pi i kappa s) ds|^2 of a symmetric weighting, by quadrature."""
+    out = []
+    for k in kappa:
+        val, _ = integrate.quad(
+            lambda s, k=k: weight(s) * math.cos(2 * math.pi * k * s),
+            -half_width,
+            half_width,
+            limit=2000,
+            epsabs=1e-13,
+        )
+        out.append(val**2)
+    return np.array(out)
+
+
+def test_pulsed_physical_is_transform_of_gaussian_pulse_in_range_gate():
+    # Gaussian pulse exp(-s^2/dp^2) (unit area) convolved with the gate of length dR
+    dp, dr = 15.3, 18.0
+    probe = PulsedProbe(dp, dr, "physical")
+
+    def weight(s):
+        a = (s + dr / 2) / dp
+        b = (s - dr / 2) / dp
+        return (math.erf(a) - math.erf(b)) / (2 * dr)
+
+    kappa = np.array([0.0, 0.005, 0.01, 0.02, 0.03, 0.045])
+    numeric = _power_transfer(weight, kappa, 200.0)
+    np.testing.assert_allclose(probe.longitudinal(kappa), numeric, rtol=1e-7, atol=1e-12)
+
+
+def test_pulsed_printed_is_eq19_as_printed():
+    probe = PulsedProbe(15.3, 18.0, "printed")
+    k = np.array([0.0, 0.01, 0.03])
+    expected = (np.exp(-((15.3 * k) ** 2)) * np.sinc(18.0 * k)) ** 2
+    np.testing.assert_allclose(probe.longitudinal(k), expected, rtol=1e-14)
+    # the printed form lets through more small scales than the physical one
+    assert np.all(probe.longitudinal(k[1:]) > PulsedProbe().longitudinal(k[1:]))
+
+
+def test_cw_lorentzian_transfer_is_transform_of_lorentzian():
+    probe = CWProbe(0.0013)
+    rng = 100.0
+    z_r = 0.0013 * rng**2
+    assert probe.rayleigh_half_width(rng) == pytest.approx(13.0)
+    # unit area
+    area, _ = integrate.quad(lambda s: probe.weighting(s, rng), -np.inf, np.inf)
+    assert area == pytest.approx(1.0, rel=1e-9)
+    kappa = np.array([0.001, 0.005, 0.01, 0.03])
+    numeric = []
+    for k in kappa:
+        # QAWF: Fourier integral over [0, inf) of the slowly decaying Lorentzian
+        val, _ = integrate.quad(
+            lambda s: probe.weighting(s, rng), 0, np.inf, weight="cos", wvar=2 * np.pi * k
+        )
+        numeric.append((2 * val) ** 2)
+    np.testing.assert_allclose(probe.longitudinal(kappa, rng), numeric, rtol=1e-6)
+    np.testing.assert_allclose(
+        probe.longitudinal(kappa, rng), np.exp(-4 * np.pi * z_r * kappa), rtol=1e-14
+    )
+
+
+def test_cw_rayleigh_range_from_beam_radius():
+    lam, a0 = 10.6e-6, 0.075  # Banakh et al. (1999)
+    probe = CWProbe(wavelength_m=lam, beam_radius_m=a0)
+    assert probe.rayleigh_half_width(500.0) == pytest.approx(lam * 500.0**2 / (2 * math.pi * a0**2))
+    with pytest.raises(ValueError):
+        CWProbe(beam_radius_m=0.05)  # no wavelength
+    with pytest.raises(ValueError):
+        CWProbe().longitudinal(0.01, None)
+
+
+def test_transverse_is_transform_of_uniform_window():
+    dy = 5.0
+    kappa = np.array([0.0, 0.03, 0.1, 0.25, 0.37])
+    numeric = _power_transfer(lambda s: 1 / dy, kappa, dy / 2)
+    np.testing.assert_allclose(transverse(kappa, dy), numeric, rtol=1e-9, atol=1e-15)
+    np.testing.assert_array_equal(transverse(kappa, 0.0), 1.0)
+
+
+def test_pulse_parameters_stream_line():
+    # Smalikho (2020), after eq. 20: dp = c sigma_p / 2, sigma_p = tau_p/(2 sqrt ln 2)
+    tau_p = 2 * math.sqrt(math.log(2)) * 2 * 15.3 / SPEED_OF_LIGHT  # about 170 ns
+    t_w = 2 * 18.0 / SPEED_OF_LIGHT  # 120 ns
+    assert tau_p == pytest.approx(170e-9, rel=0.01)
+    dp, dr = pulse_parameters(tau_p, t_w)
+    assert dp == pytest.approx(15.3, rel=1e-12)
+    assert dr == pytest.approx(18.0, rel=1e-12)
+
+
+def test_probe_from_config():
+    pulsed = probe_from_config(InstrumentConfig(), pulse_transfer="printed")
+    assert pulsed == PulsedProbe(15.3, 18.0, "printed")
+    cw = probe_from_config(InstrumentConfig(kind="cw", z_r_coefficient=0.002))
+    assert isinstance(cw, CWProbe)
+    assert cw.rayleigh_half_width(100.0) == pytest.approx(20.0)
+    cw_a0 = probe_from_config(InstrumentConfig(kind="cw", wavelength_m=1.55e-6, beam_radius_m=0.02))
+    assert cw_a0.coefficient == pytest.approx(1.55e-6 / (2 * math.pi * 0.02**2))
+    with pytest.raises(ValueError, match="sonic"):
+        probe_from_config(InstrumentConfig(kind="sonic"))
