@@ -725,7 +725,8 @@ def hpl_text(ds: xr.Dataset, filename: str) -> str:
     Raises
     ------
     CwprocError
-        The range grid is not the Stream Line grid, or there are no rays.
+        The range grid is not the Stream Line grid, there are no rays, or a value is
+        not finite (the format has no fill value).
     """
     n_rays = int(ds.sizes["ray"])
     n_gates = int(ds.sizes["range"])
@@ -738,7 +739,24 @@ def hpl_text(ds: xr.Dataset, filename: str) -> str:
             f"write_hpl {filename}: range is not (gate + 0.5) x gate length "
             f"{gate_length} m, the Stream Line grid"
         )
+    for name in (
+        "radial_velocity",
+        "snr",
+        "beta",
+        "spectral_width",
+        "pitch",
+        "roll",
+        "azimuth",
+        "elevation",
+    ):
+        if name in ds.variables and not np.isfinite(ds[name].values).all():
+            raise CwprocError(
+                f"write_hpl {filename}: {name} has non-finite values; the .hpl format has "
+                "no fill value"
+            )
     times = ds["time"].values.astype("datetime64[us]")
+    if np.isnat(times).any():
+        raise CwprocError(f"write_hpl {filename}: time has missing values")
     day = times.min().astype("datetime64[D]")
     hours = (times - day.astype("datetime64[us]")).astype(np.int64) / 3.6e9
     az = np.asarray(ds["azimuth"].values, dtype=np.float64)
@@ -813,9 +831,16 @@ def write_hpl(ds: xr.Dataset, path: str | os.PathLike) -> Path:
     Returns
     -------
     pathlib.Path
-        The path written.
+        The path written (through a temporary file renamed into place, so a killed
+        run leaves no half-written file).
     """
     path = Path(path)
-    text = hpl_text(ds, path.name)
-    path.write_bytes(text.encode("ascii"))
+    data = hpl_text(ds, path.name).encode("ascii")
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise CwprocError(f"write_hpl {path}: cannot write: {exc.strerror or exc}") from None
     return path

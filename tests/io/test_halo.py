@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cwproc.errors import ConfigError, InputFileError
+from cwproc.errors import ConfigError, CwprocError, InputFileError
 from cwproc.io import Format, detect_format
 from cwproc.io.halo import decimal_hours_to_time, normalise_pointing, read_hpl, write_hpl
 
@@ -521,3 +521,17 @@ def test_written_lines_have_the_instrument_layout(hpl: Path, tmp_path: Path) -> 
     assert lines[7:9] == original[7:9] and lines[10] == original[10]
     assert lines[6] == b"No. of rays in file:\t2"
     assert lines[16] == original[16]  # "**** Instrument spectral width = 5.656623"
+
+
+def test_writer_refuses_what_the_format_cannot_hold(hpl: Path, tmp_path: Path) -> None:
+    ds = read_hpl(hpl / "soverato-2021-10-01-VAD_194_20210624_170110.hpl")
+    bad = ds.copy(deep=True)
+    bad["radial_velocity"][0, 3] = np.nan
+    with pytest.raises(CwprocError, match="radial_velocity has non-finite"):
+        write_hpl(bad, tmp_path / "nan.hpl")
+    shifted = ds.assign_coords(range=ds["range"] + 7.0)
+    with pytest.raises(CwprocError, match="range"):
+        write_hpl(shifted, tmp_path / "grid.hpl")
+    with pytest.raises(CwprocError, match="no rays"):
+        write_hpl(ds.isel(ray=slice(0, 0)), tmp_path / "empty.hpl")
+    assert not any(tmp_path.iterdir())
