@@ -1,0 +1,89 @@
+"""``cwproc sf-type`` and ``cwproc simulate sonic`` end to end."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+from cwproc.cli import main
+from cwproc.io.netcdf import read_product
+from cwproc.metadata import undeclared_variables
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sim")
+    res = CliRunner().invoke(
+        main, ["simulate", "sonic", "-o", str(out), "--type", "2", "--hours", "1", "--seed", "5"]
+    )
+    assert res.exit_code == 0, res.output
+    return out
+
+
+def test_simulate_sonic_writes_meteo2_and_truth(simulated):
+    files = sorted(simulated.glob("*.txt"))
+    assert len(files) == 1
+    assert files[0].read_text().startswith("# cwproc meteo2 v1")
+    truth = json.loads((simulated / "meteo2_sim_type2_truth.json").read_text())
+    assert truth["sf_type"] == 2 and truth["seed"] == 5 and truth["hours"] == 1.0
+
+
+def test_sf_type_product_tables_and_damaged_file(simulated, tmp_path):
+    good = sorted(simulated.glob("*.txt"))[0]
+    bad = tmp_path / "damaged.txt"
+    lines = good.read_text().splitlines(keepends=True)
+    lines[40] = lines[40].replace(",", ",?", 1)
+    bad.write_text("".join(lines[:300]))
+    out = tmp_path / "out"
+    res = CliRunner().invoke(main, ["sf-type", str(good), str(bad), "-o", str(out), "-c", "meteo2"])
+    assert res.exit_code == 1
+    errors = [ln for ln in res.output.splitlines() if ln.startswith("error:")]
+    bad_value = lines[40].split(",")[1]
+    assert errors == [f"error: {bad}:41: column 'u': '{bad_value}' is not a number"]
+    product = out / "meteo2_20140601_sf.nc"
+    assert product.exists()
+    sf = read_product(product)
+    assert undeclared_variables(sf) == []
+    assert sf.sizes["window"] == 6 and list(sf["component"].values) == [
+        "longitudinal",
+        "transverse",
+        "vertical",
+    ]
+    assert np.mean(sf["sf_type"].values == 2) >= 0.95
+    assert sf["sf_a2"].attrs["units"] == "1" and sf["r_max"].attrs["units"] == "m"
+    assert "Gladkikh" in sf.attrs["references"] and good.name in sf.attrs["input_files"]
+    assert "[sonic]" in sf.attrs["cwproc_config"]
+    occ = pd.read_csv(out / "sf_type_occurrence.csv", index_col=0)
+    assert occ.loc["longitudinal", "windows"] == 6
+    assert occ.loc["longitudinal", "type2_pct"] == pytest.approx(
+        100 * np.mean(sf["sf_type"].sel(component="longitudinal").values == 2), abs=0.01
+    )
+    stats = pd.read_csv(out / "sf_parameters.csv")
+    assert set(stats.columns) == {"type", "component", "parameter", "count", "mean", "median"}
+    assert "Table 2" in res.output and "Tables 3-5" in res.output
+
+
+def test_real_toa5_is_typed(real_data, tmp_path):
+    src = real_data / "sonic" / "TOA5_6843.ts_Above_2012_06_07_1245.dat"
+    res = CliRunner().invoke(main, ["sf-type", str(src), "-o", str(tmp_path), "-q"])
+    assert res.exit_code == 0, res.output
+    sf = read_product(tmp_path / "toa5_20120607_sf.nc")
+    # 12:45:00.05-13:00:00 at 20 Hz: windows 12:40 (5 min, skipped), 12:50 (complete,
+    # analysed) and 13:00 (its first sample only, skipped)
+    assert sf.sizes["window"] == 3
+    assert list(sf["window_flag"].values) == [1, 0, 1]
+    assert sf["valid_fraction"].values[1] == pytest.approx(1.0)
+    assert 0.5 < float(sf["mean_horizontal_wind"][1]) < 5.0
+
+
+def test_directory_input_skips_unreadable_files(simulated, tmp_path):
+    d = tmp_path / "in"
+    shutil.copytree(simulated, d)
+    res = CliRunner().invoke(main, ["sf-type", str(d), "-o", str(tmp_path / "o"), "-q"])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "o" / "meteo2_20140601_sf.nc").exists()
