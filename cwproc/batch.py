@@ -506,7 +506,10 @@ def cached_file_info(
     entry = ledger.files.get(path)
     if entry is None:
         return None
-    info = FileInfo(**entry)
+    try:
+        info = FileInfo(**entry)
+    except TypeError:  # written by another version of cwproc: classify again
+        return None
     if (
         info.size != size
         or info.mtime_ns != mtime_ns
@@ -529,6 +532,15 @@ def record_file(ledger: Ledger, info: FileInfo) -> None:
         }
     else:
         ledger.failures.pop(info.path, None)
+
+
+def forget_vanished_files(ledger: Ledger) -> list[str]:
+    """Drop the classifications (and file failures) of files that no longer exist."""
+    gone = [path for path in ledger.files if not os.path.lexists(path)]
+    for path in gone:
+        del ledger.files[path]
+        ledger.failures.pop(path, None)
+    return gone
 
 
 def record_outcome(ledger: Ledger, task: UnitTask, outcome: UnitOutcome) -> None:
@@ -869,7 +881,7 @@ def run_batch(
             info = _as_file_info(_path, result)
             record_file(ledger, info)
             infos.append(info)
-        if to_classify:
+        if forget_vanished_files(ledger) or to_classify:
             save_ledger(ledger, ledger_path)
 
         report.unrecognised = sorted(

@@ -530,3 +530,19 @@ def test_real_pipeline_batch_recovers_the_wind_and_is_incremental(tmp_path):
         np.testing.assert_allclose(wind["v"].values, v, atol=0.01)
     again = run_batch(tmp_path / "in", out, config)
     assert again.processed == [] and again.units_up_to_date == 2
+
+
+def test_deleted_files_leave_the_ledger_and_their_failures_with_them(tmp_path):
+    paths = toy_archive(tmp_path / "in", n_days=2)
+    bad = write_toy(tmp_path / "in" / "bad.txt", "A", "2024-01-01", [1.0])
+    bad.write_text(bad.read_text() + "oops\n")
+    out = tmp_path / "out"
+    assert not run_toy(tmp_path / "in", out).ok
+    bad.unlink()
+    paths[0].unlink()
+    report = run_toy(tmp_path / "in", out)
+    assert report.ok and [o.key for o in report.processed] == ["toy_A_20240101"]
+    ledger = load_ledger(out / STATE_DIR / "ledger.json")
+    assert set(ledger.files) == {os.fspath(p) for p in paths[1:]}
+    assert ledger.failures == {}
+    assert ledger.units["toy_A_20240101"]["inputs"] == {os.fspath(paths[1]): sha256_file(paths[1])}

@@ -1,9 +1,10 @@
 """``cwproc batch`` under faults: kill -9, concurrent runs, bad inputs, write errors,
 and the same archive through the serial, ``--workers`` and ``--scheduler`` executors.
 
-The toy backend of ``test_batch.py`` is used (inputs whose every byte the test controls,
-products written by the real atomic writer); the executor comparison is repeated with
-the real pipeline once its readers and stages exist.
+Most tests use the toy backend of ``test_batch.py`` (inputs whose every byte the test
+controls, products written by the real atomic writer); the executor comparison and a
+second kill -9 test run the real pipeline (Stream Line reader, qc, vad) on synthetic
+``.hpl`` files with a known wind.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from cwproc.batch import (
     load_ledger,
     run_batch,
 )
-from cwproc.config import Config
+from cwproc.config import load_config
 from cwproc.io.netcdf import read_product
 
 TESTS = Path(__file__).resolve().parent
@@ -42,8 +43,6 @@ from test_batch import (  # noqa: E402
     run_toy,
     synthetic_vad_scans,
     toy_archive,
-    toy_classify,
-    toy_process,
     wind_only_config,
     write_toy,
 )
@@ -250,24 +249,14 @@ def test_disk_full_gives_a_clear_message_and_no_ledger_entry(tmp_path, monkeypat
 
 
 @pytest.fixture(scope="module")
-def scheduler_address():
-    """One 2-process LocalCluster for the module; workers can import the toy backend."""
+def workers_client():
+    """The client ``--workers 2`` makes (a LocalCluster of 2 single-threaded processes),
+    started once for the module; its scheduler address serves the ``--scheduler`` path.
+    """
     pytest.importorskip("dask.distributed")
-    from dask.distributed import LocalCluster
-
-    old = os.environ.get("PYTHONPATH")
-    os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (str(TESTS), old) if p)
-    try:
-        cluster = LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
-        )
-    finally:
-        if old is None:
-            del os.environ["PYTHONPATH"]
-        else:
-            os.environ["PYTHONPATH"] = old
-    yield cluster.scheduler_address
-    cluster.close()
+    client = dask_client(workers=2)
+    yield client
+    close_client(client)
 
 
 def comparable(path: Path) -> xr.Dataset:
@@ -285,49 +274,28 @@ def assert_same_products(a: Path, b: Path) -> None:
         assert da.attrs == db.attrs
 
 
-def run_three_ways(inputs: Path, tmp_path: Path, address: str, **kw) -> dict[str, Path]:
+def run_ways(inputs: Path, tmp_path: Path, workers_client, **kw) -> dict[str, Path]:
+    """Process ``inputs`` serially, on the ``--workers 2`` cluster, and through a second
+    client connected to that cluster's scheduler address (the ``--scheduler`` path)."""
     outs = {k: tmp_path / k for k in ("serial", "workers", "scheduler")}
-    reports = {"serial": run_batch(inputs, outs["serial"], **kw)}
-    client = dask_client(workers=2)
+    reports = {
+        "serial": run_batch(inputs, outs["serial"], **kw),
+        "workers": run_batch(inputs, outs["workers"], client=workers_client, **kw),
+    }
+    address = workers_client.scheduler.address
+    remote = dask_client(scheduler=address)
     try:
-        reports["workers"] = run_batch(inputs, outs["workers"], client=client, **kw)
+        reports["scheduler"] = run_batch(inputs, outs["scheduler"], client=remote, **kw)
     finally:
-        close_client(client)
-    client = dask_client(scheduler=address)
-    try:
-        reports["scheduler"] = run_batch(inputs, outs["scheduler"], client=client, **kw)
-        pids = {o.pid for o in reports["scheduler"].processed}
-    finally:
-        close_client(client)
-    for name, report in reports.items():
-        assert report.ok, (name, report.failure_lines())
-    assert os.getpid() not in pids  # the units really ran on the cluster's processes
+        remote.close()
+    worker_pids = set(workers_client.run(os.getpid).values())
+    for way, report in reports.items():
+        assert report.ok, (way, report.failure_lines())
+        pids = {o.pid for o in report.processed}
+        # the units really ran in this process, or on the cluster's worker processes
+        assert pids == ({os.getpid()} if way == "serial" else pids & worker_pids)
+        assert pids
     return outs
-
-
-@pytest.mark.slow
-def test_serial_workers_and_scheduler_give_identical_toy_products(tmp_path, scheduler_address):
-    inputs = tmp_path / "in"
-    toy_archive(inputs, n_days=4)
-    (inputs / "junk.bin").write_bytes(b"\x00\x01binary")
-    old = os.environ.get("PYTHONPATH")
-    os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (str(TESTS), old) if p)
-    try:
-        outs = run_three_ways(
-            inputs,
-            tmp_path,
-            scheduler_address,
-            config=Config(),
-            classify=toy_classify,
-            process=toy_process,
-        )
-    finally:
-        if old is None:
-            del os.environ["PYTHONPATH"]
-        else:
-            os.environ["PYTHONPATH"] = old
-    assert_same_products(outs["serial"], outs["workers"])
-    assert_same_products(outs["serial"], outs["scheduler"])
 
 
 @pytest.mark.slow
@@ -335,7 +303,7 @@ def test_serial_workers_and_scheduler_give_identical_toy_products(tmp_path, sche
     bool(_missing_pipeline_modules()),
     reason=f"pipeline modules not built yet: {', '.join(_missing_pipeline_modules())}",
 )
-def test_serial_workers_and_scheduler_give_identical_real_products(tmp_path, scheduler_address):
+def test_serial_workers_and_scheduler_give_identical_real_products(tmp_path, workers_client):
     from cwproc.io.halo import write_hpl
 
     inputs = tmp_path / "in"
@@ -344,7 +312,51 @@ def test_serial_workers_and_scheduler_give_identical_real_products(tmp_path, sch
         for hour in (0, 1):
             name = f"VAD_99_{day.replace('-', '')}_{hour:02d}0000.hpl"
             write_hpl(synthetic_vad_scans(day, hour, u, v), inputs / name)
-    outs = run_three_ways(inputs, tmp_path, scheduler_address, config=wind_only_config())
+    outs = run_ways(inputs, tmp_path, workers_client, config=wind_only_config())
     assert_same_products(outs["serial"], outs["workers"])
     assert_same_products(outs["serial"], outs["scheduler"])
     shutil.rmtree(inputs)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(
+    bool(_missing_pipeline_modules()),
+    reason=f"pipeline modules not built yet: {', '.join(_missing_pipeline_modules())}",
+)
+def test_kill_9_of_the_real_cli_then_rerun_rewrites_nothing_already_done(tmp_path):
+    from cwproc.io.halo import write_hpl
+
+    inputs, out = tmp_path / "in", tmp_path / "out"
+    inputs.mkdir()
+    n_days = 8
+    for d in range(n_days):
+        day = f"2024-07-{d + 1:02d}"
+        scans = synthetic_vad_scans(day, 6, 1.0 + d, -2.0)
+        write_hpl(scans, inputs / f"VAD_99_{day.replace('-', '')}_060000.hpl")
+    config = tmp_path / "wind.toml"
+    config.write_text("[turbulence]\nenabled = false\n")
+    cmd = [sys.executable, "-m", "cwproc", "batch", str(inputs), str(out), "-c", str(config)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        wait_for(lambda: len(ledger_units(out)) >= 1 or proc.poll() is not None)
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    done = ledger_units(out)
+    if proc.returncode != -signal.SIGKILL or len(done) == n_days:
+        pytest.fail("the run finished before it could be killed; make the archive larger")
+    stamps = {key: os.stat(rec["products"][0]).st_mtime_ns for key, rec in done.items()}
+
+    rerun = run_batch(inputs, out, load_config(config))  # what the CLI calls
+    assert rerun.ok, rerun.failure_lines()
+    assert rerun.units_up_to_date == len(done)
+    assert rerun.stale_lock.startswith(f"pid={proc.pid} ")
+    assert leftovers(out) == []
+    assert len(assert_products_open(out)) == n_days
+    final = ledger_units(out)
+    assert len(final) == n_days
+    for key, stamp in stamps.items():  # done before the kill: not written again
+        assert os.stat(final[key]["products"][0]).st_mtime_ns == stamp
+    for d in range(n_days):  # each product holds its own day's wind
+        wind = read_product(out / f"streamline_99_202407{d + 1:02d}_wind.nc")
+        np.testing.assert_allclose(wind["u"].values, 1.0 + d, atol=0.01)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import logging
+import signal
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -91,6 +92,14 @@ class _Progress:
         if self.bar is not None:
             self.bar.__exit__(None, None, None)
             self.bar = None
+
+
+def _terminate(signum: int, _frame: Any) -> None:
+    """SIGTERM (systemctl stop, kill): unwind so the cluster is closed and the lock freed.
+
+    The ledger already holds every finished unit; the unit in flight is redone next run.
+    """
+    raise SystemExit(128 + signum)
 
 
 def summary_lines(report: BatchReport, verbose: bool) -> list[str]:
@@ -197,6 +206,7 @@ def batch(
             report_failure(str(exc))
             sys.exit(2)
     progress = _Progress(enabled=not quiet and not verbose and sys.stderr.isatty())
+    previous_sigterm = signal.signal(signal.SIGTERM, _terminate)
     try:
         with batch_logging(log_file, verbose):
             report = run_batch(
@@ -217,6 +227,7 @@ def batch(
         report_failure(str(exc))
         sys.exit(1)
     finally:
+        signal.signal(signal.SIGTERM, previous_sigterm)
         progress.finish()
         if client is not None:
             close_client(client)

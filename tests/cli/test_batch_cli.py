@@ -78,6 +78,20 @@ def test_second_run_on_a_locked_output_exits_75_naming_the_holder(tmp_path):
     assert "Traceback" not in result.output
 
 
+def test_stale_lock_of_a_dead_run_is_taken_over_and_reported(tmp_path):
+    inputs = junk_archive(tmp_path / "in")
+    state = tmp_path / "out" / STATE_DIR
+    state.mkdir(parents=True)
+    (state / "lock").write_text("pid=4242 host=elsewhere started=2026-01-01T00:00:00Z\n")
+    result = invoke(str(inputs), str(tmp_path / "out"))
+    assert result.exit_code == 0
+    assert (
+        "took over the lock of a run that ended abnormally "
+        "(pid=4242 host=elsewhere started=2026-01-01T00:00:00Z)" in result.stdout
+    )
+    assert (state / "lock").read_text() == ""  # released cleanly at the end
+
+
 def test_workers_without_dask_explains_how_to_install(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "dask.distributed", None)
     monkeypatch.setitem(sys.modules, "distributed", None)
