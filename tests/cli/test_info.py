@@ -128,3 +128,39 @@ def test_azimuth_coverage_and_elevations() -> None:
 def test_no_arguments_is_a_usage_error() -> None:
     result = run()
     assert result.exit_code == 2
+
+
+def test_scan_netcdf_file(tmp_path: Path) -> None:
+    from cwproc.io.scan_netcdf import write_scan_netcdf
+
+    n = 50
+    ds = xr.Dataset(
+        {
+            "radial_velocity": (("ray", "range"), np.ones((n, 3))),
+            "snr": (("ray", "range"), np.ones((n, 3))),
+        },
+        coords={
+            "time": (
+                "ray",
+                np.datetime64("2016-12-13T10:00", "ns")
+                + (np.arange(n) * 20_000_000).astype("timedelta64[ns]"),
+            ),
+            "azimuth": ("ray", np.arange(n) * 7.2),
+            "elevation": ("ray", np.full(n, 60.0)),
+            "range": ("range", [40.0, 80.0, 120.0]),
+        },
+        attrs={
+            "instrument": "ZephIR 300",
+            "instrument_kind": "cw",
+            "homodyne": 1,
+            "system_id": "317",
+            "scan_type": "conical",
+        },
+    )
+    path = write_scan_netcdf(ds, tmp_path / "cw.nc")
+    result = run(str(path))
+    assert result.exit_code == 0, result.output
+    assert "scan_netcdf (cwproc scan dataset (NetCDF))" in result.output
+    assert "ZephIR 300 (cw), system id 317, homodyne" in result.output
+    assert "1 conical scan(s), 50 rays per scan" in result.output
+    assert "(1.0 s)" in result.output  # 50 rays 20 ms apart: 0.98 s
