@@ -1,0 +1,164 @@
+"""Cached A-function tables: interpolation accuracy, cache reuse and corrupt-cache rebuilds."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from cwproc.physics import atable
+from cwproc.physics.afunctions import a2, a_perp
+from cwproc.physics.atable import get_a_table
+from cwproc.physics.transfer import CWProbe, PulsedProbe
+
+PROBE = PulsedProbe()
+PHI, DTHETA = 60.0, 3.6
+SMALL = {"phi_deg": PHI, "delta_theta_deg": DTHETA, "n_lags": 4, "height_range_m": (50.0, 200.0)}
+
+
+def _dy(h: float, phi: float = PHI, dtheta: float = DTHETA) -> float:
+    return math.radians(dtheta) * h / math.tan(math.radians(phi))
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("atable-cache")
+
+
+@pytest.fixture(scope="module")
+def table(cache):
+    return get_a_table(PROBE, cache_dir=cache, mu_max=3.0, **SMALL)
+
+
+def test_interpolation_matches_direct_evaluation(table):
+    # points between the nodes of every axis; stated interpolation error: 2e-4
+    worst = 0.0
+    for h in (57.3, 123.4, 188.0):
+        dy = _dy(h)
+        mus = np.array([0.07, 0.93, 1.01, 2.37, 2.96])
+        for lag in (1, 2, 4):
+            a1_tab, a2_tab = table.evaluate(lag, h, mus)
+            direct2 = a2(lag, dy, mus, PHI, probe=PROBE)
+            direct1 = a_perp(lag * dy, probe=PROBE, dy=dy)
+            worst = max(worst, np.max(np.abs(a2_tab / direct2 - 1)))
+            worst = max(worst, np.max(np.abs(a1_tab / direct1 - 1)))
+    assert worst < 2e-4
+
+
+def test_evaluate_broadcasts_and_flags_outside(table):
+    lags = np.arange(1, 5)[:, None, None]
+    heights = np.array([60.0, 150.0])[None, :, None]
+    mus = np.array([0.0, 0.5, 1.5])[None, None, :]
+    a1_v, a2_v = table.evaluate(lags, heights, mus)
+    assert a1_v.shape == a2_v.shape == (4, 2, 3)
+    np.testing.assert_allclose(a2_v[..., 0], a1_v[..., 0], rtol=1e-9)  # mu = 0: A_2 = A_1
+    assert np.all(np.diff(a1_v, axis=0) > 0)  # A grows with the lag
+    outside_a1, outside_a2 = table.evaluate(
+        np.array([0, 5, 2, 2]),
+        np.array([100.0, 100.0, 20.0, 100.0]),
+        np.array([1.0, 1.0, 1.0, 3.5]),
+    )
+    assert np.isnan(outside_a1[:3]).all() and np.isfinite(outside_a1[3])
+    assert np.isnan(outside_a2).all()
+
+
+def test_second_call_reads_the_cache(cache, table, monkeypatch):
+    def no_build(*args, **kwargs):
+        raise AssertionError("table rebuilt although cached")
+
+    monkeypatch.setattr(atable, "build_a_table", no_build)
+    again = get_a_table(PROBE, cache_dir=cache, mu_max=3.0, **SMALL)
+    np.testing.assert_array_equal(again.log_a2, table.log_a2)
+    assert not list(cache.glob("*.part")), "temporary files left behind"
+
+
+@pytest.mark.parametrize("damage", ["garbage", "truncated", "nan"])
+def test_damaged_cache_is_rebuilt(tmp_path, damage, monkeypatch):
+    params = {**SMALL, "height_range_m": (80.0, 110.0), "n_lags": 2}
+    first = get_a_table(PROBE, cache_dir=tmp_path, mu_max=1.0, **params)
+    (path,) = tmp_path.glob("atable-*.npz")
+    if damage == "garbage":
+        path.write_bytes(b"not a table at all")
+    elif damage == "truncated":
+        path.write_bytes(path.read_bytes()[:300])
+    else:
+        with np.load(path) as data:
+            arrays = dict(data)
+        arrays["log_a2"] = np.full_like(arrays["log_a2"], np.nan)
+        np.savez(path, **arrays)
+    calls = []
+    real_build = atable.build_a_table
+
+    def counting_build(*args, **kwargs):
+        calls.append(1)
+        return real_build(*args, **kwargs)
+
+    monkeypatch.setattr(atable, "build_a_table", counting_build)
+    second = get_a_table(PROBE, cache_dir=tmp_path, mu_max=1.0, **params)
+    assert calls == [1]
+    np.testing.assert_allclose(second.log_a2, first.log_a2, rtol=0, atol=0)
+    # and the rebuilt file is valid again
+    monkeypatch.setattr(atable, "build_a_table", real_build)
+    assert atable._load(path, atable.table_key(second.params), second.params) is not None
+
+
+def test_cache_key_depends_on_every_parameter():
+    base = atable.table_parameters(PROBE, **SMALL)
+    keys = {
+        atable.table_key(base),
+        atable.table_key(atable.table_parameters(PulsedProbe(gaussian="printed"), **SMALL)),
+        atable.table_key(atable.table_parameters(PROBE, **{**SMALL, "phi_deg": 75.0})),
+        atable.table_key(atable.table_parameters(PROBE, **{**SMALL, "n_lags": 5})),
+        atable.table_key(atable.table_parameters(CWProbe(), **SMALL)),
+        atable.table_key(atable.table_parameters(PROBE, model="von_karman", **SMALL)),
+    }
+    assert len(keys) == 6
+
+
+def test_unwritable_cache_still_gives_a_table(tmp_path):
+    blocker = tmp_path / "file-not-dir"
+    blocker.write_text("x")
+    params = {**SMALL, "height_range_m": (80.0, 110.0), "n_lags": 2}
+    tab = get_a_table(PROBE, cache_dir=blocker / "sub", mu_max=0.5, **params)
+    assert np.isfinite(tab.evaluate(2, 90.0, 0.3)[1])
+
+
+def test_cw_table_uses_range_dependent_rayleigh_length(tmp_path):
+    probe = CWProbe(0.0013)
+    phi = 60.0
+    tab = get_a_table(
+        probe,
+        phi_deg=phi,
+        delta_theta_deg=7.2,
+        n_lags=2,
+        cache_dir=tmp_path,
+        height_range_m=(40.0, 70.0),
+        mu_max=0.5,
+    )
+    h = 55.0
+    dy = _dy(h, phi, 7.2)
+    direct = a_perp(2 * dy, probe=probe, dy=dy, range_m=h / math.sin(math.radians(phi)))
+    assert float(tab.evaluate(2, h, 0.0)[0]) == pytest.approx(float(direct), rel=2e-4)
+
+
+def test_finite_outer_scale_table(tmp_path):
+    params = {**SMALL, "height_range_m": (90.0, 120.0), "n_lags": 2}
+    tab = get_a_table(
+        PROBE,
+        model="von_karman",
+        cache_dir=tmp_path,
+        mu_max=0.5,
+        outer_scale_range_m=(60.0, 100.0),
+        **params,
+    )
+    with pytest.raises(ValueError, match="outer_scale_m"):
+        tab.evaluate(2, 100.0, 0.2)
+    h, big_l, mu = 104.0, 77.0, 0.33
+    dy = _dy(h)
+    a1_t, a2_t = tab.evaluate(2, h, mu, big_l)
+    d2 = a2(2, dy, mu, PHI, probe=PROBE, model="von_karman", outer_scale_m=big_l)
+    d1 = a_perp(2 * dy, probe=PROBE, dy=dy, model="von_karman", outer_scale_m=big_l)
+    assert float(a2_t) == pytest.approx(float(d2), rel=2e-4)
+    assert float(a1_t) == pytest.approx(float(d1), rel=2e-4)
+    assert np.isnan(tab.evaluate(2, h, mu, 500.0)[0])  # outer scale outside the table
