@@ -69,6 +69,8 @@ LEDGER_VERSION = 1
 EXIT_LOCKED = 75
 
 _HEAD_BYTES = 4096
+#: while classifying many new files, save the ledger at least this often (s)
+CLASSIFY_SAVE_INTERVAL_S = 30.0
 
 
 class LockBusyError(CwprocError):
@@ -164,9 +166,14 @@ class BatchReport:
     """Summary of one run."""
 
     discovered: int = 0
+    #: folders under INPUT_DIR that could not be listed (one line each)
+    listing_failures: list[str] = field(default_factory=list)
     unrecognised: list[FileInfo] = field(default_factory=list)
     file_failures: list[FileInfo] = field(default_factory=list)
-    skipped_since: int = 0
+    #: files not read because they were last modified before --since
+    files_before_since: int = 0
+    #: units not processed because their data begin before --since
+    units_before_since: int = 0
     units_total: int = 0
     units_up_to_date: int = 0
     processed: list[UnitOutcome] = field(default_factory=list)
@@ -183,11 +190,15 @@ class BatchReport:
 
     @property
     def ok(self) -> bool:
-        return not self.file_failures and not self.failed
+        return not self.listing_failures and not self.file_failures and not self.failed
 
     def failure_lines(self) -> list[str]:
-        """One line per failed input file or unit (file, line and problem)."""
-        return [f.error for f in self.file_failures] + [o.error for o in self.failed]
+        """One line per unlisted folder, failed input file or unit (file, line, problem)."""
+        return (
+            self.listing_failures
+            + [f.error for f in self.file_failures]
+            + [o.error for o in self.failed]
+        )
 
 
 # --------------------------------------------------------------------------------------
@@ -239,17 +250,24 @@ def discover_files(
     input_dir: str | os.PathLike,
     patterns: Sequence[str] = ("*",),
     exclude: Sequence[str | os.PathLike] = (),
+    errors: list[str] | None = None,
 ) -> list[Path]:
     """Regular files under ``input_dir`` matching ``patterns``, sorted.
 
     Hidden files and folders (name starting with ``.``) and the folders in ``exclude``
     (e.g. the output directory when it lies inside the input directory) are skipped.
-    Symbolic links to files are followed, links to folders are not.
+    Symbolic links to files are followed, links to folders are not. A folder that
+    cannot be listed is reported in ``errors`` (one line each), never skipped silently.
     """
     root = Path(input_dir)
     excluded = {os.path.realpath(p) for p in exclude}
     found: list[Path] = []
-    for dirpath, dirnames, filenames in os.walk(root):
+
+    def unreadable(exc: OSError) -> None:
+        if errors is not None:
+            errors.append(f"{exc.filename}: cannot list folder: {exc.strerror or exc}")
+
+    for dirpath, dirnames, filenames in os.walk(root, onerror=unreadable):
         dirnames[:] = sorted(
             d
             for d in dirnames
@@ -621,9 +639,12 @@ def output_lock(
         Another run still holds the lock after ``wait_s``.
     """
     state = Path(state_dir)
-    state.mkdir(parents=True, exist_ok=True)
     path = state / LOCK_NAME
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        state.mkdir(parents=True, exist_ok=True)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise CwprocError(f"{path}: cannot create the lock: {exc.strerror or exc}") from None
     try:
         deadline = time.monotonic() + max(wait_s, 0.0)
         while True:
@@ -861,7 +882,11 @@ def run_batch(
         cfg_hash = config_hash(config)
         toml = config.to_toml()
 
-        files = discover_files(input_dir, patterns, exclude=[outdir])
+        files = discover_files(
+            input_dir, patterns, exclude=[outdir], errors=report.listing_failures
+        )
+        for line in report.listing_failures:
+            log.warning(kv_line("folder", status="failed", error=line))
         report.discovered = len(files)
         infos: list[FileInfo] = []
         to_classify: list[str] = []
@@ -874,13 +899,17 @@ def run_batch(
             if cached is not None:
                 infos.append(cached)
             elif file_older_than(mtime_ns, since):
-                report.skipped_since += 1
+                report.files_before_since += 1
             else:
                 to_classify.append(path)
+        last_save = time.monotonic()
         for _path, result in run_tasks(classify, to_classify, toml, config.source, client=client):
             info = _as_file_info(_path, result)
             record_file(ledger, info)
             infos.append(info)
+            if time.monotonic() - last_save > CLASSIFY_SAVE_INTERVAL_S:
+                save_ledger(ledger, ledger_path)  # a long first run keeps its progress
+                last_save = time.monotonic()
         if forget_vanished_files(ledger) or to_classify:
             save_ledger(ledger, ledger_path)
 
@@ -898,7 +927,7 @@ def run_batch(
         todo: list[UnitTask] = []
         for task, start in planned:
             if before_since(start, since):
-                report.skipped_since += 1
+                report.units_before_since += 1
             elif ledger.units.get(task.key, {}).get("fingerprint") == task.fingerprint:
                 report.units_up_to_date += 1
             else:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import errno
 import importlib.util
 import json
 import os
@@ -352,7 +353,7 @@ def test_since_skips_older_units_and_does_not_read_older_files(tmp_path):
     report = run_toy(tmp_path / "in", out, since=dt.date(2024, 1, 3))
     assert [o.key for o in report.processed] == ["toy_A_20240103"]
     # day 1 files skipped unread (mtime), day 2 unit skipped by its data date
-    assert report.skipped_since == 3
+    assert report.files_before_since == 2 and report.units_before_since == 1
     assert set(load_ledger(out / STATE_DIR / "ledger.json").files) == {
         os.fspath(p) for p in paths[2:]
     }
@@ -546,3 +547,18 @@ def test_deleted_files_leave_the_ledger_and_their_failures_with_them(tmp_path):
     assert set(ledger.files) == {os.fspath(p) for p in paths[1:]}
     assert ledger.failures == {}
     assert ledger.units["toy_A_20240101"]["inputs"] == {os.fspath(paths[1]): sha256_file(paths[1])}
+
+
+def test_unlistable_folder_is_reported_not_skipped_silently(tmp_path, monkeypatch):
+    toy_archive(tmp_path / "in", n_days=1)
+    locked = tmp_path / "in" / "locked"
+    real_walk = os.walk
+
+    def walk_with_a_denied_folder(top, onerror=None, **kwargs):
+        onerror(PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(locked)))
+        yield from real_walk(top, onerror=onerror, **kwargs)
+
+    monkeypatch.setattr(os, "walk", walk_with_a_denied_folder)
+    report = run_toy(tmp_path / "in", tmp_path / "out")
+    assert not report.ok and len(report.succeeded) == 1
+    assert report.failure_lines() == [f"{locked}: cannot list folder: Permission denied"]

@@ -112,7 +112,12 @@ def summary_lines(report: BatchReport, verbose: bool) -> list[str]:
         f"{len(report.file_failures)} unreadable; {report.units_total} unit(s): "
         f"{len(report.succeeded)} processed, {report.units_up_to_date} up to date, "
         f"{len(report.failed)} failed"
-        + (f", {report.skipped_since} skipped (--since)" if report.skipped_since else "")
+        + (
+            f"; before --since: {report.files_before_since} file(s) not read, "
+            f"{report.units_before_since} unit(s) skipped"
+            if report.files_before_since or report.units_before_since
+            else ""
+        )
         + f" [{report.seconds:.1f} s]"
     )
     return lines

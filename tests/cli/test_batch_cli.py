@@ -92,6 +92,17 @@ def test_stale_lock_of_a_dead_run_is_taken_over_and_reported(tmp_path):
     assert (state / "lock").read_text() == ""  # released cleanly at the end
 
 
+def test_unwritable_state_folder_is_one_clear_line(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / STATE_DIR).write_text("a file where the state folder belongs\n")
+    result = invoke(str(junk_archive(tmp_path / "in")), str(out))
+    assert result.exit_code == 1
+    assert result.stderr == (
+        f"error: {out / STATE_DIR / 'lock'}: cannot create the lock: File exists\n"
+    )
+
+
 def test_workers_without_dask_explains_how_to_install(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "dask.distributed", None)
     monkeypatch.setitem(sys.modules, "distributed", None)
