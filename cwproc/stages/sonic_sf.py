@@ -299,26 +299,9 @@ def grow_polynomial_fit(
     syy = _window_sum(sums["yy"], start)
     ends = np.arange(n_lags)[None, :]
     testable = (ends >= start[:, None] + min_points - 1) & (cnt >= deg + 2)
-    gram = np.empty((n_series, n_lags, deg + 1, deg + 1))
-    for i in range(deg + 1):
-        for j in range(deg + 1):
-            gram[..., i, j] = sx[i + j]
-    rhs = np.stack(sxy, axis=-1)
-    eye = np.eye(deg + 1)
-    gram = np.where(testable[..., None, None], gram, eye)
-    rhs_t = np.where(testable[..., None], rhs, 0.0)
-    try:
-        beta = np.linalg.solve(gram, rhs_t[..., None])[..., 0]
-    except np.linalg.LinAlgError:
-        beta = np.stack(
-            [
-                np.linalg.lstsq(g, r, rcond=None)[0]
-                for g, r in zip(
-                    gram.reshape(-1, deg + 1, deg + 1), rhs_t.reshape(-1, deg + 1), strict=True
-                )
-            ]
-        ).reshape(rhs_t.shape)
-    ss_res = syy - np.sum(beta * rhs, axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        beta = solve_normal_equations(sx, sxy, testable)
+    ss_res = syy - sum(beta[..., i] * sxy[i] for i in range(deg + 1))
     with np.errstate(invalid="ignore", divide="ignore"):
         ss_tot = syy - sxy[0] ** 2 / cnt
         kd = 1.0 - ss_res / ss_tot
@@ -334,6 +317,57 @@ def grow_polynomial_fit(
     coef = np.where(ok[:, None], beta[rows, safe_end], np.nan)
     kd_end = np.where(ok, kd[rows, safe_end], np.nan)
     return GrownFit(end=end, coef=coef, kd=kd_end)
+
+
+def solve_normal_equations(
+    sx: list[np.ndarray], sxy: list[np.ndarray], usable: np.ndarray
+) -> np.ndarray:
+    """Least-squares polynomial coefficients from moment sums, in closed form.
+
+    Degree 1 or 2 (from ``len(sxy)``); the symmetric normal matrix
+    G_ij = sum x^(i+j) is inverted by its adjugate (Cramer's rule), element-wise over
+    all series and end lags at once.
+
+    Parameters
+    ----------
+    sx : list of ndarray
+        sum x^p for p = 0..2 deg (p = 0 is the count).
+    sxy : list of ndarray
+        sum x^p y for p = 0..deg.
+    usable : ndarray of bool
+        Where a solution is wanted (elsewhere NaN).
+
+    Returns
+    -------
+    ndarray, shape (..., deg + 1)
+        Coefficients, constant first.
+    """
+    if len(sxy) == 2:
+        n, s1, s2 = sx[0], sx[1], sx[2]
+        det = n * s2 - s1 * s1
+        b1 = (n * sxy[1] - s1 * sxy[0]) / det
+        b0 = (sxy[0] - b1 * s1) / n
+        out = np.stack([b0, b1], axis=-1)
+    else:
+        a, b, c, e, f = sx[0], sx[1], sx[2], sx[3], sx[4]
+        # G = [[a, b, c], [b, c, e], [c, e, f]]
+        c00 = c * f - e * e
+        c01 = c * e - b * f
+        c02 = b * e - c * c
+        c11 = a * f - c * c
+        c12 = b * c - a * e
+        c22 = a * c - b * b
+        det = a * c00 + b * c01 + c * c02
+        y0, y1, y2 = sxy
+        out = np.stack(
+            [
+                (c00 * y0 + c01 * y1 + c02 * y2) / det,
+                (c01 * y0 + c11 * y1 + c12 * y2) / det,
+                (c02 * y0 + c12 * y1 + c22 * y2) / det,
+            ],
+            axis=-1,
+        )
+    return np.where(usable[..., None], out, np.nan)
 
 
 def candidate_offsets(n_lags: int) -> np.ndarray:
@@ -447,23 +481,30 @@ def decide_types(
     tail_kd = np.full(n_series, np.nan)
     searching = (para.end >= 0) & (para.end < n_lags - min_points)
     for off in candidate_offsets(n_lags):
-        todo = searching & (tail_end < 0)
-        if not todo.any():
-            break
-        start = np.where(todo, para.end + off, 0)
-        todo &= start <= n_lags - min_points
-        start = np.where(todo, start, 0)
-        fit = grow_polynomial_fit(sums, start, 1, kd_threshold=kd_threshold, min_points=min_points)
-        r_l = _lag_at(r, np.where(todo, start, -1))
-        r_e = _lag_at(r, fit.end)
-        delta_b = r_l - r_p
-        delta_a = (r_e - r_l) + (r_p - r_min)
+        todo = searching & (tail_end < 0) & (para.end + off <= n_lags - min_points)
+        rows = np.flatnonzero(todo)
+        if rows.size == 0:
+            if not (searching & (tail_end < 0)).any():
+                break
+            continue
+        start = para.end[rows] + off
+        sub = {k: v[rows] for k, v in sums.items()}
+        fit = grow_polynomial_fit(sub, start, 1, kd_threshold=kd_threshold, min_points=min_points)
+        r_sub = r[rows]
+        r_l = r_sub[np.arange(rows.size), start]
+        r_e = _lag_at(r_sub, fit.end)
+        rp, rmin = r_p[rows], r_min[rows]
         with np.errstate(invalid="ignore", divide="ignore"):
-            accept = todo & (fit.end >= 0) & (delta_b / delta_a < 0.25) & (r_p - r_min <= r_e - r_l)
-        tail_end = np.where(accept, fit.end, tail_end)
-        tail_start = np.where(accept, start, tail_start)
-        tail_coef = np.where(accept[:, None], fit.coef, tail_coef)
-        tail_kd = np.where(accept, fit.kd, tail_kd)
+            accept = (
+                (fit.end >= 0)
+                & ((r_l - rp) / ((r_e - r_l) + (rp - rmin)) < 0.25)
+                & (rp - rmin <= r_e - r_l)
+            )
+        hit = rows[accept]
+        tail_end[hit] = fit.end[accept]
+        tail_start[hit] = start[accept]
+        tail_coef[hit] = fit.coef[accept]
+        tail_kd[hit] = fit.kd[accept]
     type3_ok = tail_end >= 0
     r_max3 = _lag_at(r, tail_end)
     r_l = _lag_at(r, tail_start)
