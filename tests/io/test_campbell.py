@@ -224,3 +224,24 @@ def test_mutated_tob1_gives_dataset_or_input_file_error(tmp_path, real_data, dat
     except InputFileError:
         return
     assert isinstance(ds, xr.Dataset) and ds.sizes["time"] > 0
+
+
+def test_every_real_sonic_file_reads_through_format_detection(real_data):
+    """Every data file of real_data/sonic: detected, read, expected size and sane values."""
+    from cwproc.io import read
+
+    expected = {
+        "TOA5_6843.ts_Above_2012_06_07_1245.dat": (18000, 20.0),
+        "testing.tob": (144, 10.0),
+        "head_ghg.data": (2, 10.0),
+    }
+    files = sorted(p for p in (real_data / "sonic").iterdir() if p.suffix != ".md")
+    assert {p.name for p in files} >= set(expected)
+    for p in files:
+        ds = read(p)
+        n, rate = expected[p.name]
+        assert ds.sizes["time"] == n, p.name
+        assert ds.attrs["sampling_rate_hz"] == pytest.approx(rate, rel=1e-6), p.name
+        for c in ("u", "v", "w"):
+            assert np.all(np.abs(ds[c].values) < 30), (p.name, c)
+        assert np.all((ds["temperature"].values > -40) & (ds["temperature"].values < 50))
