@@ -311,6 +311,8 @@ def _read_table(body: bytes) -> pd.DataFrame:
             skip_blank_lines=False,
             quoting=csv.QUOTE_NONE,
             encoding="latin-1",
+            keep_default_na=False,
+            na_values=[""],
         )
 
 
@@ -332,8 +334,9 @@ def _chunks(body: bytes, n_chunks: int) -> list[tuple[int, int]]:
 def _tokenize(path: str | os.PathLike, body: bytes) -> np.ndarray:
     """Every body line as a row of 5 floats (NaN where a line has fewer fields).
 
-    Non-numeric fields are NaN too and are reported by the structure check; a line
-    with more than 5 fields raises here. The pandas C tokenizer does the work; large
+    A field that is not a finite number (``abc``, ``nan``, ``inf``) is +inf, so that
+    the structure check can tell it from a missing field; a line with more than 5
+    fields raises here. The pandas C tokenizer does the work; large
     bodies are cut at line starts and parsed in threads (the tokenizer releases the
     GIL).
     """
@@ -380,9 +383,13 @@ def _tokenize(path: str | os.PathLike, body: bytes) -> np.ndarray:
         else:
             for j, name in enumerate(frame.columns):
                 col = frame[name]
-                if col.dtype.kind not in "fiu":
-                    col = pd.to_numeric(col, errors="coerce")
-                values = col.to_numpy(dtype=np.float64, na_value=np.nan)
+                if col.dtype.kind in "fiu":
+                    values = col.to_numpy(dtype=np.float64)
+                else:
+                    numbers = pd.to_numeric(col, errors="coerce")
+                    values = numbers.to_numpy(dtype=np.float64, na_value=np.nan, copy=True)
+                    # a field that is there but is no number: +inf marks it (never missing)
+                    values[col.notna().to_numpy() & np.isnan(values)] = np.inf
                 table[row : row + len(frame), j] = values
         row += len(frame)
     return table
@@ -399,9 +406,9 @@ def first_bad_row(table: np.ndarray, n_gates: int, ray_fields: int, gate_fields:
     """Index of the first body row that breaks the ray/gate block structure, or -1.
 
     A row is good when exactly its first ``ray_fields`` (ray rows, every
-    ``n_gates + 1``-th row) or ``gate_fields`` (gate rows) values are finite numbers and
-    the rest are empty, and, for a gate row, when its gate index equals its position
-    in the block.
+    ``n_gates + 1``-th row) or ``gate_fields`` (gate rows) fields are present, all of them
+    finite numbers (``+inf`` marks a field that is no number, see :func:`_tokenize`),
+    and, for a gate row, when its gate index equals its position in the block.
     """
     n_rows = table.shape[0]
     block = n_gates + 1
@@ -411,7 +418,8 @@ def first_bad_row(table: np.ndarray, n_gates: int, ray_fields: int, gate_fields:
     pattern[1:, :gate_fields] = True
     expected = np.tile(pattern, (n_blocks, 1))[:n_rows]
     index = np.tile(np.arange(-1, n_gates, dtype=np.float64), n_blocks)[:n_rows]
-    ok = (np.isfinite(table) == expected).all(axis=1)
+    present = ~np.isnan(table)
+    ok = (present == expected).all(axis=1) & ~np.isinf(table).any(axis=1)
     ok &= (table[:, 0] == index) | (index < 0)
     bad = np.flatnonzero(~ok)
     return int(bad[0]) if bad.size else -1
