@@ -311,9 +311,13 @@ def concat_scans(datasets: Sequence[xr.Dataset], **assign_options: float) -> xr.
     for ds in datasets:
         names.extend(str(v) for v in ds.data_vars if str(v) not in names)
     arrays = {}
+    fixed = {}
     for name in names:
         template = next(ds[name] for ds in datasets if name in ds)
         dims = template.dims
+        if "ray" not in dims:  # per-file constants (none in the canonical schema)
+            fixed[name] = template.variable
+            continue
         parts = []
         for ds in datasets:
             if name in ds:
@@ -336,6 +340,7 @@ def concat_scans(datasets: Sequence[xr.Dataset], **assign_options: float) -> xr.
     for name, (dims, values, attrs) in arrays.items():
         axis = dims.index("ray")
         data_vars[name] = xr.Variable(dims, np.take(values, order, axis=axis), attrs)
+    data_vars.update(fixed)
     files: list[str] = []
     for ds in datasets:
         files.extend(f for f in _source_files(ds) if f not in files)
