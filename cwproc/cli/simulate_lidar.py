@@ -1,11 +1,188 @@
-"""``cwproc lidar`` (being built; see docs/DEVELOPING.md for the owner)."""
+"""``cwproc simulate lidar``: instrument files made by the virtual lidar, plus the truth."""
 
 from __future__ import annotations
 
+import dataclasses
+from pathlib import Path
+
 import click
+import numpy as np
+
+from cwproc.cli._common import fail
+from cwproc.errors import CwprocError
+
+#: scans written when --hours is not given
+_DEFAULT_HOURS = {"streamline": 0.2, "cw": 70.0 / 3600.0, "zephir": 60.0 / 3600.0}
+#: ZephIR heights (m) of the simulated profile
+_ZEPHIR_HEIGHTS = (40.0, 60.0, 80.0, 100.0, 150.0, 200.0)
 
 
 @click.command("lidar")
-def simulate_lidar() -> None:
-    """Not available in this build yet."""
-    raise click.ClickException("'lidar' is not available in this build yet")
+@click.option(
+    "-o",
+    "--output",
+    "outdir",
+    required=True,
+    type=click.Path(file_okay=False),
+    help="Directory: data files go to DIR/data/, the truth to DIR/truth/.",
+)
+@click.option(
+    "--instrument",
+    type=click.Choice(["streamline", "cw", "zephir"]),
+    default="streamline",
+    show_default=True,
+    help="streamline: pulsed Stream Line VAD (.hpl); cw: the lidar of Banakh et al. "
+    "(1999); zephir: ZephIR 300 (both cw: line-of-sight scan NetCDF, homodyne).",
+)
+@click.option(
+    "--hours",
+    type=click.FloatRange(min=0.0, min_open=True),
+    default=None,
+    help="Length of the series (h). Default: 0.2 (Stream Line), 10 scans (cw, ZephIR).",
+)
+@click.option("--wind", type=click.FloatRange(min=0.0), default=None, help="Wind speed (m/s).")
+@click.option("--direction", type=float, default=240.0, show_default=True, help="Wind from (deg).")
+@click.option(
+    "--epsilon",
+    type=click.FloatRange(min=0.0, min_open=True),
+    default=None,
+    help="Dissipation rate (m2/s3). Default 0.01 (Stream Line); cw: the paper's profile.",
+)
+@click.option(
+    "--outer-scale",
+    type=click.FloatRange(min=0.0, min_open=True),
+    default=None,
+    help="Integral scale L_V (m). Default 150 (Stream Line); cw: the paper's profile.",
+)
+@click.option(
+    "--snr",
+    type=click.FloatRange(min=0.0, min_open=True),
+    default=0.05,
+    show_default=True,
+    help="Linear SNR of the Stream Line; sets the noise, 0.005/SNR m/s.",
+)
+@click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
+def simulate_lidar(
+    outdir: str,
+    instrument: str,
+    hours: float | None,
+    wind: float | None,
+    direction: float,
+    epsilon: float | None,
+    outer_scale: float | None,
+    snr: float,
+    seed: int,
+) -> None:
+    """Files in the real formats from a virtual lidar, plus the truth that made them.
+
+    \b
+    Stream Line: a frozen von Karman field advected by the wind, scanned at 35.3 deg
+    (180 rays per 36 s scan, 24 gates of 30 m), written as .hpl files in DIR/data/.
+    cw / zephir: Doppler spectra and centroid velocities of Banakh et al. (1999)
+    (eq. 17 field, corrected Q_s, homodyne |V_r|), written as scan NetCDF.
+    The truth (wind, epsilon, L_V, sigma_V^2) goes to DIR/truth/truth.json, outside
+    the data folder, so that `cwproc retrieve DIR/data -o out/` reads only data.
+    """
+    out = Path(outdir)
+    data, truth = out / "data", out / "truth" / "truth.json"
+    hours = _DEFAULT_HOURS[instrument] if hours is None else hours
+    try:
+        if instrument == "streamline":
+            written = _streamline(
+                data, truth, hours, wind, direction, epsilon, outer_scale, snr, seed
+            )
+        else:
+            written = _cw(
+                data, truth, instrument, hours, wind, direction, epsilon, outer_scale, seed
+            )
+    except (CwprocError, OSError, ValueError) as exc:
+        fail(str(exc))
+        return
+    for path in written:
+        click.echo(f"wrote {path}")
+
+
+def _streamline(
+    data: Path,
+    truth: Path,
+    hours: float,
+    wind: float | None,
+    direction: float,
+    epsilon: float | None,
+    outer_scale: float | None,
+    snr: float,
+    seed: int,
+) -> list[Path]:
+    from cwproc.sim.sample_data import StreamLineSpec, noise_from_snr, write_streamline_series
+
+    base = StreamLineSpec()
+    n_scans = max(1, round(hours * 3600.0 / base.scan_period_s))
+    spec = dataclasses.replace(
+        base,
+        start="2024-01-01T00:00:00",
+        n_scans=n_scans,
+        scans_per_file=10,
+        wind_speed=base.wind_speed if wind is None else wind,
+        wind_direction_deg=direction,
+        epsilon=base.epsilon if epsilon is None else epsilon,
+        integral_scale_m=base.integral_scale_m if outer_scale is None else outer_scale,
+        noise_std=noise_from_snr(snr),
+        snr=snr,
+        seed=seed,
+    )
+    return write_streamline_series(data, truth, spec)
+
+
+def _cw(
+    data: Path,
+    truth: Path,
+    instrument: str,
+    hours: float,
+    wind: float | None,
+    direction: float,
+    epsilon: float | None,
+    outer_scale: float | None,
+    seed: int,
+) -> list[Path]:
+    from cwproc.config import load_config
+    from cwproc.sim.cw import ZEPHIR, write_cw_series
+    from cwproc.sim.montecarlo import lidar_from_config
+    from cwproc.sim.turbulence import epsilon_from_variance, variance_from_epsilon
+
+    sim = load_config("seed000").simulation
+    if instrument == "cw":
+        lidar = lidar_from_config(sim, 10.6e-6, 0.075)
+        heights = np.asarray(sim.heights_m)
+        speed = np.asarray(sim.wind_speed_m_s)
+        sigma2 = np.asarray(sim.sigma_v_m_s) ** 2
+        scale = np.asarray(sim.outer_scale_m)
+    else:
+        lidar = ZEPHIR
+        heights = np.asarray(_ZEPHIR_HEIGHTS)
+        speed = np.full(heights.size, 8.0)
+        scale = np.full(heights.size, 150.0)
+        sigma2 = variance_from_epsilon(0.01, scale)
+    if wind is not None:
+        speed = np.full(heights.size, wind)
+    if epsilon is not None or outer_scale is not None:
+        eps = (
+            epsilon_from_variance(sigma2, scale)
+            if epsilon is None
+            else np.full(heights.size, epsilon)
+        )
+        scale = scale if outer_scale is None else np.full(heights.size, outer_scale)
+        sigma2 = variance_from_epsilon(eps, scale)
+    n_scans = max(1, round(hours * 3600.0 / lidar.scan_period_s))
+    return write_cw_series(
+        data,
+        truth,
+        np.random.default_rng(seed),
+        lidar,
+        heights_m=heights,
+        wind_speed=speed,
+        wind_direction_deg=direction,
+        sigma2=sigma2,
+        outer_scale_m=scale,
+        n_scans=n_scans,
+        start=np.datetime64("2024-01-01T00:00:00"),
+    )

@@ -17,7 +17,10 @@ the lidar (z < 0, up to 9 % at R = 1000 m) is cut and Q_s renormalised
 from __future__ import annotations
 
 import functools
+import json
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import xarray as xr
@@ -499,3 +502,88 @@ def simulate_cw_scans(
         },
     )
     return ds, truth
+
+
+def write_cw_series(
+    folder: str | os.PathLike,
+    truth_path: str | os.PathLike,
+    rng: np.random.Generator,
+    lidar: CWLidar,
+    *,
+    heights_m: np.ndarray,
+    wind_speed: np.ndarray,
+    wind_direction_deg: float,
+    sigma2: np.ndarray,
+    outer_scale_m: np.ndarray,
+    n_scans: int,
+    start: np.datetime64,
+    scans_per_file: int = 10,
+) -> list[Path]:
+    """Simulate cw scans and write them as cwproc scan NetCDF files plus a truth JSON.
+
+    Parameters
+    ----------
+    folder : path
+        Folder of the line-of-sight files ``cw_<yyyymmdd>_<hhmmss>.nc``.
+    truth_path : path
+        Truth JSON (profiles of U, sigma_V^2, L_V, epsilon); keep it out of ``folder``.
+    scans_per_file : int
+        Scans per NetCDF file.
+    Other parameters
+        As :func:`simulate_cw_scans`.
+
+    Returns
+    -------
+    list of pathlib.Path
+        Files written, truth last.
+    """
+    from cwproc.io.scan_netcdf import write_scan_netcdf
+    from cwproc.sim.turbulence import epsilon_from_variance
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    ds, _ = simulate_cw_scans(
+        rng,
+        lidar,
+        heights_m=heights_m,
+        wind_speed=wind_speed,
+        wind_direction_deg=wind_direction_deg,
+        sigma2=sigma2,
+        outer_scale_m=outer_scale_m,
+        n_scans=n_scans,
+        start=start,
+    )
+    written = []
+    block = ds["scan"].values // scans_per_file
+    for k in np.unique(block):
+        part = ds.isel(ray=np.flatnonzero(block == k))
+        part = part.assign_coords(scan=part["scan"] - part["scan"].values[0])
+        stamp = np.datetime_as_string(part["time"].values[0], unit="s")
+        name = "cw_" + stamp.replace("-", "").replace(":", "").replace("T", "_") + ".nc"
+        part.attrs["source_files"] = [name]
+        written.append(write_scan_netcdf(part, folder / name))
+    h = np.atleast_1d(np.asarray(heights_m, dtype=float))
+    full = [
+        np.broadcast_to(np.asarray(x, dtype=float), h.shape)
+        for x in (wind_speed, sigma2, outer_scale_m)
+    ]
+    truth = {
+        "description": "truth of a simulated cw lidar series (cwproc virtual instrument)",
+        "instrument": lidar.name,
+        "heights_m": h.tolist(),
+        "focus_range_m": (h / np.sin(np.deg2rad(lidar.elevation_deg))).tolist(),
+        "wind_speed_m_s": full[0].tolist(),
+        "wind_direction_deg": float(wind_direction_deg),
+        "velocity_variance_m2_s2": full[1].tolist(),
+        "integral_scale_m": full[2].tolist(),
+        "epsilon_m2_s3": epsilon_from_variance(full[1], full[2]).tolist(),
+        "correlation_model": "Banakh et al. (1999), eq. 17",
+        "n_scans": int(n_scans),
+        "scan_period_s": lidar.scan_period_s,
+        "homodyne": bool(lidar.homodyne),
+    }
+    truth_path = Path(truth_path)
+    truth_path.parent.mkdir(parents=True, exist_ok=True)
+    truth_path.write_text(json.dumps(truth, indent=2, sort_keys=True) + "\n")
+    written.append(truth_path)
+    return written
