@@ -16,6 +16,7 @@ Run::
 from __future__ import annotations
 
 import argparse
+import os
 import resource
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -73,10 +74,16 @@ def main() -> None:
     stats = parameter_statistics(month)
     wall = time.perf_counter() - t0
     own, child = peak_rss_mb()
+    cpu = sum(
+        getattr(resource.getrusage(who), f)
+        for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)
+        for f in ("ru_utime", "ru_stime")
+    )
     n_samples = round(args.hours * 3600 * 10.7)
     print(f"hours: {args.hours:g} ({n_samples:,} samples x 3 components at 10.7 Hz)")
     print(f"windows typed: {month.sizes['window']} x 3 components, workers: {args.workers}")
-    print(f"wall time: {wall:.1f} s (target < 60 s)")
+    print(f"wall time: {wall:.1f} s (target < 60 s); CPU time {cpu:.1f} s")
+    print(f"load average at the end: {os.getloadavg()[0]:.1f} (others share the cores)")
     print(f"peak RSS: main {own:.0f} MB, largest worker {child:.0f} MB (target < 2048 MB)")
     print(occurrence.round(2).to_string())
     print(stats[stats["count"] > 0].round(3).to_string(index=False))
