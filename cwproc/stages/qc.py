@@ -211,11 +211,12 @@ def outlier_flags(
         base = sub.take(good) & present
         values = sub.take(velocity)
         design = vad_design(sub.take(azimuth), sub.take(elevation))
-        residuals = fit_least_absolute(values, design, base, homodyne=homodyne)
+        beta, residuals = fit_least_absolute(values, design, base, homodyne=homodyne)
         flagged = robust_outliers(residuals, base, threshold, min_spread)
         for _ in range(OUTLIER_PASSES):
-            fit = fit_scans(values, design, base & ~flagged, homodyne=homodyne)
+            fit = fit_scans(values, design, base & ~flagged, homodyne=homodyne, start=beta)
             flagged = robust_outliers(fit.residuals, base, threshold, min_spread)
+            beta = fit.beta
         index = sub.index[sub.present]
         outlier[index] = flagged[sub.present]
     return outlier

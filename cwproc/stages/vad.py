@@ -287,7 +287,12 @@ def fit_linear(velocity: FloatArray, design: FloatArray, valid: BoolArray) -> Ba
     return _finish(beta, inverse, determined, np.ones_like(determined), residuals, valid)
 
 
-def fit_homodyne(magnitude: FloatArray, design: FloatArray, valid: BoolArray) -> BatchedFit:
+def fit_homodyne(
+    magnitude: FloatArray,
+    design: FloatArray,
+    valid: BoolArray,
+    start: FloatArray | None = None,
+) -> BatchedFit:
     """Fit ``|V_r| = |A beta|`` (homodyne cw lidar, Wagner et al. (DTU)) for every (scan, gate).
 
     Gauss-Newton on ``|A beta|``: each step is the linear fit of ``sign(A beta) |V_r|``
@@ -303,6 +308,9 @@ def fit_homodyne(magnitude: FloatArray, design: FloatArray, valid: BoolArray) ->
     design : ndarray, shape (S, R, 3)
         :func:`vad_design` of each ray.
     valid : ndarray of bool, shape (S, R, G)
+    start : ndarray, shape (S, G, 3), optional
+        A starting ``beta`` (e.g. from a previous fit of the same data); replaces the
+        grid of sign patterns where it is finite.
 
     Returns
     -------
@@ -321,14 +329,18 @@ def fit_homodyne(magnitude: FloatArray, design: FloatArray, valid: BoolArray) ->
     # azimuth of each ray from the design row: theta = atan2(sin, cos)
     theta = np.arctan2(design[..., 0], design[..., 1])
     best_beta = _solve(inv0, design, y)
-    best_cost = cost(best_beta)
-    for t in np.deg2rad(np.arange(0.0, 180.0, HOMODYNE_GRID_STEP_DEG)):
-        signs = np.where(np.cos(theta - t) >= 0, 1.0, -1.0)[:, :, None]
-        beta = _solve(inv0, design, y * signs)
-        c = cost(beta)
-        better = c < best_cost
-        best_cost = np.where(better, c, best_cost)
-        best_beta = np.where(better[..., None], beta, best_beta)
+    warm = None if start is None else np.all(np.isfinite(start), axis=-1)
+    if warm is None or not warm.all():
+        best_cost = cost(best_beta)
+        for t in np.deg2rad(np.arange(0.0, 180.0, HOMODYNE_GRID_STEP_DEG)):
+            signs = np.where(np.cos(theta - t) >= 0, 1.0, -1.0)[:, :, None]
+            beta = _solve(inv0, design, y * signs)
+            c = cost(beta)
+            better = c < best_cost
+            best_cost = np.where(better, c, best_cost)
+            best_beta = np.where(better[..., None], beta, best_beta)
+    if start is not None and warm is not None:
+        best_beta = np.where(warm[..., None], start, best_beta)
     beta = best_beta
     signs = np.where(_model(design, beta) >= 0, 1.0, -1.0)
     converged = np.zeros(determined.shape, dtype=bool)
@@ -352,7 +364,7 @@ def fit_least_absolute(
     iterations: int = 20,
     floor: float = 0.01,
     tolerance: float = 0.005,
-) -> FloatArray:
+) -> tuple[FloatArray, FloatArray]:
     """Residuals about a least-absolute-deviations (L1) VAD fit of every (scan, gate).
 
     A robust first fit for outlier screening: with a balanced azimuth design the L1 fit
@@ -380,8 +392,9 @@ def fit_least_absolute(
 
     Returns
     -------
-    ndarray, shape (S, R, G)
-        Data minus model (homodyne: ``|V_r| - |A beta|``) (m s-1).
+    (beta, residuals) : ndarray (S, G, 3), ndarray (S, R, G)
+        The L1 coefficients (m s-1; NaN where not determined) and data minus model
+        (homodyne: ``|V_r| - |A beta|``) (m s-1).
     """
     start = fit_scans(values, design, valid, homodyne=homodyne)
     design = np.nan_to_num(design)
@@ -399,16 +412,23 @@ def fit_least_absolute(
         if change < tolerance:
             break
     model = _model(design, beta)
-    if homodyne:
-        return np.abs(values) - np.abs(model)
-    return values - model
+    residuals = np.abs(values) - np.abs(model) if homodyne else values - model
+    return np.where(ok[..., None], beta, np.nan), residuals
 
 
 def fit_scans(
-    velocity: FloatArray, design: FloatArray, valid: BoolArray, *, homodyne: bool
+    velocity: FloatArray,
+    design: FloatArray,
+    valid: BoolArray,
+    *,
+    homodyne: bool,
+    start: FloatArray | None = None,
 ) -> BatchedFit:
-    """:func:`fit_homodyne` when ``homodyne`` else :func:`fit_linear`."""
-    return (fit_homodyne if homodyne else fit_linear)(velocity, design, valid)
+    """:func:`fit_homodyne` (warm-started from ``start``) when ``homodyne``, else
+    :func:`fit_linear` (which needs no start)."""
+    if homodyne:
+        return fit_homodyne(velocity, design, valid, start)
+    return fit_linear(velocity, design, valid)
 
 
 # --------------------------------------------------------------------------------------
