@@ -416,12 +416,18 @@ def first_bad_row(table: np.ndarray, n_gates: int, ray_fields: int, gate_fields:
     pattern = np.zeros((block, 5), dtype=bool)
     pattern[0, :ray_fields] = True
     pattern[1:, :gate_fields] = True
-    expected = np.tile(pattern, (n_blocks, 1))[:n_rows]
-    index = np.tile(np.arange(-1, n_gates, dtype=np.float64), n_blocks)[:n_rows]
-    present = ~np.isnan(table)
-    ok = (present == expected).all(axis=1) & ~np.isinf(table).any(axis=1)
-    ok &= (table[:, 0] == index) | (index < 0)
-    bad = np.flatnonzero(~ok)
+    index = np.arange(-1, n_gates, dtype=np.float64)
+    if n_rows % block:  # incomplete last block: pad with rows that pass
+        padded = np.full((n_blocks * block, 5), np.nan)
+        padded[:n_rows] = table
+        padded[n_rows:] = np.where(np.tile(pattern, (n_blocks, 1))[n_rows:], 0.0, np.nan)
+        padded[n_rows:, 0] = np.tile(index, n_blocks)[n_rows:]
+        blocks = padded.reshape(n_blocks, block, 5)
+    else:
+        blocks = table.reshape(n_blocks, block, 5)
+    ok = (~np.isnan(blocks) == pattern).all(axis=2) & ~np.isinf(blocks).any(axis=2)
+    ok[:, 1:] &= blocks[:, 1:, 0] == index[1:]
+    bad = np.flatnonzero(~ok.ravel())
     return int(bad[0]) if bad.size else -1
 
 
