@@ -87,8 +87,9 @@ _SPECTRAL_WIDTH = re.compile(r"^\*{4}\s*Instrument spectral width\s*=\s*(\S+)\s*
 #: largest gate count accepted (guards against a garbled header asking for absurd memory)
 _MAX_GATES = 100_000
 
-#: bodies larger than this (bytes) are parsed in parallel chunks
-_PARALLEL_BYTES = 1 << 20
+#: bodies larger than this (bytes) are parsed in parallel chunks (not smaller: batch runs
+#: already read several files at once, and threads would oversubscribe the cores)
+_PARALLEL_BYTES = 8 << 20
 
 #: hours of a step back in decimal time that marks a wrap at midnight
 _WRAP_HOURS = 12.0

@@ -538,3 +538,20 @@ def test_writer_refuses_what_the_format_cannot_hold(hpl: Path, tmp_path: Path) -
     with pytest.raises(CwprocError, match="no rays"):
         write_hpl(ds.isel(ray=slice(0, 0)), tmp_path / "empty.hpl")
     assert not any(tmp_path.iterdir())
+
+
+def test_parallel_chunked_parse_equals_single_and_keeps_line_numbers(
+    hpl: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import cwproc.io.halo as halo
+
+    src = hpl / "User5_96_20190308_200500.hpl"
+    single = read_hpl(src)
+    monkeypatch.setattr(halo, "_PARALLEL_BYTES", 200_000)  # 2.7 MB -> one chunk per core
+    chunked = read_hpl(src)
+    for name in single.variables:
+        np.testing.assert_array_equal(chunked[name].values, single[name].values)
+    lines = src.read_bytes().split(b"\n")
+    lines[70000] += b" 7 8"  # a gate line deep in the second half gets 6 fields
+    err = _error(_write(tmp_path, lines))
+    assert err.line == 70001 and "6 fields" in err.problem
