@@ -264,9 +264,9 @@ class SimulationConfig:
     realisations: int = 1000
     #: largest number of scans N averaged; the paper: 10
     max_scans: int = 10
-    #: azimuth lags l = 1..max_lag of the structure-function fit (l dtheta <= 9 deg at 140
-    #: spectra per scan needs max_lag <= 3; 5 as in REFERENCE_VALUES.md section 3)
-    max_lag: int = 5
+    #: azimuth lags l = 1..max_lag of the structure-function fit; l dtheta <= 9 deg
+    #: (Smalikho (2020)) allows 3 at 140 spectra per scan, and 3 gives the smallest error
+    max_lag: int = 3
 
     def __post_init__(self) -> None:
         _positive(
