@@ -1,0 +1,244 @@
+"""Pulsed coherent Doppler lidar (Stream Line) scanning a frozen turbulent field.
+
+The lidar sits at ``lidar_position_m`` and rotates its beam at elevation ``phi``
+through 360 deg every ``scan_period_s`` (continuous scanning). Each ray accumulates
+over one azimuth step while the beam moves (the transverse averaging that gives
+``H_perp = sinc^2(pi dy kappa_2)``, Smalikho (2020), eq. 20), and each range gate is the
+radial velocity weighted along the beam by the pulsed range weighting
+
+.. math::
+
+    Q(s) = \\frac{1}{2\\Delta R}\\left[
+        \\operatorname{erf}\\frac{s + \\Delta R/2}{\\Delta p}
+      - \\operatorname{erf}\\frac{s - \\Delta R/2}{\\Delta p}\\right],
+
+a Gaussian pulse ``exp(-s^2/Delta_p^2)`` convolved with the rectangular range window
+of length ``Delta_R``. Its Fourier transform (kappa in cycles per metre) is
+``exp(-(pi Delta_p kappa)^2) sinc(pi Delta_R kappa)``, whose square is the physical
+longitudinal transfer function of Smalikho (2020), eq. 19 (with the pi of the Gaussian
+term, see ``reference/REFERENCE_VALUES.md``); ``Delta_p = c sigma_p/2``,
+``Delta_R = c T_w/2``, Stream Line 15.3 m and 18 m.
+
+The frozen field is carried by the mean wind (Taylor's hypothesis, Smalikho (2020),
+eq. 7): the velocity at point ``x`` and time ``t`` is ``U + v'(x - U t)``. White noise
+of standard deviation ``sigma_e`` is added to every estimate (Smalikho (2020), eq. 4).
+The result is the canonical scan dataset of ``docs/DEVELOPING.md``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import xarray as xr
+from scipy.special import erf
+
+from cwproc.physics.geometry import beam_unit_vector
+from cwproc.sim.field3d import FrozenField
+
+#: points of the range weighting beyond the rectangular window, in units of Delta_p
+_GAUSS_TAIL = 3.0
+#: largest number of field points interpolated at once (memory bound)
+_CHUNK_POINTS = 2_000_000
+
+
+def pulsed_range_weight(s_m: np.ndarray, delta_p_m: float, delta_r_m: float) -> np.ndarray:
+    """Range weighting Q(s) of a pulsed lidar gate (1/m), s from the gate centre (m).
+
+    Gaussian pulse ``exp(-s^2/Delta_p^2)/(sqrt(pi) Delta_p)`` convolved with a
+    rectangular window of length ``Delta_R``; integrates to 1. Its Fourier transform
+    squared is the longitudinal transfer function of Smalikho (2020), eq. 19 (physical
+    form, with pi in the Gaussian term).
+
+    Parameters
+    ----------
+    s_m : numpy.ndarray
+        Distance from the gate centre along the beam (m).
+    delta_p_m : float
+        Delta_p = c sigma_p / 2 (m).
+    delta_r_m : float
+        Delta_R = c T_w / 2 (m).
+    """
+    s = np.asarray(s_m, dtype=float)
+    return (erf((s + delta_r_m / 2) / delta_p_m) - erf((s - delta_r_m / 2) / delta_p_m)) / (
+        2 * delta_r_m
+    )
+
+
+def range_quadrature(
+    delta_p_m: float, delta_r_m: float, step_m: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes (m) and weights (sum 1) of the range weighting, out to 3 Delta_p past the window."""
+    half = delta_r_m / 2 + _GAUSS_TAIL * delta_p_m
+    n = int(np.ceil(half / step_m))
+    s = np.arange(-n, n + 1) * step_m
+    w = pulsed_range_weight(s, delta_p_m, delta_r_m)
+    return s, w / w.sum()
+
+
+def wind_components(speed_m_s: float, direction_deg: float) -> tuple[float, float]:
+    """(u, v) (m s-1) of a horizontal wind of given speed blowing *from* ``direction_deg``."""
+    d = np.deg2rad(direction_deg)
+    return float(-speed_m_s * np.sin(d)), float(-speed_m_s * np.cos(d))
+
+
+def sample_conical_scans(
+    field: FrozenField,
+    *,
+    elevation_deg: float,
+    ranges_m: Sequence[float] | np.ndarray,
+    rays_per_scan: int,
+    scan_period_s: float,
+    n_scans: int,
+    wind_speed_m_s: float,
+    wind_direction_deg: float,
+    noise_std_m_s: float,
+    seed: int,
+    vertical_wind_m_s: float = 0.0,
+    delta_p_m: float = 15.3,
+    delta_r_m: float = 18.0,
+    start_azimuth_deg: float = 0.0,
+    clockwise: bool = True,
+    start_time: str | np.datetime64 = "2024-01-01T00:00:00",
+    sweep_points: int = 4,
+    sweep_advection: bool = True,
+    range_step_m: float | None = None,
+    snr: float = 0.05,
+    lidar_position_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> xr.Dataset:
+    """Conical scans of a pulsed lidar through a frozen field advected by the mean wind.
+
+    Parameters
+    ----------
+    field : FrozenField
+        Turbulent fluctuations (zero mean), e.g. from
+        :func:`cwproc.sim.field3d.von_karman_field`.
+    elevation_deg : float
+        Elevation phi of the beam (deg).
+    ranges_m : sequence of float
+        Gate centres along the beam (m).
+    rays_per_scan : int
+        M, rays per 360 deg rotation; the azimuth step is 360/M deg.
+    scan_period_s : float
+        Duration T_scan of one rotation (s); rotation is continuous.
+    n_scans : int
+        Number of rotations.
+    wind_speed_m_s, wind_direction_deg : float
+        Mean horizontal wind (m s-1) and the direction it blows from (deg from north).
+    noise_std_m_s : float
+        sigma_e, standard deviation of the white estimation noise (m s-1).
+    seed : int
+        Seed of the noise generator.
+    vertical_wind_m_s : float
+        Mean vertical wind (m s-1).
+    delta_p_m, delta_r_m : float
+        Pulse and window lengths of the range weighting (m), Smalikho (2020), eq. 19.
+    start_azimuth_deg : float
+        Azimuth of the start of the first ray (deg).
+    clockwise : bool
+        Direction of rotation.
+    start_time : str or numpy.datetime64
+        UTC time of the start of the first ray.
+    sweep_points : int
+        Beam positions averaged across the azimuth step of each ray (transverse
+        averaging, Smalikho (2020), eq. 20).
+    sweep_advection : bool
+        ``True`` (physical): the field moves with the wind while the beam sweeps across
+        the ray, so in the air's frame the ray averages along the relative path.
+        ``False``: the sweep is taken at the ray's centre time, i.e. averaged over the
+        arc ``dy`` only, which is the model behind Smalikho (2020), eq. 15 (``H_perp``
+        with the fixed ``dy``; transport acts only between rays).
+    range_step_m : float, optional
+        Spacing of the nodes of the range weighting (m); the field spacing by default.
+    snr : float
+        Linear SNR written to the dataset (constant).
+    lidar_position_m : tuple of float
+        (x, y, z) of the lidar in the field (m).
+
+    Returns
+    -------
+    xarray.Dataset
+        Canonical scan dataset (dims ``ray``, ``range``) with attrs of a Stream Line and
+        the simulation truth (``sim_*`` attrs).
+    """
+    ranges = np.asarray(ranges_m, dtype=float)
+    if rays_per_scan < 3 or n_scans < 1 or sweep_points < 1:
+        raise ValueError("rays_per_scan >= 3, n_scans >= 1 and sweep_points >= 1 required")
+    if not (scan_period_s > 0 and noise_std_m_s >= 0 and ranges.size >= 1):
+        raise ValueError("scan_period_s > 0, noise_std_m_s >= 0 and at least one range needed")
+    step = field.spacing_m if range_step_m is None else float(range_step_m)
+    s_nodes, s_weights = range_quadrature(delta_p_m, delta_r_m, step)
+    u0, v0 = wind_components(wind_speed_m_s, wind_direction_deg)
+    mean_wind = np.array([u0, v0, vertical_wind_m_s])
+    sign = 1.0 if clockwise else -1.0
+    ray_duration = scan_period_s / rays_per_scan
+    n_rays = rays_per_scan * n_scans
+    t_centre = (np.arange(n_rays) + 0.5) * ray_duration
+    sub = ((np.arange(sweep_points) + 0.5) / sweep_points - 0.5) * ray_duration
+    pos0 = np.asarray(lidar_position_m, dtype=float)
+
+    points_per_ray = sweep_points * ranges.size * s_nodes.size
+    rays_per_chunk = max(1, _CHUNK_POINTS // points_per_ray)
+    velocity = np.empty((n_rays, ranges.size))
+    for start in range(0, n_rays, rays_per_chunk):  # memory-bounded chunks of rays
+        t = t_centre[start : start + rays_per_chunk, None] + sub[None, :]  # (r, J)
+        az = start_azimuth_deg + sign * 360.0 * t / scan_period_s
+        beam = beam_unit_vector(az, elevation_deg)  # (r, J, 3)
+        dist = ranges[:, None] + s_nodes[None, :]  # (G, P)
+        t_adv = t if sweep_advection else np.broadcast_to(t.mean(axis=1, keepdims=True), t.shape)
+        xyz = (
+            pos0
+            + beam[:, :, None, None, :] * dist[None, None, :, :, None]
+            - mean_wind * t_adv[:, :, None, None, None]
+        )  # (r, J, G, P, 3)
+        vel = field.interpolate(xyz[..., 0], xyz[..., 1], xyz[..., 2])  # (3, r, J, G, P)
+        vr = np.einsum("crjgp,rjc->rjgp", vel, beam) + (beam @ mean_wind)[:, :, None, None]
+        velocity[start : start + rays_per_chunk] = np.einsum("rjgp,p->rg", vr, s_weights) / (
+            sweep_points
+        )
+    rng = np.random.default_rng(seed)
+    velocity = velocity + noise_std_m_s * rng.standard_normal(velocity.shape)
+
+    t0 = np.datetime64(start_time, "ns")
+    times = t0 + np.round(t_centre * 1e9).astype("timedelta64[ns]")
+    azimuth = (start_azimuth_deg + sign * 360.0 * t_centre / scan_period_s) % 360.0
+    scan = (np.arange(n_rays) // rays_per_scan).astype(np.int64)
+    ds = xr.Dataset(
+        {
+            "radial_velocity": (("ray", "range"), velocity),
+            "snr": (("ray", "range"), np.full(velocity.shape, float(snr))),
+        },
+        coords={
+            "time": ("ray", times),
+            "azimuth": ("ray", azimuth),
+            "elevation": ("ray", np.full(n_rays, float(elevation_deg))),
+            "range": ("range", ranges),
+            "scan": ("ray", scan),
+        },
+        attrs={
+            "instrument": "Halo Photonics Stream Line",
+            "instrument_kind": "streamline",
+            "system_id": "sim",
+            "source_files": [],
+            "scan_type": "VAD",
+            "gate_length_m": float(delta_r_m),
+            "homodyne": 0,
+            "points_per_gate": max(1, round(delta_r_m / 3.0)),
+            "pulses_per_ray": 10000,
+            "focus_range_m": 65535.0,
+            "velocity_resolution_m_s": 0.0382,
+            "delta_p_m": float(delta_p_m),
+            "delta_r_m": float(delta_r_m),
+            "sim_epsilon": field.epsilon,
+            "sim_integral_scale_m": field.integral_scale_m,
+            "sim_field_seed": field.seed,
+            "sim_field_spacing_m": field.spacing_m,
+            "sim_noise_std": float(noise_std_m_s),
+            "sim_noise_seed": int(seed),
+            "sim_wind_speed": float(wind_speed_m_s),
+            "sim_wind_direction_deg": float(wind_direction_deg),
+            "sim_vertical_wind": float(vertical_wind_m_s),
+            "sim_scan_period_s": float(scan_period_s),
+        },
+    )
+    return ds
