@@ -332,14 +332,14 @@ def _chunks(body: bytes, n_chunks: int) -> list[tuple[int, int]]:
     return list(itertools.pairwise(cuts))
 
 
-def _tokenize(path: str | os.PathLike, body: bytes) -> np.ndarray:
-    """Every body line as a row of 5 floats (NaN where a line has fewer fields).
+def _tokenize(path: str | os.PathLike, body: bytes) -> list[np.ndarray]:
+    """The 5 fields of every body line as 5 float columns (NaN where a line is shorter).
 
     A field that is not a finite number (``abc``, ``nan``, ``inf``) is +inf, so that
     the structure check can tell it from a missing field; a line with more than 5
-    fields raises here. The pandas C tokenizer does the work; large
-    bodies are cut at line starts and parsed in threads (the tokenizer releases the
-    GIL).
+    fields raises here. The pandas C tokenizer does the work; very large bodies are
+    cut at line starts and parsed in threads (the tokenizer releases the GIL). The
+    columns may be read-only views of the parser's buffer.
     """
     workers = min(os.cpu_count() or 1, max(1, len(body) // _PARALLEL_BYTES))
     spans = _chunks(body, workers)
@@ -376,58 +376,64 @@ def _tokenize(path: str | os.PathLike, body: bytes) -> np.ndarray:
         raise InputFileError(
             path, f"cannot parse the data lines ({exc})", HEADER_LINES + 1
         ) from None
-    table = np.empty((sum(len(f) for f in frames), 5), dtype=np.float64)
-    row = 0
+    parts: list[list[np.ndarray]] = [[] for _ in range(5)]
     for frame in frames:
-        if all(dtype.kind in "fiu" for dtype in frame.dtypes):
-            table[row : row + len(frame)] = frame.to_numpy(dtype=np.float64)
-        else:
-            for j, name in enumerate(frame.columns):
-                col = frame[name]
-                if col.dtype.kind in "fiu":
-                    values = col.to_numpy(dtype=np.float64)
-                else:
-                    numbers = pd.to_numeric(col, errors="coerce")
-                    values = numbers.to_numpy(dtype=np.float64, na_value=np.nan, copy=True)
-                    # a field that is there but is no number: +inf marks it (never missing)
-                    values[col.notna().to_numpy() & np.isnan(values)] = np.inf
-                table[row : row + len(frame), j] = values
-        row += len(frame)
-    return table
+        for j, name in enumerate(frame.columns):
+            parts[j].append(_float_column(frame[name]))
+    return [p[0] if len(p) == 1 else np.concatenate(p) for p in parts]
 
 
-def _field_counts(table: np.ndarray) -> np.ndarray:
-    """Number of leading numeric fields of each row (a NaN ends the count)."""
-    present = np.isfinite(table)
-    # leading run of True: cumprod along the row
-    return np.cumprod(present, axis=1).sum(axis=1)
+def _float_column(col: pd.Series) -> np.ndarray:
+    """A parsed column as float64; a field that is there but no number becomes +inf."""
+    if col.dtype.kind in "fiu":
+        return col.to_numpy(dtype=np.float64)
+    numbers = pd.to_numeric(col, errors="coerce")
+    values = numbers.to_numpy(dtype=np.float64, na_value=np.nan, copy=True)
+    values[col.notna().to_numpy() & np.isnan(values)] = np.inf
+    return values
 
 
-def first_bad_row(table: np.ndarray, n_gates: int, ray_fields: int, gate_fields: int) -> int:
+def _fields_of_row(columns: list[np.ndarray], row: int) -> int:
+    """Number of leading finite fields of one body row (0 when there is no such row)."""
+    if row >= columns[0].size:
+        return 0
+    count = 0
+    for col in columns:
+        if not np.isfinite(col[row]):
+            break
+        count += 1
+    return count
+
+
+def first_bad_row(
+    columns: list[np.ndarray], n_gates: int, ray_fields: int, gate_fields: int
+) -> int:
     """Index of the first body row that breaks the ray/gate block structure, or -1.
 
     A row is good when exactly its first ``ray_fields`` (ray rows, every
     ``n_gates + 1``-th row) or ``gate_fields`` (gate rows) fields are present, all of them
     finite numbers (``+inf`` marks a field that is no number, see :func:`_tokenize`),
     and, for a gate row, when its gate index equals its position in the block.
+    Rows of an incomplete last block are checked as far as they go.
     """
-    n_rows = table.shape[0]
+    n_rows = columns[0].size
     block = n_gates + 1
     n_blocks = -(-n_rows // block)
-    pattern = np.zeros((block, 5), dtype=bool)
-    pattern[0, :ray_fields] = True
-    pattern[1:, :gate_fields] = True
+    pad = n_blocks * block - n_rows
+    ok = np.ones((n_blocks, block), dtype=bool)
     index = np.arange(-1, n_gates, dtype=np.float64)
-    if n_rows % block:  # incomplete last block: pad with rows that pass
-        padded = np.full((n_blocks * block, 5), np.nan)
-        padded[:n_rows] = table
-        padded[n_rows:] = np.where(np.tile(pattern, (n_blocks, 1))[n_rows:], 0.0, np.nan)
-        padded[n_rows:, 0] = np.tile(index, n_blocks)[n_rows:]
-        blocks = padded.reshape(n_blocks, block, 5)
-    else:
-        blocks = table.reshape(n_blocks, block, 5)
-    ok = (~np.isnan(blocks) == pattern).all(axis=2) & ~np.isinf(blocks).any(axis=2)
-    ok[:, 1:] &= blocks[:, 1:, 0] == index[1:]
+    for j, col in enumerate(columns):
+        if pad:
+            filler = np.where(j < gate_fields, 0.0, np.nan) * np.ones(pad)
+            if j == 0:
+                filler = np.tile(index, n_blocks)[n_rows:]
+            col = np.concatenate([col, filler])
+        grid = col.reshape(n_blocks, block)
+        ok[:, 0] &= np.isfinite(grid[:, 0]) if j < ray_fields else np.isnan(grid[:, 0])
+        gates = grid[:, 1:]
+        ok[:, 1:] &= np.isfinite(gates) if j < gate_fields else np.isnan(gates)
+        if j == 0:
+            ok[:, 1:] &= gates == index[1:]
     bad = np.flatnonzero(~ok.ravel())
     return int(bad[0]) if bad.size else -1
 
@@ -526,10 +532,6 @@ def diagnose(
     return InputFileError(path, "inconsistent ray block", first + start_row)
 
 
-def _fields_of_row(table: np.ndarray, row: int) -> int:
-    return int(_field_counts(table[row : row + 1])[0])
-
-
 def decimal_hours_to_time(hours: np.ndarray, start_time: np.datetime64) -> np.ndarray:
     """UTC times from Halo decimal hours since 00:00 of the start date.
 
@@ -626,37 +628,37 @@ def read_hpl(path: str | os.PathLike, **options: object) -> xr.Dataset:
         line = HEADER_LINES + 1 + len(_EOL.findall(body, 0, nul))
         raise InputFileError(path, "NUL byte in the data", line)
 
-    table = _tokenize(path, body)
+    columns = _tokenize(path, body)
+    n_rows = columns[0].size
     n_gates = header.n_gates
-    ray_fields = _fields_of_row(table, 0)
-    gate_fields = _fields_of_row(table, 1) if table.shape[0] > 1 else 0
+    ray_fields = _fields_of_row(columns, 0)
+    gate_fields = _fields_of_row(columns, 1)
     if ray_fields not in (3, 5) or gate_fields not in (4, 5):
         raise diagnose(path, body, 0, n_gates, None, None)
-    bad = first_bad_row(table, n_gates, ray_fields, gate_fields)
+    bad = first_bad_row(columns, n_gates, ray_fields, gate_fields)
     if bad >= 0:
         block_start = (bad // (n_gates + 1)) * (n_gates + 1)
         raise diagnose(path, body, block_start, n_gates, ray_fields, gate_fields)
     block = n_gates + 1
-    if table.shape[0] % block:
-        start = (table.shape[0] // block) * block
+    if n_rows % block:
+        start = (n_rows // block) * block
         raise diagnose(path, body, start, n_gates, ray_fields, gate_fields)
 
-    n_rays = table.shape[0] // block
-    blocks = table.reshape(n_rays, block, 5)
-    rays = blocks[:, 0, :]
-    gates = blocks[:, 1:, :]
+    n_rays = n_rows // block
+    grids = [col.reshape(n_rays, block) for col in columns]
+    rays = np.column_stack([g[:, 0] for g in grids])
     ray_lines = HEADER_LINES + 1 + np.arange(n_rays) * block
     _check_rays(path, rays, ray_lines)
 
     time = decimal_hours_to_time(rays[:, 0], header.start_time)
     azimuth, elevation = normalise_pointing(rays[:, 1], rays[:, 2])
     data_vars: dict[str, tuple] = {
-        "radial_velocity": (("ray", "range"), np.ascontiguousarray(gates[:, :, 1])),
-        "snr": (("ray", "range"), gates[:, :, 2] - 1.0),
-        "beta": (("ray", "range"), np.ascontiguousarray(gates[:, :, 3])),
+        "radial_velocity": (("ray", "range"), np.ascontiguousarray(grids[1][:, 1:])),
+        "snr": (("ray", "range"), grids[2][:, 1:] - 1.0),
+        "beta": (("ray", "range"), np.ascontiguousarray(grids[3][:, 1:])),
     }
     if gate_fields == 5:
-        data_vars["spectral_width"] = (("ray", "range"), np.ascontiguousarray(gates[:, :, 4]))
+        data_vars["spectral_width"] = (("ray", "range"), np.ascontiguousarray(grids[4][:, 1:]))
     if ray_fields == 5:
         data_vars["pitch"] = (("ray",), rays[:, 3].copy())
         data_vars["roll"] = (("ray",), rays[:, 4].copy())
