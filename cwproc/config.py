@@ -105,8 +105,11 @@ class VADConfig:
     #: homodyne cw data: direction (deg, from north, "from") used to resolve the 180 deg
     #: ambiguity when no measured reference is available
     reference_direction_deg: float | None = None
+    #: residual standard deviation (m/s) above which a fit is flagged "bad fit"
+    max_residual_std: float = 3.0
 
     def __post_init__(self) -> None:
+        _positive(self, "max_residual_std")
         if self.min_rays < 3:
             raise ValueError("min_rays: must be >= 3 (three unknowns u, v, w)")
         if not 0 < self.max_gap_deg <= 360:

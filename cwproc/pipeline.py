@@ -174,6 +174,7 @@ def process_scans(
         min_rays=config.vad.min_rays,
         max_gap_deg=config.vad.max_gap_deg,
         reference_direction_deg=config.vad.reference_direction_deg,
+        max_residual_std=config.vad.max_residual_std,
     )
     products = {"wind": wind}
     if not config.turbulence.enabled or int(wind.sizes.get("time", 0)) < 1:

@@ -79,6 +79,7 @@ def plot(source, out, kind, time_index, height, scan, window, component, config)
                 min_rays=cfg.vad.min_rays,
                 max_gap_deg=cfg.vad.max_gap_deg,
                 reference_direction_deg=cfg.vad.reference_direction_deg,
+                max_residual_std=cfg.vad.max_residual_std,
             )
             fig = plots.plot_vad_fit(screened, wind, scan=scan, height=height)
             path = plots.save_png(fig, out)
