@@ -1,0 +1,455 @@
+"""Dissipation rate, noise, variance and integral scale from D_L (stage ``epsilon``).
+
+Model of the azimuth structure function (Smalikho (2020), eq. 4, generalised by
+eqs. 14-15 to wind transport):
+
+.. math::
+
+    \\langle \\bar D_L(l\\Delta\\theta)\\rangle = \\varepsilon^{2/3} A(l\\Delta y) + 2\\sigma_e^2 ,
+
+with ``dy = dtheta R'`` (``R' = h/tan(phi)``) and ``A`` the A-function of the probe
+volume (:mod:`cwproc.physics.afunctions`, tabulated by :mod:`cwproc.physics.atable`):
+
+- method 1, ``A = A_1 = A_perp`` (no wind transport, valid for ``mu = U/V_s << 1``);
+- method 2, ``A = A_2`` of Smalikho (2020), eq. 15 with ``mu = U/V_s`` and
+  ``V_s = 2 pi R'/T_scan`` (Smalikho (2020), eq. 3).
+
+Estimates, per block of scans and height, all vectorised:
+
+- ``epsilon`` (method 2) and ``epsilon_method1``: Smalikho (2020), eq. 5,
+  ``eps_i = [(D(l) - D(1)) / (A_i(l dy) - A_i(dy))]^(3/2)`` with ``l = lag_number``;
+  their ratio is ``epsilon_ratio`` (identical to Smalikho (2020), eq. 21);
+- ``epsilon_fit`` and ``noise_std``: least squares of ``eps^(2/3) A_2(l dy) + 2 sigma_e^2``
+  over ``l = 1..L`` (``sigma_e`` set to 0 and the slope refitted when the intercept
+  comes out negative);
+- ``velocity_variance``: the variance of ``V'_L`` minus ``sigma_e^2`` plus the variance
+  lost to the volume averaging, ``eps^(2/3) int int Phi (1 - H_par H_perp)`` over the
+  2-D spectrum of Smalikho (2020), eq. 18 (small scales only, so the inertial form);
+- ``integral_scale``: ``L_V = c sigma_V^3 / eps``, Banakh et al. (1999), eq. 19, with the
+  correlation model named by ``model`` (``c = 1.331`` for the model of Banakh et al.
+  (1999), eq. 17, also used with ``model="inertial"``; ``c = 0.697`` for von Kármán).
+
+Finite outer scale (``model="von_karman"`` or ``"exponential"``): the inertial-range
+A-functions are a limit. ``eps`` and ``L_V`` are fitted together: for every candidate
+``L_V`` on a geometric grid over the A-table's outer-scale range, eq. 5 with the model's
+A-functions gives ``eps(L_V)`` and the fit ``sigma_e(L_V)``; the solution is the largest
+``L_V`` at which the model variance ``(eps L_V / c)^(2/3)`` (Banakh et al. (1999), eq. 19)
+equals the measured one (variance of ``V'_L`` corrected as above), interpolated in
+``log L_V``. The rule of the fallback to the inertial form: it is kept where ``L_V``
+cannot be determined (no positive corrected variance or no finite ``eps``), where the
+root lies above the table's range, and where every length involved -- the largest
+separation ``L dy (1 + mu)`` and the probe length ``probe.length_scale_m`` -- is below
+2 % of the inertial ``L_V`` (there the finite-scale A-functions differ from the inertial
+ones by about 1 % or less); everywhere else the finite-outer-scale A-functions are used.
+When even the smallest tabulated ``L_V`` gives too much variance, the lags are beyond
+the inertial range (flag 2).
+
+Flags (``turbulence_flag``, bits combine; a flagged value is NaN):
+
+- 1: too few pairs (``n_pairs`` < ``min_pairs`` at lag 1 or lag ``l``): no ``eps``;
+- 2: lag beyond the inertial range, ``l dy (1 + mu) > L_V`` (Smalikho (2020), after
+  eq. 4): no ``eps``;
+- 4: ``mu`` beyond the validity of method 1, ``eps_1/eps_2 > 1.1`` (Smalikho (2020),
+  eq. 21 and its discussion): ``epsilon_method1`` is NaN, ``epsilon`` stays;
+- 8: fit failed (``D(l) <= D(1)``, non-finite values, no mean wind for ``mu``, or
+  fewer than two lags within ``max_lag_deg``): no ``eps``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from cwproc.metadata import BANAKH_1999, SMALIKHO_2020
+from cwproc.physics import spectra
+from cwproc.physics.transfer import transverse
+
+#: turbulence_flag bits
+FLAG_TOO_FEW_PAIRS = 1
+FLAG_BEYOND_INERTIAL = 2
+FLAG_METHOD1_INVALID = 4
+FLAG_FIT_FAILED = 8
+
+#: eps_1/eps_2 above which method 1 is not used (Smalikho (2020), eq. 21: 10 % bias)
+METHOD1_RATIO_LIMIT = 1.1
+#: lengths below this fraction of L_V keep the inertial A-functions (see module doc)
+INERTIAL_FRACTION = 0.02
+
+
+def eq5_epsilon(d_l: np.ndarray, d_1: np.ndarray, a_l: np.ndarray, a_1: np.ndarray) -> np.ndarray:
+    """Two-lag estimate of the dissipation rate (m2 s-3), Smalikho (2020), eq. 5.
+
+    ``eps = [(D(l) - D(1)) / (A(l dy) - A(dy))]^(3/2)``; NaN where either difference is
+    not positive.
+
+    Parameters
+    ----------
+    d_l, d_1 : numpy.ndarray
+        Structure function at lags l and 1 (m2 s-2).
+    a_l, a_1 : numpy.ndarray
+        A-function at lags l and 1 (m^(2/3)).
+    """
+    num = d_l - d_1
+    den = a_l - a_1
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = num / den
+    return np.where((num > 0) & (den > 0), ratio, np.nan) ** 1.5
+
+
+def fit_structure_function(
+    d: np.ndarray, a: np.ndarray, valid: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Least squares of ``D = eps^(2/3) A + 2 sigma_e^2`` over the lags (last axis).
+
+    Smalikho (2020), eq. 4. Where the intercept comes out negative it is set to 0 and
+    the slope refitted through the origin.
+
+    Parameters
+    ----------
+    d : numpy.ndarray
+        Structure function (m2 s-2), lags on the last axis.
+    a : numpy.ndarray
+        A-function at the same lags (m^(2/3)).
+    valid : numpy.ndarray of bool
+        Lags to use.
+
+    Returns
+    -------
+    (epsilon, noise_std) : tuple of numpy.ndarray
+        eps (m2 s-3) and sigma_e (m s-1); NaN where fewer than two lags are valid.
+    """
+    w = valid & np.isfinite(d) & np.isfinite(a)
+    n = w.sum(axis=-1)
+    x = np.where(w, a, 0.0)
+    y = np.where(w, d, 0.0)
+    sx, sy = x.sum(-1), y.sum(-1)
+    sxx, sxy = (x * x).sum(-1), (x * y).sum(-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        slope = (n * sxy - sx * sy) / (n * sxx - sx**2)
+        intercept = (sy - slope * sx) / n
+        origin_slope = sxy / sxx
+    negative = intercept < 0
+    slope = np.where(negative, origin_slope, slope)
+    intercept = np.where(negative, 0.0, intercept)
+    ok = (n >= 2) & (slope > 0) & np.isfinite(slope)
+    eps = np.where(ok, np.where(ok, slope, 1.0) ** 1.5, np.nan)
+    noise = np.where(ok, np.sqrt(np.where(ok, intercept, 0.0) / 2.0), np.nan)
+    return eps, noise
+
+
+def averaging_loss(
+    probe: Any, dy: np.ndarray, range_m: np.ndarray, n_angle: int = 48, n_radius: int = 320
+) -> np.ndarray:
+    """Variance lost to the probe-volume averaging, per eps^(2/3) (m^(2/3)).
+
+    ``int_0^inf int_0^inf Phi(k1, k2) [1 - H_par(k1) H_perp(k2)] dk1 dk2`` with the
+    inertial 2-D spectrum of Smalikho (2020), eq. 18 and the transfer functions of eqs.
+    19-20 (the quadrant integral of ``Phi`` is the variance: ``A = 2 int int Phi
+    (1 - cos)``, eqs. 16-17). Polar quadrature, log-spaced in the radius, with the
+    analytic ``rho^(-2/3)`` tail above 1000 cycles m-1.
+
+    Parameters
+    ----------
+    probe : PulsedProbe or CWProbe
+        ``probe.longitudinal(kappa, range_m)`` gives H_par.
+    dy : numpy.ndarray
+        Transverse sampling (m).
+    range_m : numpy.ndarray
+        Distance of the probe from the lidar (m), same shape as ``dy``.
+    """
+    dy = np.asarray(dy, dtype=float)
+    shape = dy.shape
+    dy_f = dy.ravel()[:, None, None]
+    rng_f = np.broadcast_to(np.asarray(range_m, dtype=float), shape).ravel()[:, None, None]
+    alpha = (np.arange(n_angle) + 0.5) * (np.pi / 2) / n_angle
+    t = np.linspace(np.log(1e-6), np.log(1e3), n_radius)
+    rho = np.exp(t)[None, None, :]
+    ca, sa = np.cos(alpha)[None, :, None], np.sin(alpha)[None, :, None]
+    c = spectra.exact_plane_constant()
+    angular = c * (1 + (8 / 3) * sa**2)
+    out = np.empty(dy_f.shape[0])
+    chunk = max(1, 2_000_000 // (n_angle * n_radius))
+    for i in range(0, dy_f.shape[0], chunk):  # memory-bounded chunks, each vectorised
+        h = probe.longitudinal(rho * ca, rng_f[i : i + chunk]) * transverse(
+            rho * sa, dy_f[i : i + chunk]
+        )
+        f = angular * rho ** (-2 / 3) * (1 - h)
+        radial = np.trapezoid(f, t, axis=-1)
+        out[i : i + chunk] = radial.sum(axis=-1) * (np.pi / 2) / n_angle
+    tail = 1.5 * 1e3 ** (-2 / 3) * c * (np.pi / 2) * (1 + (8 / 3) * 0.5)
+    return (out + tail).reshape(shape)
+
+
+def _evaluate(table: Any, lags: np.ndarray, height: np.ndarray, mu: np.ndarray, outer) -> tuple:
+    """ATable.evaluate on broadcast, flattened arguments; returns (A1, A2) in that shape."""
+    args = [lags, height, mu] + ([] if outer is None else [outer])
+    b = np.broadcast_arrays(*[np.asarray(x, dtype=float) for x in args])
+    shape = b[0].shape
+    flat = [x.ravel() for x in b]
+    a1, a2 = table.evaluate(
+        flat[0], flat[1], flat[2], outer_scale_m=None if outer is None else flat[3]
+    )
+    return np.asarray(a1, float).reshape(shape), np.asarray(a2, float).reshape(shape)
+
+
+def _tables(probe: Any, phi: float, dtheta: float, n_lags: int, model: str, options: dict) -> tuple:
+    """The inertial A-table and, for finite-outer-scale models, the model's table."""
+    from cwproc.physics.atable import get_a_table
+
+    inertial = get_a_table(
+        probe,
+        phi_deg=phi,
+        delta_theta_deg=dtheta,
+        n_lags=n_lags,
+        model="inertial",
+        **{k: v for k, v in options.items() if k != "outer_scale_range_m"},
+    )
+    if model == "inertial":
+        return inertial, None
+    finite = get_a_table(
+        probe, phi_deg=phi, delta_theta_deg=dtheta, n_lags=n_lags, model=model, **options
+    )
+    return inertial, finite
+
+
+def estimate_epsilon(
+    sf: xr.Dataset,
+    *,
+    probe: Any,
+    lag_number: int,
+    model: str,
+    min_pairs: int = 100,
+    n_outer_scales: int = 64,
+    table_options: dict | None = None,
+) -> xr.Dataset:
+    """Dissipation rate (methods 1 and 2), noise, variance and integral scale.
+
+    See the module docstring for the equations, the finite-outer-scale rule and the
+    flags.
+
+    Parameters
+    ----------
+    sf : xarray.Dataset
+        Output of :func:`cwproc.stages.structure.azimuth_structure_function`.
+    probe : PulsedProbe or CWProbe
+        Probe volume (:func:`cwproc.physics.transfer.probe_from_config`).
+    lag_number : int
+        l of Smalikho (2020), eq. 5 (>= 2); the largest available lag is used when
+        ``l dtheta`` exceeds the structure function's lags (recorded in the attrs).
+    model : {"inertial", "von_karman", "exponential"}
+        Spectrum model of the A-functions and of L_V (Banakh et al. (1999), eqs. 17, 19).
+    min_pairs : int
+        Fewest ray pairs at lags 1 and l for an estimate (flag 1 below).
+    n_outer_scales : int
+        Geometric nodes of L_V searched for the root of the variance condition
+        (finite-outer-scale models).
+    table_options : dict, optional
+        Keyword arguments of :func:`cwproc.physics.atable.get_a_table` (``cache_dir``,
+        ``height_range_m``, ``mu_max``, ``outer_scale_range_m``).
+
+    Returns
+    -------
+    xarray.Dataset
+        Turbulence product (dims ``time``, ``height``, ``lag``).
+    """
+    if model not in spectra.MODELS:
+        raise ValueError(f"unknown model {model!r}; choose one of {', '.join(spectra.MODELS)}")
+    if lag_number < 2:
+        raise ValueError("lag_number must be >= 2 (Smalikho (2020), eq. 5)")
+    options = dict(table_options or {})
+    d = sf["structure_function"].transpose("time", "height", "lag").values.astype(float)
+    pairs = sf["n_pairs"].transpose("time", "height", "lag").values
+    n_t, n_h, n_l = d.shape
+    height = sf["height"].values.astype(float)
+    phi = sf["elevation"].values.astype(float)
+    dtheta = sf["azimuth_step"].values.astype(float)
+    t_scan = sf["scan_period"].values.astype(float)
+    u_mean = sf["wind_speed"].transpose("time", "height").values.astype(float)
+    var_raw = sf["radial_velocity_variance"].transpose("time", "height").values.astype(float)
+    if "range" in sf.coords:
+        rng = sf["range"].values.astype(float)
+    else:
+        rng = height / np.sin(np.deg2rad(np.nanmean(phi)))
+
+    radius = height[None, :] / np.tan(np.deg2rad(phi))[:, None]  # R', Smalikho (2020), eq. 3
+    dy = np.deg2rad(dtheta)[:, None] * radius
+    v_s = 2 * np.pi * radius / t_scan[:, None]
+    mu = u_mean / v_s
+    mu_eval = np.nan_to_num(mu, nan=0.0)
+    range_th = np.broadcast_to(rng[None, :], (n_t, n_h))
+
+    lag_used = int(min(lag_number, n_l))
+    flag = np.zeros((n_t, n_h), dtype=np.int16)
+    lags = np.arange(1, n_l + 1, dtype=float)
+    a1 = np.full(d.shape, np.nan)
+    a2 = np.full(d.shape, np.nan)
+    # one pair of A-tables per (elevation, azimuth step), evaluated for all blocks at once
+    key_phi = np.round(phi, 3)
+    key_dth = np.round(dtheta, 4)
+    groups = {}
+    if n_l >= 2:
+        for p, q in {(p, q) for p, q in zip(key_phi, key_dth, strict=True) if np.isfinite(p + q)}:
+            rows = (key_phi == p) & (key_dth == q)
+            groups[(p, q)] = (rows, _tables(probe, float(p), float(q), n_l, model, options))
+            a1[rows], a2[rows] = _evaluate(
+                groups[(p, q)][1][0],
+                lags[None, None, :],
+                height[None, :, None],
+                mu_eval[rows][:, :, None],
+                None,
+            )
+
+    valid_lag = pairs >= min_pairs
+    few = ~(valid_lag[..., 0] & valid_lag[..., lag_used - 1])
+    flag |= np.where(few, FLAG_TOO_FEW_PAIRS, 0).astype(np.int16)
+    loss = averaging_loss(probe, dy, range_th)
+    c_model = spectra.integral_scale_coefficient("exponential" if model == "inertial" else model)
+
+    def solve(a1_: np.ndarray, a2_: np.ndarray, dd: np.ndarray, vl: np.ndarray) -> tuple:
+        e2 = eq5_epsilon(dd[..., lag_used - 1], dd[..., 0], a2_[..., lag_used - 1], a2_[..., 0])
+        e1 = eq5_epsilon(dd[..., lag_used - 1], dd[..., 0], a1_[..., lag_used - 1], a1_[..., 0])
+        efit, noise = fit_structure_function(dd, a2_, vl)
+        return e1, e2, efit, noise
+
+    def variance(eps: np.ndarray, noise: np.ndarray, raw: np.ndarray, lost: np.ndarray):
+        return raw - np.nan_to_num(noise, nan=0.0) ** 2 + eps ** (2 / 3) * lost
+
+    e1, e2, efit, noise = solve(a1, a2, d, valid_lag)
+    sigma2 = variance(e2, noise, var_raw, loss)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / e2, np.nan)
+    too_small = np.zeros((n_t, n_h), dtype=bool)
+    finite_used = np.zeros((n_t, n_h), dtype=bool)
+    if model != "inertial" and groups:
+        probe_len = np.broadcast_to(np.asarray(probe.length_scale_m(range_th), float), (n_t, n_h))
+        longest = np.maximum(n_l * dy * (1 + mu_eval), probe_len)
+        need = np.isfinite(l_v) & (longest > INERTIAL_FRACTION * l_v)
+        lo, hi = options.get("outer_scale_range_m", (10.0, 3000.0))
+        nodes = np.geomspace(lo, hi, n_outer_scales)
+        for rows, (_, table) in groups.values():  # one table per configuration
+            sel = need & rows[:, None]
+            if not np.any(sel):
+                continue
+            ti, hi_ = np.nonzero(sel)
+            # A-functions at every candidate L_V: (cells, nodes, lags)
+            f1, f2 = _evaluate(
+                table,
+                lags[None, None, :],
+                height[hi_][:, None, None],
+                mu_eval[ti, hi_][:, None, None],
+                nodes[None, :, None],
+            )
+            dd = d[ti, hi_][:, None, :]
+            vl = valid_lag[ti, hi_][:, None, :]
+            _, c2, _, cnoise = solve(f1, f2, dd, vl)
+            s2 = variance(c2, cnoise, var_raw[ti, hi_][:, None], loss[ti, hi_][:, None])
+            with np.errstate(invalid="ignore", divide="ignore"):
+                # Banakh et al. (1999), eq. 19: the model variance (eps L_V / c)^(2/3)
+                # must equal the measured one; the largest root is the solution
+                resid = np.log((c2 * nodes[None, :] / c_model) ** (2 / 3)) - np.log(s2)
+            sign_change = (resid[:, :-1] < 0) & (resid[:, 1:] >= 0)
+            has_root = sign_change.any(axis=1)
+            last = n_outer_scales - 2 - np.argmax(sign_change[:, ::-1], axis=1)
+            r0 = resid[np.arange(last.size), last]
+            r1 = resid[np.arange(last.size), last + 1]
+            frac = np.clip(r0 / (r0 - r1), 0.0, 1.0)
+            log_root = np.log(nodes[last]) + frac * (np.log(nodes[last + 1]) - np.log(nodes[last]))
+            root = np.exp(log_root)
+            below = ~has_root & np.all(resid > 0, axis=1)  # L_V < lo: lags not inertial
+            use = has_root
+            if np.any(use):
+                g1, g2 = _evaluate(
+                    table,
+                    lags[None, :],
+                    height[hi_[use]][:, None],
+                    mu_eval[ti[use], hi_[use]][:, None],
+                    root[use][:, None],
+                )
+                a1[ti[use], hi_[use]] = g1
+                a2[ti[use], hi_[use]] = g2
+                finite_used[ti[use], hi_[use]] = True
+            too_small[ti[below], hi_[below]] = True
+        e1, e2, efit, noise = solve(a1, a2, d, valid_lag)
+        sigma2 = variance(e2, noise, var_raw, loss)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / e2, np.nan)
+
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = ((a2[..., lag_used - 1] - a2[..., 0]) / (a1[..., lag_used - 1] - a1[..., 0])) ** 1.5
+
+    beyond = too_small | (np.isfinite(l_v) & (lag_used * dy * (1 + mu_eval) > l_v))
+    flag |= np.where(beyond, FLAG_BEYOND_INERTIAL, 0).astype(np.int16)
+    failed = ~np.isfinite(e2) | ~np.isfinite(mu) | (n_l < 2)
+    flag |= np.where(failed, FLAG_FIT_FAILED, 0).astype(np.int16)
+    bad = (flag & (FLAG_TOO_FEW_PAIRS | FLAG_BEYOND_INERTIAL | FLAG_FIT_FAILED)) > 0
+    m1_invalid = ~(ratio <= METHOD1_RATIO_LIMIT)
+    flag |= np.where(m1_invalid & ~bad, FLAG_METHOD1_INVALID, 0).astype(np.int16)
+
+    eps2 = np.where(bad, np.nan, e2)
+    eps1 = np.where(bad | m1_invalid, np.nan, e1)
+    few_fit = (valid_lag.sum(axis=-1) < 2) | ~np.isfinite(noise)
+    out_noise = np.where(few_fit, np.nan, noise)
+    out_fit = np.where(few_fit | bad, np.nan, efit)
+    out_sigma2 = np.where(bad | ~(sigma2 > 0), np.nan, sigma2)
+    out_scale = np.where(bad, np.nan, l_v)
+
+    dims = ("time", "height")
+    out = xr.Dataset(
+        {
+            "structure_function": sf["structure_function"],
+            "n_pairs": sf["n_pairs"],
+            "epsilon": (dims, eps2),
+            "epsilon_method1": (dims, eps1),
+            "epsilon_ratio": (dims, ratio),
+            "epsilon_fit": (dims, out_fit),
+            "mu": (dims, mu),
+            "scan_speed": (dims, v_s),
+            "transverse_resolution": (dims, dy),
+            "noise_std": (dims, out_noise),
+            "velocity_variance": (dims, out_sigma2),
+            "integral_scale": (dims, out_scale),
+            "wind_speed": sf["wind_speed"],
+            "n_scans": sf["n_scans"],
+            "turbulence_flag": (dims, flag),
+        },
+        coords=sf.coords,
+    )
+    common = {
+        "model": model,
+        "lag_number": lag_used,
+        "lag_number_requested": int(lag_number),
+        "min_pairs": int(min_pairs),
+        "probe": repr(probe),
+    }
+    out["integral_scale"].attrs["finite_outer_scale_cells"] = int(finite_used.sum())
+    out["epsilon"].attrs.update(
+        common,
+        method="Smalikho (2020), eq. 5 with A_2 of eq. 15 (method 2); finite-outer-scale "
+        f"A-functions where a length exceeds {INERTIAL_FRACTION:g} L_V",
+        references=SMALIKHO_2020 + ", eqs. 4-5, 15-20",
+    )
+    out["epsilon_method1"].attrs.update(
+        common,
+        method="Smalikho (2020), eq. 5 with A_1 = A_perp (method 1); NaN (flag 4) where "
+        f"eps1/eps2 > {METHOD1_RATIO_LIMIT}",
+    )
+    out["epsilon_fit"].attrs.update(
+        common, method="least squares of eps^(2/3) A_2 + 2 sigma_e^2 over all lags"
+    )
+    out["noise_std"].attrs.update(
+        method="intercept 2 sigma_e^2 of the least-squares fit, Smalikho (2020), eq. 4"
+    )
+    out["velocity_variance"].attrs.update(
+        method="variance of V'_L minus sigma_e^2 plus the volume-averaging loss "
+        "eps^(2/3) int int Phi (1 - H_par H_perp), Smalikho (2020), eqs. 18-20"
+    )
+    out["integral_scale"].attrs.update(
+        method=f"L_V = {c_model:.4g} sigma_V^3 / eps",
+        correlation_model="exponential (Banakh et al. (1999), eq. 17)"
+        if model in ("inertial", "exponential")
+        else "von Karman",
+        references=BANAKH_1999 + ", eq. 19",
+    )
+    return out

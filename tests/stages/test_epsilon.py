@@ -1,0 +1,208 @@
+"""Dissipation rate from D_L (Smalikho (2020), eqs. 4-5, 15-21; Banakh et al. (1999), eq. 19)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from cwproc.physics import spectra
+from cwproc.physics.atable import get_a_table
+from cwproc.physics.transfer import PulsedProbe
+from cwproc.stages.epsilon import (
+    FLAG_BEYOND_INERTIAL,
+    FLAG_FIT_FAILED,
+    FLAG_METHOD1_INVALID,
+    FLAG_TOO_FEW_PAIRS,
+    averaging_loss,
+    eq5_epsilon,
+    estimate_epsilon,
+    fit_structure_function,
+)
+
+PHI = 35.3  # deg
+DTHETA = 2.0  # deg -> lags 1..4 within 9 deg
+N_LAGS = 4
+# dy = 6 m at this height: the row (phi 35.3, dy 6) of REFERENCE_VALUES.md section 1.3.pi
+H_DY6 = 6.0 * np.tan(np.deg2rad(PHI)) / np.deg2rad(DTHETA)
+HEIGHTS = np.array([H_DY6, 140.0])
+T_SCAN = 60.0  # s
+PROBE = PulsedProbe(15.3, 18.0, "physical")
+
+
+@pytest.fixture(scope="module")
+def options(tmp_path_factory):
+    """A-table options: a private cache and the heights/outer scales these tests need."""
+    return {
+        "cache_dir": str(tmp_path_factory.mktemp("atable")),
+        "height_range_m": (100.0, 150.0),
+        "outer_scale_range_m": (20.0, 600.0),
+    }
+
+
+def scan_speed(h):
+    return 2 * np.pi * h / np.tan(np.deg2rad(PHI)) / T_SCAN  # Smalikho (2020) eq. 3
+
+
+def make_sf(d, *, mu, variance=1.0, pairs=1000):
+    """A structure-function dataset (stage structure schema) with given D_L and mu."""
+    d = np.asarray(d, dtype=float)
+    n_t, n_h, n_l = d.shape
+    u = np.asarray(mu, dtype=float) * scan_speed(HEIGHTS)[None, :]
+    return xr.Dataset(
+        {
+            "structure_function": (("time", "height", "lag"), d),
+            "n_pairs": (("time", "height", "lag"), np.broadcast_to(pairs, d.shape).copy()),
+            "radial_velocity_variance": (
+                ("time", "height"),
+                np.broadcast_to(variance, (n_t, n_h)).astype(float),
+            ),
+            "wind_speed": (("time", "height"), np.broadcast_to(u, (n_t, n_h)).copy()),
+            "azimuth_step": ("time", np.full(n_t, DTHETA)),
+            "scan_period": ("time", np.full(n_t, T_SCAN)),
+            "n_scans": ("time", np.full(n_t, 10)),
+        },
+        coords={
+            "time": np.datetime64("2024-01-01T00:00", "ns")
+            + np.arange(n_t) * np.timedelta64(10, "m"),
+            "height": HEIGHTS,
+            "range": ("height", HEIGHTS / np.sin(np.deg2rad(PHI))),
+            "lag": np.arange(1, n_l + 1),
+            "elevation": ("time", np.full(n_t, PHI)),
+        },
+    )
+
+
+def model_d(table, eps, noise, mu, outer=None):
+    """D_L = eps^(2/3) A_2 + 2 sigma_e^2 (Smalikho (2020), eq. 4) on the (time, height) grid."""
+    mu = np.asarray(mu, dtype=float)
+    lags = np.arange(1, N_LAGS + 1)
+    _, a2 = table.evaluate(
+        lags[None, None, :], HEIGHTS[None, :, None], mu[..., None], outer_scale_m=outer
+    )
+    return eps ** (2 / 3) * a2 + 2 * noise**2
+
+
+def test_eq5_and_least_squares_invert_the_model_exactly():
+    a = np.array([[1.0, 2.5, 3.7, 4.6]])
+    d = 0.01 ** (2 / 3) * a + 2 * 0.2**2
+    assert eq5_epsilon(d[:, 2], d[:, 0], a[:, 2], a[:, 0])[0] == pytest.approx(0.01, rel=1e-12)
+    eps, noise = fit_structure_function(d, a, np.ones_like(a, dtype=bool))
+    assert eps[0] == pytest.approx(0.01, rel=1e-10)
+    assert noise[0] == pytest.approx(0.2, rel=1e-10)
+    # D(l) <= D(1): eq. 5 undefined
+    assert np.isnan(eq5_epsilon(np.array([0.1]), np.array([0.2]), a[:, 2], a[:, 0]))[0]
+    # a negative intercept is clipped to sigma_e = 0 and the slope refitted through 0
+    eps0, noise0 = fit_structure_function(0.01 ** (2 / 3) * a - 0.05, a, np.ones_like(a, bool))
+    assert noise0[0] == 0.0 and eps0[0] < 0.01
+
+
+def test_averaging_loss_is_the_filtered_variance_deficit():
+    """Loss -> (1/2)[(8/3) r^(2/3) - A_perp(r)] at large r (Smalikho (2020), eqs. 16-20).
+
+    REFERENCE_VALUES.md 1.2 with C = 0.0652 (dy = 3 m, printed Gaussian term): at r = 60 m
+    the deficit is (40.8698 - 33.64765)/2 = 3.611; the limit r -> inf is a little larger.
+    """
+    printed = PulsedProbe(15.3, 18.0, "printed")
+    loss = averaging_loss(printed, np.array([3.0]), np.array([100.0]))[0]
+    c = 0.0652 / spectra.exact_plane_constant()  # the reference used the printed C
+    assert 3.611 < loss * c < 3.611 * 1.08
+    # more averaging (larger dy) loses more variance
+    assert averaging_loss(PROBE, np.array([12.0]), np.array([100.0]))[0] > loss
+
+
+@pytest.mark.slow
+def test_exact_model_data_give_eps_noise_and_the_eq21_ratio(options):
+    table = get_a_table(
+        PROBE,
+        phi_deg=PHI,
+        delta_theta_deg=DTHETA,
+        n_lags=N_LAGS,
+        model="inertial",
+        cache_dir=options["cache_dir"],
+        height_range_m=options["height_range_m"],
+    )
+    mu = np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]])
+    d = model_d(table, 0.003, 0.15, mu)
+    out = estimate_epsilon(
+        make_sf(d, mu=mu), probe=PROBE, lag_number=3, model="inertial", table_options=options
+    )
+    np.testing.assert_allclose(out["epsilon"].values, 0.003, rtol=1e-9)
+    np.testing.assert_allclose(out["epsilon_fit"].values, 0.003, rtol=1e-9)
+    np.testing.assert_allclose(out["noise_std"].values, 0.15, rtol=1e-9)
+    np.testing.assert_allclose(out["mu"].values, mu, rtol=1e-12)
+    # eq. 21 at phi 35.3, dy 6 m, l = 3 (REFERENCE_VALUES.md 1.3.pi): 1, 1.1575, 2.4039
+    np.testing.assert_allclose(out["epsilon_ratio"].values[:, 0], [1.0, 1.1575, 2.4039], rtol=2e-3)
+    np.testing.assert_allclose(out["transverse_resolution"].values[0, 0], 6.0, rtol=1e-9)
+    # method 1 beyond its validity (ratio > 1.1): NaN with flag 4, method 2 unaffected
+    flag = out["turbulence_flag"].values
+    np.testing.assert_array_equal(flag[0], [0, 0])
+    assert np.all(flag[1:] & FLAG_METHOD1_INVALID)
+    assert np.all(np.isnan(out["epsilon_method1"].values[1:]))
+    np.testing.assert_allclose(out["epsilon_method1"].values[0], 0.003, rtol=1e-9)
+
+
+@pytest.mark.slow
+def test_flags_explain_every_missing_value(options):
+    table = get_a_table(
+        PROBE,
+        phi_deg=PHI,
+        delta_theta_deg=DTHETA,
+        n_lags=N_LAGS,
+        model="inertial",
+        cache_dir=options["cache_dir"],
+        height_range_m=options["height_range_m"],
+    )
+    mu = np.zeros((4, 2))
+    d = model_d(table, 0.003, 0.1, mu)
+    pairs = np.full(d.shape, 1000)
+    pairs[0, 0, :] = 50  # too few pairs
+    d[1, 0, 2] = d[1, 0, 0] * 0.9  # D(3) < D(1): fit fails
+    sf = make_sf(d, mu=mu, pairs=pairs)
+    sf["wind_speed"][2, 0] = np.nan  # no wind for mu
+    sf["radial_velocity_variance"][3, 0] = 1e-4  # tiny variance: L_V below the lags
+    out = estimate_epsilon(sf, probe=PROBE, lag_number=3, model="inertial", table_options=options)
+    flag = out["turbulence_flag"].values
+    assert flag[0, 0] & FLAG_TOO_FEW_PAIRS
+    assert flag[1, 0] & FLAG_FIT_FAILED
+    assert flag[2, 0] & FLAG_FIT_FAILED
+    assert flag[3, 0] & FLAG_BEYOND_INERTIAL
+    assert np.all(np.isnan(out["epsilon"].values[:, 0]))
+    np.testing.assert_array_equal(flag[:, 1], 0)
+    np.testing.assert_allclose(out["epsilon"].values[:, 1], 0.003, rtol=1e-9)
+
+
+@pytest.mark.slow
+def test_finite_outer_scale_fit_recovers_eps_and_integral_scale(options):
+    """Data of a von Karman field with L_V = 60 m (lags up to 24 m, probe ~48 m).
+
+    The inertial-range A-functions bias eps low (REFERENCE_VALUES.md section 3); fitting
+    eps with L_V through sigma_V^2 = (eps L_V / c)^(2/3) (Banakh et al. (1999), eq. 19)
+    recovers both.
+    """
+    eps, noise, big_l = 0.003, 0.1, 60.0
+    table = get_a_table(
+        PROBE,
+        phi_deg=PHI,
+        delta_theta_deg=DTHETA,
+        n_lags=N_LAGS,
+        model="von_karman",
+        **options,
+    )
+    mu = np.full((1, 2), 0.5)
+    d = model_d(table, eps, noise, mu, outer=big_l)
+    r = HEIGHTS / np.sin(np.deg2rad(PHI))
+    dy = np.deg2rad(DTHETA) * HEIGHTS / np.tan(np.deg2rad(PHI))
+    sigma2 = spectra.variance_from(eps, big_l, "von_karman")
+    # what the block variance of V'_L shows: sigma_V^2 minus the averaging loss plus noise
+    var_raw = sigma2 - eps ** (2 / 3) * averaging_loss(PROBE, dy, r) + noise**2
+    sf = make_sf(d, mu=mu, variance=var_raw[None, :])
+    vk = estimate_epsilon(sf, probe=PROBE, lag_number=3, model="von_karman", table_options=options)
+    np.testing.assert_allclose(vk["epsilon"].values, eps, rtol=0.02)
+    np.testing.assert_allclose(vk["integral_scale"].values, big_l, rtol=0.05)
+    np.testing.assert_allclose(vk["velocity_variance"].values, sigma2, rtol=0.03)
+    np.testing.assert_allclose(vk["noise_std"].values, noise, rtol=0.05)
+    inertial = estimate_epsilon(
+        sf, probe=PROBE, lag_number=3, model="inertial", table_options=options
+    )
+    assert np.all(inertial["epsilon"].values < 0.9 * eps)
