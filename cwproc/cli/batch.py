@@ -6,6 +6,7 @@ import datetime as _dt
 import logging
 import signal
 import sys
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -44,10 +45,8 @@ def batch_logging(log_file: str | None, verbose: bool) -> Iterator[None]:
         handler = logging.StreamHandler(sys.stderr)
         handler.setLevel(logging.DEBUG)
         handlers.append(handler)
-    if not handlers:
-        handlers.append(logging.NullHandler())  # keep logging's last-resort stderr quiet
     formatter = logging.Formatter(_LOG_FORMAT, datefmt="%Y-%m-%dT%H:%M:%SZ")
-    formatter.converter = _utc_struct_time
+    formatter.converter = time.gmtime  # UTC, as the Z says
     for handler in handlers:
         handler.setFormatter(formatter)
         logger.addHandler(handler)
@@ -62,12 +61,6 @@ def batch_logging(log_file: str | None, verbose: bool) -> Iterator[None]:
             handler.close()
         logger.setLevel(old_level)
         logger.propagate = old_propagate
-
-
-def _utc_struct_time(seconds: float | None) -> Any:
-    import time
-
-    return time.gmtime(seconds)
 
 
 class _Progress:
