@@ -231,7 +231,7 @@ VARIABLES: dict[str, VarMeta] = {
         "mean horizontal wind speed of the window", "m s-1", "wind_speed"
     ),
     "sf_lag": VarMeta("lag number j of the sonic structure function (time lag j/f_d)", "1"),
-    "component": VarMeta("wind component: longitudinal V_1, transverse V_2, vertical V_3", None),
+    "component": VarMeta("wind component: longitudinal V_1, transverse V_2, vertical V_3", "1"),
     "window": VarMeta("analysis window index", "1"),
     "sf_b": VarMeta(
         "type 1: intercept b of lg D_n = b + mu lg r", "1", references=GLADKIKH_2014 + ", eq. 4"
@@ -294,6 +294,8 @@ VARIABLES: dict[str, VarMeta] = {
     "window_flag": VarMeta(
         "sonic window flag (bits combine)",
         "1",
+        flag_masks=(1, 2, 4),
+        flag_meanings="too_few_valid_samples strong_wind_r_min_above_r_n calm_lags_below_r_n",
         comment=(
             "0 analysed; bit 1 too few valid samples; bit 2 r_min > r_N (strong wind); "
             "bit 4 largest lag < r_N (calm)"
@@ -313,6 +315,8 @@ VARIABLES: dict[str, VarMeta] = {
     "sample_flag": VarMeta(
         "sonic sample flag (bits combine)",
         "1",
+        flag_masks=(1, 2, 4),
+        flag_meanings="instrument_diagnostic spike missing_or_not_finite",
         comment=(
             "0 good; bit 1 non-zero instrument diagnostic; bit 2 spike; bit 4 missing or not finite"
         ),

@@ -24,7 +24,7 @@ from cwproc.cli._common import config_option, load_config_or_fail, report_failur
 from cwproc.config import Config
 from cwproc.errors import CwprocError
 from cwproc.io import KIND, detect_format
-from cwproc.io.netcdf import write_product
+from cwproc.io.netcdf import site_attributes, write_product
 from cwproc.metadata import GLADKIKH_2014
 from cwproc.pipeline import InputFile, read_input
 from cwproc.stages.sonic_sf import (
@@ -145,6 +145,8 @@ def run_sf_type(
             sf = type_day(day_dataset(parts[key], label), config)
             path = Path(outdir) / f"{label}_sf.nc"
             inputs = list(dict.fromkeys(i.path for i in groups[key]))
+            extra = site_attributes(config.output)
+            extra["instrument"] = str(parts[key][0].attrs.get("instrument", ""))
             written.append(
                 write_product(
                     sf,
@@ -160,6 +162,7 @@ def run_sf_type(
                     config_toml=config.to_toml(),
                     references=GLADKIKH_2014,
                     keywords="sonic anemometer, structure function, turbulence, surface layer",
+                    extra_attrs=extra,
                     compression_level=config.output.compression_level,
                 )
             )

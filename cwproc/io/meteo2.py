@@ -328,14 +328,20 @@ def numeric_column(
     """A column as float; a non-numeric entry raises InputFileError with its line."""
     raw = frame[column]
     if pd.api.types.is_numeric_dtype(raw):
-        return raw.to_numpy(dtype=float)
-    parsed = pd.to_numeric(raw.astype("string").str.strip(), errors="coerce").to_numpy(
-        dtype=float, na_value=np.nan
-    )
-    bad = first_bad_row(raw, parsed)
+        return raw.to_numpy(dtype=float, na_value=np.nan)
+    parsed = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float, na_value=np.nan).copy()
+    suspect = np.flatnonzero(np.isnan(parsed) & raw.notna().to_numpy())
+    if suspect.size == 0:
+        return parsed
+    # only the rows that did not parse are examined as text
+    sub = raw.iloc[suspect].astype("string").str.strip()
+    retry = pd.to_numeric(sub, errors="coerce").to_numpy(dtype=float, na_value=np.nan)
+    parsed[suspect] = retry
+    bad = first_bad_row(sub, retry)
     if bad is not None:
+        i = int(suspect[bad])
         raise InputFileError(
-            path, f"column {column!r}: {raw.iloc[bad]!r} is not a number", first_line + bad
+            path, f"column {column!r}: {raw.iloc[i]!r} is not a number", first_line + i
         )
     return parsed
 
@@ -363,7 +369,6 @@ def read_table(
             sep=delimiter,
             header=None if names is not None else 0,
             names=names,
-            dtype=str if names is None else None,
             keep_default_na=False,
             na_values=_NA,
             skip_blank_lines=False,
@@ -383,12 +388,20 @@ def parse_times(
     path: str | os.PathLike, raw: pd.Series, first_line: int, *, fmt: str = "ISO8601"
 ) -> np.ndarray:
     """Parse time stamps (flexible fractional seconds); a bad one names its line."""
-    text = raw.astype("string").str.strip().str.strip('"')
-    parsed = pd.to_datetime(text, format=fmt, errors="coerce")
-    bad = np.flatnonzero(parsed.isna().to_numpy())
-    if bad.size:
-        i = int(bad[0])
-        raise InputFileError(path, f"bad time stamp {raw.iloc[i]!r}", first_line + i)
+    parsed = pd.Series(pd.to_datetime(raw, format=fmt, errors="coerce"))
+    missing = np.flatnonzero(parsed.isna().to_numpy())
+    if missing.size:
+        # retry only the failures, stripped of blanks and quotes
+        text = raw.iloc[missing].astype("string").str.strip().str.strip('"')
+        retry = pd.Series(pd.to_datetime(text, format=fmt, errors="coerce"))
+        bad = np.flatnonzero(retry.isna().to_numpy())
+        if bad.size:
+            i = int(missing[bad[0]])
+            raise InputFileError(path, f"bad time stamp {raw.iloc[i]!r}", first_line + i)
+        if parsed.dt.tz is None and retry.dt.tz is None:
+            parsed.iloc[missing] = retry.to_numpy()
+        else:
+            raise InputFileError(path, "time stamps mix time-zone forms", first_line)
     if parsed.dt.tz is not None:
         parsed = parsed.dt.tz_convert("UTC").dt.tz_localize(None)
     return parsed.to_numpy(dtype="datetime64[ns]")
