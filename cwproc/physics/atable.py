@@ -168,16 +168,14 @@ class ATable:
                 il = np.zeros((lag.size, 1), int)
                 wl = np.ones((lag.size, 1))
                 vl = np.ones(lag.size, bool)
-        # A_1: (nL, nh, lag)
-        a1 = self.log_a1[il[:, :, None], ih[:, None, :], li[:, None, None]]
-        log1 = np.einsum("qa,qb,qab->q", wl, wh, a1)
-        a2 = self.log_a2[
-            il[:, :, None, None],
-            ih[:, None, :, None],
-            li[:, None, None, None],
-            im[:, None, None, :],
-        ]
-        log2 = np.einsum("qa,qb,qc,qabc->q", wl, wh, wm, a2)
+        # gather the 4^k neighbours by flat index and contract with the Lagrange weights
+        n_h, n_lag, n_m = self.heights_m.size, self.n_lags, self.mu.size
+        base = (il[:, :, None] * n_h + ih[:, None, :]) * n_lag + li[:, None, None]  # (q,a,b)
+        w_lh = (wl[:, :, None] * wh[:, None, :]).reshape(lag.size, -1)  # (q, a*b)
+        log1 = np.einsum("qk,qk->q", w_lh, self.log_a1.ravel().take(base.reshape(lag.size, -1)))
+        flat2 = base.reshape(lag.size, -1)[:, :, None] * n_m + im[:, None, :]  # (q, a*b, 4)
+        vals2 = self.log_a2.ravel().take(flat2)
+        log2 = np.einsum("qk,qkc,qc->q", w_lh, vals2, wm, optimize=True)
         ok1 = lag_ok & vh & vl
         ok2 = ok1 & vm
         out1 = np.where(ok1, np.exp(log1), np.nan).reshape(shape)

@@ -162,3 +162,32 @@ def test_finite_outer_scale_table(tmp_path):
     assert float(a2_t) == pytest.approx(float(d2), rel=1e-4)
     assert float(a1_t) == pytest.approx(float(d1), rel=1e-4)
     assert np.isnan(tab.evaluate(2, h, mu, 500.0)[0])  # outer scale outside the table
+
+
+def test_interpolation_is_exact_for_cubics():
+    # 4-point Lagrange weights reproduce cubic polynomials in (log L, log h, mu) exactly
+    heights = np.geomspace(10.0, 3000.0, 12)
+    mu_nodes = atable.default_mu_grid(4.0)
+    scales = np.geomspace(10.0, 3000.0, 9)
+    lags = np.arange(1, 4)
+
+    def poly(log_l, log_h, lag, mu):
+        return 0.01 * log_l**3 - 0.02 * log_h**2 * log_l + 0.03 * mu**3 + log_h * mu + lag
+
+    ll, lh = np.log(scales), np.log(heights)
+    tab = atable.ATable(
+        heights,
+        mu_nodes,
+        scales,
+        poly(ll[:, None, None], lh[None, :, None], lags[None, None, :], 0.0),
+        poly(ll[:, None, None, None], lh[None, :, None, None], lags[None, None, :, None], mu_nodes),
+        {"model": "von_karman", "phi_deg": PHI, "delta_theta_deg": DTHETA},
+    )
+    rng = np.random.default_rng(7)
+    h = rng.uniform(10.0, 3000.0, 200)
+    mu = rng.uniform(0.0, 4.0, 200)
+    big_l = rng.uniform(10.0, 3000.0, 200)
+    lag = rng.integers(1, 4, 200)
+    a1_v, a2_v = tab.evaluate(lag, h, mu, big_l)
+    np.testing.assert_allclose(a1_v, np.exp(poly(np.log(big_l), np.log(h), lag, 0.0)), rtol=1e-11)
+    np.testing.assert_allclose(a2_v, np.exp(poly(np.log(big_l), np.log(h), lag, mu)), rtol=1e-11)
