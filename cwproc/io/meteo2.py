@@ -13,7 +13,7 @@ Layout (``docs/sonic.md``)::
     # station: Tomsk
     # time: UTC
     time,u,v,w,t,diag
-    2014-06-01 00:00:00.000,1.234,-0.567,0.089,12.34,0
+    2014-06-01T00:00:00.000,1.234,-0.567,0.089,12.34,0
 
 * first line ``# cwproc meteo2`` (what :func:`cwproc.io.sniff_format` recognises);
   further ``# key: value`` lines become dataset attributes;
@@ -577,7 +577,7 @@ def write_meteo2(
         Decimal places of the wind components and temperature.
     """
     n = ds.sizes["time"]
-    t = pd.DatetimeIndex(ds["time"].values).strftime("%Y-%m-%d %H:%M:%S.%f").str[:-3]
+    t = np.datetime_as_string(ds["time"].values.astype("datetime64[ms]"), unit="ms")
     frame = pd.DataFrame(
         {
             "time": t,
