@@ -71,9 +71,17 @@ def test_sf_type_product_tables_and_damaged_file(simulated, tmp_path):
 
 def test_real_toa5_is_typed(real_data, tmp_path):
     src = real_data / "sonic" / "TOA5_6843.ts_Above_2012_06_07_1245.dat"
-    res = CliRunner().invoke(main, ["sf-type", str(src), "-o", str(tmp_path), "-q"])
+    res = CliRunner().invoke(main, ["sf-type", str(src), "-o", str(tmp_path), "-q", "-c", "csat3"])
     assert res.exit_code == 0, res.output
     sf = read_product(tmp_path / "toa5_20120607_sf.nc")
+    # the complete window is typed for every component, and the local slope at r_N of
+    # the horizontal components is inertial-range-like (2/3 within 0.15)
+    full = sf.isel(window=1)
+    assert np.all(full["sf_type"].values > 0)
+    for comp in ("longitudinal", "transverse"):
+        c = full.sel(component=comp)
+        slope = float(c[{1: "sf_mu", 2: "sf_a1", 3: "sf_d1"}[int(c["sf_type"])]])
+        assert slope == pytest.approx(2 / 3, abs=0.15)
     # 12:45:00.05-13:00:00 at 20 Hz: windows 12:40 (5 min, skipped), 12:50 (complete,
     # analysed) and 13:00 (its first sample only, skipped)
     assert sf.sizes["window"] == 3
