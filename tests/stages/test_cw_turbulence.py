@@ -1,0 +1,119 @@
+"""D_L and epsilon (methods 1 and 2) on cw line-of-sight scans with the Lorentzian probe.
+
+Synthetic scans of the virtual cw lidar of Banakh et al. (1999) (lambda = 10.6 um,
+a0 = 7.5 cm, phi = 30 deg, T = 7 s, 140 spectra per scan; cwproc.sim.cw) at h = 50 m:
+Z_R = lambda R^2/(2 pi a0^2) = 3.0 m at R = 100 m, azimuth step 2.57 deg (dy = 3.9 m),
+lags up to 9 deg. The turbulence has sigma_V^2 = 1 m2 s-2 and L_V = 500 m (Banakh et
+al. (1999), eq. 17), so that the inertial-range A-functions hold (lags < 3 %, probe
+half width < 1 % of L_V) and epsilon = 1.331 sigma_V^3 / L_V = 2.66e-3 m2 s-3
+(Banakh et al. (1999), eq. 19). mu = U/V_s = 5/77.7 = 0.06: methods 1 and 2 must agree.
+
+Numbers obtained (40 scans, one block): seed 2 (used here) gives epsilon 2.60e-3
+(-2 %) from the heterodyne centroid estimates and 2.57e-3 (-3 %) from the exact
+probe-averaged velocities V_D; seeds 3, 4, 5, 11 give 0.99, 1.07, 1.08, 1.18 of the
+truth (the statistical spread of one 40-scan block). Homodyne (|V_r|) centroids give
+4.81e-3 (+81 %) at U = 5 m/s (+18 % at 12 m/s, seed 1, 20 scans): the folded spectra
+near the zero crossings of V_r inflate D_L; see the xfail test below.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from cwproc.physics.transfer import CWProbe
+from cwproc.sim.cw import CWLidar, simulate_cw_scans
+from cwproc.sim.turbulence import epsilon_from_variance
+from cwproc.stages import epsilon, qc, structure, vad
+
+HEIGHT = 50.0
+SIGMA2 = 1.0
+OUTER_SCALE = 500.0
+WIND_SPEED = 5.0
+DIRECTION = 200.0
+N_SCANS = 40
+TRUE_EPSILON = float(epsilon_from_variance(SIGMA2, OUTER_SCALE, "exponential"))
+
+
+def _simulate(homodyne: bool, seed: int) -> tuple[xr.Dataset, np.ndarray, CWLidar]:
+    lidar = dataclasses.replace(CWLidar(), homodyne=homodyne)
+    ds, truth = simulate_cw_scans(
+        np.random.default_rng(seed),
+        lidar,
+        heights_m=np.array([HEIGHT]),
+        wind_speed=np.array([WIND_SPEED]),
+        wind_direction_deg=DIRECTION,
+        sigma2=np.array([SIGMA2]),
+        outer_scale_m=np.array([OUTER_SCALE]),
+        n_scans=N_SCANS,
+        start=np.datetime64("2020-06-01T12:00"),
+    )
+    return ds, truth, lidar
+
+
+def _retrieve(ds: xr.Dataset, lidar: CWLidar, tmp_path) -> tuple[xr.Dataset, xr.Dataset]:
+    screened = qc.screen_radial_velocity(ds, snr_min=0.008, outlier_threshold=4.0)
+    wind = vad.fit_vad(screened, min_rays=20, max_gap_deg=60.0, reference_direction_deg=DIRECTION)
+    sf = structure.azimuth_structure_function(screened, wind, n_scans=N_SCANS, max_lag_deg=9.0)
+    probe = CWProbe(lidar.z_r_coefficient, lidar.wavelength_m, lidar.beam_radius_m)
+    turb = epsilon.estimate_epsilon(
+        sf,
+        probe=probe,
+        lag_number=3,
+        model="inertial",
+        table_options={"cache_dir": str(tmp_path)},
+    )
+    return sf, turb
+
+
+@pytest.fixture(scope="module")
+def heterodyne():
+    return _simulate(homodyne=False, seed=2)
+
+
+@pytest.mark.slow
+def test_structure_function_of_cw_scans(heterodyne, tmp_path):
+    ds, _, lidar = heterodyne
+    sf, _ = _retrieve(ds, lidar, tmp_path)
+    d = sf["structure_function"].isel(time=0, height=0).values
+    assert sf.sizes["lag"] == 3  # 9 deg / 2.57 deg
+    assert np.all(np.isfinite(d)) and np.all(np.diff(d) > 0)  # grows with the lag
+    # D_L(l) - D_L(1) ~ eps^(2/3) (8/3)((l dy)^(2/3) - dy^(2/3)) within 35 % (probe 3 m << dy)
+    dy = np.deg2rad(360.0 / 140) * HEIGHT / np.tan(np.deg2rad(30.0))
+    model = TRUE_EPSILON ** (2 / 3) * 8 / 3 * ((3 * dy) ** (2 / 3) - dy ** (2 / 3))
+    assert d[2] - d[0] == pytest.approx(model, rel=0.35)
+
+
+@pytest.mark.slow
+def test_epsilon_from_cw_centroid_scans_within_20_percent(heterodyne, tmp_path):
+    ds, _, lidar = heterodyne
+    _, turb = _retrieve(ds, lidar, tmp_path)
+    assert int(turb["turbulence_flag"].values.ravel()[0]) == 0
+    for name in ("epsilon", "epsilon_method1", "epsilon_fit"):
+        assert float(turb[name].values.ravel()[0]) == pytest.approx(TRUE_EPSILON, rel=0.2), name
+
+
+@pytest.mark.slow
+def test_epsilon_from_exact_probe_averaged_velocities_within_20_percent(heterodyne, tmp_path):
+    ds, truth, lidar = heterodyne
+    exact = ds.assign(radial_velocity=(("ray", "range"), truth))
+    _, turb = _retrieve(exact, lidar, tmp_path)
+    for name in ("epsilon", "epsilon_method1"):
+        assert float(turb[name].values.ravel()[0]) == pytest.approx(TRUE_EPSILON, rel=0.2), name
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "homodyne cw (ZephIR-like): folded |V_r| spectra near the zero crossings of V_r "
+        "inflate D_L; the structure stage does not leave those rays out (+81 % at 5 m/s)"
+    ),
+)
+def test_epsilon_from_homodyne_cw_scans_within_20_percent(tmp_path):
+    ds, _, lidar = _simulate(homodyne=True, seed=2)
+    _, turb = _retrieve(ds, lidar, tmp_path)
+    assert float(turb["epsilon"].values.ravel()[0]) == pytest.approx(TRUE_EPSILON, rel=0.2)
