@@ -44,6 +44,7 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import InputFileError
+from cwproc.io.zephir import check_reader_options
 
 #: 1.x per-altitude column suffix -> canonical name
 LONG_HEIGHT_COLUMNS: dict[str, str] = {
@@ -239,7 +240,7 @@ def _numbers(path: str | os.PathLike, table: pd.DataFrame, first_line: int) -> n
 
 
 def read_windcube_sta(
-    path: str | os.PathLike, *, utc_offset_hours: float | None = None
+    path: str | os.PathLike, *, utc_offset_hours: float | None = None, **options: Any
 ) -> xr.Dataset:
     """Read a WindCube v1 ``.sta`` file (software 1.x or 3.x) into a wind-record dataset.
 
@@ -250,6 +251,8 @@ def read_windcube_sta(
     utc_offset_hours : float, optional
         Offset of the stamps from UTC (h), overriding ``timezone=`` of the header (3.x
         files have none); ``[reader.windcube_sta] utc_offset_hours``.
+    **options
+        Any other ``[reader.windcube_sta]`` key is a :class:`cwproc.errors.ConfigError`.
 
     Returns
     -------
@@ -268,6 +271,7 @@ def read_windcube_sta(
         height block incomplete, a record with the wrong number of fields, a bad number
         or time.
     """
+    utc_offset_hours = check_reader_options("windcube_sta", utc_offset_hours, options)
     path = Path(path)
     try:
         raw = path.read_bytes()

@@ -44,7 +44,7 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-from cwproc.errors import InputFileError
+from cwproc.errors import ConfigError, InputFileError
 
 #: per-height column prefix -> canonical variable name (8 columns per height)
 HEIGHT_COLUMNS: dict[str, str] = {
@@ -95,6 +95,34 @@ _HEADER_LINES = 2
 
 def _number(text: str) -> float:
     return float(text.replace(",", "."))
+
+
+def check_reader_options(
+    fmt: str, utc_offset_hours: object, unknown: dict[str, Any]
+) -> float | None:
+    """Validate the ``[reader.<fmt>]`` options of the wind-record readers.
+
+    Returns
+    -------
+    float or None
+        ``utc_offset_hours`` as a float (h), or None when not given.
+
+    Raises
+    ------
+    ConfigError
+        An unknown option, or an offset that is not a number in [-14, 14] h.
+    """
+    source = f"[reader.{fmt}]"
+    if unknown:
+        key = sorted(unknown)[0]
+        raise ConfigError(source, key, "unknown reader option; known: utc_offset_hours")
+    if utc_offset_hours is None:
+        return None
+    if isinstance(utc_offset_hours, bool) or not isinstance(utc_offset_hours, int | float):
+        raise ConfigError(source, "utc_offset_hours", f"must be a number, got {utc_offset_hours!r}")
+    if not -14.0 <= float(utc_offset_hours) <= 14.0:
+        raise ConfigError(source, "utc_offset_hours", "must be in [-14, 14] hours")
+    return float(utc_offset_hours)
 
 
 def parse_metadata_line(path: str | os.PathLike, line: str) -> dict[str, Any]:
@@ -268,7 +296,7 @@ def _variant(names: list[str], path: str | os.PathLike) -> tuple[str, float]:
 
 
 def read_zephir_csv(
-    path: str | os.PathLike, *, utc_offset_hours: float | None = None
+    path: str | os.PathLike, *, utc_offset_hours: float | None = None, **options: Any
 ) -> xr.Dataset:
     """Read a ZephIR Waltz CSV export (10-min or 1-s) into a wind-record dataset.
 
@@ -279,6 +307,8 @@ def read_zephir_csv(
     utc_offset_hours : float, optional
         Offset of the stamps from UTC (h) when the file has no "Time sync" item (or to
         override it); ``[reader.zephir_csv] utc_offset_hours``.
+    **options
+        Any other ``[reader.zephir_csv]`` key is a :class:`ConfigError`.
 
     Returns
     -------
@@ -297,10 +327,13 @@ def read_zephir_csv(
 
     Raises
     ------
+    ConfigError
+        Unknown or invalid reader option.
     InputFileError
         Empty, not a ZephIR export, wrong separator, a height without its 8 columns, a
         record with the wrong number of fields (truncated), a bad number or time.
     """
+    utc_offset_hours = check_reader_options("zephir_csv", utc_offset_hours, options)
     path = Path(path)
     try:
         raw = path.read_bytes()

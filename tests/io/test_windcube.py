@@ -222,3 +222,10 @@ def test_mutated_files_give_a_dataset_or_input_file_error(
         assert set(ds.dims) == {"time", "height"}
         assert ds.sizes["height"] >= 1 and ds.sizes["time"] >= 1
         assert np.all(np.diff(ds["time"].values) > np.timedelta64(0, "ns"))
+
+
+def test_reader_options_are_validated(real_data):
+    from cwproc.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"\[reader.windcube_sta\]: decimal: unknown"):
+        read_windcube_sta(real_data / V1, decimal=",")

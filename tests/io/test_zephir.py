@@ -312,3 +312,15 @@ def test_mutated_files_give_a_dataset_or_input_file_error(tmp_path_factory, ops)
         assert set(ds.dims) == {"time", "height"}
         assert ds.sizes["height"] >= 1 and ds.sizes["time"] >= 1
         assert np.all(np.diff(ds["time"].values) > np.timedelta64(0, "ns"))
+
+
+def test_reader_options_are_validated(tmp_path):
+    from cwproc.errors import ConfigError
+
+    path = build_1s_file(tmp_path / "Wind_o.ZPH.csv")
+    with pytest.raises(ConfigError, match=r"\[reader.zephir_csv\]: separator: unknown"):
+        read_zephir_csv(path, separator=",")
+    with pytest.raises(ConfigError, match="utc_offset_hours: must be a number"):
+        read_zephir_csv(path, utc_offset_hours="+1")
+    with pytest.raises(ConfigError, match=r"in \[-14, 14\]"):
+        read_zephir_csv(path, utc_offset_hours=30)
