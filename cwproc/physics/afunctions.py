@@ -181,17 +181,24 @@ def _integral_weights(p: _Panels, length: float, factor: np.ndarray) -> np.ndarr
 
 
 def _structure_integral(
-    p: _Panels, smooth: np.ndarray, length: float, rho: np.ndarray, tail_power: float | None
+    p: _Panels,
+    smooth: np.ndarray,
+    length: float,
+    rho: np.ndarray,
+    tail_power: float | None,
+    wr: np.ndarray | None = None,
 ) -> np.ndarray:
     """``int_0^inf smooth(kappa) sinc^2(pi length kappa) [1 - cos(2 pi rho kappa)] dkappa``.
 
     ``smooth`` is given at the panel nodes; ``length = 0`` means no sinc^2 factor.
     ``tail_power``: power-law exponent of the integrand envelope beyond the last node (used
     for the tail correction when no filter makes it negligible), ``None`` to estimate it.
+    ``wr``: the cosine weights ``_cos_weights(p, rho)`` when already computed.
     """
     rho = np.asarray(rho, dtype=float)
     w0 = p.gl
-    wr = _cos_weights(p, rho)  # (R, n)
+    if wr is None:
+        wr = _cos_weights(p, rho)  # (R, n)
     if length > 0:
         direct = p.left * length < 1.0
         f = smooth * _sinc2(length * p.kappa)
@@ -304,8 +311,9 @@ def a_curves(
     if dy == 0:
         g_par = g_par + phi[:, -1] * p.kappa[-1] ** (8 / 3) * p.hi ** (-5 / 3) * 0.6
     tail = 5.0 / 3.0 if (probe is None and dy == 0) else None
-    a_perp_v = _structure_integral(p, 2.0 * g_perp, dy, rho_flat, tail)
-    a_par_v = _structure_integral(p, 2.0 * g_par * fac_par, len_par, rho_flat, tail)
+    wr = _cos_weights(p, rho_flat)  # shared by both outer integrals
+    a_perp_v = _structure_integral(p, 2.0 * g_perp, dy, rho_flat, tail, wr)
+    a_par_v = _structure_integral(p, 2.0 * g_par * fac_par, len_par, rho_flat, tail, wr)
     zero = rho_flat == 0
     a_perp_v[zero] = 0.0
     a_par_v[zero] = 0.0
@@ -431,7 +439,12 @@ def a_curve_splines(
     constant: float | None = None,
     n: int = 61,
 ) -> ACurves:
-    """``A_perp`` and ``A_par`` on ``n`` geometric lags in ``[rho_min, rho_max]`` (m), splined."""
+    """``A_perp`` and ``A_par`` on ``n`` (at least 14 per decade) geometric lags, splined.
+
+    The lags span ``[rho_min, rho_max]`` (m); see :func:`a_curves` for the parameters.
+    """
+    # at least 14 lags per decade keeps the spline error near 1e-7
+    n = max(n, math.ceil(14 * math.log10(rho_max / rho_min)) + 1)
     rho = np.geomspace(rho_min, rho_max, n)
     ap, al = a_curves(
         rho,
