@@ -291,7 +291,8 @@ def a_curves(
     if model != "inertial":
         large.append(outer_scale_m)
     # without one of the filters the integrands decay only as a power law: reach further
-    reach = 2e3 if (probe is not None and dy > 0) else 2e7
+    has_par = probe_len > 0  # a probe of zero length filters nothing
+    reach = 2e3 if (has_par and dy > 0) else 2e7
     p = _panels(1e-5 / max(large), reach / min(small))
     k = p.kappa
     fac_par, len_par = _longitudinal_factor(probe, p, range_m)
@@ -306,11 +307,11 @@ def a_curves(
     g_perp = g_perp + phi[0, :] * fac_par[0] * p.lo
     g_par = g_par + phi[:, 0] * p.lo
     # tails of the inner integrals where no filter cuts them (Phi ~ kappa^(-8/3))
-    if probe is None:
+    if not has_par:
         g_perp = g_perp + phi[-1, :] * p.kappa[-1] ** (8 / 3) * p.hi ** (-5 / 3) * 0.6
     if dy == 0:
         g_par = g_par + phi[:, -1] * p.kappa[-1] ** (8 / 3) * p.hi ** (-5 / 3) * 0.6
-    tail = 5.0 / 3.0 if (probe is None and dy == 0) else None
+    tail = 5.0 / 3.0 if (not has_par and dy == 0) else None
     wr = _cos_weights(p, rho_flat)  # shared by both outer integrals
     a_perp_v = _structure_integral(p, 2.0 * g_perp, dy, rho_flat, tail, wr)
     a_par_v = _structure_integral(p, 2.0 * g_par * fac_par, len_par, rho_flat, tail, wr)

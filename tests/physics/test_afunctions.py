@@ -28,10 +28,11 @@ PHYSICAL = PulsedProbe(15.3, 18.0, "physical")
 MU = np.array([0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 5.0])
 
 
-def test_no_filter_gives_kolmogorov_laws():
+@pytest.mark.parametrize("probe", [None, PulsedProbe(0.0, 0.0)], ids=["point", "zero-length"])
+def test_no_filter_gives_kolmogorov_laws(probe):
     # Smalikho (2020), eqs. 12-13 with C_K = 2 and the exact constant of eq. 18
     r = np.array([0.3, 3.0, 30.0, 300.0])
-    perp, par = a_curves(r, probe=None, dy=0.0)
+    perp, par = a_curves(r, probe=probe, dy=0.0)
     np.testing.assert_allclose(perp, 8 / 3 * r ** (2 / 3), rtol=3e-5)
     np.testing.assert_allclose(par, 2 * r ** (2 / 3), rtol=3e-5)
     np.testing.assert_allclose(par / perp, 0.75, rtol=3e-5)
