@@ -350,6 +350,12 @@ VARIABLES: dict[str, VarMeta] = {
     "true_velocity_variance": VarMeta("velocity variance sigma_V^2 of the simulation", "m2 s-2"),
     "true_integral_scale": VarMeta("integral scale L_V of the simulation", "m"),
     "true_wind_speed": VarMeta("mean horizontal wind speed of the simulation", "m s-1"),
+    "reference_direction": VarMeta(
+        "wind direction from a reference instrument (wind vane), from which the wind blows",
+        "degree",
+        "wind_from_direction",
+        comment="resolves the 180 degree ambiguity of homodyne cw lidars",
+    ),
     # ---------------------------------------------------------------- turbulence (stages
     # structure/epsilon): block quantities
     "radial_velocity_variance": VarMeta(

@@ -443,7 +443,9 @@ def simulate_cw_scans(
 
     Every height is scanned with the same ray times (as if the focus were switched
     instantly; Banakh et al. (1999) simulate each height independently). The
-    ``range`` dimension holds the focus distances R = h / sin(phi).
+    ``range`` dimension holds the focus distances R = h / sin(phi). A
+    ``reference_direction(ray)`` (a wind vane: true direction + 5 deg rms noise)
+    lets the homodyne VAD fit resolve the 180 deg ambiguity.
 
     Returns
     -------
@@ -469,6 +471,9 @@ def simulate_cw_scans(
         )
         velocity[:, j] = vel.ravel()
         truth[:, j] = vd.ravel()
+    # a wind vane next to the lidar (as the ZephIR's met station): it resolves the
+    # 180 deg ambiguity of the homodyne VAD fit; 5 deg rms error
+    vane = (wind_direction_deg + 5.0 * rng.standard_normal(n_rays)) % 360.0
     t0 = lidar.scan_period_s / m
     time = np.datetime64(start, "ns") + np.round(np.arange(n_rays) * t0 * 1e9).astype(
         "timedelta64[ns]"
@@ -478,6 +483,7 @@ def simulate_cw_scans(
         {
             "radial_velocity": (("ray", "range"), velocity),
             "snr": (("ray", "range"), np.where(np.isfinite(velocity), 100.0, 0.0)),
+            "reference_direction": (("ray",), vane),
         },
         coords={
             "time": ("ray", time),

@@ -108,3 +108,77 @@ def test_simulate_montecarlo_rejects_a_bad_config(tmp_path):
     res = CliRunner().invoke(main, ["simulate", "montecarlo", "-o", str(tmp_path), "-c", str(cfg)])
     assert res.exit_code == 2
     assert "simulation.wind_speed_m_s" in res.output
+
+
+@pytest.mark.slow
+def test_retrieve_on_the_sample_data_recovers_the_truth(tmp_path):
+    """The README's main job: mean wind and epsilon of sample_data/streamline.
+
+    Wind: mean over gates and blocks within 0.5 m/s (sigma_V = 1.3 m/s turbulence
+    averaged over 24 gates x 12 scans of a field with L_V = 150 m). epsilon: one block
+    of 10 scans has a relative error of 10-20 % per height (the Monte-Carlo study);
+    the median over the gates beyond 240 m, where the transverse spacing (>= 7 m) is
+    resolved by the 8-m grid of the simulated field, is within 30 %.
+    """
+    from cwproc.config import load_config
+    from cwproc.pipeline import retrieve_files
+
+    truth = json.loads((SAMPLE / "streamline_truth.json").read_text())
+    files = sorted((SAMPLE / "streamline").glob("*.hpl"))
+    report = retrieve_files(files, tmp_path, load_config(None))
+    assert report.ok, report.failures
+    wind = xr.open_dataset(next(tmp_path.glob("*_wind.nc")))
+    assert float(wind["u"].mean()) == pytest.approx(truth["u_m_s"], abs=0.5)
+    assert float(wind["v"].mean()) == pytest.approx(truth["v_m_s"], abs=0.5)
+    turb = xr.open_dataset(next(tmp_path.glob("*_turbulence.nc")))
+    eps = turb["epsilon"].where(turb["range"] >= 240.0).values
+    ratio = np.nanmedian(eps) / truth["epsilon_m2_s3"]
+    assert 0.7 < ratio < 1.3
+    wind.close()
+    turb.close()
+
+
+@pytest.fixture(scope="module")
+def cw_products(tmp_path_factory):
+    """10 scans of the seed-000 cw lidar at 50 and 100 m, retrieved with preset seed000."""
+    from cwproc.config import load_config
+    from cwproc.pipeline import retrieve_files
+    from cwproc.sim.cw import write_cw_series
+    from cwproc.sim.montecarlo import lidar_from_config
+
+    base = tmp_path_factory.mktemp("cw")
+    cfg = load_config("seed000")
+    sim = cfg.simulation
+    written = write_cw_series(
+        base / "data",
+        base / "truth" / "truth.json",
+        np.random.default_rng(8),
+        lidar_from_config(sim, 10.6e-6, 0.075),
+        heights_m=np.array(sim.heights_m[:2]),
+        wind_speed=np.array(sim.wind_speed_m_s[:2]),
+        wind_direction_deg=sim.wind_direction_deg,
+        sigma2=np.array(sim.sigma_v_m_s[:2]) ** 2,
+        outer_scale_m=np.array(sim.outer_scale_m[:2]),
+        n_scans=10,
+        start=np.datetime64("2024-01-01T00:00:00"),
+    )
+    report = retrieve_files(written[:-1], base / "out", cfg)
+    assert report.ok, report.failures
+    truth = json.loads(written[-1].read_text())
+    return base / "out", truth
+
+
+@pytest.mark.slow
+def test_cw_simulation_feeds_retrieve_and_recovers_wind_and_epsilon(cw_products):
+    out, truth = cw_products
+    wind = xr.open_dataset(next(out.glob("*_wind.nc")))
+    speed = wind["wind_speed"].mean("time").values
+    assert speed == pytest.approx(truth["wind_speed_m_s"], abs=0.6)
+    direction = wind["wind_direction"].mean("time").values
+    assert direction == pytest.approx([truth["wind_direction_deg"]] * 2, abs=6.0)
+    turb = xr.open_dataset(next(out.glob("*_turbulence.nc")))
+    eps = turb["epsilon"].isel(time=0).values
+    # one block of N = 10 scans: relative RMS error 10-11 % (the study); 3 sigma
+    assert eps == pytest.approx(truth["epsilon_m2_s3"], rel=0.35)
+    wind.close()
+    turb.close()
