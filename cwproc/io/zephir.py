@@ -35,6 +35,8 @@ check can be derived from it.
 
 from __future__ import annotations
 
+import csv
+import io
 import os
 import re
 from pathlib import Path
@@ -275,10 +277,9 @@ def _parse_times(path: str | os.PathLike, stamps: pd.Series, first_line: int) ->
     )
 
 
-def _split_records(path: str | os.PathLike, lines: list[str], n_columns: int) -> pd.DataFrame:
-    """Data lines -> a table of strings, checking the field count of every line."""
-    series = pd.Series(lines, dtype=object)
-    counts = series.str.count(";").to_numpy() + 1
+def _check_field_counts(path: str | os.PathLike, lines: list[str], n_columns: int) -> None:
+    """Every record must have the header's number of ``;``-separated fields."""
+    counts = pd.Series(lines, dtype=object).str.count(";").to_numpy() + 1
     bad = np.flatnonzero(counts != n_columns)
     if bad.size:
         i = int(bad[0])
@@ -286,7 +287,43 @@ def _split_records(path: str | os.PathLike, lines: list[str], n_columns: int) ->
         if i == len(lines) - 1 and counts[i] < n_columns:
             problem += " (file truncated?)"
         raise InputFileError(path, problem, _HEADER_LINES + 1 + i)
-    return series.str.split(";", expand=True, regex=False)
+
+
+def _read_columns(text: str, columns: list[int], *, numeric: bool) -> pd.DataFrame:
+    """Selected columns of the records with the C parser (no quoting, no NA guessing)."""
+    options: dict[str, Any] = {"dtype": np.float64, "decimal": ","} if numeric else {"dtype": str}
+    return pd.read_csv(
+        io.StringIO(text),
+        sep=";",
+        header=None,
+        usecols=columns,
+        quoting=csv.QUOTE_NONE,
+        keep_default_na=False,
+        na_values=[],
+        na_filter=numeric,
+        engine="c",
+        **options,
+    )[columns]
+
+
+def _numeric_values(
+    path: str | os.PathLike, text: str, columns: list[int], names: list[str], first_line: int
+) -> np.ndarray:
+    """The numeric columns as floats; a field that is no finite number is an error."""
+    try:
+        values = _read_columns(text, columns, numeric=True).to_numpy(dtype=float)
+    except (ValueError, pd.errors.ParserError):
+        # slow path: finds the offending line (or accepts '.' decimals the fast one refused)
+        table = _read_columns(text, columns, numeric=False)
+        table.columns = [names[c] for c in columns]
+        values = _to_numbers(path, table, first_line)
+    bad = np.argwhere(np.isinf(values))
+    if bad.size:
+        row, col = bad[0]
+        raise InputFileError(
+            path, f"column {names[columns[col]]!r} is not a finite number", first_line + int(row)
+        )
+    return values
 
 
 def _variant(names: list[str], path: str | os.PathLike) -> tuple[str, float]:
@@ -360,9 +397,13 @@ def read_zephir_csv(
     if blank:
         raise InputFileError(path, "blank line among the records", _HEADER_LINES + 1 + blank[0])
     names: list[str] = layout["names"]
-    table = _split_records(path, data_lines, len(names))
-    table.columns = names
+    _check_field_counts(path, data_lines, len(names))
+    text = "\n".join(data_lines)
     first = _HEADER_LINES + 1
+    record_cols = layout["record_columns"]
+    text_names = [c for c in (_TIME_COLUMN, *TEXT_COLUMNS, "GPS") if c in record_cols]
+    table = _read_columns(text, [record_cols[c] for c in text_names], numeric=False)
+    table.columns = text_names
 
     offset = meta["utc_offset_h"] if utc_offset_hours is None else float(utc_offset_hours)
     times = _parse_times(path, table[_TIME_COLUMN], first)
@@ -373,11 +414,11 @@ def read_zephir_csv(
             path, "time stamp does not increase over the previous record", first + int(back[0]) + 1
         )
 
-    record_cols = layout["record_columns"]
     numeric_names = [c for c in names if c in RECORD_COLUMNS and c in record_cols]
     height_items = sorted(layout["height_columns"].items(), key=lambda kv: kv[1])
     height_names = [names[i] for _, i in height_items]
-    values = _to_numbers(path, table[numeric_names + height_names], first)
+    numeric_idx = [record_cols[c] for c in numeric_names] + [i for _, i in height_items]
+    values = _numeric_values(path, text, numeric_idx, names, first)
     check = np.array([c not in _NO_SENTINEL for c in numeric_names + height_names])
     n9999 = int(np.sum((values == 9999.0) & check))
     n9998 = int(np.sum((values == 9998.0) & check))
@@ -440,15 +481,21 @@ def read_zephir_csv(
 def _parse_gps(
     path: str | os.PathLike, gps: pd.Series, first_line: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    parts = gps.str.strip().str.replace(",", ".", regex=False).str.split(r"\s+", expand=True)
-    if parts.shape[1] != 2:
-        raise InputFileError(path, "GPS field is not 'lat lon'", first_line)
-    lat = pd.to_numeric(parts[0], errors="coerce").to_numpy(dtype=float)
-    lon = pd.to_numeric(parts[1], errors="coerce").to_numpy(dtype=float)
-    bad = np.flatnonzero(np.isnan(lat) | np.isnan(lon))
+    """``"51,31546 9,16535"`` -> latitude, longitude (deg); parsed once per distinct value."""
+    codes, uniques = pd.factorize(gps)
+    lat_u = np.full(len(uniques), np.nan)
+    lon_u = np.full(len(uniques), np.nan)
+    for k, text in enumerate(uniques):  # a handful of distinct positions per file
+        fields = str(text).replace(",", ".").split()
+        if len(fields) == 2:
+            try:
+                lat_u[k], lon_u[k] = float(fields[0]), float(fields[1])
+            except ValueError:
+                pass
+    bad = np.flatnonzero(~np.isfinite(lat_u[codes]) | ~np.isfinite(lon_u[codes]))
     if bad.size:
         row = int(bad[0])
         raise InputFileError(
             path, f"GPS field {gps.iloc[row]!r} is not 'lat lon'", first_line + row
         )
-    return lat, lon
+    return lat_u[codes], lon_u[codes]
