@@ -94,14 +94,23 @@ def timed_run(archive: Path, out: Path, config: Config, workers: int | None) -> 
             close_client(client)
 
 
+def unit_seconds_by_kind(report: BatchReport) -> dict[str, float]:
+    """Mean processing time of a unit (s, as measured on the worker) per unit prefix."""
+    times: dict[str, list[float]] = defaultdict(list)
+    for o in report.processed:
+        times[o.key.split("_")[0]].append(o.seconds)
+    return {kind: float(np.mean(t)) for kind, t in sorted(times.items())}
+
+
 def describe(label: str, report: BatchReport) -> str:
     n = len(report.processed)
     peaks = memory_per_worker(report)
     mem = ", ".join(f"{v:.0f}" for v in sorted(peaks.values()))
+    per_unit = ", ".join(f"{k} {v:.2f} s" for k, v in unit_seconds_by_kind(report).items())
     return (
         f"{label:<10} {report.seconds:8.2f} s  {n / report.seconds:6.2f} units/s  "
         f"{len(report.succeeded)} ok, {len(report.failed)} failed  "
-        f"peak RSS per process (MiB): {mem}"
+        f"mean per unit: {per_unit}  peak RSS per process (MiB): {mem}"
     )
 
 
