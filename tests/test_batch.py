@@ -531,6 +531,20 @@ def test_real_pipeline_batch_recovers_the_wind_and_is_incremental(tmp_path):
         np.testing.assert_allclose(wind["v"].values, v, atol=0.01)
     again = run_batch(tmp_path / "in", out, config)
     assert again.processed == [] and again.units_up_to_date == 2
+    # the same units and the same products as `cwproc retrieve` on the same files
+    from cwproc.pipeline import retrieve_files
+
+    inputs = sorted((tmp_path / "in").absolute().rglob("*.hpl"))
+    retrieved = retrieve_files(inputs, tmp_path / "retrieve", config)
+    assert retrieved.ok, retrieved.failures
+    assert sorted(p.name for p in retrieved.written) == sorted(p.name for p in out.glob("*.nc"))
+    dates = {"history", "date_created", "date_modified", "date_issued", "date_metadata_modified"}
+    for path in retrieved.written:
+        a, b = read_product(path), read_product(out / path.name)
+        xr.testing.assert_identical(a.drop_attrs(deep=False), b.drop_attrs(deep=False))
+        assert {k: v for k, v in a.attrs.items() if k not in dates} == {
+            k: v for k, v in b.attrs.items() if k not in dates
+        }
 
 
 def test_deleted_files_leave_the_ledger_and_their_failures_with_them(tmp_path):
