@@ -205,8 +205,17 @@ def _structure_integral(
     else:
         direct = np.ones(p.kappa.size, bool)
         f = smooth
+    # drop whole panels beyond the last one whose integrand matters at all (1e-17)
+    contrib = w0 * np.abs(f)
+    significant = np.flatnonzero(contrib > 1e-17 * contrib.sum())
+    cut = p.kappa.size
+    if significant.size:
+        cut = min(cut, (significant[-1] // _ORDER + 1) * _ORDER)
+    pruned = cut < p.kappa.size
+    inside = np.arange(p.kappa.size) < cut
+    trig = ~direct & inside
+    direct = direct & inside
     out = (w0[None, direct] - wr[:, direct]) @ f[direct]
-    trig = ~direct
     if trig.any():
         kt = p.kappa[trig]
         g = smooth[trig] / (2.0 * np.pi**2 * length**2 * kt**2)
@@ -223,10 +232,10 @@ def _structure_integral(
         s = min(s, 2.9)
         out = out + f0 * k0**s * 2 * np.pi**2 * rho**2 * p.lo ** (3 - s) / (3 - s)
     # tail: envelope ~ e_n (k/k_n)^(-t) beyond the last node (non-oscillating part)
-    env = g if trig.any() else f
+    env = g if trig[-1] else f
     kn = p.kappa[-1]
     en = env[-1]
-    if en > 0:
+    if en > 0 and not pruned:
         t = tail_power
         if t is None:
             t = -math.log(env[-1] / env[-2]) / math.log(kn / p.kappa[-2])
