@@ -548,6 +548,22 @@ def decide_types(
 # the stage
 # --------------------------------------------------------------------------------------
 
+#: windows typed together (memory bound: one day of 10-min windows at a time)
+WINDOW_BATCH = 144
+
+
+def window_batches(time: np.ndarray, window_s: float, batch: int) -> list[np.ndarray]:
+    """Sample indices of consecutive groups of at most ``batch`` analysis windows."""
+    t_ns = time.astype("datetime64[ns]").astype(np.int64)
+    widx = np.floor_divide(t_ns, round(window_s * 1e9))
+    uniq = np.unique(widx)
+    if uniq.size <= batch:
+        return [np.arange(t_ns.size)]
+    group = np.searchsorted(uniq, widx) // batch
+    order = np.argsort(group, kind="stable")
+    bounds = np.searchsorted(group[order], np.arange(1, group.max() + 1))
+    return np.split(order, bounds)
+
 
 def structure_function_types(
     sonic: xr.Dataset,
@@ -614,6 +630,23 @@ def structure_function_types(
             f"window of {window_s} s at {rate:g} Hz gives only {n_lags} lags; "
             f"at least {min_fit_points + 1} are needed"
         )
+    kwargs = {
+        "window_s": window_s,
+        "running_mean_s": running_mean_s,
+        "max_lag_fraction": max_lag_fraction,
+        "kd_threshold": kd_threshold,
+        "normalisation_lag_m": normalisation_lag_m,
+        "precedence_tolerance": precedence_tolerance,
+        "min_fit_points": min_fit_points,
+        "min_valid_fraction": min_valid_fraction,
+        "curvature_tolerance": curvature_tolerance,
+    }
+    batches = window_batches(sonic["time"].values, window_s, WINDOW_BATCH)
+    if len(batches) > 1:
+        # bounded memory: at most WINDOW_BATCH windows (a day) of grids and FFTs at once
+        parts = [structure_function_types(sonic.isel(time=b), **kwargs) for b in batches]
+        out = xr.concat(parts, dim="window", combine_attrs="override")
+        return out
     values = np.stack([np.asarray(sonic[c].values, dtype=float) for c in ("u", "v", "w")])
     valid = np.isfinite(values)
     if "sample_flag" in sonic:

@@ -262,3 +262,11 @@ def test_custom_models_changes_outcome():
     sf = S.structure_function_types(ds)
     mu = sf["sf_mu"].values
     assert np.nanmean(mu) == pytest.approx(0.5, abs=0.03)
+
+
+def test_batched_windows_give_identical_results(sims, monkeypatch):
+    ds, whole = sims[3]
+    monkeypatch.setattr(S, "WINDOW_BATCH", 5)
+    assert len(S.window_batches(ds["time"].values, 600.0, 5)) == 5  # 24 windows
+    batched = S.structure_function_types(ds)
+    xr.testing.assert_identical(batched, whole)
