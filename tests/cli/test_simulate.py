@@ -52,6 +52,7 @@ def test_simulate_lidar_streamline_writes_hpl_and_truth_apart(tmp_path):
     assert vr[downwind].mean() > 4.0 > -4.0 > vr[upwind].mean()
 
 
+@pytest.mark.slow
 def test_simulate_lidar_zephir_is_homodyne_scan_netcdf(tmp_path):
     res = run(
         "simulate",
@@ -80,13 +81,14 @@ def test_simulate_lidar_zephir_is_homodyne_scan_netcdf(tmp_path):
     assert truth["heights_m"][0] == 40.0
 
 
+@pytest.mark.slow
 def test_simulate_montecarlo_writes_table_netcdf_and_png(tmp_path):
     cfg = tmp_path / "mc.toml"
     cfg.write_text(
         "[instrument]\nkind = 'cw'\nwavelength_m = 10.6e-6\nbeam_radius_m = 0.075\n"
         "[simulation]\nheights_m = [100.0, 300.0]\nwind_speed_m_s = [7.77, 9.14]\n"
         "sigma_v_m_s = [1.20, 1.11]\nouter_scale_m = [200.0, 300.0]\nmax_scans = 3\n"
-        "realisations = 40\n"
+        "realisations = 40\nspectrum_time_s = 0.1\n"
     )
     res = run("simulate", "montecarlo", "-o", str(tmp_path / "out"), "-c", str(cfg), "--seed", "4")
     assert res.exit_code == 0, res.output

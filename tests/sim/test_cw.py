@@ -93,6 +93,7 @@ def test_homodyne_measures_the_modulus_and_drops_slow_peaks():
     assert not res.valid[2] and np.isnan(res.velocity[2])  # peak below 1 m/s
 
 
+@pytest.mark.slow
 def test_simulated_cw_scans_are_homodyne_and_match_the_probe_average():
     lidar = cw.CWLidar()
     ds, truth = cw.simulate_cw_scans(

@@ -106,6 +106,7 @@ def test_point_probe_correlation_is_the_projected_tensor():
     assert b[2, 5] == pytest.approx(T.projected_correlation(r_vec, s[2], s[5], 1.0, 150.0))
 
 
+@pytest.mark.slow
 def test_simulated_scan_velocities_have_the_model_covariance(cw_setup):
     geometry, probe = cw_setup
     wind = (0.0, -4.0, -6.9)
