@@ -586,6 +586,17 @@ def record_file(ledger: Ledger, info: FileInfo) -> None:
         ledger.failures.pop(info.path, None)
 
 
+def unit_up_to_date(ledger: Ledger, task: UnitTask) -> bool:
+    """Whether the ledger has this unit with the same fingerprint and all its products.
+
+    A product deleted (or moved away) by hand is made again.
+    """
+    record = ledger.units.get(task.key)
+    if record is None or record.get("fingerprint") != task.fingerprint:
+        return False
+    return all(os.path.isfile(p) for p in record.get("products", ()))
+
+
 def forget_vanished_files(ledger: Ledger) -> list[str]:
     """Drop the classifications (and file failures) of files that no longer exist."""
     gone = [path for path in ledger.files if not os.path.lexists(path)]
@@ -962,7 +973,7 @@ def run_batch(
         for task, start in planned:
             if before_since(start, since):
                 report.units_before_since += 1
-            elif ledger.units.get(task.key, {}).get("fingerprint") == task.fingerprint:
+            elif unit_up_to_date(ledger, task):
                 report.units_up_to_date += 1
             else:
                 todo.append(task)

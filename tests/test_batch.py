@@ -317,6 +317,17 @@ def test_touching_a_file_without_changing_it_redoes_nothing(tmp_path):
     assert report.processed == [] and report.units_up_to_date == 2
 
 
+def test_deleted_product_is_made_again(tmp_path):
+    toy_archive(tmp_path / "in", n_days=2)
+    out = tmp_path / "out"
+    run_toy(tmp_path / "in", out)
+    (out / "toy_A_20240102_wind.nc").unlink()
+    report = run_toy(tmp_path / "in", out)
+    assert [o.key for o in report.processed] == ["toy_A_20240102"]
+    assert report.units_up_to_date == 1
+    assert (out / "toy_A_20240102_wind.nc").is_file()
+
+
 def test_config_change_redoes_every_unit(tmp_path):
     toy_archive(tmp_path / "in", n_days=2)
     out = tmp_path / "out"
