@@ -87,6 +87,11 @@ class FrozenField:
         Longitudinal integral scale L_V of the spectrum (m).
     seed : int
         Seed of the random generator that made it.
+    coarse_velocity : numpy.ndarray, optional
+        ``(3, mx, my, mz)`` large-scale part on a coarser grid (same shape, spacing
+        ``coarse_spacing_m``), added to the fine part; ``None`` for a one-level field.
+    coarse_spacing_m : float, optional
+        Spacing (m) of the coarse grid, an integer multiple of ``spacing_m``.
     """
 
     velocity: np.ndarray
@@ -94,11 +99,15 @@ class FrozenField:
     epsilon: float
     integral_scale_m: float
     seed: int
+    coarse_velocity: np.ndarray | None = None
+    coarse_spacing_m: float | None = None
 
     @property
     def extent_m(self) -> tuple[float, float, float]:
-        """Periodic extent (m) along x, y, z."""
-        return tuple(float(n * self.spacing_m) for n in self.velocity.shape[1:])  # type: ignore[return-value]
+        """Periodic extent (m) along x, y, z (of the coarse grid when there is one)."""
+        grid = self.velocity if self.coarse_velocity is None else self.coarse_velocity
+        dx = self.spacing_m if self.coarse_spacing_m is None else self.coarse_spacing_m
+        return tuple(float(n * dx) for n in grid.shape[1:])  # type: ignore[return-value]
 
     def interpolate(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
         """Velocity at arbitrary points (periodic trilinear interpolation).
@@ -114,12 +123,17 @@ class FrozenField:
             ``(3, *S)`` velocity components u, v, w (m s-1).
         """
         x, y, z = np.broadcast_arrays(x, y, z)
-        coords = np.stack([x.ravel(), y.ravel(), z.ravel()]) / self.spacing_m
-        out = np.empty((3, coords.shape[1]))
-        for c in range(3):  # three components, each vectorised over all points
-            out[c] = ndimage.map_coordinates(
-                self.velocity[c], coords, order=1, mode="grid-wrap", prefilter=False
-            )
+        points = np.stack([x.ravel(), y.ravel(), z.ravel()])
+        out = np.zeros((3, points.shape[1]))
+        levels = [(self.velocity, self.spacing_m)]
+        if self.coarse_velocity is not None and self.coarse_spacing_m is not None:
+            levels.append((self.coarse_velocity, self.coarse_spacing_m))
+        for grid, dx in levels:  # at most two levels, three components each: vectorised
+            coords = points / dx
+            for c in range(3):
+                out[c] += ndimage.map_coordinates(
+                    grid[c], coords, order=1, mode="grid-wrap", prefilter=False
+                )
         return out.reshape((3, *x.shape))
 
 
@@ -138,6 +152,7 @@ def _tensor_amplitude(
     epsilon: float,
     integral_scale_m: float,
     model: Model,
+    band: tuple[float, float] = (0.0, np.inf),
 ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
     """Wavenumbers, k^2 and sqrt(E(k)/(4 pi k^2) dk^3) on the FFT grid (0 at k = 0)."""
     ks = _wavenumbers(shape, spacing_m)
@@ -147,7 +162,7 @@ def _tensor_amplitude(
     with np.errstate(divide="ignore", invalid="ignore"):
         e = energy_spectrum_rad(np.where(k2 > 0, k, 1.0), epsilon, integral_scale_m, model)
         density = e / (4 * np.pi * k2)
-    density = np.where(k2 > 0, density, 0.0)
+    density = np.where((k2 > 0) & (k >= band[0]) & (k < band[1]), density, 0.0)
     # Nyquist planes (even sizes) have no distinct -k partner: taking the real part there
     # would break the projection, so they carry no energy and the field stays solenoidal
     for axis, n in enumerate(shape):
@@ -158,26 +173,76 @@ def _tensor_amplitude(
     return ks, k2, np.sqrt(density * dk3)
 
 
+def split_wavenumber(shape: tuple[int, int, int], spacing_m: float) -> float:
+    """Wavenumber (rad m-1) below which a two-level field puts the modes on the coarse grid.
+
+    Three fundamentals of the fine grid's longest side: the fine grid's Riemann sum of the
+    spectrum is fair only well above its own fundamental.
+    """
+    return 3.0 * 2 * np.pi / (max(shape) * spacing_m)
+
+
+def _levels(
+    shape: tuple[int, int, int], spacing_m: float, coarse_factor: int
+) -> list[tuple[float, tuple[float, float]]]:
+    """(spacing, wavenumber band) of each level."""
+    if coarse_factor <= 1:
+        return [(spacing_m, (0.0, np.inf))]
+    k_split = split_wavenumber(shape, spacing_m)
+    if not k_split < np.pi / (coarse_factor * spacing_m):
+        raise ValueError(
+            f"coarse_factor {coarse_factor} too large for shape {shape}: the coarse grid "
+            "cannot hold the split wavenumber (need coarse_factor < min(shape)/6)"
+        )
+    return [(spacing_m, (k_split, np.inf)), (coarse_factor * spacing_m, (0.0, k_split))]
+
+
 def grid_variance(
     shape: tuple[int, int, int],
     spacing_m: float,
     epsilon: float,
     integral_scale_m: float,
     model: Model = "von_karman",
+    coarse_factor: int = 1,
 ) -> np.ndarray:
     """Expected variance of u, v, w of :func:`von_karman_field` on this grid (m2 s-2).
 
     The sum of the spectral tensor ``Phi_ii(k) dk^3`` over the wavenumbers the periodic
-    grid holds (Banakh et al. (1999), eq. 16 in spectral form).
+    grid(s) hold (Banakh et al. (1999), eq. 16 in spectral form).
 
     Returns
     -------
     numpy.ndarray
         ``(3,)`` variances of u, v, w.
     """
-    ks, k2, amp = _tensor_amplitude(shape, spacing_m, epsilon, integral_scale_m, model)
+    total = np.zeros(3)
+    for dx, band in _levels(shape, spacing_m, coarse_factor):
+        ks, k2, amp = _tensor_amplitude(shape, dx, epsilon, integral_scale_m, model, band)
+        safe = np.where(k2 > 0, k2, 1.0)
+        total += np.array([np.sum(amp**2 * (1 - ks[i] ** 2 / safe)) for i in range(3)])
+    return total
+
+
+def _synthesise(
+    shape: tuple[int, int, int],
+    spacing_m: float,
+    epsilon: float,
+    integral_scale_m: float,
+    model: Model,
+    band: tuple[float, float],
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """One periodic level: projected complex Gaussian modes, real part, scaled by sqrt(2)."""
+    ks, k2, amp = _tensor_amplitude(shape, spacing_m, epsilon, integral_scale_m, model, band)
+    xi = (rng.standard_normal((3, *shape)) + 1j * rng.standard_normal((3, *shape))) / np.sqrt(2)
     safe = np.where(k2 > 0, k2, 1.0)
-    return np.array([np.sum(amp**2 * (1 - ks[i] ** 2 / safe)) for i in range(3)])
+    k_dot_xi = (ks[0] * xi[0] + ks[1] * xi[1] + ks[2] * xi[2]) / safe
+    n_total = int(np.prod(shape))
+    velocity = np.empty((3, *shape))
+    for c in range(3):  # three components; each a vectorised 3-D FFT
+        coeff = amp * (xi[c] - ks[c] * k_dot_xi)
+        velocity[c] = np.sqrt(2) * n_total * scipy.fft.ifftn(coeff, workers=-1).real
+    return velocity
 
 
 def von_karman_field(
@@ -188,6 +253,7 @@ def von_karman_field(
     integral_scale_m: float,
     seed: int,
     model: Model = "von_karman",
+    coarse_factor: int = 1,
 ) -> FrozenField:
     """Synthesise a frozen homogeneous isotropic von Kármán velocity field.
 
@@ -213,6 +279,11 @@ def von_karman_field(
     model : {"von_karman", "exponential"}
         Energy spectrum: von Kármán, or the transform of Banakh et al. (1999), eq. 17
         (:func:`cwproc.physics.spectra.energy_spectrum`).
+    coarse_factor : int
+        With a value above 1, the wavenumbers below :func:`split_wavenumber` go on a
+        second grid of the same shape and ``coarse_factor`` times the spacing (a box that
+        much larger), so that scales up to and beyond ``L_V`` are present without a huge
+        fine grid; the fine grid keeps the rest. 1: one level.
 
     Returns
     -------
@@ -224,19 +295,16 @@ def von_karman_field(
         raise ValueError("spacing_m, epsilon and integral_scale_m must be > 0")
     shape = tuple(int(n) for n in shape)  # type: ignore[assignment]
     rng = np.random.default_rng(seed)
-    ks, k2, amp = _tensor_amplitude(shape, spacing_m, epsilon, integral_scale_m, model)
-    xi = (rng.standard_normal((3, *shape)) + 1j * rng.standard_normal((3, *shape))) / np.sqrt(2)
-    safe = np.where(k2 > 0, k2, 1.0)
-    k_dot_xi = (ks[0] * xi[0] + ks[1] * xi[1] + ks[2] * xi[2]) / safe
-    n_total = int(np.prod(shape))
-    velocity = np.empty((3, *shape))
-    for c in range(3):  # three components; each a vectorised 3-D FFT
-        coeff = amp * (xi[c] - ks[c] * k_dot_xi)
-        velocity[c] = np.sqrt(2) * n_total * scipy.fft.ifftn(coeff, workers=-1).real
+    levels = [
+        _synthesise(shape, dx, epsilon, integral_scale_m, model, band, rng)
+        for dx, band in _levels(shape, spacing_m, int(coarse_factor))
+    ]
     return FrozenField(
-        velocity=velocity,
+        velocity=levels[0],
         spacing_m=float(spacing_m),
         epsilon=float(epsilon),
         integral_scale_m=float(integral_scale_m),
         seed=int(seed),
+        coarse_velocity=levels[1] if len(levels) > 1 else None,
+        coarse_spacing_m=float(coarse_factor * spacing_m) if len(levels) > 1 else None,
     )

@@ -47,8 +47,10 @@ the inertial range (flag 2).
 Flags (``turbulence_flag``, bits combine; a flagged value is NaN):
 
 - 1: too few pairs (``n_pairs`` < ``min_pairs`` at lag 1 or lag ``l``): no ``eps``;
-- 2: lag beyond the inertial range, ``l dy (1 + mu) > L_V`` (Smalikho (2020), after
-  eq. 4): no ``eps``;
+- 2: lag beyond the inertial range (Smalikho (2020), after eq. 4): ``l dy (1 + mu) >
+  L_V`` with the inertial model, ``l dy > L_V`` with the finite-outer-scale models (their
+  A-functions describe the larger separations of wind transport), or ``L_V`` below the
+  A-table's range: no ``eps``;
 - 4: ``mu`` beyond the validity of method 1, ``eps_1/eps_2 > 1.1`` (Smalikho (2020),
   eq. 21 and its discussion): ``epsilon_method1`` is NaN, ``epsilon`` stays;
 - 8: fit failed (``D(l) <= D(1)``, non-finite values, no mean wind for ``mu``, or
@@ -304,7 +306,13 @@ def estimate_epsilon(
     valid_lag = pairs >= min_pairs
     few = ~(valid_lag[..., 0] & valid_lag[..., lag_used - 1])
     flag |= np.where(few, FLAG_TOO_FEW_PAIRS, 0).astype(np.int16)
-    loss = averaging_loss(probe, dy, range_th)
+    # the loss depends on (dy, range) only: compute it once per distinct pair
+    pairs_dr = np.stack([np.round(dy, 6).ravel(), np.round(range_th, 6).ravel()], axis=1)
+    uniq, inverse = np.unique(np.nan_to_num(pairs_dr, nan=-1.0), axis=0, return_inverse=True)
+    loss_u = np.where(
+        uniq[:, 0] > 0, averaging_loss(probe, np.abs(uniq[:, 0]), np.abs(uniq[:, 1])), np.nan
+    )
+    loss = loss_u[inverse.ravel()].reshape(dy.shape)
     c_model = spectra.integral_scale_coefficient("exponential" if model == "inertial" else model)
 
     def solve(a1_: np.ndarray, a2_: np.ndarray, dd: np.ndarray, vl: np.ndarray) -> tuple:
@@ -379,7 +387,11 @@ def estimate_epsilon(
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = ((a2[..., lag_used - 1] - a2[..., 0]) / (a1[..., lag_used - 1] - a1[..., 0])) ** 1.5
 
-    beyond = too_small | (np.isfinite(l_v) & (lag_used * dy * (1 + mu_eval) > l_v))
+    # inertial form: the largest separation l dy (1 + mu) must stay below L_V; the
+    # finite-outer-scale A-functions model larger separations, so there l dy > L_V
+    # (Smalikho (2020), after eq. 4) is the limit
+    spread = (1 + mu_eval) if model == "inertial" else 1.0
+    beyond = too_small | (np.isfinite(l_v) & (lag_used * dy * spread > l_v))
     flag |= np.where(beyond, FLAG_BEYOND_INERTIAL, 0).astype(np.int16)
     failed = ~np.isfinite(e2) | ~np.isfinite(mu) | (n_l < 2)
     flag |= np.where(failed, FLAG_FIT_FAILED, 0).astype(np.int16)

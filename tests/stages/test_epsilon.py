@@ -206,3 +206,138 @@ def test_finite_outer_scale_fit_recovers_eps_and_integral_scale(options):
         sf, probe=PROBE, lag_number=3, model="inertial", table_options=options
     )
     assert np.all(inertial["epsilon"].values < 0.9 * eps)
+
+
+# --------------------------------------------------------------------------------------
+# end to end: synthetic von Karman turbulence -> pulsed conical scans -> D_L -> eps
+# --------------------------------------------------------------------------------------
+
+SIM_EPS = 0.01  # m2 s-3
+SIM_L = 100.0  # m, integral scale of the synthetic field
+SIM_NOISE = 0.3  # m s-1
+SIM_PHI = 35.3
+SIM_HEIGHTS = np.array([80.0, 100.0, 120.0])
+SIM_RAYS = 144  # dtheta 2.5 deg -> lags 1..3; dy = 6.2 m at 100 m
+SIM_T = 120.0
+SIM_OPTIONS = {"height_range_m": (75.0, 125.0), "outer_scale_range_m": (20.0, 600.0)}
+
+
+def vad_wind(ds: xr.Dataset) -> xr.Dataset:
+    """Per-scan least-squares VAD winds (Smalikho (2020), eq. 1) in the stage-vad schema."""
+    scans = np.unique(ds["scan"].values)
+    th = np.deg2rad(ds["azimuth"].values)
+    ph = np.deg2rad(ds["elevation"].values)
+    design = np.stack([np.cos(ph) * np.sin(th), np.cos(ph) * np.cos(th), np.sin(ph)], axis=1)
+    coef = np.stack(
+        [
+            np.linalg.lstsq(
+                design[ds["scan"].values == s],
+                ds["radial_velocity"].values[ds["scan"].values == s],
+                rcond=None,
+            )[0]
+            for s in scans
+        ]
+    )  # (scan, 3, height)
+    times = np.array(
+        [ds["time"].values[ds["scan"].values == s].astype("int64").mean() for s in scans]
+    ).astype("datetime64[ns]")
+    r = ds["range"].values
+    return xr.Dataset(
+        {name: (("time", "height"), coef[:, i, :]) for i, name in enumerate("uvw")},
+        coords={
+            "time": times,
+            "height": r * np.sin(np.deg2rad(SIM_PHI)),
+            "range": ("height", r),
+            "scan": ("time", scans),
+            "elevation": ("time", np.full(scans.size, SIM_PHI)),
+        },
+    )
+
+
+def simulate(field, mu: float, seed: int, keep=None) -> xr.Dataset:
+    """Screened scans (qc flag 0) of the field with wind speed mu V_s at 100 m."""
+    from cwproc.sim.pulsed import sample_conical_scans
+
+    v_s = 2 * np.pi * 100.0 / np.tan(np.deg2rad(SIM_PHI)) / SIM_T
+    ds = sample_conical_scans(
+        field,
+        elevation_deg=SIM_PHI,
+        ranges_m=SIM_HEIGHTS / np.sin(np.deg2rad(SIM_PHI)),
+        rays_per_scan=SIM_RAYS,
+        scan_period_s=SIM_T,
+        n_scans=10,
+        wind_speed_m_s=mu * v_s,
+        wind_direction_deg=250.0,
+        noise_std_m_s=SIM_NOISE,
+        seed=seed,
+        sweep_points=3,
+        range_step_m=3.0,
+    )
+    if keep is not None:
+        ds = ds.isel(ray=keep(ds))
+    ds["qc_flag_radial"] = (("ray", "range"), np.zeros(ds["radial_velocity"].shape, np.int8))
+    return ds
+
+
+@pytest.fixture(scope="module")
+def sim_results(tmp_path_factory):
+    """eps, eps_1 (from the data with A_1), sigma_e over 4 seeded fields x 3 heights x mu."""
+    from cwproc.sim.field3d import von_karman_field
+    from cwproc.stages.structure import azimuth_structure_function
+
+    options = {**SIM_OPTIONS, "cache_dir": str(tmp_path_factory.mktemp("atable_sim"))}
+    out = {}
+    for seed in range(4):
+        field = von_karman_field(
+            (128, 128, 128),
+            2.0,
+            epsilon=SIM_EPS,
+            integral_scale_m=SIM_L,
+            seed=seed,
+            coarse_factor=8,
+        )
+        for mu in (0.25, 1.0, 2.0, 3.0):
+            ds = simulate(field, mu, seed + 100)
+            sf = azimuth_structure_function(ds, vad_wind(ds), n_scans=10, max_lag_deg=9.0)
+            turb = estimate_epsilon(
+                sf, probe=PROBE, lag_number=3, model="von_karman", table_options=options
+            )
+            inertial = estimate_epsilon(
+                sf, probe=PROBE, lag_number=3, model="inertial", table_options=options
+            )
+            # method 1 straight from the data (the product masks it beyond eq. 21's 10 %)
+            eps1 = inertial["epsilon"].values * inertial["epsilon_ratio"].values
+            out.setdefault(mu, []).append(
+                np.stack(
+                    [
+                        turb["epsilon"].values[0] / SIM_EPS,
+                        turb["noise_std"].values[0] / SIM_NOISE,
+                        inertial["epsilon"].values[0] / SIM_EPS,
+                        eps1[0] / SIM_EPS,
+                    ]
+                )
+            )
+    return {mu: np.concatenate(v, axis=1) for mu, v in out.items()}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mu", [0.25, 1.0, 2.0, 3.0])
+def test_method2_recovers_eps_of_synthetic_scans(sim_results, mu):
+    """Median eps (method 2, von Karman fit) within 20 % of the truth, 12 realisations."""
+    assert np.nanmedian(sim_results[mu][0]) == pytest.approx(1.0, abs=0.2)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mu", [0.25, 1.0, 2.0])
+def test_noise_std_is_recovered(sim_results, mu):
+    assert np.nanmedian(sim_results[mu][1]) == pytest.approx(1.0, abs=0.2)
+
+
+@pytest.mark.slow
+def test_method1_is_biased_high_beyond_mu_1(sim_results):
+    """eps_1 / eps_2 grows with mu as Smalikho (2020), eq. 21 predicts (about 1.2, 2.5, 4)."""
+    bias = {mu: np.nanmedian(v[3] / v[2]) for mu, v in sim_results.items()}
+    assert bias[0.25] == pytest.approx(1.0, abs=0.05)
+    assert 1.05 < bias[1.0] < bias[2.0] < bias[3.0]
+    assert bias[3.0] > 3.0
+    assert np.nanmedian(sim_results[3.0][3]) > 2.0  # method 1 against the truth
