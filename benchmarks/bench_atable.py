@@ -18,14 +18,16 @@ Run::
     python benchmarks/bench_atable.py                 # inertial tables, phi 60 and 75
     python benchmarks/bench_atable.py --finite        # + von Karman tables (slower build)
 
-Printed figures: build time (s), load time (ms), evaluation time (ms) and table size
-(MiB). Target: evaluation well under 1 s (it is a few tens of ms).
+Printed figures: build time (s), load time (ms), evaluation time (ms), table size (MiB)
+and the peak resident memory of the run. Target: evaluation well under 1 s (measured
+0.06 s inertial, 0.15-0.18 s von Karman on 2 cores).
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import resource
 import tempfile
 import time
 
@@ -81,6 +83,8 @@ def main() -> None:
         for model in models:
             for phi in args.phi:
                 time_one(probe, phi, dtheta, args.lags, model, cache)
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"peak resident memory {peak:.0f} MiB")
 
 
 if __name__ == "__main__":
