@@ -1,0 +1,307 @@
+"""README.md says what works: its commands exist and run, as written, for a new user.
+
+The fast tests check the README's text against the code (the first code block, the CI
+command, every ``cwproc`` command and option named in a shell block, the links and
+pictures). The slow test follows the README in a fresh virtual environment: it copies the
+tracked files of the repository, installs cwproc from the copy, and runs the main-job line
+and the tour's blocks marked ``<!-- tested -->`` exactly as written, up to and including
+the first ``cwproc plot``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+README = REPO / "README.md"
+CI_RUN = REPO / ".ci" / "run"
+
+#: the two commands of a new user, the first code block of the README
+MAIN_JOB = "pip install . && cwproc retrieve sample_data/ -o out/"
+TEST_LINE = 'pip install ".[test]" && python3 -m pytest -q'
+
+#: marker of the README blocks that the slow test runs
+TESTED = "<!-- tested -->"
+
+#: largest picture committed under docs/images (bytes)
+MAX_PNG_BYTES = 150_000
+
+FENCE = re.compile(r"^```(?P<lang>[^\n`]*)\n(?P<body>.*?)^```\s*$", re.M | re.S)
+LINK = re.compile(r"!?\[[^\]]*\]\((?P<target>[^)\s]+)\)")
+
+
+@dataclass(frozen=True)
+class Block:
+    """A fenced code block of the README."""
+
+    lang: str
+    lines: tuple[str, ...]
+    tested: bool
+    line_number: int
+
+
+def code_blocks(text: str) -> list[Block]:
+    """Fenced code blocks of a Markdown text, with whether ``<!-- tested -->`` precedes them."""
+    blocks = []
+    for match in FENCE.finditer(text):
+        before = text[: match.start()].rstrip().splitlines()
+        tested = bool(before) and before[-1].strip() == TESTED
+        blocks.append(
+            Block(
+                lang=match["lang"].strip(),
+                lines=tuple(match["body"].splitlines()),
+                tested=tested,
+                line_number=text.count("\n", 0, match.start()) + 1,
+            )
+        )
+    return blocks
+
+
+def shell_commands(lines: tuple[str, ...]) -> list[str]:
+    """Commands of a shell block: comment lines dropped, ``\\`` continuations joined."""
+    commands: list[str] = []
+    pending = ""
+    for raw in lines:
+        line = raw.rstrip()
+        if not pending and (not line.strip() or line.lstrip().startswith("#")):
+            continue
+        if line.endswith("\\"):
+            pending += line[:-1] + " "
+            continue
+        commands.append(pending + line)
+        pending = ""
+    if pending:
+        commands.append(pending.rstrip())
+    return commands
+
+
+def readme_blocks() -> list[Block]:
+    return code_blocks(README.read_text(encoding="utf-8"))
+
+
+def bash_blocks() -> list[Block]:
+    return [b for b in readme_blocks() if b.lang in ("bash", "sh", "shell")]
+
+
+def cwproc_invocations(command: str) -> list[list[str]]:
+    """The argument lists of every ``cwproc`` call in one shell command line."""
+    lexer = shlex.shlex(command, posix=True, punctuation_chars=True)
+    lexer.whitespace_split = True
+    calls: list[list[str]] = []
+    words: list[str] = []
+    for token in [*lexer, ";"]:
+        if token and set(token) <= set("();<>|&"):
+            if words and words[0] == "cwproc":
+                calls.append(words[1:])
+            words = []
+        else:
+            words.append(token)
+    return calls
+
+
+# --------------------------------------------------------------------------------------
+# fast: the README's text against the code
+# --------------------------------------------------------------------------------------
+
+
+def test_first_block_is_the_install_run_and_test_commands():
+    first = readme_blocks()[0]
+    assert first.lang == "bash"
+    assert list(first.lines) == [MAIN_JOB, TEST_LINE]
+    # the main job's input exists in the repository and holds Stream Line files
+    assert sorted(p.name for p in (REPO / "sample_data" / "streamline").glob("*.hpl"))
+
+
+def test_ci_runs_the_readme_test_command():
+    readme_install, readme_test = (s.strip() for s in readme_blocks()[0].lines[1].split("&&"))
+    lines = [
+        line.strip()
+        for line in CI_RUN.read_text(encoding="utf-8").splitlines()
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
+    runs = [line for line in lines if "pytest" in line]
+    assert len(runs) == 1, f".ci/run should run pytest once, found {runs}"
+    ci_install, ci_test = (s.strip() for s in runs[0].split("&&"))
+    assert ci_test == readme_test
+    # both install the same target: the package with its test extras
+    assert shlex.split(readme_install)[-1] == shlex.split(ci_install)[-1] == ".[test]"
+
+
+def _resolve(args: list[str]):
+    """The click command that ``cwproc args`` runs and the arguments left for it."""
+    from cwproc.cli import main
+
+    command, rest = main, list(args)
+    while hasattr(command, "commands") and rest and not rest[0].startswith("-"):
+        assert rest[0] in command.commands, f"`cwproc {' '.join(args)}`: no command {rest[0]!r}"
+        command, rest = command.commands[rest[0]], rest[1:]
+    return command, rest
+
+
+def test_every_cwproc_command_and_option_in_the_readme_exists():
+    calls = [
+        call
+        for block in bash_blocks()
+        for command in shell_commands(block.lines)
+        for call in cwproc_invocations(command)
+    ]
+    assert len(calls) >= 15, "the tour names the commands of every section"
+    named = set()
+    for call in calls:
+        command, rest = _resolve(call)
+        assert not hasattr(command, "commands"), f"`cwproc {' '.join(call)}` is a group"
+        named.add(command.name)
+        options = {opt for p in command.params for opt in getattr(p, "opts", [])}
+        for word in rest:
+            if word.startswith("-") and word != "-":
+                assert word.split("=")[0] in options, f"`cwproc {' '.join(call)}`: no {word}"
+    from cwproc.cli import main
+
+    # every command of the CLI appears in the tour
+    top = {name for name, cmd in main.commands.items() if not hasattr(cmd, "commands")}
+    subs = {
+        name for cmd in main.commands.values() if hasattr(cmd, "commands") for name in cmd.commands
+    }
+    assert top | subs <= named
+
+
+def test_links_and_pictures_of_the_readme_exist():
+    text = README.read_text(encoding="utf-8")
+    targets = [m["target"] for m in LINK.finditer(text) if "://" not in m["target"]]
+    assert targets, "the README links to its documentation"
+    for target in targets:
+        assert (REPO / target.split("#")[0]).is_file(), f"README links to missing {target}"
+    pictures = [t for t in targets if t.endswith(".png")]
+    assert len(pictures) >= 4
+    for target in pictures:
+        data = (REPO / target).read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n", f"{target} is not a PNG"
+        assert 10_000 < len(data) < MAX_PNG_BYTES, f"{target}: {len(data)} bytes"
+
+
+def test_images_script_makes_every_readme_picture():
+    script = (REPO / "docs" / "make_images.sh").read_text(encoding="utf-8")
+    text = README.read_text(encoding="utf-8")
+    for target in re.findall(r"\]\((docs/images/[^)]+\.png)\)", text):
+        assert f"-o {target}" in script, f"docs/make_images.sh does not make {target}"
+
+
+def test_tested_blocks_reach_a_plot():
+    commands = [c for b in bash_blocks() if b.tested for c in shell_commands(b.lines)]
+    assert any(call[:1] == ["plot"] for c in commands for call in cwproc_invocations(c))
+
+
+# --------------------------------------------------------------------------------------
+# slow: a new user follows the README in a fresh virtual environment
+# --------------------------------------------------------------------------------------
+
+
+def tracked_files(repo: Path) -> list[str]:
+    """Paths of the files git tracks in ``repo`` (skips the test when git cannot say)."""
+    try:
+        out = subprocess.run(
+            ["git", "ls-files", "-z"], cwd=repo, capture_output=True, check=True, timeout=60
+        ).stdout
+    except (OSError, subprocess.CalledProcessError, subprocess.TimeoutExpired) as exc:
+        pytest.skip(f"cannot list the tracked files with git: {exc}")
+    return [p for p in out.decode().split("\0") if p]
+
+
+def copy_tracked(repo: Path, dest: Path) -> None:
+    """Copy the working-tree version of every tracked file (symlinks stay symlinks)."""
+    for name in tracked_files(repo):
+        src = repo / name
+        if not src.exists() and not src.is_symlink():
+            continue  # deleted in the working tree
+        target = dest / name
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(src, target, follow_symlinks=False)
+
+
+def tour_commands() -> list[str]:
+    """The main-job line, then the tested blocks' commands up to the first ``cwproc plot``."""
+    commands = [readme_blocks()[0].lines[0]]
+    for block in bash_blocks()[1:]:
+        if not block.tested:
+            continue
+        block_commands = shell_commands(block.lines)
+        commands += block_commands
+        if any(call[:1] == ["plot"] for c in block_commands for call in cwproc_invocations(c)):
+            return commands
+    raise AssertionError("no tested README block runs `cwproc plot`")
+
+
+def venv_environment(venv: Path) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    env["VIRTUAL_ENV"] = str(venv)
+    env["PATH"] = str(venv / "bin") + os.pathsep + env.get("PATH", "")
+    env["PIP_DISABLE_PIP_VERSION_CHECK"] = "1"
+    env["MPLBACKEND"] = "Agg"
+    return env
+
+
+@pytest.mark.slow
+def test_new_user_follows_the_readme(tmp_path):
+    copy = tmp_path / "cwproc"
+    copy_tracked(REPO, copy)
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
+    env = venv_environment(venv)
+
+    commands = tour_commands()
+    for command in commands:
+        result = subprocess.run(
+            ["bash", "-c", command],
+            cwd=copy,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
+        assert result.returncode == 0, (
+            f"README command failed (exit {result.returncode}): {command}\n"
+            f"--- stdout\n{result.stdout[-3000:]}\n--- stderr\n{result.stderr[-3000:]}"
+        )
+    # the commands ran the virtual environment's cwproc, not another installation
+    assert shutil.which("cwproc", path=env["PATH"]) == str(venv / "bin" / "cwproc")
+
+    import xarray as xr
+
+    truth = json.loads((REPO / "sample_data" / "streamline_truth.json").read_text())
+    (wind_path,) = sorted((copy / "out").glob("*_wind.nc"))
+    (turb_path,) = sorted((copy / "out").glob("*_turbulence.nc"))
+    with xr.open_dataset(wind_path) as wind:
+        speed = wind["wind_speed"].values
+        direction = wind["wind_direction"].values
+        # the sample wind: 6 m/s from 240 deg; turbulence (sigma_V ~ 1.3 m/s) scatters
+        # single-scan values, the medians over all scans and heights agree within 10 %
+        assert np.isfinite(speed).mean() > 0.9
+        assert np.nanmedian(speed) == pytest.approx(truth["wind_speed_m_s"], rel=0.10)
+        assert np.nanmedian(direction) == pytest.approx(truth["wind_direction_deg"], abs=10)
+    with xr.open_dataset(turb_path) as turb:
+        eps = turb["epsilon"].values
+        # epsilon of the sample series (0.01 m2 s-3) within a factor 2 (median)
+        assert np.isfinite(eps).mean() > 0.5
+        assert 0.5 < np.nanmedian(eps) / truth["epsilon_m2_s3"] < 2.0
+
+    import matplotlib.image as mpimg
+
+    pngs = [copy / m for c in commands if "cwproc plot" in c for m in re.findall(r"-o\s+(\S+)", c)]
+    assert pngs
+    for png in pngs:
+        image = mpimg.imread(png)
+        assert png.stat().st_size > 10_000
+        assert image.shape[0] >= 300 and image.shape[1] >= 400
+        # drawn, not blank: many distinct pixel values
+        assert np.unique(image.reshape(-1, image.shape[-1]), axis=0).shape[0] > 50
