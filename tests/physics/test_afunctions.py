@@ -262,3 +262,24 @@ def test_bad_arguments():
         a_par(3.0, probe=PHYSICAL, dy=1.0, model="von_karman")
     with pytest.raises(ValueError, match="dy"):
         a_perp(3.0, probe=PHYSICAL, dy=-1.0)
+
+
+def test_inertial_a_functions_bias_cw_epsilon_low():
+    # REFERENCE_VALUES.md section 3: for the cw lidar of Banakh et al. (1999) (10.6 um,
+    # a0 = 7.5 cm, phi = 30 deg, dtheta = 360 deg * 50 ms / 7 s) fitting D_L made with the
+    # eq. 17 model by the inertial-range A-functions biases eps low by 28 % at 50 m and
+    # 68 % at 500 m (their least-squares estimator; here eq. 5 with l = 3, noise free)
+    probe = CWProbe(wavelength_m=10.6e-6, beam_radius_m=0.075)
+    dtheta = np.radians(360 * 0.05 / 7)
+    ratios = []
+    for h, big_l in ((50.0, 133.0), (500.0, 333.0)):
+        rng = h / np.sin(np.radians(30))
+        dy = dtheta * h / np.tan(np.radians(30))
+        lags = np.array([1.0, 3.0]) * dy
+        true_a = a_perp(
+            lags, probe=probe, dy=dy, range_m=rng, model="exponential", outer_scale_m=big_l
+        )
+        inertial_a = a_perp(lags, probe=probe, dy=dy, range_m=rng)
+        ratios.append(((true_a[1] - true_a[0]) / (inertial_a[1] - inertial_a[0])) ** 1.5)
+    assert 0.6 < ratios[0] < 0.8  # 20-40 % low at 50 m
+    assert 0.2 < ratios[1] < 0.4  # 60-80 % low at 500 m: "up to a factor 3"
