@@ -157,9 +157,13 @@ VARIABLES: dict[str, VarMeta] = {
     "qc_flag": VarMeta(
         "wind quality flag (bits combine; 0 = good)",
         "1",
-        flag_masks=(1, 2, 4),
-        flag_meanings="too_few_rays azimuth_gap_too_large bad_fit",
-        comment="0 good; bit 1 too few rays; bit 2 azimuth gap too large; bit 4 bad fit",
+        flag_masks=(1, 2, 4, 8),
+        flag_meanings="too_few_samples azimuth_gap_too_large bad_fit_or_missing rain",
+        comment=(
+            "0 good; bit 1 too few rays (VAD) or packets (wind records); bit 2 azimuth gap "
+            "too large (VAD); bit 4 bad fit (VAD) or missing value (wind records); bit 8 "
+            "too many packets with rain (wind records)"
+        ),
     ),
     # ---------------------------------------------------------------- turbulence product
     "structure_function": VarMeta(
