@@ -209,14 +209,19 @@ class CentroidResult:
     velocity : numpy.ndarray
         V_D (m s-1), NaN where excluded.
     valid : numpy.ndarray
-        bool: conditions (5)-(8), (10) hold and the peak is not below 1 m s-1.
+        bool: the peak is not below 1 m s-1 (and the window holds at least one channel
+        either side).
     width : numpy.ndarray
-        sigma_s from the half-maximum width (m s-1).
+        sigma_s, :func:`spectral_width` (m s-1).
+    full_window : numpy.ndarray
+        bool: the window k1 dV >> sigma_s of condition (10) fitted inside the channels
+        (conditions 5-6); False where the coarser estimate with k1 <= k_max was used.
     """
 
     velocity: np.ndarray
     valid: np.ndarray
     width: np.ndarray
+    full_window: np.ndarray
 
 
 def spectral_width(spectrum: np.ndarray, resolution: float) -> np.ndarray:
@@ -245,7 +250,7 @@ def centroid_velocity(
     *,
     resolution: float,
     first_channel_velocity: float = 0.0,
-    width_factor: float = 4.0,
+    width_factor: float = 6.0,
     min_half_window: int = 5,
     min_peak_velocity: float = MIN_PEAK_VELOCITY,
 ) -> CentroidResult:
@@ -255,10 +260,11 @@ def centroid_velocity(
     sigma_s is :func:`spectral_width`; k1 = max(min_half_window,
     ceil(width_factor sigma_s / dV)) so that sigma_s << k1 dV (condition 10) and the
     window holds the sinc^2 side lobes of eq. 3 (their asymmetric truncation biases a
-    narrow window by up to dV/5). A spectrum is valid when k1 <= k_max (5),
-    k_max + k1 <= M_D - 1 (6) -- which with k1 dV >> sigma_s imply (7), (8) -- and its
-    peak velocity |dV k_max| is not below ``min_peak_velocity`` (section 3: near-zero
-    peaks are dropped because the sign and the estimate are unreliable there).
+    narrow window by up to dV/5). Where conditions (5) k1 <= k_max or (6)
+    k_max + k1 <= M_D - 1 would fail, k1 is reduced to fit (the paper's coarser
+    estimate, flagged in ``full_window``). A spectrum is valid when its peak velocity
+    |dV k_max| is not below ``min_peak_velocity`` (section 3: near-zero peaks are
+    dropped because the sign and the estimate are unreliable there).
 
     Parameters
     ----------
@@ -283,7 +289,10 @@ def centroid_velocity(
     n_channels = w.shape[-1]
     kmax = np.argmax(w, axis=-1)
     sigma_s = spectral_width(w, resolution)
-    k1 = np.maximum(min_half_window, np.ceil(width_factor * sigma_s / resolution)).astype(int)
+    wanted = np.maximum(min_half_window, np.ceil(width_factor * sigma_s / resolution)).astype(int)
+    # conditions (5), (6): the window must stay inside the channels; where it cannot,
+    # the paper's coarser estimate with k1 <= k_max is used and flagged
+    k1 = np.minimum(wanted, np.minimum(kmax, n_channels - 1 - kmax))
     k = np.arange(n_channels)
     offset = k - kmax[..., None]
     window = np.abs(offset) <= k1[..., None]
@@ -291,10 +300,8 @@ def centroid_velocity(
     first = np.sum(np.where(window, offset * w, 0.0), axis=-1)
     velocity = first_channel_velocity + resolution * (kmax + first / s_hat)
     peak_velocity = first_channel_velocity + resolution * kmax
-    valid = (
-        (k1 <= kmax) & (kmax + k1 <= n_channels - 1) & (np.abs(peak_velocity) >= min_peak_velocity)
-    )
-    return CentroidResult(np.where(valid, velocity, np.nan), valid, sigma_s)
+    valid = (k1 >= 1) & (np.abs(peak_velocity) >= min_peak_velocity)
+    return CentroidResult(np.where(valid, velocity, np.nan), valid, sigma_s, k1 == wanted)
 
 
 # --------------------------------------------------------------------------------------
@@ -530,7 +537,8 @@ def write_cw_series(
     Parameters
     ----------
     folder : path
-        Folder of the line-of-sight files ``cw_<yyyymmdd>_<hhmmss>.nc``.
+        Folder of the line-of-sight files ``cw_<yyyymmdd>_<hhmmss>.nc`` (created; old
+        ``cw_*.nc`` files in it are removed).
     truth_path : path
         Truth JSON (profiles of U, sigma_V^2, L_V, epsilon); keep it out of ``folder``.
     scans_per_file : int
@@ -548,6 +556,8 @@ def write_cw_series(
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
+    for old in folder.glob("cw_*.nc"):
+        old.unlink()
     ds, _ = simulate_cw_scans(
         rng,
         lidar,

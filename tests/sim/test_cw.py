@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import integrate
 
 from cwproc.sim import cw
@@ -120,3 +122,27 @@ def test_simulated_cw_scans_are_homodyne_and_match_the_probe_average():
     fast = ok & (np.abs(truth[:, 0]) > 3.0)
     assert np.abs(diff[fast]).max() < 0.1
     assert np.median(np.abs(diff[ok])) < 0.03
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    mean=st.floats(min_value=4.0, max_value=10.0),
+    spread=st.floats(min_value=0.1, max_value=0.6),
+    shift=st.integers(min_value=1, max_value=60),
+    seed=st.integers(min_value=0, max_value=2**32 - 1),
+)
+def test_centroid_moves_with_the_spectrum(mean, spread, shift, seed):
+    """Eq. 4 is translation-equivariant: velocities shifted by j dV (j channels) move
+    the estimate by exactly j dV while the window stays inside the channels, and a
+    homodyne spectrum does not depend on the sign of V_r (eq. 3 with |V_r|)."""
+    rng = np.random.default_rng(seed)
+    _dr, q = cw.probe_grid(200.0, LAMBDA, A0)
+    profile = np.convolve(rng.normal(size=q.size + 20), np.ones(21) / np.sqrt(21), "valid")
+    vr = mean + spread * profile
+    both = np.stack([vr, vr + shift * 0.1])
+    spec = cw.doppler_spectrum(both, q, resolution=0.1, n_channels=256)
+    res = cw.centroid_velocity(spec, resolution=0.1)
+    assert res.full_window.all()
+    assert res.velocity[1] - res.velocity[0] == pytest.approx(shift * 0.1, abs=1e-6)
+    mirrored = cw.doppler_spectrum(-vr[None, :], q, resolution=0.1, n_channels=256)
+    assert mirrored[0] == pytest.approx(spec[0], abs=1e-12)
