@@ -53,7 +53,12 @@ N_THETA = 128
 
 @dataclass(frozen=True)
 class _Panels:
-    """Gauss-Legendre nodes of geometric panels on the wavenumber axis (cycles m-1)."""
+    """Gauss-Legendre nodes of geometric panels on the wavenumber axis (cycles m-1).
+
+    Panel ends lie on the fixed lattice ``_PANEL_RATIO**j`` (``j`` integer), so that the
+    nodes of two panel sets coincide where they overlap (:class:`PlaneMatrix` reuses the
+    spectrum matrix between calls).
+    """
 
     kappa: np.ndarray  # nodes (n,)
     gl: np.ndarray  # plain quadrature weights (n,)
@@ -63,11 +68,21 @@ class _Panels:
     pmx: np.ndarray  # (2m+1) P_m(x_k) w_k, shape (n, order)
     lo: float
     hi: float
+    first: int  # lattice index j of the first panel's left end
+
+
+def _lattice_range(k_lo: float, k_hi: float) -> tuple[int, int]:
+    """Lattice indices ``(j0, j1)`` with ``R^j0 <= k_lo`` and ``R^j1 >= k_hi``."""
+    step = math.log(_PANEL_RATIO)
+    j0 = math.floor(math.log(k_lo) / step)
+    j1 = max(j0 + 1, math.ceil(math.log(k_hi) / step))
+    return j0, j1
 
 
 def _panels(k_lo: float, k_hi: float) -> _Panels:
-    n_pan = max(1, math.ceil(math.log(k_hi / k_lo) / math.log(_PANEL_RATIO)))
-    edges = np.geomspace(k_lo, k_hi, n_pan + 1)
+    j0, j1 = _lattice_range(k_lo, k_hi)
+    edges = _PANEL_RATIO ** np.arange(j0, j1 + 1, dtype=float)
+    n_pan = edges.size - 1
     x, w = legendre.leggauss(_ORDER)
     c = 0.5 * (edges[1:] + edges[:-1])
     d = 0.5 * (edges[1:] - edges[:-1])
@@ -82,18 +97,55 @@ def _panels(k_lo: float, k_hi: float) -> _Panels:
         half=np.repeat(d, _ORDER),
         left=np.repeat(edges[:-1], _ORDER),
         pmx=np.tile(pm, (n_pan, 1)),
-        lo=float(k_lo),
-        hi=float(k_hi),
+        lo=float(edges[0]),
+        hi=float(edges[-1]),
+        first=j0,
     )
+
+
+class PlaneMatrix:
+    """The 2-D spectrum on the nodes of a wide panel set, shared by many A-function calls.
+
+    ``Phi(kappa_i, kappa_j)`` (Smalikho (2020), eq. 18 or a finite-outer-scale spectrum)
+    is the costliest part of :func:`a_curves` and depends only on the model and the
+    nodes. Built once over the union of the wavenumber ranges of a table (see
+    :func:`panel_limits`), it hands out the sub-block of any panel set inside that range.
+    """
+
+    def __init__(
+        self,
+        k_lo: float,
+        k_hi: float,
+        model: spectra.Model = "inertial",
+        outer_scale_m: float | None = None,
+        constant: float | None = None,
+    ) -> None:
+        self.panels = _panels(k_lo, k_hi)
+        self.model = model
+        self.outer_scale_m = outer_scale_m
+        self.constant = constant
+        k = self.panels.kappa
+        self.matrix = spectra.plane_spectrum(
+            k[:, None], k[None, :], model, outer_scale_m, constant=constant
+        )
+
+    def block(self, p: _Panels) -> np.ndarray | None:
+        """``Phi`` on the nodes of ``p``, or ``None`` when ``p`` is not inside this set."""
+        start = (p.first - self.panels.first) * _ORDER
+        stop = start + p.kappa.size
+        if start < 0 or stop > self.panels.kappa.size:
+            return None
+        return self.matrix[start:stop, start:stop]
 
 
 def _spherical_j(x: np.ndarray, order: int) -> np.ndarray:
     """Spherical Bessel functions ``j_0 .. j_(order-1)`` at ``x >= 0``, shape ``(order, *x.shape)``.
 
     Upward recurrence where ``x >= 16`` (stable there), Miller's downward recurrence
-    from index 48 (28 when all ``x < 4``) normalised by ``j_0 = sin(x)/x`` for
-    ``0.5 <= x < 16``, the power series (10 terms) below; relative accuracy 2e-11
-    (checked against :func:`scipy.special.spherical_jn`, which is 20x slower).
+    from index 48 (28 when all ``x < 4``) normalised by ``j_0`` (or ``j_1`` near the zeros
+    of ``j_0``) for ``0.5 <= x < 16``, the power series (10 terms) below; accuracy 1e-13
+    relative to the largest of the ``j_m`` (checked against
+    :func:`scipy.special.spherical_jn`, which is 20x slower).
     """
     x = np.asarray(x, dtype=float)
     out = np.empty((order, *x.shape))
@@ -121,7 +173,10 @@ def _spherical_j(x: np.ndarray, order: int) -> np.ndarray:
             j_next, j_cur = j_cur, (2 * m + 1) * inv * j_cur - j_next
             if m - 1 < order:
                 vals[m - 1] = j_cur
-        norm = np.sinc(xm / np.pi) / vals[0]
+        # normalise by j_0 = sin(x)/x or, near its zeros, by j_1 = sin(x)/x^2 - cos(x)/x
+        j0 = np.sinc(xm / np.pi)
+        j1 = (np.sin(xm) * inv - np.cos(xm)) * inv
+        norm = np.where(np.abs(j0) >= np.abs(j1), j0 / vals[0], j1 / vals[1])
         for m in range(order):
             out[m][mid] = vals[m] * norm
     small = x < 0.5
@@ -270,6 +325,33 @@ def _probe_scale(probe: Probe | None, range_m: float | None) -> float:
     return float(probe.length_scale_m())
 
 
+def panel_limits(
+    rho_min: float,
+    rho_max: float,
+    *,
+    probe: Probe | None,
+    dy: float,
+    range_m: float | None = None,
+    model: spectra.Model = "inertial",
+    outer_scale_m: float | None = None,
+) -> tuple[float, float, bool]:
+    """Wavenumber range ``(k_lo, k_hi)`` (cycles m-1) of the quadrature, and ``has_par``.
+
+    From ``1e-5`` over the largest to ``2e3`` over the smallest length among the lags
+    ``[rho_min, rho_max]`` (m), ``dy``, the probe length and the outer scale; ``2e7`` when
+    one of the filters is absent (power-law tails). ``has_par`` tells whether the probe
+    filters along the beam at all.
+    """
+    probe_len = _probe_scale(probe, range_m)
+    small = [rho_min, *(s for s in (dy, probe_len) if s > 0)]
+    large = [rho_max, dy, probe_len]
+    if model != "inertial" and outer_scale_m is not None:
+        large.append(outer_scale_m)
+    has_par = probe_len > 0  # a probe of zero length filters nothing
+    reach = 2e3 if (has_par and dy > 0) else 2e7
+    return 1e-5 / max(large), reach / min(small), has_par
+
+
 def a_curves(
     rho: ArrayLike,
     *,
@@ -279,11 +361,14 @@ def a_curves(
     model: spectra.Model = "inertial",
     outer_scale_m: float | None = None,
     constant: float | None = None,
+    plane: PlaneMatrix | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(A_perp(rho), A_par(rho))`` (m^(2/3)) at the lags ``rho`` (m), in one pass.
 
     Smalikho (2020), eqs. 16-17 (see :func:`a_perp` for the parameters). Both share the
     inner integrals, so asking for both (and for many lags) costs little more than one.
+    ``plane``: a :class:`PlaneMatrix` of the same model to take the spectrum from (used
+    when it covers the wavenumbers needed; the result is identical either way).
     """
     rho_arr = np.abs(np.asarray(rho, dtype=float))
     shape = rho_arr.shape
@@ -294,20 +379,32 @@ def a_curves(
     positive = rho_flat[rho_flat > 0]
     if positive.size == 0:
         return np.zeros(shape), np.zeros(shape)
-    probe_len = _probe_scale(probe, range_m)
-    small = [positive.min(), *(s for s in (dy, probe_len) if s > 0)]
-    large = [positive.max(), dy, probe_len]
-    if model != "inertial":
-        large.append(outer_scale_m)
-    # without one of the filters the integrands decay only as a power law: reach further
-    has_par = probe_len > 0  # a probe of zero length filters nothing
-    reach = 2e3 if (has_par and dy > 0) else 2e7
-    p = _panels(1e-5 / max(large), reach / min(small))
+    k_lo, k_hi, has_par = panel_limits(
+        positive.min(),
+        positive.max(),
+        probe=probe,
+        dy=dy,
+        range_m=range_m,
+        model=model,
+        outer_scale_m=outer_scale_m,
+    )
+    p = _panels(k_lo, k_hi)
     k = p.kappa
     fac_par, len_par = _longitudinal_factor(probe, p, range_m)
     # inner integrals: G_perp(k2) = int Phi(k1, k2) H_par(k1) dk1,
     #                  G_par(k1)  = int Phi(k1, k2) H_perp(k2) dk2
-    phi = spectra.plane_spectrum(k[:, None], k[None, :], model, outer_scale_m, constant=constant)
+    phi = None
+    if plane is not None:
+        same = (plane.model, plane.outer_scale_m, plane.constant) == (
+            model,
+            outer_scale_m,
+            constant,
+        )
+        phi = plane.block(p) if same else None
+    if phi is None:
+        phi = spectra.plane_spectrum(
+            k[:, None], k[None, :], model, outer_scale_m, constant=constant
+        )
     u_par = _integral_weights(p, len_par, fac_par)
     u_perp = _integral_weights(p, dy, np.ones_like(k))
     g_perp = u_par @ phi
@@ -448,6 +545,7 @@ def a_curve_splines(
     outer_scale_m: float | None = None,
     constant: float | None = None,
     n: int = 61,
+    plane: PlaneMatrix | None = None,
 ) -> ACurves:
     """``A_perp`` and ``A_par`` on ``n`` (at least 14 per decade) geometric lags, splined.
 
@@ -464,6 +562,7 @@ def a_curve_splines(
         model=model,
         outer_scale_m=outer_scale_m,
         constant=constant,
+        plane=plane,
     )
     return ACurves(np.log(rho), np.log(ap), np.log(al))
 

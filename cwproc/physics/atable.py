@@ -41,7 +41,7 @@ from cwproc.physics.spectra import MODELS, Model
 from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
 
 #: bump when the numerics or the grid change: old cache files are then ignored
-TABLE_VERSION = 1
+TABLE_VERSION = 2
 #: geometric ratio of the height nodes
 HEIGHT_RATIO = 1.2
 #: geometric ratio of the outer-scale nodes
@@ -263,18 +263,33 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
     lags = np.arange(1, n_lags + 1, dtype=float)
     log_a1 = np.empty((scales.size, heights.size, n_lags))
     log_a2 = np.empty((scales.size, heights.size, n_lags, mu.size))
+    dys = dtheta * heights / math.tan(math.radians(phi))
+    ranges = heights / math.sin(math.radians(phi))
+    rho_lo = 0.02 * dys
+    rho_hi = n_lags * dys * (1.0 + params["mu_max"]) * 1.01
     for i, big_l in enumerate(scales):
-        for j, h in enumerate(heights):
-            dy = dtheta * h / math.tan(math.radians(phi))
-            rng = h / math.sin(math.radians(phi))
+        outer = None if model == "inertial" else float(big_l)
+        # one spectrum matrix over the wavenumbers of all heights (the costliest part)
+        limits = [
+            afunctions.panel_limits(
+                lo, hi, probe=probe, dy=dy, range_m=rng, model=model, outer_scale_m=outer
+            )
+            for lo, hi, dy, rng in zip(rho_lo, rho_hi, dys, ranges, strict=True)
+        ]
+        plane = afunctions.PlaneMatrix(
+            min(lim[0] for lim in limits), max(lim[1] for lim in limits), model, outer
+        )
+        for j in range(heights.size):
+            dy = float(dys[j])
             curves = afunctions.a_curve_splines(
-                0.02 * dy,
-                n_lags * dy * (1.0 + params["mu_max"]) * 1.01,
+                float(rho_lo[j]),
+                float(rho_hi[j]),
                 probe=probe,
                 dy=dy,
-                range_m=rng,
+                range_m=float(ranges[j]),
                 model=model,
-                outer_scale_m=None if model == "inertial" else float(big_l),
+                outer_scale_m=outer,
+                plane=plane,
             )
             log_a1[i, j] = np.log(curves.perp(lags * dy))
             a2v = afunctions.a2_from_curves(curves, (lags * dy)[:, None], mu[None, :], phi)

@@ -283,3 +283,30 @@ def test_inertial_a_functions_bias_cw_epsilon_low():
         ratios.append(((true_a[1] - true_a[0]) / (inertial_a[1] - inertial_a[0])) ** 1.5)
     assert 0.6 < ratios[0] < 0.8  # 20-40 % low at 50 m
     assert 0.2 < ratios[1] < 0.4  # 60-80 % low at 500 m: "up to a factor 3"
+
+
+def test_filon_moments_match_scipy_spherical_bessel():
+    # the quadrature moments need j_0..j_7 everywhere, including the zeros of j_0 (x = n pi)
+    from scipy import special
+
+    from cwproc.physics.afunctions import _spherical_j
+
+    x = np.concatenate(
+        [[0.0, 1e-9], np.geomspace(1e-4, 1e5, 4000), np.pi * np.arange(1, 6), [4.4934094579]]
+    )
+    ours = _spherical_j(x, 8)
+    ref = np.array([special.spherical_jn(m, x) for m in range(8)])
+    assert np.max(np.abs(ours - ref) / np.abs(ref).max(axis=0)) < 1e-12
+
+
+def test_shared_plane_matrix_gives_identical_results():
+    from cwproc.physics.afunctions import PlaneMatrix, panel_limits
+
+    r = np.array([2.0, 7.5, 40.0])
+    lo, hi, _ = panel_limits(0.01, 500.0, probe=PHYSICAL, dy=1.0)
+    plane = PlaneMatrix(lo / 10, hi * 10, "von_karman", 80.0)
+    direct = a_curves(r, probe=PHYSICAL, dy=2.5, model="von_karman", outer_scale_m=80.0)
+    shared = a_curves(
+        r, probe=PHYSICAL, dy=2.5, model="von_karman", outer_scale_m=80.0, plane=plane
+    )
+    np.testing.assert_allclose(shared, direct, rtol=1e-12)
