@@ -108,7 +108,7 @@ def _header_fields(path: str | os.PathLike, line: str, number: int) -> list[str]
 
 def record_warnings(record: np.ndarray) -> list[str]:
     """Describe RECORD numbers that do not step by one (lost records, restarts)."""
-    step = np.diff(record.astype(np.int64))
+    step = np.diff(np.asarray(record, dtype=float))
     notes = []
     lost = step > 1
     if lost.any():
@@ -267,11 +267,14 @@ def tob1_dtype(path: str | os.PathLike, names: list[str], types: list[str]) -> n
         raise InputFileError(path, f"bad field list: {exc}", 2) from None
 
 
-def _tob1_column(records: np.ndarray, name: str, type_: str) -> np.ndarray:
+def _tob1_column(path: str | os.PathLike, records: np.ndarray, name: str, type_: str) -> np.ndarray:
     col = records[name]
     if type_.strip().upper() == "FP2":
         return decode_fp2(col)
-    return col.astype(float)
+    if col.dtype.kind == "S":
+        raise InputFileError(path, f"field {name!r} is text ({type_}), not a number", 5)
+    with np.errstate(invalid="ignore"):
+        return col.astype(float)
 
 
 def read_tob1(path: str | os.PathLike, **options: Any) -> xr.Dataset:
@@ -326,6 +329,17 @@ def read_tob1(path: str | os.PathLike, **options: Any) -> xr.Dataset:
             f"partial trailing record ({extra} of {dtype.itemsize} bytes) ignored: the file was cut"
         )
     typ = dict(zip(names, types, strict=True))
+    for key in ("SECONDS", "NANOSECONDS"):
+        field = records[key]
+        if field.dtype.kind not in "iuf":
+            raise InputFileError(path, f"{key} has type {typ[key]}, not a number", 5)
+        if field.dtype.kind == "f":
+            with np.errstate(invalid="ignore"):
+                wrong = np.flatnonzero(~np.isfinite(field) | (np.abs(field) > 2.0**40))
+            if wrong.size:
+                raise InputFileError(
+                    path, f"{key} is not a valid count", int(wrong[0]) + 1, unit="record"
+                )
     nanos = records["NANOSECONDS"].astype(np.int64)
     bad = np.flatnonzero((nanos < 0) | (nanos >= 1_000_000_000))
     if bad.size:
@@ -335,22 +349,22 @@ def read_tob1(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     secs = records["SECONDS"].astype(np.int64)
     times = TOB1_EPOCH + (secs * 1_000_000_000 + nanos).astype("timedelta64[ns]")
     times = times - np.timedelta64(round(offset_h * 3600e9), "ns")
-    vals = {k: _tob1_column(records, cols[k], typ[cols[k]]) for k in ("u", "v", "w")}
+    vals = {k: _tob1_column(path, records, cols[k], typ[cols[k]]) for k in ("u", "v", "w")}
     unit = dict(zip(names, units + [""] * (len(names) - len(units)), strict=True))
     temp = (
         _to_celsius(
-            _tob1_column(records, cols["temperature"], typ[cols["temperature"]]),
+            _tob1_column(path, records, cols["temperature"], typ[cols["temperature"]]),
             unit[cols["temperature"]],
         )
         if cols["temperature"] in names
         else np.full(n_rec, np.nan)
     )
     diag = (
-        _tob1_column(records, cols["diagnostic"], typ[cols["diagnostic"]])
+        _tob1_column(path, records, cols["diagnostic"], typ[cols["diagnostic"]])
         if cols["diagnostic"] in names
         else np.zeros(n_rec)
     )
-    if "RECORD" in names:
+    if "RECORD" in names and records["RECORD"].dtype.kind in "iu":
         notes.extend(record_warnings(records["RECORD"]))
     env = env + [""] * (8 - len(env))
     attrs = {

@@ -260,7 +260,10 @@ def sonic_dataset(
         "temperature": np.asarray(temperature, float)[keep],
     }
     diag = np.asarray(diagnostic)[keep]
-    diag = np.where(np.isfinite(diag.astype(float)), diag, -1).astype(np.int64)
+    diag_f = diag.astype(float)
+    with np.errstate(invalid="ignore"):
+        usable = np.isfinite(diag_f) & (np.abs(diag_f) < 2.0**62)
+    diag = np.where(usable, diag_f, -1).astype(np.int64)
     flag = np.zeros(t_ns.size, dtype=np.int8)
     flag[diag != 0] |= FLAG_DIAGNOSTIC
     width = round(SPIKE_WINDOW_S * rate)
@@ -388,23 +391,30 @@ def parse_times(
     path: str | os.PathLike, raw: pd.Series, first_line: int, *, fmt: str = "ISO8601"
 ) -> np.ndarray:
     """Parse time stamps (flexible fractional seconds); a bad one names its line."""
-    parsed = pd.Series(pd.to_datetime(raw, format=fmt, errors="coerce"))
+    parsed = _to_utc(raw, fmt)
     missing = np.flatnonzero(parsed.isna().to_numpy())
     if missing.size:
         # retry only the failures, stripped of blanks and quotes
         text = raw.iloc[missing].astype("string").str.strip().str.strip('"')
-        retry = pd.Series(pd.to_datetime(text, format=fmt, errors="coerce"))
+        retry = _to_utc(text, fmt)
         bad = np.flatnonzero(retry.isna().to_numpy())
         if bad.size:
             i = int(missing[bad[0]])
             raise InputFileError(path, f"bad time stamp {raw.iloc[i]!r}", first_line + i)
-        if parsed.dt.tz is None and retry.dt.tz is None:
-            parsed.iloc[missing] = retry.to_numpy()
-        else:
-            raise InputFileError(path, "time stamps mix time-zone forms", first_line)
-    if parsed.dt.tz is not None:
-        parsed = parsed.dt.tz_convert("UTC").dt.tz_localize(None)
+        parsed.iloc[missing] = retry.to_numpy()
     return parsed.to_numpy(dtype="datetime64[ns]")
+
+
+def _to_utc(raw: pd.Series, fmt: str) -> pd.Series:
+    """Parse stamps to naive UTC (stamps with an explicit offset are converted)."""
+    try:
+        parsed = pd.to_datetime(raw, format=fmt, errors="coerce", utc=True)
+    except (ValueError, OverflowError, TypeError):
+        parsed = pd.to_datetime(
+            pd.Series(raw).map(lambda v: pd.to_datetime(v, errors="coerce", utc=True)),
+            utc=True,
+        )
+    return pd.Series(parsed).dt.tz_localize(None).reset_index(drop=True)
 
 
 def read_text(path: str | os.PathLike) -> str:
