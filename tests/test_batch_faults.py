@@ -114,7 +114,7 @@ def day_archive(root: Path, n_days: int) -> list[Path]:
 # --------------------------------------------------------------------------------------
 
 
-def test_kill_9_mid_run_then_rerun_does_everything_exactly_once(tmp_path):
+def test_kill_9_mid_run_then_rerun_does_everything_exactly_once(tmp_path, monkeypatch):
     inputs, out, journal = tmp_path / "in", tmp_path / "out", tmp_path / "journal"
     day_archive(inputs, 8)
     proc = start_toy_run(inputs, out, journal, sleep_s=0.25)
@@ -129,11 +129,8 @@ def test_kill_9_mid_run_then_rerun_does_everything_exactly_once(tmp_path):
     # a temporary file as the writer leaves it when killed inside to_netcdf
     (out / ".toy_K_20240208_wind.nc.k1ll3d.tmp").write_bytes(b"\x89HDF\r\n\x1a\n partial")
 
-    os.environ["CWPROC_TOY_JOURNAL"] = str(journal)
-    try:
-        report = run_toy(inputs, out)
-    finally:
-        del os.environ["CWPROC_TOY_JOURNAL"]
+    monkeypatch.setenv("CWPROC_TOY_JOURNAL", str(journal))
+    report = run_toy(inputs, out)
     assert report.ok
     assert report.stale_lock.startswith(f"pid={proc.pid} ")
     assert report.units_up_to_date == len(done_before)
