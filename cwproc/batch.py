@@ -910,6 +910,11 @@ def run_batch(
     outdir = Path(outdir).absolute()
     if not input_dir.is_dir():
         raise CwprocError(f"{input_dir}: input directory does not exist")
+    if os.path.realpath(input_dir) == os.path.realpath(outdir):
+        raise CwprocError(
+            f"{outdir}: the output directory must not be the input directory "
+            "(products would be read back as inputs); use a subfolder or another folder"
+        )
     try:
         outdir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

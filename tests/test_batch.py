@@ -383,6 +383,13 @@ def test_missing_input_directory_is_a_clear_error(tmp_path):
         run_toy(tmp_path / "nope", tmp_path / "out")
 
 
+def test_output_directory_equal_to_input_is_refused(tmp_path):
+    toy_archive(tmp_path / "in", n_days=1)
+    with pytest.raises(CwprocError, match="must not be the input directory"):
+        run_toy(tmp_path / "in", tmp_path / "in" / "2024-01-01" / "..")
+    assert not (tmp_path / "in" / STATE_DIR).exists()
+
+
 # --------------------------------------------------------------------------------------
 # lock
 # --------------------------------------------------------------------------------------
