@@ -19,6 +19,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -26,6 +27,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from cwproc.batch import (
     STATE_DIR,
@@ -594,3 +597,56 @@ def test_unlistable_folder_is_reported_not_skipped_silently(tmp_path, monkeypatc
     report = run_toy(tmp_path / "in", tmp_path / "out")
     assert not report.ok and len(report.succeeded) == 1
     assert report.failure_lines() == [f"{locked}: cannot list folder: Permission denied"]
+
+
+_ops = st.lists(
+    st.one_of(
+        st.tuples(st.just("add"), st.integers(1, 3), st.integers(0, 3), st.integers(1, 5)),
+        st.tuples(st.just("change"), st.integers(0, 20), st.integers(1, 5)),
+        st.tuples(st.just("delete"), st.integers(0, 20)),
+        st.tuples(st.just("run")),
+    ),
+    min_size=1,
+    max_size=12,
+)
+
+
+@settings(
+    max_examples=15,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+@given(ops=_ops, seed=st.integers(0, 2**16))
+def test_any_history_of_edits_ends_with_every_product_matching_its_inputs(ops, seed):
+    """Idempotency as a property: after any sequence of added, changed and deleted files
+    and runs, one more run leaves every unit's product equal to the mean of exactly its
+    current inputs, and a run after that processes nothing."""
+    rng = np.random.default_rng(seed)
+    with tempfile.TemporaryDirectory() as tmp:
+        inputs, out = Path(tmp) / "in", Path(tmp) / "out"
+        inputs.mkdir()
+        for op in ops:
+            files = sorted(inputs.rglob("*.txt"))
+            if op[0] == "add":
+                _, day, hour, n = op
+                day_s = f"2024-01-{day:02d}"
+                write_toy(inputs / day_s / f"h{hour}.txt", "P", day_s, rng.normal(size=n), hour)
+            elif op[0] == "change" and files:
+                path = files[op[1] % len(files)]
+                header = path.read_text().splitlines()[1].split()[1]  # time=...
+                day_s, hour = header[5:15], int(header[16:18])
+                write_toy(path, "P", day_s, rng.normal(size=op[2]) + 10, hour)
+            elif op[0] == "delete" and files:
+                files[op[1] % len(files)].unlink()
+            elif op[0] == "run":
+                assert run_toy(inputs, out).ok
+        assert run_toy(inputs, out).ok
+        by_unit: dict[str, list[Path]] = {}
+        for path in inputs.rglob("*.txt"):
+            by_unit.setdefault(f"toy_P_{path.parent.name.replace('-', '')}", []).append(path)
+        for key, paths in by_unit.items():
+            product = read_product(out / f"{key}_wind.nc")
+            np.testing.assert_allclose(product["wind_speed"].values, mean_of(paths), rtol=1e-12)
+        again = run_toy(inputs, out)
+        assert again.processed == [] and again.units_up_to_date == len(by_unit)
