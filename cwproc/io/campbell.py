@@ -350,7 +350,7 @@ def read_tob1(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     times = TOB1_EPOCH + (secs * 1_000_000_000 + nanos).astype("timedelta64[ns]")
     times = times - np.timedelta64(round(offset_h * 3600e9), "ns")
     vals = {k: _tob1_column(path, records, cols[k], typ[cols[k]]) for k in ("u", "v", "w")}
-    unit = dict(zip(names, units + [""] * (len(names) - len(units)), strict=True))
+    unit = dict(zip(names, (units + [""] * len(names))[: len(names)], strict=True))
     temp = (
         _to_celsius(
             _tob1_column(path, records, cols["temperature"], typ[cols["temperature"]]),
