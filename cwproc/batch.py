@@ -171,6 +171,8 @@ class BatchReport:
     listing_failures: list[str] = field(default_factory=list)
     unrecognised: list[FileInfo] = field(default_factory=list)
     file_failures: list[FileInfo] = field(default_factory=list)
+    #: files left for a later run because they were modified less than --min-age ago
+    files_too_new: int = 0
     #: files not read because they were last modified before --since
     files_before_since: int = 0
     #: units not processed because their data begin before --since
@@ -864,6 +866,7 @@ def run_batch(
     *,
     patterns: Sequence[str] = ("*",),
     since: _dt.date | None = None,
+    min_age_s: float = 0.0,
     client: Any = None,
     wait_s: float = 0.0,
     classify: Callable[[str, str, str], FileInfo] = classify_file,
@@ -884,6 +887,9 @@ def run_batch(
     since : datetime.date, optional
         Process only units whose data begin on or after this UTC day; files modified
         before it are not even read.
+    min_age_s : float
+        Leave files modified less than this many seconds ago (still being written by
+        the instrument) for a later run.
     client : dask.distributed.Client, optional
         Run classification and units on this cluster; ``None`` runs them here.
     wait_s : float
@@ -940,11 +946,15 @@ def run_batch(
         report.discovered = len(files)
         infos: list[FileInfo] = []
         to_classify: list[str] = []
+        settled_ns = time.time_ns() - int(min_age_s * 1e9)
         for path in map(os.fspath, files):
             try:
                 size, mtime_ns = _file_stat(path)
             except OSError:
                 continue  # vanished since discovery
+            if min_age_s > 0 and mtime_ns > settled_ns:
+                report.files_too_new += 1
+                continue
             cached = cached_file_info(ledger, path, size, mtime_ns, cfg_hash)
             if cached is not None:
                 infos.append(cached)

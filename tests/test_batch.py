@@ -373,6 +373,22 @@ def test_since_skips_older_units_and_does_not_read_older_files(tmp_path):
     }
 
 
+def test_files_still_being_written_wait_for_a_later_run(tmp_path):
+    paths = toy_archive(tmp_path / "in", n_days=1)
+    hour_ago = time.time_ns() - 3600 * 10**9
+    os.utime(paths[0], ns=(hour_ago, hour_ago))  # paths[1] was just written
+    out = tmp_path / "out"
+    first = run_toy(tmp_path / "in", out, min_age_s=600)
+    assert first.files_too_new == 1
+    product = read_product(out / "toy_A_20240101_wind.nc")
+    np.testing.assert_allclose(product["wind_speed"].values, mean_of(paths[:1]), rtol=1e-12)
+    os.utime(paths[1], ns=(hour_ago, hour_ago))  # the instrument has closed it
+    second = run_toy(tmp_path / "in", out, min_age_s=600)
+    assert second.files_too_new == 0 and len(second.succeeded) == 1
+    product = read_product(out / "toy_A_20240101_wind.nc")
+    np.testing.assert_allclose(product["wind_speed"].values, mean_of(paths), rtol=1e-12)
+
+
 def test_output_inside_input_is_not_read_back(tmp_path):
     toy_archive(tmp_path, n_days=1)
     report = run_toy(tmp_path, tmp_path / "products")

@@ -105,6 +105,7 @@ def summary_lines(report: BatchReport, verbose: bool) -> list[str]:
         f"{len(report.file_failures)} unreadable; {report.units_total} unit(s): "
         f"{len(report.succeeded)} processed, {report.units_up_to_date} up to date, "
         f"{len(report.failed)} failed"
+        + (f"; {report.files_too_new} file(s) too new (--min-age)" if report.files_too_new else "")
         + (
             f"; before --since: {report.files_before_since} file(s) not read, "
             f"{report.units_before_since} unit(s) skipped"
@@ -148,6 +149,15 @@ def summary_lines(report: BatchReport, verbose: bool) -> list[str]:
     "INPUT_DIR); repeatable. Default: every file.",
 )
 @click.option(
+    "--min-age",
+    "min_age_s",
+    type=click.FloatRange(min=0),
+    default=0.0,
+    show_default=True,
+    metavar="SECONDS",
+    help="Leave files modified less than SECONDS ago (still being written) for a later run.",
+)
+@click.option(
     "--wait",
     "wait_s",
     type=click.FloatRange(min=0),
@@ -172,6 +182,7 @@ def batch(
     workers: int | None,
     scheduler: str | None,
     patterns: tuple[str, ...],
+    min_age_s: float,
     wait_s: float,
     log_file: str | None,
     quiet: bool,
@@ -213,6 +224,7 @@ def batch(
                 cfg,
                 patterns=patterns or ("*",),
                 since=since.date() if since else None,
+                min_age_s=min_age_s,
                 client=client,
                 wait_s=wait_s,
                 on_plan=progress.start,

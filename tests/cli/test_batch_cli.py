@@ -33,7 +33,8 @@ def junk_archive(root: Path) -> Path:
 def test_help_names_every_option():
     result = invoke("--help")
     assert result.exit_code == 0
-    for option in ("--since", "--workers", "--scheduler", "--pattern", "--wait", "--log-file"):
+    options = ("--since", "--workers", "--scheduler", "--pattern", "--wait", "--min-age")
+    for option in (*options, "--log-file", "--quiet", "--verbose", "--config"):
         assert option in result.output
     assert "75" in result.output  # the exit status of a locked output directory
 
