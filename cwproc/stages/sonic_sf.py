@@ -118,9 +118,11 @@ def rotate_to_mean_wind(grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     mean_speed : ndarray, shape (W,)
         V_h, the mean horizontal wind speed (m s-1): modulus of the mean vector.
     """
-    with np.errstate(invalid="ignore"):
-        mu = np.nanmean(grid[:, 0], axis=1)
-        mv = np.nanmean(grid[:, 1], axis=1)
+    ok = np.isfinite(grid[:, 0]) & np.isfinite(grid[:, 1])
+    count = ok.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mu = np.where(ok, grid[:, 0], 0.0).sum(axis=1) / count
+        mv = np.where(ok, grid[:, 1], 0.0).sum(axis=1) / count
     speed = np.hypot(mu, mv)
     safe = np.where(speed > 0, speed, 1.0)
     cos, sin = (mu / safe)[:, None], (mv / safe)[:, None]
@@ -548,6 +550,10 @@ def decide_types(
 # the stage
 # --------------------------------------------------------------------------------------
 
+#: D(r_N) below this (m2 s-2; a 1e-5 m/s rms increment, far below any sonic's
+#: resolution) means a numerically constant component: it is not typed
+D_FLOOR = 1e-10
+
 #: windows typed together (memory bound: one day of 10-min windows at a time)
 WINDOW_BATCH = 144
 
@@ -670,6 +676,8 @@ def structure_function_types(
 
     jn = np.argmin(np.abs(r_win - normalisation_lag_m), axis=1)
     d_norm = np.take_along_axis(d, jn[:, None, None], axis=2)[..., 0]  # (W, 3)
+    # a numerically constant component (no turbulent fluctuation) cannot be typed
+    d_norm = np.where(d_norm > D_FLOOR, d_norm, np.nan)
     with np.errstate(invalid="ignore", divide="ignore"):
         dn = d / d_norm[..., None]
         y = np.where(dn > 0, np.log10(dn), np.nan)

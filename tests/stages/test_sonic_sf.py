@@ -270,3 +270,15 @@ def test_batched_windows_give_identical_results(sims, monkeypatch):
     assert len(S.window_batches(ds["time"].values, 600.0, 5)) == 5  # 24 windows
     batched = S.structure_function_types(ds)
     xr.testing.assert_identical(batched, whole)
+
+
+def test_constant_or_missing_components_are_not_typed(sims):
+    ds = sims[1][0].isel(time=slice(0, 3 * 6420)).copy(deep=True)
+    ds["w"] = ("time", np.zeros(ds.sizes["time"]))  # no vertical fluctuation at all
+    sf = S.structure_function_types(ds)
+    assert np.all(sf["sf_type"].sel(component="vertical").values == 0)
+    assert np.all(sf["sf_type"].sel(component="longitudinal").values == 1)
+    ds["u"] = ("time", np.full(ds.sizes["time"], np.nan))  # a dead sensor path
+    sf = S.structure_function_types(ds)
+    assert np.all(sf["window_flag"].values == S.FLAG_FEW_SAMPLES)
+    assert np.all(sf["sf_type"].values == 0)
