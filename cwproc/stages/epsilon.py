@@ -31,8 +31,9 @@ Estimates, per block of scans and height, all vectorised:
 
 Finite outer scale (``model="von_karman"`` or ``"exponential"``): the inertial-range
 A-functions are a limit. ``eps`` and ``L_V`` are fitted together: for every candidate
-``L_V`` on a geometric grid over the A-table's outer-scale range, eq. 5 with the model's
-A-functions gives ``eps(L_V)`` and the fit ``sigma_e(L_V)``; the solution is the largest
+``L_V`` on a geometric grid over the A-table's outer-scale range (then refined by
+bisection), eq. 5 with the model's A-functions gives ``eps(L_V)`` (``sigma_e`` from the
+inertial fit during the search, refitted at the end); the solution is the largest
 ``L_V`` at which the model variance ``(eps L_V / c)^(2/3)`` (Banakh et al. (1999), eq. 19)
 equals the measured one (variance of ``V'_L`` corrected as above), interpolated in
 ``log L_V``. The rule of the fallback to the inertial form: it is kept where ``L_V``
@@ -78,6 +79,8 @@ FLAG_FIT_FAILED = 8
 METHOD1_RATIO_LIMIT = 1.1
 #: lengths below this fraction of L_V keep the inertial A-functions (see module doc)
 INERTIAL_FRACTION = 0.02
+#: bisection steps of the outer-scale root (bracket ratio (3000/10)^(1/11) -> 0.1 %)
+_BISECTIONS = 8
 
 
 def eq5_epsilon(d_l: np.ndarray, d_1: np.ndarray, a_l: np.ndarray, a_1: np.ndarray) -> np.ndarray:
@@ -223,7 +226,7 @@ def estimate_epsilon(
     lag_number: int,
     model: str,
     min_pairs: int = 100,
-    n_outer_scales: int = 64,
+    n_outer_scales: int = 12,
     table_options: dict | None = None,
 ) -> xr.Dataset:
     """Dissipation rate (methods 1 and 2), noise, variance and integral scale.
@@ -245,8 +248,8 @@ def estimate_epsilon(
     min_pairs : int
         Fewest ray pairs at lags 1 and l for an estimate (flag 1 below).
     n_outer_scales : int
-        Geometric nodes of L_V searched for the root of the variance condition
-        (finite-outer-scale models).
+        Geometric nodes of L_V scanned for the root of the variance condition
+        (finite-outer-scale models) before the bisection refines it.
     table_options : dict, optional
         Keyword arguments of :func:`cwproc.physics.atable.get_a_table` (``cache_dir``,
         ``height_range_m``, ``mu_max``, ``outer_scale_range_m``).
@@ -341,30 +344,64 @@ def estimate_epsilon(
             if not np.any(sel):
                 continue
             ti, hi_ = np.nonzero(sel)
-            # A-functions at every candidate L_V: (cells, nodes, lags)
-            f1, f2 = _evaluate(
-                table,
-                lags[None, None, :],
-                height[hi_][:, None, None],
-                mu_eval[ti, hi_][:, None, None],
-                nodes[None, :, None],
-            )
-            dd = d[ti, hi_][:, None, :]
-            vl = valid_lag[ti, hi_][:, None, :]
-            _, c2, _, cnoise = solve(f1, f2, dd, vl)
-            s2 = variance(c2, cnoise, var_raw[ti, hi_][:, None], loss[ti, hi_][:, None])
-            with np.errstate(invalid="ignore", divide="ignore"):
-                # Banakh et al. (1999), eq. 19: the model variance (eps L_V / c)^(2/3)
-                # must equal the measured one; the largest root is the solution
-                resid = np.log((c2 * nodes[None, :] / c_model) ** (2 / 3)) - np.log(s2)
+            cell_h = height[hi_][:, None]
+            cell_mu = mu_eval[ti, hi_][:, None]
+            two = np.array([1.0, float(lag_used)])[None, :]
+            d1, dl = d[ti, hi_, 0], d[ti, hi_, lag_used - 1]
+            raw = var_raw[ti, hi_] - np.nan_to_num(noise[ti, hi_], nan=0.0) ** 2
+            lost = loss[ti, hi_]
+
+            def residual(
+                big_l: np.ndarray,
+                ti=ti,
+                cell_h=cell_h,
+                cell_mu=cell_mu,
+                two=two,
+                d1=d1,
+                dl=dl,
+                raw=raw,
+                lost=lost,
+                table=table,
+            ) -> np.ndarray:
+                """log model variance - log measured variance at outer scales (cells, k).
+
+                Banakh et al. (1999), eq. 19: (eps L_V / c)^(2/3) must equal the measured
+                sigma_V^2; eps(L_V) from eq. 5 with the model's A_2 (lags 1 and l only;
+                sigma_e from the inertial fit during the search).
+                """
+                k = big_l.shape[1]
+                _, f2 = _evaluate(
+                    table,
+                    two[:, None, :],
+                    cell_h[:, :, None],
+                    cell_mu[:, :, None],
+                    big_l[:, :, None],
+                )
+                eps_l = eq5_epsilon(dl[:, None], d1[:, None], f2[..., 1], f2[..., 0])
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    model_var = np.log((eps_l * big_l / c_model) ** (2 / 3))
+                    measured = np.log(raw[:, None] + eps_l ** (2 / 3) * lost[:, None])
+                return np.broadcast_to(model_var - measured, (ti.size, k))
+
+            # coarse scan of L_V, then bisection of the largest sign change in log L_V
+            resid = residual(np.broadcast_to(nodes, (ti.size, nodes.size)))
             sign_change = (resid[:, :-1] < 0) & (resid[:, 1:] >= 0)
             has_root = sign_change.any(axis=1)
-            last = n_outer_scales - 2 - np.argmax(sign_change[:, ::-1], axis=1)
-            r0 = resid[np.arange(last.size), last]
-            r1 = resid[np.arange(last.size), last + 1]
-            frac = np.clip(r0 / (r0 - r1), 0.0, 1.0)
-            log_root = np.log(nodes[last]) + frac * (np.log(nodes[last + 1]) - np.log(nodes[last]))
-            root = np.exp(log_root)
+            last = nodes.size - 2 - np.argmax(sign_change[:, ::-1], axis=1)
+            log_lo, log_hi = np.log(nodes[last]), np.log(nodes[last + 1])
+            r_lo = resid[np.arange(last.size), last]
+            r_hi = resid[np.arange(last.size), last + 1]
+            for _ in range(_BISECTIONS):  # fixed count: each step halves every bracket
+                mid = 0.5 * (log_lo + log_hi)
+                r_mid = residual(np.exp(mid)[:, None])[:, 0]
+                upper = r_mid >= 0
+                log_hi = np.where(upper, mid, log_hi)
+                r_hi = np.where(upper, r_mid, r_hi)
+                log_lo = np.where(upper, log_lo, mid)
+                r_lo = np.where(upper, r_lo, r_mid)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                frac = np.clip(np.nan_to_num(r_lo / (r_lo - r_hi), nan=0.5), 0.0, 1.0)
+            root = np.exp(log_lo + frac * (log_hi - log_lo))
             below = ~has_root & np.all(resid > 0, axis=1)  # L_V < lo: lags not inertial
             use = has_root
             if np.any(use):

@@ -296,7 +296,7 @@ def sim_results(tmp_path_factory):
             seed=seed,
             coarse_factor=8,
         )
-        for mu in (0.25, 1.0, 2.0, 3.0):
+        for mu in (0.0, 1.0, 2.0, 3.0):
             ds = simulate(field, mu, seed + 100)
             sf = azimuth_structure_function(ds, vad_wind(ds), n_scans=10, max_lag_deg=9.0)
             turb = estimate_epsilon(
@@ -317,18 +317,47 @@ def sim_results(tmp_path_factory):
                     ]
                 )
             )
-    return {mu: np.concatenate(v, axis=1) for mu, v in out.items()}
+        if seed < 2:  # damaged blocks at mu = 1
+            for name, keep in DAMAGE.items():
+                ds = simulate(field, 1.0, seed + 100, keep)
+                sf = azimuth_structure_function(ds, vad_wind(ds), n_scans=10, max_lag_deg=9.0)
+                turb = estimate_epsilon(
+                    sf, probe=PROBE, lag_number=3, model="von_karman", table_options=options
+                )
+                out.setdefault(name, []).append(
+                    np.stack(
+                        [
+                            turb["epsilon"].values[0] / SIM_EPS,
+                            turb["n_pairs"].values[0, :, 0],
+                            turb["turbulence_flag"].values[0],
+                        ]
+                    )
+                )
+    return {key: np.concatenate(v, axis=1) for key, v in out.items()}
+
+
+#: ray selections that damage a block: random gaps, a blind sector, almost nothing left
+DAMAGE = {
+    "missing": lambda ds: np.random.default_rng(5).random(ds.sizes["ray"]) > 0.2,
+    "sector": lambda ds: ~((ds["azimuth"].values >= 100) & (ds["azimuth"].values < 160)),
+    "too_few": lambda ds: ds["azimuth"].values < 20,
+}
+FULL_PAIRS = 10 * (SIM_RAYS - 1)
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("mu", [0.25, 1.0, 2.0, 3.0])
+@pytest.mark.parametrize("mu", [0.0, 1.0, 2.0, 3.0])
 def test_method2_recovers_eps_of_synthetic_scans(sim_results, mu):
-    """Median eps (method 2, von Karman fit) within 20 % of the truth, 12 realisations."""
+    """Median eps (method 2, von Karman fit) within 20 % of the truth, 12 realisations.
+
+    At mu = 0 the ten scans of a frozen field sample one circle of air, so the scatter is
+    largest there.
+    """
     assert np.nanmedian(sim_results[mu][0]) == pytest.approx(1.0, abs=0.2)
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("mu", [0.25, 1.0, 2.0])
+@pytest.mark.parametrize("mu", [0.0, 1.0, 2.0])
 def test_noise_std_is_recovered(sim_results, mu):
     assert np.nanmedian(sim_results[mu][1]) == pytest.approx(1.0, abs=0.2)
 
@@ -336,8 +365,28 @@ def test_noise_std_is_recovered(sim_results, mu):
 @pytest.mark.slow
 def test_method1_is_biased_high_beyond_mu_1(sim_results):
     """eps_1 / eps_2 grows with mu as Smalikho (2020), eq. 21 predicts (about 1.2, 2.5, 4)."""
-    bias = {mu: np.nanmedian(v[3] / v[2]) for mu, v in sim_results.items()}
-    assert bias[0.25] == pytest.approx(1.0, abs=0.05)
+    bias = {mu: np.nanmedian(sim_results[mu][3] / sim_results[mu][2]) for mu in (0, 1, 2, 3)}
+    assert bias[0.0] == pytest.approx(1.0, abs=0.02)
     assert 1.05 < bias[1.0] < bias[2.0] < bias[3.0]
     assert bias[3.0] > 3.0
     assert np.nanmedian(sim_results[3.0][3]) > 2.0  # method 1 against the truth
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("damage", ["missing", "sector"])
+def test_blocks_with_gaps_still_give_eps_from_fewer_pairs(sim_results, damage):
+    eps, pairs, flag = sim_results[damage]
+    flag = flag.astype(int)
+    assert np.all(pairs < FULL_PAIRS) and np.all(pairs > 0.5 * FULL_PAIRS)
+    assert np.all(np.isfinite(eps))
+    assert np.all((flag & (FLAG_TOO_FEW_PAIRS | FLAG_FIT_FAILED | FLAG_BEYOND_INERTIAL)) == 0)
+    assert np.median(eps) == pytest.approx(1.0, abs=0.25)
+
+
+@pytest.mark.slow
+def test_blocks_with_too_few_pairs_are_flagged_not_estimated(sim_results):
+    eps, pairs, flag = sim_results["too_few"]
+    flag = flag.astype(int)
+    assert np.all(pairs < 100)  # 8 rays of 144 left per scan
+    assert np.all(np.isnan(eps))
+    assert np.all(flag & FLAG_TOO_FEW_PAIRS)
