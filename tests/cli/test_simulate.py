@@ -184,3 +184,15 @@ def test_cw_simulation_feeds_retrieve_and_recovers_wind_and_epsilon(cw_products)
     assert eps == pytest.approx(truth["epsilon_m2_s3"], rel=0.35)
     wind.close()
     turb.close()
+
+
+def test_simulate_lidar_reports_an_unwritable_output_in_one_line(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    res = CliRunner().invoke(
+        main, ["simulate", "lidar", "-o", str(blocker / "sub"), "--hours", "0.01"]
+    )
+    assert res.exit_code == 1
+    lines = [line for line in res.output.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error:")
+    assert "Traceback" not in res.output
