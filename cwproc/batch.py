@@ -4,7 +4,8 @@
 
 1. **discovers** inputs anywhere under ``INPUT_DIR`` by their content
    (:func:`cwproc.io.sniff_format`), optionally restricted by glob patterns;
-   unrecognised files are counted, not errors;
+   unrecognised files are counted, not errors; files modified less than ``min_age_s``
+   ago (still being written) wait for a later run;
 2. **classifies** each new or changed file: reads it once with
    :func:`cwproc.pipeline.read_input` and records its checksum and the product unit it
    belongs to (:func:`cwproc.pipeline.unit_key`, the grouping of ``cwproc retrieve``);
@@ -311,7 +312,8 @@ def _file_stat(path: str) -> tuple[int, int]:
 def classify_file(path: str, config_toml: str, config_source: str = "<batch>") -> FileInfo:
     """Recognise, checksum and read one file; find the product unit it belongs to.
 
-    Never raises for anything the file can cause: problems come back in the record.
+    Never raises for anything the file can cause: problems come back in the record
+    (an unexpected exception of a reader too, so that one file cannot stop a run).
 
     Parameters
     ----------
@@ -351,6 +353,13 @@ def classify_file(path: str, config_toml: str, config_source: str = "<batch>") -
         kind, key = unit_key(item)
     except CwprocError as exc:
         return replace(base, status="error", format=fmt.value, error=str(exc))
+    except Exception as exc:  # a bug in a reader: this file fails, the run goes on
+        return replace(
+            base,
+            status="error",
+            format=fmt.value,
+            error=f"{path}: internal error of the {fmt.value} reader {type(exc).__name__}: {exc}",
+        )
     return replace(
         base,
         status="ok",

@@ -397,6 +397,25 @@ def test_output_inside_input_is_not_read_back(tmp_path):
     assert again.processed == []
 
 
+def test_a_reader_bug_fails_that_file_only(tmp_path, monkeypatch):
+    """classify_file (the real one) turns an unexpected reader exception into a failure."""
+    import cwproc.pipeline
+
+    good = tmp_path / "in" / "a.hpl"
+    good.parent.mkdir()
+    good.write_text("Filename:\tVAD_1_20240101_000000.hpl\n")
+
+    def broken_reader(path, config):
+        raise ZeroDivisionError("division by zero")
+
+    monkeypatch.setattr(cwproc.pipeline, "read_input", broken_reader)
+    report = run_batch(tmp_path / "in", tmp_path / "out", Config())
+    assert [f.error for f in report.file_failures] == [
+        f"{good}: internal error of the hpl reader ZeroDivisionError: division by zero"
+    ]
+    assert report.processed == [] and not report.ok
+
+
 def test_missing_input_directory_is_a_clear_error(tmp_path):
     with pytest.raises(CwprocError, match="input directory does not exist"):
         run_toy(tmp_path / "nope", tmp_path / "out")
