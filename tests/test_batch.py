@@ -685,3 +685,27 @@ def test_any_history_of_edits_ends_with_every_product_matching_its_inputs(ops, s
             np.testing.assert_allclose(product["wind_speed"].values, mean_of(paths), rtol=1e-12)
         again = run_toy(inputs, out)
         assert again.processed == [] and again.units_up_to_date == len(by_unit)
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("cwproc.io.halo") is None,
+    reason="the Halo reader cwproc.io.halo is not built yet",
+)
+def test_input_changed_between_planning_and_processing_fails_the_unit(tmp_path):
+    from cwproc.batch import classify_file, plan_units, process_unit_task
+    from cwproc.io.halo import write_hpl
+
+    path = tmp_path / "VAD_99_20240301_100000.hpl"
+    write_hpl(synthetic_vad_scans("2024-03-01", 10, 1.0, 1.0), path)
+    config = wind_only_config()
+    info = classify_file(str(path), config.to_toml(), config.source)
+    assert info.status == "ok", info.error
+    ((task, start),) = plan_units([info], config, tmp_path / "out")
+    assert start == "2024-03-01T10:00:00Z"
+    write_hpl(synthetic_vad_scans("2024-03-01", 10, 2.0, 1.0), path)  # rewritten meanwhile
+    outcome = process_unit_task(task)
+    assert outcome.error == (
+        f"{path}: changed while the run was going on; "
+        f"unit {task.key} will be redone by the next run"
+    )
+    assert not (tmp_path / "out").exists()
