@@ -16,7 +16,15 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from cwproc.errors import InputFileError
-from cwproc.io.halo import read_hpl
+from cwproc.io.halo import (
+    _single_space_ok,
+    _tokenize,
+    content_end,
+    parse_header,
+    read_hpl,
+    split_header,
+    structure_problem,
+)
 
 SMALL_FILES = (
     "eriswil-2022-12-14-Stare_91_20221214_11.hpl",
@@ -118,3 +126,43 @@ def test_mutated_real_file_reads_or_fails_cleanly(
         assert err.line is None or 1 <= err.line <= raw.count(b"\n") + raw.count(b"\r") + 2
         return
     assert_valid_scan_dataset(ds)
+
+
+def same_columns(a: list[np.ndarray], b: list[np.ndarray]) -> bool:
+    """Bitwise equality of parsed columns (NaN and the sign of zero included)."""
+    return len(a) == len(b) and all(x.tobytes() == y.tobytes() for x, y in zip(a, b, strict=True))
+
+
+@pytest.mark.slow
+@settings(
+    max_examples=200,
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+    derandomize=True,
+)
+@given(name=st.sampled_from(SMALL_FILES), muts=st.lists(mutation, min_size=0, max_size=3))
+def test_single_space_tokenizer_agrees_with_whitespace_tokenizer(
+    real_data: Path, name: str, muts: list
+) -> None:
+    """The fast single-space parse is only trusted where it equals the ``\\s+`` parse.
+
+    Whenever it yields a whole block structure, its columns are bitwise those of the
+    reference whitespace tokenizer (the reader falls back to the latter otherwise).
+    """
+    raw = original(real_data / "hpl" / name)
+    for mut in muts:
+        raw = apply(raw, mut)
+    try:
+        lines, offset = split_header("x.hpl", raw)
+        n_gates = parse_header("x.hpl", lines).n_gates
+    except InputFileError:
+        return
+    body = raw[offset : content_end(raw, offset)]
+    if not body or b"\x00" in body or not _single_space_ok(body):
+        return
+    try:
+        fast = _tokenize("x.hpl", body, single_space=True)
+    except InputFileError:
+        return
+    if structure_problem(fast, n_gates) is None:
+        assert same_columns(fast, _tokenize("x.hpl", body, single_space=False))
