@@ -79,8 +79,8 @@ FLAG_FIT_FAILED = 8
 METHOD1_RATIO_LIMIT = 1.1
 #: lengths below this fraction of L_V keep the inertial A-functions (see module doc)
 INERTIAL_FRACTION = 0.02
-#: bisection steps of the outer-scale root (bracket ratio (3000/10)^(1/11) -> 0.1 %)
-_BISECTIONS = 8
+#: bisection steps of the outer-scale root (bracket ratio (3000/10)^(1/6) -> 0.2 %)
+_BISECTIONS = 9
 
 
 def eq5_epsilon(d_l: np.ndarray, d_1: np.ndarray, a_l: np.ndarray, a_1: np.ndarray) -> np.ndarray:
@@ -226,7 +226,7 @@ def estimate_epsilon(
     lag_number: int,
     model: str,
     min_pairs: int = 100,
-    n_outer_scales: int = 12,
+    n_outer_scales: int = 7,
     table_options: dict | None = None,
 ) -> xr.Dataset:
     """Dissipation rate (methods 1 and 2), noise, variance and integral scale.
