@@ -64,6 +64,8 @@ class RunReport:
 
     written: list[Path] = field(default_factory=list)
     failures: list[str] = field(default_factory=list)
+    #: the products made, ``(unit key, product name, dataset)``, when asked to keep them
+    products: list[tuple[str, str, xr.Dataset]] = field(default_factory=list)
     #: things the user should know that are not failures (e.g. turbulence not computable)
     notes: list[str] = field(default_factory=list)
 
@@ -130,15 +132,39 @@ def unit_key(item: InputFile) -> tuple[str, str]:
         system = str(ds.attrs.get("system_id", "")) or "x"
         instrument = str(ds.attrs.get("instrument_kind", item.format.value))
         return kind, f"{instrument}_{system}_{_day(ds)}"
-    return kind, Path(item.path).name.split(".")[0]
+    if kind == "sonic":
+        return kind, f"{item.format.value}_{_day(ds)}"
+    return kind, Path(item.path).stem
+
+
+def split_by_day(item: InputFile) -> list[InputFile]:
+    """A sonic input as one item per UTC day of its samples (other inputs unchanged).
+
+    Sonic products are made per day (Gladkikh et al. (2014) type 10-min windows, and a
+    15-min logger file holds one and a half of them), so a file that crosses midnight
+    contributes to two days.
+    """
+    ds = item.dataset
+    if KIND[item.format] != "sonic" or ds is None or ds.sizes.get("time", 0) == 0:
+        return [item]
+    days = ds["time"].values.astype("datetime64[D]")
+    unique = np.unique(days[~np.isnat(days)])
+    if unique.size <= 1:
+        return [item]
+    return [
+        dataclasses.replace(item, dataset=ds.isel(time=np.flatnonzero(days == day)))
+        for day in unique
+    ]
 
 
 def group_units(items: Iterable[InputFile]) -> list[ProductUnit]:
-    """Group read inputs into product units, in a stable order."""
+    """Group read inputs into product units (scans and sonic data: per instrument and
+    UTC day; wind records: per file), in a stable order."""
     units: dict[tuple[str, str], ProductUnit] = {}
-    for item in items:
-        kind, key = unit_key(item)
-        units.setdefault((kind, key), ProductUnit(key=key, kind=kind)).inputs.append(item)
+    for whole in items:
+        for item in split_by_day(whole):
+            kind, key = unit_key(item)
+            units.setdefault((kind, key), ProductUnit(key=key, kind=kind)).inputs.append(item)
     return [units[k] for k in sorted(units)]
 
 
@@ -220,27 +246,41 @@ def process_sonic(sonic: xr.Dataset, config: Config) -> dict[str, xr.Dataset]:
     """Structure-function-type product of a sonic dataset."""
     from cwproc.stages import sonic_sf
 
-    s = config.sonic
-    return {
-        "sf": sonic_sf.structure_function_types(
-            sonic,
-            window_s=s.window_s,
-            running_mean_s=s.running_mean_s,
-            max_lag_fraction=s.max_lag_fraction,
-            kd_threshold=s.kd_threshold,
-            normalisation_lag_m=s.normalisation_lag_m,
-            precedence_tolerance=s.precedence_tolerance,
-        )
-    }
+    return {"sf": sonic_sf.structure_function_types(sonic, **dataclasses.asdict(config.sonic))}
+
+
+#: relative spread of the sampling rates of sonic files that may be joined into one day
+SONIC_RATE_TOLERANCE = 0.01
+
+
+def concat_sonic(parts: Sequence[xr.Dataset], label: str) -> xr.Dataset:
+    """Join the sonic datasets of one instrument-day in time order.
+
+    Raises
+    ------
+    CwprocError
+        The parts have sampling rates that differ by more than 1 %.
+    """
+    rates = np.array([float(p.attrs["sampling_rate_hz"]) for p in parts])
+    if np.ptp(rates) > SONIC_RATE_TOLERANCE * np.median(rates):
+        listed = ", ".join(f"{r:g}" for r in rates)
+        raise CwprocError(f"{label}: inputs have different sampling rates ({listed} Hz)")
+    ds = parts[0] if len(parts) == 1 else xr.concat(parts, dim="time", combine_attrs="drop")
+    ds = ds.sortby("time")
+    ds.attrs = dict(parts[0].attrs)
+    ds.attrs["sampling_rate_hz"] = float(np.median(rates))
+    return ds
 
 
 def concat_unit(unit: ProductUnit) -> xr.Dataset:
-    """The datasets of a unit as one (scans: concatenated in time order)."""
+    """The datasets of a unit as one (scans and sonic days: joined in time order)."""
     datasets = [i.dataset for i in unit.inputs if i.dataset is not None]
     if unit.kind == "scan":
         from cwproc.stages.scans import concat_scans
 
         return concat_scans(datasets)
+    if unit.kind == "sonic":
+        return concat_sonic(datasets, unit.key)
     if len(datasets) != 1:
         raise CwprocError(f"unit {unit.key}: expected one input, got {len(datasets)}")
     return datasets[0]
@@ -274,9 +314,15 @@ _TITLES = {
     ),
     "sf": (
         "Structure-function types of sonic anemometer data",
-        "Types and fitted coefficients of the normalised structure functions of the wind "
-        "components per 10-minute window",
+        "Types (1 line, 2 parabola, 3 parabola then line in lg-lg axes) and fitted "
+        "coefficients of the normalised structure functions of the longitudinal, "
+        "transverse and vertical wind per 10-min window",
     ),
+}
+_KEYWORDS = {
+    "wind": "Doppler lidar, VAD, wind profile",
+    "turbulence": "Doppler lidar, turbulence, dissipation rate, structure function",
+    "sf": "sonic anemometer, structure function, turbulence, surface layer",
 }
 _REFERENCES = {
     "wind": SMALIKHO_2020,
@@ -319,10 +365,11 @@ def write_unit_products(
                 path,
                 title=f"cwproc {title}: {unit.key}",
                 summary=summary,
-                inputs=[i.path for i in unit.inputs],
+                inputs=list(dict.fromkeys(i.path for i in unit.inputs)),
                 checksums={os.fspath(i.path): i.sha256 for i in unit.inputs},
                 config_toml=config.to_toml(),
                 references=refs,
+                keywords=_KEYWORDS.get(name, ""),
                 extra_attrs=instrument_attrs,
                 compression_level=config.output.compression_level,
             )
@@ -331,9 +378,27 @@ def write_unit_products(
 
 
 def retrieve_files(
-    paths: Sequence[str | os.PathLike], outdir: str | os.PathLike, config: Config
+    paths: Sequence[str | os.PathLike],
+    outdir: str | os.PathLike,
+    config: Config,
+    *,
+    kinds: Iterable[str] | None = None,
+    keep_products: bool = False,
 ) -> RunReport:
     """Read, process and write everything; never stops at the first bad input.
+
+    Parameters
+    ----------
+    paths : sequence of paths
+        Input files.
+    outdir : path
+        Directory of the products.
+    config : Config
+    kinds : iterable of str, optional
+        Accept only inputs of these kinds (``"scan"``, ``"wind_record"``, ``"sonic"``);
+        others are reported as failures. Default: all.
+    keep_products : bool
+        Keep the product datasets in the report (``report.products``).
 
     Returns
     -------
@@ -342,17 +407,28 @@ def retrieve_files(
     """
     report = RunReport()
     items = []
+    accepted = set(kinds) if kinds is not None else None
     for p in paths:
         try:
-            items.append(read_input(p, config))
+            item = read_input(p, config)
         except CwprocError as exc:
             report.failures.append(str(exc))
+            continue
+        if accepted is not None and KIND[item.format] not in accepted:
+            report.failures.append(
+                f"{p}: {item.format.value} data ({KIND[item.format]}) cannot be used here; "
+                f"expected {' or '.join(sorted(accepted))} data"
+            )
+            continue
+        items.append(item)
     for unit in group_units(items):
         names = unit_label(unit)
         notes: list[str] = []
         try:
             products = process_unit(unit, config, notes)
             report.written.extend(write_unit_products(unit, products, outdir, config))
+            if keep_products:
+                report.products.extend((unit.key, n, ds) for n, ds in products.items())
         except CwprocError as exc:
             report.failures.append(f"{names}: {exc}")
         report.notes.extend(f"{names}: {n}" for n in notes)
@@ -361,7 +437,7 @@ def retrieve_files(
 
 def unit_label(unit: ProductUnit) -> str:
     """The input files of a unit, for messages (the first three and a count)."""
-    paths = [os.fspath(i.path) for i in unit.inputs]
+    paths = list(dict.fromkeys(os.fspath(i.path) for i in unit.inputs))
     if len(paths) <= 3:
         return ", ".join(paths)
     return ", ".join(paths[:3]) + f" (+{len(paths) - 3} more)"

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import click
 
 from cwproc.config import Config, load_config, preset_names
 from cwproc.errors import CwprocError
+from cwproc.io import detect_format
 
 
 def config_option(default: str | None = None) -> Callable[[Any], Any]:
@@ -21,10 +23,7 @@ def config_option(default: str | None = None) -> Callable[[Any], Any]:
         default=default,
         show_default=default is not None,
         metavar="FILE|PRESET",
-        help=(
-            "Configuration: a TOML file or a preset name "
-            f"({', '.join(preset_names())})."
-        ),
+        help=(f"Configuration: a TOML file or a preset name ({', '.join(preset_names())})."),
     )
 
 
@@ -45,3 +44,27 @@ def fail(message: str, code: int = 1) -> None:
     """Print one failure line and exit with ``code``."""
     report_failure(message)
     sys.exit(code)
+
+
+def expand_inputs(inputs: tuple[str, ...]) -> tuple[list[Path], list[Path]]:
+    """Files to process and files skipped.
+
+    Files named on the command line are always processed (an unreadable or unknown
+    one is reported as a failure). Directories are searched recursively; there, files
+    of no format cwproc reads (notes, trajectory files, ...) are skipped and counted.
+    """
+    files: list[Path] = []
+    skipped: list[Path] = []
+    for item in inputs:
+        p = Path(item)
+        if not p.is_dir():
+            files.append(p)
+            continue
+        for q in sorted(q for q in p.rglob("*") if q.is_file() and not q.name.startswith(".")):
+            try:
+                detect_format(q)
+            except CwprocError:
+                skipped.append(q)
+                continue
+            files.append(q)
+    return files, skipped

@@ -3,38 +3,16 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import click
 
-from cwproc.cli._common import config_option, load_config_or_fail, report_failure
-from cwproc.errors import CwprocError
-from cwproc.io import detect_format
+from cwproc.cli._common import (
+    config_option,
+    expand_inputs,
+    load_config_or_fail,
+    report_failure,
+)
 from cwproc.pipeline import retrieve_files
-
-
-def expand_inputs(inputs: tuple[str, ...]) -> tuple[list[Path], list[Path]]:
-    """Files to process and files skipped.
-
-    Files named on the command line are always processed (an unreadable or unknown
-    one is reported as a failure). Directories are searched recursively; there, files
-    of no format cwproc reads (notes, trajectory files, ...) are skipped and counted.
-    """
-    files: list[Path] = []
-    skipped: list[Path] = []
-    for item in inputs:
-        p = Path(item)
-        if not p.is_dir():
-            files.append(p)
-            continue
-        for q in sorted(q for q in p.rglob("*") if q.is_file() and not q.name.startswith(".")):
-            try:
-                detect_format(q)
-            except CwprocError:
-                skipped.append(q)
-                continue
-            files.append(q)
-    return files, skipped
 
 
 @click.command("retrieve")

@@ -10,166 +10,22 @@ and written as CSV.
 
 from __future__ import annotations
 
-import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
 import click
-import numpy as np
 import pandas as pd
 import xarray as xr
 
-from cwproc.cli._common import config_option, load_config_or_fail, report_failure
-from cwproc.config import Config
-from cwproc.errors import CwprocError
-from cwproc.io import KIND, detect_format
-from cwproc.io.netcdf import site_attributes, write_product
-from cwproc.metadata import GLADKIKH_2014
-from cwproc.pipeline import InputFile, read_input
-from cwproc.stages.sonic_sf import (
-    parameter_statistics,
-    structure_function_types,
-    type_occurrence,
+from cwproc.cli._common import (
+    config_option,
+    expand_inputs,
+    load_config_or_fail,
+    report_failure,
 )
-
-#: relative spread of the sampling rates of files that may be typed together
-RATE_TOLERANCE = 0.01
-
-
-def expand_sonic_inputs(inputs: Sequence[str]) -> list[Path]:
-    """Files named on the command line, and the readable files found in directories.
-
-    A named file is always processed (an unknown one is reported as a failure); inside
-    a directory, files of no format cwproc reads (e.g. ``truth.json``) are skipped.
-    """
-    out: list[Path] = []
-    for item in inputs:
-        p = Path(item)
-        if not p.is_dir():
-            out.append(p)
-            continue
-        for q in sorted(q for q in p.rglob("*") if q.is_file() and not q.name.startswith(".")):
-            try:
-                detect_format(q)
-            except CwprocError:
-                continue
-            out.append(q)
-    return out
-
-
-def split_by_day(item: InputFile) -> dict[str, xr.Dataset]:
-    """The samples of one input grouped by UTC day (``YYYYMMDD`` keys)."""
-    ds = item.dataset
-    assert ds is not None
-    days = ds["time"].values.astype("datetime64[D]")
-    out = {}
-    for day in np.unique(days):
-        key = str(day).replace("-", "")
-        out[key] = ds.isel(time=np.flatnonzero(days == day))
-    return out
-
-
-def day_dataset(parts: Sequence[xr.Dataset], label: str) -> xr.Dataset:
-    """Concatenate the parts of one instrument-day in time order.
-
-    Raises
-    ------
-    CwprocError
-        The parts have sampling rates that differ by more than 1 %.
-    """
-    rates = np.array([float(p.attrs["sampling_rate_hz"]) for p in parts])
-    if np.ptp(rates) > RATE_TOLERANCE * np.median(rates):
-        listed = ", ".join(f"{r:g}" for r in rates)
-        raise CwprocError(f"{label}: inputs have different sampling rates ({listed} Hz)")
-    ds = parts[0] if len(parts) == 1 else xr.concat(parts, dim="time", combine_attrs="drop")
-    ds = ds.sortby("time")
-    ds.attrs = dict(parts[0].attrs)
-    ds.attrs["sampling_rate_hz"] = float(np.median(rates))
-    return ds
-
-
-def type_day(ds: xr.Dataset, config: Config) -> xr.Dataset:
-    """Run the stage with every parameter of the ``[sonic]`` section."""
-    s = config.sonic
-    return structure_function_types(
-        ds,
-        window_s=s.window_s,
-        running_mean_s=s.running_mean_s,
-        max_lag_fraction=s.max_lag_fraction,
-        kd_threshold=s.kd_threshold,
-        normalisation_lag_m=s.normalisation_lag_m,
-        precedence_tolerance=s.precedence_tolerance,
-        min_fit_points=s.min_fit_points,
-        min_valid_fraction=s.min_valid_fraction,
-        curvature_tolerance=s.curvature_tolerance,
-    )
-
-
-def run_sf_type(
-    files: Sequence[str | os.PathLike], outdir: str | os.PathLike, config: Config
-) -> tuple[list[Path], list[str], list[xr.Dataset]]:
-    """Read, type and write; never stops at the first bad input.
-
-    Returns
-    -------
-    written : list of Path
-        Products.
-    failures : list of str
-        One line per failed input or day.
-    products : list of xarray.Dataset
-        The SF products (for the summary tables).
-    """
-    failures: list[str] = []
-    groups: dict[tuple[str, str], list[InputFile]] = {}
-    parts: dict[tuple[str, str], list[xr.Dataset]] = {}
-    for path in files:
-        try:
-            item = read_input(path, config)
-        except CwprocError as exc:
-            failures.append(str(exc))
-            continue
-        if KIND[item.format] != "sonic":
-            failures.append(f"{path}: not sonic-anemometer data ({item.format.value})")
-            continue
-        instrument = item.format.value
-        for day, ds in split_by_day(item).items():
-            groups.setdefault((instrument, day), []).append(item)
-            parts.setdefault((instrument, day), []).append(ds)
-    written: list[Path] = []
-    products: list[xr.Dataset] = []
-    for key in sorted(groups):
-        instrument, day = key
-        label = f"{instrument}_{day}"
-        try:
-            sf = type_day(day_dataset(parts[key], label), config)
-            path = Path(outdir) / f"{label}_sf.nc"
-            inputs = list(dict.fromkeys(i.path for i in groups[key]))
-            extra = site_attributes(config.output)
-            extra["instrument"] = str(parts[key][0].attrs.get("instrument", ""))
-            written.append(
-                write_product(
-                    sf,
-                    path,
-                    title=f"cwproc structure-function types of sonic data: {label}",
-                    summary=(
-                        "Types (1 line, 2 parabola, 3 parabola then line in lg-lg axes) and "
-                        "fitted coefficients of the normalised structure functions of the "
-                        "longitudinal, transverse and vertical wind per 10-min window"
-                    ),
-                    inputs=inputs,
-                    checksums={os.fspath(i.path): i.sha256 for i in groups[key]},
-                    config_toml=config.to_toml(),
-                    references=GLADKIKH_2014,
-                    keywords="sonic anemometer, structure function, turbulence, surface layer",
-                    extra_attrs=extra,
-                    compression_level=config.output.compression_level,
-                )
-            )
-            products.append(sf)
-        except CwprocError as exc:
-            failures.append(str(exc))
-    return written, failures, products
+from cwproc.pipeline import retrieve_files
+from cwproc.stages.sonic_sf import parameter_statistics, type_occurrence
 
 
 def summary_tables(products: Sequence[xr.Dataset]) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -205,10 +61,14 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
     line per failed input naming the file, the line and the problem.
     """
     cfg = load_config_or_fail(config)
-    files = expand_sonic_inputs(inputs)
+    files, skipped = expand_inputs(inputs)
     if not files:
-        raise click.UsageError("no input files found")
-    written, failures, products = run_sf_type(files, outdir, cfg)
+        raise click.UsageError(
+            f"no input files found ({len(skipped)} file(s) of no format cwproc reads)"
+        )
+    report = retrieve_files(files, outdir, cfg, kinds={"sonic"}, keep_products=True)
+    written, failures = report.written, report.failures
+    products = [ds for _, name, ds in report.products if name == "sf"]
     for line in failures:
         report_failure(line)
     if products:
