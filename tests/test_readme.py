@@ -197,6 +197,48 @@ def test_images_script_makes_every_readme_picture():
         assert f"-o {target}" in script, f"docs/make_images.sh does not make {target}"
 
 
+def cwproc_names() -> set[str]:
+    """Public names of every cwproc module, configuration keys and product variables."""
+    import dataclasses
+    import importlib
+    import pkgutil
+
+    import cwproc
+    from cwproc.config import Config
+    from cwproc.metadata import VARIABLES
+
+    names: set[str] = set(VARIABLES)
+    for info in pkgutil.walk_packages(cwproc.__path__, "cwproc."):
+        if info.name.endswith("__main__"):
+            continue  # runs the command line when imported
+        module = importlib.import_module(info.name)
+        short = info.name.rsplit(".", 1)[-1]
+        for attr in dir(module):
+            if not attr.startswith("_"):
+                names |= {attr, f"{short}.{attr}"}
+    for section in dataclasses.fields(Config):
+        value = getattr(Config(), section.name)
+        if dataclasses.is_dataclass(value):
+            names.add(f"[{section.name}]")
+            names |= {f.name for f in dataclasses.fields(value)}
+    return names
+
+
+def test_physics_page_names_only_code_that_exists():
+    """Every function, module, key or variable docs/physics.md names in backticks exists."""
+    text = (REPO / "docs" / "physics.md").read_text(encoding="utf-8")
+    names = cwproc_names()
+    tokens = set(re.findall(r"`([^`\s]+)`", text))
+    assert len(tokens) > 100
+    for token in sorted(tokens):
+        if token.startswith(("../", "real_data/")):
+            continue  # the shared folder outside the repository
+        if token.endswith((".py", "/")):
+            assert (REPO / token).exists() or (REPO / "cwproc" / token).exists(), token
+        else:
+            assert token in names, f"docs/physics.md names `{token}`, which cwproc lacks"
+
+
 def test_tested_blocks_reach_a_plot():
     commands = [c for b in bash_blocks() if b.tested for c in shell_commands(b.lines)]
     assert any(call[:1] == ["plot"] for c in commands for call in cwproc_invocations(c))
