@@ -127,3 +127,29 @@ def test_same_seed_same_field_and_bad_arguments_rejected():
         von_karman_field((8, 8), 1.0, epsilon=EPS, integral_scale_m=SCALE, seed=5)
     with pytest.raises(ValueError):
         von_karman_field((8, 8, 8), 1.0, epsilon=-1.0, integral_scale_m=SCALE, seed=5)
+
+
+def test_two_level_field_holds_the_large_scales():
+    """A coarse grid 4 times larger carries the wavenumbers below the split.
+
+    The variance of the two-level field is the sum of both grids' tensor sums and is much
+    closer to the continuous sigma_V^2 (Banakh et al. (1999), eq. 19) than one grid.
+    """
+    shape, dx, scale = (64, 64, 64), 1.0, 16.0
+    one = grid_variance(shape, dx, EPS, scale)[0]
+    two = grid_variance(shape, dx, EPS, scale, coarse_factor=4)[0]
+    full = field_variance(EPS, scale)
+    assert one < two < full
+    assert one / full < 0.8 < 0.85 < two / full  # the rest is above the Nyquist wavenumber
+    var = np.zeros(3)
+    for seed in range(8):
+        f = von_karman_field(
+            shape, dx, epsilon=EPS, integral_scale_m=scale, seed=seed, coarse_factor=4
+        )
+        assert f.extent_m == (256.0, 256.0, 256.0)
+        x = np.arange(0.0, 256.0, 1.0)  # fine nodes: only the coarse level is interpolated
+        grid = np.meshgrid(x, x[::8], x[::8], indexing="ij")
+        var += f.interpolate(*grid).reshape(3, -1).var(axis=1) / 8
+    np.testing.assert_allclose(var, two, rtol=0.1)
+    with pytest.raises(ValueError, match="coarse_factor"):
+        von_karman_field(shape, dx, epsilon=EPS, integral_scale_m=scale, seed=0, coarse_factor=16)
