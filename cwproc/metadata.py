@@ -97,6 +97,27 @@ VARIABLES: dict[str, VarMeta] = {
         coverage_content_type="coordinate",
     ),
     "range": VarMeta("distance from the lidar to the centre of the range gate", "m"),
+    "latitude": VarMeta(
+        "latitude of the instrument",
+        "degrees_north",
+        "latitude",
+        axis="Y",
+        coverage_content_type="coordinate",
+    ),
+    "longitude": VarMeta(
+        "longitude of the instrument",
+        "degrees_east",
+        "longitude",
+        axis="X",
+        coverage_content_type="coordinate",
+    ),
+    "altitude": VarMeta(
+        "altitude of the instrument above mean sea level",
+        "m",
+        "altitude",
+        positive="up",
+        coverage_content_type="coordinate",
+    ),
     "azimuth": VarMeta(
         "azimuth of the beam, clockwise from north", "degree", "sensor_azimuth_angle"
     ),

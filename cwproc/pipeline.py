@@ -35,7 +35,7 @@ import xarray as xr
 from cwproc.config import Config
 from cwproc.errors import CwprocError, InputFileError
 from cwproc.io import KIND, Format, detect_format, get_reader
-from cwproc.io.netcdf import sha256_file, site_attributes, write_product
+from cwproc.io.netcdf import add_site_coordinates, sha256_file, site_attributes, write_product
 from cwproc.metadata import BANAKH_1999, GLADKIKH_2014, SMALIKHO_2020, WAGNER_DTU
 
 
@@ -174,9 +174,21 @@ def group_units(items: Iterable[InputFile]) -> list[ProductUnit]:
 
 
 def probe_for(config: Config):
-    """The probe-volume description of the configured instrument (physics object)."""
+    """The probe-volume description of the configured instrument (physics object).
+
+    Raises
+    ------
+    CwprocError
+        The configuration describes no lidar (``instrument.kind = "sonic"``).
+    """
     from cwproc.physics.transfer import probe_from_config
 
+    if config.instrument.kind not in ("pulsed", "cw"):
+        raise CwprocError(
+            f"configuration {config.source}: instrument.kind = {config.instrument.kind!r} "
+            "describes no lidar probe volume; use a lidar configuration (e.g. -c streamline "
+            "or -c zephir300) for scan data"
+        )
     return probe_from_config(config.instrument, pulse_transfer=config.turbulence.pulse_transfer)
 
 
@@ -361,7 +373,7 @@ def write_unit_products(
         path = product_path(outdir, unit, name)
         written.append(
             write_product(
-                ds,
+                add_site_coordinates(ds, config.output),
                 path,
                 title=f"cwproc {title}: {unit.key}",
                 summary=summary,
@@ -414,6 +426,9 @@ def retrieve_files(
         except CwprocError as exc:
             report.failures.append(str(exc))
             continue
+        except Exception as exc:  # a reader bug must not stop the other files
+            report.failures.append(f"{p}: {internal_error(exc)}")
+            continue
         if accepted is not None and KIND[item.format] not in accepted:
             report.failures.append(
                 f"{p}: {item.format.value} data ({KIND[item.format]}) cannot be used here; "
@@ -431,8 +446,22 @@ def retrieve_files(
                 report.products.extend((unit.key, n, ds) for n, ds in products.items())
         except CwprocError as exc:
             report.failures.append(f"{names}: {exc}")
+        except Exception as exc:  # a bug in cwproc: report it, keep processing the rest
+            report.failures.append(f"{names}: {internal_error(exc)}")
         report.notes.extend(f"{names}: {n}" for n in notes)
     return report
+
+
+def internal_error(exc: BaseException) -> str:
+    """One line for an unexpected exception: where it came from, to report as a bug."""
+    import traceback
+
+    frame = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
+    where = f" at {Path(frame.filename).name}:{frame.lineno}" if frame else ""
+    return (
+        f"internal error {type(exc).__name__}{where}: {exc} "
+        "(a bug in cwproc; please report it with this line)"
+    )
 
 
 def unit_label(unit: ProductUnit) -> str:

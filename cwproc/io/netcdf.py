@@ -131,8 +131,8 @@ def global_attributes(
         "input_sha256": json.dumps(sums, sort_keys=True),
         "cwproc_config": config_toml,
     }
-    if "time" in ds.coords and ds.sizes.get("time", 0) > 0:
-        t = ds["time"].values
+    if "time" in ds.variables and ds["time"].size > 0:
+        t = np.ravel(ds["time"].values)
         t = t[~np.isnat(t)] if np.issubdtype(t.dtype, np.datetime64) else t
         if len(t) and np.issubdtype(np.asarray(t).dtype, np.datetime64):
             start, end = np.min(t), np.max(t)
@@ -190,6 +190,20 @@ def site_attributes(output: OutputConfig) -> dict[str, object]:
         if output.altitude_m is not None:
             attrs["geospatial_bounds_vertical_crs"] = "EPSG:5829"
     return attrs
+
+
+def add_site_coordinates(ds: xr.Dataset, output: OutputConfig) -> xr.Dataset:
+    """Scalar ``latitude``/``longitude``/``altitude`` coordinates from the ``[output]`` table.
+
+    CF-1.10 section 5.7 scalar coordinates locate a single-site product; nothing is
+    added when the configuration does not give the position.
+    """
+    if output.latitude is None or output.longitude is None:
+        return ds
+    coords = {"latitude": output.latitude, "longitude": output.longitude}
+    if output.altitude_m is not None:
+        coords["altitude"] = output.altitude_m
+    return ds.assign_coords({k: float(v) for k, v in coords.items()})
 
 
 def _clean_attr(value: object) -> object:
