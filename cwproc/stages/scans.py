@@ -329,35 +329,96 @@ def concat_scans(datasets: Sequence[xr.Dataset], **assign_options: float) -> xr.
     time = np.concatenate([ds["time"].values for ds in datasets])
     azimuth = np.concatenate([np.asarray(ds["azimuth"].values, float) for ds in datasets])
     elevation = np.concatenate([np.asarray(ds["elevation"].values, float) for ds in datasets])
+    files: list[str] = []
+    for ds in datasets:
+        files.extend(f for f in _source_files(ds) if f not in files)
+    scan_types = [str(ds.attrs.get("scan_type", "")) for ds in datasets]
+    return time_sorted_scans(
+        arrays,
+        fixed=fixed,
+        time=time,
+        azimuth=azimuth,
+        elevation=elevation,
+        ranges=np.asarray(first["range"].values),
+        attrs=joined_attrs(first.attrs, files, scan_types),
+        coord_attrs={c: dict(first[c].attrs) for c in ("time", "azimuth", "elevation", "range")},
+        **assign_options,
+    )
 
+
+def joined_attrs(
+    first: dict[str, object], files: Sequence[str], scan_types: Sequence[str]
+) -> dict[str, object]:
+    """Attributes of concatenated scans: the first input's, with all files and scan types.
+
+    ``source_files`` lists every file once in input order; ``scan_type`` joins the
+    distinct non-empty scan types with ``"; "``.
+    """
+    attrs = dict(first)
+    attrs["source_files"] = list(dict.fromkeys(files))
+    unique = list(dict.fromkeys(str(s) for s in scan_types))
+    attrs["scan_type"] = "; ".join(s for s in unique if s)
+    return attrs
+
+
+def time_sorted_scans(
+    arrays: dict[str, tuple[tuple[str, ...], np.ndarray, dict]],
+    *,
+    fixed: dict[str, xr.Variable],
+    time: np.ndarray,
+    azimuth: np.ndarray,
+    elevation: np.ndarray,
+    ranges: np.ndarray,
+    attrs: dict[str, object],
+    coord_attrs: dict[str, dict],
+    **assign_options: float,
+) -> xr.Dataset:
+    """One scan dataset from concatenated per-ray arrays: sorted, deduplicated, scans set.
+
+    Parameters
+    ----------
+    arrays : dict
+        ``name -> (dims, values, attrs)`` of the variables on ``ray`` (rays of all
+        inputs one after the other).
+    fixed : dict of xarray.Variable
+        Variables without a ``ray`` dimension, kept as they are.
+    time, azimuth, elevation : ndarray
+        Per-ray coordinates (datetime64; deg).
+    ranges : ndarray
+        Gate centres (m).
+    attrs : dict
+        Dataset attributes.
+    coord_attrs : dict
+        Attributes of the coordinates ``time``, ``azimuth``, ``elevation``, ``range``.
+    **assign_options
+        Passed to :func:`assign_scans`.
+
+    Returns
+    -------
+    xarray.Dataset
+        Rays sorted by time (stable), rays with a time already seen dropped (the first
+        occurrence is kept), ``scan`` assigned over the whole record.
+    """
     order = np.argsort(time, kind="stable")
     sorted_time = time[order]
     keep = np.ones(order.size, dtype=bool)
     keep[1:] = sorted_time[1:] != sorted_time[:-1]
-    order = order[keep]
+    if not keep.all():
+        order = order[keep]
+    identity = bool(np.array_equal(order, np.arange(time.size)))
+
+    def pick(values: np.ndarray, axis: int = 0) -> np.ndarray:
+        return values if identity else np.take(values, order, axis=axis)
 
     data_vars = {}
-    for name, (dims, values, attrs) in arrays.items():
-        axis = dims.index("ray")
-        data_vars[name] = xr.Variable(dims, np.take(values, order, axis=axis), attrs)
+    for name, (dims, values, var_attrs) in arrays.items():
+        data_vars[name] = xr.Variable(dims, pick(values, dims.index("ray")), var_attrs)
     data_vars.update(fixed)
-    files: list[str] = []
-    for ds in datasets:
-        files.extend(f for f in _source_files(ds) if f not in files)
-    attrs = dict(first.attrs)
-    attrs["source_files"] = files
-    scan_types = list(dict.fromkeys(str(ds.attrs.get("scan_type", "")) for ds in datasets))
-    attrs["scan_type"] = "; ".join(s for s in scan_types if s)
-    out = xr.Dataset(
-        data_vars,
-        coords={
-            "time": ("ray", time[order]),
-            "azimuth": ("ray", azimuth[order]),
-            "elevation": ("ray", elevation[order]),
-            "range": ("range", np.asarray(first["range"].values)),
-        },
-        attrs=attrs,
-    )
-    for coord in ("time", "azimuth", "elevation", "range"):
-        out[coord].attrs = dict(first[coord].attrs)
+    coords = {
+        "time": xr.Variable("ray", pick(time), coord_attrs.get("time")),
+        "azimuth": xr.Variable("ray", pick(azimuth), coord_attrs.get("azimuth")),
+        "elevation": xr.Variable("ray", pick(elevation), coord_attrs.get("elevation")),
+        "range": xr.Variable("range", ranges, coord_attrs.get("range")),
+    }
+    out = xr.Dataset(data_vars, coords=coords, attrs=attrs)
     return assign_scans(out, **assign_options)
