@@ -11,7 +11,10 @@ Prints, in the same run and on the same files:
    (``doppy.raw.HaloHpl.from_src``), and their ratio;
 2. the same on a synthetic day (24 h, one 24-ray VAD every 2 min at 75 deg elevation,
    200 gates: 720 files) written with :func:`cwproc.io.halo.write_hpl` into a temporary
-   directory, per file and for the whole day (cwproc: read + ``concat_scans``);
+   directory: per file (``read_hpl`` against doppy's ``from_src``), and the whole day
+   into one dataset (``read_hpl_files``, one tokenizer call per 16 MB, against doppy
+   per file and against doppy's parallel ``from_srcs`` + ``merge``; and the
+   ``concat_scans`` of per-file reads that the pipeline does now);
 3. peak memory (``ru_maxrss`` of a child process) of ``cwproc retrieve`` on that day,
    or why it failed.
 
@@ -34,8 +37,11 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from cwproc.io.halo import read_hpl, write_hpl
+from cwproc.io.halo import read_hpl, read_hpl_files, write_hpl
 from cwproc.stages.scans import concat_scans
+
+#: real files below this size (bytes) are "small" (per-call costs dominate)
+_SMALL_BYTES = 100_000
 
 REAL_HPL = Path(__file__).resolve().parents[1].parent / "shared" / "real_data" / "hpl"
 
@@ -154,6 +160,12 @@ def bench_real(repeat: int, doppy: Callable | None) -> None:
     report_throughput(
         "all real files", total_bytes, tuple(total_c), tuple(total_d) if doppy else None
     )
+    small = [p for p in files if p.stat().st_size < _SMALL_BYTES]
+    if small:
+        nbytes = sum(p.stat().st_size for p in small)
+        tc = best_time(lambda: [read_hpl(p) for p in small], repeat)
+        td = best_time(lambda: [doppy(p) for p in small], repeat) if doppy else None
+        report_throughput(f"the {len(small)} small real files together", nbytes, tc, td)
 
 
 def bench_day(paths: list[Path], repeat: int, doppy: Callable | None) -> None:
@@ -161,17 +173,20 @@ def bench_day(paths: list[Path], repeat: int, doppy: Callable | None) -> None:
     print(f"== synthetic day: {len(paths)} files, {nbytes / 1e6:.1f} MB (best of {repeat})")
     tc = best_time(lambda: [read_hpl(p) for p in paths], repeat)
     td = best_time(lambda: [doppy(p) for p in paths], repeat) if doppy else None
-    report_throughput("read every file", nbytes, tc, td)
-    tcc = best_time(lambda: concat_scans([read_hpl(p) for p in paths]), max(1, repeat // 2))
-    report_throughput("cwproc read + concat_scans (one dataset)", nbytes, tcc, None)
+    report_throughput("read_hpl of every file | doppy from_src", nbytes, tc, td)
+    tf = best_time(lambda: read_hpl_files(paths), repeat)
+    report_throughput("read_hpl_files (one dataset) | from_src", nbytes, tf, td)
+    tdm = None
     if doppy is not None:
         from doppy.raw import HaloHpl
 
-        tdm = best_time(lambda: HaloHpl.merge(HaloHpl.from_srcs([str(p) for p in paths])), 1)
-        report_throughput("doppy from_srcs (parallel) + merge, for reference", nbytes, tcc, tdm)
-    ds = concat_scans([read_hpl(p) for p in paths])
+        tdm = best_time(lambda: HaloHpl.merge(HaloHpl.from_srcs([str(p) for p in paths])), repeat)
+    report_throughput("read_hpl_files | doppy from_srcs+merge", nbytes, tf, tdm)
+    tcc = best_time(lambda: concat_scans([read_hpl(p) for p in paths]), max(1, repeat // 2))
+    report_throughput("concat_scans(read_hpl) | from_srcs+merge", nbytes, tcc, tdm)
+    ds = read_hpl_files(paths)
     scans = np.unique(ds["scan"].values[ds["scan"].values >= 0]).size
-    print(f"   concatenated: {ds.sizes['ray']} rays x {ds.sizes['range']} gates, {scans} scans")
+    print(f"   one dataset: {ds.sizes['ray']} rays x {ds.sizes['range']} gates, {scans} scans")
 
 
 def bench_retrieve_memory(folder: Path) -> None:
