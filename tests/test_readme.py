@@ -197,6 +197,36 @@ def test_images_script_makes_every_readme_picture():
         assert f"-o {target}" in script, f"docs/make_images.sh does not make {target}"
 
 
+def shown_output(first_line_prefix: str) -> list[str]:
+    """Lines of the README's plain (output) block whose first line starts so."""
+    shown = [
+        list(b.lines)
+        for b in readme_blocks()
+        if b.lang == "" and b.lines and b.lines[0].startswith(first_line_prefix)
+    ]
+    assert len(shown) == 1, f"README shows {len(shown)} outputs starting {first_line_prefix!r}"
+    return shown[0]
+
+
+def test_info_output_shown_in_the_readme_is_what_cwproc_prints(monkeypatch):
+    from click.testing import CliRunner
+
+    from cwproc.cli import main
+
+    (command,) = [
+        c
+        for b in bash_blocks()
+        if b.tested
+        for c in shell_commands(b.lines)
+        if c.startswith("cwproc info")
+    ]
+    args = cwproc_invocations(command)[0]  # info FILE
+    monkeypatch.chdir(REPO)
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    assert result.output.strip().splitlines() == shown_output(args[-1])
+
+
 def cwproc_names() -> set[str]:
     """Public names of every cwproc module, configuration keys and product variables."""
     import dataclasses
@@ -318,6 +348,11 @@ def test_new_user_follows_the_readme(tmp_path):
             f"README command failed (exit {result.returncode}): {command}\n"
             f"--- stdout\n{result.stdout[-3000:]}\n--- stderr\n{result.stderr[-3000:]}"
         )
+        if command == MAIN_JOB:
+            # what the README shows the main job printing
+            printed = result.stdout.splitlines()
+            for line in shown_output("wrote out/"):
+                assert line in printed, f"main job did not print {line!r}"
     # the commands ran the virtual environment's cwproc, not another installation
     assert shutil.which("cwproc", path=env["PATH"]) == str(venv / "bin" / "cwproc")
 
