@@ -149,3 +149,28 @@ def test_bad_arguments_are_rejected():
             noise_std_m_s=0.1,
             seed=1,
         )
+
+
+def test_sweep_advection_only_matters_with_wind():
+    field = von_karman_field((32, 32, 16), 4.0, epsilon=0.01, integral_scale_m=30.0, seed=4)
+    kwargs = dict(
+        elevation_deg=35.3,
+        ranges_m=[60.0],
+        rays_per_scan=36,
+        scan_period_s=36.0,
+        n_scans=1,
+        wind_direction_deg=0.0,
+        noise_std_m_s=0.0,
+        seed=0,
+    )
+    calm = [
+        sample_conical_scans(field, wind_speed_m_s=0.0, sweep_advection=a, **kwargs)
+        for a in (True, False)
+    ]
+    np.testing.assert_allclose(calm[0]["radial_velocity"], calm[1]["radial_velocity"])
+    windy = [
+        sample_conical_scans(field, wind_speed_m_s=15.0, sweep_advection=a, **kwargs)
+        for a in (True, False)
+    ]
+    diff = windy[0]["radial_velocity"].values - windy[1]["radial_velocity"].values
+    assert np.max(np.abs(diff)) > 1e-3
