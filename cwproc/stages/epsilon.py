@@ -54,8 +54,9 @@ Flags (``turbulence_flag``, bits combine; a flagged value is NaN):
   A-table's range: no ``eps``;
 - 4: ``mu`` beyond the validity of method 1, ``eps_1/eps_2 > 1.1`` (Smalikho (2020),
   eq. 21 and its discussion): ``epsilon_method1`` is NaN, ``epsilon`` stays;
-- 8: fit failed (``D(l) <= D(1)``, non-finite values, no mean wind for ``mu``, or
-  fewer than two lags within ``max_lag_deg``): no ``eps``.
+- 8: fit failed (``D(l) <= D(1)``, non-finite values, no mean wind for ``mu``, a height
+  or ``mu`` outside the A-table's range, or fewer than two lags within
+  ``max_lag_deg``): no ``eps``.
 """
 
 from __future__ import annotations
