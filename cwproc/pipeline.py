@@ -202,7 +202,7 @@ def process_scans(
     Smalikho (2020)), the reason is appended to ``notes`` and only the wind product is
     returned.
     """
-    from cwproc.stages import epsilon, qc, structure, vad
+    from cwproc.stages import qc, vad
 
     screened = qc.screen_radial_velocity(
         scans, snr_min=config.qc.snr_min, outlier_threshold=config.qc.outlier_threshold
@@ -217,6 +217,7 @@ def process_scans(
     products = {"wind": wind}
     if not config.turbulence.enabled or int(wind.sizes.get("time", 0)) < 1:
         return products
+    from cwproc.stages import epsilon, structure
     try:
         sf = structure.azimuth_structure_function(
             screened,
