@@ -227,6 +227,57 @@ def test_info_output_shown_in_the_readme_is_what_cwproc_prints(monkeypatch):
     assert result.output.strip().splitlines() == shown_output(args[-1])
 
 
+def acdd_report(path: Path, tmp_path: Path) -> dict:
+    """The ACDD-1.3 report of the IOOS compliance checker for one NetCDF file."""
+    from compliance_checker.runner import CheckSuite, ComplianceChecker
+
+    CheckSuite.load_all_available_checkers()
+    out = tmp_path / f"{path.stem}.acdd.json"
+    ComplianceChecker.run_checker(
+        os.fspath(path),
+        ["acdd:1.3"],
+        verbose=0,
+        criteria="normal",
+        output_filename=os.fspath(out),
+        output_format="json",
+    )
+    return next(iter(json.loads(out.read_text()).values()))
+
+
+@pytest.mark.slow
+def test_output_table_of_the_readme_completes_the_acdd_attributes(tmp_path):
+    """The README's [output] table fills every required and highly recommended ACDD
+    global attribute; what the checker still misses are variables without a CF name."""
+    import xarray as xr
+    from click.testing import CliRunner
+
+    from cwproc.cli import main
+    from cwproc.metadata import VARIABLES
+
+    (table,) = [b for b in readme_blocks() if b.lang == "toml" and b.lines[0] == "[output]"]
+    preset = (REPO / "configs" / "streamline.toml").read_text(encoding="utf-8")
+    config = tmp_path / "mysite.toml"
+    config.write_text(preset + "\n" + "\n".join(table.lines) + "\n", encoding="utf-8")
+    out = tmp_path / "out_site"
+    sample = REPO / "sample_data" / "streamline"
+    args = ["retrieve", str(sample), "-c", str(config), "-o", str(out), "-q"]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    for product in sorted(out.glob("*.nc")):
+        report = acdd_report(product, tmp_path)
+        missing = [(c["name"], m) for c in report["high_priorities"] for m in c["msgs"]]
+        for name, msg in missing:
+            variable = re.fullmatch(r'variable "(\w+)" missing the following attributes:', name)
+            assert variable and msg == "standard_name", f"{product.name}: {name} {msg}"
+            assert VARIABLES[variable[1]].standard_name is None, variable[1]
+        assert [m for c in report["medium_priorities"] for m in c["msgs"]] == []
+        with xr.open_dataset(product) as ds:
+            unset = sorted(k for k, v in ds.attrs.items() if v == "not specified")
+            assert unset == ["creator_url", "publisher_url"], product.name
+            assert float(ds["latitude"]) == pytest.approx(56.48)
+            assert float(ds["longitude"]) == pytest.approx(85.10)
+
+
 def cwproc_names() -> set[str]:
     """Public names of every cwproc module, configuration keys and product variables."""
     import dataclasses
