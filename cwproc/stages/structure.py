@@ -35,6 +35,8 @@ from cwproc.metadata import SMALIKHO_2020
 
 #: largest relative mismatch (m) between wind-product gate ranges and scan gate ranges
 _RANGE_TOLERANCE_M = 0.5
+#: values of V'_L held at once (memory bound: 4e6 x 8 bytes)
+_CHUNK_VALUES = 4_000_000
 
 
 def wrapped_azimuth_difference(a_deg: np.ndarray, b_deg: np.ndarray) -> np.ndarray:
@@ -95,6 +97,50 @@ def _match_gates(scan_range: np.ndarray, wind_range: np.ndarray) -> np.ndarray:
             "azimuth structure function"
         )
     return idx
+
+
+def block_statistics(
+    vprime: np.ndarray, n_scans: int, n_lags: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """D_L, pair counts and variance of V'_L per block of ``n_scans`` consecutive scans.
+
+    Smalikho (2020), eq. 2, with all valid pairs of a block pooled (missing values,
+    NaN, are skipped pairwise).
+
+    Parameters
+    ----------
+    vprime : numpy.ndarray
+        ``(scan, m, height)`` deviations V'_L (m s-1) on the azimuth grid of each scan.
+    n_scans : int
+        Scans per block (the last block may be shorter).
+    n_lags : int
+        Lags l = 1..n_lags.
+
+    Returns
+    -------
+    (sf, pairs, variance) : tuple of numpy.ndarray
+        ``(block, height, lag)`` D_L (m2 s-2) and pair counts; ``(block, height)``
+        variance of V'_L (m2 s-2, ddof 1).
+    """
+    starts = np.arange(0, vprime.shape[0], n_scans)
+    n_h = vprime.shape[2]
+    sf = np.empty((starts.size, n_h, n_lags))
+    pairs = np.empty((starts.size, n_h, n_lags), dtype=np.int64)
+    for lag in range(1, n_lags + 1):  # L <= 9 / dtheta lags, each vectorised
+        d2 = (vprime[:, lag:, :] - vprime[:, :-lag, :]) ** 2
+        ok = np.isfinite(d2)
+        total = _block_sum(np.where(ok, d2, 0.0).sum(axis=1), starts)
+        count = _block_sum(ok.sum(axis=1), starts)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            sf[:, :, lag - 1] = np.where(count > 0, total / count, np.nan)
+        pairs[:, :, lag - 1] = count
+    ok = np.isfinite(vprime)
+    n_val = _block_sum(ok.sum(axis=1), starts).astype(float)
+    s1 = _block_sum(np.where(ok, vprime, 0.0).sum(axis=1), starts)
+    s2 = _block_sum(np.where(ok, vprime**2, 0.0).sum(axis=1), starts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        variance = np.where(n_val > 1, (s2 - s1**2 / n_val) / (n_val - 1), np.nan)
+    return sf, pairs, variance
 
 
 def azimuth_structure_function(
@@ -183,9 +229,7 @@ def azimuth_structure_function(
 
     gates = _match_gates(screened_ds["range"].values.astype(float), wind["range"].values)
     n_h = gates.size
-    vr = screened_ds["radial_velocity"].values[rays[uniq]][:, gates].astype(float)
-    flag = screened_ds["qc_flag_radial"].values[rays[uniq]][:, gates]
-    vr = np.where((flag == 0) & np.isfinite(vr), vr, np.nan)
+    homodyne = bool(screened_ds.attrs.get("homodyne", 0))
 
     # block-mean wind vector <V>_N per block and height (Smalikho (2020), eq. 1)
     starts = np.arange(0, n_time, n_scans)
@@ -203,33 +247,33 @@ def azimuth_structure_function(
     v_b = block_mean(wind["v"].transpose("time", "height").values.astype(float))
     w_b = block_mean(wind["w"].transpose("time", "height").values.astype(float))
 
-    theta = np.deg2rad(az[uniq])[:, None]
-    phi = np.deg2rad(el[uniq])[:, None]
-    b = block_of_time[scan_pos[uniq]]
-    model = w_b[b] * np.sin(phi) + np.cos(phi) * (u_b[b] * np.sin(theta) + v_b[b] * np.cos(theta))
-    if bool(screened_ds.attrs.get("homodyne", 0)):
-        vr = np.abs(vr) * np.sign(model)  # homodyne: only |V_r| measured
-    vprime = np.full((n_time, n_az, n_h), np.nan)
-    vprime[scan_pos[uniq], m[uniq]] = vr - model
-
-    # structure function, pooled over the valid pairs of the block (eq. 2)
+    # V'_L block by block in memory-bounded chunks of blocks, each fully vectorised
     sf = np.empty((n_blocks, n_h, n_lags))
     pairs = np.empty((n_blocks, n_h, n_lags), dtype=np.int64)
-    for lag in range(1, n_lags + 1):  # L <= 9 / dtheta lags, each vectorised
-        d2 = (vprime[:, lag:, :] - vprime[:, :-lag, :]) ** 2
-        ok = np.isfinite(d2)
-        total = _block_sum(np.where(ok, d2, 0.0).sum(axis=1), starts)
-        count = _block_sum(ok.sum(axis=1), starts)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            sf[:, :, lag - 1] = np.where(count > 0, total / count, np.nan)
-        pairs[:, :, lag - 1] = count
-
-    ok = np.isfinite(vprime)
-    n_val = _block_sum(ok.sum(axis=1), starts).astype(float)
-    s1 = _block_sum(np.where(ok, vprime, 0.0).sum(axis=1), starts)
-    s2 = _block_sum(np.where(ok, vprime**2, 0.0).sum(axis=1), starts)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        variance = np.where(n_val > 1, (s2 - s1**2 / n_val) / (n_val - 1), np.nan)
+    variance = np.empty((n_blocks, n_h))
+    cell_scan = scan_pos[uniq]
+    order_cells = np.argsort(cell_scan, kind="stable")
+    sorted_scan = cell_scan[order_cells]
+    per_chunk = max(1, _CHUNK_VALUES // (n_scans * n_az * n_h))
+    for b0 in range(0, n_blocks, per_chunk):
+        b1 = min(b0 + per_chunk, n_blocks)
+        t0_, t1_ = b0 * n_scans, min(b1 * n_scans, n_time)
+        lo, hi = np.searchsorted(sorted_scan, [t0_, t1_])
+        cells = uniq[order_cells[lo:hi]]
+        vr = screened_ds["radial_velocity"].values[rays[cells]][:, gates].astype(float)
+        flag = screened_ds["qc_flag_radial"].values[rays[cells]][:, gates]
+        vr = np.where((flag == 0) & np.isfinite(vr), vr, np.nan)
+        theta = np.deg2rad(az[cells])[:, None]
+        phi = np.deg2rad(el[cells])[:, None]
+        b = block_of_time[scan_pos[cells]]
+        model = w_b[b] * np.sin(phi) + np.cos(phi) * (
+            u_b[b] * np.sin(theta) + v_b[b] * np.cos(theta)
+        )
+        if homodyne:
+            vr = np.abs(vr) * np.sign(model)  # homodyne: only |V_r| measured
+        vprime = np.full((t1_ - t0_, n_az, n_h), np.nan)
+        vprime[scan_pos[cells] - t0_, m[cells]] = vr - model
+        sf[b0:b1], pairs[b0:b1], variance[b0:b1] = block_statistics(vprime, n_scans, n_lags)
 
     # scan period from the ray times: median time per azimuth step, times M
     t_sec = (t_ray - t_ray[0]) / np.timedelta64(1, "s")

@@ -185,3 +185,17 @@ def test_impossible_inputs_raise_cwproc_errors():
         )
     with pytest.raises(CwprocError, match="max_lag_deg"):
         azimuth_structure_function(ds, wind, n_scans=2, max_lag_deg=2.0)
+
+
+def test_chunked_blocks_give_the_same_result(monkeypatch):
+    import cwproc.stages.structure as structure
+
+    rng = np.random.default_rng(3)
+    ds = ramp_scans(n_scans=25)
+    ds["radial_velocity"] = ds["radial_velocity"] + 0.2 * rng.standard_normal(
+        ds["radial_velocity"].shape
+    )
+    whole = azimuth_structure_function(ds, true_wind(ds), n_scans=4, max_lag_deg=9.0)
+    monkeypatch.setattr(structure, "_CHUNK_VALUES", 1)  # one block per chunk
+    chunked = azimuth_structure_function(ds, true_wind(ds), n_scans=4, max_lag_deg=9.0)
+    xr.testing.assert_identical(whole, chunked)
