@@ -215,6 +215,9 @@ class OutputConfig:
     institution: str = ""
     creator_name: str = ""
     creator_email: str = ""
+    #: web page of the creator (person or group) and of the publishing institution
+    creator_url: str = ""
+    publisher_url: str = ""
     project: str = ""
     site: str = ""
     #: instrument position (decimal degrees north / east, metres above sea level); when

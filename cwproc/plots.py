@@ -110,10 +110,11 @@ def plot_epsilon(ds: xr.Dataset):
 
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=FIGSIZE, sharex=True, constrained_layout=True)
     eps = ds["epsilon"].where(ds["epsilon"] > 0)
+    eps.attrs = {"long_name": "dissipation rate", "units": ds["epsilon"].attrs.get("units", "")}
     finite = eps.values[np.isfinite(eps.values)]
     norm = LogNorm(*np.percentile(finite, [2, 98])) if finite.size else None
     _time_height_mesh(
-        ax1, eps, cmap=SEQUENTIAL_LOG, norm=norm, label=_label(ds["epsilon"], "dissipation rate")
+        ax1, eps, cmap=SEQUENTIAL_LOG, norm=norm, label=_label(eps, "dissipation rate")
     )
     ax1.set_title("dissipation rate $\\varepsilon$ (method 2: volume averaging + wind transport)")
     ratio = ds["epsilon_ratio"]

@@ -9,6 +9,7 @@ import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 import click
@@ -36,6 +37,7 @@ def batch_logging(log_file: str | None, verbose: bool) -> Iterator[None]:
     handlers: list[logging.Handler] = []
     if log_file:
         try:
+            Path(log_file).parent.mkdir(parents=True, exist_ok=True)
             handler: logging.Handler = logging.FileHandler(log_file, encoding="utf-8")
         except OSError as exc:
             raise click.UsageError(f"--log-file {log_file}: {exc.strerror or exc}") from None

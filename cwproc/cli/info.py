@@ -130,6 +130,29 @@ def describe_dataset(ds: xr.Dataset) -> list[str]:
     return lines
 
 
+def open_product(path: str | os.PathLike) -> xr.Dataset | None:
+    """The file as a cwproc product (a NetCDF written by cwproc), or None if it is not one."""
+    try:
+        with xr.open_dataset(path, engine="netcdf4") as ds:
+            if "cwproc_version" in ds.attrs and "ray" not in ds.dims:
+                return ds.load()
+    except (OSError, ValueError):
+        return None
+    return None
+
+
+def describe_product(path: str | os.PathLike, ds: xr.Dataset) -> list[str]:
+    """Lines describing a cwproc product: title, provenance, dims, time span, variables."""
+    lines = [
+        f"{os.fspath(path)}",
+        "  format        cwproc product (NetCDF, CF-1.10 / ACDD-1.3)",
+        f"  title         {ds.attrs.get('title', '')}",
+        f"  made by       cwproc {ds.attrs.get('cwproc_version', '?')} from "
+        f"{ds.attrs.get('input_files', '?')}",
+    ]
+    return lines + describe_dataset(ds)
+
+
 def describe_file(path: str | os.PathLike) -> list[str]:
     """What a file is, as printable lines (the first line is the path).
 
@@ -139,6 +162,10 @@ def describe_file(path: str | os.PathLike) -> list[str]:
         The file cannot be read (unknown format, damaged, no reader in this build).
     """
     fmt = detect_format(path)
+    if fmt is Format.SCAN_NETCDF:
+        product = open_product(path)
+        if product is not None:
+            return describe_product(path, product)
     try:
         ds = read(path, fmt)
     except ImportError:

@@ -62,6 +62,13 @@ def plot(source, out, kind, time_index, height, scan, window, component, config)
       sf-window   sonic: one window's normalised structure function with fit and r_max
       montecarlo  simulate montecarlo: relative errors against N per height
     """
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        report_failure(
+            'cwproc plot needs matplotlib: install the plot extra, pip install "cwproc[plot]"'
+        )
+        sys.exit(2)
     from cwproc import plots
 
     try:

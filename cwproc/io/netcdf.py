@@ -163,7 +163,14 @@ def site_attributes(output: OutputConfig) -> dict[str, object]:
     configuration gives the instrument position.
     """
     attrs: dict[str, object] = {}
-    for key in ("institution", "creator_name", "creator_email", "project"):
+    for key in (
+        "institution",
+        "creator_name",
+        "creator_email",
+        "creator_url",
+        "publisher_url",
+        "project",
+    ):
         value = getattr(output, key)
         if value:
             attrs[key] = value
