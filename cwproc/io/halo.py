@@ -323,8 +323,10 @@ def content_end(raw: bytes, start: int = 0) -> int:
 _SPACE_FIELDS = 6
 
 
-def _read_table(body: bytes, *, single_space: bool) -> pd.DataFrame:
+def _read_table(body: bytes | io.RawIOBase, *, single_space: bool) -> pd.DataFrame:
     """Parse body lines with the pandas C tokenizer (5 or, see below, 6 columns).
+
+    ``body`` is the data or a binary file object that reads it.
 
     ``single_space``: the body has no TAB, so fields are split at single spaces with
     ``skipinitialspace`` (leading, repeated and trailing spaces as in the instrument
@@ -340,7 +342,7 @@ def _read_table(body: bytes, *, single_space: bool) -> pd.DataFrame:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return pd.read_csv(
-            io.BytesIO(body),
+            io.BytesIO(body) if isinstance(body, bytes) else body,
             header=None,
             engine="c",
             skip_blank_lines=False,
@@ -381,7 +383,7 @@ def _tokenize(
     fields raises here. The pandas C tokenizer does the work (single-space separator
     when :func:`_single_space_ok`, see :func:`_read_table`); very large bodies are cut at
     line starts and parsed in threads (the tokenizer releases the GIL). The columns
-    may be read-only views of the parser's buffer.
+    are (strided, possibly read-only) views of one float table.
     """
     if single_space is None:
         single_space = _single_space_ok(body)
@@ -426,16 +428,32 @@ def _tokenize(
         raise InputFileError(
             path, f"cannot parse the data lines ({exc})", HEADER_LINES + 1
         ) from None
-    parts: list[list[np.ndarray]] = [[] for _ in range(5)]
-    sixth: list[np.ndarray] = []
-    for frame in frames:
-        for j, name in enumerate(frame.columns):
-            (parts[j] if j < 5 else sixth).append(_float_column(frame[name]))
-    if sixth:
-        extra = np.flatnonzero(~np.isnan(np.concatenate(sixth)))
-        if extra.size:
-            return _tokenize(path, body, single_space=False)  # raises, naming the line
-    return [p[0] if len(p) == 1 else np.concatenate(p) for p in parts]
+    if sum(len(frame) for frame in frames) <= _TABLE_ROWS:
+        tables = [_float_table(frame) for frame in frames]
+        table = tables[0] if len(tables) == 1 else np.concatenate(tables)
+        columns = [table[:, j] for j in range(table.shape[1])]
+    else:
+        parts = [[_float_column(frame[name]) for name in frame.columns] for frame in frames]
+        columns = [p[0] if len(p) == 1 else np.concatenate(p) for p in zip(*parts, strict=True)]
+    if len(columns) > 5 and not np.isnan(columns[5]).all():
+        return _tokenize(path, body, single_space=False)  # raises, naming the line
+    return columns[:5]
+
+
+#: parsed tables up to this many lines become one float array (one call, one copy);
+#: longer ones are taken column by column (no copy of the parser's columns)
+_TABLE_ROWS = 100_000
+
+
+def _float_table(frame: pd.DataFrame) -> np.ndarray:
+    """The parsed lines as a float array (line, field); see :func:`_float_column`.
+
+    One copy of the parser's columns (measured: fewer page faults than keeping the
+    columns, whose memory is then freed and reused at once).
+    """
+    if all(dtype.kind == "f" for dtype in frame.dtypes):
+        return frame.to_numpy(dtype=np.float64)
+    return np.column_stack([_float_column(frame[name]) for name in frame.columns])
 
 
 def _float_column(col: pd.Series) -> np.ndarray:
@@ -480,7 +498,13 @@ def _single_space_ok(body: bytes) -> bool:
     (pandas' ``skipinitialspace`` takes the leading space of a line that follows a lone
     CR as a separator.)
     """
-    return b"\t" not in body and not line_ends(body)[1]
+    if b"\t" in body:
+        return False
+    if b"\r" not in body:  # LF files: no CR at all (memchr, no numpy pass)
+        return True
+    data = np.frombuffer(body, dtype=np.uint8)
+    follows = np.flatnonzero(data == 13) + 1
+    return bool(follows[-1] < data.size and (data[follows] == 10).all())
 
 
 def structure_problem(
@@ -636,6 +660,42 @@ def diagnose(
     return InputFileError(path, "inconsistent ray block", first + start_row)
 
 
+#: bytes read first for the header (a Stream Line header is about 1 kB)
+_HEAD_BYTES = 1 << 16
+
+
+def read_header_and_body(path: Path) -> tuple[list[str], bytes]:
+    """The 17 header lines and the data lines of a file, each read once from disk.
+
+    The body is read straight after the header (no copy of the whole file); it keeps
+    a final line end (and spaces before it), which the tokenizer ignores, but not
+    further blank lines.
+
+    Raises
+    ------
+    InputFileError
+        The file cannot be read, or its header is cut short (see :func:`split_header`).
+    """
+    try:
+        with path.open("rb") as f:
+            head = f.read(_HEAD_BYTES)
+            try:
+                lines, offset = split_header(path, head)
+            except InputFileError:
+                if len(head) < _HEAD_BYTES:
+                    raise
+                lines, offset = split_header(path, head + f.read())  # huge header lines
+            f.seek(offset)
+            body = f.read()
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    end = content_end(body)
+    tail = body[end:]
+    if tail.lstrip(b" ") not in (b"", b"\n", b"\r\n", b"\r"):
+        body = body[:end]  # blank lines after the data: drop them (copies the body)
+    return lines, body
+
+
 def decimal_hours_to_time(hours: np.ndarray, start_time: np.datetime64) -> np.ndarray:
     """UTC times from Halo decimal hours since 00:00 of the start date.
 
@@ -718,14 +778,9 @@ def read_hpl(path: str | os.PathLike, **options: object) -> xr.Dataset:
     """
     _check_options(options)
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
-    lines, offset = split_header(path, raw)
+    lines, body = read_header_and_body(path)
     header = parse_header(path, lines)
-    body = raw[offset : content_end(raw, offset)]
-    if not body:
+    if content_end(body) == 0:
         raise InputFileError(path, "no data after the header", HEADER_LINES + 1)
     nul = body.find(b"\x00")
     if nul >= 0:
@@ -879,7 +934,9 @@ class _Body:
 
     path: Path
     header: HplHeader
+    #: the data lines are ``body[:end]`` (no final line end, no blank tail)
     body: bytes
+    end: int
     n_lines: int
     single_space: bool
 
@@ -887,22 +944,57 @@ class _Body:
 def _load_body(path: Path) -> _Body | None:
     """Header and body of a file, or ``None`` when anything is off (no raise)."""
     try:
-        raw = path.read_bytes()
-        lines, offset = split_header(path, raw)
+        lines, body = read_header_and_body(path)
         header = parse_header(path, lines)
-    except (OSError, InputFileError):
+    except InputFileError:
         return None
-    body = raw[offset : content_end(raw, offset)]
-    if not body or b"\x00" in body:
+    end = content_end(body)
+    if end == 0 or body.find(b"\x00", 0, end) >= 0:
         return None
-    n_lines, lone_cr = line_ends(body)
+    n_lines, lone_cr = line_ends(memoryview(body)[:end])
     return _Body(
         path=path,
         header=header,
         body=body,
+        end=end,
         n_lines=n_lines,
-        single_space=not lone_cr and b"\t" not in body,
+        single_space=not lone_cr and body.find(b"\t", 0, end) < 0,
     )
+
+
+class _JoinedBodies(io.RawIOBase):
+    """A read-only binary file over the data lines of several files joined by CRLF.
+
+    Serves the tokenizer's reads from the files' own buffers, so that a day of files
+    is never copied into one large joined buffer.
+    """
+
+    def __init__(self, bodies: list[_Body]) -> None:
+        super().__init__()
+        self._pieces: list[memoryview] = []
+        for item in bodies:
+            if self._pieces:
+                self._pieces.append(memoryview(b"\r\n"))
+            self._pieces.append(memoryview(item.body)[: item.end])
+        self._index = 0
+        self._offset = 0
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer: bytearray | memoryview) -> int:
+        out = memoryview(buffer).cast("B")
+        n = 0
+        while n < len(out) and self._index < len(self._pieces):
+            piece = self._pieces[self._index]
+            take = min(len(out) - n, len(piece) - self._offset)
+            out[n : n + take] = piece[self._offset : self._offset + take]
+            n += take
+            self._offset += take
+            if self._offset == len(piece):
+                self._index += 1
+                self._offset = 0
+        return n
 
 
 def _batches(bodies: list[_Body]) -> list[list[_Body]]:
@@ -910,24 +1002,28 @@ def _batches(bodies: list[_Body]) -> list[list[_Body]]:
     batches: list[list[_Body]] = [[]]
     size = 0
     for item in bodies:
-        if batches[-1] and size + len(item.body) > _BATCH_BYTES:
+        if batches[-1] and size + item.end > _BATCH_BYTES:
             batches.append([])
             size = 0
         batches[-1].append(item)
-        size += len(item.body)
+        size += item.end
     return batches
 
 
 def _batch_columns(batch: list[_Body], n_gates: int) -> list[np.ndarray] | None:
     """The 5 columns of a batch's bodies, parsed in one call; ``None`` if not whole."""
-    joined = b"\r\n".join(item.body for item in batch)
-    single_space = all(item.single_space for item in batch)
+    if not all(item.single_space for item in batch):
+        return None
     try:
-        columns = _tokenize(batch[0].path, joined, single_space=single_space)
-    except InputFileError:
+        frame = _read_table(_JoinedBodies(batch), single_space=True)
+    except (pd.errors.ParserError, ValueError, UnicodeDecodeError, pd.errors.EmptyDataError):
         return None
-    if columns[0].size != sum(item.n_lines for item in batch):
+    if frame.shape[1] != _SPACE_FIELDS or len(frame) != sum(item.n_lines for item in batch):
         return None
+    columns = [_float_column(frame[name]) for name in frame.columns]
+    if not np.isnan(columns[5]).all():
+        return None
+    columns = columns[:5]
     if structure_problem(columns, n_gates) is not None:
         return None
     return columns

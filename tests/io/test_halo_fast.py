@@ -74,6 +74,8 @@ def test_single_space_parse_is_bitwise_the_whitespace_parse(real_data: Path, nam
         (b"1 2 3\r  0 1 2 3\r", False),  # lone CR: skipinitialspace would misread
         (b"1 2 3\r\n  0 1 2 3\r  1 1 2 3", False),  # one stray lone CR
         (b"1\t2 3\r\n  0 1 2 3\r\n", False),  # a TAB separates fields
+        (b"1 2 3\r\n  0 1 2 3\r", False),  # the last line end is a lone CR
+        (b"1 2 3\n  0 1 2 3\n", True),  # LF only (no CR at all)
     ],
 )
 def test_single_space_only_for_space_separated_crlf_or_lf(body: bytes, expected: bool) -> None:

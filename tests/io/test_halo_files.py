@@ -154,3 +154,30 @@ def test_line_ends_count_lines_like_splitlines(body: bytes) -> None:
     n_lines, lone_cr = line_ends(body)
     assert n_lines == len(body.splitlines())
     assert lone_cr == (body.replace(b"\r\n", b"").count(b"\r") > 0)
+
+
+@pytest.mark.parametrize("chunk", [1, 7, 4096, 1 << 20])
+def test_joined_bodies_read_like_one_joined_buffer(day: list[Path], chunk: int) -> None:
+    bodies = [halo._load_body(p) for p in day[:3]]
+    expected = b"\r\n".join(item.body[: item.end] for item in bodies)
+    reader = halo._JoinedBodies(bodies)
+    parts = []
+    while block := reader.read(chunk):
+        parts.append(block)
+    assert b"".join(parts) == expected
+    assert all(len(p) == chunk for p in parts[:-1])  # full reads until the end
+
+
+@pytest.mark.parametrize(
+    "tail, kept",
+    [(b"", b""), (b"\r\n", b"\r\n"), (b"  \r\n", b"  \r\n"), (b"\n", b"\n"), (b"\r\n\r\n", b"")],
+)
+def test_body_keeps_one_final_line_end_only(
+    day: list[Path], tmp_path: Path, tail: bytes, kept: bytes
+) -> None:
+    text = day[0].read_bytes().rstrip()
+    path = tmp_path / "t.hpl"
+    path.write_bytes(text + tail)
+    lines, body = halo.read_header_and_body(path)
+    assert len(lines) == halo.HEADER_LINES
+    assert body == text.split(b"\r\n", halo.HEADER_LINES)[-1] + kept
