@@ -28,7 +28,7 @@ README = REPO / "README.md"
 CI_RUN = REPO / ".ci" / "run"
 
 #: the two commands of a new user, the first code block of the README
-MAIN_JOB = "pip install . && cwproc retrieve sample_data/ -o out/"
+MAIN_JOB = "pip install . && cwproc retrieve sample_data/ -c sample_data/site.toml -o out/"
 TEST_LINE = 'pip install ".[test]" && python3 -m pytest -q'
 
 #: marker of the README blocks that the slow test runs
