@@ -60,6 +60,19 @@ def _field_comments(cls: type) -> dict[str, str]:
     return out
 
 
+def preset_description(name: str) -> str:
+    """The leading comment of a preset file, as one line."""
+    from importlib import resources
+
+    text = resources.files("cwproc.configs").joinpath(f"{name}.toml").read_text("utf-8")
+    words = []
+    for line in text.splitlines():
+        if not line.startswith("#"):
+            break
+        words.append(line.lstrip("#").strip())
+    return " ".join(words)
+
+
 def _type_name(tp: object) -> str:
     text = str(tp).replace("typing.", "")
     return _cell(text.replace("<class '", "").replace("'>", ""))
@@ -83,6 +96,10 @@ def config_markdown() -> str:
         + " (`cwproc retrieve -c streamline ...`; files in `configs/`).",
         "",
     ]
+    lines += ["## Presets", "", "| preset | what it is for |", "|---|---|"]
+    for name in preset_names():
+        lines.append(f"| `{name}` | {_cell(preset_description(name))} |")
+    lines.append("")
     hints = typing.get_type_hints(Config)
     for f in dataclasses.fields(Config):
         if f.name == "source":

@@ -30,3 +30,11 @@ def test_config_reference_lists_every_option():
         if dataclasses.is_dataclass(value):
             for f in dataclasses.fields(value):
                 assert f"`{f.name}`" in text, f"{section.name}.{f.name} undocumented"
+
+
+def test_every_preset_is_described():
+    from cwproc.config import preset_names
+    from cwproc.reference_docs import preset_description
+
+    for name in preset_names():
+        assert len(preset_description(name)) > 20, f"preset {name} has no leading comment"
