@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import csv
 import os
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -39,6 +38,7 @@ from cwproc.io.meteo2 import (
     SPIKE_THRESHOLD,
     blank_row,
     check_options,
+    column_map,
     numeric_column,
     option_number,
     parse_times,
@@ -84,18 +84,6 @@ TOB1_TYPES: dict[str, str] = {
 
 #: TOB1 epoch: SECONDS count from this instant (logger time)
 TOB1_EPOCH = np.datetime64("1990-01-01T00:00:00", "ns")
-
-
-def _columns(path: str | os.PathLike, options: Mapping[str, Any]) -> dict[str, str]:
-    cols = dict(DEFAULT_COLUMNS)
-    user = options.get("columns", {})
-    if not isinstance(user, Mapping):
-        raise InputFileError(path, "reader option 'columns' must be a table")
-    unknown = sorted(set(user) - set(DEFAULT_COLUMNS))
-    if unknown:
-        raise InputFileError(path, f"reader option columns: unknown name {unknown[0]!r}")
-    cols.update({str(k): str(v) for k, v in user.items()})
-    return cols
 
 
 def _header_fields(path: str | os.PathLike, line: str, number: int) -> list[str]:
@@ -156,7 +144,7 @@ def read_toa5(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         File, line and problem.
     """
     check_options(path, options, OPTIONS)
-    cols = _columns(path, options)
+    cols = column_map(path, options, DEFAULT_COLUMNS)
     offset_h = option_number(path, options, "utc_offset_hours", 0.0)
     text = read_text(path)
     lines = text.splitlines(keepends=True)
@@ -290,7 +278,7 @@ def read_tob1(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         (1-based, ``record N``).
     """
     check_options(path, options, OPTIONS)
-    cols = _columns(path, options)
+    cols = column_map(path, options, DEFAULT_COLUMNS)
     offset_h = option_number(path, options, "utc_offset_hours", 0.0)
     try:
         with open(path, "rb") as fh:

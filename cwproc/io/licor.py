@@ -16,7 +16,6 @@ sonic diagnostic, so ``diagnostic`` is 0 and ``attrs["diagnostic_source"]`` says
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -27,6 +26,7 @@ from cwproc.errors import InputFileError
 from cwproc.io.meteo2 import (
     SPIKE_THRESHOLD,
     check_options,
+    column_map,
     numeric_column,
     option_number,
     read_table,
@@ -78,14 +78,7 @@ def read_ghg(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         File, line and problem.
     """
     check_options(path, options, OPTIONS)
-    cols = dict(DEFAULT_COLUMNS)
-    user = options.get("columns", {})
-    if not isinstance(user, Mapping):
-        raise InputFileError(path, "reader option 'columns' must be a table")
-    bad_keys = sorted(set(user) - set(DEFAULT_COLUMNS))
-    if bad_keys:
-        raise InputFileError(path, f"reader option columns: unknown name {bad_keys[0]!r}")
-    cols.update({str(k): str(v) for k, v in user.items()})
+    cols = column_map(path, options, DEFAULT_COLUMNS)
 
     lines = read_text(path).splitlines()
     attrs: dict[str, str] = {}

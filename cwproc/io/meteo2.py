@@ -101,6 +101,27 @@ def check_options(path: str | os.PathLike, options: Mapping[str, Any], known: se
         )
 
 
+def column_map(
+    path: str | os.PathLike, options: Mapping[str, Any], defaults: Mapping[str, str]
+) -> dict[str, str]:
+    """Canonical name -> column name: the reader option ``columns`` merged over ``defaults``.
+
+    Raises
+    ------
+    InputFileError
+        ``columns`` is not a table or names an unknown canonical variable.
+    """
+    cols = dict(defaults)
+    user = options.get("columns", {})
+    if not isinstance(user, Mapping):
+        raise InputFileError(path, "reader option 'columns' must be a table")
+    unknown = sorted(set(user) - set(defaults))
+    if unknown:
+        raise InputFileError(path, f"reader option columns: unknown name {unknown[0]!r}")
+    cols.update({str(k): str(v) for k, v in user.items()})
+    return cols
+
+
 def option_number(path: str | os.PathLike, options: Mapping[str, Any], key: str, default: float):
     """A finite numeric reader option (or its default)."""
     value = options.get(key, default)
@@ -483,14 +504,7 @@ def read_meteo2(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     check_options(path, options, READER_OPTIONS)
     delimiter = str(options.get("delimiter", ","))
     comment = str(options.get("comment", "#"))
-    cols = dict(DEFAULT_COLUMNS)
-    user_cols = options.get("columns", {})
-    if not isinstance(user_cols, Mapping):
-        raise InputFileError(path, "reader option 'columns' must be a table")
-    unknown = sorted(set(user_cols) - set(DEFAULT_COLUMNS))
-    if unknown:
-        raise InputFileError(path, f"reader option columns: unknown name {unknown[0]!r}")
-    cols.update({str(k): str(v) for k, v in user_cols.items()})
+    cols = column_map(path, options, DEFAULT_COLUMNS)
     time_format = options.get("time_format", "iso")
     if time_format not in ("iso", "epoch"):
         raise InputFileError(path, "reader option 'time_format' must be 'iso' or 'epoch'")
