@@ -41,7 +41,7 @@ from cwproc.physics.spectra import MODELS, Model
 from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
 
 #: bump when the numerics or the grid change: old cache files are then ignored
-TABLE_VERSION = 2
+TABLE_VERSION = 3
 #: geometric ratio of the height nodes
 HEIGHT_RATIO = 1.2
 #: geometric ratio of the outer-scale nodes
@@ -192,7 +192,12 @@ def _probe_params(probe: Probe) -> dict:
             "gaussian": probe.gaussian,
         }
     if isinstance(probe, CWProbe):
-        return {"kind": "cw", "z_r_coefficient_per_m": float(probe.coefficient)}
+        z_d = probe.focal_parameter_m
+        return {
+            "kind": "cw",
+            "z_r_coefficient_per_m": float(probe.coefficient),
+            "focal_parameter_m": None if z_d is None else float(z_d),
+        }
     raise TypeError(f"unknown probe {probe!r}")
 
 

@@ -19,9 +19,13 @@ Conventions: ``kappa`` is in cycles per metre, the Fourier transform is
   (``reference/REFERENCE_VALUES.md`` section 1.4). ``gaussian="printed"`` keeps the
   printed form as an option.
 - Continuous-wave lidar (Banakh et al. (1999) Q_s; Wagner et al. (DTU), eq. 2): the
-  Lorentzian ``Q(s) = (Z_R / pi) / (Z_R^2 + s^2)`` with half width
-  ``Z_R = lambda R^2 / (2 pi a0^2)`` (ZephIR: ``Z_R = 0.0013 R^2``); its transform is
-  ``exp(-2 pi Z_R |kappa|)``, so ``H_par = exp(-4 pi Z_R |kappa|)``.
+  Lorentzian ``Q(s) = (w / pi) / (w^2 + s^2)``; its transform is ``exp(-2 pi w |kappa|)``,
+  so ``H_par = exp(-4 pi w |kappa|)``. With the wavelength and the beam radius known,
+  Banakh et al. (1999) Q_s (``k0 a0^2`` squared, ``reference/REFERENCE_VALUES.md``
+  section 3) gives the half width ``w = z_R / (1 + (R/z_d)^2)``, centred at
+  ``R / (1 + (R/z_d)^2)``, with ``z_d = k0 a0^2 = 2 pi a0^2 / lambda`` and
+  ``z_R = lambda R^2 / (2 pi a0^2)``; ZephIR's empirical ``w = Z_R = 0.0013 R^2``
+  (Wagner et al. (DTU)) has no such correction.
 - Transverse (Smalikho (2020), eq. 20): ``H_perp = sinc^2(pi dy kappa)``.
 """
 
@@ -166,13 +170,39 @@ class CWProbe:
             return self.wavelength_m / (2.0 * math.pi * self.beam_radius_m**2)
         return self.z_r_coefficient
 
-    def rayleigh_half_width(self, range_m: ArrayLike) -> np.ndarray:
-        """Half width ``Z_R`` (m) of the Lorentzian weighting at focus distance ``range_m`` (m).
+    @property
+    def focal_parameter_m(self) -> float | None:
+        """``z_d = k0 a0^2 = 2 pi a0^2 / lambda`` (m) when ``a0`` is given, else None.
 
-        ``Z_R = lambda R^2 / (2 pi a0^2)`` (Banakh et al. (1999), Q_s) when the beam radius
-        is known, else ``Z_R = c R^2`` (Wagner et al. (DTU): ``c = 0.0013`` for ZephIR).
+        Banakh et al. (1999), after eq. 3.
         """
-        return self.coefficient * np.asarray(range_m, dtype=float) ** 2
+        if self.beam_radius_m is not None and self.wavelength_m is not None:
+            return 2.0 * math.pi * self.beam_radius_m**2 / self.wavelength_m
+        return None
+
+    def rayleigh_half_width(self, range_m: ArrayLike) -> np.ndarray:
+        """Half width ``w`` (m) of the Lorentzian weighting at focus distance ``range_m`` (m).
+
+        With the beam radius known, Banakh et al. (1999), Q_s (``k0 a0^2`` squared):
+        ``w = z_R / (1 + (R/z_d)^2)``, ``z_R = lambda R^2 / (2 pi a0^2)``,
+        ``z_d = 2 pi a0^2 / lambda``; else ``w = Z_R = c R^2`` (Wagner et al. (DTU):
+        ``c = 0.0013`` for ZephIR).
+        """
+        r = np.asarray(range_m, dtype=float)
+        z_d = self.focal_parameter_m
+        if z_d is None:
+            return self.coefficient * r**2
+        return self.coefficient * r**2 / (1.0 + (r / z_d) ** 2)
+
+    def focus_centre(self, range_m: ArrayLike) -> np.ndarray:
+        """Centre (m from the lidar) of the Lorentzian weighting focused at ``range_m`` (m).
+
+        ``R / (1 + (R/z_d)^2)`` (Banakh et al. (1999), Q_s with ``k0 a0^2`` squared) when
+        the beam radius is known, else ``R``.
+        """
+        r = np.asarray(range_m, dtype=float)
+        z_d = self.focal_parameter_m
+        return r if z_d is None else r / (1.0 + (r / z_d) ** 2)
 
     def weighting(self, s: ArrayLike, range_m: float) -> np.ndarray:
         """Lorentzian range weighting ``Q(s) = (Z_R/pi)/(Z_R^2 + s^2)`` (m-1), unit area.
@@ -200,7 +230,8 @@ class CWProbe:
 
     def key(self) -> tuple:
         """Parameters that fix the transfer function (for cache keys)."""
-        return ("cw", float(self.coefficient))
+        z_d = self.focal_parameter_m
+        return ("cw", float(self.coefficient), None if z_d is None else float(z_d))
 
 
 Probe = PulsedProbe | CWProbe

@@ -83,7 +83,10 @@ def test_cw_lorentzian_transfer_is_transform_of_lorentzian():
 def test_cw_rayleigh_range_from_beam_radius():
     lam, a0 = 10.6e-6, 0.075  # Banakh et al. (1999)
     probe = CWProbe(wavelength_m=lam, beam_radius_m=a0)
-    assert probe.rayleigh_half_width(500.0) == pytest.approx(lam * 500.0**2 / (2 * math.pi * a0**2))
+    z_r = lam * 500.0**2 / (2 * math.pi * a0**2)
+    z_d = 2 * math.pi * a0**2 / lam
+    # Banakh et al. (1999), Q_s with k0 a0^2 squared: w = z_R / (1 + (R/z_d)^2)
+    assert probe.rayleigh_half_width(500.0) == pytest.approx(z_r / (1 + (500.0 / z_d) ** 2))
     with pytest.raises(ValueError):
         CWProbe(beam_radius_m=0.05)  # no wavelength
     with pytest.raises(ValueError):
@@ -118,3 +121,32 @@ def test_probe_from_config():
     assert cw_a0.coefficient == pytest.approx(1.55e-6 / (2 * math.pi * 0.02**2))
     with pytest.raises(ValueError, match="sonic"):
         probe_from_config(InstrumentConfig(kind="sonic"))
+
+
+def test_cw_probe_with_beam_radius_has_the_banakh_half_width_and_centre():
+    # seed-000 lidar (lambda = 10.6 um, a0 = 7.5 cm): z_d = 2 pi a0^2/lambda = 3334 m;
+    # at R = 1000 m (h = 500 m, phi = 30 deg) w = z_R/(1 + (R/z_d)^2) = 0.917 z_R,
+    # the same Lorentzian the simulator draws (cwproc.sim.cw.lorentzian_parameters)
+    from cwproc.sim.cw import lorentzian_parameters
+
+    probe = CWProbe(wavelength_m=10.6e-6, beam_radius_m=0.075)
+    z_d = 2 * math.pi * 0.075**2 / 10.6e-6
+    assert probe.focal_parameter_m == pytest.approx(z_d, rel=1e-12)
+    for r in (100.0, 1000.0, 3000.0):
+        centre, width = lorentzian_parameters(r, 10.6e-6, 0.075)
+        assert float(probe.rayleigh_half_width(r)) == pytest.approx(width, rel=1e-12)
+        assert float(probe.focus_centre(r)) == pytest.approx(centre, rel=1e-12)
+    z_r = 10.6e-6 * 1000.0**2 / (2 * math.pi * 0.075**2)
+    assert z_r / float(probe.rayleigh_half_width(1000.0)) == pytest.approx(1.09, abs=0.005)
+    # ZephIR's empirical Z_R = 0.0013 R^2 (Wagner et al. (DTU)) keeps no correction
+    zephir = CWProbe(0.0013)
+    assert zephir.focal_parameter_m is None
+    assert float(zephir.rayleigh_half_width(200.0)) == pytest.approx(0.0013 * 200.0**2)
+    assert float(zephir.focus_centre(200.0)) == 200.0
+    # H_par follows the narrower weighting: exp(-4 pi w kappa)
+    kappa = np.array([1e-3, 1e-2])
+    w = float(probe.rayleigh_half_width(1000.0))
+    np.testing.assert_allclose(
+        probe.longitudinal(kappa, 1000.0), np.exp(-4 * math.pi * w * kappa), rtol=1e-12
+    )
+    assert probe.key() != CWProbe(probe.coefficient).key()  # distinct cache tables
