@@ -997,19 +997,6 @@ class _JoinedBodies(io.RawIOBase):
         return n
 
 
-def _batches(bodies: list[_Body]) -> list[list[_Body]]:
-    """Consecutive files grouped into batches of about ``_BATCH_BYTES`` of data."""
-    batches: list[list[_Body]] = [[]]
-    size = 0
-    for item in bodies:
-        if batches[-1] and size + item.end > _BATCH_BYTES:
-            batches.append([])
-            size = 0
-        batches[-1].append(item)
-        size += item.end
-    return batches
-
-
 def _batch_columns(batch: list[_Body], n_gates: int) -> list[np.ndarray] | None:
     """The 5 columns of a batch's bodies, parsed in one call; ``None`` if not whole."""
     if not all(item.single_space for item in batch):
@@ -1029,83 +1016,120 @@ def _batch_columns(batch: list[_Body], n_gates: int) -> list[np.ndarray] | None:
     return columns
 
 
-def _same_layout(bodies: list[_Body]) -> bool:
-    """Whether the files can be parsed together: same gates, range grid, instrument."""
-    first = bodies[0].header
-    block = first.n_gates + 1
-    return all(
-        item.header.n_gates == first.n_gates
-        and item.header.gate_length_m == first.gate_length_m
-        and item.header.range_divisor == first.range_divisor
-        and item.header.range_step_m == first.range_step_m
-        and item.header.system_id == first.system_id
-        and item.n_lines % block == 0
-        for item in bodies
+def _same_layout(first: HplHeader, item: _Body) -> bool:
+    """Whether a file can be parsed with the first one: same gates, range grid, system."""
+    header = item.header
+    return (
+        header.n_gates == first.n_gates
+        and header.gate_length_m == first.gate_length_m
+        and header.range_divisor == first.range_divisor
+        and header.range_step_m == first.range_step_m
+        and header.system_id == first.system_id
+        and item.n_lines % (first.n_gates + 1) == 0
     )
 
 
-def _read_together(paths: list[Path]) -> xr.Dataset | None:
-    """The fast path of :func:`read_hpl_files`, or ``None`` to take the reference path."""
-    from cwproc.stages.scans import joined_attrs, time_sorted_scans
+@dataclass(frozen=True)
+class _BatchArrays:
+    """The per-ray arrays of one batch of files (rays in file order)."""
 
-    bodies = []
-    for path in paths:
-        item = _load_body(path)
-        if item is None:
-            return None
-        bodies.append(item)
-    if not _same_layout(bodies):
+    layout: tuple[int, int]  # fields of the ray lines and of the gate lines
+    variables: dict[str, np.ndarray]  # canonical names, ray first
+    time: np.ndarray
+    azimuth: np.ndarray
+    elevation: np.ndarray
+
+
+def _batch_arrays(batch: list[_Body], n_gates: int) -> _BatchArrays | None:
+    """Parse one batch and keep only its dataset arrays; ``None`` if anything is off."""
+    columns = _batch_columns(batch, n_gates)
+    if columns is None:
         return None
-    first = bodies[0].header
-    block = first.n_gates + 1
-    parts: list[list[np.ndarray]] = [[] for _ in range(5)]
-    layouts = set()
-    for batch in _batches(bodies):
-        columns = _batch_columns(batch, first.n_gates)
-        if columns is None:
-            return None
-        layouts.add((_fields_of_row(columns, 0), _fields_of_row(columns, 1)))
-        for j, col in enumerate(columns):
-            parts[j].append(col)
-    if len(layouts) != 1:  # e.g. pitch and roll only in some files: reference path
-        return None
-    ((ray_fields, gate_fields),) = layouts
-    columns = [p[0] if len(p) == 1 else np.concatenate(p) for p in parts]
+    ray_fields, gate_fields = _fields_of_row(columns, 0), _fields_of_row(columns, 1)
+    block = n_gates + 1
     grids = [col.reshape(-1, block) for col in columns]
     rays = np.column_stack([g[:, 0] for g in grids])
     if _bad_ray(rays) is not None:
         return None
-    counts = [item.n_lines // block for item in bodies]
+    counts = [item.n_lines // block for item in batch]
     ends = np.cumsum(counts)
     time = np.concatenate(
         [
             decimal_hours_to_time(rays[end - count : end, 0], item.header.start_time)
-            for item, count, end in zip(bodies, counts, ends, strict=True)
+            for item, count, end in zip(batch, counts, ends, strict=True)
         ]
     )
     azimuth, elevation = normalise_pointing(rays[:, 1], rays[:, 2])
-    ray_range = ("ray", "range")
-    arrays: dict[str, tuple[tuple[str, ...], np.ndarray, dict]] = {
-        "radial_velocity": (ray_range, np.ascontiguousarray(grids[1][:, 1:]), {}),
-        "snr": (ray_range, grids[2][:, 1:] - 1.0, {}),
-        "beta": (ray_range, np.ascontiguousarray(grids[3][:, 1:]), {}),
+    variables = {
+        "radial_velocity": np.ascontiguousarray(grids[1][:, 1:]),
+        "snr": grids[2][:, 1:] - 1.0,
+        "beta": np.ascontiguousarray(grids[3][:, 1:]),
     }
     if gate_fields == 5:
-        arrays["spectral_width"] = (ray_range, np.ascontiguousarray(grids[4][:, 1:]), {})
+        variables["spectral_width"] = np.ascontiguousarray(grids[4][:, 1:])
     if ray_fields == 5:
-        arrays["pitch"] = (("ray",), rays[:, 3].copy(), {})
-        arrays["roll"] = (("ray",), rays[:, 4].copy(), {})
-    attrs = joined_attrs(
-        _attrs(paths[0], first),
-        [path.name for path in paths],
-        [item.header.scan_type for item in bodies],
-    )
+        variables["pitch"] = rays[:, 3].copy()
+        variables["roll"] = rays[:, 4].copy()
+    return _BatchArrays((ray_fields, gate_fields), variables, time, azimuth, elevation)
+
+
+def _add_batch(batch: list[_Body], n_gates: int, done: list[_BatchArrays]) -> bool:
+    """Parse a batch onto ``done``; False on damage or a layout unlike the first batch's
+    (e.g. pitch and roll in some files only)."""
+    arrays = _batch_arrays(batch, n_gates)
+    if arrays is None or (done and arrays.layout != done[0].layout):
+        return False
+    done.append(arrays)
+    return True
+
+
+def _read_together(paths: list[Path]) -> xr.Dataset | None:
+    """The fast path of :func:`read_hpl_files`, or ``None`` to take the reference path.
+
+    Files are read and parsed batch by batch (about ``_BATCH_BYTES`` of data each);
+    only the dataset arrays of a batch are kept, so the peak memory is the result
+    plus one batch.
+    """
+    from cwproc.stages.scans import joined_attrs, time_sorted_scans
+
+    first: HplHeader | None = None
+    scan_types: list[str] = []
+    done: list[_BatchArrays] = []
+    batch: list[_Body] = []
+    size = 0
+    for path in paths:
+        item = _load_body(path)
+        if item is None:
+            return None
+        if first is None:
+            first = item.header
+        if not _same_layout(first, item):
+            return None
+        scan_types.append(item.header.scan_type)
+        if batch and size + item.end > _BATCH_BYTES:
+            if not _add_batch(batch, first.n_gates, done):
+                return None
+            batch, size = [], 0
+        batch.append(item)
+        size += item.end
+    if first is None or not _add_batch(batch, first.n_gates, done):
+        return None
+    ray_range = ("ray", "range")
+    variables = {
+        name: (
+            ray_range if values.ndim == 2 else ("ray",),
+            np.concatenate([b.variables[name] for b in done]) if len(done) > 1 else values,
+            {},
+        )
+        for name, values in done[0].variables.items()
+    }
+    attrs = joined_attrs(_attrs(paths[0], first), [path.name for path in paths], scan_types)
     return time_sorted_scans(
-        arrays,
+        variables,
         fixed={},
-        time=time,
-        azimuth=azimuth,
-        elevation=elevation,
+        time=np.concatenate([b.time for b in done]),
+        azimuth=np.concatenate([b.azimuth for b in done]),
+        elevation=np.concatenate([b.elevation for b in done]),
         ranges=first.gate_ranges(),
         attrs=attrs,
         coord_attrs={},

@@ -91,9 +91,17 @@ def test_day_equals_concat_of_single_reads(day: list[Path], order: str) -> None:
 def test_several_batches_equal_one(day: list[Path], monkeypatch: pytest.MonkeyPatch) -> None:
     one = read_hpl_files(day)
     monkeypatch.setattr(halo, "_BATCH_BYTES", 30_000)  # about two files per batch
-    assert len(halo._batches([halo._load_body(p) for p in day])) > 2
+    calls = []
+    batch_arrays = halo._batch_arrays
+
+    def spy(batch: list, n_gates: int) -> object:
+        calls.append(len(batch))
+        return batch_arrays(batch, n_gates)
+
+    monkeypatch.setattr(halo, "_batch_arrays", spy)
     several = halo._read_together(day)
     assert several is not None
+    assert len(calls) > 2 and sum(calls) == len(day)
     assert_same(several, one)
 
 
