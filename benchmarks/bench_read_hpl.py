@@ -15,8 +15,9 @@ Prints, in the same run and on the same files:
    into one dataset (``read_hpl_files``, one tokenizer call per 16 MB, against doppy
    per file and against doppy's parallel ``from_srcs`` + ``merge``; and the
    ``concat_scans`` of per-file reads that the pipeline does now);
-3. peak memory (``ru_maxrss`` of a child process) of ``cwproc retrieve`` on that day,
-   or why it failed.
+3. peak memory (``ru_maxrss`` of a child process) of reading that day into one
+   dataset (``read_hpl_files`` and ``concat_scans`` of ``read_hpl``), and of
+   ``cwproc retrieve`` on that day, or why it failed.
 
 Target: cwproc at least as fast as doppy (ratio cwproc/doppy throughput >= 1).
 doppy is only needed here (``pip install doppy``); it is not a cwproc dependency.
@@ -189,6 +190,32 @@ def bench_day(paths: list[Path], repeat: int, doppy: Callable | None) -> None:
     print(f"   one dataset: {ds.sizes['ray']} rays x {ds.sizes['range']} gates, {scans} scans")
 
 
+_READ_MEMORY_SCRIPT = """
+import resource, sys
+from pathlib import Path
+from cwproc.io.halo import read_hpl, read_hpl_files
+from cwproc.stages.scans import concat_scans
+paths = sorted(Path(sys.argv[2]).glob("*.hpl"))
+base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+ds = read_hpl_files(paths) if sys.argv[1] == "files" else concat_scans([read_hpl(p) for p in paths])
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+print(f"{base / 1024:.0f} {peak / 1024:.0f} {ds.nbytes / 2**20:.0f}")
+"""
+
+
+def bench_read_memory(folder: Path) -> None:
+    """Peak RSS of a child process that reads the day into one dataset, both ways."""
+    print("== peak memory of reading the synthetic day into one dataset (child process)")
+    for how, label in (("files", "read_hpl_files"), ("concat", "concat_scans(read_hpl)")):
+        cmd = [sys.executable, "-c", _READ_MEMORY_SCRIPT, how, str(folder)]
+        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        if proc.returncode:
+            print(f"   {label}: failed: {proc.stderr.strip().splitlines()[-1:]}")
+            continue
+        base, peak, size = proc.stdout.split()
+        print(f"   {label:<24} peak RSS {peak} MiB (after imports {base} MiB; dataset {size} MiB)")
+
+
 def bench_retrieve_memory(folder: Path) -> None:
     print("== peak memory of `cwproc retrieve` on the synthetic day")
     out = folder / "products"
@@ -240,6 +267,7 @@ def main() -> None:
         paths = write_synthetic_day(folder)
         print(f"   (wrote the synthetic day with write_hpl in {time.perf_counter() - t0:.1f} s)")
         bench_day(paths, args.repeat, doppy)
+        bench_read_memory(folder)
         if not args.skip_retrieve:
             bench_retrieve_memory(folder)
 
