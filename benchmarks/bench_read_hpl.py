@@ -15,7 +15,7 @@ Prints, in the same run and on the same files:
    into one dataset (``read_hpl_files``, one tokenizer call per 16 MB, against doppy
    per file and against doppy's parallel ``from_srcs`` + ``merge``; and the
    ``concat_scans`` of per-file reads that the pipeline does now);
-3. peak memory (``ru_maxrss`` of a child process) of reading that day into one
+3. peak memory (VmHWM of a child process) of reading that day into one
    dataset (``read_hpl_files`` and ``concat_scans`` of ``read_hpl``), and of
    ``cwproc retrieve`` on that day, or why it failed.
 
@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import resource
 import subprocess
 import sys
 import tempfile
@@ -190,17 +189,42 @@ def bench_day(paths: list[Path], repeat: int, doppy: Callable | None) -> None:
     print(f"   one dataset: {ds.sizes['ray']} rays x {ds.sizes['range']} gates, {scans} scans")
 
 
-_READ_MEMORY_SCRIPT = """
-import resource, sys
+#: peak resident memory of this process (MiB): VmHWM, which exec resets (ru_maxrss of
+#: a child keeps the parent's size at fork and so overstates a child's peak)
+_PEAK_CODE = """
+def _peak_mib():
+    try:
+        with open("/proc/self/status") as f:
+            return int(f.read().split("VmHWM:")[1].split()[0]) / 1024
+    except (OSError, IndexError, ValueError):
+        import resource
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+"""
+
+_READ_MEMORY_SCRIPT = (
+    _PEAK_CODE
+    + """
+import sys
 from pathlib import Path
 from cwproc.io.halo import read_hpl, read_hpl_files
 from cwproc.stages.scans import concat_scans
 paths = sorted(Path(sys.argv[2]).glob("*.hpl"))
-base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+base = _peak_mib()
 ds = read_hpl_files(paths) if sys.argv[1] == "files" else concat_scans([read_hpl(p) for p in paths])
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-print(f"{base / 1024:.0f} {peak / 1024:.0f} {ds.nbytes / 2**20:.0f}")
+print(f"{base:.0f} {_peak_mib():.0f} {ds.nbytes / 2**20:.0f}")
 """
+)
+
+#: ``cwproc retrieve`` in a child that prints its peak memory to stderr at exit
+_RETRIEVE_SCRIPT = (
+    _PEAK_CODE
+    + """
+import atexit, sys
+atexit.register(lambda: print(f"PEAK_MIB {_peak_mib():.0f}", file=sys.stderr))
+from cwproc.cli import main
+main(sys.argv[1:], prog_name="cwproc")
+"""
+)
 
 
 def bench_read_memory(folder: Path) -> None:
@@ -221,8 +245,8 @@ def bench_retrieve_memory(folder: Path) -> None:
     out = folder / "products"
     cmd = [
         sys.executable,
-        "-m",
-        "cwproc",
+        "-c",
+        _RETRIEVE_SCRIPT,
         "retrieve",
         str(folder),
         "-o",
@@ -234,7 +258,8 @@ def bench_retrieve_memory(folder: Path) -> None:
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
     wall = time.perf_counter() - t0
-    peak_mib = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
+    peaks = [line.split()[1] for line in proc.stderr.splitlines() if line.startswith("PEAK_MIB")]
+    peak_mib = float(peaks[-1]) if peaks else float("nan")
     if proc.returncode == 0:
         products = sorted(p.name for p in out.glob("*.nc"))
         print(
