@@ -197,6 +197,7 @@ def _probe_params(probe: Probe) -> dict:
             "kind": "cw",
             "z_r_coefficient_per_m": float(probe.coefficient),
             "focal_parameter_m": None if z_d is None else float(z_d),
+            "transverse_averaging": bool(probe.transverse_averaging),
         }
     raise TypeError(f"unknown probe {probe!r}")
 
@@ -277,7 +278,13 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
         # one spectrum matrix over the wavenumbers of all heights (the costliest part)
         limits = [
             afunctions.panel_limits(
-                lo, hi, probe=probe, dy=dy, range_m=rng, model=model, outer_scale_m=outer
+                lo,
+                hi,
+                probe=probe,
+                dy=float(probe.transverse_size(dy)),
+                range_m=rng,
+                model=model,
+                outer_scale_m=outer,
             )
             for lo, hi, dy, rng in zip(rho_lo, rho_hi, dys, ranges, strict=True)
         ]
@@ -290,7 +297,7 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
                 float(rho_lo[j]),
                 float(rho_hi[j]),
                 probe=probe,
-                dy=dy,
+                dy=float(probe.transverse_size(dy)),
                 range_m=float(ranges[j]),
                 model=model,
                 outer_scale_m=outer,

@@ -123,6 +123,13 @@ class PulsedProbe:
             np.exp(-((self.gaussian_width_m * k) ** 2)) * _sinc(np.pi * self.delta_r_m * k)
         ) ** 2
 
+    def transverse_size(self, dy: ArrayLike) -> np.ndarray:
+        """Transverse size (m) of the probe in ``H_perp`` (Smalikho (2020), eq. 20): ``dy``.
+
+        A pulsed lidar accumulates each ray while the beam sweeps one azimuth step.
+        """
+        return np.asarray(dy, dtype=float)
+
     def length_scale_m(self, range_m: ArrayLike | None = None) -> np.ndarray:
         """A length (m) beyond whose inverse ``H_par`` is negligible (for quadrature grids)."""
         return np.asarray(max(self.gaussian_width_m, self.delta_r_m), dtype=float)
@@ -148,11 +155,18 @@ class CWProbe:
         ``Z_R = lambda R^2 / (2 pi a0^2)``.
     beam_radius_m : float, optional
         Beam radius ``a0`` at the telescope (m).
+    transverse_averaging : bool
+        ``False`` (default): each Doppler spectrum is the probe-averaged velocity at one
+        azimuth ``theta_m``, the model of Banakh et al. (1999), eq. 15 (and of the
+        simulator :mod:`cwproc.sim.cw`), so ``H_perp = 1``; ``True``: the spectrum
+        accumulates while the beam sweeps one azimuth step, ``H_perp = sinc^2(pi dy
+        kappa)`` (Smalikho (2020), eq. 20).
     """
 
     z_r_coefficient: float = 0.0013
     wavelength_m: float | None = None
     beam_radius_m: float | None = None
+    transverse_averaging: bool = False
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.z_r_coefficient) and self.z_r_coefficient > 0):
@@ -224,6 +238,15 @@ class CWProbe:
         z = self.rayleigh_half_width(range_m)
         return np.exp(-4.0 * np.pi * z * np.abs(np.asarray(kappa, dtype=float)))
 
+    def transverse_size(self, dy: ArrayLike) -> np.ndarray:
+        """Transverse size (m) of the probe in ``H_perp``: ``dy`` with sweep averaging, else 0.
+
+        See ``transverse_averaging`` (Banakh et al. (1999), eq. 15; Smalikho (2020),
+        eq. 20).
+        """
+        d = np.asarray(dy, dtype=float)
+        return d if self.transverse_averaging else np.zeros_like(d)
+
     def length_scale_m(self, range_m: ArrayLike) -> np.ndarray:
         """A length (m) beyond whose inverse ``H_par`` is negligible (for quadrature grids)."""
         return 4.0 * np.pi * self.rayleigh_half_width(range_m)
@@ -231,7 +254,12 @@ class CWProbe:
     def key(self) -> tuple:
         """Parameters that fix the transfer function (for cache keys)."""
         z_d = self.focal_parameter_m
-        return ("cw", float(self.coefficient), None if z_d is None else float(z_d))
+        return (
+            "cw",
+            float(self.coefficient),
+            None if z_d is None else float(z_d),
+            bool(self.transverse_averaging),
+        )
 
 
 Probe = PulsedProbe | CWProbe

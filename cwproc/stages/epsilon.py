@@ -22,9 +22,15 @@ Estimates, per block of scans and height, all vectorised:
 - ``epsilon_fit`` and ``noise_std``: least squares of ``eps^(2/3) A_2(l dy) + 2 sigma_e^2``
   over ``l = 1..L`` (``sigma_e`` set to 0 and the slope refitted when the intercept
   comes out negative);
-- ``velocity_variance``: the variance of ``V'_L`` minus ``sigma_e^2`` plus the variance
-  lost to the volume averaging, ``eps^(2/3) int int Phi (1 - H_par H_perp)`` over the
-  2-D spectrum of Smalikho (2020), eq. 18 (small scales only, so the inertial form);
+- ``velocity_variance``: the variance of ``V'_L`` minus ``sigma_e^2``, divided by the
+  part of ``sigma_V^2`` that passes the probe, ``int int Phi_L H_par H_perp /
+  int int Phi_L`` with the model's 2-D spectrum at the fitted ``L_V``
+  (:func:`passed_variance`; Smalikho (2020), eqs. 16-20). Where the inertial form is
+  kept (module rule below) the lost part is ``eps^(2/3) int int Phi (1 - H_par H_perp)``
+  with the inertial spectrum of eq. 18 (:func:`averaging_loss`). The inertial loss must
+  not be used with a long probe: a cw probe of half width 300 m (h = 500 m, seed-000
+  lidar) passes only 25 % of sigma_V^2 of an L_V = 333 m field, and the inertial
+  loss overestimated sigma_V^2 2.5-fold, so L_V came out too large and eps 40 % low;
 - ``integral_scale``: ``L_V = c sigma_V^3 / eps``, Banakh et al. (1999), eq. 19, with the
   correlation model named by ``model`` (``c = 1.331`` for the model of Banakh et al.
   (1999), eq. 17, also used with ``model="inertial"``; ``c = 0.697`` for von Kármán).
@@ -34,8 +40,9 @@ A-functions are a limit. ``eps`` and ``L_V`` are fitted together: for every cand
 ``L_V`` on a geometric grid over the A-table's outer-scale range (then refined by
 bisection), eq. 5 with the model's A-functions gives ``eps(L_V)`` (``sigma_e`` from the
 inertial fit during the search, refitted at the end); the solution is the largest
-``L_V`` at which the model variance ``(eps L_V / c)^(2/3)`` (Banakh et al. (1999), eq. 19)
-equals the measured one (variance of ``V'_L`` corrected as above), interpolated in
+``L_V`` at which the variance of ``V'_L`` the model predicts, ``eps^(2/3)`` times
+:func:`passed_variance` (the probe-passed part of ``(eps L_V / c)^(2/3)``, Banakh et al.
+(1999), eq. 19), equals the measured one minus ``sigma_e^2``, interpolated in
 ``log L_V``. The rule of the fallback to the inertial form: it is kept where ``L_V``
 cannot be determined (no positive corrected variance or no finite ``eps``), where the
 root lies above the table's range, and where every length involved -- the largest
@@ -179,13 +186,90 @@ def averaging_loss(
     chunk = max(1, 2_000_000 // (n_angle * n_radius))
     for i in range(0, dy_f.shape[0], chunk):  # memory-bounded chunks, each vectorised
         h = probe.longitudinal(rho * ca, rng_f[i : i + chunk]) * transverse(
-            rho * sa, dy_f[i : i + chunk]
+            rho * sa, probe.transverse_size(dy_f[i : i + chunk])
         )
         f = angular * rho ** (-2 / 3) * (1 - h)
         radial = np.trapezoid(f, t, axis=-1)
         out[i : i + chunk] = radial.sum(axis=-1) * (np.pi / 2) / n_angle
     tail = 1.5 * 1e3 ** (-2 / 3) * c * (np.pi / 2) * (1 + (8 / 3) * 0.5)
     return (out + tail).reshape(shape)
+
+
+def passed_variance(
+    probe: Any,
+    dy: np.ndarray,
+    range_m: np.ndarray,
+    model: str,
+    outer_scales_m: np.ndarray,
+    n_angle: int = 48,
+    n_radius: int = 320,
+) -> np.ndarray:
+    """Variance of the probe-averaged radial velocity per eps^(2/3) (m^(2/3)).
+
+    ``int_0^inf int_0^inf Phi_L(k1, k2) H_par(k1) H_perp(k2) dk1 dk2`` with the 2-D
+    spectrum ``Phi_L = 4 [I1(kappa) - k1^2 I2(kappa)]`` of a finite-outer-scale model
+    (:func:`cwproc.physics.spectra.plane_spectrum`) and the transfer functions of
+    Smalikho (2020), eqs. 19-20: the limit of ``A/2`` at large separations (eqs. 16-17),
+    so that the measured variance of ``V'_L`` is ``eps^(2/3)`` times this. Without the
+    probe (``H = 1``) it equals ``sigma_V^2 / eps^(2/3)`` of the model (Banakh et al.
+    (1999), eq. 19). ``I1`` and ``I2`` depend on ``|kappa|`` only, so the angular
+    integrals of ``H`` and ``cos^2 H`` are done once per cell and combined with the
+    spectrum of every outer scale by one matrix product.
+
+    Parameters
+    ----------
+    probe : PulsedProbe or CWProbe
+        ``probe.longitudinal(kappa, range_m)`` gives H_par.
+    dy : numpy.ndarray
+        Transverse sampling (m), 1-D (cells).
+    range_m : numpy.ndarray
+        Distance of the probe from the lidar (m), same shape as ``dy``.
+    model : {"von_karman", "exponential"}
+    outer_scales_m : numpy.ndarray
+        L_V (m), 1-D.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(cells, outer scales)``.
+    """
+    dy_f = np.asarray(dy, dtype=float).ravel()[:, None, None]
+    rng_f = np.broadcast_to(np.asarray(range_m, dtype=float).ravel(), (dy_f.shape[0],))
+    rng_f = rng_f[:, None, None]
+    alpha = (np.arange(n_angle) + 0.5) * (np.pi / 2) / n_angle
+    t = np.linspace(np.log(1e-6), np.log(1e3), n_radius)
+    rho = np.exp(t)
+    ca, sa = np.cos(alpha)[None, :, None], np.sin(alpha)[None, :, None]
+    s0 = np.empty((dy_f.shape[0], n_radius))
+    s2 = np.empty((dy_f.shape[0], n_radius))
+    chunk = max(1, 2_000_000 // (n_angle * n_radius))
+    for i in range(0, dy_f.shape[0], chunk):  # memory-bounded chunks, each vectorised
+        r = rho[None, None, :]
+        h = probe.longitudinal(r * ca, rng_f[i : i + chunk]) * transverse(
+            r * sa, probe.transverse_size(dy_f[i : i + chunk])
+        )
+        s0[i : i + chunk] = h.sum(axis=1) * (np.pi / 2) / n_angle
+        s2[i : i + chunk] = (h * ca**2).sum(axis=1) * (np.pi / 2) / n_angle
+    w = np.gradient(t)  # trapezoid weights in log radius (end halves below)
+    w[0] *= 0.5
+    w[-1] *= 0.5
+    out = np.empty((dy_f.shape[0], np.size(outer_scales_m)))
+    for k, big_l in enumerate(np.atleast_1d(outer_scales_m)):
+        across = spectra.plane_spectrum(0.0, rho, model, float(big_l))  # 4 I1
+        along = spectra.plane_spectrum(rho, 0.0, model, float(big_l))  # 4 (I1 - rho^2 I2)
+        out[:, k] = (s0 * across - s2 * (across - along)) @ (rho**2 * w)
+    return out
+
+
+def _interp_log_scale(grid_m: np.ndarray, values: np.ndarray, query_m: np.ndarray) -> np.ndarray:
+    """Linear interpolation in ``log L`` of ``values (cells, K)`` at ``query_m (cells, k)``."""
+    lg = np.log(grid_m)
+    pos = (np.log(query_m) - lg[0]) / (lg[1] - lg[0])
+    i0 = np.clip(np.floor(np.nan_to_num(pos, nan=0.0)).astype(int), 0, lg.size - 2)
+    frac = pos - i0
+    v0 = np.take_along_axis(values, i0, axis=1)
+    v1 = np.take_along_axis(values, i0 + 1, axis=1)
+    return v0 + (v1 - v0) * frac
 
 
 def _evaluate(table: Any, lags: np.ndarray, height: np.ndarray, mu: np.ndarray, outer) -> tuple:
@@ -334,12 +418,24 @@ def estimate_epsilon(
         l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / e2, np.nan)
     too_small = np.zeros((n_t, n_h), dtype=bool)
     finite_used = np.zeros((n_t, n_h), dtype=bool)
+    passed_fraction = np.full((n_t, n_h), np.nan)
     if model != "inertial" and groups:
         probe_len = np.broadcast_to(np.asarray(probe.length_scale_m(range_th), float), (n_t, n_h))
         longest = np.maximum(n_l * dy * (1 + mu_eval), probe_len)
         need = np.isfinite(l_v) & (longest > INERTIAL_FRACTION * l_v)
         lo, hi = options.get("outer_scale_range_m", (10.0, 3000.0))
         nodes = np.geomspace(lo, hi, n_outer_scales)
+        # probe-passed variance per eps^(2/3) of the model, per distinct (dy, range) cell
+        # on a log grid of L_V (ratio <= 1.1); the variance condition uses it
+        scale_grid = np.geomspace(lo, hi, int(np.ceil(np.log(hi / lo) / np.log(1.1))) + 1)
+        cells_u = np.unique(inverse.ravel()[need.ravel()])
+        passed_u = np.full((uniq.shape[0], scale_grid.size), np.nan)
+        if cells_u.size:
+            passed_u[cells_u] = passed_variance(
+                probe, np.abs(uniq[cells_u, 0]), np.abs(uniq[cells_u, 1]), model, scale_grid
+            )
+        passed_cell = passed_u[inverse.ravel()].reshape(n_t, n_h, scale_grid.size)
+        full_var = np.array([spectra.variance_per_eps23(model, x) for x in scale_grid])
         for rows, (_, table) in groups.values():  # one table per configuration
             sel = need & rows[:, None]
             if not np.any(sel):
@@ -350,7 +446,7 @@ def estimate_epsilon(
             two = np.array([1.0, float(lag_used)])[None, :]
             d1, dl = d[ti, hi_, 0], d[ti, hi_, lag_used - 1]
             raw = var_raw[ti, hi_] - np.nan_to_num(noise[ti, hi_], nan=0.0) ** 2
-            lost = loss[ti, hi_]
+            passed = passed_cell[ti, hi_]
 
             def residual(
                 big_l: np.ndarray,
@@ -361,14 +457,16 @@ def estimate_epsilon(
                 d1=d1,
                 dl=dl,
                 raw=raw,
-                lost=lost,
+                passed=passed,
                 table=table,
             ) -> np.ndarray:
                 """log model variance - log measured variance at outer scales (cells, k).
 
-                Banakh et al. (1999), eq. 19: (eps L_V / c)^(2/3) must equal the measured
-                sigma_V^2; eps(L_V) from eq. 5 with the model's A_2 (lags 1 and l only;
-                sigma_e from the inertial fit during the search).
+                The variance of V'_L the model predicts, eps^(2/3) times the probe-passed
+                part of sigma_V^2 = (eps L_V / c)^(2/3) (Banakh et al. (1999), eq. 19;
+                :func:`passed_variance`), must equal the measured one (noise removed);
+                eps(L_V) from eq. 5 with the model's A_2 (lags 1 and l only; sigma_e from
+                the inertial fit during the search).
                 """
                 k = big_l.shape[1]
                 _, f2 = _evaluate(
@@ -379,9 +477,12 @@ def estimate_epsilon(
                     big_l[:, :, None],
                 )
                 eps_l = eq5_epsilon(dl[:, None], d1[:, None], f2[..., 1], f2[..., 0])
+                through = _interp_log_scale(
+                    scale_grid, passed, np.broadcast_to(big_l, (ti.size, k))
+                )
                 with np.errstate(invalid="ignore", divide="ignore"):
-                    model_var = np.log((eps_l * big_l / c_model) ** (2 / 3))
-                    measured = np.log(raw[:, None] + eps_l ** (2 / 3) * lost[:, None])
+                    model_var = np.log(eps_l ** (2 / 3) * through)
+                    measured = np.log(raw[:, None])
                 return np.broadcast_to(model_var - measured, (ti.size, k))
 
             # coarse scan of L_V, then bisection of the largest sign change in log L_V
@@ -416,9 +517,16 @@ def estimate_epsilon(
                 a1[ti[use], hi_[use]] = g1
                 a2[ti[use], hi_[use]] = g2
                 finite_used[ti[use], hi_[use]] = True
+                through = _interp_log_scale(scale_grid, passed[use], root[use][:, None])[:, 0]
+                total = np.interp(np.log(root[use]), np.log(scale_grid), full_var)
+                passed_fraction[ti[use], hi_[use]] = through / total
             too_small[ti[below], hi_[below]] = True
         e1, e2, efit, noise = solve(a1, a2, d, valid_lag)
-        sigma2 = variance(e2, noise, var_raw, loss)
+        sigma2 = np.where(
+            finite_used,
+            (var_raw - np.nan_to_num(noise, nan=0.0) ** 2) / passed_fraction,
+            variance(e2, noise, var_raw, loss),
+        )
         with np.errstate(invalid="ignore", divide="ignore"):
             l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / e2, np.nan)
 

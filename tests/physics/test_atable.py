@@ -138,8 +138,24 @@ def test_cw_table_uses_range_dependent_rayleigh_length(tmp_path):
     )
     h = 55.0
     dy = _dy(h, phi, 7.2)
-    direct = a_perp(2 * dy, probe=probe, dy=dy, range_m=h / math.sin(math.radians(phi)))
+    rng = h / math.sin(math.radians(phi))
+    # default cw probe: one spectrum per azimuth, no sweep averaging (H_perp = 1,
+    # Banakh et al. (1999), eq. 15)
+    direct = a_perp(2 * dy, probe=probe, dy=0.0, range_m=rng)
     assert float(tab.evaluate(2, h, 0.0)[0]) == pytest.approx(float(direct), rel=1e-4)
+    swept = CWProbe(0.0013, transverse_averaging=True)
+    tab_s = get_a_table(
+        swept,
+        phi_deg=phi,
+        delta_theta_deg=7.2,
+        n_lags=2,
+        cache_dir=tmp_path,
+        height_range_m=(40.0, 70.0),
+        mu_max=0.5,
+    )
+    direct_s = a_perp(2 * dy, probe=swept, dy=dy, range_m=rng)
+    assert float(tab_s.evaluate(2, h, 0.0)[0]) == pytest.approx(float(direct_s), rel=1e-4)
+    assert float(direct_s) < float(direct)  # the sweep averages out small scales
 
 
 def test_finite_outer_scale_table(tmp_path):

@@ -18,6 +18,7 @@ from cwproc.stages.epsilon import (
     eq5_epsilon,
     estimate_epsilon,
     fit_structure_function,
+    passed_variance,
 )
 
 PHI = 35.3  # deg
@@ -111,6 +112,42 @@ def test_averaging_loss_is_the_filtered_variance_deficit():
     assert averaging_loss(PROBE, np.array([12.0]), np.array([100.0]))[0] > loss
 
 
+@pytest.mark.parametrize("model", ["exponential", "von_karman"])
+def test_passed_variance_without_probe_is_the_model_variance(model):
+    """No probe (dp = dR = dy = 0): the quadrant integral of Phi_L is sigma_V^2/eps^(2/3).
+
+    Banakh et al. (1999), eq. 19: exponential (L_V/1.331)^(2/3); von Karman its own
+    constant (:func:`cwproc.physics.spectra.variance_per_eps23`); within 0.1 %.
+    """
+    scales = np.array([30.0, 300.0, 3000.0])
+    got = passed_variance(PulsedProbe(0.0, 0.0), np.zeros(1), np.array([100.0]), model, scales)
+    want = [spectra.variance_per_eps23(model, x) for x in scales]
+    np.testing.assert_allclose(got[0], want, rtol=1e-3)
+
+
+def test_passed_variance_is_the_variance_of_the_probe_averaged_velocity():
+    """The probe removes part of sigma_V^2 at scales below its size, more for longer probes.
+
+    Against the simulator's exact same-beam variance of V_D (Banakh et al. (1999), eq. 15)
+    for a cw Lorentzian with a negligible part behind the lidar (a0 = 0.3 m: 0.1 % at
+    R = 400 m), exponential model, L_V = 100 m: within 1 %.
+    """
+    from cwproc.physics.transfer import CWProbe
+    from cwproc.sim.cw import cw_probe_quadrature
+    from cwproc.sim.turbulence import same_beam_variance
+
+    probe = CWProbe(wavelength_m=10.6e-6, beam_radius_m=0.3)
+    ranges = np.array([100.0, 400.0])
+    got = passed_variance(probe, np.zeros(2), ranges, "exponential", [100.0])[:, 0]
+    total = spectra.variance_per_eps23("exponential", 100.0)
+    want = [
+        same_beam_variance(cw_probe_quadrature(r, 10.6e-6, 0.3, n_fine=2000), 1.0, 100.0)
+        for r in ranges
+    ]
+    np.testing.assert_allclose(got / total, want, rtol=0.01)
+    assert got[1] < got[0] < total
+
+
 @pytest.mark.slow
 def test_exact_model_data_give_eps_noise_and_the_eq21_ratio(options):
     table = get_a_table(
@@ -194,8 +231,10 @@ def test_finite_outer_scale_fit_recovers_eps_and_integral_scale(options):
     r = HEIGHTS / np.sin(np.deg2rad(PHI))
     dy = np.deg2rad(DTHETA) * HEIGHTS / np.tan(np.deg2rad(PHI))
     sigma2 = spectra.variance_from(eps, big_l, "von_karman")
-    # what the block variance of V'_L shows: sigma_V^2 minus the averaging loss plus noise
-    var_raw = sigma2 - eps ** (2 / 3) * averaging_loss(PROBE, dy, r) + noise**2
+    # what the block variance of V'_L shows: the probe-passed part of sigma_V^2 of the
+    # von Karman field (not sigma_V^2 minus the inertial loss) plus noise
+    var_raw = eps ** (2 / 3) * passed_variance(PROBE, dy, r, "von_karman", [big_l])[:, 0]
+    var_raw = var_raw + noise**2
     sf = make_sf(d, mu=mu, variance=var_raw[None, :])
     vk = estimate_epsilon(sf, probe=PROBE, lag_number=3, model="von_karman", table_options=options)
     np.testing.assert_allclose(vk["epsilon"].values, eps, rtol=0.02)
