@@ -146,7 +146,8 @@ def commands_markdown() -> str:
 
     from cwproc.cli import main
 
-    ctx = click.Context(main, info_name="cwproc", terminal_width=100, max_content_width=100)
+    settings = {**main.context_settings, "terminal_width": 100, "max_content_width": 100}
+    ctx = click.Context(main, info_name="cwproc", **settings)
     lines = [
         "# Commands",
         "",
