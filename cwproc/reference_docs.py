@@ -131,6 +131,11 @@ def config_markdown() -> str:
 def _command_sections(cmd, path: str, ctx) -> list[str]:
     import click
 
+    # click caches each command's help option from the first context that asked for it
+    # (a command invoked on its own, e.g. in a test, caches "--help" without "-h"); drop
+    # the cache so the page always shows the options of the real command line
+    if hasattr(cmd, "_help_option"):
+        cmd._help_option = None
     lines = [f"## `{path}`", "", "```text", cmd.get_help(ctx).rstrip(), "```", ""]
     if isinstance(cmd, click.Group):
         for name in sorted(cmd.commands):
