@@ -120,7 +120,11 @@ class ATable:
         return str(self.params["model"])
 
     def dy(self, height_m: ArrayLike) -> np.ndarray:
-        """Transverse sampling ``dy = dtheta h / tan(phi)`` (m) at ``height_m`` (m)."""
+        """Nominal transverse sampling ``dy = dtheta h / tan(phi)`` (m) at ``height_m`` (m).
+
+        A cw probe with a known beam radius samples a circle of a smaller radius
+        (:meth:`cwproc.physics.transfer.CWProbe.centre_range`); the table's lags use it.
+        """
         phi = math.radians(self.params["phi_deg"])
         return math.radians(self.params["delta_theta_deg"]) * np.asarray(height_m) / math.tan(phi)
 
@@ -269,8 +273,10 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
     lags = np.arange(1, n_lags + 1, dtype=float)
     log_a1 = np.empty((scales.size, heights.size, n_lags))
     log_a2 = np.empty((scales.size, heights.size, n_lags, mu.size))
-    dys = dtheta * heights / math.tan(math.radians(phi))
     ranges = heights / math.sin(math.radians(phi))
+    # the probe centre samples the circle of radius R_c cos(phi): R_c = R for a pulsed
+    # gate, R/(1 + (R/z_d)^2) for a cw focus (Banakh et al. (1999), Q_s)
+    dys = dtheta * np.asarray(probe.centre_range(ranges), float) * math.cos(math.radians(phi))
     rho_lo = 0.02 * dys
     rho_hi = n_lags * dys * (1.0 + params["mu_max"]) * 1.01
     for i, big_l in enumerate(scales):

@@ -37,6 +37,7 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
+from scipy import special
 
 from cwproc.config import InstrumentConfig
 
@@ -122,6 +123,10 @@ class PulsedProbe:
         return (
             np.exp(-((self.gaussian_width_m * k) ** 2)) * _sinc(np.pi * self.delta_r_m * k)
         ) ** 2
+
+    def centre_range(self, range_m: ArrayLike) -> np.ndarray:
+        """Distance (m) of the probe centre from the lidar: the gate centre ``range_m``."""
+        return np.asarray(range_m, dtype=float)
 
     def transverse_size(self, dy: ArrayLike) -> np.ndarray:
         """Transverse size (m) of the probe in ``H_perp`` (Smalikho (2020), eq. 20): ``dy``.
@@ -227,16 +232,29 @@ class CWProbe:
         return (z / np.pi) / (z**2 + np.asarray(s, dtype=float) ** 2)
 
     def longitudinal(self, kappa: ArrayLike, range_m: ArrayLike) -> np.ndarray:
-        """Longitudinal transfer function ``H_par = exp(-4 pi Z_R |kappa|)`` (1).
+        """Longitudinal transfer function ``H_par`` (1).
 
-        The squared modulus of the Fourier transform ``exp(-2 pi Z_R |kappa|)`` of the
-        Lorentzian weighting (Wagner et al. (DTU), eq. 3). ``kappa`` in cycles m-1,
-        ``range_m`` the focus distance (m); both broadcast.
+        ZephIR form (no beam radius): ``exp(-4 pi Z_R |kappa|)``, the squared modulus of
+        the Fourier transform of the Lorentzian weighting (Wagner et al. (DTU), eq. 3).
+        With ``lambda`` and ``a0``: the squared modulus of the transform of the Lorentzian
+        of Banakh et al. (1999), Q_s, cut at the lidar and renormalised
+        (:func:`cut_lorentzian_transform`; up to 9 % of Q_s lies behind the lidar at
+        R = 1000 m for the seed-000 lidar, ``reference/REFERENCE_VALUES.md`` section 3).
+        ``kappa`` in cycles m-1, ``range_m`` the focus distance (m); both broadcast.
         """
         if range_m is None:
             raise ValueError("a cw probe needs the focus distance range_m")
         z = self.rayleigh_half_width(range_m)
-        return np.exp(-4.0 * np.pi * z * np.abs(np.asarray(kappa, dtype=float)))
+        if self.focal_parameter_m is None:
+            return np.exp(-4.0 * np.pi * z * np.abs(np.asarray(kappa, dtype=float)))
+        return np.abs(cut_lorentzian_transform(kappa, z, self.focus_centre(range_m))) ** 2
+
+    def centre_range(self, range_m: ArrayLike) -> np.ndarray:
+        """Distance (m) of the probe centre from the lidar (:meth:`focus_centre`).
+
+        The scan circle the probe samples has the radius ``centre_range cos(phi)``.
+        """
+        return self.focus_centre(range_m)
 
     def transverse_size(self, dy: ArrayLike) -> np.ndarray:
         """Transverse size (m) of the probe in ``H_perp``: ``dy`` with sweep averaging, else 0.
@@ -263,6 +281,57 @@ class CWProbe:
 
 
 Probe = PulsedProbe | CWProbe
+
+
+def _exp_e1(z: np.ndarray) -> np.ndarray:
+    """``exp(z) E1(z)`` for complex ``z`` off the negative real axis (asymptotic for |z| > 40)."""
+    z = np.asarray(z, dtype=complex)
+    big = np.abs(z) > 40.0
+    zs = np.where(big, 1.0, z)
+    zb = np.where(big, z, 1.0)
+    direct = np.exp(zs) * special.exp1(zs)
+    series = (1.0 - 1.0 / zb + 2.0 / zb**2 - 6.0 / zb**3 + 24.0 / zb**4) / zb
+    return np.where(big, series, direct)
+
+
+def cut_lorentzian_transform(
+    kappa: ArrayLike, half_width_m: ArrayLike, centre_m: ArrayLike
+) -> np.ndarray:
+    """Fourier transform of a Lorentzian cut at the lidar and renormalised (1, complex).
+
+    ``Q(s) = (w/pi)/(w^2 + s^2) / K`` for ``s >= -a`` (``s`` from the centre, ``a`` the
+    centre's distance from the lidar), ``K = 1/2 + atan(a/w)/pi``: Banakh et al. (1999),
+    Q_s, with the part behind the lidar cut (``reference/REFERENCE_VALUES.md`` section 3).
+    ``F = [exp(-w k) - T(k)] / K`` with ``k = 2 pi |kappa|`` and the cut tail
+    ``T = int_a^inf (w/pi) exp(i k u)/(w^2 + u^2) du
+    = exp(i k a) [g(-k w - i k a) - g(k w - i k a)] / (2 pi i)``, ``g(z) = exp(z) E1(z)``
+    (partial fractions of the Lorentzian; ``E1`` the exponential integral). The sign of
+    the imaginary part follows ``kappa``'s (``F(-kappa)`` is the conjugate).
+
+    Parameters
+    ----------
+    kappa : array_like
+        Wavenumber (cycles m-1).
+    half_width_m : array_like
+        ``w`` (m), > 0.
+    centre_m : array_like
+        ``a`` (m), >= 0. All three broadcast.
+    """
+    kappa = np.asarray(kappa, dtype=float)
+    w = np.asarray(half_width_m, dtype=float)
+    a = np.asarray(centre_m, dtype=float)
+    k = 2.0 * np.pi * np.abs(kappa)
+    zero = k == 0
+    ks = np.where(zero, 1.0, k)
+    tail = (
+        np.exp(1j * ks * a)
+        * (_exp_e1(-ks * w - 1j * ks * a) - _exp_e1(ks * w - 1j * ks * a))
+        / (2j * np.pi)
+    )
+    norm = 0.5 + np.arctan(a / w) / np.pi
+    f = (np.exp(-ks * w) - tail) / norm
+    f = np.where(kappa < 0, np.conj(f), f)
+    return np.where(zero, 1.0 + 0j, f)
 
 
 def pulse_parameters(pulse_fwhm_s: float, window_s: float) -> tuple[float, float]:

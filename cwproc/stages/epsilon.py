@@ -38,8 +38,10 @@ Estimates, per block of scans and height, all vectorised:
 Finite outer scale (``model="von_karman"`` or ``"exponential"``): the inertial-range
 A-functions are a limit. ``eps`` and ``L_V`` are fitted together: for every candidate
 ``L_V`` on a geometric grid over the A-table's outer-scale range (then refined by
-bisection), eq. 5 with the model's A-functions gives ``eps(L_V)`` (``sigma_e`` from the
-inertial fit during the search, refitted at the end); the solution is the largest
+bisection), the least squares of eq. 4 with the model's A-functions over all valid lags
+gives ``eps(L_V)`` and ``sigma_e(L_V)`` (the two-lag eq. 5 is noisier and, through the
+coupling with ``L_V``, biased eps 5 % higher on the seed-000 cw simulation); the
+solution is the largest
 ``L_V`` at which the variance of ``V'_L`` the model predicts, ``eps^(2/3)`` times
 :func:`passed_variance` (the probe-passed part of ``(eps L_V / c)^(2/3)``, Banakh et al.
 (1999), eq. 19), equals the measured one minus ``sigma_e^2``, interpolated in
@@ -363,7 +365,10 @@ def estimate_epsilon(
     else:
         rng = height / np.sin(np.deg2rad(np.nanmean(phi)))
 
-    radius = height[None, :] / np.tan(np.deg2rad(phi))[:, None]  # R', Smalikho (2020), eq. 3
+    # R' = h / tan(phi) (Smalikho (2020), eq. 3) at the probe centre: R_c cos(phi), R_c
+    # the centre range of the probe (the focus range, or less for a cw Lorentzian)
+    centre = np.asarray(probe.centre_range(rng), dtype=float)
+    radius = centre[None, :] * np.cos(np.deg2rad(phi))[:, None]
     dy = np.deg2rad(dtheta)[:, None] * radius
     v_s = 2 * np.pi * radius / t_scan[:, None]
     mu = u_mean / v_s
@@ -443,9 +448,7 @@ def estimate_epsilon(
             ti, hi_ = np.nonzero(sel)
             cell_h = height[hi_][:, None]
             cell_mu = mu_eval[ti, hi_][:, None]
-            two = np.array([1.0, float(lag_used)])[None, :]
-            d1, dl = d[ti, hi_, 0], d[ti, hi_, lag_used - 1]
-            raw = var_raw[ti, hi_] - np.nan_to_num(noise[ti, hi_], nan=0.0) ** 2
+            dc, vc, var_c = d[ti, hi_], valid_lag[ti, hi_], var_raw[ti, hi_]
             passed = passed_cell[ti, hi_]
 
             def residual(
@@ -453,10 +456,9 @@ def estimate_epsilon(
                 ti=ti,
                 cell_h=cell_h,
                 cell_mu=cell_mu,
-                two=two,
-                d1=d1,
-                dl=dl,
-                raw=raw,
+                dc=dc,
+                vc=vc,
+                var_c=var_c,
                 passed=passed,
                 table=table,
             ) -> np.ndarray:
@@ -464,25 +466,25 @@ def estimate_epsilon(
 
                 The variance of V'_L the model predicts, eps^(2/3) times the probe-passed
                 part of sigma_V^2 = (eps L_V / c)^(2/3) (Banakh et al. (1999), eq. 19;
-                :func:`passed_variance`), must equal the measured one (noise removed);
-                eps(L_V) from eq. 5 with the model's A_2 (lags 1 and l only; sigma_e from
-                the inertial fit during the search).
+                :func:`passed_variance`), must equal the measured one minus sigma_e^2;
+                eps(L_V) and sigma_e(L_V) from the least squares of Smalikho (2020),
+                eq. 4 with the model's A_2 over all valid lags.
                 """
                 k = big_l.shape[1]
                 _, f2 = _evaluate(
                     table,
-                    two[:, None, :],
+                    lags[None, None, :],
                     cell_h[:, :, None],
                     cell_mu[:, :, None],
                     big_l[:, :, None],
                 )
-                eps_l = eq5_epsilon(dl[:, None], d1[:, None], f2[..., 1], f2[..., 0])
+                eps_l, noise_l = fit_structure_function(dc[:, None, :], f2, vc[:, None, :])
                 through = _interp_log_scale(
                     scale_grid, passed, np.broadcast_to(big_l, (ti.size, k))
                 )
                 with np.errstate(invalid="ignore", divide="ignore"):
                     model_var = np.log(eps_l ** (2 / 3) * through)
-                    measured = np.log(raw[:, None])
+                    measured = np.log(var_c[:, None] - np.nan_to_num(noise_l, nan=0.0) ** 2)
                 return np.broadcast_to(model_var - measured, (ti.size, k))
 
             # coarse scan of L_V, then bisection of the largest sign change in log L_V

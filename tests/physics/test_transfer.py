@@ -143,10 +143,43 @@ def test_cw_probe_with_beam_radius_has_the_banakh_half_width_and_centre():
     assert zephir.focal_parameter_m is None
     assert float(zephir.rayleigh_half_width(200.0)) == pytest.approx(0.0013 * 200.0**2)
     assert float(zephir.focus_centre(200.0)) == 200.0
-    # H_par follows the narrower weighting: exp(-4 pi w kappa)
+    # near the lidar almost nothing lies behind it: H_par -> exp(-4 pi w kappa) of the
+    # narrower (corrected) Lorentzian
     kappa = np.array([1e-3, 1e-2])
-    w = float(probe.rayleigh_half_width(1000.0))
+    w = float(probe.rayleigh_half_width(100.0))
     np.testing.assert_allclose(
-        probe.longitudinal(kappa, 1000.0), np.exp(-4 * math.pi * w * kappa), rtol=1e-12
+        probe.longitudinal(kappa, 100.0), np.exp(-4 * math.pi * w * kappa), rtol=0.02
     )
     assert probe.key() != CWProbe(probe.coefficient).key()  # distinct cache tables
+
+
+def test_cut_lorentzian_transform_is_the_transform_of_the_cut_weighting():
+    """Banakh et al. (1999) Q_s cut at the lidar (seed 000, R = 1000 m: 9 % behind it).
+
+    Against direct quadrature of int Q(s) exp(-2 pi i kappa s) ds over s >= -a, 1e-6.
+    """
+    from cwproc.physics.transfer import cut_lorentzian_transform
+
+    w, a = 275.0, 917.0  # half width and centre (m) of the seed-000 probe at R = 1000 m
+    norm = 0.5 + math.atan(a / w) / math.pi
+    assert 1 - norm == pytest.approx(0.093, abs=0.001)
+
+    def q(s):
+        return (w / math.pi) / (w**2 + s**2) / norm
+
+    for k in (1e-5, 1e-4, 1e-3, 1e-2, 0.05):
+        parts = []
+        for weight in ("cos", "sin"):
+            near, _ = integrate.quad(
+                q, -a, 200 * w, weight=weight, wvar=2 * math.pi * k, limit=5000
+            )
+            far, _ = integrate.quad(q, 200 * w, np.inf, weight=weight, wvar=2 * math.pi * k)
+            parts.append(near + far)
+        numeric = parts[0] - 1j * parts[1]
+        got = complex(cut_lorentzian_transform(k, w, a))
+        assert abs(got - numeric) < 1e-6 * max(1.0, abs(numeric)) + 1e-9
+        assert complex(cut_lorentzian_transform(-k, w, a)) == pytest.approx(numeric.conjugate())
+    assert complex(cut_lorentzian_transform(0.0, w, a)) == 1.0
+    # the cut edge makes H_par decay like kappa^-2, not exponentially
+    probe = CWProbe(wavelength_m=10.6e-6, beam_radius_m=0.075)
+    assert float(probe.longitudinal(0.01, 1000.0)) > 1e3 * math.exp(-4 * math.pi * w * 0.01)
