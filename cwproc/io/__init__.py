@@ -64,8 +64,10 @@ _HEAD_BYTES = 4096
 
 def sniff_format(head: bytes) -> Format | None:
     """The format of a file from its first bytes, or ``None`` when not recognised."""
-    if head.startswith(b"\x89HDF\r\n\x1a\n") or head.startswith(b"CDF\x01") or head.startswith(
-        b"CDF\x02"
+    if (
+        head.startswith(b"\x89HDF\r\n\x1a\n")
+        or head.startswith(b"CDF\x01")
+        or head.startswith(b"CDF\x02")
     ):
         return Format.SCAN_NETCDF
     text = head.decode("latin-1")

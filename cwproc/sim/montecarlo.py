@@ -19,7 +19,8 @@ What is simulated (per realisation, height and scan):
   directly instead of 8 million simulated spectra.
 
 The retrieval (this module's own, stated here as the task asks): the azimuth
-structure function D_L(l dtheta), l = 1..3 (l dtheta <= 9 deg), of the deviations from the N-scan VAD fit
+structure function D_L(l dtheta), l = 1..3 (l dtheta <= 9 deg), of the deviations from
+the N-scan VAD fit
 (Smalikho (2020), eqs. 1-2), fitted by least squares with the *exact* model of eq. 17
 averaged over the probe volume, D_L(l) = 2 sigma^2 [b_0(L) - b_l(L)] with b_k the
 azimuth correlation of eq. 15 for unit variance (no transport: mu = U/V_s = 0.01-0.09
