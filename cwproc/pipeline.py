@@ -218,6 +218,7 @@ def process_scans(
     if not config.turbulence.enabled or int(wind.sizes.get("time", 0)) < 1:
         return products
     from cwproc.stages import epsilon, structure
+
     try:
         sf = structure.azimuth_structure_function(
             screened,
