@@ -193,6 +193,11 @@ VARIABLES: dict[str, VarMeta] = {
         references=SMALIKHO_2020 + ", eqs. 1-2",
     ),
     "n_pairs": VarMeta("number of ray pairs in the structure function", "1"),
+    "structure_function_model": VarMeta(
+        "fitted model of the azimuth structure function eps^(2/3) A_2 + 2 sigma_e^2",
+        "m2 s-2",
+        references=SMALIKHO_2020 + ", eq. 4",
+    ),
     "epsilon": VarMeta(
         "turbulent kinetic energy dissipation rate (method 2: volume averaging and wind "
         "transport accounted for)",
@@ -229,11 +234,14 @@ VARIABLES: dict[str, VarMeta] = {
     "turbulence_flag": VarMeta(
         "dissipation-rate quality flag (bits combine)",
         "1",
-        flag_masks=(1, 2, 4, 8),
-        flag_meanings="too_few_pairs lag_beyond_inertial_range mu_beyond_method1 fit_failed",
+        flag_masks=(1, 2, 4, 8, 16),
+        flag_meanings=(
+            "too_few_pairs lag_beyond_inertial_range mu_beyond_method1 fit_failed partial_block"
+        ),
         comment=(
             "0 good; bit 1 too few pairs; bit 2 lag beyond the inertial range; "
-            "bit 4 mu beyond method 1 validity; bit 8 fit failed"
+            "bit 4 mu beyond method 1 validity; bit 8 fit failed; bit 16 partial block "
+            "(fewer than half the requested scans per block)"
         ),
     ),
     # ---------------------------------------------------------------- sonic SF product

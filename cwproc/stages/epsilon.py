@@ -65,7 +65,19 @@ Flags (``turbulence_flag``, bits combine; a flagged value is NaN):
   eq. 21 and its discussion): ``epsilon_method1`` is NaN, ``epsilon`` stays;
 - 8: fit failed (``D(l) <= D(1)``, non-finite values, no mean wind for ``mu``, a height
   or ``mu`` outside the A-table's range, or fewer than two lags within
-  ``max_lag_deg``): no ``eps``.
+  ``max_lag_deg``): no ``eps``;
+- 16: partial block: the block holds fewer than half the requested scans per block
+  (``n_scans < MIN_BLOCK_FRACTION * n_scans_per_block``, e.g. the 2 scans left over from
+  12 scans in blocks of 10): no ``eps``. The variance of ``V'_L`` about the mean of so
+  few scans lacks the scan-to-scan variance of the large eddies (seed 000's ``N``
+  dependence of the errors: 33-38 % at N = 1 against 10-12 % at N = 10), so ``L_V`` and
+  ``eps`` would be biased; half a block keeps the relative error within about 1.5 times
+  that of a full block (REFERENCE_VALUES.md section 3: 14-16 % at N = 5).
+
+``structure_function_model`` is the fitted ``eps_fit^(2/3) A_2(l dy) + 2 sigma_e^2``
+(with the A-functions used for the cell) for plotting against ``structure_function``.
+``transverse_resolution`` (dy) and ``scan_speed`` (V_s) describe the sampling geometry
+and are auxiliary coordinates ``(time, height)`` of the product (CF).
 """
 
 from __future__ import annotations
@@ -84,6 +96,10 @@ FLAG_TOO_FEW_PAIRS = 1
 FLAG_BEYOND_INERTIAL = 2
 FLAG_METHOD1_INVALID = 4
 FLAG_FIT_FAILED = 8
+FLAG_PARTIAL_BLOCK = 16
+
+#: a block with fewer than this share of the requested scans is not estimated (flag 16)
+MIN_BLOCK_FRACTION = 0.5
 
 #: eps_1/eps_2 above which method 1 is not used (Smalikho (2020), eq. 21: 10 % bias)
 METHOD1_RATIO_LIMIT = 1.1
@@ -397,6 +413,12 @@ def estimate_epsilon(
             )
 
     valid_lag = pairs >= min_pairs
+    scans = sf["n_scans"].values.astype(float) if "n_scans" in sf else np.full(n_t, np.nan)
+    requested = float(
+        sf["structure_function"].attrs.get("n_scans_per_block", np.nanmax(scans, initial=0.0))
+    )
+    partial = scans < MIN_BLOCK_FRACTION * requested
+    flag |= np.where(partial[:, None], FLAG_PARTIAL_BLOCK, 0).astype(np.int16)
     few = ~(valid_lag[..., 0] & valid_lag[..., lag_used - 1])
     flag |= np.where(few, FLAG_TOO_FEW_PAIRS, 0).astype(np.int16)
     # the loss depends on (dy, range) only: compute it once per distinct pair
@@ -543,7 +565,9 @@ def estimate_epsilon(
     flag |= np.where(beyond, FLAG_BEYOND_INERTIAL, 0).astype(np.int16)
     failed = ~np.isfinite(e2) | ~np.isfinite(mu) | (n_l < 2)
     flag |= np.where(failed, FLAG_FIT_FAILED, 0).astype(np.int16)
-    bad = (flag & (FLAG_TOO_FEW_PAIRS | FLAG_BEYOND_INERTIAL | FLAG_FIT_FAILED)) > 0
+    bad = (
+        flag & (FLAG_TOO_FEW_PAIRS | FLAG_BEYOND_INERTIAL | FLAG_FIT_FAILED | FLAG_PARTIAL_BLOCK)
+    ) > 0
     m1_invalid = ~(ratio <= METHOD1_RATIO_LIMIT)
     flag |= np.where(m1_invalid & ~bad, FLAG_METHOD1_INVALID, 0).astype(np.int16)
 
@@ -554,6 +578,7 @@ def estimate_epsilon(
     out_fit = np.where(few_fit | bad, np.nan, efit)
     out_sigma2 = np.where(bad | ~(sigma2 > 0), np.nan, sigma2)
     out_scale = np.where(bad, np.nan, l_v)
+    sf_model = out_fit[..., None] ** (2 / 3) * a2 + 2.0 * out_noise[..., None] ** 2
 
     dims = ("time", "height")
     out = xr.Dataset(
@@ -564,9 +589,8 @@ def estimate_epsilon(
             "epsilon_method1": (dims, eps1),
             "epsilon_ratio": (dims, ratio),
             "epsilon_fit": (dims, out_fit),
+            "structure_function_model": (("time", "height", "lag"), sf_model),
             "mu": (dims, mu),
-            "scan_speed": (dims, v_s),
-            "transverse_resolution": (dims, dy),
             "noise_std": (dims, out_noise),
             "velocity_variance": (dims, out_sigma2),
             "integral_scale": (dims, out_scale),
@@ -574,7 +598,11 @@ def estimate_epsilon(
             "n_scans": sf["n_scans"],
             "turbulence_flag": (dims, flag),
         },
-        coords=sf.coords,
+        coords={
+            **sf.coords,
+            "scan_speed": (dims, v_s),
+            "transverse_resolution": (dims, dy),
+        },
     )
     common = {
         "model": model,
@@ -597,6 +625,11 @@ def estimate_epsilon(
     )
     out["epsilon_fit"].attrs.update(
         common, method="least squares of eps^(2/3) A_2 + 2 sigma_e^2 over all lags"
+    )
+    out["structure_function_model"].attrs.update(
+        common,
+        method="eps_fit^(2/3) A_2(l dy) + 2 sigma_e^2 with the A-functions of the cell "
+        "(Smalikho (2020), eq. 4)",
     )
     out["noise_std"].attrs.update(
         method="intercept 2 sigma_e^2 of the least-squares fit, Smalikho (2020), eq. 4"

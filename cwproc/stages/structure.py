@@ -37,6 +37,10 @@ from cwproc.metadata import SMALIKHO_2020
 _RANGE_TOLERANCE_M = 0.5
 #: values of V'_L held at once (memory bound: 4e6 x 8 bytes)
 _CHUNK_VALUES = 4_000_000
+#: homodyne: spectra with |V_r| below this are dropped (Banakh et al. (1999), section 3)
+HOMODYNE_MIN_SPEED = 1.0
+#: homodyne: rays need |S . <V>_N| >= 1 m/s + this many sigma' (see homodyne_radial_velocity)
+HOMODYNE_SIGMAS = 3.0
 
 
 def wrapped_azimuth_difference(a_deg: np.ndarray, b_deg: np.ndarray) -> np.ndarray:
@@ -73,6 +77,53 @@ def azimuth_index(
     """Index m of each ray on its scan's grid theta_0 + sign m dtheta (Smalikho (2020), eq. 2)."""
     offset = (sign * (np.asarray(azimuth_deg) - np.asarray(first_azimuth_deg))) % 360.0
     return np.rint(offset / dtheta_deg).astype(np.int64)
+
+
+def homodyne_radial_velocity(
+    abs_vr: np.ndarray, model: np.ndarray, block: np.ndarray
+) -> np.ndarray:
+    """Signed radial velocity from homodyne ``|V_r|``; NaN where the sign is ambiguous.
+
+    A homodyne lidar measures ``|V_r|`` only (Banakh et al. (1999), section 3), so the
+    sign is taken from the block-mean wind model ``m = S . <V>_N``. Where ``|m|`` is not
+    well above the fluctuations the folded spectrum gives ``|V_r|`` of the wrong sign or a
+    centroid pulled away from 0, which inflates D_L (+81 % eps at U = 5 m/s on the cw
+    simulation); and spectra with ``|V_r| < 1 m s-1`` are dropped by the instrument
+    (seed 000, the 1 m/s exclusion), a selection by the data themselves. Rule: rays with
+    ``|m| < 1 m s-1 + 3 sigma'`` are left out, ``sigma'`` the standard deviation of
+    ``|V_r| sign(m) - m`` in the block and height: beyond it a sign error needs a 3-sigma
+    fluctuation (Gaussian probability 0.13 %), and the data-dependent 1 m/s cut cannot
+    reach the kept rays. The rule selects rays by the model, not by their values, so
+    D_L and the variance of the kept rays are not biased.
+
+    Parameters
+    ----------
+    abs_vr : numpy.ndarray
+        ``(ray, height)`` measured ``|V_r|`` (m s-1), NaN where missing.
+    model : numpy.ndarray
+        ``(ray, height)`` block-mean wind projected on the beam (m s-1).
+    block : numpy.ndarray
+        ``(ray,)`` block index (0-based, small integers) of each ray.
+
+    Returns
+    -------
+    numpy.ndarray
+        Signed ``V_r`` (m s-1), NaN for the rays left out.
+    """
+    signed = np.abs(abs_vr) * np.sign(model)
+    dev = signed - model
+    ok = np.isfinite(dev)
+    n_b = int(block.max()) + 1 if block.size else 0
+    n = np.zeros((n_b, dev.shape[1]))
+    s1 = np.zeros_like(n)
+    s2 = np.zeros_like(n)
+    np.add.at(n, block, ok)
+    np.add.at(s1, block, np.where(ok, dev, 0.0))
+    np.add.at(s2, block, np.where(ok, dev**2, 0.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sigma = np.sqrt(np.maximum(s2 / n - (s1 / n) ** 2, 0.0))
+    threshold = HOMODYNE_MIN_SPEED + HOMODYNE_SIGMAS * sigma[block]
+    return np.where(np.abs(model) >= threshold, signed, np.nan)
 
 
 def _block_sum(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
@@ -270,7 +321,7 @@ def azimuth_structure_function(
             u_b[b] * np.sin(theta) + v_b[b] * np.cos(theta)
         )
         if homodyne:
-            vr = np.abs(vr) * np.sign(model)  # homodyne: only |V_r| measured
+            vr = homodyne_radial_velocity(vr, model, b - b0)
         vprime = np.full((t1_ - t0_, n_az, n_h), np.nan)
         vprime[scan_pos[cells] - t0_, m[cells]] = vr - model
         sf[b0:b1], pairs[b0:b1], variance[b0:b1] = block_statistics(vprime, n_scans, n_lags)

@@ -13,6 +13,7 @@ from cwproc.stages.epsilon import (
     FLAG_BEYOND_INERTIAL,
     FLAG_FIT_FAILED,
     FLAG_METHOD1_INVALID,
+    FLAG_PARTIAL_BLOCK,
     FLAG_TOO_FEW_PAIRS,
     averaging_loss,
     eq5_epsilon,
@@ -171,12 +172,44 @@ def test_exact_model_data_give_eps_noise_and_the_eq21_ratio(options):
     # eq. 21 at phi 35.3, dy 6 m, l = 3 (REFERENCE_VALUES.md 1.3.pi): 1, 1.1575, 2.4039
     np.testing.assert_allclose(out["epsilon_ratio"].values[:, 0], [1.0, 1.1575, 2.4039], rtol=2e-3)
     np.testing.assert_allclose(out["transverse_resolution"].values[0, 0], 6.0, rtol=1e-9)
+    # the sampling geometry is an auxiliary coordinate (CF), not a data variable
+    for name in ("transverse_resolution", "scan_speed"):
+        assert name in out.coords and name not in out.data_vars
+        assert out[name].dims == ("time", "height")
+    # the fitted model reproduces the exact data (Smalikho (2020), eq. 4)
+    assert out["structure_function_model"].dims == ("time", "height", "lag")
+    np.testing.assert_allclose(out["structure_function_model"].values, d, rtol=1e-9)
     # method 1 beyond its validity (ratio > 1.1): NaN with flag 4, method 2 unaffected
     flag = out["turbulence_flag"].values
     np.testing.assert_array_equal(flag[0], [0, 0])
     assert np.all(flag[1:] & FLAG_METHOD1_INVALID)
     assert np.all(np.isnan(out["epsilon_method1"].values[1:]))
     np.testing.assert_allclose(out["epsilon_method1"].values[0], 0.003, rtol=1e-9)
+
+
+@pytest.mark.slow
+def test_blocks_with_fewer_than_half_the_scans_are_not_estimated(options):
+    """12 scans in blocks of 10 leave a block of 2: flag 16, no eps; 5 of 10 are kept."""
+    table = get_a_table(
+        PROBE,
+        phi_deg=PHI,
+        delta_theta_deg=DTHETA,
+        n_lags=N_LAGS,
+        model="inertial",
+        cache_dir=options["cache_dir"],
+        height_range_m=options["height_range_m"],
+    )
+    mu = np.zeros((3, 2))
+    sf = make_sf(model_d(table, 0.003, 0.1, mu), mu=mu)
+    sf["n_scans"].values[:] = [10, 2, 5]
+    sf["structure_function"].attrs["n_scans_per_block"] = 10
+    out = estimate_epsilon(sf, probe=PROBE, lag_number=3, model="inertial", table_options=options)
+    flag = out["turbulence_flag"].values
+    np.testing.assert_array_equal(flag[[0, 2]], 0)
+    assert np.all(flag[1] & FLAG_PARTIAL_BLOCK)
+    for name in ("epsilon", "epsilon_fit", "integral_scale", "velocity_variance"):
+        assert np.all(np.isnan(out[name].values[1])), name
+        np.testing.assert_allclose(out["epsilon"].values[[0, 2]], 0.003, rtol=1e-9)
 
 
 @pytest.mark.slow

@@ -199,3 +199,23 @@ def test_chunked_blocks_give_the_same_result(monkeypatch):
     monkeypatch.setattr(structure, "_CHUNK_VALUES", 1)  # one block per chunk
     chunked = azimuth_structure_function(ds, true_wind(ds), n_scans=4, max_lag_deg=9.0)
     xr.testing.assert_identical(whole, chunked)
+
+
+def test_homodyne_sign_from_the_model_and_rays_near_zero_crossings_left_out():
+    """|V_r| gets the sign of S . <V>_N; rays with |m| < 1 m/s + 3 sigma' become NaN."""
+    from cwproc.stages.structure import homodyne_radial_velocity
+
+    rng = np.random.default_rng(4)
+    theta = np.deg2rad(np.arange(0.0, 360.0, 2.0))
+    model = np.repeat((6.0 * np.sin(theta))[None, :], 20, axis=0).ravel()[:, None]
+    true = model + 0.5 * rng.standard_normal(model.shape)
+    block = np.repeat(np.arange(2), model.size // 2)
+    out = homodyne_radial_velocity(np.abs(true), model, block)
+    kept = np.isfinite(out[:, 0])
+    # the threshold 1 + 3 x 0.5 = 2.5 m/s (sigma' within 10 %) leaves |sin| > 0.42 only
+    assert np.all(np.abs(model[kept, 0]) >= 2.5 * 0.9)
+    assert np.all(~kept[np.abs(model[:, 0]) < 2.5 * 1.1 - 0.5])
+    # kept rays carry the true sign: no folding error above 3 sigma
+    np.testing.assert_allclose(out[kept, 0], true[kept, 0], rtol=1e-12)
+    # the share left out: 2 asin(2.5/6) / pi = 27.5 %
+    assert np.mean(~kept) == pytest.approx(2 * np.arcsin(2.5 / 6) / np.pi, abs=0.04)
