@@ -64,7 +64,8 @@ Flags (``turbulence_flag``, bits combine; a flagged value is NaN):
 - 4: ``mu`` beyond the validity of method 1, ``eps_1/eps_2 > 1.1`` (Smalikho (2020),
   eq. 21 and its discussion): ``epsilon_method1`` is NaN, ``epsilon`` stays;
 - 8: fit failed (``D(l) <= D(1)``, non-finite values, no mean wind for ``mu``, a height
-  or ``mu`` outside the A-table's range, or fewer than two lags within
+  or ``mu`` outside the A-table's range (the default 10-3000 m height range is widened
+  to the data's heights, :func:`table_height_range`), or fewer than two lags within
   ``max_lag_deg``): no ``eps``;
 - 16: partial block: the block holds fewer than half the requested scans per block
   (``n_scans < MIN_BLOCK_FRACTION * n_scans_per_block``, e.g. the 2 scans left over from
@@ -82,6 +83,7 @@ and are auxiliary coordinates ``(time, height)`` of the product (CF).
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -302,6 +304,43 @@ def _evaluate(table: Any, lags: np.ndarray, height: np.ndarray, mu: np.ndarray, 
     return np.asarray(a1, float).reshape(shape), np.asarray(a2, float).reshape(shape)
 
 
+#: the A-table's default height range (m) and the smallest height it is widened to
+DEFAULT_HEIGHT_RANGE_M = (10.0, 3000.0)
+MIN_TABLE_HEIGHT_M = 1.0
+
+
+def table_height_range(
+    height_m: np.ndarray, default: tuple[float, float] = DEFAULT_HEIGHT_RANGE_M
+) -> tuple[float, float]:
+    """Height range (m) of the A-table: the default, widened to cover the data's heights.
+
+    The default range is extended downwards and upwards in steps of ``HEIGHT_RATIO^4``
+    (about x2.07, four table nodes) until it holds every finite height at or above
+    :data:`MIN_TABLE_HEIGHT_M`, so that few distinct tables (cache files) arise; each
+    step adds four height nodes, about 12 % of the default table's build time.
+
+    Parameters
+    ----------
+    height_m : numpy.ndarray
+        Heights of the product (m).
+    default : (float, float)
+        Range used when every height lies inside it.
+    """
+    from cwproc.physics.atable import HEIGHT_RATIO
+
+    h = np.asarray(height_m, dtype=float)
+    h = h[np.isfinite(h) & (h >= MIN_TABLE_HEIGHT_M)]
+    lo, hi = (float(v) for v in default)
+    if h.size == 0:
+        return lo, hi
+    step = HEIGHT_RATIO**4
+    if h.min() < lo:
+        lo = lo / step ** math.ceil(math.log(lo / h.min()) / math.log(step))
+    if h.max() > hi:
+        hi = hi * step ** math.ceil(math.log(h.max() / hi) / math.log(step))
+    return lo, hi
+
+
 def _tables(probe: Any, phi: float, dtheta: float, n_lags: int, model: str, options: dict) -> tuple:
     """The inertial A-table and, for finite-outer-scale models, the model's table."""
     from cwproc.physics.atable import get_a_table
@@ -367,6 +406,8 @@ def estimate_epsilon(
     if lag_number < 2:
         raise ValueError("lag_number must be >= 2 (Smalikho (2020), eq. 5)")
     options = dict(table_options or {})
+    if "height_range_m" not in options:
+        options["height_range_m"] = table_height_range(sf["height"].values)
     d = sf["structure_function"].transpose("time", "height", "lag").values.astype(float)
     pairs = sf["n_pairs"].transpose("time", "height", "lag").values
     n_t, n_h, n_l = d.shape

@@ -462,3 +462,19 @@ def test_blocks_with_too_few_pairs_are_flagged_not_estimated(sim_results):
     assert np.all(pairs < 100)  # 8 rays of 144 left per scan
     assert np.all(np.isnan(eps))
     assert np.all(flag & FLAG_TOO_FEW_PAIRS)
+
+
+def test_table_height_range_covers_the_data_in_few_distinct_steps():
+    """Default 10-3000 m; a gate at 8.7 m (sample data) or 5 km widens it by 1.2^4 steps."""
+    from cwproc.physics.atable import HEIGHT_RATIO
+    from cwproc.stages.epsilon import table_height_range
+
+    assert table_height_range(np.array([50.0, 2500.0])) == (10.0, 3000.0)
+    step = HEIGHT_RATIO**4
+    lo, hi = table_height_range(np.array([8.7, 100.0, 5000.0, np.nan]))
+    assert lo == pytest.approx(10.0 / step) and lo < 8.7
+    assert hi == pytest.approx(3000.0 * step) and hi > 5000.0
+    # heights below 1 m (e.g. 0 for a ground gate) are not tabulated: flag 8 stays
+    assert table_height_range(np.array([0.0, 0.5, 20.0])) == (10.0, 3000.0)
+    # the same range for nearby data: one cache file
+    assert table_height_range(np.array([9.5])) == table_height_range(np.array([6.0]))
