@@ -41,7 +41,7 @@ from cwproc.physics.spectra import MODELS, Model
 from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
 
 #: bump when the numerics or the grid change: old cache files are then ignored
-TABLE_VERSION = 3
+TABLE_VERSION = 4
 #: geometric ratio of the height nodes
 HEIGHT_RATIO = 1.2
 #: geometric ratio of the outer-scale nodes
