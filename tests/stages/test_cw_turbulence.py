@@ -119,3 +119,82 @@ def test_epsilon_from_homodyne_cw_scans_within_20_percent(heterodyne, tmp_path):
     het_sf, _ = _retrieve(heterodyne[0], lidar, tmp_path)
     kept = sf["n_pairs"].values.ravel()[0] / het_sf["n_pairs"].values.ravel()[0]
     assert 0.4 < kept < 0.8
+
+
+def test_seed000_probe_exact_model_recovers_eps_variance_and_scale(tmp_path):
+    """Exact eq-4 data of the seed-000 cw probe at h = 300, 500 m (L_V = 300, 333 m).
+
+    The probe (half width 113-275 m) passes only 44 % and 29 % of sigma_V^2
+    (``epsilon.passed_variance``); with the inertial averaging loss instead, sigma_V^2
+    came out 1.9-2.5 times too large, L_V too large and eps 36-45 % low on the cw
+    simulation. Exact data must be inverted to within the interpolation error.
+    """
+    from cwproc.physics.atable import get_a_table
+    from cwproc.physics.spectra import variance_from
+
+    probe = CWProbe(wavelength_m=10.6e-6, beam_radius_m=0.075)
+    heights = np.array([300.0, 500.0])
+    big_l = np.array([300.0, 333.0])
+    u = np.array([9.14, 9.78])
+    noise = 0.05
+    eps = epsilon_from_variance(np.array([1.11, 1.02]) ** 2, big_l, "exponential")
+    dtheta = 360.0 / 140
+    options = {
+        "cache_dir": str(tmp_path),
+        "height_range_m": (250.0, 600.0),
+        "outer_scale_range_m": (50.0, 1500.0),
+        "mu_max": 0.5,
+    }
+    table = get_a_table(
+        probe, phi_deg=30.0, delta_theta_deg=dtheta, n_lags=3, model="exponential", **options
+    )
+    rng_m = heights / np.sin(np.deg2rad(30.0))
+    radius = probe.centre_range(rng_m) * np.cos(np.deg2rad(30.0))
+    mu = u / (2 * np.pi * radius / 7.0)
+    lags = np.arange(1.0, 4.0)
+    _, a2 = table.evaluate(
+        lags[None, :], heights[:, None], mu[:, None], outer_scale_m=big_l[:, None]
+    )
+    d = eps[:, None] ** (2 / 3) * np.asarray(a2) + 2 * noise**2
+    dy = np.deg2rad(dtheta) * radius
+    through = np.array(
+        [
+            epsilon.passed_variance(probe, dy[i : i + 1], rng_m[i : i + 1], "exponential", [x])[
+                0, 0
+            ]
+            for i, x in enumerate(big_l)
+        ]
+    )
+    assert through / np.array([(x / 1.331) ** (2 / 3) for x in big_l]) == pytest.approx(
+        [0.44, 0.29], abs=0.02
+    )
+    sf = xr.Dataset(
+        {
+            "structure_function": (("time", "height", "lag"), d[None]),
+            "n_pairs": (("time", "height", "lag"), np.full((1, 2, 3), 1000)),
+            "radial_velocity_variance": (
+                ("time", "height"),
+                (eps ** (2 / 3) * through + noise**2)[None],
+            ),
+            "wind_speed": (("time", "height"), u[None]),
+            "azimuth_step": ("time", [dtheta]),
+            "scan_period": ("time", [7.0]),
+            "n_scans": ("time", [10]),
+        },
+        coords={
+            "time": [np.datetime64("2024-01-01T00:00", "ns")],
+            "height": heights,
+            "range": ("height", rng_m),
+            "lag": [1, 2, 3],
+            "elevation": ("time", [30.0]),
+        },
+    )
+    out = epsilon.estimate_epsilon(
+        sf, probe=probe, lag_number=3, model="exponential", table_options=options
+    )
+    np.testing.assert_allclose(out["epsilon"].values[0], eps, rtol=0.02)
+    np.testing.assert_allclose(
+        out["velocity_variance"].values[0], variance_from(eps, big_l, "exponential"), rtol=0.03
+    )
+    np.testing.assert_allclose(out["integral_scale"].values[0], big_l, rtol=0.05)
+    np.testing.assert_allclose(out["noise_std"].values[0], noise, rtol=0.05)
