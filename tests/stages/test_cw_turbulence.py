@@ -8,12 +8,13 @@ al. (1999), eq. 17), so that the inertial-range A-functions hold (lags < 3 %, pr
 half width < 1 % of L_V) and epsilon = 1.331 sigma_V^3 / L_V = 2.66e-3 m2 s-3
 (Banakh et al. (1999), eq. 19). mu = U/V_s = 5/77.7 = 0.06: methods 1 and 2 must agree.
 
-Numbers obtained (40 scans, one block): seed 2 (used here) gives epsilon 2.60e-3
-(-2 %) from the heterodyne centroid estimates and 2.57e-3 (-3 %) from the exact
-probe-averaged velocities V_D; seeds 3, 4, 5, 11 give 0.99, 1.07, 1.08, 1.18 of the
-truth (the statistical spread of one 40-scan block). Homodyne (|V_r|) centroids give
-4.81e-3 (+81 %) at U = 5 m/s (+18 % at 12 m/s, seed 1, 20 scans): the folded spectra
-near the zero crossings of V_r inflate D_L; see the xfail test below.
+Numbers obtained (40 scans, one block, seed 2): with the first-round probe (uncut
+Lorentzian, sweep averaging) epsilon read -2 %; with the cut Banakh Lorentzian, no
+sweep averaging (Banakh et al. (1999), eq. 15) and the probe-passed variance it reads
+0.93 of the truth (heterodyne centroids). Homodyne (|V_r|) centroids read +81 % at
+U = 5 m/s when the folded values near the zero crossings of V_r entered D_L; with
+those rays left out (structure.homodyne_radial_velocity, about half the pairs kept)
+1.00 of the truth.
 """
 
 from __future__ import annotations
