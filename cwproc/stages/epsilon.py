@@ -77,8 +77,9 @@ Flags (``turbulence_flag``, bits combine; a flagged value is NaN):
 
 ``structure_function_model`` is the fitted ``eps_fit^(2/3) A_2(l dy) + 2 sigma_e^2``
 (with the A-functions used for the cell) for plotting against ``structure_function``.
-``transverse_resolution`` (dy) and ``scan_speed`` (V_s) describe the sampling geometry
-and are auxiliary coordinates ``(time, height)`` of the product (CF).
+``transverse_resolution`` (dy), ``scan_speed`` (V_s) and ``mu`` (U/V_s) describe the
+sampling geometry and regime of each cell and are auxiliary coordinates
+``(time, height)`` of the product (CF).
 """
 
 from __future__ import annotations
@@ -631,7 +632,6 @@ def estimate_epsilon(
             "epsilon_ratio": (dims, ratio),
             "epsilon_fit": (dims, out_fit),
             "structure_function_model": (("time", "height", "lag"), sf_model),
-            "mu": (dims, mu),
             "noise_std": (dims, out_noise),
             "velocity_variance": (dims, out_sigma2),
             "integral_scale": (dims, out_scale),
@@ -643,6 +643,7 @@ def estimate_epsilon(
             **sf.coords,
             "scan_speed": (dims, v_s),
             "transverse_resolution": (dims, dy),
+            "mu": (dims, mu),
         },
     )
     common = {
