@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
@@ -27,3 +28,36 @@ def reference_dir() -> Path:
     if not REFERENCE.is_dir():
         pytest.skip(f"reference values not available: {REFERENCE} does not exist")
     return REFERENCE
+
+
+def _check(path: Path, test: str) -> dict:
+    from compliance_checker.runner import CheckSuite, ComplianceChecker
+
+    CheckSuite.load_all_available_checkers()
+    out = path.with_suffix(f".{test.replace(':', '_')}.json")
+    ComplianceChecker.run_checker(
+        os.fspath(path),
+        [test],
+        verbose=0,
+        criteria="normal",
+        output_filename=os.fspath(out),
+        output_format="json",
+    )
+    result = next(iter(json.loads(out.read_text()).values()))
+    out.unlink()
+    return result
+
+
+def _compliance(path: Path) -> tuple[list[str], float]:
+    """(CF-1.10 high-priority failures, ACDD-1.3 score as a fraction) of a NetCDF file."""
+    cf = _check(Path(path), "cf:1.10")
+    acdd = _check(Path(path), "acdd:1.3")
+    high = [f"{c['name']}: {m}" for c in cf["high_priorities"] for m in c["msgs"]]
+    return high, acdd["scored_points"] / acdd["possible_points"]
+
+
+@pytest.fixture(scope="session")
+def compliance():
+    """The IOOS compliance checker as a function: path -> (CF high failures, ACDD score)."""
+    pytest.importorskip("compliance_checker")
+    return _compliance

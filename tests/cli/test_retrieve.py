@@ -136,3 +136,19 @@ def test_time_order_is_restored_across_files(vad_files, tmp_path):
     wind = read_product(next(out.glob("*_wind.nc")))
     t = pd.to_datetime(wind["time"].values)
     assert t.is_monotonic_increasing
+
+
+def test_sample_data_products_are_cf_and_acdd_compliant(tmp_path, compliance):
+    """The README's main job: CF-1.10 without high-priority failures, ACDD-1.3 >= 90 %."""
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[2]
+    out = tmp_path / "out"
+    res = run([repo / "sample_data", "-c", repo / "sample_data" / "site.toml", "-o", out])
+    assert res.exit_code == 0, res.output
+    products = sorted(out.glob("*.nc"))
+    assert [p.name.rsplit("_", 1)[1] for p in products] == ["turbulence.nc", "wind.nc"]
+    for product in products:
+        high, acdd = compliance(product)
+        assert high == [], product.name
+        assert acdd >= 0.90, (product.name, acdd)

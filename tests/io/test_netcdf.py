@@ -86,31 +86,7 @@ def test_apply_metadata_marks_flags_and_counts():
     assert undeclared_variables(out) == []
 
 
-def _check(path, test: str) -> dict:
-    from compliance_checker.runner import CheckSuite, ComplianceChecker
-
-    CheckSuite.load_all_available_checkers()
-    out = path.with_suffix(f".{test.replace(':', '_')}.json")
-    ComplianceChecker.run_checker(
-        os.fspath(path),
-        [test],
-        verbose=0,
-        criteria="normal",
-        output_filename=os.fspath(out),
-        output_format="json",
-    )
-    return next(iter(json.loads(out.read_text()).values()))
-
-
-def compliance(path) -> tuple[list[str], float]:
-    """(CF-1.10 high-priority failures, ACDD-1.3 score) of a NetCDF file."""
-    cf = _check(path, "cf:1.10")
-    acdd = _check(path, "acdd:1.3")
-    high = [f"{c['name']}: {m}" for c in cf["high_priorities"] for m in c["msgs"]]
-    return high, acdd["scored_points"] / acdd["possible_points"]
-
-
-def test_product_is_cf_and_acdd_compliant(tmp_path):
+def test_product_is_cf_and_acdd_compliant(tmp_path, compliance):
     out = OutputConfig(
         institution="IAO SB RAS",
         creator_name="A. Lidar",
