@@ -162,7 +162,6 @@ class ATable:
         lag_ok = (lag >= 1) & (lag <= self.n_lags) & (lag == np.round(lag))
         li = np.clip(np.where(np.isfinite(lag), lag, 1), 1, self.n_lags).astype(int) - 1
         with np.errstate(divide="ignore", invalid="ignore"):
-            ih, wh, vh = _lagrange4(np.log(self.heights_m), np.log(h_b.ravel()))
             im, wm, vm = _lagrange4(self.mu, mu_b.ravel())
             if finite_l:
                 il, wl, vl = _lagrange4(
@@ -172,14 +171,22 @@ class ATable:
                 il = np.zeros((lag.size, 1), int)
                 wl = np.ones((lag.size, 1))
                 vl = np.ones(lag.size, bool)
-        # gather the 4^k neighbours by flat index and contract with the Lagrange weights
-        n_h, n_lag, n_m = self.heights_m.size, self.n_lags, self.mu.size
-        base = (il[:, :, None] * n_h + ih[:, None, :]) * n_lag + li[:, None, None]  # (q,a,b)
-        w_lh = (wl[:, :, None] * wh[:, None, :]).reshape(lag.size, -1)  # (q, a*b)
-        log1 = np.einsum("qk,qk->q", w_lh, self.log_a1.ravel().take(base.reshape(lag.size, -1)))
-        flat2 = base.reshape(lag.size, -1)[:, :, None] * n_m + im[:, None, :]  # (q, a*b, 4)
-        vals2 = self.log_a2.ravel().take(flat2)
-        log2 = np.einsum("qk,qkc,qc->q", w_lh, vals2, wm, optimize=True)
+        # Interpolate in height first, once per distinct height (a day of blocks shares a
+        # few hundred heights), then gather only the 4 x 4 (L_V, mu) neighbours per point.
+        h_flat = h_b.ravel()
+        h_unique, h_inverse = np.unique(h_flat, return_inverse=True)
+        h_inverse = h_inverse.ravel()
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ihu, whu, vhu = _lagrange4(np.log(self.heights_m), np.log(h_unique))
+        vh = vhu[h_inverse]
+        # (nL, n_unique, n_lag) and (nL, n_unique, n_lag, nm)
+        a1_h = np.einsum("lukj,uk->luj", self.log_a1[:, ihu, :], whu)
+        a2_h = np.einsum("lukjm,uk->lujm", self.log_a2[:, ihu, :, :], whu)
+        n_u, n_lag, n_m = h_unique.size, self.n_lags, self.mu.size
+        base = (il * n_u + h_inverse[:, None]) * n_lag + li[:, None]  # (q, a)
+        log1 = np.einsum("qa,qa->q", wl, a1_h.ravel().take(base))
+        vals2 = a2_h.ravel().take(base[:, :, None] * n_m + im[:, None, :])  # (q, a, 4)
+        log2 = np.einsum("qa,qac,qc->q", wl, vals2, wm, optimize=True)
         ok1 = lag_ok & vh & vl
         ok2 = ok1 & vm
         out1 = np.where(ok1, np.exp(log1), np.nan).reshape(shape)
