@@ -282,6 +282,98 @@ def passed_variance(
     return out
 
 
+def probe_quadrature(probe: Any, range_m: float, n: int = 40) -> Any:
+    """Nodes and weights of the probe's weighting along the beam (for B_D across the scan).
+
+    cw probe: the Lorentzian ``Q_s`` of Banakh et al. (1999) (centre ``probe.centre_range``,
+    half width ``probe.rayleigh_half_width``), cut at the lidar, by Gauss-Legendre nodes
+    equal in weight (``z = z_c + w tan(u)``). Pulsed probe (a few tens of metres, small
+    against the scan circle): one node at the gate centre.
+
+    Parameters
+    ----------
+    probe : PulsedProbe or CWProbe
+    range_m : float
+        Distance of the probe from the lidar (m).
+    n : int
+        Nodes of the cw quadrature.
+
+    Returns
+    -------
+    cwproc.sim.turbulence.ProbeQuadrature
+    """
+    from cwproc.sim.turbulence import ProbeQuadrature
+
+    if not hasattr(probe, "rayleigh_half_width"):
+        return ProbeQuadrature((float(range_m),), (1.0,))
+    zc = float(probe.centre_range(range_m))
+    w = float(probe.rayleigh_half_width(range_m))
+    x, wt = np.polynomial.legendre.leggauss(n)
+    u0, u1 = math.atan(-zc / w), 0.5 * math.pi
+    u = 0.5 * (u1 - u0) * x + 0.5 * (u1 + u0)
+    return ProbeQuadrature(tuple(zc + w * np.tan(u)), tuple(wt / wt.sum()))
+
+
+def vad_removed_variance(
+    probe: Any,
+    range_m: np.ndarray,
+    elevation_deg: float,
+    n_azimuths: int,
+    model: str,
+    outer_scales_m: np.ndarray,
+    passed: np.ndarray,
+) -> np.ndarray:
+    """Variance of V_D the sine (VAD) fit of one scan takes away, per eps^(2/3) (m^(2/3)).
+
+    The deviations ``V'_L`` from the N-scan VAD fit (Smalikho (2020), eqs. 1-2) of N
+    independent scans keep ``B_D(0) - tr(H B_D)/(N M)`` of the probe-passed variance,
+    ``H`` the hat matrix of the fit on one scan of M rays; for the circulant ``B_D`` of a
+    full scan (Banakh et al. (1999), eq. 15 without transport) ``tr(H B_D)/M`` is the
+    mean over the azimuth differences ``theta_k`` of ``B_D(theta_k) (1 + 2 cos theta_k)``
+    (Fourier modes 0 and +-1). This returns that mean (divide by N for the block);
+    ``B_D(0)`` is ``passed``, the other ``B_D(theta_k)`` the correlation of the model
+    (:func:`cwproc.sim.turbulence.circulant_correlation_row`) with the probe's weighting
+    (:func:`probe_quadrature`). On the seed-000 cw lidar with N = 10 it is 4-5 % of the
+    passed variance. :func:`estimate_epsilon` does not subtract it from the model's
+    variance: on the seed-000 cw simulation (true V_D, 24 blocks) subtracting it raised
+    L_V by 5-9 % and lowered eps by 2-4 % (see the benchmark bench_cw_epsilon_bias.py).
+    Wind transport (mu = U/V_s) is neglected here (mu <= 0.09 for that lidar).
+
+    Parameters
+    ----------
+    probe : PulsedProbe or CWProbe
+    range_m : numpy.ndarray
+        Distance of the probe from the lidar (m), 1-D (cells).
+    elevation_deg : float
+        Elevation of the cone (deg).
+    n_azimuths : int
+        Rays per scan M.
+    model : {"von_karman", "exponential"}
+    outer_scales_m : numpy.ndarray
+        L_V (m), 1-D.
+    passed : numpy.ndarray
+        :func:`passed_variance` of the cells on ``outer_scales_m``, (cells, scales).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(cells, outer scales)``.
+    """
+    from cwproc.sim.turbulence import ScanGeometry, circulant_correlation_row
+
+    geometry = ScanGeometry(float(elevation_deg), int(n_azimuths), 1.0)
+    lags = np.arange(1, int(n_azimuths))
+    weight = 1.0 + 2.0 * np.cos(np.deg2rad(geometry.azimuth_deg[lags]))
+    full = np.array([spectra.variance_per_eps23(model, x) for x in outer_scales_m])
+    out = np.empty((np.size(range_m), np.size(outer_scales_m)))
+    for i, r in enumerate(np.atleast_1d(range_m)):  # one quadrature per distinct range
+        rows = circulant_correlation_row(
+            geometry, probe_quadrature(probe, float(r)), outer_scales_m, model, lags=lags
+        )
+        out[i] = (3.0 * passed[i] + full * (rows @ weight)) / n_azimuths
+    return out
+
+
 def _interp_log_scale(grid_m: np.ndarray, values: np.ndarray, query_m: np.ndarray) -> np.ndarray:
     """Linear interpolation in ``log L`` of ``values (cells, K)`` at ``query_m (cells, k)``."""
     lg = np.log(grid_m)

@@ -199,3 +199,40 @@ def test_seed000_probe_exact_model_recovers_eps_variance_and_scale(tmp_path):
     )
     np.testing.assert_allclose(out["integral_scale"].values[0], big_l, rtol=0.05)
     np.testing.assert_allclose(out["noise_std"].values[0], noise, rtol=0.05)
+
+
+def test_vad_removed_variance_equals_the_simulators_trace_of_the_hat_matrix():
+    """tr(H B_D)/M of the seed-000 scan (M = 140) from the full circulant row of the sim.
+
+    ``montecarlo.height_model`` computes it independently as the DFT modes 0 and +-1
+    of the whole first row of B_D (its own fine quadrature for lag 0); the stage's
+    ``vad_removed_variance`` takes B_D(0) from ``passed_variance`` and the other lags
+    from its own Lorentzian quadrature. They agree within 0.13 % (tested 0.5 %).
+    """
+    from cwproc.physics.spectra import variance_per_eps23
+    from cwproc.sim.montecarlo import FACTOR_SCALES, height_model
+
+    probe = CWProbe(wavelength_m=10.6e-6, beam_radius_m=0.075)
+    lidar = CWLidar(homodyne=False)  # seed 000: M = 140, phi = 30 deg
+    scales = FACTOR_SCALES[8:18:3]  # 60-5000 m
+    for h in (50.0, 500.0):
+        rng_m = np.array([h / np.sin(np.deg2rad(30.0))])
+        dy = np.deg2rad(360.0 / 140) * probe.centre_range(rng_m) * np.cos(np.deg2rad(30.0))
+        passed = epsilon.passed_variance(probe, dy, rng_m, "exponential", scales)
+        removed = epsilon.vad_removed_variance(
+            probe, rng_m, 30.0, 140, "exponential", scales, passed
+        )[0]
+        full = np.array([variance_per_eps23("exponential", x) for x in scales])
+        exact = height_model(lidar, h, 3).projected[8:18:3] / 140
+        assert removed / full == pytest.approx(exact, rel=0.005)
+
+
+def test_vad_removed_variance_of_uncorrelated_rays_is_three_rays_worth():
+    """Rays far apart against L_V: the 3-parameter sine fit removes 3/M of the variance."""
+    probe = CWProbe(wavelength_m=10.6e-6, beam_radius_m=0.075)
+    rng_m = np.array([100.0])
+    passed = np.array([[2.0]])
+    removed = epsilon.vad_removed_variance(
+        probe, rng_m, 30.0, 24, "exponential", np.array([0.5]), passed
+    )
+    assert removed[0, 0] == pytest.approx(3.0 * 2.0 / 24, rel=1e-3)
