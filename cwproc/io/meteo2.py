@@ -428,6 +428,8 @@ def parse_times(
 
 def _to_utc(raw: pd.Series, fmt: str) -> pd.Series:
     """Parse stamps to naive UTC (stamps with an explicit offset are converted)."""
+    if not pd.api.types.is_string_dtype(raw) and not pd.api.types.is_object_dtype(raw):
+        raw = raw.astype(str)  # numbers parsed with a format: pandas wants text
     try:
         parsed = pd.to_datetime(raw, format=fmt, errors="coerce", utc=True)
     except (ValueError, OverflowError, TypeError):
