@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import csv
 import os
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -112,6 +113,35 @@ def record_warnings(record: np.ndarray) -> list[str]:
 
 def _to_celsius(values: np.ndarray, unit: str) -> np.ndarray:
     return values - 273.15 if unit.strip().upper() == "K" else values
+
+
+def _campbell_dataset(
+    path: str | os.PathLike,
+    options: Mapping[str, Any],
+    env: Sequence[str],
+    times: np.ndarray,
+    vals: Mapping[str, np.ndarray],
+    temp: np.ndarray,
+    diag: np.ndarray,
+    attrs: dict[str, Any],
+    notes: list[str],
+) -> xr.Dataset:
+    """The canonical sonic dataset of a TOA5 or TOB1 file (shared tail of both readers)."""
+    return sonic_dataset(
+        path,
+        times,
+        vals["u"],
+        vals["v"],
+        vals["w"],
+        temp,
+        diag,
+        instrument=INSTRUMENT.format(logger=env[2], table=env[7]),
+        frame=str(options.get("frame", FRAME)),
+        orientation_deg=option_number(path, options, "orientation_deg", 0.0),
+        attrs=attrs,
+        warnings=notes,
+        spike_threshold=option_number(path, options, "spike_threshold", SPIKE_THRESHOLD),
+    )
 
 
 def read_toa5(path: str | os.PathLike, **options: Any) -> xr.Dataset:
@@ -203,21 +233,7 @@ def read_toa5(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         "toa5_table": env[7],
         "time_reference": f"logger time minus {offset_h:g} h",
     }
-    return sonic_dataset(
-        path,
-        times,
-        vals["u"],
-        vals["v"],
-        vals["w"],
-        temp,
-        diag,
-        instrument=INSTRUMENT.format(logger=env[2], table=env[7]),
-        frame=str(options.get("frame", FRAME)),
-        orientation_deg=option_number(path, options, "orientation_deg", 0.0),
-        attrs=attrs,
-        warnings=notes,
-        spike_threshold=option_number(path, options, "spike_threshold", SPIKE_THRESHOLD),
-    )
+    return _campbell_dataset(path, options, env, times, vals, temp, diag, attrs, notes)
 
 
 def decode_fp2(raw: np.ndarray) -> np.ndarray:
@@ -366,18 +382,4 @@ def read_tob1(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         "partial_record_bytes": int(extra),
         "time_reference": f"logger time minus {offset_h:g} h",
     }
-    return sonic_dataset(
-        path,
-        times,
-        vals["u"],
-        vals["v"],
-        vals["w"],
-        temp,
-        diag,
-        instrument=INSTRUMENT.format(logger=env[2], table=env[7]),
-        frame=str(options.get("frame", FRAME)),
-        orientation_deg=option_number(path, options, "orientation_deg", 0.0),
-        attrs=attrs,
-        warnings=notes,
-        spike_threshold=option_number(path, options, "spike_threshold", SPIKE_THRESHOLD),
-    )
+    return _campbell_dataset(path, options, env, times, vals, temp, diag, attrs, notes)
