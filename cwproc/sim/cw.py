@@ -107,13 +107,40 @@ def gauss_legendre(n: int) -> tuple[np.ndarray, np.ndarray]:
     return x, w
 
 
+def lorentzian_quadrature(
+    centre_m: float, half_width_m: float, n: int = 40, n_fine: int = 600
+) -> ProbeQuadrature:
+    """Gauss-Legendre quadrature of a Lorentzian weighting cut at the lidar (equal weight in u).
+
+    With z = z_c + w tan(u), Q_s dz is uniform in u in [atan(-z_c/w), pi/2), so the
+    Gauss-Legendre nodes in u integrate the heavy tails of Q_s exactly in weight
+    (Banakh et al. (1999), eq. 3 weighting Q_s).
+
+    Parameters
+    ----------
+    centre_m, half_width_m : float
+        Centre z_c and half width w of the Lorentzian (m).
+    n : int
+        Nodes.
+    n_fine : int
+        Nodes of the fine quadrature for the same-beam (zero-lag) integral.
+    """
+    u0, u1 = np.arctan(-centre_m / half_width_m), 0.5 * np.pi
+
+    def nodes_weights(k: int) -> tuple[np.ndarray, np.ndarray]:
+        x, wt = gauss_legendre(k)
+        u = 0.5 * (u1 - u0) * x + 0.5 * (u1 + u0)
+        return centre_m + half_width_m * np.tan(u), wt / wt.sum()
+
+    z, q = nodes_weights(n)
+    zf, qf = nodes_weights(n_fine)
+    return ProbeQuadrature(tuple(z), tuple(q), tuple(zf), tuple(qf))
+
+
 def cw_probe_quadrature(
     focus_range: float, wavelength: float, beam_radius: float, n: int = 40, n_fine: int = 600
 ) -> ProbeQuadrature:
-    """Gauss-Legendre quadrature of the cut Lorentzian Q_s (equal-weight in u).
-
-    With z = z_c + w tan(u), Q_s dz is uniform in u in [atan(-z_c/w), pi/2), so the
-    Gauss-Legendre nodes in u integrate the heavy tails of Q_s exactly in weight.
+    """Quadrature of the cut Lorentzian Q_s of a focused cw lidar (:func:`lorentzian_quadrature`).
 
     Parameters
     ----------
@@ -125,16 +152,7 @@ def cw_probe_quadrature(
         Nodes of the fine quadrature for the same-beam (zero-lag) integral.
     """
     zc, w = lorentzian_parameters(focus_range, wavelength, beam_radius)
-    u0, u1 = np.arctan(-zc / w), 0.5 * np.pi
-
-    def nodes_weights(k: int) -> tuple[np.ndarray, np.ndarray]:
-        x, wt = gauss_legendre(k)
-        u = 0.5 * (u1 - u0) * x + 0.5 * (u1 + u0)
-        return zc + w * np.tan(u), wt / wt.sum()
-
-    z, q = nodes_weights(n)
-    zf, qf = nodes_weights(n_fine)
-    return ProbeQuadrature(tuple(z), tuple(q), tuple(zf), tuple(qf))
+    return lorentzian_quadrature(float(zc), float(w), n, n_fine)
 
 
 def probe_grid(
@@ -342,6 +360,12 @@ class CWLidar:
     homodyne: bool = True
 
     @property
+    def first_channel_velocity(self) -> float:
+        """Velocity of channel 0 (m s-1): 0 for a homodyne system (|V_r|), and for a
+        heterodyne one (signed V_r) the channels span -M_D dV / 2 ... +M_D dV / 2."""
+        return 0.0 if self.homodyne else -0.5 * self.n_channels * self.velocity_resolution_m_s
+
+    @property
     def z_r_coefficient(self) -> float:
         """c of z_R = c R^2 (1/m)."""
         return 1.0 / focal_parameter(self.wavelength_m, self.beam_radius_m)
@@ -427,9 +451,14 @@ def simulate_cw_height(
             q,
             resolution=lidar.velocity_resolution_m_s,
             n_channels=lidar.n_channels,
+            first_channel_velocity=lidar.first_channel_velocity,
             homodyne=lidar.homodyne,
         )
-        velocity[scan] = centroid_velocity(spec, resolution=lidar.velocity_resolution_m_s).velocity
+        velocity[scan] = centroid_velocity(
+            spec,
+            resolution=lidar.velocity_resolution_m_s,
+            first_channel_velocity=lidar.first_channel_velocity,
+        ).velocity
     return velocity, vd
 
 
