@@ -9,6 +9,7 @@ the relative RMS error of epsilon, epsilon_fit, sigma_V^2 and L_V, and the mean 
     python benchmarks/bench_cw_epsilon_bias.py --blocks 12            # heterodyne
     python benchmarks/bench_cw_epsilon_bias.py --blocks 12 --homodyne
     python benchmarks/bench_cw_epsilon_bias.py --blocks 12 --exact   # true V_D
+    python benchmarks/bench_cw_epsilon_bias.py --blocks 12 --no-noise  # cw fit, no sigma_e
 
 ``--exact`` replaces the centroid estimates by the simulator's exact probe-averaged
 V_D (signed, heterodyne processing): what remains is the retrieval's own error; the
@@ -40,6 +41,10 @@ def main() -> None:
     parser.add_argument("--homodyne", action="store_true")
     parser.add_argument("--seed", type=int, default=100)
     parser.add_argument("--exact", action="store_true", help="use the exact V_D")
+    parser.add_argument("--no-noise", action="store_true", help="cw fit without the noise term")
+    parser.add_argument(
+        "--max-lag-deg", type=float, default=None, help="largest lag (deg); default: config"
+    )
     args = parser.parse_args()
     cfg = load_config("seed000")
     sim = cfg.simulation
@@ -85,7 +90,10 @@ def main() -> None:
                 reference_direction_deg=sim.wind_direction_deg,
             )
             sf = structure.azimuth_structure_function(
-                scr, wind, n_scans=cfg.turbulence.n_scans, max_lag_deg=cfg.turbulence.max_lag_deg
+                scr,
+                wind,
+                n_scans=cfg.turbulence.n_scans,
+                max_lag_deg=args.max_lag_deg or cfg.turbulence.max_lag_deg,
             )
             turb = epsilon.estimate_epsilon(
                 sf,
@@ -93,6 +101,7 @@ def main() -> None:
                 lag_number=cfg.turbulence.lag_number,
                 model=cfg.turbulence.model,
                 table_options={"cache_dir": cache},
+                fit_noise=not args.no_noise,
             )
             for k in NAMES:
                 out[k].append(turb[k].values[0])

@@ -55,6 +55,7 @@ from cwproc.sim.turbulence import (
     simulate_scan_velocities,
     wind_vector,
 )
+from cwproc.stages.epsilon import fit_correlation_shape
 
 #: outer scales (m) of the fit grid; log-spaced, 6 % apart
 FIT_SCALES = np.geomspace(5.0, 5.0e4, 160)
@@ -197,9 +198,9 @@ def fit_structure_function(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares fit of D_L(l) = sigma^2 d(l; L) over a grid of outer scales.
 
-    For each L of the grid the best sigma^2 is linear, sigma^2 = (D.d)/(d.d), and the
-    residual |D|^2 - (D.d)^2/(d.d); the L with the smallest residual is refined by a
-    parabola in log L. Model: Banakh et al. (1999), eqs. 15-17 (see :func:`height_model`).
+    :func:`cwproc.stages.epsilon.fit_correlation_shape` without the noise term (the
+    study uses the exact V_D). Model: Banakh et al. (1999), eqs. 15-17 (see
+    :func:`height_model`).
 
     Parameters
     ----------
@@ -215,25 +216,8 @@ def fit_structure_function(
     (sigma2, outer_scale) : numpy.ndarray
         Fitted sigma_V^2 (m2 s-2) and L_V (m), shape (...).
     """
-    dd = np.sum(lag_model * lag_model, axis=-1)  # (K,)
-    proj = structure @ lag_model.T  # (..., K)
-    resid = np.sum(structure * structure, axis=-1)[..., None] - proj**2 / dd
-    k = np.argmin(resid, axis=-1)
-    kk = np.clip(k, 1, scales.size - 2)
-    r0, r1, r2 = (np.take_along_axis(resid, (kk + d)[..., None], -1)[..., 0] for d in (-1, 0, 1))
-    denom = r0 - 2.0 * r1 + r2
-    shift = np.where(denom > 0, 0.5 * (r0 - r2) / np.where(denom > 0, denom, 1.0), 0.0)
-    shift = np.where(k == kk, np.clip(shift, -1.0, 1.0), 0.0)
-    log_s = np.log(scales)
-    step = log_s[1] - log_s[0]
-    log_l = log_s[k] + shift * step
-    # interpolate the model at the refined L
-    pos = (log_l - log_s[0]) / step
-    i0 = np.clip(np.floor(pos).astype(int), 0, scales.size - 2)
-    frac = (pos - i0)[..., None]
-    model = lag_model[i0] * (1.0 - frac) + lag_model[i0 + 1] * frac
-    sigma2 = np.sum(structure * model, axis=-1) / np.sum(model * model, axis=-1)
-    return sigma2, np.exp(log_l)
+    sigma2, outer_scale, _ = fit_correlation_shape(structure, lag_model, scales)
+    return sigma2, outer_scale
 
 
 def variance_factor(outer_scale: np.ndarray, n_scans: np.ndarray, model: HeightModel) -> np.ndarray:

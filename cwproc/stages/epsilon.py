@@ -54,6 +54,20 @@ ones by about 1 % or less); everywhere else the finite-outer-scale A-functions a
 When even the smallest tabulated ``L_V`` gives too much variance, the lags are beyond
 the inertial range (flag 2).
 
+cw probes (finite-outer-scale models, ``mu <= CW_EXACT_MU_MAX``): a focused cw probe is
+hundreds of metres long at a few hundred metres height, so the structure function's
+shape over the lags depends on ``L_V`` and fixes it; the variance condition above, fed
+by the sampling error of the variance of ten scans, doubled the scatter of eps there.
+These cells use the exact model of Banakh et al. (1999), eqs. 15-17 without transport
+(:class:`ExactLagModel`: the correlation tensor integrated along both beams, the
+transverse spacing varying along the probe): ``D_L(l) = 2 sigma_V^2 [b_0(L_V) -
+b_l(L_V)] + 2 sigma_e^2`` fitted by least squares over a grid of ``L_V``
+(:func:`fit_correlation_shape`), ``eps = c sigma_V^3 / L_V`` (Banakh et al. (1999), eq.
+19) from the fitted pair, as in seed 000's error study. The variance of ``V'_L`` minus
+``sigma_e^2`` then gives ``sigma_V^2`` through ``b_0`` and the share the N-scan VAD fit
+removes, ``tr(H B_D)/(N M)`` (:func:`hat_trace_per_ray`), and ``L_V = c sigma_V^3 /
+eps``. The A-functions at that ``L_V`` still give ``epsilon_method1`` and the ratio.
+
 Flags (``turbulence_flag``, bits combine; a flagged value is NaN):
 
 - 1: too few pairs (``n_pairs`` < ``min_pairs`` at lag 1 or lag ``l``): no ``eps``;
@@ -85,6 +99,7 @@ sampling geometry and regime of each cell and are auxiliary coordinates
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -282,36 +297,40 @@ def passed_variance(
     return out
 
 
-def probe_quadrature(probe: Any, range_m: float, n: int = 40) -> Any:
+def probe_quadrature(probe: Any, range_m: float, n: int = 40, n_fine: int = 300) -> Any:
     """Nodes and weights of the probe's weighting along the beam (for B_D across the scan).
 
     cw probe: the Lorentzian ``Q_s`` of Banakh et al. (1999) (centre ``probe.centre_range``,
     half width ``probe.rayleigh_half_width``), cut at the lidar, by Gauss-Legendre nodes
-    equal in weight (``z = z_c + w tan(u)``). Pulsed probe (a few tens of metres, small
-    against the scan circle): one node at the gate centre.
+    equal in weight (:func:`cwproc.sim.cw.lorentzian_quadrature`), with a fine quadrature
+    of ``n_fine`` nodes for the same-beam variance. Pulsed probe (a few tens of metres,
+    small against the scan circle): one node at the gate centre.
 
     Parameters
     ----------
     probe : PulsedProbe or CWProbe
     range_m : float
         Distance of the probe from the lidar (m).
-    n : int
-        Nodes of the cw quadrature.
+    n, n_fine : int
+        Nodes of the cw quadrature and of its fine (zero-lag) version.
 
     Returns
     -------
     cwproc.sim.turbulence.ProbeQuadrature
     """
+    from cwproc.sim.cw import lorentzian_quadrature
     from cwproc.sim.turbulence import ProbeQuadrature
 
-    if not hasattr(probe, "rayleigh_half_width"):
+    if not is_cw_probe(probe):
         return ProbeQuadrature((float(range_m),), (1.0,))
     zc = float(probe.centre_range(range_m))
     w = float(probe.rayleigh_half_width(range_m))
-    x, wt = np.polynomial.legendre.leggauss(n)
-    u0, u1 = math.atan(-zc / w), 0.5 * math.pi
-    u = 0.5 * (u1 - u0) * x + 0.5 * (u1 + u0)
-    return ProbeQuadrature(tuple(zc + w * np.tan(u)), tuple(wt / wt.sum()))
+    return lorentzian_quadrature(zc, w, n, n_fine)
+
+
+def is_cw_probe(probe: Any) -> bool:
+    """True for a focused cw probe (Lorentzian weighting with a Rayleigh half width)."""
+    return hasattr(probe, "rayleigh_half_width")
 
 
 def vad_removed_variance(
@@ -334,10 +353,11 @@ def vad_removed_variance(
     ``B_D(0)`` is ``passed``, the other ``B_D(theta_k)`` the correlation of the model
     (:func:`cwproc.sim.turbulence.circulant_correlation_row`) with the probe's weighting
     (:func:`probe_quadrature`). On the seed-000 cw lidar with N = 10 it is 4-5 % of the
-    passed variance. :func:`estimate_epsilon` does not subtract it from the model's
-    variance: on the seed-000 cw simulation (true V_D, 24 blocks) subtracting it raised
-    L_V by 5-9 % and lowered eps by 2-4 % (see the benchmark bench_cw_epsilon_bias.py).
-    Wind transport (mu = U/V_s) is neglected here (mu <= 0.09 for that lidar).
+    passed variance. :func:`estimate_epsilon` takes the same share from
+    :class:`ExactLagModel` for cw cells; this function gives it per eps^(2/3) on the
+    spectral route (``passed`` from :func:`passed_variance`) and checks the two against
+    the simulator. Wind transport (mu = U/V_s) is neglected here (mu <= 0.09 for that
+    lidar).
 
     Parameters
     ----------
@@ -363,15 +383,228 @@ def vad_removed_variance(
 
     geometry = ScanGeometry(float(elevation_deg), int(n_azimuths), 1.0)
     lags = np.arange(1, int(n_azimuths))
-    weight = 1.0 + 2.0 * np.cos(np.deg2rad(geometry.azimuth_deg[lags]))
     full = np.array([spectra.variance_per_eps23(model, x) for x in outer_scales_m])
     out = np.empty((np.size(range_m), np.size(outer_scales_m)))
     for i, r in enumerate(np.atleast_1d(range_m)):  # one quadrature per distinct range
         rows = circulant_correlation_row(
             geometry, probe_quadrature(probe, float(r)), outer_scales_m, model, lags=lags
         )
-        out[i] = (3.0 * passed[i] + full * (rows @ weight)) / n_azimuths
+        row = np.concatenate([np.asarray(passed[i])[:, None], full[:, None] * rows], axis=1)
+        out[i] = hat_trace_per_ray(row, int(n_azimuths))
     return out
+
+
+def hat_trace_per_ray(row: np.ndarray, n_azimuths: int) -> np.ndarray:
+    """``tr(H B_D)/M`` of the sine (VAD) fit of one full scan of M rays, from B_D's first row.
+
+    For a circulant ``B_D`` (full scan, no transport) the hat matrix of the fit on
+    ``1, cos theta, sin theta`` projects on the Fourier modes 0 and +-1, so
+    ``tr(H B_D)/M = mean_k B_D(theta_k) (1 + 2 cos theta_k)``.
+
+    Parameters
+    ----------
+    row : numpy.ndarray
+        ``B_D(theta_0, theta_k)`` for k = 0..M-1 on the last axis.
+    n_azimuths : int
+        M.
+    """
+    theta = 2.0 * np.pi * np.arange(n_azimuths) / n_azimuths
+    return np.asarray(row) @ (1.0 + 2.0 * np.cos(theta)) / n_azimuths
+
+
+@dataclass(frozen=True)
+class ExactLagModel:
+    """Azimuth structure function of a cw probe from the exact B_D, per unit sigma_V^2.
+
+    Banakh et al. (1999), eqs. 15-17 without the transport term: ``D_L(l dtheta) =
+    2 sigma_V^2 [b_0(L) - b_l(L)]`` with ``b_k`` the first row of ``B_D/sigma_V^2`` for the
+    probe's Lorentzian weighting, integrated along both beams (the transverse spacing
+    varies along a long probe, which a single spacing at the probe centre misses by
+    1.4-3.8 % of A_2 for a 270 m probe).
+
+    Attributes
+    ----------
+    scales : numpy.ndarray
+        L_V grid (m), (K,), log-spaced.
+    structure : numpy.ndarray
+        ``2 (b_0 - b_l)``, l = 1..n_lags, (K, n_lags).
+    passed : numpy.ndarray
+        ``b_0``: the share of sigma_V^2 the probe passes, (K,).
+    removed : numpy.ndarray
+        ``tr(H B_D) / (M sigma_V^2)`` (:func:`hat_trace_per_ray`): what the sine fit of one
+        scan removes, (K,); the N-scan fit removes this divided by N.
+    """
+
+    scales: np.ndarray
+    structure: np.ndarray
+    passed: np.ndarray
+    removed: np.ndarray
+
+    def interpolate(self, name: str, outer_scale_m: np.ndarray) -> np.ndarray:
+        """``passed`` or ``removed`` at ``outer_scale_m``, linear in ``log L`` (clipped)."""
+        x = np.log(np.clip(outer_scale_m, self.scales[0], self.scales[-1]))
+        return np.interp(x, np.log(self.scales), getattr(self, name))
+
+
+#: outer scales (m) of the exact cw model, log-spaced 8 % apart
+EXACT_SCALES = np.geomspace(5.0, 5.0e4, 121)
+#: mu = U/V_s up to which cw cells use :class:`ExactLagModel` (transport neglected;
+#: cw lidars scan fast: mu <= 0.09 for the seed-000 lidar, about 0.01 for a ZephIR)
+CW_EXACT_MU_MAX = 0.1
+
+
+def exact_lag_model(
+    probe: Any,
+    range_m: float,
+    elevation_deg: float,
+    azimuth_step_deg: float,
+    n_lags: int,
+    model: str,
+    scales: np.ndarray = EXACT_SCALES,
+) -> ExactLagModel:
+    """:class:`ExactLagModel` of a cw probe at one range (Banakh et al. (1999), eqs. 15-17).
+
+    Parameters
+    ----------
+    probe : CWProbe
+    range_m : float
+        Focus distance (m).
+    elevation_deg, azimuth_step_deg : float
+        Cone elevation and azimuth spacing of the rays (deg); the scan is taken as a
+        full circle of ``round(360 / azimuth_step_deg)`` rays.
+    n_lags : int
+        Lags l = 1..n_lags of the structure function.
+    model : {"von_karman", "exponential"}
+    scales : numpy.ndarray
+        L_V grid (m).
+    """
+    from cwproc.sim.turbulence import ScanGeometry, circulant_correlation_row
+
+    n_az = round(360.0 / float(azimuth_step_deg))
+    geometry = ScanGeometry(float(elevation_deg), n_az, 1.0)
+    quad = probe_quadrature(probe, float(range_m))
+    rows = circulant_correlation_row(geometry, quad, scales, model, lags=np.arange(n_lags + 1))
+    # the removed share varies slowly with L: every 4th scale, interpolated in log L
+    coarse = scales[::4] if scales.size > 8 else scales
+    full = circulant_correlation_row(geometry, quad, coarse, model)
+    removed = np.interp(np.log(scales), np.log(coarse), hat_trace_per_ray(full, n_az))
+    return ExactLagModel(
+        scales=np.asarray(scales, dtype=float),
+        structure=2.0 * (rows[:, :1] - rows[:, 1:]),
+        passed=rows[:, 0],
+        removed=removed,
+    )
+
+
+def fit_correlation_shape(
+    structure: np.ndarray,
+    lag_model: np.ndarray,
+    scales: np.ndarray,
+    valid: np.ndarray | None = None,
+    *,
+    noise: bool = False,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Least squares of ``D_L(l) = sigma^2 d(l; L) [+ 2 sigma_e^2]`` over a grid of L.
+
+    For each L of the grid the best sigma^2 (and noise term) is linear; the L of the
+    smallest residual is refined by a parabola in ``log L`` and the linear part
+    refitted with the model interpolated there. The shape of the model fixes L and
+    the level sigma^2 (Banakh et al. (1999), eqs. 15-17, 19). With ``noise`` the
+    intercept ``2 sigma_e^2`` of white estimation noise (Smalikho (2020), eq. 4) is
+    fitted too where at least three lags are valid; where it comes out negative the
+    fit without it is kept.
+
+    Parameters
+    ----------
+    structure : numpy.ndarray
+        Measured D_L (m2 s-2), shape (..., n_lags).
+    lag_model : numpy.ndarray
+        ``d(l; L)`` on ``scales``, shape (K, n_lags) or (..., K, n_lags).
+    scales : numpy.ndarray
+        The L grid (m), (K,), log-spaced.
+    valid : numpy.ndarray of bool, optional
+        Lags to use, shape of ``structure``.
+    noise : bool
+        Fit the intercept ``2 sigma_e^2`` as well.
+
+    Returns
+    -------
+    (sigma2, outer_scale, noise_variance) : numpy.ndarray
+        sigma_V^2 (m2 s-2), L_V (m) and sigma_e^2 (m2 s-2, 0 without the intercept),
+        shape (...); NaN where fewer than two lags are valid or the fit has no
+        positive level.
+    """
+    d = np.asarray(structure, dtype=float)
+    use = np.isfinite(d) if valid is None else (np.asarray(valid, bool) & np.isfinite(d))
+    d = np.where(use, d, 0.0)
+    lm = np.where(use[..., None, :], lag_model, 0.0)
+    lm = np.broadcast_to(lm, d.shape[:-1] + lm.shape[-2:])
+    n = use.sum(axis=-1)
+    sigma2, log_l, _ = _shape_fit(d, lm, use, n, scales, intercept=False)
+    nv = np.zeros_like(sigma2)
+    if noise:
+        s2_n, log_n, c_n = _shape_fit(d, lm, use, n, scales, intercept=True)
+        take = (n >= 3) & (c_n > 0) & (s2_n > 0)
+        sigma2 = np.where(take, s2_n, sigma2)
+        log_l = np.where(take, log_n, log_l)
+        nv = np.where(take, 0.5 * c_n, 0.0)
+    good = (n >= 2) & (sigma2 > 0) & np.isfinite(sigma2)
+    return (
+        np.where(good, sigma2, np.nan),
+        np.where(good, np.exp(log_l), np.nan),
+        np.where(good, nv, np.nan),
+    )
+
+
+def _shape_fit(
+    d: np.ndarray,
+    lm: np.ndarray,
+    use: np.ndarray,
+    n: np.ndarray,
+    scales: np.ndarray,
+    intercept: bool,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Grid search of :func:`fit_correlation_shape`: (slope, log L, intercept)."""
+    nn = np.maximum(n, 1)[..., None]
+    if intercept:  # centre both sides over the valid lags
+        dm = np.sum(d, axis=-1, keepdims=True) / nn
+        mm = np.sum(lm, axis=-1) / nn  # (..., K)
+        dc = np.where(use, d - dm, 0.0)
+        lc = np.where(use[..., None, :], lm - mm[..., None], 0.0)
+    else:
+        dc, lc = d, lm
+    dd = np.sum(lc * lc, axis=-1)  # (..., K)
+    proj = np.einsum("...kl,...l->...k", lc, dc)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        resid = np.sum(dc * dc, axis=-1)[..., None] - proj**2 / dd
+    resid = np.where(np.isfinite(resid), resid, np.inf)
+    k = np.argmin(resid, axis=-1)
+    kk = np.clip(k, 1, scales.size - 2)
+    r0, r1, r2 = (np.take_along_axis(resid, (kk + j)[..., None], -1)[..., 0] for j in (-1, 0, 1))
+    with np.errstate(invalid="ignore"):
+        denom = r0 - 2.0 * r1 + r2
+        ok = (denom > 0) & np.isfinite(denom)
+        shift = np.where(ok, 0.5 * (r0 - r2) / np.where(ok, denom, 1.0), 0.0)
+    shift = np.where(k == kk, np.clip(shift, -1.0, 1.0), 0.0)
+    log_s = np.log(scales)
+    step = log_s[1] - log_s[0]
+    log_l = log_s[k] + shift * step
+    pos = (log_l - log_s[0]) / step
+    i0 = np.clip(np.floor(pos).astype(int), 0, scales.size - 2)
+    frac = (pos - i0)[..., None]
+    m0 = np.take_along_axis(lm, i0[..., None, None], axis=-2)[..., 0, :]
+    m1 = np.take_along_axis(lm, (i0 + 1)[..., None, None], axis=-2)[..., 0, :]
+    model = np.where(use, m0 * (1.0 - frac) + m1 * frac, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        if intercept:
+            mbar = np.sum(model, axis=-1, keepdims=True) / nn
+            mc = np.where(use, model - mbar, 0.0)
+            slope = np.sum(dc * mc, axis=-1) / np.sum(mc * mc, axis=-1)
+            const = dm[..., 0] - slope * mbar[..., 0]
+        else:
+            slope = np.sum(d * model, axis=-1) / np.sum(model * model, axis=-1)
+            const = np.zeros_like(slope)
+    return slope, log_l, const
 
 
 def _interp_log_scale(grid_m: np.ndarray, values: np.ndarray, query_m: np.ndarray) -> np.ndarray:
@@ -454,6 +687,94 @@ def _tables(probe: Any, phi: float, dtheta: float, n_lags: int, model: str, opti
     return inertial, finite
 
 
+def _variance_root(
+    eps: np.ndarray, measured: np.ndarray, lm: ExactLagModel, n_scans: np.ndarray, c: float
+) -> np.ndarray:
+    """L_V at which the model's variance of V'_L equals the measured one (m), per cell.
+
+    ``(eps L_V / c)^(2/3) [b_0(L_V) - tr(H B_D)/(N M sigma_V^2)] = measured``: both factors
+    grow with L_V, so the root is found on the grid of ``lm`` and interpolated in
+    ``log L``. NaN where ``measured`` is not positive or the root lies off the grid.
+    """
+    grid = lm.scales[None, :]
+    kept = lm.passed[None, :] - lm.removed[None, :] / np.asarray(n_scans, float)[:, None]
+    with np.errstate(invalid="ignore"):
+        model = np.log((np.asarray(eps)[:, None] * grid / c) ** (2 / 3) * kept)
+        target = np.log(np.asarray(measured, float))[:, None]
+    above = model >= target
+    j = np.argmax(above, axis=1)  # first grid node at or above the measured variance
+    ok = above.any(axis=1) & (j > 0) & np.isfinite(target[:, 0])
+    j = np.clip(j, 1, grid.size - 1)
+    rows = np.arange(j.size)
+    m0, m1 = model[rows, j - 1], model[rows, j]
+    frac = np.clip((target[:, 0] - m0) / np.where(m1 > m0, m1 - m0, 1.0), 0.0, 1.0)
+    log_l = np.log(lm.scales[j - 1]) + frac * np.log(lm.scales[1] / lm.scales[0])
+    return np.where(ok, np.exp(log_l), np.nan)
+
+
+def _fit_exact_cells(
+    probe: Any,
+    d: np.ndarray,
+    valid: np.ndarray,
+    var_raw: np.ndarray,
+    n_scans: np.ndarray,
+    cells: np.ndarray,
+    range_m: np.ndarray,
+    phi: np.ndarray,
+    dtheta: np.ndarray,
+    model: str,
+    c_model: float,
+    fit_noise: bool,
+) -> dict[str, np.ndarray]:
+    """eps, sigma_e, sigma_V^2, L_V of cw cells from the exact model (:class:`ExactLagModel`).
+
+    Shape fit (:func:`fit_correlation_shape`) gives ``sigma_fit^2`` and ``L_fit``, so
+    ``eps = c sigma_fit^3 / L_fit`` (Banakh et al. (1999), eq. 19). sigma_e is the
+    intercept of the least squares of ``D = s d(l; L_fit) + 2 sigma_e^2``. The variance
+    of ``V'_L`` minus sigma_e^2 is ``sigma_V^2 (b_0 - tr(H B_D)/(N M sigma_V^2))`` with
+    ``sigma_V^2 = (eps L_V / c)^(2/3)``, solved for L_V (:func:`_variance_root`).
+    """
+    n_t, n_h, n_l = d.shape
+    out = {
+        k: np.full((n_t, n_h), np.nan)
+        for k in ("epsilon", "noise_std", "velocity_variance", "integral_scale")
+    }
+    out["below_range"] = np.zeros((n_t, n_h), dtype=bool)
+    out["structure_function_model"] = np.full(d.shape, np.nan)
+    phi_b = np.broadcast_to(np.round(phi, 3)[:, None], (n_t, n_h))
+    dth_b = np.broadcast_to(np.round(dtheta, 4)[:, None], (n_t, n_h))
+    keys = np.stack([np.round(range_m, 3), phi_b, dth_b], axis=-1)
+    n_eff = np.where(np.isfinite(n_scans) & (n_scans >= 1), n_scans, 1.0)
+    for key in np.unique(keys[cells], axis=0):  # one exact model per configuration
+        ti, hi_ = np.nonzero(cells & np.all(keys == key, axis=-1))
+        lm = exact_lag_model(probe, key[0], key[1], key[2], n_l, model)
+        dc, vc = d[ti, hi_], valid[ti, hi_]
+        s2, l_fit, nv = fit_correlation_shape(dc, lm.structure, lm.scales, vc, noise=fit_noise)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            eps = c_model * s2**1.5 / l_fit
+        pos = np.interp(
+            np.log(np.nan_to_num(l_fit, nan=lm.scales[0])),
+            np.log(lm.scales),
+            np.arange(lm.scales.size),
+        )
+        shape = np.stack(
+            [np.interp(pos, np.arange(lm.scales.size), lm.structure[:, j]) for j in range(n_l)],
+            axis=-1,
+        )
+        noise = np.sqrt(nv)
+        measured = var_raw[ti, hi_] - noise**2
+        scale = _variance_root(eps, measured, lm, n_eff[ti], c_model)
+        with np.errstate(invalid="ignore"):
+            sig2 = (eps * scale / c_model) ** (2 / 3)
+        out["epsilon"][ti, hi_] = eps
+        out["noise_std"][ti, hi_] = noise
+        out["velocity_variance"][ti, hi_] = sig2
+        out["integral_scale"][ti, hi_] = scale
+        out["below_range"][ti, hi_] = l_fit <= lm.scales[0] * (1.0 + 1e-9)
+        out["structure_function_model"][ti, hi_] = s2[:, None] * shape + 2.0 * nv[:, None]
+    return out
+
+
 def estimate_epsilon(
     sf: xr.Dataset,
     *,
@@ -463,6 +784,7 @@ def estimate_epsilon(
     min_pairs: int = 100,
     n_outer_scales: int = 7,
     table_options: dict | None = None,
+    fit_noise: bool = True,
 ) -> xr.Dataset:
     """Dissipation rate (methods 1 and 2), noise, variance and integral scale.
 
@@ -488,6 +810,9 @@ def estimate_epsilon(
     table_options : dict, optional
         Keyword arguments of :func:`cwproc.physics.atable.get_a_table` (``cache_dir``,
         ``height_range_m``, ``mu_max``, ``outer_scale_range_m``).
+    fit_noise : bool
+        Fit the noise term ``2 sigma_e^2`` in the exact cw fit (:func:`fit_correlation_shape`);
+        without it ``sigma_e`` is 0 there (noise-free data, e.g. the exact V_D).
 
     Returns
     -------
@@ -579,11 +904,16 @@ def estimate_epsilon(
         l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / e2, np.nan)
     too_small = np.zeros((n_t, n_h), dtype=bool)
     finite_used = np.zeros((n_t, n_h), dtype=bool)
+    # cw probes scanning fast (mu small): the exact model of B_D (see the module doc)
+    exact = np.zeros((n_t, n_h), dtype=bool)
+    if model != "inertial" and is_cw_probe(probe) and n_l >= 2:
+        with np.errstate(invalid="ignore"):
+            exact = (mu <= CW_EXACT_MU_MAX) & np.isfinite(phi + dtheta)[:, None]
     passed_fraction = np.full((n_t, n_h), np.nan)
     if model != "inertial" and groups:
         probe_len = np.broadcast_to(np.asarray(probe.length_scale_m(range_th), float), (n_t, n_h))
         longest = np.maximum(n_l * dy * (1 + mu_eval), probe_len)
-        need = np.isfinite(l_v) & (longest > INERTIAL_FRACTION * l_v)
+        need = np.isfinite(l_v) & (longest > INERTIAL_FRACTION * l_v) & ~exact
         lo, hi = options.get("outer_scale_range_m", (10.0, 3000.0))
         nodes = np.geomspace(lo, hi, n_outer_scales)
         # probe-passed variance per eps^(2/3) of the model, per distinct (dy, range) cell
@@ -688,6 +1018,43 @@ def estimate_epsilon(
         with np.errstate(invalid="ignore", divide="ignore"):
             l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / e2, np.nan)
 
+    sf_model_exact = np.full(d.shape, np.nan)
+    if np.any(exact):
+        fit = _fit_exact_cells(
+            probe,
+            d,
+            valid_lag,
+            var_raw,
+            scans,
+            exact,
+            range_th,
+            phi,
+            dtheta,
+            model,
+            c_model,
+            fit_noise,
+        )
+        lo, hi = options.get("outer_scale_range_m", (10.0, 3000.0))
+        for rows, (_, table) in groups.values():  # A-functions at L_V: method 1, the ratio
+            sel = exact & rows[:, None] & np.isfinite(fit["integral_scale"])
+            ti, hi_ = np.nonzero(sel)
+            g1, g2 = _evaluate(
+                table,
+                lags[None, :],
+                height[hi_][:, None],
+                mu_eval[ti, hi_][:, None],
+                np.clip(fit["integral_scale"][ti, hi_], lo, hi)[:, None],
+            )
+            a1[ti, hi_], a2[ti, hi_] = g1, g2
+        e1, _, _, _ = solve(a1, a2, d, valid_lag)
+        e2 = np.where(exact, fit["epsilon"], e2)
+        efit = np.where(exact, fit["epsilon"], efit)
+        noise = np.where(exact, fit["noise_std"], noise)
+        sigma2 = np.where(exact, fit["velocity_variance"], sigma2)
+        l_v = np.where(exact, fit["integral_scale"], l_v)
+        too_small |= exact & fit["below_range"]
+        sf_model_exact = fit["structure_function_model"]
+
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = ((a2[..., lag_used - 1] - a2[..., 0]) / (a1[..., lag_used - 1] - a1[..., 0])) ** 1.5
 
@@ -713,6 +1080,9 @@ def estimate_epsilon(
     out_sigma2 = np.where(bad | ~(sigma2 > 0), np.nan, sigma2)
     out_scale = np.where(bad, np.nan, l_v)
     sf_model = out_fit[..., None] ** (2 / 3) * a2 + 2.0 * out_noise[..., None] ** 2
+    sf_model = np.where(
+        exact[..., None] & np.isfinite(out_fit)[..., None], sf_model_exact, sf_model
+    )
 
     dims = ("time", "height")
     out = xr.Dataset(
@@ -746,10 +1116,13 @@ def estimate_epsilon(
         "probe": repr(probe),
     }
     out["integral_scale"].attrs["finite_outer_scale_cells"] = int(finite_used.sum())
+    out["integral_scale"].attrs["exact_cw_model_cells"] = int(exact.sum())
     out["epsilon"].attrs.update(
         common,
         method="Smalikho (2020), eq. 5 with A_2 of eq. 15 (method 2); finite-outer-scale "
-        f"A-functions where a length exceeds {INERTIAL_FRACTION:g} L_V",
+        f"A-functions where a length exceeds {INERTIAL_FRACTION:g} L_V; cw cells with "
+        f"mu <= {CW_EXACT_MU_MAX:g}: least squares of D_L with the exact B_D of Banakh et "
+        "al. (1999), eqs. 15-17, eps = c sigma_V^3 / L_V (eq. 19)",
         references=SMALIKHO_2020 + ", eqs. 4-5, 15-20",
     )
     out["epsilon_method1"].attrs.update(
@@ -769,8 +1142,10 @@ def estimate_epsilon(
         method="intercept 2 sigma_e^2 of the least-squares fit, Smalikho (2020), eq. 4"
     )
     out["velocity_variance"].attrs.update(
-        method="variance of V'_L minus sigma_e^2 plus the volume-averaging loss "
-        "eps^(2/3) int int Phi (1 - H_par H_perp), Smalikho (2020), eqs. 18-20"
+        method="variance of V'_L minus sigma_e^2 divided by the probe-passed share of "
+        "sigma_V^2 (Smalikho (2020), eqs. 16-20; inertial form: plus the averaging loss "
+        "eps^(2/3) int int Phi (1 - H_par H_perp)); cw cells: the passed share b_0 less "
+        "the share the N-scan VAD fit removes, from the exact B_D"
     )
     out["integral_scale"].attrs.update(
         method=f"L_V = {c_model:.4g} sigma_V^3 / eps",
