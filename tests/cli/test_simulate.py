@@ -142,7 +142,8 @@ def test_retrieve_on_the_sample_data_recovers_the_truth(tmp_path):
 
 @pytest.fixture(scope="module")
 def cw_products(tmp_path_factory):
-    """10 scans of the seed-000 cw lidar at 50 and 100 m, retrieved with preset seed000."""
+    """30 scans (3 blocks of 10) of the seed-000 cw lidar at its six heights, homodyne,
+    written as scan NetCDF files and retrieved with the preset seed000."""
     from cwproc.config import load_config
     from cwproc.pipeline import retrieve_files
     from cwproc.sim.cw import write_cw_series
@@ -156,12 +157,12 @@ def cw_products(tmp_path_factory):
         base / "truth" / "truth.json",
         np.random.default_rng(8),
         lidar_from_config(sim, 10.6e-6, 0.075),
-        heights_m=np.array(sim.heights_m[:2]),
-        wind_speed=np.array(sim.wind_speed_m_s[:2]),
+        heights_m=np.array(sim.heights_m),
+        wind_speed=np.array(sim.wind_speed_m_s),
         wind_direction_deg=sim.wind_direction_deg,
-        sigma2=np.array(sim.sigma_v_m_s[:2]) ** 2,
-        outer_scale_m=np.array(sim.outer_scale_m[:2]),
-        n_scans=10,
+        sigma2=np.array(sim.sigma_v_m_s) ** 2,
+        outer_scale_m=np.array(sim.outer_scale_m),
+        n_scans=30,
         start=np.datetime64("2024-01-01T00:00:00"),
     )
     report = retrieve_files(written[:-1], base / "out", cfg)
@@ -170,18 +171,34 @@ def cw_products(tmp_path_factory):
     return base / "out", truth
 
 
+#: relative rms error of eps from one block of N = 10 simulated homodyne cw scans, the
+#: largest over the six heights (python benchmarks/bench_cw_epsilon_bias.py --blocks 36
+#: --homodyne); the Monte-Carlo study's 10-12 % is for the exact V_D, the centroid
+#: estimates of the simulated spectra add to it
+CW_BLOCK_ERROR = 0.25
+
+
 @pytest.mark.slow
 def test_cw_simulation_feeds_retrieve_and_recovers_wind_and_epsilon(cw_products):
+    """Simulated cw files read back by ``retrieve``: wind and eps at all six heights.
+
+    Three blocks per height (18 estimates): each within 3.5 block errors of the truth,
+    the mean of the three blocks at each height within 3 errors of that mean, and the
+    mean over all 18 within 3 errors of the mean (unbiased).
+    """
     out, truth = cw_products
     wind = xr.open_dataset(next(out.glob("*_wind.nc")))
     speed = wind["wind_speed"].mean("time").values
     assert speed == pytest.approx(truth["wind_speed_m_s"], abs=0.6)
     direction = wind["wind_direction"].mean("time").values
-    assert direction == pytest.approx([truth["wind_direction_deg"]] * 2, abs=6.0)
+    assert direction == pytest.approx([truth["wind_direction_deg"]] * 6, abs=6.0)
     turb = xr.open_dataset(next(out.glob("*_turbulence.nc")))
-    eps = turb["epsilon"].isel(time=0).values
-    # one block of N = 10 scans: relative RMS error 10-11 % (the study); 3 sigma
-    assert eps == pytest.approx(truth["epsilon_m2_s3"], rel=0.35)
+    assert turb.sizes["time"] == 3 and turb.sizes["height"] == 6
+    ratio = turb["epsilon"].values / np.array(truth["epsilon_m2_s3"])[None, :]
+    assert np.all(np.isfinite(ratio))
+    assert np.all(np.abs(ratio - 1) < 3.5 * CW_BLOCK_ERROR), ratio
+    assert np.all(np.abs(ratio.mean(axis=0) - 1) < 3 * CW_BLOCK_ERROR / np.sqrt(3)), ratio
+    assert abs(ratio.mean() - 1) < 3 * CW_BLOCK_ERROR / np.sqrt(ratio.size), ratio
     wind.close()
     turb.close()
 
