@@ -750,8 +750,8 @@ def _fit_exact_cells(
     """eps, sigma_e, sigma_V^2, L_V of cw cells from the exact model (:class:`ExactLagModel`).
 
     Shape fit (:func:`fit_correlation_shape`) gives ``sigma_fit^2`` and ``L_fit``, so
-    ``eps = c sigma_fit^3 / L_fit`` (Banakh et al. (1999), eq. 19). sigma_e is the
-    intercept of the least squares of ``D = s d(l; L_fit) + 2 sigma_e^2``. The variance
+    ``eps = c sigma_fit^3 / L_fit`` (Banakh et al. (1999), eq. 19), and with
+    ``fit_noise`` sigma_e from the fit's intercept ``2 sigma_e^2`` (else 0). The variance
     of ``V'_L`` minus sigma_e^2 is ``sigma_V^2 (b_0 - tr(H B_D)/(N M sigma_V^2))`` with
     ``sigma_V^2 = (eps L_V / c)^(2/3)``, solved for L_V (:func:`_variance_root`).
     """
