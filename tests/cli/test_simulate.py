@@ -171,20 +171,21 @@ def cw_products(tmp_path_factory):
     return base / "out", truth
 
 
-#: relative rms error of eps from one block of N = 10 simulated homodyne cw scans, the
-#: largest over the six heights (python benchmarks/bench_cw_epsilon_bias.py --blocks 36
-#: --homodyne); the Monte-Carlo study's 10-12 % is for the exact V_D, the centroid
-#: estimates of the simulated spectra add to it
-CW_BLOCK_ERROR = 0.27
+#: relative rms error of eps from one block of N = 10 simulated homodyne cw scans at the
+#: six heights (python benchmarks/bench_cw_epsilon_bias.py --blocks 36 --homodyne); the
+#: Monte-Carlo study's 10-12 % is for the exact V_D, the centroid estimates of the
+#: simulated spectra add to it
+CW_BLOCK_ERROR = np.array([0.21, 0.18, 0.16, 0.17, 0.26, 0.27])
 
 
 @pytest.mark.slow
 def test_cw_simulation_feeds_retrieve_and_recovers_wind_and_epsilon(cw_products):
     """Simulated cw files read back by ``retrieve``: wind and eps at all six heights.
 
-    Three blocks per height (18 estimates): each within 3.5 block errors of the truth,
+    Three blocks per height (18 estimates): each within 3 block errors of the truth,
     the mean of the three blocks at each height within 3 errors of that mean, and the
-    mean over all 18 within 3 errors of the mean (unbiased).
+    mean over all 18 within 2.5 errors of the mean (unbiased; the fit of round 1 read
+    1.11-1.17 on average and would fail it).
     """
     out, truth = cw_products
     wind = xr.open_dataset(next(out.glob("*_wind.nc")))
@@ -196,9 +197,10 @@ def test_cw_simulation_feeds_retrieve_and_recovers_wind_and_epsilon(cw_products)
     assert turb.sizes["time"] == 3 and turb.sizes["height"] == 6
     ratio = turb["epsilon"].values / np.array(truth["epsilon_m2_s3"])[None, :]
     assert np.all(np.isfinite(ratio))
-    assert np.all(np.abs(ratio - 1) < 3.5 * CW_BLOCK_ERROR), ratio
+    assert np.all(np.abs(ratio - 1) < 3 * CW_BLOCK_ERROR), ratio
     assert np.all(np.abs(ratio.mean(axis=0) - 1) < 3 * CW_BLOCK_ERROR / np.sqrt(3)), ratio
-    assert abs(ratio.mean() - 1) < 3 * CW_BLOCK_ERROR / np.sqrt(ratio.size), ratio
+    pooled = np.sqrt(np.mean(CW_BLOCK_ERROR**2))
+    assert abs(ratio.mean() - 1) < 2.5 * pooled / np.sqrt(ratio.size), ratio
     wind.close()
     turb.close()
 
