@@ -24,6 +24,8 @@ import dataclasses
 import numpy as np
 import pytest
 import xarray as xr
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from cwproc.physics.transfer import CWProbe
 from cwproc.sim.cw import CWLidar, simulate_cw_scans
@@ -293,3 +295,28 @@ def test_shape_fit_recovers_level_outer_scale_and_noise_between_grid_nodes(noise
         d[None], lm.structure, lm.scales, np.array([[True, False, False]])
     )
     assert np.isnan(s2[0]) and np.isnan(big_l[0])
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    sigma2=st.floats(min_value=0.05, max_value=4.0),
+    log_scale=st.floats(min_value=np.log(30.0), max_value=np.log(3000.0)),
+    noise=st.floats(min_value=0.0, max_value=0.15),
+    height=st.sampled_from([50.0, 300.0]),
+)
+def test_exact_cw_fit_returns_eps_of_any_model_structure_function(sigma2, log_scale, noise, height):
+    """Model data of any level, outer scale and noise give back eps = c sigma^3 / L.
+
+    Within 3 %: the L grid is 8 % wide and the model is interpolated between nodes; where
+    the probe is short against L (h = 50 m, L of kilometres) only eps is determined, and
+    it must still come back.
+    """
+    probe = CWProbe(wavelength_m=10.6e-6, beam_radius_m=0.075)
+    lm = epsilon._exact_lag_model_cached(probe, 2.0 * height, 30.0, 360.0 / 140, 3, "exponential")
+    shape = np.array([np.interp(log_scale, np.log(lm.scales), c) for c in lm.structure.T])
+    d = sigma2 * shape + 2 * noise**2
+    s2, big_l, nv = epsilon.fit_correlation_shape(d[None], lm.structure, lm.scales, noise=True)
+    c = 1.331
+    truth = c * sigma2**1.5 / np.exp(log_scale)
+    assert c * s2[0] ** 1.5 / big_l[0] == pytest.approx(truth, rel=0.03)
+    assert np.sqrt(nv[0]) <= noise + 0.02 * np.sqrt(sigma2)
