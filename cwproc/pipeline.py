@@ -192,6 +192,27 @@ def probe_for(config: Config):
     return probe_from_config(config.instrument, pulse_transfer=config.turbulence.pulse_transfer)
 
 
+def probe_mismatch(scans: xr.Dataset, config: Config) -> str:
+    """Why the configured probe cannot describe these scans ('' when it can).
+
+    The A-functions and the variance correction depend on the probe volume (pulsed range
+    gate or focused cw Lorentzian, Smalikho (2020), eqs. 19-20; Banakh et al. (1999),
+    eq. 3); scans whose ``instrument_kind`` differs from ``[instrument] kind`` would get
+    an eps of the wrong instrument (a cw series read with the pulsed default config came
+    out 3-25 times too low), so no turbulence product is made for them.
+    """
+    kind = str(scans.attrs.get("instrument_kind", "")).strip().lower()
+    if kind not in ("pulsed", "cw") or kind == config.instrument.kind:
+        return ""
+    files = ", ".join(str(f) for f in np.atleast_1d(scans.attrs.get("source_files", []))[:3])
+    return (
+        f"the scans{' of ' + files if files else ''} come from a {kind} lidar "
+        f"(instrument_kind = {kind!r}) but configuration {config.source} describes a "
+        f"{config.instrument.kind} lidar; use a {kind} configuration "
+        f"(e.g. -c {'seed000' if kind == 'cw' else 'streamline'})"
+    )
+
+
 def process_scans(
     scans: xr.Dataset, config: Config, notes: list[str] | None = None
 ) -> dict[str, xr.Dataset]:
@@ -216,6 +237,11 @@ def process_scans(
     )
     products = {"wind": wind}
     if not config.turbulence.enabled or int(wind.sizes.get("time", 0)) < 1:
+        return products
+    mismatch = probe_mismatch(scans, config)
+    if mismatch:
+        if notes is not None:
+            notes.append(f"turbulence not computed: {mismatch}")
         return products
     from cwproc.stages import epsilon, structure
 

@@ -152,3 +152,40 @@ def test_sample_data_products_are_cf_and_acdd_compliant(tmp_path, compliance):
         high, acdd = compliance(product)
         assert high == [], product.name
         assert acdd >= 0.90, (product.name, acdd)
+
+
+def test_cw_scans_with_a_pulsed_config_get_wind_but_no_wrong_epsilon(tmp_path):
+    """The default (pulsed Stream Line) config on a cw series: the probe would be wrong.
+
+    A pulsed range gate instead of the focused cw Lorentzian made eps 3-25 times too low
+    at 200-500 m; the turbulence product is left out with a note naming the cause, and
+    the wind product (independent of the probe) is written.
+    """
+    from cwproc.sim.cw import CWLidar, write_cw_series
+
+    write_cw_series(
+        tmp_path / "data",
+        tmp_path / "truth.json",
+        np.random.default_rng(1),
+        CWLidar(),
+        heights_m=np.array([100.0]),
+        wind_speed=np.array([8.0]),
+        wind_direction_deg=240.0,
+        sigma2=np.array([1.0]),
+        outer_scale_m=np.array([200.0]),
+        n_scans=10,
+        start=np.datetime64("2024-01-01T00:00:00"),
+    )
+    res = CliRunner().invoke(main, ["retrieve", str(tmp_path / "data"), "-o", str(tmp_path / "o")])
+    assert res.exit_code == 0, res.output
+    assert "turbulence not computed" in res.output and "cw lidar" in res.output
+    assert "-c seed000" in res.output
+    assert [p.name.endswith("_wind.nc") for p in (tmp_path / "o").iterdir()] == [True]
+    res = CliRunner().invoke(
+        main, ["retrieve", str(tmp_path / "data"), "-c", "seed000", "-o", str(tmp_path / "c")]
+    )
+    assert res.exit_code == 0, res.output
+    assert sorted(p.name.split("_")[-1] for p in (tmp_path / "c").iterdir()) == [
+        "turbulence.nc",
+        "wind.nc",
+    ]
