@@ -201,13 +201,14 @@ def probe_mismatch(scans: xr.Dataset, config: Config) -> str:
     an eps of the wrong instrument (a cw series read with the pulsed default config came
     out 3-25 times too low), so no turbulence product is made for them.
     """
-    kind = str(scans.attrs.get("instrument_kind", "")).strip().lower()
-    if kind not in ("pulsed", "cw") or kind == config.instrument.kind:
+    declared = str(scans.attrs.get("instrument_kind", "")).strip().lower()
+    kind = {"streamline": "pulsed", "pulsed": "pulsed", "cw": "cw"}.get(declared)
+    if kind is None or kind == config.instrument.kind:
         return ""
     files = ", ".join(str(f) for f in np.atleast_1d(scans.attrs.get("source_files", []))[:3])
     return (
         f"the scans{' of ' + files if files else ''} come from a {kind} lidar "
-        f"(instrument_kind = {kind!r}) but configuration {config.source} describes a "
+        f"(instrument_kind = {declared!r}) but configuration {config.source} describes a "
         f"{config.instrument.kind} lidar; use a {kind} configuration "
         f"(e.g. -c {'seed000' if kind == 'cw' else 'streamline'})"
     )

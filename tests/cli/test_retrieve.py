@@ -189,3 +189,16 @@ def test_cw_scans_with_a_pulsed_config_get_wind_but_no_wrong_epsilon(tmp_path):
         "turbulence.nc",
         "wind.nc",
     ]
+
+
+def test_stream_line_scans_with_a_cw_config_get_no_turbulence(vad_files, tmp_path):
+    """Stream Line files (instrument_kind "streamline") are pulsed: a cw configuration is
+    refused for the turbulence product, with the preset to use."""
+    cfg = tmp_path / "cw.toml"
+    cfg.write_text('[instrument]\nkind = "cw"\nz_r_coefficient = 0.0013\n')
+    res = CliRunner().invoke(
+        main, ["retrieve", str(vad_files), "-c", str(cfg), "-o", str(tmp_path / "o")]
+    )
+    assert res.exit_code == 0, res.output
+    assert "pulsed lidar" in res.output and "-c streamline" in res.output
+    assert not list((tmp_path / "o").glob("*_turbulence.nc"))
