@@ -24,6 +24,7 @@ import tempfile
 import time
 
 import numpy as np
+import xarray as xr
 
 from cwproc.config import load_config
 from cwproc.physics.transfer import probe_from_config
@@ -42,6 +43,12 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=100)
     parser.add_argument("--exact", action="store_true", help="use the exact V_D")
     parser.add_argument("--no-noise", action="store_true", help="cw fit without the noise term")
+    parser.add_argument(
+        "--noise-window",
+        type=int,
+        default=epsilon.NOISE_WINDOW_BLOCKS,
+        help="blocks over which the cw noise is pooled (1: each block its own)",
+    )
     parser.add_argument(
         "--max-lag-deg", type=float, default=None, help="largest lag (deg); default: config"
     )
@@ -62,10 +69,10 @@ def main() -> None:
         "integral_scale": scale,
     }
     probe = probe_from_config(cfg.instrument)
-    out = {k: [] for k in NAMES}
+    blocks = []
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as cache:
-        for b in range(args.blocks):
+        for b in range(args.blocks):  # independent blocks, 10 minutes apart
             ds, exact = simulate_cw_scans(
                 np.random.default_rng(args.seed + b),
                 lidar,
@@ -75,7 +82,7 @@ def main() -> None:
                 sigma2=sigma2,
                 outer_scale_m=scale,
                 n_scans=cfg.turbulence.n_scans,
-                start=np.datetime64("2024-01-01"),
+                start=np.datetime64("2024-01-01T00:00") + b * np.timedelta64(600, "s"),
             )
             if args.exact:
                 ds = ds.assign(radial_velocity=(("ray", "range"), exact))
@@ -89,22 +96,24 @@ def main() -> None:
                 max_gap_deg=cfg.vad.max_gap_deg,
                 reference_direction_deg=sim.wind_direction_deg,
             )
-            sf = structure.azimuth_structure_function(
-                scr,
-                wind,
-                n_scans=cfg.turbulence.n_scans,
-                max_lag_deg=args.max_lag_deg or cfg.turbulence.max_lag_deg,
+            blocks.append(
+                structure.azimuth_structure_function(
+                    scr,
+                    wind,
+                    n_scans=cfg.turbulence.n_scans,
+                    max_lag_deg=args.max_lag_deg or cfg.turbulence.max_lag_deg,
+                )
             )
-            turb = epsilon.estimate_epsilon(
-                sf,
-                probe=probe,
-                lag_number=cfg.turbulence.lag_number,
-                model=cfg.turbulence.model,
-                table_options={"cache_dir": cache},
-                fit_noise=not args.no_noise,
-            )
-            for k in NAMES:
-                out[k].append(turb[k].values[0])
+        turb = epsilon.estimate_epsilon(  # all blocks at once, as retrieve does for a day
+            xr.concat(blocks, "time"),
+            probe=probe,
+            lag_number=cfg.turbulence.lag_number,
+            model=cfg.turbulence.model,
+            table_options={"cache_dir": cache},
+            fit_noise=not args.no_noise,
+            noise_window_blocks=args.noise_window,
+        )
+    out = {k: turb[k].values for k in NAMES}
     elapsed = time.perf_counter() - t0
     kind = "homodyne" if args.homodyne else "heterodyne"
     kind = "exact V_D" if args.exact else kind

@@ -100,6 +100,7 @@ from __future__ import annotations
 
 import functools
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -449,6 +450,8 @@ class ExactLagModel:
 
 #: outer scales (m) of the exact cw model, log-spaced 8 % apart
 EXACT_SCALES = np.geomspace(5.0, 5.0e4, 121)
+#: blocks over which the cw fit pools the noise variance (median), see estimate_epsilon
+NOISE_WINDOW_BLOCKS = 7
 #: mu = U/V_s up to which cw cells use :class:`ExactLagModel` (transport neglected;
 #: cw lidars scan fast: mu <= 0.09 for the seed-000 lidar, about 0.01 for a ZephIR)
 CW_EXACT_MU_MAX = 0.1
@@ -708,6 +711,30 @@ def _tables(probe: Any, phi: float, dtheta: float, n_lags: int, model: str, opti
     return inertial, finite
 
 
+def running_nanmedian(values: np.ndarray, order: np.ndarray, window: int) -> np.ndarray:
+    """Median of ``values`` over ``window`` neighbours in ``order`` (NaN skipped).
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        1-D.
+    order : numpy.ndarray
+        Position of each value in the sequence (e.g. the block index), same shape.
+    window : int
+        Neighbours per median, centred (shortened at the ends).
+    """
+    idx = np.argsort(order, kind="stable")
+    half = window // 2
+    padded = np.concatenate([np.full(half, np.nan), values[idx], np.full(half, np.nan)])
+    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN windows give NaN
+        med = np.nanmedian(windows, axis=1)
+    out = np.empty_like(med)
+    out[idx] = med
+    return out
+
+
 def _variance_root(
     eps: np.ndarray, measured: np.ndarray, lm: ExactLagModel, n_scans: np.ndarray, c: float
 ) -> np.ndarray:
@@ -746,6 +773,7 @@ def _fit_exact_cells(
     model: str,
     c_model: float,
     fit_noise: bool,
+    noise_window: int,
 ) -> dict[str, np.ndarray]:
     """eps, sigma_e, sigma_V^2, L_V of cw cells from the exact model (:class:`ExactLagModel`).
 
@@ -773,6 +801,15 @@ def _fit_exact_cells(
         )
         dc, vc = d[ti, hi_], valid[ti, hi_]
         s2, l_fit, nv = fit_correlation_shape(dc, lm.structure, lm.scales, vc, noise=fit_noise)
+        if fit_noise and noise_window > 1 and ti.size > 1:
+            # the noise of neighbouring blocks, pooled: 2 parameters per block, not 3
+            pooled = running_nanmedian(nv, ti, noise_window)
+            s2_p, l_p, _ = fit_correlation_shape(
+                dc - 2.0 * pooled[:, None], lm.structure, lm.scales, vc
+            )
+            ok = np.isfinite(s2_p) & np.isfinite(pooled)
+            s2, l_fit = np.where(ok, s2_p, s2), np.where(ok, l_p, l_fit)
+            nv = np.where(ok, pooled, nv)
         with np.errstate(invalid="ignore", divide="ignore"):
             eps = c_model * s2**1.5 / l_fit
         pos = np.interp(
@@ -808,6 +845,7 @@ def estimate_epsilon(
     n_outer_scales: int = 7,
     table_options: dict | None = None,
     fit_noise: bool = True,
+    noise_window_blocks: int = NOISE_WINDOW_BLOCKS,
 ) -> xr.Dataset:
     """Dissipation rate (methods 1 and 2), noise, variance and integral scale.
 
@@ -836,6 +874,10 @@ def estimate_epsilon(
     fit_noise : bool
         Fit the noise term ``2 sigma_e^2`` in the exact cw fit (:func:`fit_correlation_shape`);
         without it ``sigma_e`` is 0 there (noise-free data, e.g. the exact V_D).
+    noise_window_blocks : int
+        cw fit: the noise variance is the median of the per-block estimates over this
+        many neighbouring blocks at the same height (:func:`running_nanmedian`), and each
+        block refitted with it fixed; 1 keeps each block's own estimate.
 
     Returns
     -------
@@ -1056,6 +1098,7 @@ def estimate_epsilon(
             model,
             c_model,
             fit_noise,
+            noise_window_blocks,
         )
         lo, hi = options.get("outer_scale_range_m", (10.0, 3000.0))
         for rows, (_, table) in groups.values():  # A-functions at L_V: method 1, the ratio

@@ -175,7 +175,7 @@ def cw_products(tmp_path_factory):
 #: six heights (python benchmarks/bench_cw_epsilon_bias.py --blocks 36 --homodyne); the
 #: Monte-Carlo study's 10-12 % is for the exact V_D, the centroid estimates of the
 #: simulated spectra add to it
-CW_BLOCK_ERROR = np.array([0.21, 0.18, 0.16, 0.17, 0.26, 0.27])
+CW_BLOCK_ERROR = np.array([0.17, 0.13, 0.14, 0.16, 0.25, 0.24])
 
 
 @pytest.mark.slow

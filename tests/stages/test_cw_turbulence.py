@@ -320,3 +320,68 @@ def test_exact_cw_fit_returns_eps_of_any_model_structure_function(sigma2, log_sc
     truth = c * sigma2**1.5 / np.exp(log_scale)
     assert c * s2[0] ** 1.5 / big_l[0] == pytest.approx(truth, rel=0.03)
     assert np.sqrt(nv[0]) <= noise + 0.02 * np.sqrt(sigma2)
+
+
+def test_running_nanmedian_skips_gaps_and_follows_the_order():
+    values = np.array([1.0, np.nan, 3.0, 100.0, 5.0])
+    got = epsilon.running_nanmedian(values, np.arange(5), 3)
+    np.testing.assert_allclose(got, [1.0, 2.0, 51.5, 5.0, 52.5])
+    perm = np.array([3, 0, 4, 1, 2])  # the same sequence, stored out of order
+    np.testing.assert_allclose(epsilon.running_nanmedian(values[perm], perm, 3), got[perm])
+
+
+def _exact_blocks(probe, sigma2, big_l, noise, dtheta=360.0 / 140):
+    """Structure-function datasets of blocks at h = 300 m from the exact model."""
+    rng_m = 600.0
+    lm = epsilon.exact_lag_model(probe, rng_m, 30.0, dtheta, 3, "exponential")
+    k = np.argmin(np.abs(np.log(lm.scales / big_l)))
+    d = sigma2[:, None] * lm.structure[k][None, :] + 2 * noise[:, None] ** 2
+    var = sigma2 * (lm.passed[k] - lm.removed[k] / 10) + noise**2
+    n = sigma2.size
+    sf = xr.Dataset(
+        {
+            "structure_function": (("time", "height", "lag"), d[:, None, :]),
+            "n_pairs": (("time", "height", "lag"), np.full((n, 1, 3), 1000)),
+            "radial_velocity_variance": (("time", "height"), var[:, None]),
+            "wind_speed": (("time", "height"), np.full((n, 1), 9.0)),
+            "azimuth_step": ("time", np.full(n, dtheta)),
+            "scan_period": ("time", np.full(n, 7.0)),
+            "n_scans": ("time", np.full(n, 10)),
+        },
+        coords={
+            "time": np.datetime64("2024-01-01T00:00", "ns")
+            + np.arange(n) * np.timedelta64(70, "s"),
+            "height": [300.0],
+            "range": ("height", [rng_m]),
+            "lag": [1, 2, 3],
+            "elevation": ("time", np.full(n, 30.0)),
+        },
+    )
+    return sf, lm.scales[k]
+
+
+def test_cw_noise_is_pooled_over_neighbouring_blocks(tmp_path):
+    """Seven blocks with the same sigma_e = 0.05 m/s; one block's D_L(1) is raised.
+
+    Each block's own 3-parameter fit reads the raised lag as noise; pooled (median over
+    the 7 blocks) the noise stays 0.05 m/s in every block and the other blocks keep
+    their exact eps (the fit then has 2 parameters per block, as the Monte-Carlo study's).
+    """
+    probe = CWProbe(wavelength_m=10.6e-6, beam_radius_m=0.075)
+    sigma2 = np.array([0.8, 1.0, 1.2, 0.9, 1.1, 1.0, 0.95])
+    sf, big_l = _exact_blocks(probe, sigma2, 300.0, np.full(7, 0.05))
+    sf["structure_function"][3, 0, 0] += 0.02
+    options = {
+        "cache_dir": str(tmp_path),
+        "height_range_m": (250.0, 600.0),
+        "outer_scale_range_m": (50.0, 1500.0),
+        "mu_max": 0.5,
+    }
+    kw = dict(probe=probe, lag_number=3, model="exponential", table_options=options)
+    pooled = epsilon.estimate_epsilon(sf, **kw)
+    alone = epsilon.estimate_epsilon(sf, noise_window_blocks=1, **kw)
+    np.testing.assert_allclose(pooled["noise_std"].values[:, 0], 0.05, rtol=0.02)
+    assert alone["noise_std"].values[3, 0] > 0.06  # the raised lag read as noise
+    eps = epsilon_from_variance(sigma2, big_l, "exponential")
+    keep = np.arange(7) != 3
+    np.testing.assert_allclose(pooled["epsilon"].values[keep, 0], eps[keep], rtol=0.01)
