@@ -63,7 +63,10 @@ These cells use the exact model of Banakh et al. (1999), eqs. 15-17 without tran
 transverse spacing varying along the probe): ``D_L(l) = 2 sigma_V^2 [b_0(L_V) -
 b_l(L_V)] + 2 sigma_e^2`` fitted by least squares over a grid of ``L_V``
 (:func:`fit_correlation_shape`), ``eps = c sigma_V^3 / L_V`` (Banakh et al. (1999), eq.
-19) from the fitted pair, as in seed 000's error study. The variance of ``V'_L`` minus
+19) from the fitted pair, as in seed 000's error study. On three lags the noise is a
+third parameter, so its variance is pooled (median over ``noise_window_blocks``
+neighbouring blocks at a height, :func:`running_nanmedian`) and each block refitted with
+it fixed. The variance of ``V'_L`` minus
 ``sigma_e^2`` then gives ``sigma_V^2`` through ``b_0`` and the share the N-scan VAD fit
 removes, ``tr(H B_D)/(N M)`` (:func:`hat_trace_per_ray`), and ``L_V = c sigma_V^3 /
 eps``. The A-functions at that ``L_V`` still give ``epsilon_method1`` and the ratio.
