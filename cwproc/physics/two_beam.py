@@ -39,9 +39,9 @@ is the small-angle model of Smalikho (2020), eqs. 15-17 (two parallel beams): fo
 ``dtheta -> 0`` and no wind :func:`two_beam_structure_function` tends to
 ``A_perp(l dy)`` (eq. 16; ``(8/3) r^(2/3)`` for a point probe), tested.
 
-The same-beam terms hold the ``r^(2/3)`` cusp at ``r = 0``; they do not depend on the
-azimuth and are computed once per call on the fine quadrature of the probe
-(:attr:`cwproc.sim.turbulence.ProbeQuadrature.fine_nodes`).
+The same-beam terms hold the ``r^(2/3)`` cusp at ``r = 0``; they use the same pair rule
+as the cross terms (:func:`beam_quadrature`), so that the cusps of nearly parallel beams
+cancel consistently.
 
 Everything is returned per ``eps^(2/3)`` times ``epsilon^(2/3)`` (``epsilon = 1`` gives the
 exact "A-function" of the pair, m^(2/3)).
@@ -63,6 +63,8 @@ from cwproc.physics import spectra
 #: nodes of the pulsed pair rule: per half of the range difference u, and along v
 N_U = 40
 N_V = 24
+#: nodes of the cw Lorentzian rule
+CW_NODES = 120
 #: half width of the pulsed quadrature interval beyond the gate, in Gaussian 1/e widths
 _PULSE_REACH = 4.0
 
@@ -80,8 +82,6 @@ class BeamQuadrature:
     z_a: np.ndarray
     z_b: np.ndarray
     weights: np.ndarray
-    #: a finer rule for the same-beam terms (cusp at r = 0); ``None``: the pairs above
-    fine: BeamQuadrature | None = None
 
 
 def _gauss(lo: float, hi: float, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -146,10 +146,10 @@ def beam_quadrature(probe: Any, range_m: float) -> BeamQuadrature:
 
     Pulsed: :func:`pulsed_pairs` with ``a = gaussian_width_m / pi`` (so ``"printed"``
     probes keep their transfer function). cw: the product of the cut Lorentzian ``Q_s``
-    rule of Banakh et al. (1999) (:func:`cwproc.sim.cw.lorentzian_quadrature`, 40 nodes,
-    300 for the same-beam terms;
-    cw probes are hundreds of metres long, far longer than the ray spacing). ``None``: a
-    point.
+    rule of Banakh et al. (1999) (:func:`cwproc.sim.cw.lorentzian_quadrature`,
+    :data:`CW_NODES` nodes; one rule for the cross and the same-beam terms, so that their
+    cusps cancel at small separations: 0.3 % from the 300-node limit at 8 m separation of
+    a 65 m probe). ``None``: a point.
     """
     r = float(range_m)
     if probe is None:
@@ -159,12 +159,10 @@ def beam_quadrature(probe: Any, range_m: float) -> BeamQuadrature:
         from cwproc.sim.cw import lorentzian_quadrature
 
         q = lorentzian_quadrature(
-            float(probe.centre_range(r)), float(probe.rayleigh_half_width(r)), 40, 300
+            float(probe.centre_range(r)), float(probe.rayleigh_half_width(r)), CW_NODES, 1
         )
         za, zb = np.meshgrid(q.z, q.z, indexing="ij")
-        fa, fb = np.meshgrid(q.z_fine, q.z_fine, indexing="ij")
-        fine = BeamQuadrature(fa.ravel(), fb.ravel(), np.outer(q.w_fine, q.w_fine).ravel())
-        return BeamQuadrature(za.ravel(), zb.ravel(), np.outer(q.w, q.w).ravel(), fine)
+        return BeamQuadrature(za.ravel(), zb.ravel(), np.outer(q.w, q.w).ravel())
     a = float(probe.gaussian_width_m) / math.pi
     if a <= 0:
         raise ValueError("a pulsed probe needs a pulse width > 0")
@@ -229,13 +227,12 @@ def same_beam_term(
     of the probe-averaged from the point velocities, i.e. half the structure function the
     probe averaging removes. Independent of the azimuth.
     """
-    rule = quadrature.fine if quadrature.fine is not None else quadrature
     return 0.5 * float(
         cross_term(
             0.0,
             0.0,
             elevation_deg,
-            rule,
+            quadrature,
             model=model,
             outer_scale_m=outer_scale_m,
             sweep_deg=sweep_deg,
@@ -261,7 +258,7 @@ def cross_term(
     """``sum_jk w_j w_k S_aj^T D(x_aj - x_bk - d) S_bk`` per eps^(2/3) (m^(2/3)).
 
     ``d`` (``separation_m``, ``(..., 3)`` up/north/east, m) is the transport ``U (t_a -
-    t_b)`` between the ray centres; ``sweep_shift_m`` (3,) the transport ``U tau`` during
+    t_b)`` between the ray centres; ``sweep_shift_m`` (``(..., 3)``) the transport ``U tau`` during
     one swept ray of duration ``tau`` (sub-beam ``i`` is seen at ``tau offset_i /
     sweep``). Inputs broadcast; shape of the broadcast azimuths.
     """
@@ -279,6 +276,7 @@ def cross_term(
     frac = offsets / sweep_deg if sweep_deg else np.zeros_like(offsets)
     fa, fb = (f.ravel() for f in np.meshgrid(frac, frac, indexing="ij"))
     shift = np.zeros(3) if sweep_shift_m is None else np.asarray(sweep_shift_m, float)
+    shift = np.broadcast_to(shift, (*shape, 3)).reshape(-1, 3)
     za, zb, wq = quadrature.z_a, quadrature.z_b, quadrature.weights
     az_a, az_b, el = az_a.ravel(), az_b.ravel(), el.ravel()
     out = np.zeros(az_a.size)
@@ -288,7 +286,7 @@ def cross_term(
         for o_a, o_b, f_a, f_b in zip(oa, ob, fa, fb, strict=True):  # sub-beam pairs
             sa = beam_vector(az_a[sl] + o_a, el[sl])[:, None, :]  # (P, 1, 3)
             sb = beam_vector(az_b[sl] + o_b, el[sl])[:, None, :]
-            dd = d[sl] + (f_a - f_b) * shift
+            dd = d[sl] + (f_a - f_b) * shift[sl]
             r_vec = za[None, :, None] * sa - zb[None, :, None] * sb - dd[:, None, :]
             out[sl] += ws * (_contract(r_vec, sa, sb, model, outer_scale_m) @ wq)
     return out.reshape(shape)
