@@ -123,8 +123,13 @@ class TurbulenceConfig:
     enabled: bool = True
     #: scans per block (N of Smalikho (2020) eq. 2)
     n_scans: int = 10
-    #: largest azimuth lag l*dtheta (deg); Smalikho (2020) requires <= 9 deg
+    #: largest azimuth lag l*dtheta (deg) of dense scans; the exact two-beam model holds
+    #: at any lag, 9 deg keeps the lags of 180-360-ray scans inside the inertial range;
+    #: at most 60 deg (the chord reaches the circle's radius, beyond the integral scale)
     max_lag_deg: float = 9.0
+    #: fewest lags of coarse scans (24-72 rays, step-stare VADs), beyond max_lag_deg if
+    #: need be (never beyond 60 deg); eq. 5 needs lags 1 and l, the fit of eq. 4 three
+    min_lags: int = 3
     #: lag number l of the two-lag estimate, Smalikho (2020) eq. 5
     lag_number: int = 3
     #: spectrum model of the A-functions: "inertial" (Kolmogorov), "von_karman",
@@ -137,8 +142,10 @@ class TurbulenceConfig:
     def __post_init__(self) -> None:
         if self.n_scans < 1:
             raise ValueError("n_scans: must be >= 1")
-        if not 0 < self.max_lag_deg <= 9.0:
-            raise ValueError("max_lag_deg: must be in (0, 9] (Smalikho (2020), after eq. 4)")
+        if not 0 < self.max_lag_deg <= 60.0:
+            raise ValueError("max_lag_deg: must be in (0, 60] (the chord reaches R' at 60 deg)")
+        if self.min_lags < 2:
+            raise ValueError("min_lags: must be >= 2 (Smalikho (2020) eq. 5 needs lags 1 and l)")
         if self.lag_number < 2:
             raise ValueError("lag_number: must be >= 2 (Smalikho (2020) eq. 5 needs l > 1)")
 

@@ -252,6 +252,7 @@ def process_scans(
             wind,
             n_scans=config.turbulence.n_scans,
             max_lag_deg=config.turbulence.max_lag_deg,
+            min_lags=config.turbulence.min_lags,
         )
     except CwprocError as exc:
         if notes is not None:

@@ -29,7 +29,7 @@ def test_defaults_are_stream_line():
         ("[qc]\nsnr_minn = 1", "qc.snr_minn", "unknown key"),
         ("[qc]\nsnr_min = 'high'", "qc.snr_min", "must be a number"),
         ("[instrument]\ndelta_r_m = -18.0", "instrument.delta_r_m", "> 0"),
-        ("[turbulence]\nmax_lag_deg = 20", "turbulence.max_lag_deg", "9"),
+        ("[turbulence]\nmax_lag_deg = 75", "turbulence.max_lag_deg", "60"),
         ("[turbulence]\nmodel = 'kolmogorov'", "turbulence.model", "one of"),
         ("[vad]\nmin_rays = 2.5", "vad.min_rays", "integer"),
         ("[nosuch]\na = 1", "nosuch", "unknown key"),

@@ -332,19 +332,23 @@ def _node_interpolation(theta: np.ndarray) -> np.ndarray:
     return out
 
 
-def azimuth_bin_weights(theta: ArrayLike, axis: int = -1) -> np.ndarray:
+def azimuth_bin_weights(
+    theta: ArrayLike, axis: int = -1, counts: ArrayLike | None = None
+) -> np.ndarray:
     """Weights ``(..., N_BINS)`` of the azimuth nodes for the pairs at ``theta`` (rad).
 
     ``theta`` (along ``axis``) is the angle of the mean wind from the scan's direction of
     motion at each pair present (Smalikho (2020), eq. 15: the wind's component along the
     scan is ``U sin th``, along the horizontal beam ``U cos th``); each pair is shared
-    linearly between the two neighbouring nodes (:func:`azimuth_nodes`). NaN azimuths
-    are left out; all-NaN gives NaN weights.
+    linearly between the two neighbouring nodes (:func:`azimuth_nodes`). ``counts``
+    (shape of ``theta``): the number of pairs at each azimuth (default 1). NaN azimuths
+    are left out; no pair at all gives NaN weights.
     """
     th = np.moveaxis(np.asarray(theta, dtype=float), axis, -1)
-    ok = np.isfinite(th)
-    w = _node_interpolation(np.where(ok, th, 0.0)) * ok[..., None]
-    total = ok.sum(axis=-1)[..., None]
+    n = np.ones_like(th) if counts is None else np.moveaxis(np.asarray(counts, float), axis, -1)
+    n = np.where(np.isfinite(th), n, 0.0)
+    w = _node_interpolation(np.where(n > 0, th, 0.0)) * n[..., None]
+    total = n.sum(axis=-1)[..., None]
     with np.errstate(invalid="ignore", divide="ignore"):
         return w.sum(axis=-2) / total
 
