@@ -37,8 +37,7 @@ def test_formula_value_at_one_point():
     expected = 2 * math.sqrt(math.sqrt(math.pi) / alpha) * dv / math.sqrt(M * N * snr)
     expected *= 1 + alpha / (2 * math.pi)
     assert float(noise.velocity_noise_std(snr, M, N, B)) == pytest.approx(expected, rel=1e-12)
-    # a Stream Line at -20 dB with 20000 pulses: a few cm/s
-    assert 0.01 < expected < 0.2
+    assert 0.2 < expected < 0.4  # a Stream Line at -20 dB, 20000 pulses, 10 points
 
 
 def test_invalid_snr_gives_nan_and_bad_settings_raise():
