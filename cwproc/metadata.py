@@ -234,15 +234,94 @@ VARIABLES: dict[str, VarMeta] = {
     "turbulence_flag": VarMeta(
         "dissipation-rate quality flag (bits combine)",
         "1",
-        flag_masks=(1, 2, 4, 8, 16),
+        flag_masks=(1, 2, 4, 8, 16, 32),
         flag_meanings=(
-            "too_few_pairs lag_beyond_inertial_range mu_beyond_method1 fit_failed partial_block"
+            "too_few_pairs lag_beyond_inertial_range mu_beyond_method1 fit_failed "
+            "partial_block noise_predicted"
         ),
         comment=(
             "0 good; bit 1 too few pairs; bit 2 lag beyond the inertial range; "
-            "bit 4 mu beyond method 1 validity; bit 8 fit failed; bit 16 partial block "
-            "(fewer than half the requested scans per block)"
+            "bit 4 mu beyond method 1 validity (epsilon_method1 is kept); bit 8 fit failed; "
+            "bit 16 partial block (fewer than half the requested scans per block); bit 32 "
+            "the fitted noise intercept is not significant (below twice its standard "
+            "error) or negative: noise_std is the prediction from the SNR, used in the fit"
         ),
+    ),
+    # ------------------------------------------- turbulence product: issue-12 additions
+    "edr": VarMeta(
+        "eddy dissipation rate, the cube root of the turbulent kinetic energy dissipation rate",
+        "m2/3 s-1",
+        comment="EDR = epsilon^(1/3), the turbulence measure of aviation (ICAO) and NWP",
+        references=SMALIKHO_2020 + ", eq. 5",
+    ),
+    "noise_std_predicted": VarMeta(
+        "instrumental error of the radial velocity sigma_e predicted from the "
+        "signal-to-noise ratio and the instrument settings",
+        "m s-1",
+        comment=(
+            "Pearson et al. (2009), eq. 3: points per gate, pulses per ray, velocity "
+            "bandwidth 1024 x the velocity resolution, signal spectral width 1.5 m s-1, "
+            "block-median SNR"
+        ),
+        references=(
+            "Pearson G., Davies F., Collier C. (2009), J. Atmos. Oceanic Technol. 26, "
+            "240-250; Rye B.J., Hardesty R.M. (1993), IEEE Trans. Geosci. Remote Sens. 31, "
+            "16-27"
+        ),
+    ),
+    "epsilon_standard_error": VarMeta(
+        "standard error of the turbulent kinetic energy dissipation rate",
+        "m2 s-3",
+        comment=(
+            "1.5 eps SE(D(l) - D(1)) / (D(l) - D(1)), SE from the scatter of the per-scan "
+            "structure functions of the block (scans as independent samples)"
+        ),
+        coverage_content_type="qualityInformation",
+    ),
+    "velocity_variance_standard_error": VarMeta(
+        "standard error of the radial-velocity variance sigma_V^2",
+        "m2 s-2",
+        comment="scatter of the per-scan variances of V'_L, scaled like sigma_V^2",
+        coverage_content_type="qualityInformation",
+    ),
+    "integral_scale_standard_error": VarMeta(
+        "standard error of the integral scale L_V",
+        "m",
+        comment="relative errors of sigma_V^2 (x 1.5) and eps combined as independent",
+        coverage_content_type="qualityInformation",
+    ),
+    "structure_function_se": VarMeta(
+        "standard error of the azimuth structure function from the scatter over scans",
+        "m2 s-2",
+        coverage_content_type="qualityInformation",
+    ),
+    "structure_function_difference_se": VarMeta(
+        "standard error of D_L(l) - D_L(1) from the scatter over scans",
+        "m2 s-2",
+        coverage_content_type="qualityInformation",
+    ),
+    "radial_velocity_variance_se": VarMeta(
+        "standard error of the variance of V'_L from the scatter over scans",
+        "m2 s-2",
+        coverage_content_type="qualityInformation",
+    ),
+    "wind_to_direction": VarMeta(
+        "direction the block-mean wind blows towards", "degree", "wind_to_direction"
+    ),
+    "pair_azimuth_weights": VarMeta(
+        "share of the lag-1 ray pairs at each azimuth node of the wind's angle from the "
+        "scan direction (sectors and gaps)",
+        "1",
+        coverage_content_type="auxiliaryInformation",
+    ),
+    "azimuth_node": VarMeta(
+        "angle of the mean wind's direction of motion from the scan's direction of motion",
+        "degree",
+    ),
+    "snr_median": VarMeta(
+        "block-median signal-to-noise ratio of the valid rays",
+        "1",
+        coverage_content_type="auxiliaryInformation",
     ),
     # ---------------------------------------------------------------- sonic SF product
     "sf_type": VarMeta(

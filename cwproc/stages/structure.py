@@ -226,13 +226,30 @@ def _match_gates(scan_range: np.ndarray, wind_range: np.ndarray) -> np.ndarray:
     return idx
 
 
-def block_statistics(
-    vprime: np.ndarray, n_scans: int, n_lags: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _scan_spread(per_scan: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Standard error of the block mean from the scatter of per-scan values (axis 0).
+
+    ``std(ddof=1) / sqrt(n)`` over the scans of each block with a finite value; NaN with
+    fewer than two.
+    """
+    ok = np.isfinite(per_scan)
+    n = _block_sum(ok.astype(float), starts)
+    s1 = _block_sum(np.where(ok, per_scan, 0.0), starts)
+    s2 = _block_sum(np.where(ok, per_scan**2, 0.0), starts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        var = (s2 - s1**2 / n) / (n - 1)
+        return np.where(n > 1, np.sqrt(np.maximum(var, 0.0) / n), np.nan)
+
+
+def block_statistics(vprime: np.ndarray, n_scans: int, n_lags: int) -> tuple[np.ndarray, ...]:
     """D_L, pair counts and variance of V'_L per block of ``n_scans`` consecutive scans.
 
     Smalikho (2020), eq. 2, with all valid pairs of a block pooled (missing values,
-    NaN, are skipped pairwise).
+    NaN, are skipped pairwise). The scans of a block are the independent samples of the
+    standard errors: per-scan ``D_L(l)``, ``D_L(l) - D_L(1)`` and variance, their
+    standard deviation over the block's scans divided by the root of their number
+    (scans a rotation apart decorrelate when ``U T_scan`` exceeds the integral scale;
+    otherwise the errors are underestimated).
 
     Parameters
     ----------
@@ -245,29 +262,41 @@ def block_statistics(
 
     Returns
     -------
-    (sf, pairs, variance) : tuple of numpy.ndarray
-        ``(block, height, lag)`` D_L (m2 s-2) and pair counts; ``(block, height)``
-        variance of V'_L (m2 s-2, ddof 1).
+    (sf, pairs, variance, sf_se, diff_se, variance_se) : tuple of numpy.ndarray
+        ``(block, height, lag)`` D_L (m2 s-2), pair counts, standard errors of D_L and of
+        ``D_L(l) - D_L(1)`` (m2 s-2); ``(block, height)`` variance of V'_L (m2 s-2, ddof
+        1) and its standard error.
     """
     starts = np.arange(0, vprime.shape[0], n_scans)
     n_h = vprime.shape[2]
     sf = np.empty((starts.size, n_h, n_lags))
     pairs = np.empty((starts.size, n_h, n_lags), dtype=np.int64)
-    for lag in range(1, n_lags + 1):  # L <= 9 / dtheta lags, each vectorised
+    sf_se = np.empty_like(sf)
+    diff_se = np.empty_like(sf)
+    first = None
+    for lag in range(1, n_lags + 1):  # each lag vectorised
         d2 = (vprime[:, lag:, :] - vprime[:, :-lag, :]) ** 2
         ok = np.isfinite(d2)
-        total = _block_sum(np.where(ok, d2, 0.0).sum(axis=1), starts)
-        count = _block_sum(ok.sum(axis=1), starts)
+        per_total = np.where(ok, d2, 0.0).sum(axis=1)
+        per_count = ok.sum(axis=1)
+        total = _block_sum(per_total, starts)
+        count = _block_sum(per_count, starts)
         with np.errstate(invalid="ignore", divide="ignore"):
             sf[:, :, lag - 1] = np.where(count > 0, total / count, np.nan)
+            per_scan = np.where(per_count > 0, per_total / per_count, np.nan)
         pairs[:, :, lag - 1] = count
+        first = per_scan if first is None else first
+        sf_se[:, :, lag - 1] = _scan_spread(per_scan, starts)
+        diff_se[:, :, lag - 1] = _scan_spread(per_scan - first, starts)
     ok = np.isfinite(vprime)
     n_val = _block_sum(ok.sum(axis=1), starts).astype(float)
     s1 = _block_sum(np.where(ok, vprime, 0.0).sum(axis=1), starts)
     s2 = _block_sum(np.where(ok, vprime**2, 0.0).sum(axis=1), starts)
     with np.errstate(invalid="ignore", divide="ignore"):
         variance = np.where(n_val > 1, (s2 - s1**2 / n_val) / (n_val - 1), np.nan)
-    return sf, pairs, variance
+        per_n = ok.sum(axis=1).astype(float)
+        per_var = np.where(per_n > 1, (np.nansum(vprime**2, axis=1)) / per_n, np.nan)
+    return sf, pairs, variance, sf_se, diff_se, _scan_spread(per_var, starts)
 
 
 def lag_count(dtheta_deg: float, max_lag_deg: float, min_lags: int = MIN_LAGS) -> int:
@@ -402,6 +431,9 @@ def azimuth_structure_function(
     sf = np.empty((n_blocks, n_h, n_lags))
     pairs = np.empty((n_blocks, n_h, n_lags), dtype=np.int64)
     variance = np.empty((n_blocks, n_h))
+    sf_se = np.empty((n_blocks, n_h, n_lags))
+    diff_se = np.empty((n_blocks, n_h, n_lags))
+    variance_se = np.empty((n_blocks, n_h))
     weights = np.full((n_blocks, n_h, N_BINS), np.nan)
     snr_median = np.full((n_blocks, n_h), np.nan)
     has_snr = "snr" in screened_ds
@@ -430,7 +462,9 @@ def azimuth_structure_function(
             vr = homodyne_radial_velocity(vr, model, b - b0)
         vprime = np.full((t1_ - t0_, n_az, n_h), np.nan)
         vprime[scan_pos[cells] - t0_, m[cells]] = vr - model
-        sf[b0:b1], pairs[b0:b1], variance[b0:b1] = block_statistics(vprime, n_scans, n_lags)
+        stats = block_statistics(vprime, n_scans, n_lags)
+        sf[b0:b1], pairs[b0:b1], variance[b0:b1] = stats[:3]
+        sf_se[b0:b1], diff_se[b0:b1], variance_se[b0:b1] = stats[3:]
         weights[b0:b1] = pair_azimuth_weights(
             vprime, n_scans, first_az[np.arange(b0, b1) * n_scans], dtheta, sign, wind_to[b0:b1]
         )
@@ -466,6 +500,9 @@ def azimuth_structure_function(
             "structure_function": (("time", "height", "lag"), sf),
             "n_pairs": (("time", "height", "lag"), pairs),
             "radial_velocity_variance": (("time", "height"), variance),
+            "structure_function_se": (("time", "height", "lag"), sf_se),
+            "structure_function_difference_se": (("time", "height", "lag"), diff_se),
+            "radial_velocity_variance_se": (("time", "height"), variance_se),
             "wind_speed": (("time", "height"), np.hypot(u_b, v_b)),
             "wind_to_direction": (("time", "height"), np.mod(wind_to, 360.0)),
             "pair_azimuth_weights": (("time", "height", "azimuth_node"), weights),

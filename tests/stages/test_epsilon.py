@@ -89,14 +89,25 @@ def test_eq5_and_least_squares_invert_the_model_exactly():
     a = np.array([[1.0, 2.5, 3.7, 4.6]])
     d = 0.01 ** (2 / 3) * a + 2 * 0.2**2
     assert eq5_epsilon(d[:, 2], d[:, 0], a[:, 2], a[:, 0])[0] == pytest.approx(0.01, rel=1e-12)
-    eps, noise = fit_structure_function(d, a, np.ones_like(a, dtype=bool))
+    eps, noise, fitted = fit_structure_function(d, a, np.ones_like(a, dtype=bool))
     assert eps[0] == pytest.approx(0.01, rel=1e-10)
-    assert noise[0] == pytest.approx(0.2, rel=1e-10)
+    assert noise[0] == pytest.approx(0.2, rel=1e-10) and fitted[0]
     # D(l) <= D(1): eq. 5 undefined
     assert np.isnan(eq5_epsilon(np.array([0.1]), np.array([0.2]), a[:, 2], a[:, 0]))[0]
-    # a negative intercept is clipped to sigma_e = 0 and the slope refitted through 0
-    eps0, noise0 = fit_structure_function(0.01 ** (2 / 3) * a - 0.05, a, np.ones_like(a, bool))
-    assert noise0[0] == 0.0 and eps0[0] < 0.01
+    # a negative intercept: never a measured sigma_e = 0; without a prediction the slope
+    # is refitted through 0 and sigma_e is NaN
+    low = 0.01 ** (2 / 3) * a - 0.05
+    eps0, noise0, fitted0 = fit_structure_function(low, a, np.ones_like(a, bool))
+    assert np.isnan(noise0[0]) and not fitted0[0] and eps0[0] < 0.01
+    # with the predicted sigma_e the intercept is fixed at 2 sigma_pred^2
+    _, _, fitted_p = fit_structure_function(
+        d, a, np.ones_like(a, bool), noise_prior=np.array([0.2])
+    )
+    assert fitted_p[0]  # a determined intercept is kept
+    two = np.array([[True, True, False, False]])  # two lags: intercept not determined
+    eps_2, noise_2, fitted_2 = fit_structure_function(d, a, two, noise_prior=np.array([0.2]))
+    assert not fitted_2[0] and noise_2[0] == 0.2
+    assert eps_2[0] == pytest.approx(0.01, rel=1e-10)
 
 
 def test_averaging_loss_is_the_filtered_variance_deficit():
@@ -151,6 +162,8 @@ def test_passed_variance_is_the_variance_of_the_probe_averaged_velocity():
 
 @pytest.mark.slow
 def test_exact_model_data_give_eps_noise_and_the_eq21_ratio(options):
+    # the small-angle A-functions of Smalikho (2020), eq. 15 (the reference values)
+    options = {**options, "geometry": "small_angle"}
     table = get_a_table(
         PROBE,
         phi_deg=PHI,
@@ -159,6 +172,7 @@ def test_exact_model_data_give_eps_noise_and_the_eq21_ratio(options):
         model="inertial",
         cache_dir=options["cache_dir"],
         height_range_m=options["height_range_m"],
+        geometry="small_angle",
     )
     mu = np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]])
     d = model_d(table, 0.003, 0.15, mu)
@@ -179,12 +193,16 @@ def test_exact_model_data_give_eps_noise_and_the_eq21_ratio(options):
     # the fitted model reproduces the exact data (Smalikho (2020), eq. 4)
     assert out["structure_function_model"].dims == ("time", "height", "lag")
     np.testing.assert_allclose(out["structure_function_model"].values, d, rtol=1e-9)
-    # method 1 beyond its validity (ratio > 1.1): NaN with flag 4, method 2 unaffected
+    # method 1 beyond its validity (ratio > 1.1): kept with flag 4 (its bias is the
+    # observable of Smalikho (2020), eq. 21), method 2 unaffected
     flag = out["turbulence_flag"].values
     np.testing.assert_array_equal(flag[0], [0, 0])
     assert np.all(flag[1:] & FLAG_METHOD1_INVALID)
-    assert np.all(np.isnan(out["epsilon_method1"].values[1:]))
+    np.testing.assert_allclose(
+        out["epsilon_method1"].values, 0.003 * out["epsilon_ratio"].values, rtol=1e-9
+    )
     np.testing.assert_allclose(out["epsilon_method1"].values[0], 0.003, rtol=1e-9)
+    np.testing.assert_allclose(out["edr"].values, 0.003 ** (1 / 3), rtol=1e-9)
 
 
 @pytest.mark.slow
