@@ -72,9 +72,8 @@ from cwproc.sim.pulsed import pulsed_range_weight, wind_components
 #: half extent of the range weighting used, in units of Delta_p beyond Delta_R/2
 _TAIL_PULSES = 3.0
 #: quadrature step (m), largest centre separation (m) it is used for (the same ray: 0.5 m),
-#: and whether the
-#: sub-beams of a sweeping ray are kept (beyond 100 m the sweep of a ray, a few metres,
-#: changes the covariance by less than 1e-4 of sigma_V^2 and the ray's mean beam is used)
+#: and whether the sweep of a continuous-scan ray is always resolved (beyond 100 m only
+#: where the separation is below 20 arcs of the sweep, see block_covariance)
 _STEPS_M = (
     (0.5, 0.0, True),
     (1.5, 30.0, True),
@@ -82,6 +81,8 @@ _STEPS_M = (
     (4.0, 250.0, False),
     (12.0, np.inf, False),
 )
+#: the sweep offsets (Delta, m) of a ray represented by its centre
+_POINT = (np.zeros(1), np.zeros(1))
 #: size of the separation table of D_par, D_perp (log-spaced, m)
 _TABLE = (1e-4, 1e6, 6000)
 #: field points per vectorised chunk (memory bound)
@@ -209,25 +210,30 @@ def range_nodes(delta_p_m: float, delta_r_m: float, step_m: float) -> tuple[np.n
     return s, w / w.sum()
 
 
-def sweep_offsets(lag: int, n_nodes: int = 6) -> tuple[np.ndarray, np.ndarray]:
+def sweep_offsets(
+    lag: int, n_nodes: int = 6, n_mean: int = 3
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Nodes and weights of the double average over the sweeps of two rays.
 
     Two rays ``l`` azimuth steps apart, each averaging the beam uniformly over one step
-    ``w`` (Smalikho (2020), eq. 20), see point beams whose offset ``Delta`` (in steps,
-    ray ``i`` at ``+Delta/2``, ray ``k`` at ``-Delta/2`` about their centres) has the
-    triangular density ``1 - |Delta|`` on [-1, 1]. The integrand has the ``|x|^(2/3)``
+    ``w`` (Smalikho (2020), eq. 20), see point beams at offsets ``u``, ``u'`` (in steps,
+    uniform on [-1/2, 1/2]) from their centres. In ``Delta = u - u'`` (triangular
+    density ``1 - |Delta|`` on [-1, 1]) and ``m = (u + u')/2`` (uniform on
+    ``|m| <= (1 - |Delta|)/2``) the integrand is smooth in ``m`` and has the ``|x|^(2/3)``
     cusp of the structure function where the two point beams coincide, ``Delta = l``
-    (inside or at the end of the interval for ``|l| <= 1``); Gauss-Legendre nodes on each
-    half, mapped by ``v^3`` towards such an end, integrate it to about 1e-5.
+    (inside or at an end of the interval for ``|l| <= 1``). Gauss-Legendre nodes on each
+    half of ``Delta``, mapped by ``v^3`` towards such an end, and ``n_mean`` nodes in ``m``
+    integrate it to about 1e-5.
 
     Returns
     -------
-    nodes, weights : numpy.ndarray
-        ``Delta`` (steps) and weights (sum 1), shape (2 n_nodes,).
+    delta, mean, weights : numpy.ndarray
+        ``Delta`` and ``m`` (steps) and weights (sum 1), shape (2 n_nodes n_mean,).
     """
     x, w = np.polynomial.legendre.leggauss(n_nodes)
     v, wv = (x + 1) / 2, w / 2
-    nodes, weights = [], []
+    xm, wm = np.polynomial.legendre.leggauss(n_mean)
+    deltas, weights = [], []
     for lo, hi in ((-1.0, 0.0), (0.0, 1.0)):
         cusp_lo, cusp_hi = lo == lag, hi == lag
         if cusp_lo and not cusp_hi:
@@ -237,10 +243,13 @@ def sweep_offsets(lag: int, n_nodes: int = 6) -> tuple[np.ndarray, np.ndarray]:
         else:
             t, dt = v, np.ones_like(v)
         delta = lo + (hi - lo) * t
-        nodes.append(delta)
+        deltas.append(delta)
         weights.append(wv * dt * (hi - lo) * (1 - np.abs(delta)))
-    nodes_a, weights_a = np.concatenate(nodes), np.concatenate(weights)
-    return nodes_a, weights_a / weights_a.sum()
+    delta_a, weight_a = np.concatenate(deltas), np.concatenate(weights)
+    mean = np.outer((1 - np.abs(delta_a)) / 2, xm)
+    weight = np.outer(weight_a, wm / 2)
+    delta = np.repeat(delta_a[:, None], n_mean, axis=1)
+    return delta.ravel(), mean.ravel(), weight.ravel() / weight.sum()
 
 
 def _pair_structure(
@@ -282,16 +291,22 @@ def _point_beams(
     elevation_deg: float,
     ii: np.ndarray,
     kk: np.ndarray,
-    delta: np.ndarray,
+    offsets: tuple[np.ndarray, np.ndarray],
     scan_lag: int,
 ) -> tuple[np.ndarray, ...]:
-    """Point beams (P, J, 3) of rays ``ii``, ``kk`` at sweep offsets and their time lag."""
+    """Point beams (P, J, 3) of rays ``ii`` (scan n) and ``kk`` (scan n + scan_lag).
+
+    ``offsets`` = (Delta, m) of :func:`sweep_offsets`: ray ``i`` at ``m + Delta/2``, ray
+    ``k`` at ``m - Delta/2`` steps from its centre. Also returns ``t_i - t_k`` (P, J) (s).
+    """
+    delta, mean = offsets
     az = np.asarray(pattern.azimuth_deg)
     t = np.asarray(pattern.time_s)
-    half = 0.5 * delta[None, :]
-    beams_i = beam_unit_vector(az[ii][:, None] + half * pattern.sweep_deg, elevation_deg)
-    beams_k = beam_unit_vector(az[kk][:, None] - half * pattern.sweep_deg, elevation_deg)
-    dt = (t[ii] - t[kk])[:, None] + 2 * half * pattern.dwell_s - scan_lag * pattern.period_s
+    u_i = (mean + 0.5 * delta)[None, :]
+    u_k = (mean - 0.5 * delta)[None, :]
+    beams_i = beam_unit_vector(az[ii][:, None] + u_i * pattern.sweep_deg, elevation_deg)
+    beams_k = beam_unit_vector(az[kk][:, None] + u_k * pattern.sweep_deg, elevation_deg)
+    dt = (t[ii] - t[kk])[:, None] + (u_i - u_k) * pattern.dwell_s - scan_lag * pattern.period_s
     return beams_i, beams_k, dt
 
 
@@ -352,8 +367,10 @@ def block_covariance(
     for scan_lag in range(n_scans) if frozen else range(1):
         # the ray's mean beam (sweep average of the unit vectors) and the centre separation
         sweep = pattern.sweep_deg > 0
-        delta, weight = sweep_offsets(0, sweep_nodes) if sweep else (np.zeros(1), np.ones(1))
-        beams_i, _, _ = _point_beams(pattern, elevation_deg, np.arange(m), np.arange(m), delta, 0)
+        delta, mean, weight = sweep_offsets(0, sweep_nodes) if sweep else (*_POINT, np.ones(1))
+        beams_i, _, _ = _point_beams(
+            pattern, elevation_deg, np.arange(m), np.arange(m), (delta, mean), 0
+        )
         mean_beam = np.einsum("pjc,j->pc", beams_i, weight)
         dt_c = (np.asarray(pattern.time_s)[ii] - np.asarray(pattern.time_s)[kk]) - (
             scan_lag * pattern.period_s
@@ -373,26 +390,31 @@ def block_covariance(
             sep[(ii == kk) | ((np.abs(lag_rays) <= 1) & (ii <= kk))] = -1.0
         value = np.full(ii.size, np.nan)
         lower = -np.inf
+        # the sweep of a ray (its arc, m) matters where it is not small against the
+        # separation; beyond 20 arcs (and 100 m) the ray's mean beam stands for it
+        arc = range_m * np.cos(np.deg2rad(elevation_deg)) * np.deg2rad(pattern.sweep_deg)
         for step, upper, sub in _STEPS_M:
             sel = np.flatnonzero((sep >= lower) & (sep < upper))
             lower = upper
             if sel.size == 0:
                 continue
             nodes = range_nodes(delta_p_m, delta_r_m, step)
-            for lag in np.unique(lag_rays[sel]):
-                grp = sel[lag_rays[sel] == lag]
-                if sweep and sub:
-                    delta, weight = sweep_offsets(int(lag), sweep_nodes)
+            use_sub = sweep & (sub | (sep[sel] < 20.0 * arc))
+            key = np.where(use_sub, lag_rays[sel], np.iinfo(np.int64).min)
+            for lag in np.unique(key):
+                grp = sel[key == lag]
+                if lag != np.iinfo(np.int64).min:
+                    delta, mean, weight = sweep_offsets(int(lag), sweep_nodes)
                 else:
-                    delta, weight = np.zeros(1), np.ones(1)
+                    delta, mean, weight = *_POINT, np.ones(1)
                 per_pair = delta.size * nodes[0].size ** 2 * 3
                 chunk = max(1, _CHUNK // per_pair)
                 for c0 in range(0, grp.size, chunk):
                     p = grp[c0 : c0 + chunk]
                     bi, bk, dtp = _point_beams(
-                        pattern, elevation_deg, ii[p], kk[p], delta, scan_lag
+                        pattern, elevation_deg, ii[p], kk[p], (delta, mean), scan_lag
                     )
-                    if not (sweep and sub):  # the ray's mean beam at its centre time
+                    if lag == np.iinfo(np.int64).min:  # the ray's mean beam, centre time
                         bi, bk = mean_beam[ii[p]][:, None, :], mean_beam[kk[p]][:, None, :]
                     shift = -wind[None, None, :] * dtp[..., None]
                     value[p] = _pair_structure(
@@ -405,7 +427,7 @@ def block_covariance(
     out = np.zeros((n_scans * m, n_scans * m))
     for a in range(n_scans):
         for b in range(n_scans):
-            lag = a - b
+            lag = b - a  # blocks[s]: rows in scan n, columns in scan n + s
             if lag in blocks:
                 out[a * m : (a + 1) * m, b * m : (b + 1) * m] = blocks[lag]
             elif -lag in blocks:
