@@ -1,0 +1,179 @@
+"""Accuracy of eps, sigma_e, sigma_V^2 and L_V on exact-statistics scans (issue 12).
+
+Truth that is exact: :mod:`cwproc.sim.exact_gaussian` draws every block of scans as a
+Gaussian vector with the exact covariance of the probe-averaged radial velocities of a
+von Kármán field (Banakh et al. (1999), eqs. 15-16), including the transport by the mean
+wind and the sweep of continuous scans; no grid, so no missing small-scale energy. Each
+case runs the user's chain (``pipeline.process_scans`` with the ``streamline`` preset)
+on ``--blocks`` independent blocks of ``n_scans`` scans and prints, per retrieval model,
+
+- ``eps``: mean of eps_hat/eps +- its standard error, and the rms of eps_hat/eps - 1;
+- ``sig_e``: mean of noise_std/sigma_e (the fitted noise where it is determined);
+- ``var``, ``L_V``: mean of sigma_V^2_hat/sigma_V^2 and L_V_hat/L_V;
+- ``se/sd``: mean reported standard error of eps over the scatter of eps_hat (when the
+  product has ``epsilon_standard_error``);
+- ``ok``: share of blocks with a valid eps.
+
+Cases: 24- and 36-ray step-stare VADs, 72- and 180-ray continuous scans, mu = U/V_s
+(Smalikho (2020), eq. 3) from 0 to 3, a 180-ray scan with a 60 deg gap and a 90 deg
+continuous sector scan.
+
+Run (about 10-20 min on 2 cores; the 180-ray covariances take most of it)::
+
+    python benchmarks/bench_epsilon_accuracy.py
+    python benchmarks/bench_epsilon_accuracy.py --quick    # 24/72 rays, mu 0 and 1
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import time
+import warnings
+
+import numpy as np
+
+from cwproc.config import load_config
+from cwproc.physics import spectra
+from cwproc.pipeline import process_scans
+from cwproc.sim import exact_gaussian as eg
+
+PHI = 35.0
+HEIGHT = 100.0
+EPS = 1e-2
+L_V = 200.0
+NOISE = 0.05
+N_SCANS = 10
+
+
+def cases(quick: bool) -> list[dict]:
+    """(label, pattern, mu) of every case."""
+    out = []
+    scans = [(24, False, 48.0), (72, True, 36.0)]
+    if not quick:
+        scans = [(24, False, 48.0), (36, False, 54.0), (72, True, 36.0), (180, True, 36.0)]
+    for rays, continuous, period in scans:
+        for mu in (0.0, 1.0) if quick else (0.0, 0.5, 1.0, 2.0, 3.0):
+            kind = "cont" if continuous else "step"
+            out.append(
+                {
+                    "label": f"{rays:3d} rays {kind}",
+                    "pattern": eg.conical_pattern(rays, period, continuous=continuous),
+                    "mu": mu,
+                }
+            )
+    if not quick:
+        for mu in (0.5, 1.0, 2.0):
+            out.append(
+                {
+                    "label": "180 rays, 60° gap",
+                    "pattern": eg.conical_pattern(180, 36.0, gap=(120.0, 60.0)),
+                    "mu": mu,
+                }
+            )
+            out.append(
+                {
+                    "label": " 45 rays, 90° sector",
+                    "pattern": eg.conical_pattern(45, 9.0, sector_deg=90.0, return_s=3.0),
+                    "mu": mu,
+                }
+            )
+    return out
+
+
+def scan_speed(pattern: eg.ScanPattern) -> float:
+    """V_s = 2 pi R' / T (m s-1) of the full-circle rate of the pattern (Smalikho (2020), eq. 3)."""
+    radius = HEIGHT / np.tan(np.deg2rad(PHI))
+    degrees_per_s = (pattern.sweep_deg or 360.0 / pattern.n_rays) / pattern.dwell_s
+    return np.deg2rad(degrees_per_s) * radius
+
+
+def summarise(turb, truth_var: float) -> dict[str, float]:
+    """Ratios to the truth over the blocks of one product."""
+    eps = turb["epsilon"].values[:, 0] / EPS
+    good = np.isfinite(eps)
+    row = {"ok": good.mean(), "n": int(good.sum())}
+    if good.sum() < 2:
+        return row
+    e = eps[good]
+    row["eps"] = e.mean()
+    row["eps_se"] = e.std(ddof=1) / np.sqrt(e.size)
+    row["eps_rms"] = np.sqrt(np.mean((e - 1) ** 2))
+    for name, key, truth in (
+        ("noise_std", "sig_e", NOISE),
+        ("velocity_variance", "var", truth_var),
+        ("integral_scale", "L_V", L_V),
+    ):
+        if name in turb:
+            v = turb[name].values[:, 0][good] / truth
+            v = v[np.isfinite(v)]
+            row[key] = v.mean() if v.size else np.nan
+    if "epsilon_standard_error" in turb:
+        se = turb["epsilon_standard_error"].values[:, 0][good] / EPS
+        row["se/sd"] = np.nanmean(se) / e.std(ddof=1)
+    return row
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--blocks", type=int, default=100, help="blocks per case (100)")
+    parser.add_argument("--quick", action="store_true", help="a few cases only")
+    parser.add_argument("--seed", type=int, default=1)
+    args = parser.parse_args()
+    base = load_config("streamline")
+    truth_var = float(spectra.variance_from(EPS, L_V, "von_karman"))
+    models = [base.turbulence.model] + (["inertial"] if base.turbulence.model != "inertial" else [])
+    print(
+        f"truth: eps = {EPS:g} m2 s-3, L_V = {L_V:g} m (von Karman), sigma_V^2 = "
+        f"{truth_var:.3f} m2 s-2, sigma_e = {NOISE} m/s; h = {HEIGHT:g} m, phi = {PHI} deg, "
+        f"{N_SCANS} scans per block, {args.blocks} blocks per case"
+    )
+    header = f"{'case':22s} {'mu':>4s} {'model':>10s} {'eps':>15s} {'rms':>6s}"
+    header += f" {'sig_e':>6s} {'var':>6s} {'L_V':>6s} {'se/sd':>6s} {'ok':>5s} {'s':>5s}"
+    print(header)
+    for i, case in enumerate(cases(args.quick)):
+        pattern, mu = case["pattern"], case["mu"]
+        speed = mu * scan_speed(pattern)
+        t0 = time.perf_counter()
+        scans = eg.gaussian_scans(
+            pattern=pattern,
+            n_scans=N_SCANS,
+            n_blocks=args.blocks,
+            elevation_deg=PHI,
+            ranges_m=[HEIGHT / np.sin(np.deg2rad(PHI))],
+            epsilon=EPS,
+            outer_scale_m=L_V,
+            wind_speed_m_s=speed,
+            wind_direction_deg=250.0,
+            noise_std_m_s=NOISE,
+            seed=args.seed + i,
+            snr=1.0,
+        )
+        for model in models:
+            config = dataclasses.replace(
+                base,
+                turbulence=dataclasses.replace(base.turbulence, model=model, n_scans=N_SCANS),
+            )
+            notes: list[str] = []
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                products = process_scans(scans, config, notes)
+            seconds = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            turb = products.get("turbulence")
+            row = summarise(turb, truth_var) if turb is not None else {"ok": 0.0, "n": 0}
+
+            def fmt(key: str, row: dict = row) -> str:
+                return f"{row[key]:6.3f}" if key in row else f"{'-':>6s}"
+
+            eps = f"{row['eps']:.3f}±{row['eps_se']:.3f}" if "eps" in row else "-"
+            print(
+                f"{case['label']:22s} {mu:4.1f} {model:>10s} {eps:>15s} {fmt('eps_rms')}"
+                f" {fmt('sig_e')} {fmt('var')} {fmt('L_V')} {fmt('se/sd')}"
+                f" {row['ok']:5.2f} {seconds:5.1f}" + (f"  ({notes[0][:60]})" if notes else ""),
+                flush=True,
+            )
+
+
+if __name__ == "__main__":
+    main()
