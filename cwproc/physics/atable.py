@@ -363,6 +363,36 @@ def _per_theta_a2(
     return np.concatenate([half, half], axis=-1)  # eq. 15 is even in cos(theta)
 
 
+def _point_pair(
+    phi_deg: float, delta_theta_deg: float, lags: np.ndarray, mu: np.ndarray, theta: np.ndarray
+) -> np.ndarray:
+    """Exact two-beam A of a point probe on the circle ``R' = 1``, ``(lags, mu, theta)``.
+
+    Pair ``l`` steps apart centred on north, scanning clockwise (towards east): the wind's
+    component along the scan is ``U sin th``, ``U = mu`` (``V_s = 1``), ray period
+    ``t0 = dtheta``. A point has no same-beam term: ``D`` is the cross term alone.
+    """
+    from cwproc.physics import two_beam
+
+    step = math.radians(delta_theta_deg)
+    point = two_beam.beam_quadrature(None, 1.0 / math.cos(math.radians(phi_deg)))
+    half = 0.5 * lags[:, None, None] * delta_theta_deg
+    wind = (
+        np.stack([np.zeros_like(theta), np.cos(theta), np.sin(theta)], axis=-1)
+        * np.asarray(mu, float)[:, None, None]
+    )  # (nm, nth, 3)
+    shape = (lags.size, np.size(mu), theta.size)
+    t_ab = -lags[:, None, None] * step  # t_a - t_b, a the earlier ray
+    return two_beam.cross_term(
+        np.broadcast_to(-half, shape),
+        np.broadcast_to(half, shape),
+        phi_deg,
+        point,
+        separation_m=np.broadcast_to(wind, (*shape, 3)) * t_ab[..., None],
+        model="inertial",
+    )
+
+
 def geometry_correction(
     phi_deg: float, delta_theta_deg: float, n_lags: int, mu: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -372,52 +402,31 @@ def geometry_correction(
     separation, angle between the beams, transport ``U t`` with ``U = mu V_s``) against
     Smalikho (2020), eq. 15 for the same point probe (``A_perp = (8/3) rho^(2/3)``,
     ``A_par = 2 rho^(2/3)``), both without the sweep: the sweep of a continuous scan stays
-    in the probe's A-functions as ``H_perp(dy)`` of Smalikho (2020), eqs. 15, 20. For a
-    point probe and the inertial model both scale as ``R'^(2/3)``, so the ratio is
-    computed once on the circle ``R' = 1`` (``V_s = 1``, ray period ``dtheta``). The
-    probe's eq.-15 A-functions times this ratio give the exact geometry up to the
-    (second-order) interplay of probe length and beam angle: a ratio, because the angle
-    between the beams scales the probe-averaged structure function as a whole when the
-    probe is longer than the separation (cw), and the product agrees with
-    :func:`cwproc.physics.two_beam.two_beam_structure_function` within 0.5 % for 15 deg
-    steps of a pulsed lidar (tested).
+    in the probe's A-functions as ``H_perp(dy)`` of Smalikho (2020), eqs. 15, 20 (across
+    the beam, fixed ``dy``; a ray seen at its own times averages along ``dy (e_scan - mu
+    e_wind)`` instead, which :mod:`cwproc.physics.two_beam` models with
+    ``ray_duration_s`` and these tables do not). For a point probe and the inertial model
+    both scale as ``R'^(2/3)``, so the ratio is computed once on the circle ``R' = 1``
+    (``V_s = 1``, ray period ``dtheta``). The probe's eq.-15 A-functions plus the
+    same-beam term, times this ratio, minus the same-beam term, give the exact geometry
+    up to the interplay of probe length and beam angle (within 0.6 % of
+    :func:`cwproc.physics.two_beam.two_beam_structure_function` for 15 deg step-stare
+    pulsed scans, tested).
 
     Returns
     -------
     (g1, g2) : numpy.ndarray
         ``(n_lags,)`` at ``mu = 0`` and ``(n_lags, mu, theta)`` on :func:`full_circle`.
     """
-    from cwproc.physics import two_beam
-
-    if np.asarray(mu, float).ravel()[0] != 0.0:
+    mu = np.asarray(mu, float)
+    if mu.ravel()[0] != 0.0:
         raise ValueError("the mu grid must start at 0 (A_1 is taken there)")
     step = math.radians(delta_theta_deg)
     lags = np.arange(1, n_lags + 1, dtype=float)
-    th = full_circle()
-    rng = 1.0 / math.cos(math.radians(phi_deg))
-    point = two_beam.beam_quadrature(None, rng)
-    # pair l steps apart centred on north, scanning clockwise (towards east): the wind's
-    # component along the scan is U sin th, U = mu (V_s = 1), ray period t0 = dtheta
-    half = 0.5 * lags[:, None, None] * delta_theta_deg
-    wind = (
-        np.stack([np.zeros_like(th), np.cos(th), np.sin(th)], axis=-1)
-        * np.asarray(mu, float)[:, None, None]
-    )  # (nm, nth, 3)
-    wind = np.broadcast_to(wind, (lags.size, *wind.shape))
-    t_ab = -lags[:, None, None] * step  # t_a - t_b, a the earlier ray
-    shape = (lags.size, np.size(mu), th.size)
-    # a point probe has no same-beam term: D is the cross term alone
-    exact = two_beam.cross_term(
-        np.broadcast_to(-half, shape),
-        np.broadcast_to(half, shape),
-        phi_deg,
-        point,
-        separation_m=wind * t_ab[..., None],
-        model="inertial",
-    )
+    exact = _point_pair(phi_deg, delta_theta_deg, lags, mu, full_circle())
     lo, hi = 0.02 * step, n_lags * step * (1.0 + float(np.max(mu))) * 1.01
     curves = afunctions.a_curve_splines(lo, hi, probe=None, dy=0.0)
-    small = _per_theta_a2(curves, lags * step, np.asarray(mu, float), phi_deg)
+    small = _per_theta_a2(curves, lags * step, mu, phi_deg)
     # without wind the pair is the same at every azimuth: method 1's A_1 (mu = 0)
     calm = exact[:, 0, :].mean(axis=-1)
     return calm / curves.perp(lags * step), exact / small
