@@ -496,3 +496,103 @@ def test_table_height_range_covers_the_data_in_few_distinct_steps():
     assert table_height_range(np.array([0.0, 0.5, 20.0])) == (10.0, 3000.0)
     # the same range for nearby data: one cache file
     assert table_height_range(np.array([9.5])) == table_height_range(np.array([6.0]))
+
+
+def _two_beam_sf(mids_deg, *, dtheta, phi, height, eps, noise, speed, wind_to, t_ray):
+    """A block's D_L from the exact two-beam model for the pairs centred on ``mids_deg``.
+
+    Step-stare rays (no sweep), clockwise scan, Stream Line probe; ``wind_to`` the
+    direction the wind blows towards (deg). Returns the structure-function dataset.
+    """
+    import math
+
+    from cwproc.physics import two_beam
+    from cwproc.physics.atable import azimuth_bin_weights
+
+    rng = height / math.sin(math.radians(phi))
+    a = math.radians(wind_to)
+    wind = speed * np.array([0.0, math.cos(a), math.sin(a)])
+    q = two_beam.beam_quadrature(PROBE, rng)
+    lags = np.arange(1, 4)
+    d = np.array(
+        [
+            np.mean(
+                two_beam.two_beam_structure_function(
+                    mids_deg - 0.5 * lag * dtheta,
+                    mids_deg + 0.5 * lag * dtheta,
+                    phi,
+                    rng,
+                    quadrature=q,
+                    time_separation_s=-lag * t_ray,
+                    mean_wind=wind,
+                    epsilon=eps,
+                )
+            )
+            for lag in lags
+        ]
+    )
+    d = d + 2 * noise**2
+    weights = azimuth_bin_weights(np.radians(wind_to - mids_deg))
+    n_rays = round(360 / dtheta)
+    return xr.Dataset(
+        {
+            "structure_function": (("time", "height", "lag"), d[None, None, :]),
+            "n_pairs": (("time", "height", "lag"), np.full((1, 1, 3), 1000)),
+            "radial_velocity_variance": (("time", "height"), [[4.0]]),
+            "wind_speed": (("time", "height"), [[speed]]),
+            "wind_to_direction": (("time", "height"), [[wind_to]]),
+            "pair_azimuth_weights": (("time", "height", "azimuth_node"), weights[None, None]),
+            "azimuth_step": ("time", [dtheta]),
+            "scan_period": ("time", [n_rays * t_ray]),
+            "n_scans": ("time", [10]),
+        },
+        coords={
+            "time": [np.datetime64("2024-01-01T00:00", "ns")],
+            "height": [height],
+            "range": ("height", [rng]),
+            "lag": lags,
+            "elevation": ("time", [phi]),
+        },
+        attrs={"swept_rays": 0},
+    )
+
+
+@pytest.mark.parametrize("speed", [3.0, 15.0, 40.0])
+@pytest.mark.parametrize(
+    ("label", "mids"),
+    [
+        ("full circle", np.arange(7.5, 360.0, 15.0)),
+        ("60 deg gap", np.arange(67.5, 360.0, 15.0)),
+        ("90 deg sector", np.arange(7.5, 90.0, 15.0)),
+    ],
+)
+def test_step_stare_24_rays_sector_and_gap_give_epsilon(tmp_path, label, mids, speed):
+    """24-ray step-stare VAD (15 deg, 3 s per ray), mu 0.2-2.6, known wind: eps within 2 %.
+
+    D_L from the exact two-beam model of the pairs present; the full-circle A_2 would
+    miss eps by up to +7 % with the 60 deg gap and -18 % in the 90 deg sector.
+    """
+    sf = _two_beam_sf(
+        mids,
+        dtheta=15.0,
+        phi=60.0,
+        height=300.0,
+        eps=0.01,
+        noise=0.1,
+        speed=speed,
+        wind_to=70.0,
+        t_ray=3.0,
+    )
+    options = {"cache_dir": str(tmp_path), "height_range_m": (150.0, 600.0)}
+    out = estimate_epsilon(sf, probe=PROBE, lag_number=3, model="inertial", table_options=options)
+    assert float(out["epsilon"].values[0, 0]) == pytest.approx(0.01, rel=0.02), label
+    assert float(out["edr"].values[0, 0]) ** 3 == pytest.approx(float(out["epsilon"].values[0, 0]))
+    if label != "full circle" and speed > 10:
+        circle = estimate_epsilon(
+            sf.drop_vars("pair_azimuth_weights"),
+            probe=PROBE,
+            lag_number=3,
+            model="inertial",
+            table_options=options,
+        )
+        assert abs(float(circle["epsilon"].values[0, 0]) / 0.01 - 1) > 0.04
