@@ -20,8 +20,17 @@ Estimates, per block of scans and height, all vectorised:
   ``eps_i = [(D(l) - D(1)) / (A_i(l dy) - A_i(dy))]^(3/2)`` with ``l = lag_number``;
   their ratio is ``epsilon_ratio`` (identical to Smalikho (2020), eq. 21);
 - ``epsilon_fit`` and ``noise_std``: least squares of ``eps^(2/3) A_2(l dy) + 2 sigma_e^2``
-  over ``l = 1..L`` (``sigma_e`` set to 0 and the slope refitted when the intercept
-  comes out negative);
+  over ``l = 1..L`` (:func:`fit_structure_function`); where the intercept is not
+  significant (below twice its standard error, fewer than three lags) or negative, it is
+  fixed at ``2 sigma_pred^2`` of ``noise_std_predicted`` (:func:`predicted_noise`,
+  Pearson et al. (2009), eq. 3) and flag 32 is set: ``noise_std`` is then the prediction,
+  or NaN without one, never a measured 0;
+- ``edr = eps^(1/3)``; standard errors of eps, sigma_V^2 and L_V from the scatter over
+  the block's scans (:func:`standard_errors`);
+- ``A_1`` and ``A_2`` come from tables of the exact two-beam geometry (any azimuth step,
+  :mod:`cwproc.physics.two_beam`, :func:`cwproc.physics.atable.geometry_correction`),
+  ``A_2`` averaged over the azimuths of the pairs present (``pair_azimuth_weights``:
+  sectors and gaps, :func:`_sector_evaluate`);
 - ``velocity_variance``: the variance of ``V'_L`` minus ``sigma_e^2``, divided by the
   part of ``sigma_V^2`` that passes the probe, ``int int Phi_L H_par H_perp /
   int int Phi_L`` with the model's 2-D spectrum at the fitted ``L_V``
@@ -71,7 +80,7 @@ it fixed. The variance of ``V'_L`` minus
 removes, ``tr(H B_D)/(N M)`` (:func:`hat_trace_per_ray`), and ``L_V = c sigma_V^3 /
 eps``. The A-functions at that ``L_V`` still give ``epsilon_method1`` and the ratio.
 
-Flags (``turbulence_flag``, bits combine; a flagged value is NaN):
+Flags (``turbulence_flag``, bits combine; bits 1, 2, 8, 16 make the estimates NaN):
 
 - 1: too few pairs (``n_pairs`` < ``min_pairs`` at lag 1 or lag ``l``): no ``eps``;
 - 2: lag beyond the inertial range (Smalikho (2020), after eq. 4): ``l dy (1 + mu) >
@@ -79,7 +88,8 @@ Flags (``turbulence_flag``, bits combine; a flagged value is NaN):
   A-functions describe the larger separations of wind transport), or ``L_V`` below the
   A-table's range: no ``eps``;
 - 4: ``mu`` beyond the validity of method 1, ``eps_1/eps_2 > 1.1`` (Smalikho (2020),
-  eq. 21 and its discussion): ``epsilon_method1`` is NaN, ``epsilon`` stays;
+  eq. 21 and its discussion): ``epsilon_method1`` is kept (its bias is the observable of
+  eq. 21), ``epsilon`` stays;
 - 8: fit failed (``D(l) <= D(1)``, non-finite values, no mean wind for ``mu``, a height
   or ``mu`` outside the A-table's range (the default 10-3000 m height range is widened
   to the data's heights, :func:`table_height_range`), or fewer than two lags within
@@ -90,7 +100,8 @@ Flags (``turbulence_flag``, bits combine; a flagged value is NaN):
   few scans lacks the scan-to-scan variance of the large eddies (seed 000's ``N``
   dependence of the errors: 33-38 % at N = 1 against 10-12 % at N = 10), so ``L_V`` and
   ``eps`` would be biased; half a block keeps the relative error within about 1.5 times
-  that of a full block (REFERENCE_VALUES.md section 3: 14-16 % at N = 5).
+  that of a full block (REFERENCE_VALUES.md section 3: 14-16 % at N = 5);
+- 32: the noise intercept is not determined; the predicted sigma_e is used (above).
 
 ``structure_function_model`` is the fitted ``eps_fit^(2/3) A_2(l dy) + 2 sigma_e^2``
 (with the A-functions used for the cell) for plotting against ``structure_function``.
