@@ -47,6 +47,10 @@ TABLE_VERSION = 5
 N_BINS = 36
 #: sub-beams of a swept ray in :func:`uniform_mode`
 N_SWEEP = 8
+#: transverse sizes (in dy) of the A-curves of :func:`sweep_transport_ratio`: from this
+#: fraction up to 1 + mu_max, geometric with this ratio
+SWEEP_MIN_FRACTION = 0.05
+SWEEP_RATIO = 1.4
 #: geometry models of a table
 GEOMETRIES = ("two_beam", "small_angle")
 #: geometric ratio of the height nodes
@@ -363,6 +367,68 @@ def _per_theta_a2(
     return np.concatenate([half, half], axis=-1)  # eq. 15 is even in cos(theta)
 
 
+def sweep_transport_ratio(
+    probe: Probe,
+    phi_deg: float,
+    dy: float,
+    perp_size: float,
+    range_m: float,
+    rho_range: tuple[float, float],
+    lags: np.ndarray,
+    mu: np.ndarray,
+    plane: afunctions.PlaneMatrix | None = None,
+) -> np.ndarray:
+    """Ratio of the swept-ray A_2 integrand seen at the rays' own times to eq. 15's.
+
+    A continuous scan accumulates each ray while the beam sweeps ``dy``; in the frozen
+    field (transport ``U = mu V_s``) the ray averages along ``dy (e_scan - mu e_wind)``,
+    a segment of length ``dy sqrt(g)`` along the separation of the pair, not across the
+    beam over ``dy`` as eq. 15 (Smalikho (2020), with ``H_perp(dy)`` of eq. 20) keeps it.
+    The integrand of eq. 15 is recomputed with ``H_perp(dy sqrt(g))`` (inertial model,
+    A-curves on a geometric family of transverse sizes ``c dy``, 4-point Lagrange in
+    ``log c``) and divided by eq. 15's. At ``mu = 0`` it is 1. Against the exact
+    two-beam model (:func:`cwproc.physics.two_beam.two_beam_structure_function` with
+    ``ray_duration_s``) it removes most of eq. 15's excess at ``l = 1`` (up to 27 % at
+    ``mu = 1.5``; 1-3 % left for 1-5 deg steps).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(lags, mu, theta)`` on :func:`full_circle`.
+    """
+    mu = np.asarray(mu, float)
+    sg, wp, wl = afunctions.transport_weights(mu, phi_deg)  # (nm, nth) half circle
+    top = float(max(np.max(sg), 1.0)) * 1.01
+    sizes = np.geomspace(
+        SWEEP_MIN_FRACTION,
+        top,
+        max(4, math.ceil(math.log(top / SWEEP_MIN_FRACTION) / math.log(SWEEP_RATIO)) + 1),
+    )
+    rho = lags[:, None, None] * dy * sg[None]  # (nl, nm, nth)
+    idx, w, _ = _lagrange4(np.log(sizes), np.log(np.clip(sg, sizes[0], sizes[-1])))
+    idx = idx.reshape(*sg.shape, 4)
+    w = w.reshape(*sg.shape, 4)
+    a_perp = np.zeros(rho.shape)
+    a_par = np.zeros(rho.shape)
+    for k, c in enumerate(sizes):
+        use = idx == k  # (nm, nth, 4)
+        if not use.any():
+            continue
+        weight = np.sum(np.where(use, w, 0.0), axis=-1)  # (nm, nth)
+        curves = afunctions.a_curve_splines(
+            *rho_range, probe=probe, dy=float(c * perp_size), range_m=range_m, plane=plane
+        )
+        a_perp += weight[None] * curves.perp(rho)
+        a_par += weight[None] * curves.par(rho)
+    physical = wp[None] * a_perp + wl[None] * a_par
+    fixed = afunctions.a_curve_splines(
+        *rho_range, probe=probe, dy=float(perp_size), range_m=range_m, plane=plane
+    )
+    eq15 = wp[None] * fixed.perp(rho) + wl[None] * fixed.par(rho)
+    ratio = physical / eq15
+    return np.concatenate([ratio, ratio], axis=-1)  # both even in cos(theta)
+
+
 def _point_pair(
     phi_deg: float, delta_theta_deg: float, lags: np.ndarray, mu: np.ndarray, theta: np.ndarray
 ) -> np.ndarray:
@@ -401,11 +467,10 @@ def geometry_correction(
     The pair of rays ``l`` steps apart (:func:`cwproc.physics.two_beam.cross_term`: chord
     separation, angle between the beams, transport ``U t`` with ``U = mu V_s``) against
     Smalikho (2020), eq. 15 for the same point probe (``A_perp = (8/3) rho^(2/3)``,
-    ``A_par = 2 rho^(2/3)``), both without the sweep: the sweep of a continuous scan stays
-    in the probe's A-functions as ``H_perp(dy)`` of Smalikho (2020), eqs. 15, 20 (across
-    the beam, fixed ``dy``; a ray seen at its own times averages along ``dy (e_scan - mu
-    e_wind)`` instead, which :mod:`cwproc.physics.two_beam` models with
-    ``ray_duration_s`` and these tables do not). For a point probe and the inertial model
+    ``A_par = 2 rho^(2/3)``), both without the sweep: the sweep of a continuous scan is
+    in the probe's A-functions (``H_perp`` of Smalikho (2020), eq. 20, over the length
+    the ray averages in the moving field, :func:`sweep_transport_ratio`). For a point
+    probe and the inertial model
     both scale as ``R'^(2/3)``, so the ratio is computed once on the circle ``R' = 1``
     (``V_s = 1``, ray period ``dtheta``). The probe's eq.-15 A-functions plus the
     same-beam term, times this ratio, minus the same-beam term, give the exact geometry
@@ -520,6 +585,25 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
         plane = afunctions.PlaneMatrix(
             min(lim[0] for lim in limits), max(lim[1] for lim in limits), model, outer
         )
+        if i == 0 and exact and np.any(perp_size > 0):
+            # rays of a continuous scan seen at their own times (inertial, all outer scales)
+            inertial_plane = plane if model == "inertial" else None
+            sweep = [
+                sweep_transport_ratio(
+                    probe,
+                    phi,
+                    float(dys[j]),
+                    float(perp_size[j]),
+                    float(ranges[j]),
+                    (float(rho_lo[j]) * SWEEP_MIN_FRACTION, float(rho_hi[j])),
+                    lags,
+                    mu,
+                    inertial_plane,
+                )
+                for j in range(heights.size)
+            ]
+        elif i == 0:
+            sweep = [1.0] * heights.size
         for j in range(heights.size):
             dy = float(dys[j])
             curves = afunctions.a_curve_splines(
@@ -534,7 +618,8 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
             )
             s2 = same[j]
             a1 = (curves.perp(lags * dy) + s2) * g1 - s2 + sigma2 * unif
-            per_theta = (_per_theta_a2(curves, lags * dy, mu, phi) + s2) * g2 - s2
+            per_theta = _per_theta_a2(curves, lags * dy, mu, phi) * sweep[j]
+            per_theta = (per_theta + s2) * g2 - s2
             per_theta = per_theta + sigma2 * unif[:, None, None]
             c0 = per_theta.mean(axis=-1)
             log_a1[i, j] = np.log(a1)

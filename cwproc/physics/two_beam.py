@@ -375,9 +375,23 @@ def two_beam_structure_function(
         az_a, az_b, el, q, separation_m=shift, model=model, outer_scale_m=outer_scale_m, **sub
     )
     out = np.asarray(cross, dtype=float)
-    for e in np.unique(el):
-        self_term = same_beam_term(q, float(e), model=model, outer_scale_m=outer_scale_m, **sub)
-        out = np.where(el == e, out - 2.0 * self_term, out)
+    moving = bool(np.any(sub["sweep_shift_m"] != 0)) and sweep_deg != 0 and n_sweep > 1
+    if moving:  # a ray seen at its own times: its same-beam term depends on the azimuth
+        args = dict(model=model, outer_scale_m=outer_scale_m, **sub)
+        out = out - 0.5 * (
+            cross_term(az_a, az_a, el, q, **args) + cross_term(az_b, az_b, el, q, **args)
+        )
+    else:
+        for e in np.unique(el):
+            self_term = same_beam_term(
+                q,
+                float(e),
+                model=model,
+                outer_scale_m=outer_scale_m,
+                sweep_deg=sweep_deg,
+                n_sweep=n_sweep,
+            )
+            out = np.where(el == e, out - 2.0 * self_term, out)
     if model != "inertial":
         sigma2 = spectra.variance_per_eps23(model, float(outer_scale_m))
         diff = mean_direction(az_a, el, sweep_deg, n_sweep) - mean_direction(
@@ -408,9 +422,9 @@ def two_beam_covariance(
 
     Finite-outer-scale models only (``sigma^2 = (eps L_V / c)^(2/3)``, Banakh et al.
     (1999), eq. 19): ``B_ab = sigma^2 S_a . S_b - (1/2) sum_jk w_j w_k S_aj^T D(r) S_bk``
-    (``B = sigma^2 I - D/2``); the same ray at the same time (``a = b``, ``t = 0``) gives
-    ``sigma^2 |S_a|^2 -`` :func:`same_beam_term` from the fine quadrature. Parameters as
-    :func:`two_beam_structure_function`. ``D(a, b) = B_aa + B_bb - 2 B_ab`` holds exactly.
+    (``B = sigma^2 I - D/2``); the same ray (``a = b``, ``t = 0``) uses the same pair rule.
+    Parameters as :func:`two_beam_structure_function`. ``D(a, b) = B_aa + B_bb - 2 B_ab``
+    holds exactly.
     """
     if model == "inertial":
         raise ValueError("the inertial model has no finite covariance; use von_karman")
@@ -428,24 +442,9 @@ def two_beam_covariance(
     sigma2 = spectra.variance_per_eps23(model, float(outer_scale_m))
     sa = mean_direction(az_a, el, sweep_deg, n_sweep)
     sb = mean_direction(az_b, el, sweep_deg, n_sweep)
-    same = (az_a == az_b) & (np.sum(shift * shift, axis=-1) == 0)
     out = sigma2 * np.sum(sa * sb, axis=-1)
-    cross = np.zeros(az_a.shape)
-    if np.any(~same):
-        cross[~same] = cross_term(
-            az_a[~same],
-            az_b[~same],
-            el[~same],
-            q,
-            separation_m=shift[~same],
-            model=model,
-            outer_scale_m=outer_scale_m,
-            **sub,
-        )
-    for e in np.unique(el[same]):
-        cross = np.where(
-            same & (el == e),
-            2.0 * same_beam_term(q, float(e), model=model, outer_scale_m=outer_scale_m, **sub),
-            cross,
-        )
+    # one pair rule for all pairs, the same ray included (consistent cusps)
+    cross = cross_term(
+        az_a, az_b, el, q, separation_m=shift, model=model, outer_scale_m=outer_scale_m, **sub
+    )
     return float(epsilon) ** (2.0 / 3.0) * (out - 0.5 * cross)

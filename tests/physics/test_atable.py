@@ -275,3 +275,45 @@ def test_sector_average_uses_the_azimuth_bins(stare_table):
         sector = float(stare_table.evaluate(lag, 300.0, mu, weights=weights)[1])
         assert sector == pytest.approx(direct, rel=2.5e-2)
         assert abs(full / direct - 1) > 4 * abs(sector / direct - 1)
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.5, 1.5])
+def test_swept_rays_seen_at_their_own_times(cache, mu):
+    # a continuous 72-ray scan (5 deg swept per ray, 0.5 s per ray): the table against the
+    # exact two-beam model whose rays average while the field moves (ray_duration_s);
+    # 12 sub-beams per ray in the direct model, so 2.5 %
+    from cwproc.physics import two_beam
+
+    tab = get_a_table(
+        PROBE,
+        phi_deg=PHI,
+        delta_theta_deg=5.0,
+        n_lags=3,
+        cache_dir=cache,
+        height_range_m=(150.0, 600.0),
+        mu_max=2.0,
+        swept=True,
+    )
+    h = 300.0
+    rng = h / math.sin(math.radians(PHI))
+    radius = rng * math.cos(math.radians(PHI))
+    t0 = 0.5
+    speed = mu * math.radians(5.0) * radius / t0
+    a = math.radians(70.0)
+    wind = speed * np.array([0.0, math.cos(a), math.sin(a)])
+    q = two_beam.beam_quadrature(PROBE, rng)
+    mids = np.arange(0.0, 360.0, 10.0)
+    for lag in (1, 3):
+        direct = two_beam.two_beam_structure_function(
+            mids - 2.5 * lag,
+            mids + 2.5 * lag,
+            PHI,
+            rng,
+            quadrature=q,
+            time_separation_s=-lag * t0,
+            mean_wind=wind,
+            sweep_deg=5.0,
+            n_sweep=12,
+            ray_duration_s=t0,
+        ).mean()
+        assert float(tab.evaluate(lag, h, mu)[1]) == pytest.approx(float(direct), rel=2.5e-2)
