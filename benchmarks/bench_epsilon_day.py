@@ -10,7 +10,9 @@ heights 50-2000 m, 10-min blocks, random wind 1-15 m s-1, eps 1e-4 to 1e-2) for
 each with the spectrum model ``--model`` (default von Karman, the default of the
 configuration). The A-tables are built first (timed separately, cached in a temporary
 directory), then the stage is run ``--repeat`` times on warm tables; the best time is
-printed. Target: under 1 s per day and configuration.
+printed. Target: under 1 s per day and configuration (measured warm: 0.13 / 0.16 s
+inertial, 0.50 / 0.72 s von Karman for the 24-ray VAD / the 180-ray scan on a shared
+2-core box; cold builds 0.7 / 7 s and 8 / 22 s).
 
 Run::
 

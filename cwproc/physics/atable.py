@@ -587,7 +587,19 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
         )
         if i == 0 and exact and np.any(perp_size > 0):
             # rays of a continuous scan seen at their own times (inertial, all outer scales)
-            inertial_plane = plane if model == "inertial" else None
+            family = [
+                afunctions.panel_limits(
+                    lo * SWEEP_MIN_FRACTION,
+                    hi,
+                    probe=probe,
+                    dy=float(ps) * SWEEP_MIN_FRACTION,
+                    range_m=rng,
+                )
+                for lo, hi, ps, rng in zip(rho_lo, rho_hi, perp_size, ranges, strict=True)
+            ]
+            inertial_plane = afunctions.PlaneMatrix(
+                min(lim[0] for lim in family), max(lim[1] for lim in family), "inertial"
+            )
             sweep = [
                 sweep_transport_ratio(
                     probe,
