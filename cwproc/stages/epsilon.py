@@ -1113,10 +1113,12 @@ def estimate_epsilon(
     few = ~(valid_lag[..., 0] & valid_lag[..., lag_used - 1])
     flag |= np.where(few, FLAG_TOO_FEW_PAIRS, 0).astype(np.int16)
     # the loss depends on (dy, range) only: compute it once per distinct pair
-    pairs_dr = np.stack([np.round(dy, 6).ravel(), np.round(range_th, 6).ravel()], axis=1)
+    # step-stare rays are not swept: no transverse averaging in the variance (eq. 20)
+    dy_filter = dy if options["swept"] else np.where(np.isfinite(dy), 0.0, np.nan)
+    pairs_dr = np.stack([np.round(dy_filter, 6).ravel(), np.round(range_th, 6).ravel()], axis=1)
     uniq, inverse = np.unique(np.nan_to_num(pairs_dr, nan=-1.0), axis=0, return_inverse=True)
     loss_u = np.where(
-        uniq[:, 0] > 0, averaging_loss(probe, np.abs(uniq[:, 0]), np.abs(uniq[:, 1])), np.nan
+        uniq[:, 0] >= 0, averaging_loss(probe, np.abs(uniq[:, 0]), np.abs(uniq[:, 1])), np.nan
     )
     loss = loss_u[inverse.ravel()].reshape(dy.shape)
     c_model = spectra.integral_scale_coefficient("exponential" if model == "inertial" else model)
