@@ -596,3 +596,80 @@ def test_step_stare_24_rays_sector_and_gap_give_epsilon(tmp_path, label, mids, s
             table_options=options,
         )
         assert abs(float(circle["epsilon"].values[0, 0]) / 0.01 - 1) > 0.04
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("n_rays", "t_ray", "swept"), [(24, 3.0, False), (72, 0.5, True)])
+def test_von_karman_coarse_scans_recover_eps_and_outer_scale(tmp_path, n_rays, t_ray, swept):
+    """Exact two-beam von Karman data (L_V = 300 m, eps 5e-3, sigma_e 0.05, U = 10 m/s).
+
+    24-ray step-stare VAD and 72-ray continuous scan (each ray swept over 5 deg and seen
+    at its own times): eps within 2 %, L_V within 3 %, sigma_e within 15 %.
+    """
+    import math
+
+    from cwproc.physics import two_beam
+    from cwproc.physics.atable import azimuth_bin_weights
+
+    phi, h, eps, big_l, noise, speed = 60.0, 300.0, 5e-3, 300.0, 0.05, 10.0
+    dtheta = 360.0 / n_rays
+    rng = h / math.sin(math.radians(phi))
+    q = two_beam.beam_quadrature(PROBE, rng)
+    a = math.radians(70.0)
+    wind = speed * np.array([0.0, math.cos(a), math.sin(a)])
+    sweep = {"sweep_deg": dtheta, "n_sweep": 8} if swept else {}
+    mids = np.arange(0.0, 360.0, 10.0)
+    vk = {"model": "von_karman", "epsilon": eps, "outer_scale_m": big_l, "quadrature": q}
+    d = np.array(
+        [
+            np.mean(
+                two_beam.two_beam_structure_function(
+                    mids - 0.5 * lag * dtheta,
+                    mids + 0.5 * lag * dtheta,
+                    phi,
+                    rng,
+                    time_separation_s=-lag * t_ray,
+                    mean_wind=wind,
+                    ray_duration_s=t_ray if swept else 0.0,
+                    **sweep,
+                    **vk,
+                )
+            )
+            for lag in (1, 2, 3)
+        ]
+    )
+    b0 = float(two_beam.two_beam_covariance(0.0, 0.0, phi, rng, **sweep, **vk))
+    sf = xr.Dataset(
+        {
+            "structure_function": (("time", "height", "lag"), (d + 2 * noise**2)[None, None]),
+            "n_pairs": (("time", "height", "lag"), np.full((1, 1, 3), 1000)),
+            "radial_velocity_variance": (("time", "height"), [[b0 + noise**2]]),
+            "wind_speed": (("time", "height"), [[speed]]),
+            "pair_azimuth_weights": (
+                ("time", "height", "azimuth_node"),
+                azimuth_bin_weights(np.radians(70.0 - mids))[None, None],
+            ),
+            "azimuth_step": ("time", [dtheta]),
+            "scan_period": ("time", [n_rays * t_ray]),
+            "n_scans": ("time", [10]),
+        },
+        coords={
+            "time": [np.datetime64("2024-01-01T00:00", "ns")],
+            "height": [h],
+            "range": ("height", [rng]),
+            "lag": [1, 2, 3],
+            "elevation": ("time", [phi]),
+        },
+        attrs={"swept_rays": int(swept)},
+    )
+    out = estimate_epsilon(
+        sf,
+        probe=PROBE,
+        lag_number=3,
+        model="von_karman",
+        table_options={"cache_dir": str(tmp_path), "height_range_m": (150.0, 600.0)},
+    )
+    assert float(out["epsilon"].values[0, 0]) == pytest.approx(eps, rel=0.02)
+    assert float(out["integral_scale"].values[0, 0]) == pytest.approx(big_l, rel=0.03)
+    fitted = np.isfinite(out["noise_std"].values[0, 0])
+    assert not fitted or float(out["noise_std"].values[0, 0]) == pytest.approx(noise, rel=0.15)
