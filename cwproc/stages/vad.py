@@ -287,6 +287,76 @@ def fit_linear(velocity: FloatArray, design: FloatArray, valid: BoolArray) -> Ba
     return _finish(beta, inverse, determined, np.ones_like(determined), residuals, valid)
 
 
+def _sign_iterations(
+    y: FloatArray, design: FloatArray, weight: FloatArray, inv0: FloatArray, beta: FloatArray
+) -> tuple[FloatArray, BoolArray]:
+    """Gauss-Newton on ``|A beta|`` from ``beta``: refit ``sign(A beta) |V_r|`` to a fixed point."""
+    signs = np.where(_model(design, beta) >= 0, 1.0, -1.0)
+    converged = np.zeros(beta.shape[:2], dtype=bool)
+    for _ in range(HOMODYNE_MAX_ITERATIONS):
+        beta = _solve(inv0, design, y * signs)
+        new_signs = np.where(_model(design, beta) >= 0, 1.0, -1.0)
+        converged = np.all((new_signs == signs) | (weight == 0), axis=1)
+        signs = new_signs
+        if converged.all():
+            break
+    return beta, converged
+
+
+def _best_of_patterns(
+    y: FloatArray,
+    design: FloatArray,
+    weight: FloatArray,
+    inv0: FloatArray,
+    patterns: list[FloatArray],
+    best_beta: FloatArray,
+) -> FloatArray:
+    """The linear fit of ``pattern * |V_r|`` of least ``|V_r| - |A beta|`` cost per cell."""
+
+    def cost(beta: FloatArray) -> FloatArray:
+        return np.sum(weight * (y - np.abs(_model(design, beta))) ** 2, axis=1)
+
+    best_cost = cost(best_beta)
+    for signs in patterns:
+        beta = _solve(inv0, design, y * signs)
+        c = cost(beta)
+        better = c < best_cost
+        best_cost = np.where(better, c, best_cost)
+        best_beta = np.where(better[..., None], beta, best_beta)
+    return best_beta
+
+
+def homodyne_start_patterns(theta: FloatArray) -> list[FloatArray]:
+    """Sign patterns ``sign(cos(theta - t))``, t every ``HOMODYNE_GRID_STEP_DEG`` in [0, 180).
+
+    The patterns of a purely horizontal wind; ``theta`` (S, R) azimuths (rad). Each
+    pattern is (S, R, 1).
+    """
+    return [
+        np.where(np.cos(theta - t) >= 0, 1.0, -1.0)[:, :, None]
+        for t in np.deg2rad(np.arange(0.0, 180.0, HOMODYNE_GRID_STEP_DEG))
+    ]
+
+
+def homodyne_arc_patterns(theta: FloatArray, beta: FloatArray) -> list[FloatArray]:
+    """Sign patterns of ``a + b cos(theta - t)`` about the fitted direction ``t``.
+
+    With a vertical wind (``a = w sin(phi) != 0``) the radial velocity changes sign at
+    two azimuths that are not 180 deg apart: the negative rays form an arc of any width
+    centred on the downwind side. Taking the direction ``t`` of a first fit (which the
+    half-circle patterns find well) and every arc half width ``h`` in 10 deg steps gives
+    the pattern of the global minimum, which Gauss-Newton from a half-circle start can
+    miss (8 rays, phi = 52 deg, u = 0, v = 2, w = 0.75 converged to v = 1.16, w = 1.13).
+    ``theta`` (S, R) (rad), ``beta`` (S, G, 3); patterns (S, R, G).
+    """
+    direction = np.arctan2(beta[..., 0], beta[..., 1])[:, None, :]  # (S, 1, G)
+    cos_dev = np.cos(theta[:, :, None] - direction)
+    out = [np.ones_like(cos_dev)]
+    for half_width in np.deg2rad(np.arange(5.0, 180.0, 10.0)):
+        out.append(np.where(cos_dev >= np.cos(half_width), 1.0, -1.0))
+    return out
+
+
 def fit_homodyne(
     magnitude: FloatArray,
     design: FloatArray,
@@ -296,10 +366,13 @@ def fit_homodyne(
     """Fit ``|V_r| = |A beta|`` (homodyne cw lidar, Wagner et al. (DTU)) for every (scan, gate).
 
     Gauss-Newton on ``|A beta|``: each step is the linear fit of ``sign(A beta) |V_r|``
-    (``J^T J = A^T A``), started from the best of the sign patterns
-    ``sign(cos(theta - t))`` for t every ``HOMODYNE_GRID_STEP_DEG`` in [0, 180) and the
-    all-positive pattern; iterated until no sign changes. ``beta`` is returned with an
-    arbitrary overall sign (see :func:`resolve_homodyne_ambiguity`).
+    (``J^T J = A^T A``), iterated until no sign changes, started from the best of the
+    sign patterns of a horizontal wind (:func:`homodyne_start_patterns`) and the
+    all-positive pattern. The result is then refined from the arc patterns about its
+    direction (:func:`homodyne_arc_patterns`), which hold the global minimum when a
+    vertical wind moves the sign changes off the half circle; the lower cost wins.
+    ``beta`` is returned with an arbitrary overall sign (see
+    :func:`resolve_homodyne_ambiguity`).
 
     Parameters
     ----------
@@ -322,35 +395,26 @@ def fit_homodyne(
     y = np.where(valid, np.abs(magnitude), 0.0)
     inverse, determined = _safe_inverse(_normal_matrix(design, weight), weight.sum(axis=1))
     inv0 = np.nan_to_num(inverse)
-
-    def cost(beta: FloatArray) -> FloatArray:
-        return np.sum(weight * (y - np.abs(_model(design, beta))) ** 2, axis=1)
-
     # azimuth of each ray from the design row: theta = atan2(sin, cos)
     theta = np.arctan2(design[..., 0], design[..., 1])
-    best_beta = _solve(inv0, design, y)
+    first = _solve(inv0, design, y)
     warm = None if start is None else np.all(np.isfinite(start), axis=-1)
     if warm is None or not warm.all():
-        best_cost = cost(best_beta)
-        for t in np.deg2rad(np.arange(0.0, 180.0, HOMODYNE_GRID_STEP_DEG)):
-            signs = np.where(np.cos(theta - t) >= 0, 1.0, -1.0)[:, :, None]
-            beta = _solve(inv0, design, y * signs)
-            c = cost(beta)
-            better = c < best_cost
-            best_cost = np.where(better, c, best_cost)
-            best_beta = np.where(better[..., None], beta, best_beta)
+        first = _best_of_patterns(y, design, weight, inv0, homodyne_start_patterns(theta), first)
     if start is not None and warm is not None:
-        best_beta = np.where(warm[..., None], start, best_beta)
-    beta = best_beta
-    signs = np.where(_model(design, beta) >= 0, 1.0, -1.0)
-    converged = np.zeros(determined.shape, dtype=bool)
-    for _ in range(HOMODYNE_MAX_ITERATIONS):
-        beta = _solve(inv0, design, y * signs)
-        new_signs = np.where(_model(design, beta) >= 0, 1.0, -1.0)
-        converged = np.all((new_signs == signs) | (weight == 0), axis=1)
-        signs = new_signs
-        if converged.all():
-            break
+        first = np.where(warm[..., None], start, first)
+    beta, converged = _sign_iterations(y, design, weight, inv0, first)
+    refined_start = _best_of_patterns(
+        y, design, weight, inv0, homodyne_arc_patterns(theta, beta), beta
+    )
+    refined, refined_converged = _sign_iterations(y, design, weight, inv0, refined_start)
+
+    def cost(b: FloatArray) -> FloatArray:
+        return np.sum(weight * (y - np.abs(_model(design, b))) ** 2, axis=1)
+
+    better = cost(refined) < cost(beta)
+    beta = np.where(better[..., None], refined, beta)
+    converged = np.where(better, refined_converged, converged)
     residuals = np.abs(magnitude) - np.abs(_model(design, beta))
     return _finish(beta, inverse, determined, converged, residuals, valid)
 
