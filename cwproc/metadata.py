@@ -220,7 +220,10 @@ VARIABLES: dict[str, VarMeta] = {
         "transverse sampling interval dy = dtheta R'", "m", references=SMALIKHO_2020
     ),
     "noise_std": VarMeta(
-        "instrumental error of the radial velocity sigma_e", "m s-1", references=SMALIKHO_2020
+        "instrumental error of the radial velocity sigma_e",
+        "m s-1",
+        "radial_velocity_of_scatterers_away_from_instrument standard_error",
+        references=SMALIKHO_2020,
     ),
     "velocity_variance": VarMeta(
         "variance of the radial velocity, corrected for noise and volume averaging",
@@ -258,6 +261,7 @@ VARIABLES: dict[str, VarMeta] = {
         "instrumental error of the radial velocity sigma_e predicted from the "
         "signal-to-noise ratio and the instrument settings",
         "m s-1",
+        "radial_velocity_of_scatterers_away_from_instrument standard_error",
         comment=(
             "Pearson et al. (2009), eq. 3: points per gate, pulses per ray, velocity "
             "bandwidth 1024 x the velocity resolution, signal spectral width 1.5 m s-1, "
