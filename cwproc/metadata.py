@@ -254,7 +254,11 @@ VARIABLES: dict[str, VarMeta] = {
     "edr": VarMeta(
         "eddy dissipation rate, the cube root of the turbulent kinetic energy dissipation rate",
         "m2/3 s-1",
-        comment="EDR = epsilon^(1/3), the turbulence measure of aviation (ICAO) and NWP",
+        comment=(
+            "EDR = epsilon^(1/3), the turbulence measure of aviation (ICAO) and NWP; units "
+            "m^(2/3) s^-1, written as 'm2/3 s-1' as is customary: UDUNITS has no rational "
+            "exponents and parses that string as m2 s-1 / 3, so do not convert it"
+        ),
         references=SMALIKHO_2020 + ", eq. 5",
     ),
     "noise_std_predicted": VarMeta(
