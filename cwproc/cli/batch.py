@@ -22,6 +22,7 @@ from cwproc.batch import (
     UnitOutcome,
     close_client,
     dask_client,
+    local_pool,
     run_batch,
 )
 from cwproc.cli._common import config_option, load_config_or_fail, report_failure
@@ -134,7 +135,7 @@ def summary_lines(report: BatchReport, verbose: bool) -> list[str]:
     "--workers",
     type=click.IntRange(min=1),
     default=None,
-    help="Run on a local Dask cluster of N single-threaded worker processes.",
+    help="Run units in N worker processes on this machine (a process pool).",
 )
 @click.option(
     "--scheduler",
@@ -207,9 +208,11 @@ def batch(
         raise click.UsageError("give --quiet or --verbose, not both")
     cfg = load_config_or_fail(config)
     client = None
-    if workers is not None or scheduler:
+    if workers is not None and not scheduler:
+        client = local_pool(workers)
+    elif scheduler:
         try:
-            client = dask_client(workers=workers, scheduler=scheduler)
+            client = dask_client(scheduler=scheduler)
         except DaskNotInstalledError as exc:
             report_failure(str(exc))
             sys.exit(2)

@@ -104,12 +104,23 @@ def test_unwritable_state_folder_is_one_clear_line(tmp_path):
     )
 
 
-def test_workers_without_dask_explains_how_to_install(tmp_path, monkeypatch):
+def test_scheduler_without_dask_explains_how_to_install(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "dask.distributed", None)
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    result = invoke(
+        str(junk_archive(tmp_path / "in")), str(tmp_path / "out"), "--scheduler", "tcp://x:1"
+    )
+    assert result.exit_code == 2
+    assert 'pip install "cwproc[dask]"' in result.stderr
+
+
+def test_local_workers_need_no_dask(tmp_path, monkeypatch):
+    """--workers N is a process pool of the standard library."""
     monkeypatch.setitem(sys.modules, "dask.distributed", None)
     monkeypatch.setitem(sys.modules, "distributed", None)
     result = invoke(str(junk_archive(tmp_path / "in")), str(tmp_path / "out"), "--workers", "2")
-    assert result.exit_code == 2
-    assert 'pip install "cwproc[dask]"' in result.stderr
+    assert result.exit_code == 0, result.stderr
+    assert "pip install" not in result.stderr
 
 
 @pytest.mark.parametrize(
