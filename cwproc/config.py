@@ -496,38 +496,33 @@ def _convert(tp: Any, value: Any, source: str, key: str) -> Any:
 # --------------------------------------------------------------------------------------
 
 
-def _toml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int | float):
-        return repr(value)
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+def _toml_ready(value: Any) -> Any:
+    """Tuples as lists and ``None`` entries dropped, for the TOML writer."""
+    if isinstance(value, dict):
+        return {str(k): _toml_ready(v) for k, v in value.items() if v is not None}
     if isinstance(value, list | tuple):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    raise TypeError(f"cannot write {value!r} as TOML")
+        return [_toml_ready(v) for v in value]
+    return value
 
 
 def dump_toml(cfg: Config) -> str:
-    """Write a :class:`Config` as TOML (``None`` values are omitted)."""
-    lines = [f"# cwproc configuration (from {cfg.source})"]
+    """Write a :class:`Config` as TOML (``None`` values are omitted).
+
+    The text is made by ``tomli_w`` (a maintained TOML writer), so any value a valid
+    configuration holds -- strings with newlines or quotes, dates, quoted or nested keys
+    of the ``[reader.*]`` tables -- reads back (``config_from_toml(dump_toml(c))``) to
+    the same configuration; it is stored as provenance in every product.
+    """
+    import tomli_w
+
+    data: dict[str, Any] = {}
     for f in dataclasses.fields(cfg):
-        value = getattr(cfg, f.name)
         if f.name == "source":
             continue
+        value = getattr(cfg, f.name)
         if dataclasses.is_dataclass(value):
-            lines.append(f"\n[{f.name}]")
-            for sub in dataclasses.fields(value):
-                v = getattr(value, sub.name)
-                if v is not None:
-                    lines.append(f"{sub.name} = {_toml_value(v)}")
+            data[f.name] = _toml_ready(dataclasses.asdict(value))
         elif isinstance(value, dict):
-            for table, entries in value.items():
-                lines.append(f"\n[{f.name}.{table}]")
-                for k, v in entries.items():
-                    if isinstance(v, dict):
-                        inner = ", ".join(f"{kk} = {_toml_value(vv)}" for kk, vv in v.items())
-                        lines.append(f"{k} = {{ {inner} }}")
-                    else:
-                        lines.append(f"{k} = {_toml_value(v)}")
-    return "\n".join(lines) + "\n"
+            data[f.name] = _toml_ready(value)
+    source = str(cfg.source).replace("\n", " ").replace("\r", " ")
+    return f"# cwproc configuration (from {source})\n" + tomli_w.dumps(data)
