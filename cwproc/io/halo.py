@@ -90,6 +90,8 @@ _RANGE_OVERLAPPING = re.compile(
 _START_TIME = re.compile(r"^(\d{4})(\d{2})(\d{2}) (\d{1,2}):(\d{2}):(\d{2}(?:[.,]\d*)?)$")
 _SPECTRAL_WIDTH = re.compile(r"^\*{4}\s*Instrument spectral width\s*=\s*(\S+)\s*$")
 
+#: longest range gate accepted (m): Stream Line gates are 3-60 m; 1e308 gave infinite heights
+_MAX_GATE_LENGTH_M = 1000.0
 #: largest gate count accepted (guards against a garbled header asking for absurd memory)
 _MAX_GATES = 100_000
 
@@ -208,8 +210,12 @@ def parse_header(path: str | os.PathLike, lines: list[str]) -> HplHeader:
     if not 1 <= n_gates <= _MAX_GATES:
         raise InputFileError(path, f"Number of gates: {n_gates} is out of range", 3)
     gate_length = field(3, _number, "a number")
-    if gate_length <= 0:
-        raise InputFileError(path, f"Range gate length (m): {values[3]!r} must be > 0", 4)
+    if not 0 < gate_length <= _MAX_GATE_LENGTH_M:
+        raise InputFileError(
+            path,
+            f"Range gate length (m): {values[3]!r} must be > 0 and <= {_MAX_GATE_LENGTH_M:g}",
+            4,
+        )
     points = field(4, _integer, "a whole number")
     pulses = field(5, _integer, "a whole number")
     rays = field(6, _integer, "a whole number")

@@ -44,7 +44,7 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import InputFileError
-from cwproc.io.zephir import check_reader_options
+from cwproc.io.zephir import check_reader_options, with_range_screen
 
 #: 1.x per-altitude column suffix -> canonical name
 LONG_HEIGHT_COLUMNS: dict[str, str] = {
@@ -391,4 +391,6 @@ def read_windcube_sta(
     gps = _header_value(items, "GPS Location", "GPS Localisation")
     if gps:
         attrs["gps_location"] = gps
-    return xr.Dataset(data_vars, coords={"time": times, "height": heights_sorted}, attrs=attrs)
+    return with_range_screen(
+        xr.Dataset(data_vars, coords={"time": times, "height": heights_sorted}, attrs=attrs)
+    )
