@@ -49,6 +49,7 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import ConfigError, CwprocError, InputFileError
+from cwproc.io.timecheck import check_times
 
 try:  # the optional compiled tokenizer (setup.py); pandas does the same work without it
     from cwproc.io import _hpltok
@@ -221,6 +222,7 @@ def parse_header(path: str | os.PathLike, lines: list[str]) -> HplHeader:
     rays = field(6, _integer, "a whole number")
     focus = field(8, _number, "a number")
     start = field(9, parse_start_time, "a time 'yyyymmdd HH:MM:SS.ss'")
+    check_times(path, np.array([start]), 10)
     resolution = field(10, _number, "a number")
 
     formula = lines[11].strip()

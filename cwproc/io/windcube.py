@@ -44,6 +44,7 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import InputFileError
+from cwproc.io.timecheck import check_times
 from cwproc.io.zephir import check_reader_options, with_range_screen
 
 #: 1.x per-altitude column suffix -> canonical name
@@ -215,7 +216,7 @@ def _parse_times(path: str | os.PathLike, stamps: pd.Series, first_line: int) ->
     for fmt in _TIME_FORMATS:
         times = pd.to_datetime(stamps, format=fmt, errors="coerce")
         if not times.isna().any():
-            return times.to_numpy(dtype="datetime64[ns]")
+            return check_times(path, times.to_numpy(dtype="datetime64[ns]"), first_line)
     ok = [pd.to_datetime(stamps, format=f, errors="coerce").notna().sum() for f in _TIME_FORMATS]
     times = pd.to_datetime(stamps, format=_TIME_FORMATS[int(np.argmax(ok))], errors="coerce")
     row = int(np.flatnonzero(times.isna().to_numpy())[0])

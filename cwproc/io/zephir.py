@@ -47,6 +47,7 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import ConfigError, InputFileError
+from cwproc.io.timecheck import check_times
 from cwproc.metadata import range_warnings, screen_physical_range
 
 #: per-height column prefix -> canonical variable name (8 columns per height)
@@ -278,7 +279,7 @@ def _parse_times(path: str | os.PathLike, stamps: pd.Series, first_line: int) ->
     for fmt in _TIME_FORMATS:
         times = pd.to_datetime(stamps, format=fmt, errors="coerce")
         if not times.isna().any():
-            return times.to_numpy(dtype="datetime64[ns]")
+            return check_times(path, times.to_numpy(dtype="datetime64[ns]"), first_line)
     times = pd.to_datetime(stamps, format=_TIME_FORMATS[0], errors="coerce")
     row = int(np.flatnonzero(times.isna().to_numpy())[0])
     raise InputFileError(
