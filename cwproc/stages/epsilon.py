@@ -133,6 +133,12 @@ FLAG_FIT_FAILED = 8
 FLAG_PARTIAL_BLOCK = 16
 FLAG_NOISE_PREDICTED = 32
 
+#: fewest lags for a fitted noise intercept (one residual degree of freedom for its
+#: standard error; on exact-statistics 24-ray step-stare scans the three-lag sigma_e came
+#: out 5-8 times too large, while 144-ray scans with noise 0.3 m/s recover it; 4 would
+#: trade the second for the first, see docs/physics-epsilon.md)
+MIN_NOISE_LAGS = 3
+
 #: a block with fewer than this share of the requested scans is not estimated (flag 16)
 MIN_BLOCK_FRACTION = 0.5
 
@@ -173,12 +179,13 @@ def fit_structure_function(
     """Least squares of ``D = eps^(2/3) A + 2 sigma_e^2`` over the lags (last axis).
 
     Smalikho (2020), eq. 4. The intercept ``2 sigma_e^2`` is *determined* where at least
-    three lags are valid and it exceeds twice its standard error (``s sqrt(sum x^2 /
-    (n sum x^2 - (sum x)^2))``, ``s^2`` the residual variance with ``n - 2`` degrees of
-    freedom). Elsewhere (insignificant, negative, or two lags) the slope is refitted with
-    the intercept fixed at ``2 sigma_pred^2`` from ``noise_prior`` (the noise predicted
-    from the SNR, :mod:`cwproc.physics.noise`), or at 0 without a prediction; ``sigma_e``
-    is then the prediction, or NaN -- never a measured 0.
+    :data:`MIN_NOISE_LAGS` lags are valid and it exceeds twice its standard error
+    (``s sqrt(sum x^2 / (n sum x^2 - (sum x)^2))``, ``s^2`` the residual variance with
+    ``n - 2`` degrees of freedom). Elsewhere (insignificant, negative, or too few lags)
+    the slope is refitted with the intercept fixed at ``2 sigma_pred^2`` from
+    ``noise_prior`` (the noise predicted from the SNR, :mod:`cwproc.physics.noise`), or
+    at 0 without a prediction; ``sigma_e`` is then the prediction, or NaN -- never a
+    measured 0.
 
     Parameters
     ----------
@@ -210,7 +217,7 @@ def fit_structure_function(
         resid = np.where(w, y - slope[..., None] * x - intercept[..., None], 0.0)
         s2 = (resid**2).sum(-1) / (n - 2)
         se_intercept = np.sqrt(s2 * sxx / det)
-    determined = (n >= 3) & (intercept > 0) & (intercept > 2.0 * se_intercept)
+    determined = (n >= MIN_NOISE_LAGS) & (intercept > 0) & (intercept > 2.0 * se_intercept)
     prior = np.full(slope.shape, np.nan) if noise_prior is None else np.asarray(noise_prior)
     fixed = np.where(np.isfinite(prior), 2.0 * np.nan_to_num(prior) ** 2, 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -868,6 +875,40 @@ def _fit_exact_cells(
     return out
 
 
+@functools.lru_cache(maxsize=16)
+def _removed_share_curve(phi_deg: float, model: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(log x, r(x))`` of :func:`mean_removed_share` on 81 nodes of ``x = R'/L_V``."""
+    x = np.geomspace(1e-3, 1e3, 81)
+    n_az = 72
+    theta = 2.0 * np.pi * np.arange(n_az) / n_az
+    ph = math.radians(phi_deg)
+    s = np.stack(
+        [np.full(n_az, math.sin(ph)), math.cos(ph) * np.cos(theta), math.cos(ph) * np.sin(theta)],
+        axis=-1,
+    )
+    pos = x[:, None, None] * np.stack([np.zeros(n_az), np.cos(theta), np.sin(theta)], -1)[None]
+    r_vec = pos - pos[:, :1, :]  # from the first ray's probe on the circle of radius x
+    r = np.linalg.norm(r_vec, axis=-1)
+    f, g = spectra._correlations(r, model, 1.0)
+    unit = np.where(r[..., None] > 0, r_vec / np.where(r > 0, r, 1.0)[..., None], 0.0)
+    dot = s @ s[0]
+    row = g * dot[None] + (f - g) * (unit @ s[0]) * np.sum(unit * s[None], axis=-1)
+    return np.log(x), hat_trace_per_ray(row, n_az)
+
+
+def mean_removed_share(ratio: np.ndarray, phi_deg: float, model: str) -> np.ndarray:
+    """Share of sigma_V^2 the scan-mean (VAD) wind takes from one scan's V'_L.
+
+    ``tr(H B)/(M sigma_V^2)`` (:func:`hat_trace_per_ray`) of a full circle of point
+    beams, Banakh et al. (1999), eqs. 15-16 with the isotropic tensor of ``model``; a
+    function of ``ratio = R'/L_V`` only (tabulated once per elevation and model). The
+    block mean of N independent scans removes this divided by N. The probe volume is
+    neglected (the share is carried by scales of the circle, far above the probe).
+    """
+    log_x, share = _removed_share_curve(round(float(phi_deg), 2), model)
+    return np.interp(np.log(np.clip(ratio, 1e-3, 1e3)), log_x, share)
+
+
 def pair_weights(sf: xr.Dataset) -> np.ndarray:
     """``(time, height, node)`` azimuth-node weights of the pairs present, NaN if unknown.
 
@@ -1162,6 +1203,11 @@ def estimate_epsilon(
             )
         passed_cell = passed_u[inverse.ravel()].reshape(n_t, n_h, scale_grid.size)
         full_var = np.array([spectra.variance_per_eps23(model, x) for x in scale_grid])
+        # the block-mean wind removes a share of the variance of V'_L (cw: ExactLagModel)
+        n_eff = np.where(np.isfinite(scans) & (scans >= 1), scans, 1.0)
+        ratio_rl = radius[:, :, None] / scale_grid[None, None, :]
+        removed = full_var * mean_removed_share(ratio_rl, float(np.nanmedian(phi)), model)
+        passed_cell = passed_cell - removed / n_eff[:, None, None]
         for rows, (_, table) in groups.values():  # one table per configuration
             sel = need & rows[:, None]
             if not np.any(sel):

@@ -19,6 +19,7 @@ from cwproc.stages.epsilon import (
     eq5_epsilon,
     estimate_epsilon,
     fit_structure_function,
+    mean_removed_share,
     passed_variance,
 )
 
@@ -639,6 +640,11 @@ def test_von_karman_coarse_scans_recover_eps_and_outer_scale(tmp_path, n_rays, t
         ]
     )
     b0 = float(two_beam.two_beam_covariance(0.0, 0.0, phi, rng, **sweep, **vk))
+    # the block mean of 10 independent scans removes share / 10 of sigma_V^2
+    share = mean_removed_share(
+        np.array([h / math.tan(math.radians(phi)) / big_l]), phi, "von_karman"
+    )
+    b0 = b0 - float(share[0]) * spectra.variance_from(eps, big_l, "von_karman") / 10
     sf = xr.Dataset(
         {
             "structure_function": (("time", "height", "lag"), (d + 2 * noise**2)[None, None]),
