@@ -59,6 +59,7 @@ import numpy as np
 from cwproc.config import Config, config_from_toml
 from cwproc.errors import CwprocError, InputFileError, ProductError
 from cwproc.io import Format, sniff_format
+from cwproc.io.netcdf import umask_mode
 
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())  # a library: the application decides where logs go
@@ -545,6 +546,7 @@ def save_ledger(ledger: Ledger, path: str | os.PathLike) -> None:
                 fh.write(data)
                 fh.flush()
                 os.fsync(fh.fileno())
+            os.chmod(tmp, umask_mode())
             os.replace(tmp, path)
         except BaseException:
             with contextlib.suppress(FileNotFoundError):

@@ -36,7 +36,14 @@ import xarray as xr
 from cwproc.config import Config
 from cwproc.errors import CwprocError, InputFileError
 from cwproc.io import KIND, Format, detect_format, get_reader
-from cwproc.io.netcdf import add_site_coordinates, sha256_file, site_attributes, write_product
+from cwproc.io.netcdf import (
+    add_site_coordinates,
+    discard,
+    publish,
+    sha256_file,
+    site_attributes,
+    write_product,
+)
 from cwproc.metadata import BANAKH_1999, GLADKIKH_2014, SMALIKHO_2020, WAGNER_DTU
 
 
@@ -413,8 +420,28 @@ def product_path(outdir: str | os.PathLike, unit: ProductUnit, name: str) -> Pat
 def write_unit_products(
     unit: ProductUnit, products: dict[str, xr.Dataset], outdir: str | os.PathLike, config: Config
 ) -> list[Path]:
-    """Write the products of one unit atomically with provenance; returns the paths."""
-    written = []
+    """Write the products of one unit with provenance, all or none; returns the paths.
+
+    Every product is first written completely to a hidden temporary; only when all of
+    them are written are they renamed onto their names (:func:`cwproc.io.netcdf.publish`),
+    so a full disk or a kill never leaves half a unit (wind without turbulence).
+    """
+    staged: list[tuple[Path, Path]] = []
+    try:
+        return _write_staged(unit, products, outdir, config, staged)
+    except BaseException:
+        discard(staged)
+        raise
+
+
+def _write_staged(
+    unit: ProductUnit,
+    products: dict[str, xr.Dataset],
+    outdir: str | os.PathLike,
+    config: Config,
+    staged: list[tuple[Path, Path]],
+) -> list[Path]:
+    """Stage every product of ``unit`` (appending to ``staged``), then publish them."""
     instrument_attrs = site_attributes(config.output)
     first = unit.inputs[0].dataset if unit.inputs else None
     if first is not None and first.attrs.get("instrument"):
@@ -433,22 +460,26 @@ def write_unit_products(
         else:
             refs = _REFERENCES.get(name, "")
         path = product_path(outdir, unit, name)
-        written.append(
-            write_product(
-                add_site_coordinates(ds, config.output),
+        staged.append(
+            (
+                write_product(
+                    add_site_coordinates(ds, config.output),
+                    path,
+                    title=f"cwproc {title}: {unit.key}",
+                    summary=summary,
+                    inputs=list(dict.fromkeys(i.path for i in unit.inputs)),
+                    checksums={os.fspath(i.path): i.sha256 for i in unit.inputs},
+                    config_toml=config.to_toml(),
+                    references=refs,
+                    keywords=_KEYWORDS.get(name, ""),
+                    extra_attrs=instrument_attrs,
+                    compression_level=config.output.compression_level,
+                    stage_only=True,
+                ),
                 path,
-                title=f"cwproc {title}: {unit.key}",
-                summary=summary,
-                inputs=list(dict.fromkeys(i.path for i in unit.inputs)),
-                checksums={os.fspath(i.path): i.sha256 for i in unit.inputs},
-                config_toml=config.to_toml(),
-                references=refs,
-                keywords=_KEYWORDS.get(name, ""),
-                extra_attrs=instrument_attrs,
-                compression_level=config.output.compression_level,
             )
         )
-    return written
+    return publish(staged)
 
 
 def retrieve_files(

@@ -39,6 +39,7 @@ import io
 import itertools
 import os
 import re
+import tempfile
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -49,6 +50,7 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import ConfigError, CwprocError, InputFileError
+from cwproc.io.netcdf import umask_mode
 from cwproc.io.timecheck import check_times
 
 try:  # the optional compiled tokenizer (setup.py); pandas does the same work without it
@@ -1349,11 +1351,15 @@ def write_hpl(ds: xr.Dataset, path: str | os.PathLike) -> Path:
     """
     path = Path(path)
     data = hpl_text(ds, path.name).encode("ascii")
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        tmp.write_bytes(data)
+    tmp = None
+    try:  # an unpredictable name created exclusively: no planted symlink is followed
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.chmod(tmp, umask_mode())
         os.replace(tmp, path)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
         raise CwprocError(f"write_hpl {path}: cannot write: {exc.strerror or exc}") from None
     return path

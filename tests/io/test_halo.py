@@ -569,3 +569,17 @@ def test_impossible_gate_length_names_line_4(tmp_path, value):
     with pytest.raises(InputFileError, match="Range gate length") as err:
         read_hpl(bad)
     assert ":4:" in str(err.value)
+
+
+def test_write_hpl_does_not_follow_a_planted_symlink(tmp_path):
+    """The temporary name is unpredictable and created exclusively (issue 17.6)."""
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep me")
+    target = tmp_path / "out.hpl"
+    (tmp_path / ".out.hpl.tmp").symlink_to(victim)
+    ds = read_hpl(
+        next((Path(__file__).resolve().parents[2] / "sample_data/streamline").glob("*.hpl"))
+    )
+    write_hpl(ds, target)
+    assert victim.read_text() == "keep me"
+    assert read_hpl(target).sizes == ds.sizes
