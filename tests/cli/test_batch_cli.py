@@ -139,6 +139,29 @@ def test_usage_errors_exit_2(tmp_path, args, message):
     assert message in result.stderr
 
 
+@pytest.mark.parametrize(
+    "address", ["foo", "inproc://x", "http://host:8786", "", "tcp://host", "tcp://h:99999"]
+)
+def test_bad_scheduler_addresses_are_usage_errors(tmp_path, address):
+    """One line, exit 2, no traceback and no silent serial run (issue 17.7)."""
+    result = invoke(
+        str(junk_archive(tmp_path / "in")), str(tmp_path / "out"), "--scheduler", address
+    )
+    assert result.exit_code == 2
+    assert "not a Dask scheduler address" in result.stderr
+    assert "Traceback" not in result.stderr + result.stdout
+    assert not (tmp_path / "out").exists()
+
+
+def test_tls_scheduler_without_tls_settings_is_a_usage_error(tmp_path):
+    pytest.importorskip("dask")
+    result = invoke(
+        str(junk_archive(tmp_path / "in")), str(tmp_path / "out"), "--scheduler", "tls://h:8786"
+    )
+    assert result.exit_code == 2
+    assert "TLS settings" in result.stderr
+
+
 def test_unreachable_scheduler_is_a_clear_error():
     pytest.importorskip("dask.distributed")
     with pytest.raises(CwprocError, match=r"cannot reach the Dask scheduler tcp://127\.0\.0\.1:9"):
