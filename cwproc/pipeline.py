@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import re
+import stat
 from collections import defaultdict
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -106,6 +107,13 @@ def read_input(path: str | os.PathLike, config: Config) -> InputFile:
         Whatever the reader found wrong with the file.
     """
     path = Path(path)
+    try:
+        mode = path.stat().st_mode
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(mode):
+        kind = "a folder" if stat.S_ISDIR(mode) else "a pipe, socket or device"
+        raise InputFileError(path, f"not a regular file ({kind}); cwproc reads files")
     fmt = (
         detect_format(path)
         if config.instrument.format == "auto"
