@@ -794,3 +794,26 @@ def test_a_run_leaves_a_complete_snapshot(tmp_path):
     ledger_path = out / STATE_DIR / "ledger.json"
     assert not journal_path(ledger_path).exists()
     assert len(json.loads(ledger_path.read_text())["units"]) == len(report.processed)
+
+
+def test_two_loggers_of_one_day_are_two_units_and_same_named_records_too(tmp_path):
+    """Sonic units are keyed by station, wind records by folder too (issue 17.2)."""
+    from cwproc.io import Format
+    from cwproc.pipeline import InputFile, group_units
+
+    t = np.array(["2012-06-07T12:00"], dtype="datetime64[ns]")
+
+    def sonic(station: str, folder: str) -> InputFile:
+        ds = xr.Dataset(coords={"time": t}, attrs={"toa5_station": station})
+        return InputFile(Path(tmp_path / folder / "TOA5_x.dat"), Format.TOA5, "0", ds)
+
+    units = group_units([sonic("6843", "a"), sonic("7777", "a"), sonic("6843", "b")])
+    assert sorted(u.key for u in units) == ["toa5_6843_20120607", "toa5_7777_20120607"]
+    assert [len(u.inputs) for u in sorted(units, key=lambda u: u.key)] == [2, 1]
+    rec = xr.Dataset(coords={"time": t})
+    records = [
+        InputFile(Path(tmp_path / f / "Wind10_1.ZPH.csv"), Format.ZEPHIR_CSV, "0", rec)
+        for f in ("site1", "site2")
+    ]
+    keys = sorted(u.key for u in group_units(records))
+    assert keys == ["site1_Wind10_1.ZPH", "site2_Wind10_1.ZPH"]
