@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import sys
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import click
 
-from cwproc.config import Config, load_config, preset_names
+from cwproc.config import Config, PresetAliasWarning, load_config, preset_names
 from cwproc.errors import CwprocError
 from cwproc.io import detect_format
 
@@ -30,9 +31,17 @@ def config_option(default: str | None = None) -> Callable[[Any], Any]:
 def load_config_or_fail(value: str | None) -> Config:
     """Load the configuration; a bad one is a usage error (exit 2) with one clear line."""
     try:
-        return load_config(value)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", PresetAliasWarning)
+            cfg = load_config(value)
     except CwprocError as exc:
         raise click.UsageError(str(exc)) from None
+    for w in caught:
+        if issubclass(w.category, PresetAliasWarning):
+            click.echo(f"warning: {w.message}", err=True)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return cfg
 
 
 def report_failure(message: str) -> None:
@@ -44,6 +53,35 @@ def fail(message: str, code: int = 1) -> None:
     """Print one failure line and exit with ``code``."""
     report_failure(message)
     sys.exit(code)
+
+
+def usage_error(message: str) -> None:
+    """A bad command-line argument: one line on stderr, exit status 2, before any work."""
+    fail(message, code=2)
+
+
+def require_extra(module: str, extra: str, what: str) -> None:
+    """Exit 2 with one line when the optional dependency ``module`` is not installed.
+
+    Called before any computing, so that a missing extra never costs a run.
+    """
+    import importlib.util
+
+    if importlib.util.find_spec(module) is None:
+        usage_error(
+            f"{what} needs {module}, which is not installed: install the {extra} extra, "
+            f'pip install "cwproc[{extra}]"'
+        )
+
+
+def check_index(value: int | None, size: int, option: str, what: str) -> None:
+    """Exit 2 when an index option lies outside ``0 .. size-1``, naming the valid range."""
+    if value is None:
+        return
+    if size == 0:
+        usage_error(f"{option} {value}: there are no {what} to choose from")
+    if not 0 <= value < size:
+        usage_error(f"{option} {value} is out of range: the {what} are 0 .. {size - 1}")
 
 
 def expand_inputs(inputs: tuple[str, ...]) -> tuple[list[Path], list[Path]]:
