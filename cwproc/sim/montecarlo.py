@@ -406,7 +406,8 @@ def relative_rms_error(estimate: np.ndarray, truth: float) -> np.ndarray:
 
 def format_table(study: xr.Dataset) -> str:
     """The study as a plain-text table (percent), one block per quantity."""
-    lines = [f"Monte-Carlo error study of Banakh et al. (1999) ({study.attrs['realisations']} realisations)"]
+    n = study.attrs["realisations"]
+    lines = [f"Monte-Carlo error study of Banakh et al. (1999) ({n} realisations)"]
     blocks = [
         ("epsilon_rel_error", "relative RMS error of epsilon (%)"),
         ("variance_rel_error", "relative RMS error of sigma_V^2 (%)"),
