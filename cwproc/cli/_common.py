@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 import warnings
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -12,7 +13,7 @@ import click
 
 from cwproc.config import Config, PresetAliasWarning, load_config, preset_names
 from cwproc.errors import CwprocError
-from cwproc.io import detect_format
+from cwproc.io import Format, detect_format, is_cwproc_product
 
 
 def config_option(default: str | None = None) -> Callable[[Any], Any]:
@@ -84,25 +85,55 @@ def check_index(value: int | None, size: int, option: str, what: str) -> None:
         usage_error(f"{option} {value} is out of range: the {what} are 0 .. {size - 1}")
 
 
-def expand_inputs(inputs: tuple[str, ...]) -> tuple[list[Path], list[Path]]:
+@dataclass
+class Inputs:
+    """The files a command will process, and those it skips (with the reason)."""
+
+    files: list[Path] = field(default_factory=list)
+    #: files of no format cwproc reads, found in directories
+    unknown: list[Path] = field(default_factory=list)
+    #: cwproc's own products (NetCDF written by cwproc), found anywhere
+    products: list[Path] = field(default_factory=list)
+
+    def skipped_text(self) -> str:
+        """``", 3 file(s) of no known format skipped, 2 cwproc product(s) skipped"``."""
+        text = ""
+        if self.unknown:
+            text += f", {len(self.unknown)} file(s) of no known format skipped"
+        if self.products:
+            text += f", {len(self.products)} cwproc product(s) skipped (not instrument files)"
+        return text
+
+
+def expand_inputs(inputs: tuple[str, ...]) -> Inputs:
     """Files to process and files skipped.
 
-    Files named on the command line are always processed (an unreadable or unknown
-    one is reported as a failure). Directories are searched recursively; there, files
-    of no format cwproc reads (notes, trajectory files, ...) are skipped and counted.
+    Files named on the command line are processed (an unreadable or unknown one is
+    reported as a failure). Directories are searched recursively; there, files of no
+    format cwproc reads (notes, trajectory files, ...) are skipped and counted.
+    cwproc's own products are skipped wherever they are (an output folder inside the
+    input folder, a product named by a wildcard), so that a second run over the same
+    folder reads the same inputs as the first.
     """
-    files: list[Path] = []
-    skipped: list[Path] = []
+    found = Inputs()
     for item in inputs:
         p = Path(item)
         if not p.is_dir():
-            files.append(p)
+            (found.products if is_cwproc_product(p) else found.files).append(p)
             continue
-        for q in sorted(q for q in p.rglob("*") if q.is_file() and not q.name.startswith(".")):
+        for q in sorted(q for q in p.rglob("*") if q.is_file() and not _hidden(q, p)):
             try:
-                detect_format(q)
+                fmt = detect_format(q)
             except CwprocError:
-                skipped.append(q)
+                found.unknown.append(q)
                 continue
-            files.append(q)
-    return files, skipped
+            if fmt is Format.SCAN_NETCDF and is_cwproc_product(q):
+                found.products.append(q)
+                continue
+            found.files.append(q)
+    return found
+
+
+def _hidden(path: Path, root: Path) -> bool:
+    """A file whose name or any folder below ``root`` starts with a dot (e.g. .cwproc/)."""
+    return any(part.startswith(".") for part in path.relative_to(root).parts)

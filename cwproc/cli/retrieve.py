@@ -38,11 +38,10 @@ def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bo
     otherwise, with one line per failed input naming the file, the line and the problem.
     """
     cfg = load_config_or_fail(config)
-    files, skipped = expand_inputs(inputs)
+    found = expand_inputs(inputs)
+    files = found.files
     if not files:
-        raise click.UsageError(
-            f"no input files found ({len(skipped)} file(s) of no format cwproc reads)"
-        )
+        raise click.UsageError(f"no input files found{found.skipped_text()}")
     report = retrieve_files(files, outdir, cfg)
     for line in report.failures:
         report_failure(line)
@@ -51,9 +50,8 @@ def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bo
             click.echo(f"note: {line}", err=True)
         for path in report.written:
             click.echo(f"wrote {path}")
-        extra = f", {len(skipped)} file(s) of no known format skipped" if skipped else ""
         click.echo(
             f"{len(files)} input(s), {len(report.written)} product(s) written, "
-            f"{len(report.failures)} failure(s){extra}"
+            f"{len(report.failures)} failure(s){found.skipped_text()}"
         )
     sys.exit(0 if report.ok else 1)
