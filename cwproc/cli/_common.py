@@ -94,6 +94,12 @@ class Inputs:
     unknown: list[Path] = field(default_factory=list)
     #: cwproc's own products (NetCDF written by cwproc), found anywhere
     products: list[Path] = field(default_factory=list)
+    #: files in directories of a format the configuration does not read
+    other_format: list[Path] = field(default_factory=list)
+    #: files named on the command line of a format the configuration does not read
+    mismatched: list[str] = field(default_factory=list)
+    #: the format the configuration reads ("auto": any)
+    pinned: str = "auto"
 
     def skipped_text(self) -> str:
         """``", 3 file(s) of no known format skipped, 2 cwproc product(s) skipped"``."""
@@ -102,10 +108,15 @@ class Inputs:
             text += f", {len(self.unknown)} file(s) of no known format skipped"
         if self.products:
             text += f", {len(self.products)} cwproc product(s) skipped (not instrument files)"
+        if self.other_format:
+            text += (
+                f", {len(self.other_format)} file(s) of other formats skipped "
+                f"(the configuration reads {self.pinned} only)"
+            )
         return text
 
 
-def expand_inputs(inputs: tuple[str, ...]) -> Inputs:
+def expand_inputs(inputs: tuple[str, ...], pinned: str = "auto") -> Inputs:
     """Files to process and files skipped.
 
     Files named on the command line are processed (an unreadable or unknown one is
@@ -113,13 +124,24 @@ def expand_inputs(inputs: tuple[str, ...]) -> Inputs:
     format cwproc reads (notes, trajectory files, ...) are skipped and counted.
     cwproc's own products are skipped wherever they are (an output folder inside the
     input folder, a product named by a wildcard), so that a second run over the same
-    folder reads the same inputs as the first.
+    folder reads the same inputs as the first. When the configuration reads one format
+    only (``pinned``, e.g. ``hpl`` for the Stream Line preset), files of other formats
+    are skipped in directories and reported in ``mismatched`` when named.
     """
-    found = Inputs()
+    found = Inputs(pinned=pinned)
     for item in inputs:
         p = Path(item)
         if not p.is_dir():
-            (found.products if is_cwproc_product(p) else found.files).append(p)
+            if is_cwproc_product(p):
+                found.products.append(p)
+                continue
+            fmt = _format_or_none(p)
+            if pinned != "auto" and fmt is not None and fmt.value != pinned:
+                found.mismatched.append(
+                    f"{p}: a {fmt.value} file, but the configuration reads only {pinned}"
+                )
+                continue
+            found.files.append(p)
             continue
         for q in sorted(q for q in p.rglob("*") if q.is_file() and not _hidden(q, p)):
             try:
@@ -130,8 +152,18 @@ def expand_inputs(inputs: tuple[str, ...]) -> Inputs:
             if fmt is Format.SCAN_NETCDF and is_cwproc_product(q):
                 found.products.append(q)
                 continue
+            if pinned != "auto" and fmt.value != pinned:
+                found.other_format.append(q)
+                continue
             found.files.append(q)
     return found
+
+
+def _format_or_none(path: Path) -> Format | None:
+    try:
+        return detect_format(path)
+    except CwprocError:
+        return None
 
 
 def _hidden(path: Path, root: Path) -> bool:

@@ -38,9 +38,13 @@ def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bo
     otherwise, with one line per failed input naming the file, the line and the problem.
     """
     cfg = load_config_or_fail(config)
-    found = expand_inputs(inputs)
+    found = expand_inputs(inputs, cfg.instrument.format)
     files = found.files
+    for line in found.mismatched:
+        report_failure(line)
     if not files:
+        if found.mismatched:
+            sys.exit(1)
         raise click.UsageError(f"no input files found{found.skipped_text()}")
     report = retrieve_files(files, outdir, cfg)
     for line in report.failures:
@@ -54,4 +58,4 @@ def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bo
             f"{len(files)} input(s), {len(report.written)} product(s) written, "
             f"{len(report.failures)} failure(s){found.skipped_text()}"
         )
-    sys.exit(0 if report.ok else 1)
+    sys.exit(0 if report.ok and not found.mismatched else 1)

@@ -61,9 +61,13 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
     line per failed input naming the file, the line and the problem.
     """
     cfg = load_config_or_fail(config)
-    found = expand_inputs(inputs)
+    found = expand_inputs(inputs, cfg.instrument.format)
     files = found.files
+    for line in found.mismatched:
+        report_failure(line)
     if not files:
+        if found.mismatched:
+            sys.exit(1)
         raise click.UsageError(f"no input files found{found.skipped_text()}")
     report = retrieve_files(files, outdir, cfg, kinds={"sonic"}, keep_products=True)
     written, failures = report.written, report.failures
@@ -90,4 +94,4 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
             f"{len(files)} input(s), {len(written)} product(s) written, "
             f"{len(failures)} failure(s){found.skipped_text()}"
         )
-    sys.exit(0 if not failures else 1)
+    sys.exit(0 if not failures and not found.mismatched else 1)
