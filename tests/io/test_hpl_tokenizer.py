@@ -1,0 +1,129 @@
+"""The compiled .hpl tokenizer (cwproc/io/_hpltok.c) against its specification and pandas."""
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cwproc.io import halo
+
+_hpltok = pytest.importorskip(
+    "cwproc.io._hpltok", reason="the optional C tokenizer was not built (setup.py)"
+)
+
+SAMPLE = Path(__file__).resolve().parents[2] / "sample_data" / "streamline"
+NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+
+
+def reference(body: bytes, n_fields: int = 5) -> np.ndarray:
+    """The documented semantics in plain Python (lines at LF, CRLF, lone CR)."""
+    text = body.decode("latin-1")
+    lines = re.split(r"\r\n|\n|\r", text)
+    if lines and lines[-1] == "":
+        lines = lines[:-1]
+    out = np.full((len(lines), n_fields), np.nan)
+    for i, line in enumerate(lines):
+        for j, token in enumerate(t for t in re.split(r"[ \t]+", line) if t):
+            out[i, j] = float(token) if NUMBER.fullmatch(token) else np.inf
+    return out
+
+
+def c_table(body: bytes) -> np.ndarray:
+    values, n_lines, bad = _hpltok.tokenize(body, 5)
+    assert bad == -1
+    return np.frombuffer(values, dtype=np.float64).reshape(n_lines, 5)
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        b"",
+        b"1",
+        b"1 2\n",
+        b"\n\n",
+        b"  0 -0.2173 1.135933  7.655162E-6\r\n1\t2\r3",
+        b"abc 1e400 -.5 5. +7\n1.2.3 - e5 1e",
+        b"0.1000000000000000055511151231257827 123456789012345678901234567890",
+        b"1e-400 4.9e-324 1.7976931348623157e308",
+    ],
+)
+def test_examples_equal_float_of_each_token(body: bytes) -> None:
+    np.testing.assert_array_equal(c_table(body), reference(body))
+
+
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(st.lists(st.sampled_from(list("0123456789+-.eE \t\n\rx")), max_size=80))
+def test_generated_bodies_follow_the_specification(chars: list[str]) -> None:
+    body = "".join(chars).encode()
+    table = reference(body, 64)
+    if table.shape[0] and np.isfinite(table[:, 5:]).any() | (~np.isnan(table[:, 5:])).any():
+        bad = _hpltok.tokenize(body, 5)[2]
+        assert bad >= 0
+        first = int(np.flatnonzero(~np.isnan(table[:, 5:]).all(axis=1))[0])
+        assert bad == first
+        return
+    np.testing.assert_array_equal(c_table(body), table[:, :5])
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(allow_nan=False, allow_infinity=False, width=64),
+            st.integers(0, 17),
+            st.booleans(),
+        ).map(
+            lambda t: (
+                np.format_float_scientific(t[0], precision=t[1])
+                if t[2]
+                else np.format_float_positional(t[0], precision=t[1])
+            )
+        ),
+        min_size=1,
+        max_size=5,
+    )
+)
+def test_round_trip_of_formatted_floats(tokens: list[str]) -> None:
+    body = " ".join(tokens).encode()
+    np.testing.assert_array_equal(c_table(body)[0, : len(tokens)], [float(t) for t in tokens])
+
+
+def test_too_many_fields_names_the_line() -> None:
+    assert _hpltok.tokenize(b"1 2 3\n1 2 3 4 5 6\n", 5)[1:] == (1, 1)
+
+
+def tokenized_both_ways(path: Path, monkeypatch: pytest.MonkeyPatch) -> tuple[list, list]:
+    _, body = halo.read_header_and_body(path)
+    fast = halo._tokenize(path, body)
+    monkeypatch.setattr(halo, "_hpltok", None)
+    slow = halo._tokenize(path, body)
+    monkeypatch.undo()
+    return fast, slow
+
+
+def test_sample_files_tokenize_as_with_pandas(monkeypatch: pytest.MonkeyPatch) -> None:
+    files = sorted(SAMPLE.glob("*.hpl"))
+    assert files
+    for path in files:
+        fast, slow = tokenized_both_ways(path, monkeypatch)
+        for a, b in zip(fast, slow, strict=True):
+            np.testing.assert_array_max_ulp(a[np.isfinite(b)], b[np.isfinite(b)], maxulp=1)
+            np.testing.assert_array_equal(np.isnan(a), np.isnan(b))
+
+
+@pytest.mark.realdata
+def test_real_files_tokenize_as_with_pandas(
+    real_data: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    files = sorted((real_data / "hpl").glob("*.hpl"))
+    assert files
+    for path in files:
+        fast, slow = tokenized_both_ways(path, monkeypatch)
+        for a, b in zip(fast, slow, strict=True):
+            finite = np.isfinite(b)
+            np.testing.assert_array_max_ulp(a[finite], b[finite], maxulp=1)
+            np.testing.assert_array_equal(np.isnan(a), np.isnan(b))
+            np.testing.assert_array_equal(np.isinf(a), np.isinf(b))
