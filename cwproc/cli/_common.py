@@ -13,7 +13,6 @@ import click
 
 from cwproc.config import Config, PresetAliasWarning, load_config, preset_names
 from cwproc.errors import CwprocError
-from cwproc.io import Format, detect_format, is_cwproc_product
 
 
 def config_option(default: str | None = None) -> Callable[[Any], Any]:
@@ -128,6 +127,8 @@ def expand_inputs(inputs: tuple[str, ...], pinned: str = "auto") -> Inputs:
     only (``pinned``, e.g. ``hpl`` for the Stream Line preset), files of other formats
     are skipped in directories and reported in ``mismatched`` when named.
     """
+    from cwproc.io import Format, detect_format, is_cwproc_product
+
     found = Inputs(pinned=pinned)
     for item in inputs:
         p = Path(item)
@@ -159,7 +160,9 @@ def expand_inputs(inputs: tuple[str, ...], pinned: str = "auto") -> Inputs:
     return found
 
 
-def _format_or_none(path: Path) -> Format | None:
+def _format_or_none(path: Path):
+    from cwproc.io import detect_format
+
     try:
         return detect_format(path)
     except CwprocError:

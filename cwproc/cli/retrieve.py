@@ -12,7 +12,6 @@ from cwproc.cli._common import (
     load_config_or_fail,
     report_failure,
 )
-from cwproc.pipeline import retrieve_files
 
 
 @click.command("retrieve")
@@ -37,6 +36,8 @@ def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bo
     sonic logs give <name>_sf.nc. Exit status 0 when every input was processed, 1
     otherwise, with one line per failed input naming the file, the line and the problem.
     """
+    from cwproc.pipeline import retrieve_files
+
     cfg = load_config_or_fail(config)
     found = expand_inputs(inputs, cfg.instrument.format)
     files = found.files
