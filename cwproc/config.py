@@ -100,7 +100,7 @@ class VADConfig:
     #: fewest valid rays for a fit not flagged "too few rays" (3 unknowns + 3 residual dof)
     min_rays: int = 6
     #: largest azimuth gap (deg) accepted before the fit is flagged; with a 120 deg sector
-    #: missing the along-bisector RMS error grows by ~75 % (seed 002, cwproc theory
+    #: missing the along-bisector RMS error grows by ~75 % (VAD accuracy paper, cwproc theory
     #: vad-errors --sector 120)
     max_gap_deg: float = 120.0
     #: homodyne cw data: direction (deg, from north, "from") used to resolve the 180 deg

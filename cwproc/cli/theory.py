@@ -13,7 +13,7 @@ COMMANDS = {
     ),
     "vad-errors": (
         "cwproc.cli.theory_vad:vad_errors",
-        "Predicted errors of the least-squares VAD wind fit (seed 002).",
+        "Predicted errors of the least-squares VAD wind fit (VAD accuracy paper).",
     ),
     "zephir-ratio": (
         "cwproc.cli.theory_zephir:zephir_ratio",
