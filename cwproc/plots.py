@@ -103,12 +103,15 @@ def _log_ticks(cbar_or_axis, vmin: float, vmax: float) -> None:
     if not (vmin > 0 and vmax > vmin):
         return
     ticks = _log_tick_values(vmin, vmax)
+    # plain numbers (percent, metres) where they read well, powers of ten otherwise
+    plain = bool(ticks.size) and ticks.min() >= 0.1 and ticks.max() < 1e5
+    label = (lambda v, _pos=None: f"{v:g}") if plain else _sci_label
     if isinstance(cbar_or_axis, Colorbar):
-        cbar_or_axis.set_ticks(ticks, labels=[_sci_label(t) for t in ticks])
+        cbar_or_axis.set_ticks(ticks, labels=[label(t) for t in ticks])
         cbar_or_axis.ax.yaxis.set_minor_locator(NullLocator())
         return
     cbar_or_axis.set_major_locator(FixedLocator(ticks))
-    cbar_or_axis.set_major_formatter(FuncFormatter(_sci_label))
+    cbar_or_axis.set_major_formatter(FuncFormatter(label))
     cbar_or_axis.set_minor_locator(NullLocator())
 
 

@@ -300,3 +300,15 @@ def test_cli_plot_vad_scan_out_of_range(tmp_path):
     )
     assert res.exit_code == 2, res.output
     assert "--scan 99 is out of range" in res.output and "0 .. 5" in res.output
+
+
+def test_png_gets_the_umask_mode(tmp_path):
+    import os
+
+    old = os.umask(0o022)
+    try:
+        out = plots.render(wind_product(), "wind", tmp_path / "w.png")
+    finally:
+        os.umask(old)
+    assert out.stat().st_mode & 0o777 == 0o644
+    assert not list(tmp_path.glob(".*tmp*"))
