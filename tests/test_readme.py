@@ -134,7 +134,9 @@ def test_ci_runs_the_readme_test_command():
     runs = [line for line in lines if "pytest" in line]
     assert len(runs) == 1, f".ci/run should run pytest once, found {runs}"
     ci_install, ci_test = (s.strip() for s in runs[0].split("&&"))
-    assert ci_test == readme_test
+    # CI runs the README's command plus the slow tests it deselects by default
+    assert ci_test == readme_test + ' -m "slow or not slow"'
+    assert ci_test.split(" -m ")[-1] in README.read_text(encoding="utf-8")
     # both install the same target: the package with its test extras
     assert shlex.split(readme_install)[-1] == shlex.split(ci_install)[-1] == ".[test]"
 

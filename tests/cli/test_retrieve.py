@@ -154,6 +154,7 @@ def test_sample_data_products_are_cf_and_acdd_compliant(tmp_path, compliance):
         assert acdd >= 0.90, (product.name, acdd)
 
 
+@pytest.mark.slow
 def test_cw_scans_with_a_pulsed_config_get_wind_but_no_wrong_epsilon(tmp_path):
     """The default (pulsed Stream Line) config on a cw series: the probe would be wrong.
 

@@ -45,6 +45,7 @@ def test_a_named_file_of_another_format_is_a_clear_failure(tmp_path):
     assert "a toa5 file, but the configuration reads only hpl" in res.output
 
 
+@pytest.mark.slow
 def test_zephir300_preset_reads_the_simulated_zephir_scans(tmp_path):
     sim = CliRunner().invoke(
         main,
@@ -66,3 +67,10 @@ def test_zephir300_preset_reads_the_simulated_zephir_scans(tmp_path):
     )
     assert res.exit_code == 0, res.output
     assert "_wind.nc" in res.output
+
+
+def test_zephir300_preset_reads_any_format():
+    """The preset once forced the CSV reader on the cw scan NetCDF of simulate lidar."""
+    from cwproc.config import load_config
+
+    assert load_config("zephir300").instrument.format == "auto"
