@@ -435,6 +435,11 @@ def plot_sf_window(ds: xr.Dataset, *, window: int | None = None, component: str 
             ax.loglog(r, wc["normalised_sf_fit"].values, "-", color=line.get_color())
         if np.isfinite(float(wc["r_max"])):
             ax.axvline(float(wc["r_max"]), ls=":", color=line.get_color())
+    for axis, values in ((ax.xaxis, w["lag_distance"]), (ax.yaxis, w["normalised_sf"])):
+        v = np.asarray(values.values, dtype=float)
+        v = v[np.isfinite(v) & (v > 0)]
+        if v.size:
+            _log_ticks(axis, float(v.min()), float(v.max()))
     ax.set_xlabel("lag r (m)")
     ax.set_ylabel("normalised structure function D(r)/D(r$_S$)")
     t = np.datetime_as_string(w["time"].values, unit="m") if "time" in w else str(window)
