@@ -70,11 +70,12 @@ def _time_height_mesh(ax, ds: xr.DataArray, *, cmap: str, norm=None, label: str)
 
 
 def _log_tick_values(vmin: float, vmax: float) -> np.ndarray:
-    """Ticks of a log axis over [vmin, vmax]: 1-2-5 per decade, or 1..9 when that gives
-    fewer than four, or the powers of ten over more than three decades."""
+    """Ticks of a log axis over [vmin, vmax]: the powers of ten, else 1-2-5 per decade,
+    else 1..9, else 1, 1.5, 2, 2.5, 3..9 -- the first that gives at least four."""
     lo, hi = np.floor(np.log10(vmin)), np.ceil(np.log10(vmax))
     decades = 10.0 ** np.arange(lo, hi + 1)
-    for subs in ((1.0,), (1.0, 2.0, 5.0), tuple(range(1, 10))):
+    halves = (1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0)
+    for subs in ((1.0,), (1.0, 2.0, 5.0), tuple(range(1, 10)), halves):
         ticks = np.array([m * d for d in decades for m in subs])
         ticks = ticks[(ticks >= vmin * (1 - 1e-9)) & (ticks <= vmax * (1 + 1e-9))]
         if ticks.size >= 4:
@@ -88,7 +89,7 @@ def _sci_label(value: float, _pos: int | None = None) -> str:
     mantissa = value / 10.0**exponent
     if abs(mantissa - 1.0) < 1e-6:
         return f"$10^{{{exponent}}}$"
-    return f"${mantissa:.0f}\\times10^{{{exponent}}}$"
+    return f"${mantissa:.2g}\\times10^{{{exponent}}}$"
 
 
 def _log_ticks(cbar_or_axis, vmin: float, vmax: float) -> None:
@@ -476,8 +477,9 @@ def plot_montecarlo(ds: xr.Dataset):
             )
         ax.set_xscale("log")
         ax.set_yscale("log")
-        n = ds["n_scans"].values
-        ax.set_xticks(n, [str(int(k)) for k in n])
+        n = [int(k) for k in ds["n_scans"].values]
+        shown = [k for k in n if k <= 6 or k % 2 == 0 or k == n[-1]]  # 9, 10 would touch
+        ax.set_xticks(shown, [str(k) for k in shown])
         ax.minorticks_off()
         values = 100 * ds[name].values
         finite = values[np.isfinite(values) & (values > 0)]
