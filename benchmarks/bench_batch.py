@@ -12,10 +12,11 @@ Run::
     python benchmarks/bench_batch.py                      # 30 days, 1 and 2 workers
     python benchmarks/bench_batch.py --days 10 --wind-only
 
-Printed figures: wall time and units per second of the serial run and of LocalClusters
-of 1 and 2 worker processes (one thread each), the speed-up of 2 workers over 1, the
+Printed figures: wall time and units per second of the serial run and of local process
+pools of 1 and 2 workers (``--workers``; with ``--dask`` also Dask LocalClusters of
+the same sizes), the speed-up of 2 workers over 1 and over serial (issue 15: >= 1.7), the
 peak resident memory of each worker process (MiB, ``ru_maxrss``), and the time of a
-run that finds everything up to date. Target: speed-up >= 1.6 on 2 free cores; peak
+run that finds everything up to date. Target: speed-up >= 1.7 on 2 free cores; peak
 memory per worker < 1 GiB for a site-day of scans.
 """
 
@@ -33,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cwproc.batch import BatchReport, close_client, dask_client, run_batch
+from cwproc.batch import BatchReport, close_client, dask_client, local_pool, run_batch
 from cwproc.config import Config, TurbulenceConfig
 
 
@@ -85,8 +86,14 @@ def memory_per_worker(report: BatchReport) -> dict[tuple[str, int], float]:
     return dict(peaks)
 
 
-def timed_run(archive: Path, out: Path, config: Config, workers: int | None) -> BatchReport:
-    client = dask_client(workers=workers) if workers else None
+def timed_run(
+    archive: Path, out: Path, config: Config, workers: int | None, dask: bool = False
+) -> BatchReport:
+    """One batch run; ``workers``: a local process pool (``--workers``) or, with ``dask``,
+    a Dask LocalCluster of that many single-threaded processes (for comparison)."""
+    client = None
+    if workers:
+        client = dask_client(workers=workers) if dask else local_pool(workers)
     try:
         return run_batch(archive, out, config, client=client)
     finally:
@@ -123,6 +130,9 @@ def main(argv: list[str] | None = None) -> int:
         "--wind-only", action="store_true", help="turbulence stages off (wind product only)"
     )
     parser.add_argument("--workdir", type=Path, default=None, help="keep the files here")
+    parser.add_argument(
+        "--dask", action="store_true", help="also time Dask LocalClusters of the same sizes"
+    )
     args = parser.parse_args(argv)
 
     work = args.workdir or Path(tempfile.mkdtemp(prefix="cwproc-bench-batch-"))
@@ -142,19 +152,26 @@ def main(argv: list[str] | None = None) -> int:
         config = dataclasses.replace(config, turbulence=TurbulenceConfig(enabled=False))
 
     times: dict[str, float] = {}
-    runs = [("serial", None)] + [(f"{w} worker{'s' * (w > 1)}", w) for w in args.workers]
-    for label, workers in runs:
-        out = work / f"out_{workers or 0}"
+    runs = [("serial", None, False)] + [
+        (f"{w} worker{'s' * (w > 1)}", w, False) for w in args.workers
+    ]
+    if args.dask:
+        runs += [(f"dask {w}", w, True) for w in args.workers]
+    for label, workers, dask in runs:
+        out = work / f"out_{label.replace(' ', '_')}"
         shutil.rmtree(out, ignore_errors=True)
-        report = timed_run(archive, out, config, workers)
+        report = timed_run(archive, out, config, workers, dask)
         times[label] = report.seconds
         print(describe(label, report))
         for line in report.failure_lines()[:3]:
             print(f"    failure: {line}")
     if 1 in args.workers and 2 in args.workers:
         print(f"speed-up 2 workers / 1 worker: {times['1 worker'] / times['2 workers']:.2f}")
-    print(f"speed-up {runs[-1][0]} / serial: {times['serial'] / times[runs[-1][0]]:.2f}")
-    again = run_batch(archive, work / "out_0", config)
+    if 2 in args.workers:
+        print(f"speed-up 2 workers / serial: {times['serial'] / times['2 workers']:.2f}")
+    if args.dask and 2 in args.workers:
+        print(f"speed-up dask 2 / serial: {times['serial'] / times['dask 2']:.2f}")
+    again = run_batch(archive, work / "out_serial", config)
     print(
         f"rerun with nothing to do: {again.seconds:.2f} s "
         f"({again.units_up_to_date} units up to date, {len(again.processed)} processed)"

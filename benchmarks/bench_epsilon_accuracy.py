@@ -32,9 +32,10 @@ import time
 import warnings
 
 import numpy as np
+from scipy import optimize
 
 from cwproc.config import load_config
-from cwproc.physics import spectra
+from cwproc.physics import noise, spectra
 from cwproc.pipeline import process_scans
 from cwproc.sim import exact_gaussian as eg
 
@@ -79,6 +80,23 @@ def cases(quick: bool) -> list[dict]:
                 }
             )
     return out
+
+
+def snr_for_noise(sigma_e: float, attrs: dict) -> float:
+    """The SNR at which the predicted noise (Pearson et al. (2009), eq. 3) is ``sigma_e``.
+
+    So that the noise the scans carry and the one the instrument settings predict agree,
+    as they do for a real lidar whose noise the formula describes.
+    """
+    bandwidth = noise.bandwidth_from_resolution(attrs["velocity_resolution_m_s"])
+
+    def excess(log_snr: float) -> float:
+        predicted = noise.velocity_noise_std(
+            10.0**log_snr, attrs["points_per_gate"], attrs["pulses_per_ray"], bandwidth
+        )
+        return float(predicted) - sigma_e
+
+    return 10.0 ** optimize.brentq(excess, -4.0, 2.0)
 
 
 def scan_speed(pattern: eg.ScanPattern) -> float:
@@ -147,8 +165,8 @@ def main() -> None:
             wind_direction_deg=250.0,
             noise_std_m_s=NOISE,
             seed=args.seed + i,
-            snr=1.0,
         )
+        scans["snr"][:] = snr_for_noise(NOISE, scans.attrs)
         for model in models:
             config = dataclasses.replace(
                 base,

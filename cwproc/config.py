@@ -124,8 +124,13 @@ class TurbulenceConfig:
     enabled: bool = True
     #: scans per block (N of Smalikho (2020) eq. 2)
     n_scans: int = 10
-    #: largest azimuth lag l*dtheta (deg); Smalikho (2020) requires <= 9 deg
+    #: largest azimuth lag l*dtheta (deg) of dense scans; the exact two-beam model holds
+    #: at any lag, 9 deg keeps the lags of 180-360-ray scans inside the inertial range;
+    #: at most 60 deg (the chord reaches the circle's radius, beyond the integral scale)
     max_lag_deg: float = 9.0
+    #: fewest lags of coarse scans (24-72 rays, step-stare VADs), beyond max_lag_deg if
+    #: need be (never beyond 60 deg); eq. 5 needs lags 1 and l, the fit of eq. 4 three
+    min_lags: int = 3
     #: lag number l of the two-lag estimate, Smalikho (2020) eq. 5
     lag_number: int = 3
     #: spectrum model of the A-functions: "inertial" (Kolmogorov), "von_karman",
@@ -138,8 +143,10 @@ class TurbulenceConfig:
     def __post_init__(self) -> None:
         if self.n_scans < 1:
             raise ValueError("n_scans: must be >= 1")
-        if not 0 < self.max_lag_deg <= 9.0:
-            raise ValueError("max_lag_deg: must be in (0, 9] (Smalikho (2020), after eq. 4)")
+        if not 0 < self.max_lag_deg <= 60.0:
+            raise ValueError("max_lag_deg: must be in (0, 60] (the chord reaches R' at 60 deg)")
+        if self.min_lags < 2:
+            raise ValueError("min_lags: must be >= 2 (Smalikho (2020) eq. 5 needs lags 1 and l)")
         if self.lag_number < 2:
             raise ValueError("lag_number: must be >= 2 (Smalikho (2020) eq. 5 needs l > 1)")
 
@@ -506,38 +513,33 @@ def _convert(tp: Any, value: Any, source: str, key: str) -> Any:
 # --------------------------------------------------------------------------------------
 
 
-def _toml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int | float):
-        return repr(value)
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+def _toml_ready(value: Any) -> Any:
+    """Tuples as lists and ``None`` entries dropped, for the TOML writer."""
+    if isinstance(value, dict):
+        return {str(k): _toml_ready(v) for k, v in value.items() if v is not None}
     if isinstance(value, list | tuple):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    raise TypeError(f"cannot write {value!r} as TOML")
+        return [_toml_ready(v) for v in value]
+    return value
 
 
 def dump_toml(cfg: Config) -> str:
-    """Write a :class:`Config` as TOML (``None`` values are omitted)."""
-    lines = [f"# cwproc configuration (from {cfg.source})"]
+    """Write a :class:`Config` as TOML (``None`` values are omitted).
+
+    The text is made by ``tomli_w`` (a maintained TOML writer), so any value a valid
+    configuration holds -- strings with newlines or quotes, dates, quoted or nested keys
+    of the ``[reader.*]`` tables -- reads back (``config_from_toml(dump_toml(c))``) to
+    the same configuration; it is stored as provenance in every product.
+    """
+    import tomli_w
+
+    data: dict[str, Any] = {}
     for f in dataclasses.fields(cfg):
-        value = getattr(cfg, f.name)
         if f.name == "source":
             continue
+        value = getattr(cfg, f.name)
         if dataclasses.is_dataclass(value):
-            lines.append(f"\n[{f.name}]")
-            for sub in dataclasses.fields(value):
-                v = getattr(value, sub.name)
-                if v is not None:
-                    lines.append(f"{sub.name} = {_toml_value(v)}")
+            data[f.name] = _toml_ready(dataclasses.asdict(value))
         elif isinstance(value, dict):
-            for table, entries in value.items():
-                lines.append(f"\n[{f.name}.{table}]")
-                for k, v in entries.items():
-                    if isinstance(v, dict):
-                        inner = ", ".join(f"{kk} = {_toml_value(vv)}" for kk, vv in v.items())
-                        lines.append(f"{k} = {{ {inner} }}")
-                    else:
-                        lines.append(f"{k} = {_toml_value(v)}")
-    return "\n".join(lines) + "\n"
+            data[f.name] = _toml_ready(value)
+    source = str(cfg.source).replace("\n", " ").replace("\r", " ")
+    return f"# cwproc configuration (from {source})\n" + tomli_w.dumps(data)

@@ -66,6 +66,61 @@ class VarMeta:
         return out
 
 
+#: physically possible values of what readers take from instrument files, per canonical
+#: variable (inclusive, in the variable's units). A value outside, or not finite, is a
+#: damaged or impossible record: :func:`screen_physical_range` replaces it by NaN (so a
+#: stage flags it as missing, never as good) and counts it. Limits are generous (the
+#: strongest surface winds, Doppler velocities far beyond any lidar's bandwidth).
+PHYSICAL_RANGES: dict[str, tuple[float, float]] = {
+    "wind_speed": (0.0, 120.0),
+    "wind_speed_min": (0.0, 120.0),
+    "wind_speed_max": (0.0, 120.0),
+    "wind_speed_std": (0.0, 60.0),
+    "wind_direction": (0.0, 360.0),
+    "u": (-120.0, 120.0),
+    "v": (-120.0, 120.0),
+    "w": (-60.0, 60.0),
+    "radial_velocity": (-120.0, 120.0),
+    "turbulence_intensity": (0.0, 10.0),
+    "temperature": (-90.0, 70.0),
+    "data_availability": (0.0, 100.0),
+    "rain_percent": (0.0, 100.0),
+    "packets": (0.0, 1.0e6),
+}
+
+
+def screen_physical_range(ds: xr.Dataset) -> tuple[xr.Dataset, dict[str, int]]:
+    """Replace values outside :data:`PHYSICAL_RANGES` (or not finite) by NaN.
+
+    Applied by the readers to what they take from a file. Returns the screened dataset
+    and, per variable, how many values were replaced (only variables with any); a
+    reader reports the counts in ``attrs["warnings"]``.
+    """
+    out = ds.copy()
+    counts: dict[str, int] = {}
+    for name, (low, high) in PHYSICAL_RANGES.items():
+        if name not in out or out[name].dtype.kind not in "fiu":
+            continue
+        values = out[name].values.astype(float)
+        with np.errstate(invalid="ignore"):
+            bad = ~np.isfinite(values) | (values < low) | (values > high)
+        had_value = ~np.isnan(values)
+        n = int(np.count_nonzero(bad & had_value))
+        if n:
+            counts[name] = n
+            out[name] = out[name].copy(data=np.where(bad, np.nan, values))
+    return out, counts
+
+
+def range_warnings(counts: Mapping[str, int]) -> list[str]:
+    """One line per variable of :func:`screen_physical_range`'s counts."""
+    return [
+        f"{n} value(s) of {name} outside {PHYSICAL_RANGES[name][0]:g}.."
+        f"{PHYSICAL_RANGES[name][1]:g} or not finite: set to missing"
+        for name, n in counts.items()
+    ]
+
+
 SMALIKHO_2020 = (
     "Smalikho I.N. (2020), Wind transfer of turbulent inhomogeneities when estimating the "
     "dissipation rate from a conically scanning coherent Doppler lidar. Part I. Theory, "
@@ -220,7 +275,10 @@ VARIABLES: dict[str, VarMeta] = {
         "transverse sampling interval dy = dtheta R'", "m", references=SMALIKHO_2020
     ),
     "noise_std": VarMeta(
-        "instrumental error of the radial velocity sigma_e", "m s-1", references=SMALIKHO_2020
+        "instrumental error of the radial velocity sigma_e",
+        "m s-1",
+        "radial_velocity_of_scatterers_away_from_instrument standard_error",
+        references=SMALIKHO_2020,
     ),
     "velocity_variance": VarMeta(
         "variance of the radial velocity, corrected for noise and volume averaging",
@@ -234,15 +292,99 @@ VARIABLES: dict[str, VarMeta] = {
     "turbulence_flag": VarMeta(
         "dissipation-rate quality flag (bits combine)",
         "1",
-        flag_masks=(1, 2, 4, 8, 16),
+        flag_masks=(1, 2, 4, 8, 16, 32),
         flag_meanings=(
-            "too_few_pairs lag_beyond_inertial_range mu_beyond_method1 fit_failed partial_block"
+            "too_few_pairs lag_beyond_inertial_range mu_beyond_method1 fit_failed "
+            "partial_block noise_predicted"
         ),
         comment=(
             "0 good; bit 1 too few pairs; bit 2 lag beyond the inertial range; "
-            "bit 4 mu beyond method 1 validity; bit 8 fit failed; bit 16 partial block "
-            "(fewer than half the requested scans per block)"
+            "bit 4 mu beyond method 1 validity (epsilon_method1 is kept); bit 8 fit failed; "
+            "bit 16 partial block (fewer than half the requested scans per block); bit 32 "
+            "the fitted noise intercept is not significant (below twice its standard "
+            "error) or negative: noise_std is the prediction from the SNR, used in the fit"
         ),
+    ),
+    # ------------------------------------------- turbulence product: issue-12 additions
+    "edr": VarMeta(
+        "eddy dissipation rate, the cube root of the turbulent kinetic energy dissipation rate",
+        "m2/3 s-1",
+        comment=(
+            "EDR = epsilon^(1/3), the turbulence measure of aviation (ICAO) and NWP; units "
+            "m^(2/3) s^-1, written as 'm2/3 s-1' as is customary: UDUNITS has no rational "
+            "exponents and parses that string as m2 s-1 / 3, so do not convert it"
+        ),
+        references=SMALIKHO_2020 + ", eq. 5",
+    ),
+    "noise_std_predicted": VarMeta(
+        "instrumental error of the radial velocity sigma_e predicted from the "
+        "signal-to-noise ratio and the instrument settings",
+        "m s-1",
+        "radial_velocity_of_scatterers_away_from_instrument standard_error",
+        comment=(
+            "Pearson et al. (2009), eq. 3: points per gate, pulses per ray, velocity "
+            "bandwidth 1024 x the velocity resolution, signal spectral width 1.5 m s-1, "
+            "block-median SNR"
+        ),
+        references=(
+            "Pearson G., Davies F., Collier C. (2009), J. Atmos. Oceanic Technol. 26, "
+            "240-250; Rye B.J., Hardesty R.M. (1993), IEEE Trans. Geosci. Remote Sens. 31, "
+            "16-27"
+        ),
+    ),
+    "epsilon_standard_error": VarMeta(
+        "standard error of the turbulent kinetic energy dissipation rate",
+        "m2 s-3",
+        comment=(
+            "1.5 eps SE(D(l) - D(1)) / (D(l) - D(1)), SE from the scatter of the per-scan "
+            "structure functions of the block (scans as independent samples)"
+        ),
+        coverage_content_type="qualityInformation",
+    ),
+    "velocity_variance_standard_error": VarMeta(
+        "standard error of the radial-velocity variance sigma_V^2",
+        "m2 s-2",
+        comment="scatter of the per-scan variances of V'_L, scaled like sigma_V^2",
+        coverage_content_type="qualityInformation",
+    ),
+    "integral_scale_standard_error": VarMeta(
+        "standard error of the integral scale L_V",
+        "m",
+        comment="relative errors of sigma_V^2 (x 1.5) and eps combined as independent",
+        coverage_content_type="qualityInformation",
+    ),
+    "structure_function_se": VarMeta(
+        "standard error of the azimuth structure function from the scatter over scans",
+        "m2 s-2",
+        coverage_content_type="qualityInformation",
+    ),
+    "structure_function_difference_se": VarMeta(
+        "standard error of D_L(l) - D_L(1) from the scatter over scans",
+        "m2 s-2",
+        coverage_content_type="qualityInformation",
+    ),
+    "radial_velocity_variance_se": VarMeta(
+        "standard error of the variance of V'_L from the scatter over scans",
+        "m2 s-2",
+        coverage_content_type="qualityInformation",
+    ),
+    "wind_to_direction": VarMeta(
+        "direction the block-mean wind blows towards", "degree", "wind_to_direction"
+    ),
+    "pair_azimuth_weights": VarMeta(
+        "share of the lag-1 ray pairs at each azimuth node of the wind's angle from the "
+        "scan direction (sectors and gaps)",
+        "1",
+        coverage_content_type="auxiliaryInformation",
+    ),
+    "azimuth_node": VarMeta(
+        "angle of the mean wind's direction of motion from the scan's direction of motion",
+        "degree",
+    ),
+    "snr_median": VarMeta(
+        "block-median signal-to-noise ratio of the valid rays",
+        "1",
+        coverage_content_type="auxiliaryInformation",
     ),
     # ---------------------------------------------------------------- sonic SF product
     "sf_type": VarMeta(

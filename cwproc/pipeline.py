@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import re
 from collections import defaultdict
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -35,7 +36,14 @@ import xarray as xr
 from cwproc.config import Config
 from cwproc.errors import CwprocError, InputFileError
 from cwproc.io import KIND, Format, detect_format, get_reader
-from cwproc.io.netcdf import add_site_coordinates, sha256_file, site_attributes, write_product
+from cwproc.io.netcdf import (
+    add_site_coordinates,
+    discard,
+    publish,
+    sha256_file,
+    site_attributes,
+    write_product,
+)
 from cwproc.metadata import BANAKH_1999, GLADKIKH_2014, SMALIKHO_2020, WAGNER_DTU
 
 
@@ -119,22 +127,44 @@ def _day(ds: xr.Dataset) -> str:
     return np.datetime_as_string(np.min(t), unit="D").replace("-", "")
 
 
-def unit_key(item: InputFile) -> tuple[str, str]:
-    """(kind, key) of the product unit an input belongs to.
+#: characters kept in a part of a product name; anything else becomes "-"
+_NAME_CHARS = re.compile(r"[^A-Za-z0-9._+@-]+")
+#: a product file name: no separator, no leading dot, nothing a shell or a filesystem
+#: would take for something else
+_PLAIN_NAME = re.compile(r"[A-Za-z0-9_+@-][A-Za-z0-9._+@-]*")
+#: longest part of a product name taken from a file (characters)
+NAME_PART_MAX = 40
 
-    Scan files group by instrument, system id, scan elevation and UTC day; wind
-    records and sonic files are one unit each (named after the file).
+
+def name_part(text: object, default: str = "x") -> str:
+    """A safe part of a product file name built from untrusted text (a header value).
+
+    Only letters, digits and ``._+@-`` are kept (other runs become ``-``, leading dots
+    and dashes are dropped), and the part is cut to ``NAME_PART_MAX``
+    characters: a ``System ID`` of ``../../tmp/pwned``, a NUL or 300 characters can
+    neither leave the output folder nor make an invalid file name.
+    """
+    part = _NAME_CHARS.sub("-", str(text)).lstrip(".-")[:NAME_PART_MAX].rstrip(".-")
+    return part or default
+
+
+def unit_key(item: InputFile) -> tuple[str, str]:
+    """(kind, key) of the product unit an input belongs to; the key names the products.
+
+    Scan files group by instrument, system id and UTC day; sonic files by format and
+    UTC day; wind records are one unit each (named after the file). Every part taken
+    from a file is made safe by :func:`name_part`, so the key is a plain file name.
     """
     kind = KIND[item.format]
     ds = item.dataset
     assert ds is not None
     if kind == "scan":
-        system = str(ds.attrs.get("system_id", "")) or "x"
-        instrument = str(ds.attrs.get("instrument_kind", item.format.value))
+        system = name_part(ds.attrs.get("system_id", ""))
+        instrument = name_part(ds.attrs.get("instrument_kind", item.format.value))
         return kind, f"{instrument}_{system}_{_day(ds)}"
     if kind == "sonic":
         return kind, f"{item.format.value}_{_day(ds)}"
-    return kind, Path(item.path).stem
+    return kind, name_part(Path(item.path).stem)
 
 
 def split_by_day(item: InputFile) -> list[InputFile]:
@@ -252,6 +282,7 @@ def process_scans(
             wind,
             n_scans=config.turbulence.n_scans,
             max_lag_deg=config.turbulence.max_lag_deg,
+            min_lags=config.turbulence.min_lags,
         )
     except CwprocError as exc:
         if notes is not None:
@@ -373,15 +404,44 @@ _REFERENCES = {
 
 
 def product_path(outdir: str | os.PathLike, unit: ProductUnit, name: str) -> Path:
-    """``OUTDIR/<unit key>_<product>.nc``."""
-    return Path(outdir) / f"{unit.key}_{name}.nc"
+    """``OUTDIR/<unit key>_<product>.nc``.
+
+    Raises
+    ------
+    CwprocError
+        The name is not a plain file name (a key not made by :func:`unit_key`).
+    """
+    filename = f"{unit.key}_{name}.nc"
+    if not _PLAIN_NAME.fullmatch(filename) or len(filename) > 200:
+        raise CwprocError(f"product name {filename!r} is not a plain file name")
+    return Path(outdir) / filename
 
 
 def write_unit_products(
     unit: ProductUnit, products: dict[str, xr.Dataset], outdir: str | os.PathLike, config: Config
 ) -> list[Path]:
-    """Write the products of one unit atomically with provenance; returns the paths."""
-    written = []
+    """Write the products of one unit with provenance, all or none; returns the paths.
+
+    Every product is first written completely to a hidden temporary; only when all of
+    them are written are they renamed onto their names (:func:`cwproc.io.netcdf.publish`),
+    so a full disk or a kill never leaves half a unit (wind without turbulence).
+    """
+    staged: list[tuple[Path, Path]] = []
+    try:
+        return _write_staged(unit, products, outdir, config, staged)
+    except BaseException:
+        discard(staged)
+        raise
+
+
+def _write_staged(
+    unit: ProductUnit,
+    products: dict[str, xr.Dataset],
+    outdir: str | os.PathLike,
+    config: Config,
+    staged: list[tuple[Path, Path]],
+) -> list[Path]:
+    """Stage every product of ``unit`` (appending to ``staged``), then publish them."""
     instrument_attrs = site_attributes(config.output)
     first = unit.inputs[0].dataset if unit.inputs else None
     if first is not None and first.attrs.get("instrument"):
@@ -400,22 +460,26 @@ def write_unit_products(
         else:
             refs = _REFERENCES.get(name, "")
         path = product_path(outdir, unit, name)
-        written.append(
-            write_product(
-                add_site_coordinates(ds, config.output),
+        staged.append(
+            (
+                write_product(
+                    add_site_coordinates(ds, config.output),
+                    path,
+                    title=f"cwproc {title}: {unit.key}",
+                    summary=summary,
+                    inputs=list(dict.fromkeys(i.path for i in unit.inputs)),
+                    checksums={os.fspath(i.path): i.sha256 for i in unit.inputs},
+                    config_toml=config.to_toml(),
+                    references=refs,
+                    keywords=_KEYWORDS.get(name, ""),
+                    extra_attrs=instrument_attrs,
+                    compression_level=config.output.compression_level,
+                    stage_only=True,
+                ),
                 path,
-                title=f"cwproc {title}: {unit.key}",
-                summary=summary,
-                inputs=list(dict.fromkeys(i.path for i in unit.inputs)),
-                checksums={os.fspath(i.path): i.sha256 for i in unit.inputs},
-                config_toml=config.to_toml(),
-                references=refs,
-                keywords=_KEYWORDS.get(name, ""),
-                extra_attrs=instrument_attrs,
-                compression_level=config.output.compression_level,
             )
         )
-    return written
+    return publish(staged)
 
 
 def retrieve_files(

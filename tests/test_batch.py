@@ -709,3 +709,36 @@ def test_input_changed_between_planning_and_processing_fails_the_unit(tmp_path):
         f"unit {task.key} will be redone by the next run"
     )
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.skipif(
+    bool(_missing_pipeline_modules()),
+    reason=f"pipeline modules not built yet: {', '.join(_missing_pipeline_modules())}",
+)
+def test_process_pool_gives_the_products_of_a_serial_run(tmp_path):
+    """--workers N (a local process pool): same units, same products, driver-only ledger."""
+    from cwproc.batch import close_client, load_ledger, local_pool
+    from cwproc.io.halo import write_hpl
+
+    for day, (u, v) in {"2024-03-01": (3.0, -4.0), "2024-03-02": (-6.0, 2.5)}.items():
+        folder = tmp_path / "in" / day
+        folder.mkdir(parents=True)
+        write_hpl(synthetic_vad_scans(day, 10, u, v), folder / f"VAD_99_{day.replace('-', '')}.hpl")
+    config = wind_only_config()
+    serial = run_batch(tmp_path / "in", tmp_path / "serial", config)
+    pool = local_pool(2)
+    try:
+        pooled = run_batch(tmp_path / "in", tmp_path / "pool", config, client=pool)
+    finally:
+        close_client(pool)
+    assert serial.ok and pooled.ok, pooled.failure_lines()
+    assert len({o.pid for o in pooled.processed}) >= 1
+    assert all(o.pid != os.getpid() for o in pooled.processed)
+    names = sorted(p.name for p in (tmp_path / "serial").glob("*.nc"))
+    assert names and names == sorted(p.name for p in (tmp_path / "pool").glob("*.nc"))
+    for name in names:
+        a = read_product(tmp_path / "serial" / name)
+        b = read_product(tmp_path / "pool" / name)
+        xr.testing.assert_identical(a.drop_attrs(deep=False), b.drop_attrs(deep=False))
+    ledger = load_ledger(tmp_path / "pool" / ".cwproc" / "ledger.json")
+    assert len(ledger.units) == 2

@@ -29,7 +29,7 @@ def test_defaults_are_stream_line():
         ("[qc]\nsnr_minn = 1", "qc.snr_minn", "unknown key"),
         ("[qc]\nsnr_min = 'high'", "qc.snr_min", "must be a number"),
         ("[instrument]\ndelta_r_m = -18.0", "instrument.delta_r_m", "> 0"),
-        ("[turbulence]\nmax_lag_deg = 20", "turbulence.max_lag_deg", "9"),
+        ("[turbulence]\nmax_lag_deg = 75", "turbulence.max_lag_deg", "60"),
         ("[turbulence]\nmodel = 'kolmogorov'", "turbulence.model", "one of"),
         ("[vad]\nmin_rays = 2.5", "vad.min_rays", "integer"),
         ("[nosuch]\na = 1", "nosuch", "unknown key"),
@@ -54,3 +54,20 @@ def test_missing_file_and_unknown_preset(tmp_path):
         load_config(tmp_path / "nope.toml")
     with pytest.raises(ConfigError, match="no such preset"):
         load_config("nosuchpreset")
+
+
+def test_provenance_toml_round_trips_awkward_values():
+    """Strings with newlines and quotes, dates, quoted and nested keys (issue 17.5)."""
+    text = (
+        '[output]\nproject = "line one\\nline \\"two\\" \\\\ end"\n'
+        "[reader.toa5]\n"
+        '"odd key" = 1\n'
+        "stamp = 2024-06-01T00:00:00Z\n"
+        "columns = { u = \"Ux\", v = 'Uy' }\n"
+        "nested = { deeper = { x = [1, 2] } }\n"
+    )
+    cfg = config_from_toml(text, source="line\nbreak.toml")
+    again = config_from_toml(cfg.to_toml(), source="again")
+    assert again.output == cfg.output
+    assert again.reader == cfg.reader
+    assert again.reader["toa5"]["nested"] == {"deeper": {"x": [1, 2]}}

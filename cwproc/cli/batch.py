@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import logging
+import re
 import signal
 import sys
 import time
@@ -23,6 +24,7 @@ from cwproc.batch import (
     UnitOutcome,
     close_client,
     dask_client,
+    local_pool,
     run_batch,
 )
 from cwproc.cli._common import config_option, load_config_or_fail, report_failure
@@ -122,6 +124,43 @@ def summary_lines(report: BatchReport, verbose: bool) -> list[str]:
     return lines
 
 
+#: a Dask scheduler address cwproc accepts: a network address of a running cluster
+_SCHEDULER = re.compile(
+    r"(?:(tcp|tls)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9][A-Za-z0-9.-]*):(\d{1,5})"
+)
+
+
+def check_scheduler_address(value: str | None) -> str | None:
+    """The ``--scheduler`` value if it names a reachable kind of cluster; else exit 2.
+
+    Only ``tcp://host:port``, ``host:port`` and ``tls://host:port`` are accepted
+    (``inproc://``, ``http://``, a bare word or an empty value are usage errors, not
+    tracebacks or a silent serial run). ``tls://`` needs Dask's TLS configuration
+    (``distributed.comm.tls.ca-file`` and the client certificate and key).
+    """
+    if value is None:
+        return None
+    m = _SCHEDULER.fullmatch(value.strip())
+    if m is None or not 0 < int(m.group(3)) < 65536:
+        raise click.BadParameter(
+            f"{value!r} is not a Dask scheduler address; use tcp://host:port "
+            "(or tls://host:port with Dask's TLS settings)",
+            param_hint="'--scheduler'",
+        )
+    if m.group(1) == "tls":
+        try:
+            import dask
+        except ImportError:
+            return value.strip()  # the run then explains how to install dask
+        if not dask.config.get("distributed.comm.tls.ca-file", None):
+            raise click.BadParameter(
+                "tls:// needs Dask's TLS settings (distributed.comm.tls.ca-file, "
+                "distributed.comm.tls.client.cert and .key); see docs/cron.md",
+                param_hint="'--scheduler'",
+            )
+    return value.strip()
+
+
 @click.command("batch")
 @click.argument("input_dir", type=click.Path(exists=True, file_okay=False))
 @click.argument("output_dir", type=click.Path(file_okay=False))
@@ -137,13 +176,15 @@ def summary_lines(report: BatchReport, verbose: bool) -> list[str]:
     "--workers",
     type=click.IntRange(min=1),
     default=None,
-    help="Run on a local Dask cluster of N single-threaded worker processes.",
+    help="Run units in N worker processes on this machine (a process pool).",
 )
 @click.option(
     "--scheduler",
     default=None,
     metavar="ADDRESS",
-    help="Run on an existing Dask cluster (e.g. tcp://host:8786).",
+    callback=lambda ctx, param, value: check_scheduler_address(value),
+    help="Run on an existing Dask cluster: tcp://host:port, or tls://host:port with "
+    "Dask's TLS settings (see docs/cron.md).",
 )
 @click.option(
     "--pattern",
@@ -210,9 +251,11 @@ def batch(
         raise click.UsageError("give --quiet or --verbose, not both")
     cfg = load_config_or_fail(config)
     client = None
-    if workers is not None or scheduler:
+    if workers is not None and not scheduler:
+        client = local_pool(workers)
+    elif scheduler:
         try:
-            client = dask_client(workers=workers, scheduler=scheduler)
+            client = dask_client(scheduler=scheduler)
         except DaskNotInstalledError as exc:
             report_failure(str(exc))
             sys.exit(2)

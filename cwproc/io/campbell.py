@@ -47,6 +47,7 @@ from cwproc.io.meteo2 import (
     read_text,
     sonic_dataset,
 )
+from cwproc.io.timecheck import check_times, epoch_seconds_to_times
 
 INSTRUMENT = "Campbell Scientific CSAT3 (logger {logger}, table {table})"
 FRAME = "CSAT3 instrument frame: Ux along the boom into the array, Uy to its left, Uz up"
@@ -203,7 +204,7 @@ def read_toa5(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     frame = read_table(path, body, delimiter=",", skip=4, names=names)
     blank_row(path, frame, 5)
     times = parse_times(path, frame["TIMESTAMP"], 5)
-    times = times - np.timedelta64(round(offset_h * 3600e9), "ns")
+    times = check_times(path, times - np.timedelta64(round(offset_h * 3600e9), "ns"), 5)
     unit = dict(zip(names, units, strict=True))
     vals = {k: numeric_column(path, frame, cols[k], 5) for k in ("u", "v", "w")}
     n = len(frame)
@@ -350,8 +351,7 @@ def read_tob1(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         raise InputFileError(
             path, f"NANOSECONDS {nanos[bad[0]]} out of range", int(bad[0]) + 1, unit="record"
         )
-    secs = records["SECONDS"].astype(np.int64)
-    times = TOB1_EPOCH + (secs * 1_000_000_000 + nanos).astype("timedelta64[ns]")
+    times = epoch_seconds_to_times(path, records["SECONDS"], nanos, TOB1_EPOCH, 1, unit="record")
     times = times - np.timedelta64(round(offset_h * 3600e9), "ns")
     vals = {k: _tob1_column(path, records, cols[k], typ[cols[k]]) for k in ("u", "v", "w")}
     unit = dict(zip(names, (units + [""] * len(names))[: len(names)], strict=True))

@@ -39,6 +39,7 @@ from cwproc.io.meteo2 import (
     read_text,
     sonic_dataset,
 )
+from cwproc.io.timecheck import check_times
 
 OPTIONS = {
     "start_time",
@@ -105,6 +106,7 @@ def read_gill(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         start = np.datetime64(str(options["start_time"]).replace("Z", ""), "ns")
     except ValueError:
         raise InputFileError(path, "reader option start_time is not an ISO time") from None
+    check_times(path, np.array([start]), None)
     rate = option_number(path, options, "sampling_rate_hz", 0.0)
     if rate <= 0:
         raise InputFileError(path, "reader option sampling_rate_hz must be > 0")

@@ -39,6 +39,7 @@ import io
 import itertools
 import os
 import re
+import tempfile
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -49,6 +50,8 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import ConfigError, CwprocError, InputFileError
+from cwproc.io.netcdf import umask_mode
+from cwproc.io.timecheck import check_times
 
 try:  # the optional compiled tokenizer (setup.py); pandas does the same work without it
     from cwproc.io import _hpltok
@@ -90,6 +93,8 @@ _RANGE_OVERLAPPING = re.compile(
 _START_TIME = re.compile(r"^(\d{4})(\d{2})(\d{2}) (\d{1,2}):(\d{2}):(\d{2}(?:[.,]\d*)?)$")
 _SPECTRAL_WIDTH = re.compile(r"^\*{4}\s*Instrument spectral width\s*=\s*(\S+)\s*$")
 
+#: longest range gate accepted (m): Stream Line gates are 3-60 m; 1e308 gave infinite heights
+_MAX_GATE_LENGTH_M = 1000.0
 #: largest gate count accepted (guards against a garbled header asking for absurd memory)
 _MAX_GATES = 100_000
 
@@ -208,13 +213,18 @@ def parse_header(path: str | os.PathLike, lines: list[str]) -> HplHeader:
     if not 1 <= n_gates <= _MAX_GATES:
         raise InputFileError(path, f"Number of gates: {n_gates} is out of range", 3)
     gate_length = field(3, _number, "a number")
-    if gate_length <= 0:
-        raise InputFileError(path, f"Range gate length (m): {values[3]!r} must be > 0", 4)
+    if not 0 < gate_length <= _MAX_GATE_LENGTH_M:
+        raise InputFileError(
+            path,
+            f"Range gate length (m): {values[3]!r} must be > 0 and <= {_MAX_GATE_LENGTH_M:g}",
+            4,
+        )
     points = field(4, _integer, "a whole number")
     pulses = field(5, _integer, "a whole number")
     rays = field(6, _integer, "a whole number")
     focus = field(8, _number, "a number")
     start = field(9, parse_start_time, "a time 'yyyymmdd HH:MM:SS.ss'")
+    check_times(path, np.array([start]), 10)
     resolution = field(10, _number, "a number")
 
     formula = lines[11].strip()
@@ -1341,11 +1351,15 @@ def write_hpl(ds: xr.Dataset, path: str | os.PathLike) -> Path:
     """
     path = Path(path)
     data = hpl_text(ds, path.name).encode("ascii")
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        tmp.write_bytes(data)
+    tmp = None
+    try:  # an unpredictable name created exclusively: no planted symlink is followed
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.chmod(tmp, umask_mode())
         os.replace(tmp, path)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
         raise CwprocError(f"write_hpl {path}: cannot write: {exc.strerror or exc}") from None
     return path

@@ -33,6 +33,10 @@ from cwproc.io.meteo2 import (
     read_text,
     sonic_dataset,
 )
+from cwproc.io.timecheck import epoch_seconds_to_times
+
+#: origin of the Seconds column of LI-COR .data files (Unix time)
+UNIX_EPOCH = np.datetime64("1970-01-01T00:00:00", "ns")
 
 DEFAULT_COLUMNS: dict[str, str] = {
     "u": "Aux 1 - U (m/s)",
@@ -122,8 +126,7 @@ def read_ghg(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     bad = np.flatnonzero(~np.isfinite(secs) | ~np.isfinite(nanos) | (nanos < 0) | (nanos >= 1e9))
     if bad.size:
         raise InputFileError(path, "missing or invalid Seconds/Nanoseconds", first + int(bad[0]))
-    ns = secs.astype(np.int64) * 1_000_000_000 + nanos.astype(np.int64)
-    times = ns.astype("datetime64[ns]")
+    times = epoch_seconds_to_times(path, secs, nanos, UNIX_EPOCH, first)
     vals = {k: numeric_column(path, frame, cols[k], first) for k in ("u", "v", "w")}
     n = len(frame)
     if cols["speed_of_sound"] in names:

@@ -46,6 +46,7 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import InputFileError
+from cwproc.io.timecheck import check_times
 
 INSTRUMENT = "Meteo-2 ultrasonic weather station (IAO SB RAS)"
 MAGIC = "# cwproc meteo2"
@@ -423,7 +424,7 @@ def parse_times(
             i = int(missing[bad[0]])
             raise InputFileError(path, f"bad time stamp {raw.iloc[i]!r}", first_line + i)
         parsed.iloc[missing] = retry.to_numpy()
-    return parsed.to_numpy(dtype="datetime64[ns]")
+    return check_times(path, parsed.to_numpy(dtype="datetime64[ns]"), first_line)
 
 
 def _to_utc(raw: pd.Series, fmt: str) -> pd.Series:

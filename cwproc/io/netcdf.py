@@ -12,6 +12,7 @@ import datetime as _dt
 import hashlib
 import json
 import os
+import shutil
 import tempfile
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
@@ -248,10 +249,12 @@ def encoding_for(ds: xr.Dataset, compression_level: int = 4) -> dict[str, dict[s
     return enc
 
 
-def write_netcdf_atomic(
-    ds: xr.Dataset, path: str | os.PathLike, *, compression_level: int = 4
-) -> Path:
-    """Write ``ds`` to ``path`` through a temporary file in the same directory.
+def stage_netcdf(ds: xr.Dataset, path: str | os.PathLike, *, compression_level: int = 4) -> Path:
+    """Write ``ds`` completely to a temporary file beside ``path``; returns the temporary.
+
+    The temporary (``.<name>.<random>.tmp``, mode from the umask, fsynced) becomes the
+    product by :func:`publish`; a killed run leaves only such hidden temporaries, which
+    the next run removes (:func:`cwproc.batch.remove_leftover_temporaries`).
 
     Raises
     ------
@@ -278,14 +281,75 @@ def write_netcdf_atomic(
         )
         with open(tmp, "rb") as fh:
             os.fsync(fh.fileno())
-        os.replace(tmp, path)
+        os.chmod(tmp, umask_mode())
     except OSError as exc:
         _unlink_quietly(tmp)
         raise ProductError(f"{path}: cannot write product: {exc.strerror or exc}") from None
+    except RuntimeError as exc:  # the netCDF/HDF5 library's errors (e.g. a full disk)
+        _unlink_quietly(tmp)
+        free = _free_bytes(path.parent)
+        hint = " (the disk is full)" if free is not None and free < 1 << 20 else ""
+        raise ProductError(f"{path}: cannot write product: {exc}{hint}") from None
     except BaseException:
         _unlink_quietly(tmp)
         raise
-    return path
+    return Path(tmp)
+
+
+def publish(staged: Sequence[tuple[Path, Path]]) -> list[Path]:
+    """Rename staged temporaries onto their products, all or (on failure) none.
+
+    ``staged``: ``(temporary, product)`` pairs of :func:`stage_netcdf`. The renames are
+    atomic each; they run only after every product of a unit was written, so a full
+    disk or a kill while writing never publishes half a unit.
+    """
+    for tmp, path in staged:
+        try:
+            os.replace(tmp, path)
+        except OSError as exc:
+            for other, _ in staged:
+                _unlink_quietly(os.fspath(other))
+            raise ProductError(f"{path}: cannot write product: {exc.strerror or exc}") from None
+    return [path for _, path in staged]
+
+
+def discard(staged: Sequence[tuple[Path, Path]]) -> None:
+    """Remove staged temporaries that will not be published."""
+    for tmp, _ in staged:
+        _unlink_quietly(os.fspath(tmp))
+
+
+def write_netcdf_atomic(
+    ds: xr.Dataset, path: str | os.PathLike, *, compression_level: int = 4
+) -> Path:
+    """Write ``ds`` to ``path`` through a temporary file in the same directory.
+
+    Raises
+    ------
+    ProductError
+        The directory cannot be written (read-only, full, missing).
+    """
+    path = Path(path)
+    return publish([(stage_netcdf(ds, path, compression_level=compression_level), path)])[0]
+
+
+def umask_mode(mode: int = 0o666) -> int:
+    """``mode`` restricted by the process umask: what ``open()`` would have given.
+
+    Temporary files (:func:`tempfile.mkstemp`) are created 0600; a product renamed from
+    one keeps that mode, which a shared archive, a web server or THREDDS cannot read.
+    """
+    current = os.umask(0o022)
+    os.umask(current)
+    return mode & ~current
+
+
+def _free_bytes(folder: Path) -> int | None:
+    """Free bytes of the filesystem of ``folder`` (``None`` if unknown)."""
+    try:
+        return shutil.disk_usage(folder).free
+    except OSError:
+        return None
 
 
 def _unlink_quietly(path: str) -> None:
@@ -308,13 +372,15 @@ def write_product(
     keywords: str = "",
     extra_attrs: Mapping[str, object] | None = None,
     compression_level: int = 4,
+    stage_only: bool = False,
 ) -> Path:
     """Attach CF metadata and ACDD/provenance attributes, then write atomically.
 
     Returns
     -------
     pathlib.Path
-        The product path.
+        The product path; with ``stage_only`` the staged temporary, which
+        :func:`publish` renames onto the product (all products of a unit together).
     """
     out = apply_metadata(ds)
     attrs = dict(ds.attrs)
@@ -333,6 +399,8 @@ def write_product(
     )
     attrs["id"] = Path(path).stem
     out.attrs = attrs
+    if stage_only:
+        return stage_netcdf(out, path, compression_level=compression_level)
     return write_netcdf_atomic(out, path, compression_level=compression_level)
 
 

@@ -44,7 +44,8 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import InputFileError
-from cwproc.io.zephir import check_reader_options
+from cwproc.io.timecheck import check_times
+from cwproc.io.zephir import check_reader_options, with_range_screen
 
 #: 1.x per-altitude column suffix -> canonical name
 LONG_HEIGHT_COLUMNS: dict[str, str] = {
@@ -215,7 +216,7 @@ def _parse_times(path: str | os.PathLike, stamps: pd.Series, first_line: int) ->
     for fmt in _TIME_FORMATS:
         times = pd.to_datetime(stamps, format=fmt, errors="coerce")
         if not times.isna().any():
-            return times.to_numpy(dtype="datetime64[ns]")
+            return check_times(path, times.to_numpy(dtype="datetime64[ns]"), first_line)
     ok = [pd.to_datetime(stamps, format=f, errors="coerce").notna().sum() for f in _TIME_FORMATS]
     times = pd.to_datetime(stamps, format=_TIME_FORMATS[int(np.argmax(ok))], errors="coerce")
     row = int(np.flatnonzero(times.isna().to_numpy())[0])
@@ -391,4 +392,6 @@ def read_windcube_sta(
     gps = _header_value(items, "GPS Location", "GPS Localisation")
     if gps:
         attrs["gps_location"] = gps
-    return xr.Dataset(data_vars, coords={"time": times, "height": heights_sorted}, attrs=attrs)
+    return with_range_screen(
+        xr.Dataset(data_vars, coords={"time": times, "height": heights_sorted}, attrs=attrs)
+    )

@@ -47,6 +47,8 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import ConfigError, InputFileError
+from cwproc.io.timecheck import check_times
+from cwproc.metadata import range_warnings, screen_physical_range
 
 #: per-height column prefix -> canonical variable name (8 columns per height)
 HEIGHT_COLUMNS: dict[str, str] = {
@@ -93,6 +95,14 @@ _HEIGHT_RE = re.compile(r"^(?P<prefix>.+) at (?P<height>\d+(?:[.,]\d+)?)m$")
 _SYNC_RE = re.compile(r"UTC\s*([+-])\s*(\d+(?:[.,]\d+)?)\s*h", re.IGNORECASE)
 _NUMBER_RE = re.compile(r"(\d+(?:[.,]\d+)?)")
 _HEADER_LINES = 2
+
+
+def with_range_screen(ds: xr.Dataset) -> xr.Dataset:
+    """Impossible values (:data:`cwproc.metadata.PHYSICAL_RANGES`) as missing, reported."""
+    screened, counts = screen_physical_range(ds)
+    if counts:
+        screened.attrs["warnings"] = [*ds.attrs.get("warnings", []), *range_warnings(counts)]
+    return screened
 
 
 def _number(text: str) -> float:
@@ -269,7 +279,7 @@ def _parse_times(path: str | os.PathLike, stamps: pd.Series, first_line: int) ->
     for fmt in _TIME_FORMATS:
         times = pd.to_datetime(stamps, format=fmt, errors="coerce")
         if not times.isna().any():
-            return times.to_numpy(dtype="datetime64[ns]")
+            return check_times(path, times.to_numpy(dtype="datetime64[ns]"), first_line)
     times = pd.to_datetime(stamps, format=_TIME_FORMATS[0], errors="coerce")
     row = int(np.flatnonzero(times.isna().to_numpy())[0])
     raise InputFileError(
@@ -475,7 +485,7 @@ def read_zephir_csv(
         attrs["ignored_columns"] = list(layout["ignored"])
     ds = xr.Dataset(data_vars, coords={"time": times, "height": heights}, attrs=attrs)
     ds["packets"].attrs["comment"] = "number of 1-s scan packets in the average"
-    return ds
+    return with_range_screen(ds)
 
 
 def _parse_gps(

@@ -42,12 +42,23 @@ import numpy as np
 import platformdirs
 from numpy.typing import ArrayLike
 
-from cwproc.physics import afunctions
+from cwproc.physics import afunctions, spectra
 from cwproc.physics.spectra import MODELS, Model
 from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
 
 #: bump when the numerics or the grid change: old cache files are then ignored
-TABLE_VERSION = 4
+TABLE_VERSION = 5
+#: azimuth nodes of A_2 stored beside its circle average (inertial tables), equally
+#: spaced on the circle of the wind's angle from the scan direction (10 deg)
+N_BINS = 36
+#: sub-beams of a swept ray in :func:`uniform_mode`
+N_SWEEP = 8
+#: transverse sizes (in dy) of the A-curves of :func:`sweep_transport_ratio`: from this
+#: fraction up to 1 + mu_max, geometric with this ratio
+SWEEP_MIN_FRACTION = 0.05
+SWEEP_RATIO = 1.4
+#: geometry models of a table
+GEOMETRIES = ("two_beam", "small_angle")
 #: geometric ratio of the height nodes
 HEIGHT_RATIO = 1.2
 #: geometric ratio of the outer-scale nodes
@@ -104,8 +115,12 @@ class ATable:
     mu : (nm,) nodes of ``mu = U / V_s``.
     outer_scales_m : (nL,) nodes of ``L_V`` (m); ``(1,)`` NaN for the inertial model.
     log_a1 : (nL, nh, n_lags) ``ln A_1`` (A in m^(2/3)).
-    log_a2 : (nL, nh, n_lags, nm) ``ln A_2``.
+    log_a2 : (nL, nh, n_lags, nm) ``ln A_2``, the average over the full circle.
     params : the parameters the table was built for (also its cache key).
+    bins_a2 : (1, nh, n_lags, nm, N_BINS) inertial tables: eq. 15's integrand at the
+        azimuth nodes (:func:`azimuth_nodes`) divided by the circle average;
+        ``None`` for finite-outer-scale tables (the estimator applies the inertial
+        table's sector ratio to them).
     """
 
     heights_m: np.ndarray
@@ -114,6 +129,7 @@ class ATable:
     log_a1: np.ndarray
     log_a2: np.ndarray
     params: dict = field(default_factory=dict)
+    bins_a2: np.ndarray | None = None
 
     @property
     def n_lags(self) -> int:
@@ -140,6 +156,7 @@ class ATable:
         height_m: ArrayLike,
         mu: ArrayLike,
         outer_scale_m: ArrayLike | None = None,
+        weights: ArrayLike | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """``(A_1, A_2)`` (m^(2/3)) at lag numbers, heights, ``mu`` and outer scales.
 
@@ -153,6 +170,10 @@ class ATable:
             ``U / V_s`` (1).
         outer_scale_m : array_like, optional
             ``L_V`` (m); required for finite-outer-scale tables, ignored otherwise.
+        weights : array_like, optional
+            ``(..., N_BINS)``: the share of the pairs present in each azimuth bin
+            (:func:`azimuth_bin_weights`); ``None`` gives the full-circle average of
+            Smalikho (2020), eq. 15 (tables without bins ignore it).
 
         All inputs broadcast. Points outside the tabulated ranges give NaN.
         """
@@ -193,6 +214,15 @@ class ATable:
         log1 = np.einsum("qa,qa->q", wl, a1_h.ravel().take(base))
         vals2 = a2_h.ravel().take(base[:, :, None] * n_m + im[:, None, :])  # (q, a, 4)
         log2 = np.einsum("qa,qac,qc->q", wl, vals2, wm, optimize=True)
+        if weights is not None and self.bins_a2 is not None:
+            wb = np.broadcast_to(np.asarray(weights, float), (*shape, N_BINS))
+            wb = wb.reshape(-1, N_BINS)
+            r_h = np.einsum("lukjmc,uk->lujmc", self.bins_a2[:, ihu], whu)
+            flat = r_h.reshape(-1, N_BINS)
+            idx = base[:, :, None] * n_m + im[:, None, :]  # (q, a, 4)
+            vals = flat[idx.ravel()].reshape(*idx.shape, N_BINS)  # (q, a, 4, bins)
+            ratio = np.einsum("qa,qacn,qc->qn", wl, vals, wm, optimize=True)
+            log2 = log2 + np.log(np.maximum(np.sum(ratio * wb, axis=-1), 1e-12))
         ok1 = lag_ok & vh & vl
         ok2 = ok1 & vm
         out1 = np.where(ok1, np.exp(log1), np.nan).reshape(shape)
@@ -229,14 +259,28 @@ def table_parameters(
     height_range_m: tuple[float, float] = (10.0, 3000.0),
     mu_max: float = 10.0,
     outer_scale_range_m: tuple[float, float] = (10.0, 3000.0),
+    swept: bool = True,
+    geometry: str | None = None,
 ) -> dict:
-    """The validated parameter dictionary of a table (its cache key is a hash of it)."""
+    """The validated parameter dictionary of a table (its cache key is a hash of it).
+
+    ``swept``: each ray is accumulated while the beam sweeps its azimuth step (continuous
+    scan, ``H_perp`` of Smalikho (2020), eq. 20), ``False`` for step-stare rays.
+    ``geometry``: ``"two_beam"`` (exact pair geometry, :func:`geometry_correction`) or
+    ``"small_angle"`` (Smalikho (2020), eq. 15 alone); ``None``: ``"two_beam"`` for a
+    pulsed probe, ``"small_angle"`` for a cw probe (whose Lorentzian, longer than the
+    separations, lets the beam spacing vary along the probe, which the point-probe
+    correction does not describe; cw cells with finite outer scales use the exact model
+    of :class:`cwproc.stages.epsilon.ExactLagModel`).
+    """
+    if geometry is None:
+        geometry = "small_angle" if isinstance(probe, CWProbe) else "two_beam"
     if model not in MODELS:
         raise ValueError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
     if not 0 < phi_deg < 90:
         raise ValueError(f"phi_deg must be in (0, 90), got {phi_deg!r}")
-    if not 0 < delta_theta_deg <= 90:
-        raise ValueError(f"delta_theta_deg must be in (0, 90], got {delta_theta_deg!r}")
+    if not 0 < delta_theta_deg <= 120:
+        raise ValueError(f"delta_theta_deg must be in (0, 120], got {delta_theta_deg!r}")
     if int(n_lags) < 2:
         raise ValueError("n_lags must be >= 2")
     h0, h1 = (float(v) for v in height_range_m)
@@ -247,7 +291,11 @@ def table_parameters(
         raise ValueError("outer_scale_range_m must be (low, high) with 0 < low < high")
     if not mu_max > 0:
         raise ValueError("mu_max must be > 0")
+    if geometry not in GEOMETRIES:
+        raise ValueError(f"geometry must be one of {', '.join(GEOMETRIES)}, got {geometry!r}")
     return {
+        "swept": bool(swept),
+        "geometry": geometry,
         "version": TABLE_VERSION,
         "probe": _probe_params(probe),
         "phi_deg": float(phi_deg),
@@ -266,16 +314,227 @@ def table_key(params: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
+def azimuth_nodes() -> np.ndarray:
+    """The ``N_BINS`` node azimuths (rad) of ``bins_a2``, equally spaced on the circle."""
+    return 2.0 * np.pi * np.arange(N_BINS) / N_BINS
+
+
+def full_circle() -> np.ndarray:
+    """Eq.-15 azimuths on the full circle: the half circle and its mirror ``pi - theta``.
+
+    Smalikho (2020), eq. 15 depends on ``sin theta`` only; the exact two-beam geometry
+    does not (with tilted beams a radial transport inwards and outwards differ), so the
+    tables use both halves.
+    """
+    th = afunctions._theta()
+    return np.concatenate([th, np.pi - th])
+
+
+def _node_interpolation(theta: np.ndarray) -> np.ndarray:
+    """Periodic linear-interpolation weights ``(..., N_BINS)`` of azimuths on the nodes."""
+    step = 2.0 * np.pi / N_BINS
+    pos = np.mod(np.asarray(theta, dtype=float), 2.0 * np.pi) / step
+    i0 = np.floor(pos).astype(int) % N_BINS
+    frac = pos - np.floor(pos)
+    out = np.zeros((*pos.shape, N_BINS))
+    np.put_along_axis(out, i0[..., None], (1.0 - frac)[..., None], axis=-1)
+    np.put_along_axis(out, ((i0 + 1) % N_BINS)[..., None], frac[..., None], axis=-1)
+    return out
+
+
+def azimuth_bin_weights(
+    theta: ArrayLike, axis: int = -1, counts: ArrayLike | None = None
+) -> np.ndarray:
+    """Weights ``(..., N_BINS)`` of the azimuth nodes for the pairs at ``theta`` (rad).
+
+    ``theta`` (along ``axis``) is the angle of the mean wind from the scan's direction of
+    motion at each pair present (Smalikho (2020), eq. 15: the wind's component along the
+    scan is ``U sin th``, along the horizontal beam ``U cos th``); each pair is shared
+    linearly between the two neighbouring nodes (:func:`azimuth_nodes`). ``counts``
+    (shape of ``theta``): the number of pairs at each azimuth (default 1). NaN azimuths
+    are left out; no pair at all gives NaN weights.
+    """
+    th = np.moveaxis(np.asarray(theta, dtype=float), axis, -1)
+    n = np.ones_like(th) if counts is None else np.moveaxis(np.asarray(counts, float), axis, -1)
+    n = np.where(np.isfinite(th), n, 0.0)
+    w = _node_interpolation(np.where(n > 0, th, 0.0)) * n[..., None]
+    total = n.sum(axis=-1)[..., None]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return w.sum(axis=-2) / total
+
+
+def _per_theta_a2(
+    curves: afunctions.ACurves, lag_m: np.ndarray, mu: np.ndarray, phi_deg: float
+) -> np.ndarray:
+    """Integrand of Smalikho (2020), eq. 15 on :func:`full_circle`, ``(lags, mu, theta)``."""
+    sg, wp, wl = afunctions.transport_weights(mu, phi_deg)  # (nm, nth) on the half circle
+    rho = lag_m[:, None, None] * sg[None]
+    half = wp[None] * curves.perp(rho) + wl[None] * curves.par(rho)
+    return np.concatenate([half, half], axis=-1)  # eq. 15 is even in cos(theta)
+
+
+def sweep_transport_ratio(
+    probe: Probe,
+    phi_deg: float,
+    dy: float,
+    perp_size: float,
+    range_m: float,
+    rho_range: tuple[float, float],
+    lags: np.ndarray,
+    mu: np.ndarray,
+    plane: afunctions.PlaneMatrix | None = None,
+) -> np.ndarray:
+    """Ratio of the swept-ray A_2 integrand seen at the rays' own times to eq. 15's.
+
+    A continuous scan accumulates each ray while the beam sweeps ``dy``; in the frozen
+    field (transport ``U = mu V_s``) the ray averages along ``dy (e_scan - mu e_wind)``,
+    a segment of length ``dy sqrt(g)`` along the separation of the pair, not across the
+    beam over ``dy`` as eq. 15 (Smalikho (2020), with ``H_perp(dy)`` of eq. 20) keeps it.
+    The integrand of eq. 15 is recomputed with ``H_perp(dy sqrt(g))`` (inertial model,
+    A-curves on a geometric family of transverse sizes ``c dy``, 4-point Lagrange in
+    ``log c``) and divided by eq. 15's. At ``mu = 0`` it is 1. Against the exact
+    two-beam model (:func:`cwproc.physics.two_beam.two_beam_structure_function` with
+    ``ray_duration_s``) it removes most of eq. 15's excess at ``l = 1`` (up to 27 % at
+    ``mu = 1.5``; 1-3 % left for 1-5 deg steps).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(lags, mu, theta)`` on :func:`full_circle`.
+    """
+    mu = np.asarray(mu, float)
+    sg, wp, wl = afunctions.transport_weights(mu, phi_deg)  # (nm, nth) half circle
+    top = float(max(np.max(sg), 1.0)) * 1.01
+    sizes = np.geomspace(
+        SWEEP_MIN_FRACTION,
+        top,
+        max(4, math.ceil(math.log(top / SWEEP_MIN_FRACTION) / math.log(SWEEP_RATIO)) + 1),
+    )
+    rho = lags[:, None, None] * dy * sg[None]  # (nl, nm, nth)
+    idx, w, _ = _lagrange4(np.log(sizes), np.log(np.clip(sg, sizes[0], sizes[-1])))
+    idx = idx.reshape(*sg.shape, 4)
+    w = w.reshape(*sg.shape, 4)
+    a_perp = np.zeros(rho.shape)
+    a_par = np.zeros(rho.shape)
+    for k, c in enumerate(sizes):
+        use = idx == k  # (nm, nth, 4)
+        if not use.any():
+            continue
+        weight = np.sum(np.where(use, w, 0.0), axis=-1)  # (nm, nth)
+        curves = afunctions.a_curve_splines(
+            *rho_range, probe=probe, dy=float(c * perp_size), range_m=range_m, plane=plane
+        )
+        a_perp += weight[None] * curves.perp(rho)
+        a_par += weight[None] * curves.par(rho)
+    physical = wp[None] * a_perp + wl[None] * a_par
+    fixed = afunctions.a_curve_splines(
+        *rho_range, probe=probe, dy=float(perp_size), range_m=range_m, plane=plane
+    )
+    eq15 = wp[None] * fixed.perp(rho) + wl[None] * fixed.par(rho)
+    ratio = physical / eq15
+    return np.concatenate([ratio, ratio], axis=-1)  # both even in cos(theta)
+
+
+def _point_pair(
+    phi_deg: float, delta_theta_deg: float, lags: np.ndarray, mu: np.ndarray, theta: np.ndarray
+) -> np.ndarray:
+    """Exact two-beam A of a point probe on the circle ``R' = 1``, ``(lags, mu, theta)``.
+
+    Pair ``l`` steps apart centred on north, scanning clockwise (towards east): the wind's
+    component along the scan is ``U sin th``, ``U = mu`` (``V_s = 1``), ray period
+    ``t0 = dtheta``. A point has no same-beam term: ``D`` is the cross term alone.
+    """
+    from cwproc.physics import two_beam
+
+    step = math.radians(delta_theta_deg)
+    point = two_beam.beam_quadrature(None, 1.0 / math.cos(math.radians(phi_deg)))
+    half = 0.5 * lags[:, None, None] * delta_theta_deg
+    wind = (
+        np.stack([np.zeros_like(theta), np.cos(theta), np.sin(theta)], axis=-1)
+        * np.asarray(mu, float)[:, None, None]
+    )  # (nm, nth, 3)
+    shape = (lags.size, np.size(mu), theta.size)
+    t_ab = -lags[:, None, None] * step  # t_a - t_b, a the earlier ray
+    return two_beam.cross_term(
+        np.broadcast_to(-half, shape),
+        np.broadcast_to(half, shape),
+        phi_deg,
+        point,
+        separation_m=np.broadcast_to(wind, (*shape, 3)) * t_ab[..., None],
+        model="inertial",
+    )
+
+
+def geometry_correction(
+    phi_deg: float, delta_theta_deg: float, n_lags: int, mu: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Ratio of the exact two-beam to the small-angle A of a point probe (inertial).
+
+    The pair of rays ``l`` steps apart (:func:`cwproc.physics.two_beam.cross_term`: chord
+    separation, angle between the beams, transport ``U t`` with ``U = mu V_s``) against
+    Smalikho (2020), eq. 15 for the same point probe (``A_perp = (8/3) rho^(2/3)``,
+    ``A_par = 2 rho^(2/3)``), both without the sweep: the sweep of a continuous scan is
+    in the probe's A-functions (``H_perp`` of Smalikho (2020), eq. 20, over the length
+    the ray averages in the moving field, :func:`sweep_transport_ratio`). For a point
+    probe and the inertial model
+    both scale as ``R'^(2/3)``, so the ratio is computed once on the circle ``R' = 1``
+    (``V_s = 1``, ray period ``dtheta``). The probe's eq.-15 A-functions plus the
+    same-beam term, times this ratio, minus the same-beam term, give the exact geometry
+    up to the interplay of probe length and beam angle (within 0.6 % of
+    :func:`cwproc.physics.two_beam.two_beam_structure_function` for 15 deg step-stare
+    pulsed scans, tested).
+
+    Returns
+    -------
+    (g1, g2) : numpy.ndarray
+        ``(n_lags,)`` at ``mu = 0`` and ``(n_lags, mu, theta)`` on :func:`full_circle`.
+    """
+    mu = np.asarray(mu, float)
+    if mu.ravel()[0] != 0.0:
+        raise ValueError("the mu grid must start at 0 (A_1 is taken there)")
+    step = math.radians(delta_theta_deg)
+    lags = np.arange(1, n_lags + 1, dtype=float)
+    exact = _point_pair(phi_deg, delta_theta_deg, lags, mu, full_circle())
+    lo, hi = 0.02 * step, n_lags * step * (1.0 + float(np.max(mu))) * 1.01
+    curves = afunctions.a_curve_splines(lo, hi, probe=None, dy=0.0)
+    small = _per_theta_a2(curves, lags * step, mu, phi_deg)
+    # without wind the pair is the same at every azimuth: method 1's A_1 (mu = 0)
+    calm = exact[:, 0, :].mean(axis=-1)
+    return calm / curves.perp(lags * step), exact / small
+
+
+def uniform_mode(phi_deg: float, delta_theta_deg: float, n_lags: int, swept: bool) -> np.ndarray:
+    """``|S_a - S_b|^2`` of rays ``l = 1..n_lags`` steps apart (sweep-averaged directions).
+
+    Times ``sigma_V^2`` it is the large-scale part of the two-beam structure function
+    (:mod:`cwproc.physics.two_beam`), absent from the small-angle model.
+    """
+    from cwproc.physics import two_beam
+
+    lags = np.arange(1, n_lags + 1, dtype=float)
+    sweep = dict(sweep_deg=delta_theta_deg, n_sweep=N_SWEEP) if swept else {}
+    sa = two_beam.mean_direction(np.zeros_like(lags), phi_deg, **sweep)
+    sb = two_beam.mean_direction(lags * delta_theta_deg, phi_deg, **sweep)
+    return np.sum((sa - sb) ** 2, axis=-1)
+
+
 def build_a_table(probe: Probe, params: dict) -> ATable:
     """Compute a table (no cache): ``A_1`` and ``A_2`` on the grid of ``params``.
 
     For every height node (and outer scale) the curves ``A_perp``, ``A_par`` of the lag are
     computed once (:func:`cwproc.physics.afunctions.a_curve_splines`) and eq. 15 is
-    averaged for all lags and ``mu`` at once.
+    evaluated for all lags, ``mu`` and azimuths at once. With ``geometry="two_beam"`` it is
+    multiplied by the point-probe ratio of :func:`geometry_correction` and, for
+    finite outer scales, ``sigma_V^2 |S_a - S_b|^2`` (:func:`uniform_mode`) are added.
+    ``A_2`` is stored as its azimuth average (``log_a2``) and, for inertial tables, its
+    means over azimuth bins relative to that average (``bins_a2``), so that sectors and
+    gaps can be averaged over the azimuths present.
     """
     phi = params["phi_deg"]
     n_lags = params["n_lags"]
     model = params["model"]
+    swept = bool(params.get("swept", True))
+    exact = params.get("geometry", "two_beam") == "two_beam"
     heights = _geometric(*params["height_range_m"], HEIGHT_RATIO)
     mu = default_mu_grid(params["mu_max"])
     if model == "inertial":
@@ -284,48 +543,108 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
         scales = _geometric(*params["outer_scale_range_m"], OUTER_SCALE_RATIO)
     dtheta = math.radians(params["delta_theta_deg"])
     lags = np.arange(1, n_lags + 1, dtype=float)
+    th = full_circle()
+    # periodic linear interpolation from the table's azimuths to the nodes
+    order = np.argsort(np.mod(th, 2 * np.pi))
+    th_sorted = np.mod(th, 2 * np.pi)[order]
+    eye = np.eye(th.size)[order]
+    to_nodes = np.stack(
+        [np.interp(azimuth_nodes(), th_sorted, eye[:, k], period=2 * np.pi) for k in range(th.size)]
+    )
     log_a1 = np.empty((scales.size, heights.size, n_lags))
     log_a2 = np.empty((scales.size, heights.size, n_lags, mu.size))
+    bins_a2 = np.empty((scales.size, heights.size, n_lags, mu.size, N_BINS))
     ranges = heights / math.sin(math.radians(phi))
     # the probe centre samples the circle of radius R_c cos(phi): R_c = R for a pulsed
     # gate, R/(1 + (R/z_d)^2) for a cw focus (Banakh et al. (1999), Q_s)
-    dys = dtheta * np.asarray(probe.centre_range(ranges), float) * math.cos(math.radians(phi))
+    radius = np.asarray(probe.centre_range(ranges), float) * math.cos(math.radians(phi))
+    dys = dtheta * radius
+    perp_size = np.asarray(probe.transverse_size(dys), float) if swept else np.zeros_like(dys)
+    if exact:
+        from cwproc.physics import two_beam
+
+        # the same-beam term S: the exact-geometry ratio acts on the cross term A + 2 S
+        same = np.array(
+            [
+                2.0 * two_beam.same_beam_term(two_beam.beam_quadrature(probe, rng), phi)
+                for rng in ranges
+            ]
+        )
+        g1, g2 = geometry_correction(phi, params["delta_theta_deg"], n_lags, mu)
+        unif = uniform_mode(phi, params["delta_theta_deg"], n_lags, swept)
+    else:
+        g1, g2, unif = np.ones(n_lags), np.ones((n_lags, mu.size, th.size)), np.zeros(n_lags)
+
+        same = np.zeros(heights.size)
     rho_lo = 0.02 * dys
     rho_hi = n_lags * dys * (1.0 + params["mu_max"]) * 1.01
     for i, big_l in enumerate(scales):
         outer = None if model == "inertial" else float(big_l)
+        sigma2 = 0.0 if outer is None else spectra.variance_per_eps23(model, outer)
         # one spectrum matrix over the wavenumbers of all heights (the costliest part)
         limits = [
             afunctions.panel_limits(
-                lo,
-                hi,
-                probe=probe,
-                dy=float(probe.transverse_size(dy)),
-                range_m=rng,
-                model=model,
-                outer_scale_m=outer,
+                lo, hi, probe=probe, dy=float(ps), range_m=rng, model=model, outer_scale_m=outer
             )
-            for lo, hi, dy, rng in zip(rho_lo, rho_hi, dys, ranges, strict=True)
+            for lo, hi, ps, rng in zip(rho_lo, rho_hi, perp_size, ranges, strict=True)
         ]
         plane = afunctions.PlaneMatrix(
             min(lim[0] for lim in limits), max(lim[1] for lim in limits), model, outer
         )
+        if i == 0 and exact and np.any(perp_size > 0):
+            # rays of a continuous scan seen at their own times (inertial, all outer scales)
+            family = [
+                afunctions.panel_limits(
+                    lo * SWEEP_MIN_FRACTION,
+                    hi,
+                    probe=probe,
+                    dy=float(ps) * SWEEP_MIN_FRACTION,
+                    range_m=rng,
+                )
+                for lo, hi, ps, rng in zip(rho_lo, rho_hi, perp_size, ranges, strict=True)
+            ]
+            inertial_plane = afunctions.PlaneMatrix(
+                min(lim[0] for lim in family), max(lim[1] for lim in family), "inertial"
+            )
+            sweep = [
+                sweep_transport_ratio(
+                    probe,
+                    phi,
+                    float(dys[j]),
+                    float(perp_size[j]),
+                    float(ranges[j]),
+                    (float(rho_lo[j]) * SWEEP_MIN_FRACTION, float(rho_hi[j])),
+                    lags,
+                    mu,
+                    inertial_plane,
+                )
+                for j in range(heights.size)
+            ]
+        elif i == 0:
+            sweep = [1.0] * heights.size
         for j in range(heights.size):
             dy = float(dys[j])
             curves = afunctions.a_curve_splines(
                 float(rho_lo[j]),
                 float(rho_hi[j]),
                 probe=probe,
-                dy=float(probe.transverse_size(dy)),
+                dy=float(perp_size[j]),
                 range_m=float(ranges[j]),
                 model=model,
                 outer_scale_m=outer,
                 plane=plane,
             )
-            log_a1[i, j] = np.log(curves.perp(lags * dy))
-            a2v = afunctions.a2_from_curves(curves, (lags * dy)[:, None], mu[None, :], phi)
-            log_a2[i, j] = np.log(a2v)
-    return ATable(heights, mu, scales, log_a1, log_a2, dict(params))
+            s2 = same[j]
+            a1 = (curves.perp(lags * dy) + s2) * g1 - s2 + sigma2 * unif
+            per_theta = _per_theta_a2(curves, lags * dy, mu, phi) * sweep[j]
+            per_theta = (per_theta + s2) * g2 - s2
+            per_theta = per_theta + sigma2 * unif[:, None, None]
+            c0 = per_theta.mean(axis=-1)
+            log_a1[i, j] = np.log(a1)
+            log_a2[i, j] = np.log(c0)
+            bins_a2[i, j] = (per_theta @ to_nodes) / c0[..., None]
+    keep = bins_a2 if model == "inertial" else None
+    return ATable(heights, mu, scales, log_a1, log_a2, dict(params), keep)
 
 
 def _cache_path(cache_dir: str | os.PathLike | None, key: str) -> Path:
@@ -346,6 +665,7 @@ def _load(path: Path, key: str, params: dict) -> ATable | None:
                 np.array(data["log_a1"]),
                 np.array(data["log_a2"]),
                 dict(params),
+                np.array(data["bins_a2"]) if params["model"] == "inertial" else None,
             )
     except Exception:  # any unreadable/corrupt file is rebuilt, never trusted
         return None
@@ -355,6 +675,13 @@ def _load(path: Path, key: str, params: dict) -> ATable | None:
         and table.log_a2.shape == (nl, nh, params["n_lags"], nm)
         and np.isfinite(table.log_a1).all()
         and np.isfinite(table.log_a2).all()
+        and (
+            table.bins_a2 is None
+            or (
+                table.bins_a2.shape == (nl, nh, params["n_lags"], nm, N_BINS)
+                and np.isfinite(table.bins_a2).all()
+            )
+        )
         and nh >= 4
         and nm >= 4
     )
@@ -376,6 +703,7 @@ def _save(table: ATable, path: Path, key: str) -> None:
                     outer_scales_m=table.outer_scales_m,
                     log_a1=table.log_a1,
                     log_a2=table.log_a2,
+                    bins_a2=np.zeros(0) if table.bins_a2 is None else table.bins_a2,
                 )
             os.replace(tmp, path)
         except BaseException:
@@ -396,6 +724,8 @@ def get_a_table(
     height_range_m: tuple[float, float] = (10.0, 3000.0),
     mu_max: float = 10.0,
     outer_scale_range_m: tuple[float, float] = (10.0, 3000.0),
+    swept: bool = True,
+    geometry: str | None = None,
 ) -> ATable:
     """The A-function table of one instrument configuration, from the cache or computed.
 
@@ -419,6 +749,8 @@ def get_a_table(
         Largest ``mu = U / V_s`` covered.
     outer_scale_range_m : (float, float)
         ``L_V`` (m) covered by finite-outer-scale tables.
+    swept, geometry
+        See :func:`table_parameters`.
 
     Returns
     -------
@@ -433,6 +765,8 @@ def get_a_table(
         height_range_m=height_range_m,
         mu_max=mu_max,
         outer_scale_range_m=outer_scale_range_m,
+        swept=swept,
+        geometry=geometry,
     )
     key = table_key(params)
     path = _cache_path(cache_dir, key)

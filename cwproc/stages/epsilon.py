@@ -20,8 +20,17 @@ Estimates, per block of scans and height, all vectorised:
   ``eps_i = [(D(l) - D(1)) / (A_i(l dy) - A_i(dy))]^(3/2)`` with ``l = lag_number``;
   their ratio is ``epsilon_ratio`` (identical to Smalikho (2020), eq. 21);
 - ``epsilon_fit`` and ``noise_std``: least squares of ``eps^(2/3) A_2(l dy) + 2 sigma_e^2``
-  over ``l = 1..L`` (``sigma_e`` set to 0 and the slope refitted when the intercept
-  comes out negative);
+  over ``l = 1..L`` (:func:`fit_structure_function`); where the intercept is not
+  significant (below twice its standard error, fewer than three lags) or negative, it is
+  fixed at ``2 sigma_pred^2`` of ``noise_std_predicted`` (:func:`predicted_noise`,
+  Pearson et al. (2009), eq. 3) and flag 32 is set: ``noise_std`` is then the prediction,
+  or NaN without one, never a measured 0;
+- ``edr = eps^(1/3)``; standard errors of eps, sigma_V^2 and L_V from the scatter over
+  the block's scans (:func:`standard_errors`);
+- ``A_1`` and ``A_2`` come from tables of the exact two-beam geometry (any azimuth step,
+  :mod:`cwproc.physics.two_beam`, :func:`cwproc.physics.atable.geometry_correction`),
+  ``A_2`` averaged over the azimuths of the pairs present (``pair_azimuth_weights``:
+  sectors and gaps, :func:`_sector_evaluate`);
 - ``velocity_variance``: the variance of ``V'_L`` minus ``sigma_e^2``, divided by the
   part of ``sigma_V^2`` that passes the probe, ``int int Phi_L H_par H_perp /
   int int Phi_L`` with the model's 2-D spectrum at the fitted ``L_V``
@@ -71,7 +80,7 @@ it fixed. The variance of ``V'_L`` minus
 removes, ``tr(H B_D)/(N M)`` (:func:`hat_trace_per_ray`), and ``L_V = c sigma_V^3 /
 eps``. The A-functions at that ``L_V`` still give ``epsilon_method1`` and the ratio.
 
-Flags (``turbulence_flag``, bits combine; a flagged value is NaN):
+Flags (``turbulence_flag``, bits combine; bits 1, 2, 8, 16 make the estimates NaN):
 
 - 1: too few pairs (``n_pairs`` < ``min_pairs`` at lag 1 or lag ``l``): no ``eps``;
 - 2: lag beyond the inertial range (Smalikho (2020), after eq. 4): ``l dy (1 + mu) >
@@ -79,7 +88,8 @@ Flags (``turbulence_flag``, bits combine; a flagged value is NaN):
   A-functions describe the larger separations of wind transport), or ``L_V`` below the
   A-table's range: no ``eps``;
 - 4: ``mu`` beyond the validity of method 1, ``eps_1/eps_2 > 1.1`` (Smalikho (2020),
-  eq. 21 and its discussion): ``epsilon_method1`` is NaN, ``epsilon`` stays;
+  eq. 21 and its discussion): ``epsilon_method1`` is kept (its bias is the observable of
+  eq. 21), ``epsilon`` stays;
 - 8: fit failed (``D(l) <= D(1)``, non-finite values, no mean wind for ``mu``, a height
   or ``mu`` outside the A-table's range (the default 10-3000 m height range is widened
   to the data's heights, :func:`table_height_range`), or fewer than two lags within
@@ -90,7 +100,8 @@ Flags (``turbulence_flag``, bits combine; a flagged value is NaN):
   few scans lacks the scan-to-scan variance of the large eddies (seed 000's ``N``
   dependence of the errors: 33-38 % at N = 1 against 10-12 % at N = 10), so ``L_V`` and
   ``eps`` would be biased; half a block keeps the relative error within about 1.5 times
-  that of a full block (REFERENCE_VALUES.md section 3: 14-16 % at N = 5).
+  that of a full block (REFERENCE_VALUES.md section 3: 14-16 % at N = 5);
+- 32: the noise intercept is not determined; the predicted sigma_e is used (above).
 
 ``structure_function_model`` is the fitted ``eps_fit^(2/3) A_2(l dy) + 2 sigma_e^2``
 (with the A-functions used for the cell) for plotting against ``structure_function``.
@@ -120,6 +131,13 @@ FLAG_BEYOND_INERTIAL = 2
 FLAG_METHOD1_INVALID = 4
 FLAG_FIT_FAILED = 8
 FLAG_PARTIAL_BLOCK = 16
+FLAG_NOISE_PREDICTED = 32
+
+#: fewest lags for a fitted noise intercept (one residual degree of freedom for its
+#: standard error; on exact-statistics 24-ray step-stare scans the three-lag sigma_e came
+#: out 5-8 times too large, while 144-ray scans with noise 0.3 m/s recover it; 4 would
+#: trade the second for the first, see docs/physics-epsilon.md)
+MIN_NOISE_LAGS = 3
 
 #: a block with fewer than this share of the requested scans is not estimated (flag 16)
 MIN_BLOCK_FRACTION = 0.5
@@ -153,12 +171,21 @@ def eq5_epsilon(d_l: np.ndarray, d_1: np.ndarray, a_l: np.ndarray, a_1: np.ndarr
 
 
 def fit_structure_function(
-    d: np.ndarray, a: np.ndarray, valid: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+    d: np.ndarray,
+    a: np.ndarray,
+    valid: np.ndarray,
+    noise_prior: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Least squares of ``D = eps^(2/3) A + 2 sigma_e^2`` over the lags (last axis).
 
-    Smalikho (2020), eq. 4. Where the intercept comes out negative it is set to 0 and
-    the slope refitted through the origin.
+    Smalikho (2020), eq. 4. The intercept ``2 sigma_e^2`` is *determined* where at least
+    :data:`MIN_NOISE_LAGS` lags are valid and it exceeds twice its standard error
+    (``s sqrt(sum x^2 / (n sum x^2 - (sum x)^2))``, ``s^2`` the residual variance with
+    ``n - 2`` degrees of freedom). Elsewhere (insignificant, negative, or too few lags)
+    the slope is refitted with the intercept fixed at ``2 sigma_pred^2`` from
+    ``noise_prior`` (the noise predicted from the SNR, :mod:`cwproc.physics.noise`), or
+    at 0 without a prediction; ``sigma_e`` is then the prediction, or NaN -- never a
+    measured 0.
 
     Parameters
     ----------
@@ -168,11 +195,14 @@ def fit_structure_function(
         A-function at the same lags (m^(2/3)).
     valid : numpy.ndarray of bool
         Lags to use.
+    noise_prior : numpy.ndarray, optional
+        Predicted sigma_e (m s-1), shape of ``d`` without the last axis.
 
     Returns
     -------
-    (epsilon, noise_std) : tuple of numpy.ndarray
-        eps (m2 s-3) and sigma_e (m s-1); NaN where fewer than two lags are valid.
+    (epsilon, noise_std, determined) : tuple of numpy.ndarray
+        eps (m2 s-3), sigma_e (m s-1), and whether sigma_e is the fitted one; NaN where
+        fewer than two lags are valid.
     """
     w = valid & np.isfinite(d) & np.isfinite(a)
     n = w.sum(axis=-1)
@@ -181,16 +211,23 @@ def fit_structure_function(
     sx, sy = x.sum(-1), y.sum(-1)
     sxx, sxy = (x * x).sum(-1), (x * y).sum(-1)
     with np.errstate(invalid="ignore", divide="ignore"):
-        slope = (n * sxy - sx * sy) / (n * sxx - sx**2)
+        det = n * sxx - sx**2
+        slope = (n * sxy - sx * sy) / det
         intercept = (sy - slope * sx) / n
-        origin_slope = sxy / sxx
-    negative = intercept < 0
-    slope = np.where(negative, origin_slope, slope)
-    intercept = np.where(negative, 0.0, intercept)
+        resid = np.where(w, y - slope[..., None] * x - intercept[..., None], 0.0)
+        s2 = (resid**2).sum(-1) / (n - 2)
+        se_intercept = np.sqrt(s2 * sxx / det)
+    determined = (n >= MIN_NOISE_LAGS) & (intercept > 0) & (intercept > 2.0 * se_intercept)
+    prior = np.full(slope.shape, np.nan) if noise_prior is None else np.asarray(noise_prior)
+    fixed = np.where(np.isfinite(prior), 2.0 * np.nan_to_num(prior) ** 2, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fixed_slope = (sxy - fixed * sx) / sxx
+    slope = np.where(determined, slope, fixed_slope)
+    intercept = np.where(determined, intercept, fixed)
     ok = (n >= 2) & (slope > 0) & np.isfinite(slope)
     eps = np.where(ok, np.where(ok, slope, 1.0) ** 1.5, np.nan)
-    noise = np.where(ok, np.sqrt(np.where(ok, intercept, 0.0) / 2.0), np.nan)
-    return eps, noise
+    noise = np.where(determined, np.sqrt(np.maximum(intercept, 0.0) / 2.0), prior)
+    return eps, np.where(ok, noise, np.nan), determined & ok
 
 
 def averaging_loss(
@@ -838,6 +875,174 @@ def _fit_exact_cells(
     return out
 
 
+@functools.lru_cache(maxsize=16)
+def _removed_share_curve(phi_deg: float, model: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(log x, r(x))`` of :func:`mean_removed_share` on 81 nodes of ``x = R'/L_V``."""
+    x = np.geomspace(1e-3, 1e3, 81)
+    n_az = 72
+    theta = 2.0 * np.pi * np.arange(n_az) / n_az
+    ph = math.radians(phi_deg)
+    s = np.stack(
+        [np.full(n_az, math.sin(ph)), math.cos(ph) * np.cos(theta), math.cos(ph) * np.sin(theta)],
+        axis=-1,
+    )
+    pos = x[:, None, None] * np.stack([np.zeros(n_az), np.cos(theta), np.sin(theta)], -1)[None]
+    r_vec = pos - pos[:, :1, :]  # from the first ray's probe on the circle of radius x
+    r = np.linalg.norm(r_vec, axis=-1)
+    f, g = spectra._correlations(r, model, 1.0)
+    unit = np.where(r[..., None] > 0, r_vec / np.where(r > 0, r, 1.0)[..., None], 0.0)
+    dot = s @ s[0]
+    row = g * dot[None] + (f - g) * (unit @ s[0]) * np.sum(unit * s[None], axis=-1)
+    return np.log(x), hat_trace_per_ray(row, n_az)
+
+
+def mean_removed_share(ratio: np.ndarray, phi_deg: float, model: str) -> np.ndarray:
+    """Share of sigma_V^2 the scan-mean (VAD) wind takes from one scan's V'_L.
+
+    ``tr(H B)/(M sigma_V^2)`` (:func:`hat_trace_per_ray`) of a full circle of point
+    beams, Banakh et al. (1999), eqs. 15-16 with the isotropic tensor of ``model``; a
+    function of ``ratio = R'/L_V`` only (tabulated once per elevation and model). The
+    block mean of N independent scans removes this divided by N. The probe volume is
+    neglected (the share is carried by scales of the circle, far above the probe).
+    """
+    log_x, share = _removed_share_curve(round(float(phi_deg), 2), model)
+    return np.interp(np.log(np.clip(ratio, 1e-3, 1e3)), log_x, share)
+
+
+def pair_weights(sf: xr.Dataset) -> np.ndarray:
+    """``(time, height, node)`` azimuth-node weights of the pairs present, NaN if unknown.
+
+    From ``pair_azimuth_weights`` of :func:`cwproc.stages.structure.azimuth_structure_function`;
+    NaN (the full circle is used) for a structure function without it.
+    """
+    from cwproc.physics.atable import N_BINS
+
+    if "pair_azimuth_weights" in sf:
+        return sf["pair_azimuth_weights"].transpose("time", "height", ...).values.astype(float)
+    return np.full((sf.sizes["time"], sf.sizes["height"], N_BINS), np.nan)
+
+
+def _sector_evaluate(
+    table: Any, lags: np.ndarray, height: np.ndarray, mu: np.ndarray, weights: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(A_1, A_2, ratio)`` of an inertial table for blocks ``(t, h, lag)``.
+
+    ``A_2`` averaged over the azimuths of the pairs present (``weights``, NaN rows: the
+    full circle) and ``ratio`` = that over the full-circle ``A_2`` (1 where no weights):
+    the same ratio scales the finite-outer-scale ``A_2`` (whose tables carry no nodes).
+    """
+    a1, a2_full = _evaluate(table, lags[None, None, :], height[None, :, None], mu[:, :, None], None)
+    known = np.all(np.isfinite(weights), axis=-1)
+    ratio = np.ones(a2_full.shape)
+    if np.any(known):
+        ti, hi = np.nonzero(known)
+        _, part = table.evaluate(
+            np.broadcast_to(lags[None, :], (ti.size, lags.size)).ravel(),
+            np.repeat(height[hi], lags.size),
+            np.repeat(mu[ti, hi], lags.size),
+            weights=np.repeat(weights[ti, hi], lags.size, axis=0),
+        )
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio[ti, hi] = part.reshape(ti.size, lags.size) / a2_full[ti, hi]
+    return a1, a2_full * ratio, ratio
+
+
+def predicted_noise(sf: xr.Dataset, probe: Any) -> np.ndarray:
+    """``(time, height)`` sigma_e (m s-1) predicted from the block-median SNR.
+
+    :func:`cwproc.physics.noise.velocity_noise_std` (Pearson et al. (2009), eq. 3) with
+    the points per gate, pulses per ray and velocity resolution the reader put in the
+    attributes; NaN for cw probes, without SNR or without those settings.
+    """
+    from cwproc.physics import noise
+
+    shape = (sf.sizes["time"], sf.sizes["height"])
+    points = sf.attrs.get("points_per_gate")
+    pulses = sf.attrs.get("pulses_per_ray")
+    if is_cw_probe(probe) or "snr_median" not in sf or not points or not pulses:
+        return np.full(shape, np.nan)
+    bandwidth = noise.bandwidth_from_resolution(sf.attrs.get("velocity_resolution_m_s"))
+    snr = sf["snr_median"].transpose("time", "height").values.astype(float)
+    return noise.velocity_noise_std(snr, float(points), float(pulses), bandwidth)
+
+
+def standard_errors(
+    sf: xr.Dataset,
+    lag_used: int,
+    d: np.ndarray,
+    eps: np.ndarray,
+    sigma2: np.ndarray,
+    corrected_variance: np.ndarray,
+    scale: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Standard errors of eps, sigma_V^2 and L_V per block from the scatter over scans.
+
+    - eps of Smalikho (2020), eq. 5, ``eps ~ (D(l) - D(1))^(3/2)``: relative error
+      ``1.5 SE(D(l) - D(1)) / (D(l) - D(1))``, ``SE`` the standard error of the block's
+      per-scan differences (``structure_function_difference_se``: the scans are the
+      independent samples);
+    - sigma_V^2: the standard error of the variance of ``V'_L`` (its per-scan scatter)
+      scaled like the variance, ``SE(var) sigma_V^2 / (var - sigma_e^2)``;
+    - ``L_V = c sigma_V^3 / eps`` (Banakh et al. (1999), eq. 19): relative errors
+      combined as independent, ``sqrt((1.5 r_sigma2)^2 + r_eps^2)``.
+
+    NaN where the structure function carries no standard errors.
+    """
+    nan = np.full(eps.shape, np.nan)
+    if "structure_function_difference_se" not in sf:
+        return nan, nan, nan
+    diff_se = sf["structure_function_difference_se"].transpose("time", "height", "lag").values
+    var_se = sf["radial_velocity_variance_se"].transpose("time", "height").values
+    with np.errstate(invalid="ignore", divide="ignore"):
+        diff = d[..., lag_used - 1] - d[..., 0]
+        r_eps = 1.5 * diff_se[..., lag_used - 1] / np.where(diff > 0, diff, np.nan)
+        r_sig = var_se / np.where(corrected_variance > 0, corrected_variance, np.nan)
+        r_scale = np.hypot(1.5 * r_sig, r_eps)
+    return eps * r_eps, sigma2 * r_sig, scale * r_scale
+
+
+def _product_arrays(
+    e1: np.ndarray,
+    e2: np.ndarray,
+    efit: np.ndarray,
+    noise: np.ndarray,
+    sigma2: np.ndarray,
+    l_v: np.ndarray,
+    bad: np.ndarray,
+    few_fit: np.ndarray,
+    exact: np.ndarray,
+    a2: np.ndarray,
+    sf_model_exact: np.ndarray,
+) -> dict[str, np.ndarray]:
+    """The estimates as written: NaN where flagged bad, never a 0 as measured noise.
+
+    Method 1 is written wherever both estimates exist (its validity is flag 4), with the
+    observed ratio ``epsilon_method1 / epsilon`` (Smalikho (2020), eq. 21) and
+    ``edr = eps^(1/3)`` (m^(2/3) s-1).
+    """
+    eps2 = np.where(bad, np.nan, e2)
+    eps1 = np.where(bad, np.nan, e1)
+    out_noise = np.where(few_fit | ~(noise > 0), np.nan, noise)
+    out_fit = np.where(few_fit | bad, np.nan, efit)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        observed = eps1 / eps2
+    sf_model = out_fit[..., None] ** (2 / 3) * a2 + 2.0 * np.nan_to_num(out_noise)[..., None] ** 2
+    sf_model = np.where(
+        exact[..., None] & np.isfinite(out_fit)[..., None], sf_model_exact, sf_model
+    )
+    return {
+        "epsilon": eps2,
+        "epsilon_method1": eps1,
+        "epsilon_ratio": observed,
+        "edr": np.cbrt(eps2),
+        "epsilon_fit": out_fit,
+        "structure_function_model": sf_model,
+        "noise_std": out_noise,
+        "velocity_variance": np.where(bad | ~(sigma2 > 0), np.nan, sigma2),
+        "integral_scale": np.where(bad, np.nan, l_v),
+    }
+
+
 def estimate_epsilon(
     sf: xr.Dataset,
     *,
@@ -894,6 +1099,7 @@ def estimate_epsilon(
     options = dict(table_options or {})
     if "height_range_m" not in options:
         options["height_range_m"] = table_height_range(sf["height"].values)
+    options.setdefault("swept", bool(int(sf.attrs.get("swept_rays", 1))))
     d = sf["structure_function"].transpose("time", "height", "lag").values.astype(float)
     pairs = sf["n_pairs"].transpose("time", "height", "lag").values
     n_t, n_h, n_l = d.shape
@@ -927,16 +1133,15 @@ def estimate_epsilon(
     key_phi = np.round(phi, 3)
     key_dth = np.round(dtheta, 4)
     groups = {}
+    # sectors and gaps: A_2 over the azimuths present relative to the full circle
+    sector = np.ones(d.shape)
+    weights = pair_weights(sf)
     if n_l >= 2:
         for p, q in {(p, q) for p, q in zip(key_phi, key_dth, strict=True) if np.isfinite(p + q)}:
             rows = (key_phi == p) & (key_dth == q)
             groups[(p, q)] = (rows, _tables(probe, float(p), float(q), n_l, model, options))
-            a1[rows], a2[rows] = _evaluate(
-                groups[(p, q)][1][0],
-                lags[None, None, :],
-                height[None, :, None],
-                mu_eval[rows][:, :, None],
-                None,
+            a1[rows], a2[rows], sector[rows] = _sector_evaluate(
+                groups[(p, q)][1][0], lags, height, mu_eval[rows], weights[rows]
             )
 
     valid_lag = pairs >= min_pairs
@@ -949,24 +1154,27 @@ def estimate_epsilon(
     few = ~(valid_lag[..., 0] & valid_lag[..., lag_used - 1])
     flag |= np.where(few, FLAG_TOO_FEW_PAIRS, 0).astype(np.int16)
     # the loss depends on (dy, range) only: compute it once per distinct pair
-    pairs_dr = np.stack([np.round(dy, 6).ravel(), np.round(range_th, 6).ravel()], axis=1)
+    # step-stare rays are not swept: no transverse averaging in the variance (eq. 20)
+    dy_filter = dy if options["swept"] else np.where(np.isfinite(dy), 0.0, np.nan)
+    pairs_dr = np.stack([np.round(dy_filter, 6).ravel(), np.round(range_th, 6).ravel()], axis=1)
     uniq, inverse = np.unique(np.nan_to_num(pairs_dr, nan=-1.0), axis=0, return_inverse=True)
     loss_u = np.where(
-        uniq[:, 0] > 0, averaging_loss(probe, np.abs(uniq[:, 0]), np.abs(uniq[:, 1])), np.nan
+        uniq[:, 0] >= 0, averaging_loss(probe, np.abs(uniq[:, 0]), np.abs(uniq[:, 1])), np.nan
     )
     loss = loss_u[inverse.ravel()].reshape(dy.shape)
     c_model = spectra.integral_scale_coefficient("exponential" if model == "inertial" else model)
+    noise_pred = predicted_noise(sf, probe)
 
     def solve(a1_: np.ndarray, a2_: np.ndarray, dd: np.ndarray, vl: np.ndarray) -> tuple:
         e2 = eq5_epsilon(dd[..., lag_used - 1], dd[..., 0], a2_[..., lag_used - 1], a2_[..., 0])
         e1 = eq5_epsilon(dd[..., lag_used - 1], dd[..., 0], a1_[..., lag_used - 1], a1_[..., 0])
-        efit, noise = fit_structure_function(dd, a2_, vl)
-        return e1, e2, efit, noise
+        efit, noise, fitted = fit_structure_function(dd, a2_, vl, noise_pred)
+        return e1, e2, efit, noise, fitted
 
     def variance(eps: np.ndarray, noise: np.ndarray, raw: np.ndarray, lost: np.ndarray):
         return raw - np.nan_to_num(noise, nan=0.0) ** 2 + eps ** (2 / 3) * lost
 
-    e1, e2, efit, noise = solve(a1, a2, d, valid_lag)
+    e1, e2, efit, noise, fitted = solve(a1, a2, d, valid_lag)
     sigma2 = variance(e2, noise, var_raw, loss)
     with np.errstate(invalid="ignore", divide="ignore"):
         l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / e2, np.nan)
@@ -995,6 +1203,11 @@ def estimate_epsilon(
             )
         passed_cell = passed_u[inverse.ravel()].reshape(n_t, n_h, scale_grid.size)
         full_var = np.array([spectra.variance_per_eps23(model, x) for x in scale_grid])
+        # the block-mean wind removes a share of the variance of V'_L (cw: ExactLagModel)
+        n_eff = np.where(np.isfinite(scans) & (scans >= 1), scans, 1.0)
+        ratio_rl = radius[:, :, None] / scale_grid[None, None, :]
+        removed = full_var * mean_removed_share(ratio_rl, float(np.nanmedian(phi)), model)
+        passed_cell = passed_cell - removed / n_eff[:, None, None]
         for rows, (_, table) in groups.values():  # one table per configuration
             sel = need & rows[:, None]
             if not np.any(sel):
@@ -1004,6 +1217,8 @@ def estimate_epsilon(
             cell_mu = mu_eval[ti, hi_][:, None]
             dc, vc, var_c = d[ti, hi_], valid_lag[ti, hi_], var_raw[ti, hi_]
             passed = passed_cell[ti, hi_]
+            cell_sector = sector[ti, hi_]
+            cell_prior = noise_pred[ti, hi_][:, None]
 
             def residual(
                 big_l: np.ndarray,
@@ -1015,6 +1230,8 @@ def estimate_epsilon(
                 var_c=var_c,
                 passed=passed,
                 table=table,
+                cell_sector=cell_sector,
+                cell_prior=cell_prior,
             ) -> np.ndarray:
                 """log model variance - log measured variance at outer scales (cells, k).
 
@@ -1032,7 +1249,10 @@ def estimate_epsilon(
                     cell_mu[:, :, None],
                     big_l[:, :, None],
                 )
-                eps_l, noise_l = fit_structure_function(dc[:, None, :], f2, vc[:, None, :])
+                f2 = f2 * cell_sector[:, None, :]
+                eps_l, noise_l, _ = fit_structure_function(
+                    dc[:, None, :], f2, vc[:, None, :], cell_prior
+                )
                 through = _interp_log_scale(
                     scale_grid, passed, np.broadcast_to(big_l, (ti.size, k))
                 )
@@ -1071,13 +1291,13 @@ def estimate_epsilon(
                     root[use][:, None],
                 )
                 a1[ti[use], hi_[use]] = g1
-                a2[ti[use], hi_[use]] = g2
+                a2[ti[use], hi_[use]] = g2 * sector[ti[use], hi_[use]]
                 finite_used[ti[use], hi_[use]] = True
                 through = _interp_log_scale(scale_grid, passed[use], root[use][:, None])[:, 0]
                 total = np.interp(np.log(root[use]), np.log(scale_grid), full_var)
                 passed_fraction[ti[use], hi_[use]] = through / total
             too_small[ti[below], hi_[below]] = True
-        e1, e2, efit, noise = solve(a1, a2, d, valid_lag)
+        e1, e2, efit, noise, fitted = solve(a1, a2, d, valid_lag)
         sigma2 = np.where(
             finite_used,
             (var_raw - np.nan_to_num(noise, nan=0.0) ** 2) / passed_fraction,
@@ -1114,11 +1334,14 @@ def estimate_epsilon(
                 mu_eval[ti, hi_][:, None],
                 np.clip(fit["integral_scale"][ti, hi_], lo, hi)[:, None],
             )
-            a1[ti, hi_], a2[ti, hi_] = g1, g2
-        e1, _, _, _ = solve(a1, a2, d, valid_lag)
+            a1[ti, hi_], a2[ti, hi_] = g1, g2 * sector[ti, hi_]
+        e1, _, _, _, _ = solve(a1, a2, d, valid_lag)
         e2 = np.where(exact, fit["epsilon"], e2)
         efit = np.where(exact, fit["epsilon"], efit)
         noise = np.where(exact, fit["noise_std"], noise)
+        # the pooled cw intercept: a zero means no intercept was fitted, not a measured 0
+        fitted = np.where(exact, fit["noise_std"] > 0, fitted)
+        noise = np.where(exact & ~fitted, np.nan, noise)
         sigma2 = np.where(exact, fit["velocity_variance"], sigma2)
         l_v = np.where(exact, fit["integral_scale"], l_v)
         too_small |= exact & fit["below_range"]
@@ -1140,17 +1363,20 @@ def estimate_epsilon(
     ) > 0
     m1_invalid = ~(ratio <= METHOD1_RATIO_LIMIT)
     flag |= np.where(m1_invalid & ~bad, FLAG_METHOD1_INVALID, 0).astype(np.int16)
-
-    eps2 = np.where(bad, np.nan, e2)
-    eps1 = np.where(bad | m1_invalid, np.nan, e1)
-    few_fit = (valid_lag.sum(axis=-1) < 2) | ~np.isfinite(noise)
-    out_noise = np.where(few_fit, np.nan, noise)
-    out_fit = np.where(few_fit | bad, np.nan, efit)
-    out_sigma2 = np.where(bad | ~(sigma2 > 0), np.nan, sigma2)
-    out_scale = np.where(bad, np.nan, l_v)
-    sf_model = out_fit[..., None] ** (2 / 3) * a2 + 2.0 * out_noise[..., None] ** 2
-    sf_model = np.where(
-        exact[..., None] & np.isfinite(out_fit)[..., None], sf_model_exact, sf_model
+    few_fit = valid_lag.sum(axis=-1) < 2
+    predicted_used = ~fitted & ~few_fit & ~bad
+    flag |= np.where(predicted_used, FLAG_NOISE_PREDICTED, 0).astype(np.int16)
+    arrays = _product_arrays(
+        e1, e2, efit, noise, sigma2, l_v, bad, few_fit, exact, a2, sf_model_exact
+    )
+    eps_se, sigma2_se, scale_se = standard_errors(
+        sf,
+        lag_used,
+        d,
+        arrays["epsilon"],
+        arrays["velocity_variance"],
+        var_raw - np.nan_to_num(noise, nan=0.0) ** 2,
+        arrays["integral_scale"],
     )
 
     dims = ("time", "height")
@@ -1158,14 +1384,14 @@ def estimate_epsilon(
         {
             "structure_function": sf["structure_function"],
             "n_pairs": sf["n_pairs"],
-            "epsilon": (dims, eps2),
-            "epsilon_method1": (dims, eps1),
-            "epsilon_ratio": (dims, ratio),
-            "epsilon_fit": (dims, out_fit),
-            "structure_function_model": (("time", "height", "lag"), sf_model),
-            "noise_std": (dims, out_noise),
-            "velocity_variance": (dims, out_sigma2),
-            "integral_scale": (dims, out_scale),
+            **{
+                k: (("time", "height", "lag") if v.ndim == 3 else dims, v)
+                for k, v in arrays.items()
+            },
+            "noise_std_predicted": (dims, noise_pred),
+            "epsilon_standard_error": (dims, eps_se),
+            "velocity_variance_standard_error": (dims, sigma2_se),
+            "integral_scale_standard_error": (dims, scale_se),
             "wind_speed": sf["wind_speed"],
             "n_scans": sf["n_scans"],
             "turbulence_flag": (dims, flag),
@@ -1196,8 +1422,8 @@ def estimate_epsilon(
     )
     out["epsilon_method1"].attrs.update(
         common,
-        method="Smalikho (2020), eq. 5 with A_1 = A_perp (method 1); NaN (flag 4) where "
-        f"eps1/eps2 > {METHOD1_RATIO_LIMIT}",
+        method="Smalikho (2020), eq. 5 with A_1 = A_perp (method 1); written wherever "
+        f"computable, flag 4 where eps1/eps2 > {METHOD1_RATIO_LIMIT}",
     )
     out["epsilon_fit"].attrs.update(
         common, method="least squares of eps^(2/3) A_2 + 2 sigma_e^2 over all lags"
@@ -1208,7 +1434,9 @@ def estimate_epsilon(
         "(Smalikho (2020), eq. 4)",
     )
     out["noise_std"].attrs.update(
-        method="intercept 2 sigma_e^2 of the least-squares fit, Smalikho (2020), eq. 4"
+        method="intercept 2 sigma_e^2 of the least-squares fit, Smalikho (2020), eq. 4, "
+        "where it exceeds twice its standard error; elsewhere (flag 32) the prediction "
+        "noise_std_predicted, used in the fit; NaN when neither exists"
     )
     out["velocity_variance"].attrs.update(
         method="variance of V'_L minus sigma_e^2 divided by the probe-passed share of "

@@ -26,12 +26,15 @@ times) and the block-mean horizontal wind speed U.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pandas as pd
 import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.metadata import SMALIKHO_2020
+from cwproc.physics.atable import N_BINS, azimuth_bin_weights, azimuth_nodes
 
 #: largest relative mismatch (m) between wind-product gate ranges and scan gate ranges
 _RANGE_TOLERANCE_M = 0.5
@@ -41,6 +44,16 @@ _CHUNK_VALUES = 4_000_000
 HOMODYNE_MIN_SPEED = 1.0
 #: homodyne: rays need |S . <V>_N| >= 1 m/s + this many sigma' (see homodyne_radial_velocity)
 HOMODYNE_SIGMAS = 3.0
+#: instrument settings passed on to the turbulence product (noise prediction)
+INSTRUMENT_SETTINGS = ("points_per_gate", "pulses_per_ray", "velocity_resolution_m_s", "scan_type")
+#: fewest lags a coarse scan (24-72 rays) gets, beyond max_lag_deg if need be: eq. 5
+#: needs lags 1 and l >= 2, the least-squares fit of eq. 4 three lags for two parameters
+MIN_LAGS = 3
+#: largest lag angle ever used (deg): the chord 2 R' sin(l dtheta / 2) reaches the radius
+#: R' of the scan circle at 60 deg, beyond the integral scale at every height the product
+#: serves, and the time between the rays (a sixth of a rotation) approaches the block's
+#: stationarity scale; the exact two-beam model (cwproc.physics.two_beam) holds at any lag
+MAX_LAG_LIMIT_DEG = 60.0
 
 
 def wrapped_azimuth_difference(a_deg: np.ndarray, b_deg: np.ndarray) -> np.ndarray:
@@ -126,6 +139,69 @@ def homodyne_radial_velocity(
     return np.where(np.abs(model) >= threshold, signed, np.nan)
 
 
+def swept_rays(attrs: dict) -> bool:
+    """True unless the scan is a step-stare (Halo ``Scan type`` ending in ``- stepped``).
+
+    A continuous scan accumulates each ray while the beam sweeps its azimuth step
+    (Smalikho (2020), eq. 20); a step-stare VAD holds the beam still during a ray.
+    """
+    return "stepped" not in str(attrs.get("scan_type", "")).lower()
+
+
+def block_median(values: np.ndarray, n_scans: int) -> np.ndarray:
+    """Median over scans and azimuths (axes 0, 1) within blocks of ``n_scans``, NaN skipped."""
+    out = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN heights give NaN
+        for start in range(0, values.shape[0], n_scans):
+            part = values[start : start + n_scans]
+            out.append(np.nanmedian(part.reshape(-1, part.shape[-1]), axis=0))
+    return np.array(out)
+
+
+def pair_azimuth_weights(
+    vprime: np.ndarray,
+    n_scans: int,
+    first_azimuth_deg: np.ndarray,
+    dtheta_deg: float,
+    sign: float,
+    wind_to_deg: np.ndarray,
+) -> np.ndarray:
+    """Weights of the azimuth nodes of the A-table for the lag-1 pairs present.
+
+    Each pair of neighbouring rays with both values valid counts at the angle of the
+    block-mean wind's direction of motion from the scan's direction of motion at the
+    pair's middle, ``sign (alpha - beta)`` (Smalikho (2020), eq. 15: the wind's component
+    along the scan is ``U sin theta``); :func:`cwproc.physics.atable.azimuth_bin_weights`
+    shares it between the nodes. The azimuth grid of a block is that of its first scan.
+
+    Parameters
+    ----------
+    vprime : numpy.ndarray
+        ``(scan, m, height)`` deviations V'_L of the blocks.
+    n_scans : int
+        Scans per block.
+    first_azimuth_deg : numpy.ndarray
+        ``(block,)`` azimuth of the first ray of each block's first scan (deg).
+    dtheta_deg, sign : float
+        Azimuth step (deg) and rotation (+1 clockwise).
+    wind_to_deg : numpy.ndarray
+        ``(block, height)`` direction the mean wind blows towards (deg from north).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(block, height, N_BINS)``; NaN where a block and height has no pair.
+    """
+    starts = np.arange(0, vprime.shape[0], n_scans)
+    ok = np.isfinite(vprime[:, 1:, :] - vprime[:, :-1, :])
+    count = _block_sum(ok.astype(float), starts)  # (block, m, height)
+    m_mid = np.arange(vprime.shape[1] - 1) + 0.5
+    beta = first_azimuth_deg[:, None] + sign * dtheta_deg * m_mid[None, :]  # (block, m)
+    theta = np.radians(sign * (wind_to_deg[:, None, :] - beta[:, :, None]))
+    return azimuth_bin_weights(theta, axis=1, counts=count)
+
+
 def _block_sum(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
     """Sum over consecutive scans (axis 0) within blocks starting at ``starts``."""
     return np.add.reduceat(values, starts, axis=0)
@@ -150,13 +226,30 @@ def _match_gates(scan_range: np.ndarray, wind_range: np.ndarray) -> np.ndarray:
     return idx
 
 
-def block_statistics(
-    vprime: np.ndarray, n_scans: int, n_lags: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _scan_spread(per_scan: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Standard error of the block mean from the scatter of per-scan values (axis 0).
+
+    ``std(ddof=1) / sqrt(n)`` over the scans of each block with a finite value; NaN with
+    fewer than two.
+    """
+    ok = np.isfinite(per_scan)
+    n = _block_sum(ok.astype(float), starts)
+    s1 = _block_sum(np.where(ok, per_scan, 0.0), starts)
+    s2 = _block_sum(np.where(ok, per_scan**2, 0.0), starts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        var = (s2 - s1**2 / n) / (n - 1)
+        return np.where(n > 1, np.sqrt(np.maximum(var, 0.0) / n), np.nan)
+
+
+def block_statistics(vprime: np.ndarray, n_scans: int, n_lags: int) -> tuple[np.ndarray, ...]:
     """D_L, pair counts and variance of V'_L per block of ``n_scans`` consecutive scans.
 
     Smalikho (2020), eq. 2, with all valid pairs of a block pooled (missing values,
-    NaN, are skipped pairwise).
+    NaN, are skipped pairwise). The scans of a block are the independent samples of the
+    standard errors: per-scan ``D_L(l)``, ``D_L(l) - D_L(1)`` and variance, their
+    standard deviation over the block's scans divided by the root of their number
+    (scans a rotation apart decorrelate when ``U T_scan`` exceeds the integral scale;
+    otherwise the errors are underestimated).
 
     Parameters
     ----------
@@ -169,33 +262,68 @@ def block_statistics(
 
     Returns
     -------
-    (sf, pairs, variance) : tuple of numpy.ndarray
-        ``(block, height, lag)`` D_L (m2 s-2) and pair counts; ``(block, height)``
-        variance of V'_L (m2 s-2, ddof 1).
+    (sf, pairs, variance, sf_se, diff_se, variance_se) : tuple of numpy.ndarray
+        ``(block, height, lag)`` D_L (m2 s-2), pair counts, standard errors of D_L and of
+        ``D_L(l) - D_L(1)`` (m2 s-2); ``(block, height)`` variance of V'_L (m2 s-2, ddof
+        1) and its standard error.
     """
     starts = np.arange(0, vprime.shape[0], n_scans)
     n_h = vprime.shape[2]
     sf = np.empty((starts.size, n_h, n_lags))
     pairs = np.empty((starts.size, n_h, n_lags), dtype=np.int64)
-    for lag in range(1, n_lags + 1):  # L <= 9 / dtheta lags, each vectorised
+    sf_se = np.empty_like(sf)
+    diff_se = np.empty_like(sf)
+    first = None
+    for lag in range(1, n_lags + 1):  # each lag vectorised
         d2 = (vprime[:, lag:, :] - vprime[:, :-lag, :]) ** 2
         ok = np.isfinite(d2)
-        total = _block_sum(np.where(ok, d2, 0.0).sum(axis=1), starts)
-        count = _block_sum(ok.sum(axis=1), starts)
+        per_total = np.where(ok, d2, 0.0).sum(axis=1)
+        per_count = ok.sum(axis=1)
+        total = _block_sum(per_total, starts)
+        count = _block_sum(per_count, starts)
         with np.errstate(invalid="ignore", divide="ignore"):
             sf[:, :, lag - 1] = np.where(count > 0, total / count, np.nan)
+            per_scan = np.where(per_count > 0, per_total / per_count, np.nan)
         pairs[:, :, lag - 1] = count
+        first = per_scan if first is None else first
+        sf_se[:, :, lag - 1] = _scan_spread(per_scan, starts)
+        diff_se[:, :, lag - 1] = _scan_spread(per_scan - first, starts)
     ok = np.isfinite(vprime)
     n_val = _block_sum(ok.sum(axis=1), starts).astype(float)
     s1 = _block_sum(np.where(ok, vprime, 0.0).sum(axis=1), starts)
     s2 = _block_sum(np.where(ok, vprime**2, 0.0).sum(axis=1), starts)
     with np.errstate(invalid="ignore", divide="ignore"):
         variance = np.where(n_val > 1, (s2 - s1**2 / n_val) / (n_val - 1), np.nan)
-    return sf, pairs, variance
+        per_n = ok.sum(axis=1).astype(float)
+        per_var = np.where(per_n > 1, (np.nansum(vprime**2, axis=1)) / per_n, np.nan)
+    return sf, pairs, variance, sf_se, diff_se, _scan_spread(per_var, starts)
+
+
+def lag_count(dtheta_deg: float, max_lag_deg: float, min_lags: int = MIN_LAGS) -> int:
+    """Number of lags L of the structure function for the azimuth step ``dtheta_deg``.
+
+    ``floor(max_lag_deg / dtheta)``, raised to ``min_lags`` for coarse scans (24-72 rays,
+    step-stare VADs) as long as ``min_lags dtheta <= MAX_LAG_LIMIT_DEG``; 0 when not even
+    that fits. The exact two-beam geometry (:mod:`cwproc.physics.two_beam`) replaces the
+    small-angle model of Smalikho (2020), eq. 15 that limited lags to 9 deg.
+    """
+    n = int(np.floor(max_lag_deg / dtheta_deg + 1e-9))
+    if n < min_lags and min_lags * dtheta_deg <= MAX_LAG_LIMIT_DEG + 1e-9:
+        n = int(min_lags)
+    return (
+        n
+        if n * dtheta_deg <= MAX_LAG_LIMIT_DEG + 1e-9
+        else int(np.floor(MAX_LAG_LIMIT_DEG / dtheta_deg + 1e-9))
+    )
 
 
 def azimuth_structure_function(
-    screened_ds: xr.Dataset, wind: xr.Dataset, *, n_scans: int, max_lag_deg: float
+    screened_ds: xr.Dataset,
+    wind: xr.Dataset,
+    *,
+    n_scans: int,
+    max_lag_deg: float,
+    min_lags: int = MIN_LAGS,
 ) -> xr.Dataset:
     """Azimuth structure function D_L(l dtheta) per block of scans and height.
 
@@ -214,8 +342,9 @@ def azimuth_structure_function(
         N, scans per block (consecutive in time; a shorter last block is kept and its
         ``n_scans`` recorded).
     max_lag_deg : float
-        Largest azimuth lag l dtheta (deg), at most 9 deg (Smalikho (2020), after
-        eq. 4).
+        Largest azimuth lag l dtheta (deg) of dense scans (:func:`lag_count`).
+    min_lags : int
+        Fewest lags of coarse scans (:func:`lag_count`).
 
     Returns
     -------
@@ -260,11 +389,11 @@ def azimuth_structure_function(
     t_ray = screened_ds["time"].values[rays]
 
     dtheta, sign = azimuth_step(az, scan_pos)
-    n_lags = int(np.floor(max_lag_deg / dtheta + 1e-9))
+    n_lags = lag_count(dtheta, max_lag_deg, min_lags)
     if n_lags < 1:
         raise CwprocError(
-            f"azimuth step {dtheta:.2f} deg exceeds max_lag_deg = {max_lag_deg} deg: "
-            "no structure-function lag available"
+            f"azimuth step {dtheta:.2f} deg exceeds max_lag_deg = {max_lag_deg} deg and "
+            f"{MAX_LAG_LIMIT_DEG:g} deg: no structure-function lag available"
         )
     n_az = int(np.rint(360.0 / dtheta))
 
@@ -302,6 +431,15 @@ def azimuth_structure_function(
     sf = np.empty((n_blocks, n_h, n_lags))
     pairs = np.empty((n_blocks, n_h, n_lags), dtype=np.int64)
     variance = np.empty((n_blocks, n_h))
+    sf_se = np.empty((n_blocks, n_h, n_lags))
+    diff_se = np.empty((n_blocks, n_h, n_lags))
+    variance_se = np.empty((n_blocks, n_h))
+    weights = np.full((n_blocks, n_h, N_BINS), np.nan)
+    snr_median = np.full((n_blocks, n_h), np.nan)
+    has_snr = "snr" in screened_ds
+    # the mean wind's direction of motion (deg from north, clockwise) per block and height
+    wind_to = np.degrees(np.arctan2(u_b, v_b))
+    first_az = np.where(first_of >= 0, az[np.maximum(first_of, 0)], np.nan)
     cell_scan = scan_pos[uniq]
     order_cells = np.argsort(cell_scan, kind="stable")
     sorted_scan = cell_scan[order_cells]
@@ -324,7 +462,17 @@ def azimuth_structure_function(
             vr = homodyne_radial_velocity(vr, model, b - b0)
         vprime = np.full((t1_ - t0_, n_az, n_h), np.nan)
         vprime[scan_pos[cells] - t0_, m[cells]] = vr - model
-        sf[b0:b1], pairs[b0:b1], variance[b0:b1] = block_statistics(vprime, n_scans, n_lags)
+        stats = block_statistics(vprime, n_scans, n_lags)
+        sf[b0:b1], pairs[b0:b1], variance[b0:b1] = stats[:3]
+        sf_se[b0:b1], diff_se[b0:b1], variance_se[b0:b1] = stats[3:]
+        weights[b0:b1] = pair_azimuth_weights(
+            vprime, n_scans, first_az[np.arange(b0, b1) * n_scans], dtheta, sign, wind_to[b0:b1]
+        )
+        if has_snr:
+            snr = np.full_like(vprime, np.nan)
+            snr_vals = screened_ds["snr"].values[rays[cells]][:, gates].astype(float)
+            snr[scan_pos[cells] - t0_, m[cells]] = np.where(np.isfinite(vr), snr_vals, np.nan)
+            snr_median[b0:b1] = block_median(snr, n_scans)
 
     # scan period from the ray times: median time per azimuth step, times M
     t_sec = (t_ray - t_ray[0]) / np.timedelta64(1, "s")
@@ -352,7 +500,13 @@ def azimuth_structure_function(
             "structure_function": (("time", "height", "lag"), sf),
             "n_pairs": (("time", "height", "lag"), pairs),
             "radial_velocity_variance": (("time", "height"), variance),
+            "structure_function_se": (("time", "height", "lag"), sf_se),
+            "structure_function_difference_se": (("time", "height", "lag"), diff_se),
+            "radial_velocity_variance_se": (("time", "height"), variance_se),
             "wind_speed": (("time", "height"), np.hypot(u_b, v_b)),
+            "wind_to_direction": (("time", "height"), np.mod(wind_to, 360.0)),
+            "pair_azimuth_weights": (("time", "height", "azimuth_node"), weights),
+            "snr_median": (("time", "height"), snr_median),
             "azimuth_step": ("time", np.full(n_blocks, dtheta)),
             "scan_period": ("time", scan_period),
             "n_scans": ("time", scans_in_block),
@@ -362,6 +516,7 @@ def azimuth_structure_function(
             "height": ("height", wind["height"].values),
             "range": ("height", wind["range"].values),
             "lag": ("lag", np.arange(1, n_lags + 1, dtype=np.int64)),
+            "azimuth_node": ("azimuth_node", np.degrees(azimuth_nodes())),
             "elevation": ("time", elevation),
         },
     )
@@ -377,6 +532,9 @@ def azimuth_structure_function(
             "homodyne": int(bool(screened_ds.attrs.get("homodyne", 0))),
             "instrument": str(screened_ds.attrs.get("instrument", "")),
             "rays_per_scan": n_az,
+            "rotation": int(sign),
+            "swept_rays": int(swept_rays(screened_ds.attrs)),
+            **{k: screened_ds.attrs[k] for k in INSTRUMENT_SETTINGS if k in screened_ds.attrs},
         }
     )
     return out

@@ -108,6 +108,8 @@ def _flags(
         low = record["data_availability"].fillna(0) < min_availability
         flag = flag | xr.where(low, FLAG_TOO_FEW_PACKETS, 0)
     missing = ~np.isfinite(record["wind_speed"]) | ~np.isfinite(record["wind_direction"])
+    if "w" in record and bool(np.isfinite(record["w"]).any()):  # a w column is exported
+        missing = missing | ~np.isfinite(record["w"])
     flag = flag | xr.where(missing, FLAG_MISSING, 0)
     if "rain_percent" in record:
         flag = flag | xr.where(record["rain_percent"] > max_rain_percent, FLAG_RAIN, 0)
@@ -237,7 +239,8 @@ def wind_record_product(
     )
     out["qc_flag"].attrs["method"] = (
         f"wind records: bit 1 packets < {min_packets} (averages >= 1 min) or availability "
-        f"< {min_availability_percent:g} %; bit 4 missing value (instrument code or NaN); "
+        f"< {min_availability_percent:g} %; bit 4 missing value (instrument code, NaN or "
+        "physically impossible; w too where the record exports it); "
         f"bit 8 rain > {max_rain_percent:g} % of packets"
     )
     keep = (

@@ -104,12 +104,23 @@ def test_unwritable_state_folder_is_one_clear_line(tmp_path):
     )
 
 
-def test_workers_without_dask_explains_how_to_install(tmp_path, monkeypatch):
+def test_scheduler_without_dask_explains_how_to_install(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "dask.distributed", None)
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    result = invoke(
+        str(junk_archive(tmp_path / "in")), str(tmp_path / "out"), "--scheduler", "tcp://x:1"
+    )
+    assert result.exit_code == 2
+    assert 'pip install "cwproc[dask]"' in result.stderr
+
+
+def test_local_workers_need_no_dask(tmp_path, monkeypatch):
+    """--workers N is a process pool of the standard library."""
     monkeypatch.setitem(sys.modules, "dask.distributed", None)
     monkeypatch.setitem(sys.modules, "distributed", None)
     result = invoke(str(junk_archive(tmp_path / "in")), str(tmp_path / "out"), "--workers", "2")
-    assert result.exit_code == 2
-    assert 'pip install "cwproc[dask]"' in result.stderr
+    assert result.exit_code == 0, result.stderr
+    assert "pip install" not in result.stderr
 
 
 @pytest.mark.parametrize(
@@ -126,6 +137,29 @@ def test_usage_errors_exit_2(tmp_path, args, message):
     result = invoke(str(junk_archive(tmp_path / "in")), str(tmp_path / "out"), *args)
     assert result.exit_code == 2
     assert message in result.stderr
+
+
+@pytest.mark.parametrize(
+    "address", ["foo", "inproc://x", "http://host:8786", "", "tcp://host", "tcp://h:99999"]
+)
+def test_bad_scheduler_addresses_are_usage_errors(tmp_path, address):
+    """One line, exit 2, no traceback and no silent serial run (issue 17.7)."""
+    result = invoke(
+        str(junk_archive(tmp_path / "in")), str(tmp_path / "out"), "--scheduler", address
+    )
+    assert result.exit_code == 2
+    assert "not a Dask scheduler address" in result.stderr
+    assert "Traceback" not in result.stderr + result.stdout
+    assert not (tmp_path / "out").exists()
+
+
+def test_tls_scheduler_without_tls_settings_is_a_usage_error(tmp_path):
+    pytest.importorskip("dask")
+    result = invoke(
+        str(junk_archive(tmp_path / "in")), str(tmp_path / "out"), "--scheduler", "tls://h:8786"
+    )
+    assert result.exit_code == 2
+    assert "TLS settings" in result.stderr
 
 
 def test_unreachable_scheduler_is_a_clear_error():

@@ -555,3 +555,31 @@ def test_parallel_chunked_parse_equals_single_and_keeps_line_numbers(
     lines[70000] += b" 7 8"  # a gate line deep in the second half gets 6 fields
     err = _error(_write(tmp_path, lines))
     assert err.line == 70001 and "6 fields" in err.problem
+
+
+@pytest.mark.parametrize("value", [b"1e308", b"inf", b"0", b"-30.0", b"5000"])
+def test_impossible_gate_length_names_line_4(tmp_path, value):
+    """A gate length of 1e308 gave infinite heights with exit 0 (issue 17.3)."""
+    sample = Path(__file__).resolve().parents[2] / "sample_data/streamline"
+    raw = next(sample.glob("*.hpl")).read_bytes()
+    bad = tmp_path / "bad.hpl"
+    bad.write_bytes(
+        raw.replace(b"Range gate length (m):\t30.0", b"Range gate length (m):\t" + value)
+    )
+    with pytest.raises(InputFileError, match="Range gate length") as err:
+        read_hpl(bad)
+    assert ":4:" in str(err.value)
+
+
+def test_write_hpl_does_not_follow_a_planted_symlink(tmp_path):
+    """The temporary name is unpredictable and created exclusively (issue 17.6)."""
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep me")
+    target = tmp_path / "out.hpl"
+    (tmp_path / ".out.hpl.tmp").symlink_to(victim)
+    ds = read_hpl(
+        next((Path(__file__).resolve().parents[2] / "sample_data/streamline").glob("*.hpl"))
+    )
+    write_hpl(ds, target)
+    assert victim.read_text() == "keep me"
+    assert read_hpl(target).sizes == ds.sizes

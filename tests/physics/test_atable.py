@@ -14,7 +14,13 @@ from cwproc.physics.transfer import CWProbe, PulsedProbe
 
 PROBE = PulsedProbe()
 PHI, DTHETA = 60.0, 3.6
-SMALL = {"phi_deg": PHI, "delta_theta_deg": DTHETA, "n_lags": 4, "height_range_m": (50.0, 200.0)}
+SMALL = {
+    "phi_deg": PHI,
+    "delta_theta_deg": DTHETA,
+    "n_lags": 4,
+    "height_range_m": (50.0, 200.0),
+    "geometry": "small_angle",
+}
 
 
 def _dy(h: float, phi: float = PHI, dtheta: float = DTHETA) -> float:
@@ -207,3 +213,107 @@ def test_interpolation_is_exact_for_cubics():
     a1_v, a2_v = tab.evaluate(lag, h, mu, big_l)
     np.testing.assert_allclose(a1_v, np.exp(poly(np.log(big_l), np.log(h), lag, 0.0)), rtol=1e-11)
     np.testing.assert_allclose(a2_v, np.exp(poly(np.log(big_l), np.log(h), lag, mu)), rtol=1e-11)
+
+
+@pytest.fixture(scope="module")
+def stare_table(cache):
+    # 24-ray step-stare VAD (15 deg steps): exact two-beam geometry, no sweep
+    return get_a_table(
+        PROBE,
+        phi_deg=PHI,
+        delta_theta_deg=15.0,
+        n_lags=3,
+        cache_dir=cache,
+        height_range_m=(150.0, 600.0),
+        mu_max=3.0,
+        swept=False,
+    )
+
+
+def _direct_pairs(lag: int, mu: float, mids_deg: np.ndarray, wind_to_deg: float) -> float:
+    """Mean exact two-beam A over pairs centred on ``mids_deg`` (clockwise scan, V_s = 1)."""
+    from cwproc.physics import two_beam
+
+    h = 300.0
+    rng = h / math.sin(math.radians(PHI))
+    radius = rng * math.cos(math.radians(PHI))
+    t0 = math.radians(15.0) * radius  # ray period with V_s = 1 m/s
+    a = math.radians(wind_to_deg)
+    wind = mu * np.array([0.0, math.cos(a), math.sin(a)])
+    d = two_beam.two_beam_structure_function(
+        mids_deg - 7.5 * lag,
+        mids_deg + 7.5 * lag,
+        PHI,
+        rng,
+        probe=PROBE,
+        time_separation_s=-lag * t0,
+        mean_wind=wind,
+    )
+    return float(np.mean(d))
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.5, 1.5])
+def test_two_beam_table_matches_exact_pairs(stare_table, mu):
+    # full circle: the table (eq. 15 times the point-probe geometry ratio) against the
+    # exact two-beam model of the probe, within 0.6 % (module doc of geometry_correction)
+    mids = np.arange(0.0, 360.0, 10.0)
+    for lag in (1, 2, 3):
+        direct = _direct_pairs(lag, mu, mids, 70.0)
+        assert float(stare_table.evaluate(lag, 300.0, mu)[1]) == pytest.approx(direct, rel=6e-3)
+
+
+def test_sector_average_uses_the_azimuth_bins(stare_table):
+    # a 90 deg sector: the average over the pairs present, not the full circle; per
+    # azimuth the composite table (eq. 15 x point-probe geometry ratio) is within 5 % of
+    # the exact pair where the transport shortens the separation to the probe length
+    mids = np.arange(7.5, 90.0, 2.5)
+    wind_to, mu = 70.0, 1.0
+    weights = atable.azimuth_bin_weights(np.radians(wind_to - mids))
+    for lag in (1, 3):
+        direct = _direct_pairs(lag, mu, mids, wind_to)
+        full = float(stare_table.evaluate(lag, 300.0, mu)[1])
+        sector = float(stare_table.evaluate(lag, 300.0, mu, weights=weights)[1])
+        assert sector == pytest.approx(direct, rel=2.5e-2)
+        assert abs(full / direct - 1) > 4 * abs(sector / direct - 1)
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.5, 1.5])
+def test_swept_rays_seen_at_their_own_times(cache, mu):
+    # a continuous 72-ray scan (5 deg swept per ray, 0.5 s per ray): the table against the
+    # exact two-beam model whose rays average while the field moves (ray_duration_s);
+    # 12 sub-beams per ray in the direct model, so 2.5 %
+    from cwproc.physics import two_beam
+
+    tab = get_a_table(
+        PROBE,
+        phi_deg=PHI,
+        delta_theta_deg=5.0,
+        n_lags=3,
+        cache_dir=cache,
+        height_range_m=(150.0, 600.0),
+        mu_max=2.0,
+        swept=True,
+    )
+    h = 300.0
+    rng = h / math.sin(math.radians(PHI))
+    radius = rng * math.cos(math.radians(PHI))
+    t0 = 0.5
+    speed = mu * math.radians(5.0) * radius / t0
+    a = math.radians(70.0)
+    wind = speed * np.array([0.0, math.cos(a), math.sin(a)])
+    q = two_beam.beam_quadrature(PROBE, rng)
+    mids = np.arange(0.0, 360.0, 10.0)
+    for lag in (1, 3):
+        direct = two_beam.two_beam_structure_function(
+            mids - 2.5 * lag,
+            mids + 2.5 * lag,
+            PHI,
+            rng,
+            quadrature=q,
+            time_separation_s=-lag * t0,
+            mean_wind=wind,
+            sweep_deg=5.0,
+            n_sweep=12,
+            ray_duration_s=t0,
+        ).mean()
+        assert float(tab.evaluate(lag, h, mu)[1]) == pytest.approx(float(direct), rel=2.5e-2)

@@ -94,7 +94,9 @@ def test_structure_function_of_cw_scans(heterodyne, tmp_path):
 def test_epsilon_from_cw_centroid_scans_within_20_percent(heterodyne, tmp_path):
     ds, _, lidar = heterodyne
     _, turb = _retrieve(ds, lidar, tmp_path)
-    assert int(turb["turbulence_flag"].values.ravel()[0]) == 0
+    # three lags leave one degree of freedom for the noise intercept: it may be not
+    # significant (flag 32, no prediction for a cw lidar), nothing else is flagged
+    assert int(turb["turbulence_flag"].values.ravel()[0]) & ~epsilon.FLAG_NOISE_PREDICTED == 0
     for name in ("epsilon", "epsilon_method1", "epsilon_fit"):
         assert float(turb[name].values.ravel()[0]) == pytest.approx(TRUE_EPSILON, rel=0.2), name
 

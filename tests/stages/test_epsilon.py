@@ -19,6 +19,7 @@ from cwproc.stages.epsilon import (
     eq5_epsilon,
     estimate_epsilon,
     fit_structure_function,
+    mean_removed_share,
     passed_variance,
 )
 
@@ -89,14 +90,25 @@ def test_eq5_and_least_squares_invert_the_model_exactly():
     a = np.array([[1.0, 2.5, 3.7, 4.6]])
     d = 0.01 ** (2 / 3) * a + 2 * 0.2**2
     assert eq5_epsilon(d[:, 2], d[:, 0], a[:, 2], a[:, 0])[0] == pytest.approx(0.01, rel=1e-12)
-    eps, noise = fit_structure_function(d, a, np.ones_like(a, dtype=bool))
+    eps, noise, fitted = fit_structure_function(d, a, np.ones_like(a, dtype=bool))
     assert eps[0] == pytest.approx(0.01, rel=1e-10)
-    assert noise[0] == pytest.approx(0.2, rel=1e-10)
+    assert noise[0] == pytest.approx(0.2, rel=1e-10) and fitted[0]
     # D(l) <= D(1): eq. 5 undefined
     assert np.isnan(eq5_epsilon(np.array([0.1]), np.array([0.2]), a[:, 2], a[:, 0]))[0]
-    # a negative intercept is clipped to sigma_e = 0 and the slope refitted through 0
-    eps0, noise0 = fit_structure_function(0.01 ** (2 / 3) * a - 0.05, a, np.ones_like(a, bool))
-    assert noise0[0] == 0.0 and eps0[0] < 0.01
+    # a negative intercept: never a measured sigma_e = 0; without a prediction the slope
+    # is refitted through 0 and sigma_e is NaN
+    low = 0.01 ** (2 / 3) * a - 0.05
+    eps0, noise0, fitted0 = fit_structure_function(low, a, np.ones_like(a, bool))
+    assert np.isnan(noise0[0]) and not fitted0[0] and eps0[0] < 0.01
+    # with the predicted sigma_e the intercept is fixed at 2 sigma_pred^2
+    _, _, fitted_p = fit_structure_function(
+        d, a, np.ones_like(a, bool), noise_prior=np.array([0.2])
+    )
+    assert fitted_p[0]  # a determined intercept is kept
+    two = np.array([[True, True, False, False]])  # two lags: intercept not determined
+    eps_2, noise_2, fitted_2 = fit_structure_function(d, a, two, noise_prior=np.array([0.2]))
+    assert not fitted_2[0] and noise_2[0] == 0.2
+    assert eps_2[0] == pytest.approx(0.01, rel=1e-10)
 
 
 def test_averaging_loss_is_the_filtered_variance_deficit():
@@ -152,6 +164,8 @@ def test_passed_variance_is_the_variance_of_the_probe_averaged_velocity():
 
 @pytest.mark.slow
 def test_exact_model_data_give_eps_noise_and_the_eq21_ratio(options):
+    # the small-angle A-functions of Smalikho (2020), eq. 15 (the reference values)
+    options = {**options, "geometry": "small_angle"}
     table = get_a_table(
         PROBE,
         phi_deg=PHI,
@@ -160,6 +174,7 @@ def test_exact_model_data_give_eps_noise_and_the_eq21_ratio(options):
         model="inertial",
         cache_dir=options["cache_dir"],
         height_range_m=options["height_range_m"],
+        geometry="small_angle",
     )
     mu = np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]])
     d = model_d(table, 0.003, 0.15, mu)
@@ -180,12 +195,16 @@ def test_exact_model_data_give_eps_noise_and_the_eq21_ratio(options):
     # the fitted model reproduces the exact data (Smalikho (2020), eq. 4)
     assert out["structure_function_model"].dims == ("time", "height", "lag")
     np.testing.assert_allclose(out["structure_function_model"].values, d, rtol=1e-9)
-    # method 1 beyond its validity (ratio > 1.1): NaN with flag 4, method 2 unaffected
+    # method 1 beyond its validity (ratio > 1.1): kept with flag 4 (its bias is the
+    # observable of Smalikho (2020), eq. 21), method 2 unaffected
     flag = out["turbulence_flag"].values
     np.testing.assert_array_equal(flag[0], [0, 0])
     assert np.all(flag[1:] & FLAG_METHOD1_INVALID)
-    assert np.all(np.isnan(out["epsilon_method1"].values[1:]))
+    np.testing.assert_allclose(
+        out["epsilon_method1"].values, 0.003 * out["epsilon_ratio"].values, rtol=1e-9
+    )
     np.testing.assert_allclose(out["epsilon_method1"].values[0], 0.003, rtol=1e-9)
+    np.testing.assert_allclose(out["edr"].values, 0.003 ** (1 / 3), rtol=1e-9)
 
 
 @pytest.mark.slow
@@ -479,3 +498,185 @@ def test_table_height_range_covers_the_data_in_few_distinct_steps():
     assert table_height_range(np.array([0.0, 0.5, 20.0])) == (10.0, 3000.0)
     # the same range for nearby data: one cache file
     assert table_height_range(np.array([9.5])) == table_height_range(np.array([6.0]))
+
+
+def _two_beam_sf(mids_deg, *, dtheta, phi, height, eps, noise, speed, wind_to, t_ray):
+    """A block's D_L from the exact two-beam model for the pairs centred on ``mids_deg``.
+
+    Step-stare rays (no sweep), clockwise scan, Stream Line probe; ``wind_to`` the
+    direction the wind blows towards (deg). Returns the structure-function dataset.
+    """
+    import math
+
+    from cwproc.physics import two_beam
+    from cwproc.physics.atable import azimuth_bin_weights
+
+    rng = height / math.sin(math.radians(phi))
+    a = math.radians(wind_to)
+    wind = speed * np.array([0.0, math.cos(a), math.sin(a)])
+    q = two_beam.beam_quadrature(PROBE, rng)
+    lags = np.arange(1, 4)
+    d = np.array(
+        [
+            np.mean(
+                two_beam.two_beam_structure_function(
+                    mids_deg - 0.5 * lag * dtheta,
+                    mids_deg + 0.5 * lag * dtheta,
+                    phi,
+                    rng,
+                    quadrature=q,
+                    time_separation_s=-lag * t_ray,
+                    mean_wind=wind,
+                    epsilon=eps,
+                )
+            )
+            for lag in lags
+        ]
+    )
+    d = d + 2 * noise**2
+    weights = azimuth_bin_weights(np.radians(wind_to - mids_deg))
+    n_rays = round(360 / dtheta)
+    return xr.Dataset(
+        {
+            "structure_function": (("time", "height", "lag"), d[None, None, :]),
+            "n_pairs": (("time", "height", "lag"), np.full((1, 1, 3), 1000)),
+            "radial_velocity_variance": (("time", "height"), [[4.0]]),
+            "wind_speed": (("time", "height"), [[speed]]),
+            "wind_to_direction": (("time", "height"), [[wind_to]]),
+            "pair_azimuth_weights": (("time", "height", "azimuth_node"), weights[None, None]),
+            "azimuth_step": ("time", [dtheta]),
+            "scan_period": ("time", [n_rays * t_ray]),
+            "n_scans": ("time", [10]),
+        },
+        coords={
+            "time": [np.datetime64("2024-01-01T00:00", "ns")],
+            "height": [height],
+            "range": ("height", [rng]),
+            "lag": lags,
+            "elevation": ("time", [phi]),
+        },
+        attrs={"swept_rays": 0},
+    )
+
+
+@pytest.mark.parametrize("speed", [3.0, 15.0, 40.0])
+@pytest.mark.parametrize(
+    ("label", "mids"),
+    [
+        ("full circle", np.arange(7.5, 360.0, 15.0)),
+        ("60 deg gap", np.arange(67.5, 360.0, 15.0)),
+        ("90 deg sector", np.arange(7.5, 90.0, 15.0)),
+    ],
+)
+def test_step_stare_24_rays_sector_and_gap_give_epsilon(tmp_path, label, mids, speed):
+    """24-ray step-stare VAD (15 deg, 3 s per ray), mu 0.2-2.6, known wind: eps within 2 %.
+
+    D_L from the exact two-beam model of the pairs present; the full-circle A_2 would
+    miss eps by up to +7 % with the 60 deg gap and -18 % in the 90 deg sector.
+    """
+    sf = _two_beam_sf(
+        mids,
+        dtheta=15.0,
+        phi=60.0,
+        height=300.0,
+        eps=0.01,
+        noise=0.1,
+        speed=speed,
+        wind_to=70.0,
+        t_ray=3.0,
+    )
+    options = {"cache_dir": str(tmp_path), "height_range_m": (150.0, 600.0)}
+    out = estimate_epsilon(sf, probe=PROBE, lag_number=3, model="inertial", table_options=options)
+    assert float(out["epsilon"].values[0, 0]) == pytest.approx(0.01, rel=0.02), label
+    assert float(out["edr"].values[0, 0]) ** 3 == pytest.approx(float(out["epsilon"].values[0, 0]))
+    if label != "full circle" and speed > 10:
+        circle = estimate_epsilon(
+            sf.drop_vars("pair_azimuth_weights"),
+            probe=PROBE,
+            lag_number=3,
+            model="inertial",
+            table_options=options,
+        )
+        assert abs(float(circle["epsilon"].values[0, 0]) / 0.01 - 1) > 0.04
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("n_rays", "t_ray", "swept"), [(24, 3.0, False), (72, 0.5, True)])
+def test_von_karman_coarse_scans_recover_eps_and_outer_scale(tmp_path, n_rays, t_ray, swept):
+    """Exact two-beam von Karman data (L_V = 300 m, eps 5e-3, sigma_e 0.05, U = 10 m/s).
+
+    24-ray step-stare VAD and 72-ray continuous scan (each ray swept over 5 deg and seen
+    at its own times): eps within 2 %, L_V within 3 %, sigma_e within 15 %.
+    """
+    import math
+
+    from cwproc.physics import two_beam
+    from cwproc.physics.atable import azimuth_bin_weights
+
+    phi, h, eps, big_l, noise, speed = 60.0, 300.0, 5e-3, 300.0, 0.05, 10.0
+    dtheta = 360.0 / n_rays
+    rng = h / math.sin(math.radians(phi))
+    q = two_beam.beam_quadrature(PROBE, rng)
+    a = math.radians(70.0)
+    wind = speed * np.array([0.0, math.cos(a), math.sin(a)])
+    sweep = {"sweep_deg": dtheta, "n_sweep": 8} if swept else {}
+    mids = np.arange(0.0, 360.0, 10.0)
+    vk = {"model": "von_karman", "epsilon": eps, "outer_scale_m": big_l, "quadrature": q}
+    d = np.array(
+        [
+            np.mean(
+                two_beam.two_beam_structure_function(
+                    mids - 0.5 * lag * dtheta,
+                    mids + 0.5 * lag * dtheta,
+                    phi,
+                    rng,
+                    time_separation_s=-lag * t_ray,
+                    mean_wind=wind,
+                    ray_duration_s=t_ray if swept else 0.0,
+                    **sweep,
+                    **vk,
+                )
+            )
+            for lag in (1, 2, 3)
+        ]
+    )
+    b0 = float(two_beam.two_beam_covariance(0.0, 0.0, phi, rng, **sweep, **vk))
+    # the block mean of 10 independent scans removes share / 10 of sigma_V^2
+    share = mean_removed_share(
+        np.array([h / math.tan(math.radians(phi)) / big_l]), phi, "von_karman"
+    )
+    b0 = b0 - float(share[0]) * spectra.variance_from(eps, big_l, "von_karman") / 10
+    sf = xr.Dataset(
+        {
+            "structure_function": (("time", "height", "lag"), (d + 2 * noise**2)[None, None]),
+            "n_pairs": (("time", "height", "lag"), np.full((1, 1, 3), 1000)),
+            "radial_velocity_variance": (("time", "height"), [[b0 + noise**2]]),
+            "wind_speed": (("time", "height"), [[speed]]),
+            "pair_azimuth_weights": (
+                ("time", "height", "azimuth_node"),
+                azimuth_bin_weights(np.radians(70.0 - mids))[None, None],
+            ),
+            "azimuth_step": ("time", [dtheta]),
+            "scan_period": ("time", [n_rays * t_ray]),
+            "n_scans": ("time", [10]),
+        },
+        coords={
+            "time": [np.datetime64("2024-01-01T00:00", "ns")],
+            "height": [h],
+            "range": ("height", [rng]),
+            "lag": [1, 2, 3],
+            "elevation": ("time", [phi]),
+        },
+        attrs={"swept_rays": int(swept)},
+    )
+    out = estimate_epsilon(
+        sf,
+        probe=PROBE,
+        lag_number=3,
+        model="von_karman",
+        table_options={"cache_dir": str(tmp_path), "height_range_m": (150.0, 600.0)},
+    )
+    assert float(out["epsilon"].values[0, 0]) == pytest.approx(eps, rel=0.02)
+    assert float(out["integral_scale"].values[0, 0]) == pytest.approx(big_l, rel=0.03)
+    fitted = np.isfinite(out["noise_std"].values[0, 0])
+    assert not fitted or float(out["noise_std"].values[0, 0]) == pytest.approx(noise, rel=0.15)

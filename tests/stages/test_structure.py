@@ -152,7 +152,7 @@ def test_white_noise_structure_function_is_twice_the_variance():
 
 def test_block_partition_keeps_short_last_block():
     ds = ramp_scans(n_scans=25)
-    sf = azimuth_structure_function(ds, true_wind(ds), n_scans=10, max_lag_deg=6.0)
+    sf = azimuth_structure_function(ds, true_wind(ds), n_scans=10, max_lag_deg=6.0, min_lags=2)
     np.testing.assert_array_equal(sf["n_scans"].values, [10, 10, 5])
     np.testing.assert_array_equal(sf["lag"].values, [1, 2])
     assert np.all(np.diff(sf["time"].values) > np.timedelta64(0, "s"))
@@ -184,7 +184,7 @@ def test_impossible_inputs_raise_cwproc_errors():
             ds, wind.assign_coords(range=("height", RANGES + 7.0)), n_scans=2, max_lag_deg=9.0
         )
     with pytest.raises(CwprocError, match="max_lag_deg"):
-        azimuth_structure_function(ds, wind, n_scans=2, max_lag_deg=2.0)
+        azimuth_structure_function(ds, wind, n_scans=2, max_lag_deg=2.0, min_lags=30)
 
 
 def test_chunked_blocks_give_the_same_result(monkeypatch):
@@ -219,3 +219,35 @@ def test_homodyne_sign_from_the_model_and_rays_near_zero_crossings_left_out():
     np.testing.assert_allclose(out[kept, 0], true[kept, 0], rtol=1e-12)
     # the share left out: 2 asin(2.5/6) / pi = 27.5 %
     assert np.mean(~kept) == pytest.approx(2 * np.arcsin(2.5 / 6) / np.pi, abs=0.04)
+
+
+def test_coarse_scans_get_three_lags_beyond_nine_degrees():
+    # 24 rays (15 deg): lags 1-3 (45 deg) from the exact two-beam model, not none
+    ds = ramp_scans(n_scans=4, rays=24)
+    sf = azimuth_structure_function(ds, true_wind(ds), n_scans=4, max_lag_deg=9.0)
+    np.testing.assert_array_equal(sf["lag"].values, [1, 2, 3])
+    np.testing.assert_allclose(sf["azimuth_step"].values, 15.0)
+    # V'_L = slope m: D_L(l) = (slope l)^2 at any step
+    np.testing.assert_allclose(sf["structure_function"].values[0, 0], (0.01 * np.arange(1, 4)) ** 2)
+
+
+def test_pair_azimuth_weights_full_circle_and_sector():
+    from cwproc.physics.atable import azimuth_bin_weights
+
+    ds = ramp_scans(n_scans=4, rays=72)
+    sf = azimuth_structure_function(ds, true_wind(ds), n_scans=4, max_lag_deg=9.0)
+    w = sf["pair_azimuth_weights"].values[0, 0]
+    assert w.sum() == pytest.approx(1.0)
+    # a full circle spreads the pairs evenly over the nodes (71 pairs of 72 rays)
+    np.testing.assert_allclose(w, 1 / w.size, atol=0.3 / w.size)  # no wrap-around pair
+    # a 90 deg sector: only the rays from 100 deg down to 10 deg (anticlockwise)
+    az = ds["azimuth"].values
+    keep = ((100.0 - az) % 360.0) <= 90.0
+    sector = ds.isel(ray=np.flatnonzero(keep))
+    sf_s = azimuth_structure_function(sector, true_wind(ds), n_scans=4, max_lag_deg=9.0)
+    ws = sf_s["pair_azimuth_weights"].values[0, 0]
+    wind_to = float(sf_s["wind_to_direction"].values[0, 0])
+    mids = 100.0 - 5.0 * (np.arange(18) + 0.5)
+    expected = azimuth_bin_weights(np.radians(-(wind_to - mids)))
+    np.testing.assert_allclose(ws, expected, atol=1e-9)
+    assert np.count_nonzero(ws > 0) <= 11

@@ -120,7 +120,9 @@ def test_real_zephir_record(real_data):
     rec = read_zephir_csv(real_data / "zephir/Wind10_317@Y2016_M12_D13.ZPH.csv")
     p = wind_record_product(rec, **KW)
     missing = (p["qc_flag"] & FLAG_MISSING) > 0
-    assert int(missing.sum()) == 509  # the 509 records with 9999 speeds
+    # the 509 records with 9999 speeds, and 250 more whose exported w is missing
+    assert int(missing.sum()) == 759
+    assert int((~np.isfinite(p["w"]) & ~missing).sum()) == 0
     ratio = p["volume_averaging_ratio"].where(~missing)
     # averaging only removes variance; at 297 m the probe half width is Z_R = 150 m
     assert float(ratio.min()) > 0.3 and float(ratio.max()) < 0.9
@@ -179,3 +181,24 @@ def test_turbulence_parameter_from_a_homodyne_vad_fit():
     assert float(wind["wind_speed"].mean()) == pytest.approx(u_true, rel=0.02)
     tp = turbulence_parameter(wind)
     assert float(tp.mean()) == pytest.approx(sigma / u_true, rel=0.1)
+
+
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [("wind_speed", 1e308), ("wind_speed", np.inf), ("wind_speed", -50.0),
+     ("wind_direction", 720.0), ("w", 99.0)],
+)  # fmt: skip
+def test_impossible_values_are_missing_never_good(name, value):
+    """Values outside metadata.PHYSICAL_RANGES become missing (bit 4) (issue 17.3)."""
+    from cwproc.io.zephir import with_range_screen
+
+    rec = _record()
+    rec[name].values[0, 0] = value
+    screened = with_range_screen(rec)
+    assert f"of {name} outside" in screened.attrs["warnings"][0]
+    p = wind_record_product(screened, **KW)
+    assert p["qc_flag"].values[0, 0] & FLAG_MISSING
+    assert p["qc_flag"].values[0, 1] & FLAG_MISSING == 0
+    good = p["qc_flag"].values == 0
+    for var in ("wind_speed", "wind_direction", "u", "v", "w"):
+        assert np.all(np.isfinite(p[var].values[good]))

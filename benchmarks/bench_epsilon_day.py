@@ -1,0 +1,117 @@
+"""Time of the dissipation-rate stage for one day: 144 blocks x 100 heights.
+
+:func:`cwproc.stages.epsilon.estimate_epsilon` on a synthetic structure-function
+product of a Stream Line day (``configs/streamline.toml`` probe, elevation 60 deg,
+heights 50-2000 m, 10-min blocks, random wind 1-15 m s-1, eps 1e-4 to 1e-2) for
+
+- a 24-ray step-stare VAD (15 deg steps, 3 s per ray: lags 1-3 up to 45 deg), and
+- a 180-ray continuous scan (2 deg steps, 36 s per rotation: lags 1-4 up to 8 deg),
+
+each with the spectrum model ``--model`` (default von Karman, the default of the
+configuration). The A-tables are built first (timed separately, cached in a temporary
+directory), then the stage is run ``--repeat`` times on warm tables; the best time is
+printed. Target: under 1 s per day and configuration (measured warm: 0.13 / 0.16 s
+inertial, 0.50 / 0.72 s von Karman for the 24-ray VAD / the 180-ray scan on a shared
+2-core box; cold builds 0.7 / 7 s and 8 / 22 s).
+
+Run::
+
+    python benchmarks/bench_epsilon_day.py                  # von Karman
+    python benchmarks/bench_epsilon_day.py --model inertial
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+
+import numpy as np
+import xarray as xr
+
+from cwproc.physics.atable import N_BINS
+from cwproc.physics.transfer import PulsedProbe
+from cwproc.stages.epsilon import estimate_epsilon
+
+PHI = 60.0
+HEIGHTS = np.linspace(50.0, 2000.0, 100)
+N_BLOCKS = 144
+
+
+def synthetic_day(n_rays: int, ray_s: float, n_lags: int, seed: int = 1) -> xr.Dataset:
+    """A structure-function dataset of one day (stage ``structure`` schema)."""
+    rng = np.random.default_rng(seed)
+    dtheta = 360.0 / n_rays
+    radius = HEIGHTS / np.tan(np.radians(PHI))
+    eps = 10 ** rng.uniform(-4, -2, (N_BLOCKS, HEIGHTS.size))
+    lags = np.arange(1, n_lags + 1)
+    dy = np.radians(dtheta) * radius
+    # inertial transverse law plus noise: shape only matters for the timing
+    d = (8 / 3) * eps[..., None] ** (2 / 3) * (lags * dy[:, None]) ** (2 / 3) + 2 * 0.1**2
+    speed = rng.uniform(1.0, 15.0, (N_BLOCKS, HEIGHTS.size))
+    times = np.datetime64("2024-06-01T00:05", "ns") + np.arange(N_BLOCKS) * np.timedelta64(10, "m")
+    return xr.Dataset(
+        {
+            "structure_function": (("time", "height", "lag"), d),
+            "n_pairs": (("time", "height", "lag"), np.full(d.shape, 2000)),
+            "structure_function_se": (("time", "height", "lag"), 0.05 * d),
+            "structure_function_difference_se": (("time", "height", "lag"), 0.05 * d),
+            "radial_velocity_variance": (("time", "height"), (eps * 300 / 1.33) ** (2 / 3)),
+            "radial_velocity_variance_se": (("time", "height"), np.full(eps.shape, 0.05)),
+            "wind_speed": (("time", "height"), speed),
+            "wind_to_direction": (("time", "height"), rng.uniform(0, 360, speed.shape)),
+            "pair_azimuth_weights": (
+                ("time", "height", "azimuth_node"),
+                np.full((N_BLOCKS, HEIGHTS.size, N_BINS), 1.0 / N_BINS),
+            ),
+            "snr_median": (("time", "height"), 10 ** rng.uniform(-2.5, 0, speed.shape)),
+            "azimuth_step": ("time", np.full(N_BLOCKS, dtheta)),
+            "scan_period": ("time", np.full(N_BLOCKS, n_rays * ray_s)),
+            "n_scans": ("time", np.full(N_BLOCKS, 10)),
+        },
+        coords={
+            "time": times,
+            "height": HEIGHTS,
+            "range": ("height", HEIGHTS / np.sin(np.radians(PHI))),
+            "lag": lags,
+            "elevation": ("time", np.full(N_BLOCKS, PHI)),
+        },
+        attrs={
+            "swept_rays": int(n_rays > 72),
+            "points_per_gate": 10,
+            "pulses_per_ray": 20000,
+            "velocity_resolution_m_s": 0.0382,
+        },
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--model", default="von_karman")
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+    probe = PulsedProbe(15.3, 18.0)
+    with tempfile.TemporaryDirectory() as cache:
+        options = {"cache_dir": cache}
+        for label, n_rays, ray_s, n_lags in (("24-ray VAD", 24, 3.0, 3), ("180-ray", 180, 0.2, 4)):
+            sf = synthetic_day(n_rays, ray_s, n_lags)
+            t0 = time.perf_counter()
+            estimate_epsilon(sf, probe=probe, lag_number=3, model=args.model, table_options=options)
+            cold = time.perf_counter() - t0
+            best = np.inf
+            for _ in range(args.repeat):
+                t0 = time.perf_counter()
+                out = estimate_epsilon(
+                    sf, probe=probe, lag_number=3, model=args.model, table_options=options
+                )
+                best = min(best, time.perf_counter() - t0)
+            ok = int(np.isfinite(out["epsilon"].values).sum())
+            print(
+                f"{label:11s} {args.model}: cold (tables built) {cold:6.2f} s, "
+                f"warm {best:6.3f} s for {N_BLOCKS} x {HEIGHTS.size} cells "
+                f"({ok} with eps)"
+            )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,65 @@
+"""Products: modes from the umask, whole units or nothing (issue 17.6)."""
+
+import os
+import stat
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from cwproc.config import Config
+from cwproc.errors import ProductError
+from cwproc.io import netcdf
+from cwproc.pipeline import ProductUnit, write_unit_products
+
+
+def tiny() -> xr.Dataset:
+    t = np.array(["2024-06-01T00:00", "2024-06-01T00:10"], dtype="datetime64[ns]")
+    return xr.Dataset({"u": (("time",), [1.0, 2.0])}, coords={"time": t})
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o002, 0o077])
+def test_product_mode_follows_the_umask(tmp_path, umask):
+    old = os.umask(umask)
+    try:
+        path = netcdf.write_netcdf_atomic(tiny(), tmp_path / "p.nc")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o666 & ~umask
+
+
+def test_a_failing_product_publishes_none_of_its_unit(tmp_path, monkeypatch):
+    """Wind written, turbulence failed (a full disk): neither appears, no temporaries."""
+    real = netcdf.stage_netcdf
+    calls = []
+
+    def failing_second(ds, path, **kw):
+        calls.append(path)
+        if len(calls) == 2:
+            raise ProductError(f"{path}: cannot write product: No space left on device")
+        return real(ds, path, **kw)
+
+    monkeypatch.setattr(netcdf, "stage_netcdf", failing_second)
+    unit = ProductUnit(key="streamline_1_20240601", kind="scan")
+    with pytest.raises(ProductError, match="No space"):
+        write_unit_products(unit, {"wind": tiny(), "turbulence": tiny()}, tmp_path, Config())
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_library_write_error_is_a_product_error(tmp_path, monkeypatch):
+    """netCDF4's RuntimeError (e.g. 'HDF error' on a full disk) is not an internal error."""
+
+    def hdf_error(self, *args, **kwargs):
+        raise RuntimeError("NetCDF: HDF error")
+
+    monkeypatch.setattr(xr.Dataset, "to_netcdf", hdf_error)
+    with pytest.raises(ProductError, match="HDF error"):
+        netcdf.write_netcdf_atomic(tiny(), tmp_path / "p.nc")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_whole_unit_is_published(tmp_path):
+    unit = ProductUnit(key="streamline_1_20240601", kind="scan")
+    paths = write_unit_products(unit, {"wind": tiny(), "turbulence": tiny()}, tmp_path, Config())
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in paths)
+    assert len(paths) == 2
