@@ -1,7 +1,7 @@
 """Accuracy of the turbulence retrieval on the seed-000 cw simulation (prints figures).
 
 Simulates ``--blocks`` independent blocks of N = 10 scans of the virtual cw lidar of
-Banakh et al. (1999) (``configs/seed000.toml``: lambda = 10.6 um, a0 = 7.5 cm,
+Banakh et al. (1999) (``configs/banakh1999.toml``: lambda = 10.6 um, a0 = 7.5 cm,
 phi = 30 deg, T = 7 s, the paper's six heights), runs qc -> vad -> structure -> epsilon
 (model "exponential", l = 3) and prints, per height, the mean ratio estimate/truth and
 the relative RMS error of epsilon, epsilon_fit, sigma_V^2 and L_V, and the mean sigma_e.
@@ -53,7 +53,7 @@ def main() -> None:
         "--max-lag-deg", type=float, default=None, help="largest lag (deg); default: config"
     )
     args = parser.parse_args()
-    cfg = load_config("seed000")
+    cfg = load_config("banakh1999")
     sim = cfg.simulation
     lidar = dataclasses.replace(
         lidar_from_config(sim, cfg.instrument.wavelength_m, cfg.instrument.beam_radius_m),

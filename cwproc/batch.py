@@ -60,7 +60,7 @@ import numpy as np
 
 from cwproc.config import Config, config_from_toml
 from cwproc.errors import CwprocError, InputFileError, ProductError
-from cwproc.io import Format, sniff_format
+from cwproc.io import Format, is_cwproc_product, sniff_format
 from cwproc.io.netcdf import umask_mode
 
 log = logging.getLogger(__name__)
@@ -313,6 +313,10 @@ def _file_stat(path: str) -> tuple[int, int]:
 # --------------------------------------------------------------------------------------
 
 
+#: ``FileInfo.format`` of a cwproc product found among the inputs (status unrecognised)
+PRODUCT_FORMAT = "cwproc product"
+
+
 def classify_file(path: str, config_toml: str, config_source: str = "<batch>") -> FileInfo:
     """Recognise, checksum and read one file; find the product unit it belongs to.
 
@@ -344,6 +348,12 @@ def classify_file(path: str, config_toml: str, config_source: str = "<batch>") -
     fmt = sniff_format(head)
     if fmt is None:
         return replace(base, error=f"{path}:1: not a format cwproc reads")
+    if fmt is Format.SCAN_NETCDF and is_cwproc_product(path):
+        return replace(
+            base,
+            format=PRODUCT_FORMAT,
+            error=f"{path}: a cwproc product, not an instrument file: skipped",
+        )
     pinned = config.instrument.format
     if pinned != "auto" and fmt != Format(pinned):
         return replace(

@@ -20,6 +20,7 @@ import os
 import tomllib
 import types
 import typing
+import warnings
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -99,7 +100,7 @@ class VADConfig:
     #: fewest valid rays for a fit not flagged "too few rays" (3 unknowns + 3 residual dof)
     min_rays: int = 6
     #: largest azimuth gap (deg) accepted before the fit is flagged; with a 120 deg sector
-    #: missing the along-bisector RMS error grows by ~75 % (seed 002, cwproc theory
+    #: missing the along-bisector RMS error grows by ~75 % (VAD accuracy paper, cwproc theory
     #: vad-errors --sector 120)
     max_gap_deg: float = 120.0
     #: homodyne cw data: direction (deg, from north, "from") used to resolve the 180 deg
@@ -352,8 +353,16 @@ def _positive(obj: Any, *names: str) -> None:
 PRESET_PACKAGE = "cwproc.configs"
 
 
+#: old preset names, still accepted with a warning: name -> the preset's name now
+PRESET_ALIASES = {"seed000": "banakh1999"}
+
+
+class PresetAliasWarning(UserWarning):
+    """A preset was chosen by an old name (see :data:`PRESET_ALIASES`)."""
+
+
 def preset_names() -> list[str]:
-    """Names of the configuration presets shipped with cwproc."""
+    """Names of the configuration presets shipped with cwproc (aliases not included)."""
     files = resources.files(PRESET_PACKAGE)
     return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".toml"))
 
@@ -391,6 +400,14 @@ def load_config(path_or_preset: str | os.PathLike | None = None) -> Config:
             raise ConfigError(source, "-", "not UTF-8 text") from None
     else:
         name = str(path_or_preset)
+        if name in PRESET_ALIASES:
+            warnings.warn(
+                f"preset '{name}' is now called '{PRESET_ALIASES[name]}' "
+                "(after its paper); the old name will be removed",
+                PresetAliasWarning,
+                stacklevel=2,
+            )
+            name = PRESET_ALIASES[name]
         if name not in preset_names():
             raise ConfigError(
                 f"<{name}>", "-", f"no such preset; choose one of {', '.join(preset_names())}"

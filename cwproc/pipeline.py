@@ -263,7 +263,7 @@ def probe_mismatch(scans: xr.Dataset, config: Config) -> str:
         f"the scans{' of ' + files if files else ''} come from a {kind} lidar "
         f"(instrument_kind = {declared!r}) but configuration {config.source} describes a "
         f"{config.instrument.kind} lidar; use a {kind} configuration "
-        f"(e.g. -c {'seed000' if kind == 'cw' else 'streamline'})"
+        f"(e.g. -c {'banakh1999' if kind == 'cw' else 'streamline'})"
     )
 
 

@@ -5,7 +5,9 @@ Each ``plot_*`` function takes a product Dataset and returns a matplotlib Figure
 variables it needs, raising :class:`cwproc.errors.ProductError` with the missing names
 otherwise. Colour maps are perceptually uniform and readable with colour-vision
 deficiencies (cividis, viridis; RdBu_r for signed quantities); missing data are
-drawn as gaps, never as zeros.
+drawn as gaps (grey background), never as zeros. A picture with nothing to draw
+(every value missing) is refused with a :class:`ProductError` naming the reason; a
+product of one time step is drawn as profiles.
 """
 
 from __future__ import annotations
@@ -26,6 +28,8 @@ DPI = 100
 SEQUENTIAL = "cividis"
 SEQUENTIAL_LOG = "viridis"
 DIVERGING = "RdBu_r"
+#: background of time-height panels: where a value is missing (also white of RdBu_r)
+MISSING = "0.8"
 
 
 def _pyplot():
@@ -47,8 +51,9 @@ def _label(da: xr.DataArray, fallback: str) -> str:
 
 
 def _time_height_mesh(ax, ds: xr.DataArray, *, cmap: str, norm=None, label: str):
-    """pcolormesh of a (time, height) field; NaN stays blank."""
+    """pcolormesh of a (time, height) field with at least two time steps; NaN stays blank."""
     plt = _pyplot()
+    ax.set_facecolor(MISSING)
     data = np.ma.masked_invalid(ds.transpose("height", "time").values)
     mesh = ax.pcolormesh(
         ds["time"].values, ds["height"].values, data, cmap=cmap, norm=norm, shading="nearest"
@@ -61,12 +66,100 @@ def _time_height_mesh(ax, ds: xr.DataArray, *, cmap: str, norm=None, label: str)
     locator = mdates.AutoDateLocator()
     ax.xaxis.set_major_locator(locator)
     ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator))
-    return mesh
+    return cbar
+
+
+def _log_tick_values(vmin: float, vmax: float) -> np.ndarray:
+    """Ticks of a log axis over [vmin, vmax]: the powers of ten, else 1-2-5 per decade,
+    else 1..9, else 1, 1.5, 2, 2.5, 3..9 -- the first that gives at least four."""
+    lo, hi = np.floor(np.log10(vmin)), np.ceil(np.log10(vmax))
+    decades = 10.0 ** np.arange(lo, hi + 1)
+    halves = (1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0)
+    for subs in ((1.0,), (1.0, 2.0, 5.0), tuple(range(1, 10)), halves):
+        ticks = np.array([m * d for d in decades for m in subs])
+        ticks = ticks[(ticks >= vmin * (1 - 1e-9)) & (ticks <= vmax * (1 + 1e-9))]
+        if ticks.size >= 4:
+            return ticks
+    return ticks
+
+
+def _sci_label(value: float, _pos: int | None = None) -> str:
+    """``6e-3`` as $6\\times10^{-3}$ and ``1e-2`` as $10^{-2}$ (every tick labelled)."""
+    exponent = int(np.floor(np.log10(value) + 1e-9))
+    mantissa = value / 10.0**exponent
+    if abs(mantissa - 1.0) < 1e-6:
+        return f"$10^{{{exponent}}}$"
+    return f"${mantissa:.2g}\\times10^{{{exponent}}}$"
+
+
+def _log_ticks(cbar_or_axis, vmin: float, vmax: float) -> None:
+    """Label a log axis or colour bar with at least four ticks where possible.
+
+    Matplotlib labels only the powers of ten (and a few minor ticks), which leaves two
+    labels on a colour bar spanning about a decade.
+    """
+    from matplotlib.colorbar import Colorbar
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullLocator
+
+    if not (vmin > 0 and vmax > vmin):
+        return
+    ticks = _log_tick_values(vmin, vmax)
+    # plain numbers (percent, metres) where they read well, powers of ten otherwise
+    plain = bool(ticks.size) and ticks.min() >= 0.1 and ticks.max() < 1e5
+    label = (lambda v, _pos=None: f"{v:g}") if plain else _sci_label
+    if isinstance(cbar_or_axis, Colorbar):
+        cbar_or_axis.set_ticks(ticks, labels=[label(t) for t in ticks])
+        cbar_or_axis.ax.yaxis.set_minor_locator(NullLocator())
+        return
+    cbar_or_axis.set_major_locator(FixedLocator(ticks))
+    cbar_or_axis.set_major_formatter(FuncFormatter(label))
+    cbar_or_axis.set_minor_locator(NullLocator())
+
+
+def _all_missing(da: xr.DataArray) -> bool:
+    return not np.isfinite(np.asarray(da.values, dtype=float)).any()
+
+
+def _refuse_empty(ds: xr.Dataset, names: tuple[str, ...], kind: str) -> None:
+    """Refuse to draw a picture whose variables hold no finite value."""
+    if all(_all_missing(ds[n]) for n in names):
+        raise ProductError(
+            f"cannot draw '{kind}': {' and '.join(names)} hold no finite value "
+            "(every estimate of the product is missing)"
+        )
+
+
+def _one_time_step(ds: xr.Dataset) -> bool:
+    return "time" in ds.dims and ds.sizes["time"] == 1
+
+
+def _time_text(ds: xr.Dataset) -> str:
+    return np.datetime_as_string(ds["time"].values.ravel()[0], unit="m") + " UTC"
+
+
+def _profile(ax, da: xr.DataArray, *, label: str, log: bool = False, **style):
+    """A vertical profile (value against height) of a one-time-step field."""
+    x = np.asarray(da.values, dtype=float).ravel()
+    h = da["height"].values
+    ok = np.isfinite(x)
+    style = {"marker": "o", "ls": "-", "ms": 4, **style}
+    ax.plot(x[ok], h[ok], label=label, **style)
+    if log:
+        ax.set_xscale("log")
+    ax.set_ylabel("height above instrument (m)")
+    ax.grid(alpha=0.3, which="both")
 
 
 def plot_wind(ds: xr.Dataset):
-    """Time-height of horizontal wind speed with direction barbs, and of w."""
+    """Time-height of horizontal wind speed with direction barbs, and of w.
+
+    A product of one time step (one scan) is drawn as profiles of speed, direction
+    and w instead: a time-height picture of one column has no width.
+    """
     plt = _pyplot()
+    _refuse_empty(ds, ("wind_speed",), "wind")
+    if _one_time_step(ds):
+        return _plot_wind_profiles(ds)
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=FIGSIZE, sharex=True, constrained_layout=True)
     _time_height_mesh(
         ax1, ds["wind_speed"], cmap=SEQUENTIAL, label=_label(ds["wind_speed"], "wind speed")
@@ -103,36 +196,108 @@ def plot_wind(ds: xr.Dataset):
     return fig
 
 
+def _plot_wind_profiles(ds: xr.Dataset):
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 3, figsize=FIGSIZE, sharey=True, constrained_layout=True)
+    _profile(axes[0], ds["wind_speed"], label="wind speed")
+    axes[0].set_xlabel("horizontal wind speed (m s$^{-1}$)")
+    _profile(axes[1], ds["wind_direction"], label="direction", color="C1")
+    axes[1].set_xlabel("wind direction (degree, from)")
+    _profile(axes[2], ds["w"], label="w", color="C2")
+    axes[2].axvline(0.0, color="0.4", lw=0.8)
+    axes[2].set_xlabel("vertical wind w (m s$^{-1}$)")
+    for ax in axes[1:]:
+        ax.set_ylabel("")
+    fig.suptitle(f"wind profile, {_time_text(ds)} (one time step)")
+    return fig
+
+
+def _ratio_shown(ds: xr.Dataset) -> xr.DataArray:
+    """eps1/eps2 only where method 1 has an estimate (its flag 4 leaves it empty)."""
+    ratio = ds["epsilon_ratio"]
+    if "epsilon_method1" in ds:
+        ratio = ratio.where(np.isfinite(ds["epsilon_method1"]))
+    return ratio
+
+
+def _plot_epsilon_profiles(ds: xr.Dataset):
+    plt = _pyplot()
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=FIGSIZE, sharey=True, constrained_layout=True)
+    eps = ds["epsilon"].where(ds["epsilon"] > 0)
+    _profile(ax1, eps, label="$\\varepsilon$ (method 2)", log=True)
+    if "epsilon_method1" in ds and not _all_missing(ds["epsilon_method1"]):
+        eps1 = ds["epsilon_method1"].where(ds["epsilon_method1"] > 0)
+        _profile(
+            ax1,
+            eps1,
+            label="$\\varepsilon_1$ (method 1)",
+            color="C1",
+            marker="s",
+            ls="--",
+            mfc="none",
+        )
+    finite = eps.values[np.isfinite(eps.values)]
+    _log_ticks(ax1.xaxis, float(finite.min()), float(finite.max()))
+    ax1.set_xlabel("dissipation rate (m$^2$ s$^{-3}$)")
+    ax1.legend()
+    ratio = _ratio_shown(ds)
+    if _all_missing(ratio):
+        ax2.text(
+            0.5,
+            0.5,
+            "no method-1 estimate\n(mu beyond method 1 at every height)",
+            ha="center",
+            va="center",
+            transform=ax2.transAxes,
+        )
+    else:
+        _profile(ax2, ratio, label="$\\varepsilon_1/\\varepsilon_2$", color="C3")
+    ax2.axvline(1.0, color="0.4", lw=0.8)
+    ax2.set_xlabel("bias of method 1: $\\varepsilon_1/\\varepsilon_2$")
+    ax2.set_ylabel("")
+    fig.suptitle(f"dissipation rate, block at {_time_text(ds)} (one time step)")
+    return fig
+
+
 def plot_epsilon(ds: xr.Dataset):
-    """Time-height of the dissipation rate (method 2, log scale) and of eps1/eps2."""
+    """Time-height of the dissipation rate (method 2, log scale) and of eps1/eps2.
+
+    eps1/eps2 is drawn only where method 1 has an estimate. A product of one block
+    is drawn as profiles instead.
+    """
     plt = _pyplot()
     from matplotlib.colors import LogNorm, TwoSlopeNorm
 
+    _refuse_empty(ds, ("epsilon",), "epsilon")
+    if _one_time_step(ds):
+        return _plot_epsilon_profiles(ds)
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=FIGSIZE, sharex=True, constrained_layout=True)
     eps = ds["epsilon"].where(ds["epsilon"] > 0)
     eps.attrs = {"long_name": "dissipation rate", "units": ds["epsilon"].attrs.get("units", "")}
     finite = eps.values[np.isfinite(eps.values)]
-    norm = LogNorm(*np.percentile(finite, [2, 98])) if finite.size else None
-    _time_height_mesh(
-        ax1, eps, cmap=SEQUENTIAL_LOG, norm=norm, label=_label(eps, "dissipation rate")
+    lo, hi = (float(v) for v in np.percentile(finite, [2, 98]))
+    if not hi > lo:
+        lo, hi = lo / 2.0, hi * 2.0
+    cbar = _time_height_mesh(
+        ax1, eps, cmap=SEQUENTIAL_LOG, norm=LogNorm(lo, hi), label=_label(eps, "dissipation rate")
     )
+    _log_ticks(cbar, lo, hi)
     ax1.set_title("dissipation rate $\\varepsilon$ (method 2: volume averaging + wind transport)")
-    ratio = ds["epsilon_ratio"]
-    rmax = float(np.nanmax(ratio.values)) if np.isfinite(ratio.values).any() else 2.0
+    ratio = _ratio_shown(ds)
+    finite_ratio = ratio.values[np.isfinite(ratio.values)]
+    vmin = min(0.5, float(finite_ratio.min())) if finite_ratio.size else 0.5
+    vmax = max(1.5, float(finite_ratio.max())) if finite_ratio.size else 2.0
     _time_height_mesh(
         ax2,
         ratio,
         cmap=DIVERGING,
-        norm=TwoSlopeNorm(
-            vcenter=1.0,
-            vmin=min(
-                0.5, float(np.nanmin(ratio.values)) if np.isfinite(ratio.values).any() else 0.5
-            ),
-            vmax=max(rmax, 1.5),
-        ),
+        norm=TwoSlopeNorm(vcenter=1.0, vmin=vmin, vmax=vmax),
         label="$\\varepsilon_1/\\varepsilon_2$",
     )
-    ax2.set_title("bias of method 1 (no wind transport): $\\varepsilon_1/\\varepsilon_2$")
+    title = "bias of method 1 (no wind transport): $\\varepsilon_1/\\varepsilon_2$"
+    if not finite_ratio.size:
+        title += " - no method-1 estimate (mu too large)"
+    ax2.set_title(title)
     ax2.set_xlabel("time (UTC)")
     return fig
 
@@ -147,6 +312,11 @@ def plot_structure_function(ds: xr.Dataset, *, time_index: int = 0, height: floa
         blk = blk.isel(height=idx)
     else:
         blk = blk.sel(height=height, method="nearest")
+    if _all_missing(blk["structure_function"]):
+        raise ProductError(
+            f"cannot draw 'structure': no structure function at time index {time_index}, "
+            f"height {float(blk['height']):.0f} m (no ray pairs there)"
+        )
     fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
     lag = blk["lag"].values
     dy = float(blk["transverse_resolution"]) if "transverse_resolution" in blk else np.nan
@@ -188,6 +358,11 @@ def plot_vad_fit(
     good = np.ones_like(vr, dtype=bool)
     if "qc_flag_radial" in rays:
         good = rays["qc_flag_radial"].values == 0
+    if not np.isfinite(float(row["u"])) or not np.isfinite(vr[good]).any():
+        raise ProductError(
+            f"cannot draw 'vad': scan {scan} has no VAD fit at h = {float(row['height']):.0f} m "
+            f"(qc_flag {int(row['qc_flag']) if 'qc_flag' in row else 'unknown'})"
+        )
     el = np.radians(float(row["elevation"]))
     theta = np.radians(np.linspace(0, 360, 361))
     model = float(row["w"]) * np.sin(el) + np.cos(el) * (
@@ -249,6 +424,7 @@ def plot_sf_window(ds: xr.Dataset, *, window: int | None = None, component: str 
         typed = np.flatnonzero((ds["sf_type"] > 0).any("component").values)
         window = int(typed[0]) if typed.size else 0
     w = ds.isel(window=window)
+    _refuse_empty(w, ("normalised_sf",), "sf-window")
     comps = [str(c) for c in w["component"].values] if component is None else [component]
     fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
     for c in comps:
@@ -260,6 +436,11 @@ def plot_sf_window(ds: xr.Dataset, *, window: int | None = None, component: str 
             ax.loglog(r, wc["normalised_sf_fit"].values, "-", color=line.get_color())
         if np.isfinite(float(wc["r_max"])):
             ax.axvline(float(wc["r_max"]), ls=":", color=line.get_color())
+    for axis, values in ((ax.xaxis, w["lag_distance"]), (ax.yaxis, w["normalised_sf"])):
+        v = np.asarray(values.values, dtype=float)
+        v = v[np.isfinite(v) & (v > 0)]
+        if v.size:
+            _log_ticks(axis, float(v.min()), float(v.max()))
     ax.set_xlabel("lag r (m)")
     ax.set_ylabel("normalised structure function D(r)/D(r$_S$)")
     t = np.datetime_as_string(w["time"].values, unit="m") if "time" in w else str(window)
@@ -270,14 +451,19 @@ def plot_sf_window(ds: xr.Dataset, *, window: int | None = None, component: str 
 
 
 def plot_montecarlo(ds: xr.Dataset):
-    """Relative RMS errors of epsilon, variance and integral scale against N, per height."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(1, 3, figsize=(12, 4.5), sharex=True, constrained_layout=True)
+    """Relative RMS errors of epsilon, variance and integral scale against N, per height.
+
+    Log-log axes: the errors fall as N^(-1/2) (a straight line), and the large errors
+    of N = 1 do not squash the rest of a panel.
+    """
     names = [
         ("epsilon_rel_error", "$\\sigma_\\varepsilon$"),
-        ("variance_rel_error", "$\\sigma_{\\sigma^2}$"),
-        ("integral_scale_rel_error", "$\\sigma_L$"),
+        ("variance_rel_error", "$\\sigma_{\\sigma_V^2}$"),
+        ("integral_scale_rel_error", "$\\sigma_{L_V}$"),
     ]
+    plt = _pyplot()
+    _refuse_empty(ds, tuple(n for n, _ in names), "montecarlo")
+    fig, axes = plt.subplots(1, 3, figsize=(12, 4.5), sharex=True, constrained_layout=True)
     cmap = plt.get_cmap(SEQUENTIAL_LOG)
     heights = ds["height"].values
     for ax, (name, label) in zip(axes, names, strict=True):
@@ -289,11 +475,24 @@ def plot_montecarlo(ds: xr.Dataset):
                 color=cmap(k / max(1, len(heights) - 1)),
                 label=f"{h:.0f} m",
             )
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        n = [int(k) for k in ds["n_scans"].values]
+        shown = [k for k in n if k <= 6 or k % 2 == 0 or k == n[-1]]  # 9, 10 would touch
+        ax.set_xticks(shown, [str(k) for k in shown])
+        ax.minorticks_off()
+        values = 100 * ds[name].values
+        finite = values[np.isfinite(values) & (values > 0)]
+        if finite.size:
+            _log_ticks(ax.yaxis, float(finite.min()), float(finite.max()))
         ax.set_xlabel("number of scans N")
         ax.set_ylabel(f"{label} (%)")
-        ax.grid(alpha=0.3)
+        ax.grid(alpha=0.3, which="both")
     axes[0].legend(title="height")
-    fig.suptitle("Monte-Carlo relative errors (Banakh et al. (1999))")
+    title = "Monte-Carlo relative errors (Banakh et al. (1999))"
+    if "realisations" in ds.attrs:
+        title += f", {ds.attrs['realisations']} realisations"
+    fig.suptitle(title)
     return fig
 
 

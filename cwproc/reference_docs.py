@@ -138,8 +138,8 @@ def _command_sections(cmd, path: str, ctx) -> list[str]:
         cmd._help_option = None
     lines = [f"## `{path}`", "", "```text", cmd.get_help(ctx).rstrip(), "```", ""]
     if isinstance(cmd, click.Group):
-        for name in sorted(cmd.commands):
-            sub = cmd.commands[name]
+        for name in cmd.list_commands(ctx):
+            sub = cmd.get_command(ctx, name)
             sub_ctx = click.Context(sub, info_name=name, parent=ctx)
             lines += _command_sections(sub, f"{path} {name}", sub_ctx)
     return lines

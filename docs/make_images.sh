@@ -11,7 +11,8 @@ cd "$(dirname "$0")/.."
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 
-cwproc retrieve sample_data/streamline -o "$work" -q
+# the README main job, so that the pictures show what its commands produce
+cwproc retrieve sample_data/ -c sample_data/site.toml -o "$work" -q
 wind="$work/streamline_999_20240601_wind.nc"
 turb="$work/streamline_999_20240601_turbulence.nc"
 

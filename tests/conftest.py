@@ -30,6 +30,33 @@ def reference_dir() -> Path:
     return REFERENCE
 
 
+#: fixtures that need the project's own files under ../shared (not shipped)
+SHARED_FIXTURES = {"real_data": REAL_DATA, "reference_dir": REFERENCE}
+
+
+def pytest_collection_modifyitems(config, items):
+    """Without ../shared (every user's case) its tests are deselected, not skipped one by
+    one: the readers are covered by the shipped samples (tests/sim/test_sample_data.py)."""
+    missing = {name for name, path in SHARED_FIXTURES.items() if not path.is_dir()}
+    if not missing:
+        return
+    keep, drop = [], []
+    for item in items:
+        (drop if missing & set(getattr(item, "fixturenames", ())) else keep).append(item)
+    if drop:
+        config.hook.pytest_deselected(items=drop)
+        items[:] = keep
+
+
+def pytest_report_header(config):
+    if not SHARED.is_dir():
+        return (
+            f"cwproc: {SHARED} is absent: tests of the project's real instrument files and "
+            "reference values are deselected (the shipped samples cover every reader)"
+        )
+    return None
+
+
 def _check(path: Path, test: str) -> dict:
     from compliance_checker.runner import CheckSuite, ComplianceChecker
 

@@ -166,3 +166,149 @@ def test_cli_plot_not_a_product(tmp_path):
     res = CliRunner().invoke(main, ["plot", str(junk), "-o", str(tmp_path / "j.png")])
     assert res.exit_code == 1
     assert "junk.nc" in res.output and "not a readable NetCDF product" in res.output
+
+
+# --- every kind on a one-time-step, a normal and an all-missing product ---------------
+
+
+def _one_step(ds: xr.Dataset) -> xr.Dataset:
+    for dim in ("time", "window", "n_scans"):
+        if dim in ds.dims:
+            return ds.isel({dim: [0]})
+    raise AssertionError("no step dimension")
+
+
+def _all_missing(ds: xr.Dataset) -> xr.Dataset:
+    out = ds.copy()
+    for name, da in ds.data_vars.items():
+        if np.issubdtype(da.dtype, np.floating):
+            out[name] = da.where(False)
+    return out
+
+
+def _data_pixels(fig) -> list[int]:
+    """Coloured (chromatic) pixels inside each data panel, legends and colour bars aside.
+
+    Axes, text and the grey background of gaps are achromatic; data are drawn in colour.
+    """
+    for ax in fig.axes:
+        if ax.get_legend() is not None:
+            ax.get_legend().remove()
+    fig.canvas.draw()
+    img = np.asarray(fig.canvas.buffer_rgba())[..., :3].astype(float) / 255.0
+    chroma = img.max(axis=-1) - img.min(axis=-1)
+    counts = []
+    height = img.shape[0]
+    for ax in fig.axes:
+        if hasattr(ax, "_colorbar"):
+            continue
+        bb = ax.get_window_extent()
+        rows = slice(int(height - bb.y1) + 2, int(height - bb.y0) - 2)
+        cols = slice(int(bb.x0) + 2, int(bb.x1) - 2)
+        counts.append(int((chroma[rows, cols] > 0.15).sum()))
+    return counts
+
+
+KIND_FACTORIES = [
+    ("wind", wind_product),
+    ("epsilon", turbulence_product),
+    ("structure", turbulence_product),
+    ("sf-types", sf_product),
+    ("sf-window", sf_product),
+    ("montecarlo", montecarlo_product),
+]
+
+
+@pytest.mark.parametrize(("kind", "factory"), KIND_FACTORIES)
+@pytest.mark.parametrize("variant", ["normal", "one-step", "all-missing"])
+def test_every_kind_draws_data_or_refuses(kind, factory, variant):
+    """A picture is either drawn with data in every panel or refused with a reason."""
+    import matplotlib.pyplot as plt
+
+    ds = {"normal": factory, "one-step": lambda: _one_step(factory()), "all-missing": None}[variant]
+    ds = _all_missing(factory()) if ds is None else ds()
+    plots.check_variables(ds, kind)
+    try:
+        fig = plots.KINDS[kind][0](ds)
+    except ProductError as exc:
+        assert variant == "all-missing", f"{kind} refused a {variant} product: {exc}"
+        assert "no finite value" in str(exc) or "no structure function" in str(exc)
+        return
+    try:
+        counts = _data_pixels(fig)
+    finally:
+        plt.close(fig)
+    if kind != "sf-types":  # sf_type is an integer: 'none' for every window is data
+        assert variant != "all-missing", f"{kind} drew an all-missing product"
+    assert counts and min(counts) > 40, f"{kind}/{variant}: data pixels per panel {counts}"
+
+
+def test_epsilon_ratio_hidden_where_method1_is_empty():
+    ds = turbulence_product()
+    ds["epsilon_method1"] = ds["epsilon"] * ds["epsilon_ratio"]
+    ds["epsilon_method1"][:, :3] = np.nan  # flag 4: mu beyond method 1
+    shown = plots._ratio_shown(ds)
+    assert np.isnan(shown.values[:, :3]).all()
+    assert np.isfinite(shown.values[:, 3:]).all()
+
+
+def test_log_colour_bar_has_enough_ticks():
+    assert plots._log_tick_values(4.1e-3, 1.13e-2).size >= 4
+    assert list(plots._log_tick_values(1e-4, 1e-2)) == pytest.approx(
+        [1e-4, 2e-4, 5e-4, 1e-3, 2e-3, 5e-3, 1e-2]
+    )
+    assert plots._sci_label(6e-3) == "$6\\times10^{-3}$"
+    assert plots._sci_label(1e-2) == "$10^{-2}$"
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--kind", "structure", "--time-index", "99"], "time indices of"),
+        (["--time-index", "1"], "--time-index is used by --kind structure"),
+        (["--kind", "structure", "--height", "5000"], "--height 5000 is out of range"),
+    ],
+)
+def test_cli_plot_arguments_checked(tmp_path, args, message):
+    turb = write_product(turbulence_product(), tmp_path / "t.nc", title="t", summary="s")
+    res = CliRunner().invoke(main, ["plot", str(turb), "-o", str(tmp_path / "t.png"), *args])
+    assert res.exit_code == 2, res.output
+    assert message in res.output and len(res.output.strip().splitlines()) == 1
+    assert not (tmp_path / "t.png").exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--kind", "sf-window", "--window", "99"], "--window 99 is out of range"),
+        (["--kind", "sf-window", "--component", "lateral"], "longitudinal, transverse"),
+    ],
+)
+def test_cli_plot_sonic_arguments_checked(tmp_path, args, message):
+    sf = write_product(sf_product(), tmp_path / "s.nc", title="t", summary="s")
+    res = CliRunner().invoke(main, ["plot", str(sf), "-o", str(tmp_path / "s.png"), *args])
+    assert res.exit_code == 2, res.output
+    assert message in res.output and len(res.output.strip().splitlines()) == 1
+
+
+def test_cli_plot_vad_scan_out_of_range(tmp_path):
+    from pathlib import Path
+
+    hpl = Path(__file__).parents[1] / "sample_data/streamline/VAD_999_20240601_120000.hpl"
+    res = CliRunner().invoke(
+        main, ["plot", str(hpl), "--kind", "vad", "--scan", "99", "-o", str(tmp_path / "v.png")]
+    )
+    assert res.exit_code == 2, res.output
+    assert "--scan 99 is out of range" in res.output and "0 .. 5" in res.output
+
+
+def test_png_gets_the_umask_mode(tmp_path):
+    import os
+
+    old = os.umask(0o022)
+    try:
+        out = plots.render(wind_product(), "wind", tmp_path / "w.png")
+    finally:
+        os.umask(old)
+    assert out.stat().st_mode & 0o777 == 0o644
+    assert not list(tmp_path.glob(".*tmp*"))

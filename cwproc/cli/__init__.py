@@ -1,20 +1,51 @@
-"""The ``cwproc`` command line: one module per command, thin (parse, call, report)."""
+"""The ``cwproc`` command line: one module per command, thin (parse, call, report).
+
+Commands are imported when they run (:mod:`cwproc.cli._group`), so that ``--version``
+and ``--help`` start fast.
+"""
 
 from __future__ import annotations
 
 import click
 
 from cwproc import __version__
-from cwproc.cli.batch import batch
-from cwproc.cli.info import info
-from cwproc.cli.plot import plot
-from cwproc.cli.retrieve import retrieve
-from cwproc.cli.sf_type import sf_type
-from cwproc.cli.simulate import simulate
-from cwproc.cli.theory import theory
+from cwproc.cli._group import CwprocGroup
+
+#: command -> (module:attribute, one-line help = first line of its docstring)
+COMMANDS = {
+    "batch": (
+        "cwproc.cli.batch:batch",
+        "Process every new or changed input under INPUT_DIR into OUTPUT_DIR.",
+    ),
+    "info": (
+        "cwproc.cli.info:info",
+        "What each of FILES is: format, instrument, rays, gates, time span, scans.",
+    ),
+    "plot": ("cwproc.cli.plot:plot", "Draw a quicklook of SOURCE into a PNG."),
+    "retrieve": (
+        "cwproc.cli.retrieve:retrieve",
+        "Wind profile and turbulence products from lidar or sonic FILES (or directories).",
+    ),
+    "sf-type": (
+        "cwproc.cli.sf_type:sf_type",
+        "Structure-function types of sonic FILES (TOA5, TOB1, GHG, Gill, Meteo-2).",
+    ),
+    "simulate": (
+        "cwproc.cli.simulate:simulate",
+        "Virtual lidars and sonics: files in the real formats plus the truth, and error studies.",
+    ),
+    "theory": (
+        "cwproc.cli.theory:theory",
+        "Theory tables for planning and checking: epsilon bias, VAD errors, cw averaging.",
+    ),
+}
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.group(
+    cls=CwprocGroup,
+    lazy=COMMANDS,
+    context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
+)
 @click.version_option(__version__, "-V", "--version", prog_name="cwproc")
 def main() -> None:
     """cwproc: wind and turbulence products from Doppler lidars and sonic anemometers.
@@ -29,12 +60,3 @@ def main() -> None:
       cwproc batch archive/ products/        incremental, locked runs (cron)
       cwproc plot out/x_wind.nc -o wind.png  quicklooks
     """
-
-
-main.add_command(retrieve)
-main.add_command(info)
-main.add_command(sf_type)
-main.add_command(theory)
-main.add_command(simulate)
-main.add_command(batch)
-main.add_command(plot)

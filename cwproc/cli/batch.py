@@ -17,6 +17,7 @@ import click
 
 from cwproc.batch import (
     EXIT_LOCKED,
+    PRODUCT_FORMAT,
     BatchReport,
     DaskNotInstalledError,
     LockBusyError,
@@ -104,8 +105,10 @@ def summary_lines(report: BatchReport, verbose: bool) -> list[str]:
     lines = []
     if verbose:
         lines += [f"unrecognised: {info.error or info.path}" for info in report.unrecognised]
+    products = sum(info.format == PRODUCT_FORMAT for info in report.unrecognised)
+    skipped = f" ({products} cwproc product(s), skipped)" if products else ""
     lines.append(
-        f"{report.discovered} file(s): {len(report.unrecognised)} unrecognised, "
+        f"{report.discovered} file(s): {len(report.unrecognised)} unrecognised{skipped}, "
         f"{len(report.file_failures)} unreadable; {report.units_total} unit(s): "
         f"{len(report.succeeded)} processed, {report.units_up_to_date} up to date, "
         f"{len(report.failed)} failed"

@@ -6,7 +6,14 @@ import sys
 
 import click
 
-from cwproc.cli._common import config_option, load_config_or_fail, report_failure
+from cwproc.cli._common import (
+    check_index,
+    config_option,
+    load_config_or_fail,
+    report_failure,
+    require_extra,
+    usage_error,
+)
 from cwproc.errors import CwprocError
 
 KIND_CHOICES = ["wind", "epsilon", "structure", "vad", "sf-types", "sf-window", "montecarlo"]
@@ -32,9 +39,8 @@ KIND_CHOICES = ["wind", "epsilon", "structure", "vad", "sf-types", "sf-window", 
 @click.option(
     "--time-index",
     type=int,
-    default=0,
-    show_default=True,
-    help="structure: which block (time index) to draw.",
+    default=None,
+    help="structure: which block (time index) to draw [default: 0].",
 )
 @click.option(
     "--height",
@@ -55,40 +61,26 @@ def plot(source, out, kind, time_index, height, scan, window, component, config)
     \b
     kinds:
       wind        time-height of wind speed with direction barbs, and of w
+                  (profiles for a product of one time step)
       epsilon     time-height of epsilon (method 2) and of eps1/eps2
+                  (profiles for a product of one block)
       structure   D_L against lag with the fitted model and the noise floor
       vad         one scan: radial velocity against azimuth, fit and residuals
       sf-types    sonic: occurrence of each structure-function type per component
       sf-window   sonic: one window's normalised structure function with fit and r_max
       montecarlo  simulate montecarlo: relative errors against N per height
+
+    Options are checked against SOURCE before drawing: an index out of range or an
+    option the kind does not use stops with one line (exit 2); a product with nothing
+    to draw (every value missing) is refused with the reason (exit 1).
     """
-    try:
-        import matplotlib  # noqa: F401
-    except ImportError:
-        report_failure(
-            'cwproc plot needs matplotlib: install the plot extra, pip install "cwproc[plot]"'
-        )
-        sys.exit(2)
+    require_extra("matplotlib", "plot", "cwproc plot")
+    _check_applicable(kind, time_index=time_index, scan=scan, window=window, component=component)
     from cwproc import plots
 
     try:
         if kind == "vad":
-            from cwproc.pipeline import read_input
-            from cwproc.stages import qc, vad
-
-            cfg = load_config_or_fail(config)
-            scans = read_input(source, cfg).dataset
-            screened = qc.screen_radial_velocity(
-                scans, snr_min=cfg.qc.snr_min, outlier_threshold=cfg.qc.outlier_threshold
-            )
-            wind = vad.fit_vad(
-                screened,
-                min_rays=cfg.vad.min_rays,
-                max_gap_deg=cfg.vad.max_gap_deg,
-                reference_direction_deg=cfg.vad.reference_direction_deg,
-                max_residual_std=cfg.vad.max_residual_std,
-            )
-            fig = plots.plot_vad_fit(screened, wind, scan=scan, height=height)
+            fig = _vad_figure(source, config, scan, height)
             path = plots.save_png(fig, out)
         else:
             from cwproc.io.netcdf import read_product
@@ -98,13 +90,100 @@ def plot(source, out, kind, time_index, height, scan, window, component, config)
             except (OSError, ValueError) as exc:
                 raise CwprocError(f"{source}: not a readable NetCDF product ({exc})") from None
             kind = kind or plots.default_kind(ds)
-            options = {}
+            _check_applicable(
+                kind, time_index=time_index, scan=scan, window=window, component=component
+            )
+            plots.check_variables(ds, kind, str(source))
+            options: dict[str, object] = {}
             if kind == "structure":
-                options = {"time_index": time_index, "height": height}
+                check_index(
+                    time_index, ds.sizes.get("time", 0), "--time-index", f"time indices of {source}"
+                )
+                _check_height(height, ds["height"].values)
+                options = {"time_index": time_index or 0, "height": height}
             elif kind == "sf-window":
+                check_index(window, ds.sizes.get("window", 0), "--window", f"windows of {source}")
+                if component is not None:
+                    names = [str(c) for c in ds["component"].values]
+                    if component not in names:
+                        usage_error(f"--component {component!r}: {source} has {', '.join(names)}")
                 options = {"window": window, "component": component}
+            elif height is not None:
+                usage_error(f"--height is used by --kind structure and vad, not {kind}")
             path = plots.render(ds, kind, out, source=str(source), **options)
     except CwprocError as exc:
         report_failure(str(exc))
         sys.exit(1)
     click.echo(f"wrote {path}")
+
+
+#: option -> kinds that use it
+_OPTION_KINDS = {
+    "--time-index": ("structure",),
+    "--scan": ("vad",),
+    "--window": ("sf-window",),
+    "--component": ("sf-window",),
+}
+
+
+def _check_applicable(kind: str | None, **values: object) -> None:
+    """Exit 2 when an option is given that ``kind`` does not use (it would be ignored)."""
+    if kind is None:
+        return
+    for name, value in values.items():
+        option = "--" + name.replace("_", "-")
+        if value is not None and kind not in _OPTION_KINDS[option]:
+            usage_error(
+                f"{option} is used by --kind {' and '.join(_OPTION_KINDS[option])}, not {kind}"
+            )
+
+
+def _check_height(height: float | None, heights) -> None:
+    """Exit 2 when ``height`` lies beyond ``heights`` (m) by more than one gate."""
+    if height is None:
+        return
+    import numpy as np
+
+    h = np.asarray(heights, dtype=float)
+    step = float(np.median(np.diff(h))) if h.size > 1 else 0.0
+    if not h.min() - step <= height <= h.max() + step:
+        usage_error(
+            f"--height {height:g} is out of range: heights are {h.min():.0f} .. {h.max():.0f} m"
+        )
+
+
+def _vad_figure(source: str, config: str | None, scan: int | None, height: float | None):
+    """Read one scan file, check --scan/--height against it, fit the VAD and draw it."""
+    import numpy as np
+
+    from cwproc import plots
+    from cwproc.pipeline import read_input
+    from cwproc.stages import qc, vad
+
+    cfg = load_config_or_fail(config)
+    scans = read_input(source, cfg).dataset
+    if "scan" not in scans.coords and "scan" not in scans:
+        raise CwprocError(f"{source}: --kind vad needs a file of conical scans (no scan index)")
+    present = np.unique(scans["scan"].values)
+    present = present[present >= 0]
+    if scan is not None and scan not in present:
+        if present.size:
+            usage_error(
+                f"--scan {scan} is out of range: {source} has scans "
+                f"{int(present.min())} .. {int(present.max())}"
+            )
+        usage_error(f"--scan {scan}: {source} holds no complete scan")
+    if height is not None:
+        el = np.radians(float(np.nanmedian(scans["elevation"].values)))
+        _check_height(height, scans["range"].values * np.sin(el))
+    screened = qc.screen_radial_velocity(
+        scans, snr_min=cfg.qc.snr_min, outlier_threshold=cfg.qc.outlier_threshold
+    )
+    wind = vad.fit_vad(
+        screened,
+        min_rays=cfg.vad.min_rays,
+        max_gap_deg=cfg.vad.max_gap_deg,
+        reference_direction_deg=cfg.vad.reference_direction_deg,
+        max_residual_std=cfg.vad.max_residual_std,
+    )
+    return plots.plot_vad_fit(screened, wind, scan=scan, height=height)

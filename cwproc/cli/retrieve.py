@@ -12,7 +12,6 @@ from cwproc.cli._common import (
     load_config_or_fail,
     report_failure,
 )
-from cwproc.pipeline import retrieve_files
 
 
 @click.command("retrieve")
@@ -37,12 +36,17 @@ def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bo
     sonic logs give <name>_sf.nc. Exit status 0 when every input was processed, 1
     otherwise, with one line per failed input naming the file, the line and the problem.
     """
+    from cwproc.pipeline import retrieve_files
+
     cfg = load_config_or_fail(config)
-    files, skipped = expand_inputs(inputs)
+    found = expand_inputs(inputs, cfg.instrument.format)
+    files = found.files
+    for line in found.mismatched:
+        report_failure(line)
     if not files:
-        raise click.UsageError(
-            f"no input files found ({len(skipped)} file(s) of no format cwproc reads)"
-        )
+        if found.mismatched:
+            sys.exit(1)
+        raise click.UsageError(f"no input files found{found.skipped_text()}")
     report = retrieve_files(files, outdir, cfg)
     for line in report.failures:
         report_failure(line)
@@ -51,9 +55,8 @@ def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bo
             click.echo(f"note: {line}", err=True)
         for path in report.written:
             click.echo(f"wrote {path}")
-        extra = f", {len(skipped)} file(s) of no known format skipped" if skipped else ""
         click.echo(
             f"{len(files)} input(s), {len(report.written)} product(s) written, "
-            f"{len(report.failures)} failure(s){extra}"
+            f"{len(report.failures)} failure(s){found.skipped_text()}"
         )
-    sys.exit(0 if report.ok else 1)
+    sys.exit(0 if report.ok and not found.mismatched else 1)

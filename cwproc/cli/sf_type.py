@@ -62,11 +62,14 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
     line per failed input naming the file, the line and the problem.
     """
     cfg = load_config_or_fail(config)
-    files, skipped = expand_inputs(inputs)
+    found = expand_inputs(inputs, cfg.instrument.format)
+    files = found.files
+    for line in found.mismatched:
+        report_failure(line)
     if not files:
-        raise click.UsageError(
-            f"no input files found ({len(skipped)} file(s) of no format cwproc reads)"
-        )
+        if found.mismatched:
+            sys.exit(1)
+        raise click.UsageError(f"no input files found{found.skipped_text()}")
     report = retrieve_files(files, outdir, cfg, kinds={"sonic"}, keep_products=True)
     written, failures = report.written, report.failures
     products = [ds for _, name, ds in report.products if name == "sf"]
@@ -89,6 +92,7 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
         for path in written:
             click.echo(f"wrote {path}")
         click.echo(
-            f"{len(files)} input(s), {len(written)} product(s) written, {len(failures)} failure(s)"
+            f"{len(files)} input(s), {len(written)} product(s) written, "
+            f"{len(failures)} failure(s){found.skipped_text()}"
         )
-    sys.exit(0 if not failures else 1)
+    sys.exit(0 if not failures and not found.mismatched else 1)

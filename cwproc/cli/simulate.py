@@ -4,16 +4,24 @@ from __future__ import annotations
 
 import click
 
-from cwproc.cli.simulate_lidar import simulate_lidar
-from cwproc.cli.simulate_montecarlo import simulate_montecarlo
-from cwproc.cli.simulate_sonic import simulate_sonic
+from cwproc.cli._group import LazyGroup
+
+COMMANDS = {
+    "lidar": (
+        "cwproc.cli.simulate_lidar:simulate_lidar",
+        "Files in the real formats from a virtual lidar, plus the truth that made them.",
+    ),
+    "montecarlo": (
+        "cwproc.cli.simulate_montecarlo:simulate_montecarlo",
+        "Relative RMS errors of epsilon, sigma_V^2 and L_V versus the number of scans.",
+    ),
+    "sonic": (
+        "cwproc.cli.simulate_sonic:simulate_sonic",
+        "Synthetic Meteo-2 files (10.7 Hz, one per UTC day) with a prescribed SF type + truth.",
+    ),
+}
 
 
-@click.group()
+@click.group(cls=LazyGroup, lazy=COMMANDS)
 def simulate() -> None:
     """Virtual lidars and sonics: files in the real formats plus the truth, and error studies."""
-
-
-simulate.add_command(simulate_lidar, "lidar")
-simulate.add_command(simulate_sonic, "sonic")
-simulate.add_command(simulate_montecarlo, "montecarlo")

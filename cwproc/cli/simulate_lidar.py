@@ -149,7 +149,7 @@ def _cw(
     from cwproc.sim.montecarlo import lidar_from_config
     from cwproc.sim.turbulence import epsilon_from_variance, variance_from_epsilon
 
-    sim = load_config("seed000").simulation
+    sim = load_config("banakh1999").simulation
     if instrument == "cw":
         lidar = lidar_from_config(sim, 10.6e-6, 0.075)
         heights = np.asarray(sim.heights_m)

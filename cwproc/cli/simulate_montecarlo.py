@@ -1,4 +1,4 @@
-"""``cwproc simulate montecarlo``: the error study of seed 000 (Banakh et al. (1999), Figs. 5-7)."""
+"""``cwproc simulate montecarlo``: the error study of Banakh et al. (1999), Figs. 5-7."""
 
 from __future__ import annotations
 
@@ -7,8 +7,10 @@ from pathlib import Path
 
 import click
 
-from cwproc.cli._common import config_option, fail, load_config_or_fail
-from cwproc.errors import CwprocError
+from cwproc.cli._common import config_option, fail, load_config_or_fail, require_extra
+
+#: stem of the files written (the study's paper)
+STEM = "montecarlo_banakh1999"
 
 
 @click.command("montecarlo")
@@ -18,7 +20,7 @@ from cwproc.errors import CwprocError
     "outdir",
     required=True,
     type=click.Path(file_okay=False),
-    help="Directory for montecarlo_seed000.nc and .png (created if missing).",
+    help=f"Directory for {STEM}.nc and .png (created if missing).",
 )
 @click.option(
     "--realisations",
@@ -27,22 +29,31 @@ from cwproc.errors import CwprocError
     help="Independent realisations (default: the config's, 1000 as in the paper).",
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
-@config_option("seed000")
+@click.option(
+    "--png/--no-png",
+    default=True,
+    show_default=True,
+    help="Also draw the errors (needs the plot extra, checked before the study runs).",
+)
+@config_option("banakh1999")
 def simulate_montecarlo(
-    outdir: str, realisations: int | None, seed: int, config: str | None
+    outdir: str, realisations: int | None, seed: int, png: bool, config: str | None
 ) -> None:
     """Relative RMS errors of epsilon, sigma_V^2 and L_V versus the number of scans.
 
     \b
     The virtual cw lidar of Banakh et al. (1999) (10.6 um, a0 = 7.5 cm, 30 deg, 7 s
     per scan, 140 spectra) at the six heights of the paper's table; N = 1..10 scans,
-    1000 realisations. Prints the table and writes montecarlo_seed000.nc
+    1000 realisations. Prints the table and writes montecarlo_banakh1999.nc
     (epsilon_rel_error, variance_rel_error, integral_scale_rel_error,
-    epsilon_mean_ratio over (n_scans, height)) and montecarlo_seed000.png.
+    epsilon_mean_ratio over (n_scans, height)) and montecarlo_banakh1999.png.
     """
+    if png:
+        require_extra("matplotlib", "plot", f"the picture {STEM}.png (or pass --no-png)")
+    from cwproc.errors import CwprocError
     from cwproc.io.netcdf import write_product
     from cwproc.metadata import BANAKH_1999
-    from cwproc.sim.montecarlo import format_table, plot_study, run_study
+    from cwproc.sim.montecarlo import format_table, run_study
 
     cfg = load_config_or_fail(config)
     beam_radius = cfg.instrument.beam_radius_m
@@ -51,6 +62,7 @@ def simulate_montecarlo(
         beam_radius = math.sqrt(
             cfg.instrument.wavelength_m / (2.0 * math.pi * cfg.instrument.z_r_coefficient)
         )
+    written: list[Path] = []
     try:
         study = run_study(
             cfg.simulation,
@@ -62,8 +74,8 @@ def simulate_montecarlo(
         out = Path(outdir)
         nc = write_product(
             study,
-            out / "montecarlo_seed000.nc",
-            title="cwproc Monte-Carlo error study of seed 000",
+            out / f"{STEM}.nc",
+            title="cwproc Monte-Carlo error study of Banakh et al. (1999)",
             summary=(
                 "Relative RMS errors of the dissipation rate, velocity variance and integral "
                 "scale estimated from N = 1..10 scans of a simulated cw Doppler lidar"
@@ -73,11 +85,14 @@ def simulate_montecarlo(
             keywords="Doppler lidar, Monte Carlo, dissipation rate, error",
             compression_level=cfg.output.compression_level,
         )
-        png = out / "montecarlo_seed000.png"
-        plot_study(study, str(png))
+        written.append(nc)
+        if png:
+            from cwproc import plots
+
+            written.append(plots.save_png(plots.plot_montecarlo(study), out / f"{STEM}.png"))
     except (CwprocError, OSError) as exc:
         fail(str(exc))
         return
     click.echo(format_table(study))
-    click.echo(f"wrote {nc}")
-    click.echo(f"wrote {png}")
+    for path in written:
+        click.echo(f"wrote {path}")

@@ -4,16 +4,24 @@ from __future__ import annotations
 
 import click
 
-from cwproc.cli.theory_eps import eps_ratio
-from cwproc.cli.theory_vad import vad_errors
-from cwproc.cli.theory_zephir import zephir_ratio
+from cwproc.cli._group import LazyGroup
+
+COMMANDS = {
+    "eps-ratio": (
+        "cwproc.cli.theory_eps:eps_ratio",
+        "Ratio eps1/eps2 of the dissipation rates of method 1 (no wind transport) and method 2.",
+    ),
+    "vad-errors": (
+        "cwproc.cli.theory_vad:vad_errors",
+        "Predicted errors of the least-squares VAD wind fit (VAD accuracy paper).",
+    ),
+    "zephir-ratio": (
+        "cwproc.cli.theory_zephir:zephir_ratio",
+        "Predicted lidar/cup standard-deviation ratio and TP variance share of a ZephIR.",
+    ),
+}
 
 
-@click.group()
+@click.group(cls=LazyGroup, lazy=COMMANDS)
 def theory() -> None:
     """Theory tables for planning and checking: epsilon bias, VAD errors, cw averaging."""
-
-
-theory.add_command(eps_ratio)
-theory.add_command(vad_errors)
-theory.add_command(zephir_ratio)

@@ -7,6 +7,7 @@ import math
 import click
 import numpy as np
 
+from cwproc.cli._common import require_extra
 from cwproc.physics.afunctions import eps_ratio as eps_ratio_values
 from cwproc.physics.afunctions import q1, q2
 from cwproc.physics.transfer import PulsedProbe
@@ -136,6 +137,8 @@ def eps_ratio(
     default lag of the retrieval ([turbulence] lag_number), and l dtheta stays within
     9 deg for dtheta <= 3 deg. l = 4 fits about as well (0.56, 1.10, 3.89).
     """
+    if png:
+        require_extra("matplotlib", "plot", "--png")
     probe = PulsedProbe(delta_p, delta_r, transfer)  # type: ignore[arg-type]
     n = round(mu_max / mu_step)
     mu = np.round(np.arange(n + 1) * mu_step, 10)

@@ -1,4 +1,4 @@
-"""``cwproc theory vad-errors``: predicted errors of the VAD wind fit (seed 002).
+"""``cwproc theory vad-errors``: predicted errors of the VAD wind fit (VAD accuracy paper).
 
 Prints tables of the maximum errors (radial error bound Delta) and RMS errors (radial
 error standard deviation sigma) of the three wind components for N uniformly spaced
@@ -46,7 +46,7 @@ def _error_tables(phi: float, n: int, sector: float, bound: float | None, sigma:
         out.append(
             _table(
                 f"maximum errors (m s-1) for |radial error| <= {bound:g} m s-1 "
-                "(seed 002, eqs. 6, 12, 13, 15, 16)",
+                "(VAD accuracy paper, eqs. 6, 12, 13, 15, 16)",
                 list(rows),
                 rows,
             )
@@ -58,7 +58,8 @@ def _error_tables(phi: float, n: int, sector: float, bound: float | None, sigma:
         }
         out.append(
             _table(
-                f"RMS errors (m s-1) for radial error std {sigma:g} m s-1 (seed 002, section 4)",
+                f"RMS errors (m s-1) for radial error std {sigma:g} m s-1 "
+                "(VAD accuracy paper, section 4)",
                 list(rows),
                 rows,
             )
@@ -136,7 +137,7 @@ def vad_errors(
     wind_z: float,
     dvx_dz: float,
 ) -> None:
-    """Predicted errors of the least-squares VAD wind fit (seed 002).
+    """Predicted errors of the least-squares VAD wind fit (VAD accuracy paper).
 
     Without --sigma and --bound, both tables are printed per 1 m s-1 of radial error.
     x is the bisector of the missing sector and the direction of the gradient and tilt.
@@ -161,7 +162,7 @@ def vad_errors(
         sigma, bound = 1.0, 1.0
     radius = float(scan_circle_radius(range_m * np.sin(np.deg2rad(phi)), phi))
     click.echo(
-        f"VAD error theory (seed 002): phi = {phi:g} deg, N = {n_azimuths} azimuths, "
+        f"VAD error theory (VAD accuracy paper): phi = {phi:g} deg, N = {n_azimuths} azimuths, "
         f"missing sector {sector:g} deg ({az.size} azimuths kept)"
     )
     click.echo("x = bisector of the missing sector / gradient / tilt direction; z = vertical")
@@ -179,7 +180,7 @@ def vad_errors(
         click.echo(
             _table(
                 f"linear horizontal gradient dVx/dx = {dvx_dx:g}, dVy/dx = {dvy_dx:g} s-1, "
-                f"R' = {radius:.1f} m (m s-1; seed 002, eqs. 19-23)",
+                f"R' = {radius:.1f} m (m s-1; VAD accuracy paper, eqs. 19-23)",
                 list(rows),
                 rows,
             )
@@ -195,7 +196,7 @@ def vad_errors(
         click.echo(
             _table(
                 f"cone axis tilted {tilt:g} deg towards x, V = ({wind_x:g}, 0, {wind_z:g}) "
-                f"m s-1, dVx/dz = {dvx_dz:g} s-1 (m s-1; seed 002, eq. 24; full circle)",
+                f"m s-1, dVx/dz = {dvx_dz:g} s-1 (m s-1; VAD accuracy paper, eq. 24; full circle)",
                 list(rows),
                 rows,
             )

@@ -113,6 +113,29 @@ def detect_format(path: str | os.PathLike) -> Format:
     return fmt
 
 
+def is_cwproc_product(path: str | os.PathLike) -> bool:
+    """True when ``path`` is a product cwproc wrote (not an instrument file).
+
+    A product is a NetCDF file with the global attribute ``cwproc_version`` and no
+    ``ray`` dimension (cwproc's scan NetCDF files, which are inputs, have one). Products
+    found among the inputs are skipped by ``retrieve``, ``sf-type`` and ``batch``.
+    """
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(8)
+    except OSError:
+        return False
+    if sniff_format(head) is not Format.SCAN_NETCDF:
+        return False
+    import netCDF4
+
+    try:
+        with netCDF4.Dataset(path) as nc:
+            return "cwproc_version" in nc.ncattrs() and "ray" not in nc.dimensions
+    except OSError:
+        return False
+
+
 def get_reader(fmt: Format | str):
     """The reader function of a format."""
     module_name, func = READERS[Format(fmt)].split(":")

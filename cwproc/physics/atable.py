@@ -19,7 +19,11 @@ Cache. Files ``atable-<sha256>.npz`` in ``platformdirs.user_cache_dir("cwproc")`
 ``cache_dir``), keyed by a hash of every parameter and of :data:`TABLE_VERSION`; written
 atomically (temporary file, then rename). A cache file that cannot be read, has the wrong
 key or shapes, or holds non-finite values is rebuilt, never trusted. An unwritable cache
-directory only costs the rebuild next time.
+directory only costs the rebuild next time. With the default cache, a table missing
+there is looked up next among the prebuilt tables shipped in the package
+(``cwproc/atables/``, made at release by ``tools/build_atables.py`` for the shipped
+presets and samples), so that a new user never waits; a table that must be built
+announces itself on stderr when that is a terminal.
 """
 
 from __future__ import annotations
@@ -28,7 +32,9 @@ import hashlib
 import json
 import math
 import os
+import sys
 import tempfile
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -767,6 +773,34 @@ def get_a_table(
     table = _load(path, key, params)
     if table is not None:
         return table
+    if cache_dir is None:
+        table = _load(shipped_path(key), key, params)
+        if table is not None:
+            return table
+    started = time.monotonic()
+    _progress(
+        f"cwproc: building the A-function table of this configuration ({model}), once; "
+        f"cached in {path.parent} ..."
+    )
     table = build_a_table(probe, params)
+    _progress(f" done in {time.monotonic() - started:.0f} s\n")
     _save(table, path, key)
     return table
+
+
+#: package folder of the prebuilt tables shipped in the wheel (``tools/build_atables.py``)
+SHIPPED_PACKAGE = "cwproc.atables"
+
+
+def shipped_path(key: str) -> Path:
+    """Where a prebuilt table of ``key`` ships inside the package (it may not exist)."""
+    from importlib import resources
+
+    return Path(str(resources.files(SHIPPED_PACKAGE).joinpath(f"atable-{key}.npz")))
+
+
+def _progress(text: str) -> None:
+    """A note on stderr when it is a terminal (a table build takes tens of seconds)."""
+    if sys.stderr is not None and sys.stderr.isatty():
+        sys.stderr.write(text)
+        sys.stderr.flush()

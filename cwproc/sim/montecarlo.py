@@ -1,4 +1,4 @@
-"""Monte-Carlo error study of seed 000: relative errors of epsilon, sigma_V^2, L_V vs N.
+"""Monte-Carlo error study of Banakh et al. (1999): relative errors of epsilon, sigma_V^2, L_V vs N.
 
 Banakh et al. (1999), section 3, Figs. 5-7: for each height of the paper's table the
 virtual cw lidar (T = 7 s, 140 spectra per scan, phi = 30 deg, lambda = 10.6 um,
@@ -406,7 +406,8 @@ def relative_rms_error(estimate: np.ndarray, truth: float) -> np.ndarray:
 
 def format_table(study: xr.Dataset) -> str:
     """The study as a plain-text table (percent), one block per quantity."""
-    lines = [f"Monte-Carlo error study of seed 000 ({study.attrs['realisations']} realisations)"]
+    n = study.attrs["realisations"]
+    lines = [f"Monte-Carlo error study of Banakh et al. (1999) ({n} realisations)"]
     blocks = [
         ("epsilon_rel_error", "relative RMS error of epsilon (%)"),
         ("variance_rel_error", "relative RMS error of sigma_V^2 (%)"),

@@ -239,12 +239,439 @@ def noise_from_snr(snr: float) -> float:
 SAMPLE_SPEC = StreamLineSpec()
 
 
+# --------------------------------------------------------------------------------------
+# wind records (ZephIR 300, WindCube v1): 10-min statistics of a known profile
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class WindRecordSpec:
+    """A day of 10-min wind statistics of a known profile, for the wind-record samples.
+
+    The mean wind follows a power law ``U(z) = U_ref (z / z_ref)^alpha`` and turns with
+    height by ``veer_deg_per_100m``; each 10-min mean carries a random error of
+    ``sigma / sqrt(n_samples)`` about it. Values are written with the files' decimals.
+    """
+
+    start: str = "2024-06-01T00:00:00"
+    n_records: int = 36
+    heights_m: tuple[float, ...] = (40.0, 60.0, 80.0, 100.0, 120.0, 150.0, 200.0)
+    wind_speed_ref: float = 7.0
+    height_ref_m: float = 100.0
+    shear_exponent: float = 0.2
+    direction_deg: float = 240.0
+    veer_deg_per_100m: float = 5.0
+    turbulence_intensity: float = 0.10
+    n_samples: int = 600
+    seed: int = 21
+
+    def profile(self) -> tuple[np.ndarray, np.ndarray]:
+        """Mean speed (m s-1) and direction (deg, from) at ``heights_m``."""
+        z = np.asarray(self.heights_m)
+        speed = self.wind_speed_ref * (z / self.height_ref_m) ** self.shear_exponent
+        direction = self.direction_deg + self.veer_deg_per_100m * (z - z[0]) / 100.0
+        return speed, direction % 360.0
+
+
+def _wind_records(spec: WindRecordSpec) -> dict[str, np.ndarray]:
+    """Per record and height: speed, its std, min, max, direction, w, packets."""
+    rng = np.random.default_rng(spec.seed)
+    speed, direction = spec.profile()
+    shape = (spec.n_records, speed.size)
+    sigma = spec.turbulence_intensity * speed
+    mean = speed + rng.normal(0.0, 1.0, shape) * sigma / np.sqrt(spec.n_samples) * 4.0
+    std = sigma * (1.0 + 0.1 * rng.normal(0.0, 1.0, shape))
+    return {
+        "speed": mean,
+        "std": np.abs(std),
+        "min": mean - 2.5 * np.abs(std),
+        "max": mean + 2.5 * np.abs(std),
+        "direction": (direction + rng.normal(0.0, 3.0, shape)) % 360.0,
+        "w": rng.normal(0.0, 0.05, shape),
+        "packets": rng.integers(34, 38, shape),
+    }
+
+
+def _decimal_comma(value: float, decimals: int) -> str:
+    return f"{value:.{decimals}f}".replace(".", ",")
+
+
+def write_zephir_csv(spec: WindRecordSpec, path: str | os.PathLike) -> Path:
+    """A ZephIR 300 Waltz "CSV Converter" 10-min export (Wind10_*.ZPH.csv layout).
+
+    Semicolon-separated, decimal commas, CRLF; the header items, the column names and
+    the trailing ``Checksum`` field of the real exports (FORMATS.md section 2), with
+    heights from the top down as the instrument writes them.
+    """
+    rec = _wind_records(spec)
+    order = np.argsort(spec.heights_m)[::-1]
+    heights = [round(spec.heights_m[k]) for k in order]
+    header = (
+        "CSV Converter: v1,114;Filter: v1,026;Averager: v1,009;File system version: v4;"
+        "Unit: 999;Time sync: UTC +0,0 hrs;Time stamps indicate the beginning of the "
+        "averaging period;The GPS field contains latitude and longitude coordinates in "
+        "decimal degrees (positive sign indicates North or East);ZephIR window height "
+        "above ground: 1,0m;Measurement heights: " + " ".join(f"{h}m" for h in heights)
+    )
+    names = [
+        "Reference",
+        "Time and Date",
+        "Timestamp (s)",
+        "Info. Flags",
+        "Status Flags",
+        "Battery (V)",
+        "Air Temp. (C)",
+        "Pressure (mbar)",
+        "Humidity (%)",
+        "Proportion Of Packets With Rain (%)",
+    ]
+    per_height = [
+        "Packets in Average",
+        "Wind Direction (deg)",
+        "Horizontal Wind Speed (m/s)",
+        "Horizontal Wind Speed Min (m/s)",
+        "Horizontal Wind Speed Max (m/s)",
+        "Horizontal Wind Speed Std. Dev. (m/s)",
+        "Vertical Wind Speed (m/s)",
+        "TI",
+    ]
+    for h in heights:
+        names += [f"{n} at {h}m" for n in per_height]
+    names.append("Checksum:cwproc-sample")
+    t0 = np.datetime64(spec.start, "s")
+    lines = [header, ";".join(names)]
+    for r in range(spec.n_records):
+        t = t0 + np.timedelta64(600 * r, "s")
+        stamp = str(t.astype(object).strftime("%d.%m.%Y %H:%M:%S"))
+        row = [
+            str(22000000 + r),
+            stamp,
+            str(int((t - np.datetime64("2001-01-01T00:00:00", "s")).astype(int))),
+            "I-net Shutter-Open",
+            "Modem",
+            "12,100",
+            "15,000",
+            "1005,000",
+            "60,000",
+            "0",
+        ]
+        for k in order:
+            sp = rec["speed"][r, k]
+            row += [
+                str(int(rec["packets"][r, k])),
+                _decimal_comma(rec["direction"][r, k], 3),
+                _decimal_comma(sp, 3),
+                _decimal_comma(rec["min"][r, k], 3),
+                _decimal_comma(rec["max"][r, k], 3),
+                _decimal_comma(rec["std"][r, k], 3),
+                _decimal_comma(rec["w"][r, k], 3),
+                _decimal_comma(rec["std"][r, k] / sp, 6),
+            ]
+        row.append("0")
+        lines.append(";".join(row))
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(("\r\n".join(lines) + "\r\n").encode("latin-1"))
+    return path
+
+
+def write_windcube_sta(spec: WindRecordSpec, path: str | os.PathLike) -> Path:
+    """A WindCube v1 (software 1.x) ``.sta`` 10-min statistics file.
+
+    Latin-1, TAB-separated, ``HeaderSize=N`` and the header items of the real files
+    (FORMATS.md section 3); stamps mark the end of each interval; every height block
+    ends with an empty column.
+    """
+    rec = _wind_records(spec)
+    deg = "\xb0"
+    items = [
+        "Version=1.1.13",
+        "ID System=WLS7-999",
+        "ID Client=cwproc",
+        "Location=cwproc virtual site",
+        "GPS Location=Lat:56.480000N, Long:85.100000E",
+        "Comments=simulated by cwproc.sim.sample_data",
+        "FCR Option=OFF",
+        "timezone=UTC+0",
+        "********************",
+        "Wavelength (nm)=1543.000",
+        f"ScanAngle ({deg})=30.000",
+        f"DirectionOffset ({deg})=0.000",
+        "CNRThreshold=-23.000",
+        "Altitudes (m)=\t" + "\t".join(f"{h:.0f}" for h in spec.heights_m),
+        "********************",
+    ]
+    per_height = [
+        "Wind Speed (m/s)",
+        "Wind Speed Dispersion (m/s)",
+        "Wind Speed min (m/s)",
+        "Wind Speed max (m/s)",
+        f"Wind Direction ({deg})",
+        "Z-wind (m/s)",
+        "Z-wind Dispersion (m/s)",
+        "CNR (dB)",
+        "CNR min (dB)",
+        "Dopp Spect Broad (m/s)",
+        "Data Availability (%)",
+    ]
+    names = [
+        "Timestamp (end of interval)",
+        f"Int Temp ({deg}C)",
+        f"Ext Temp ({deg}C)",
+        "Pressure (hPa)",
+        "Rel Humidity (%)",
+        "Wiper count",
+        "Vbatt (V)",
+    ]
+    for h in spec.heights_m:
+        names += [f"{h:.0f}m {n}" for n in per_height] + [""]
+    t0 = np.datetime64(spec.start, "s")
+    lines = [f"HeaderSize={len(items)}", *items, "\t".join(names)]
+    for r in range(spec.n_records):
+        t = t0 + np.timedelta64(600 * (r + 1), "s")
+        row = [str(t.astype(object).strftime("%Y/%m/%d %H:%M")), "25.00", "15.00"]
+        row += ["1005.0", "60.0", "0", "12.1"]
+        for k in range(len(spec.heights_m)):
+            row += [
+                f"{rec['speed'][r, k]:.2f}",
+                f"{rec['std'][r, k]:.2f}",
+                f"{max(rec['min'][r, k], 0.0):.2f}",
+                f"{rec['max'][r, k]:.2f}",
+                f"{rec['direction'][r, k]:.1f}",
+                f"{rec['w'][r, k]:.2f}",
+                "0.10",
+                f"{-12.0 - 0.02 * spec.heights_m[k]:.1f}",
+                f"{-14.0 - 0.02 * spec.heights_m[k]:.1f}",
+                "1.20",
+                "100",
+                "",
+            ]
+        lines.append("\t".join(row))
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(("\r\n".join(lines) + "\r\n").encode("latin-1"))
+    return path
+
+
+def wind_records_truth(spec: WindRecordSpec) -> dict[str, object]:
+    """The profile behind the wind-record samples."""
+    speed, direction = spec.profile()
+    return {
+        "spec": asdict(spec),
+        "heights_m": list(spec.heights_m),
+        "wind_speed_m_s": [round(float(x), 4) for x in speed],
+        "wind_direction_deg": [round(float(x), 3) for x in direction],
+    }
+
+
+# --------------------------------------------------------------------------------------
+# sonic logs: one synthetic 10-min record (cwproc.sim.sonic) in each logger format
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SonicSpec:
+    """A synthetic sonic record with structure functions of a prescribed type.
+
+    Made by :func:`cwproc.sim.sonic.simulate_sonic_dataset` (Gladkikh et al. (2014)
+    model types); written in every sonic format cwproc reads.
+    """
+
+    start: str = "2024-06-01T12:00:00"
+    minutes: float = 10.0
+    rate_hz: float = 10.0
+    sf_type: int = 1
+    speed: float = 4.0
+    direction_deg: float = 30.0
+    seed: int = 5
+
+
+def simulate_sonic(spec: SonicSpec, rate_hz: float | None = None) -> xr.Dataset:
+    """The record of ``spec`` at ``rate_hz`` (default the spec's)."""
+    from cwproc.sim.sonic import simulate_sonic_dataset
+
+    return simulate_sonic_dataset(
+        hours=spec.minutes / 60.0,
+        sf_type=spec.sf_type,
+        seed=spec.seed,
+        speed=spec.speed,
+        direction_deg=spec.direction_deg,
+        rate_hz=rate_hz or spec.rate_hz,
+        start=spec.start,
+    )
+
+
+def _campbell_stamps(time: np.ndarray) -> list[str]:
+    """TOA5 stamps: trailing zeros of the fraction dropped, as the loggers write them."""
+    out = []
+    for t in np.datetime_as_string(time.astype("datetime64[ms]"), unit="ms"):
+        day, clock = t.split("T")
+        whole, frac = clock.split(".")
+        frac = frac.rstrip("0")
+        out.append(f'"{day} {whole}{"." + frac if frac else ""}"')
+    return out
+
+
+def write_toa5(ds: xr.Dataset, path: str | os.PathLike) -> Path:
+    """A Campbell TOA5 file of CSAT3 fields (quoted header, CRLF; FORMATS.md 4.1)."""
+    header = [
+        '"TOA5","999","CR3000","999","CR3000.Std.22","CPU:cwproc_sample.CR3","1","ts_data"',
+        '"TIMESTAMP","RECORD","Ux","Uy","Uz","Ts","diag_csat"',
+        '"TS","RN","m/s","m/s","m/s","C","unitless"',
+        '"","","Smp","Smp","Smp","Smp","Smp"',
+    ]
+    rows = [
+        f"{stamp},{k},{u:.4f},{v:.4f},{w:.4f},{t:.3f},{int(d)}"
+        for k, (stamp, u, v, w, t, d) in enumerate(
+            zip(
+                _campbell_stamps(ds["time"].values),
+                ds["u"].values,
+                ds["v"].values,
+                ds["w"].values,
+                ds["temperature"].values,
+                ds["diagnostic"].values,
+                strict=True,
+            )
+        )
+    ]
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(("\r\n".join(header + rows) + "\r\n").encode("ascii"))
+    return path
+
+
+def write_tob1(ds: xr.Dataset, path: str | os.PathLike) -> Path:
+    """A Campbell TOB1 file: five ASCII header lines, then little-endian binary records
+    (SECONDS since 1990-01-01, NANOSECONDS, RECORD as ULONG; the fields as IEEE4)."""
+    header = [
+        '"TOB1","999","CR5000","999","CR5000.Std.07","CPU:cwproc_sample.CR5","1","ts_data"',
+        '"SECONDS","NANOSECONDS","RECORD","Ux","Uy","Uz","Ts","diag_csat"',
+        '"SECONDS","NANOSECONDS","RN","m/s","m/s","m/s","degC","unitless"',
+        '"","","","Smp","Smp","Smp","Smp","Smp"',
+        '"ULONG","ULONG","ULONG","IEEE4","IEEE4","IEEE4","IEEE4","IEEE4"',
+    ]
+    ns = (ds["time"].values - np.datetime64("1990-01-01T00:00:00", "ns")).astype(np.int64)
+    dtype = np.dtype([("s", "<u4"), ("n", "<u4"), ("r", "<u4")] + [(c, "<f4") for c in "uvwtd"])
+    rec = np.zeros(ds.sizes["time"], dtype=dtype)
+    rec["s"], rec["n"] = ns // 1_000_000_000, ns % 1_000_000_000
+    rec["r"] = np.arange(rec.size)
+    for c, name in zip("uvwtd", ("u", "v", "w", "temperature", "diagnostic"), strict=True):
+        rec[c] = ds[name].values
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(("\r\n".join(header) + "\r\n").encode("ascii") + rec.tobytes())
+    return path
+
+
+def write_ghg_data(ds: xr.Dataset, path: str | os.PathLike) -> Path:
+    """A LI-COR ``.data`` file (the text inside a ``.ghg`` archive): header items, a
+    ``DATAH`` line, then ``DATA`` lines with Unix Seconds + Nanoseconds (UTC)."""
+    header = [
+        "Model:\tLI-7500RS Open Path CO2/H2O Analyzer",
+        "SN:\t75H-0999",
+        "Instrument:\tAIU-0999",
+        "File Type:\t2",
+        "Software Version:\t8.0.0",
+        "Timestamp:\t12:00:00",
+        "Timezone:\tUTC",
+        "DATAH\tSeconds\tNanoseconds\tDiagnostic Value\tDate\tTime\tTemperature (C)"
+        "\tAux 1 - U (m/s)\tAux 2 - V (m/s)\tAux 3 - W (m/s)\tAux 4 - SOS (m/s)",
+    ]
+    ns = (ds["time"].values - np.datetime64("1970-01-01T00:00:00", "ns")).astype(np.int64)
+    stamps = np.datetime_as_string(ds["time"].values.astype("datetime64[ms]"), unit="ms")
+    sos = 331.3 * np.sqrt(1.0 + ds["temperature"].values / 273.15)
+    rows = [
+        f"DATA\t{n // 1_000_000_000}\t{n % 1_000_000_000}\t255\t{st[:10]}\t"
+        f"{st[11:19]}:{st[20:23]}\t{t:.4f}\t{u:.5f}\t{v:.5f}\t{w:.5f}\t{c:.3f}"
+        for n, st, t, u, v, w, c in zip(
+            ns,
+            stamps,
+            ds["temperature"].values,
+            ds["u"].values,
+            ds["v"].values,
+            ds["w"].values,
+            sos,
+            strict=True,
+        )
+    ]
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(("\n".join(header + rows) + "\n").encode("ascii"))
+    return path
+
+
+def write_gill(ds: xr.Dataset, path: str | os.PathLike) -> Path:
+    """A Gill UVW ASCII log (node Q, STX/ETX framing with the XOR checksum, CRLF).
+
+    The lines carry no time: the reader takes ``start_time`` and ``sampling_rate_hz``
+    from ``[reader.gill]`` (``sample_data/sonic.toml``).
+    """
+    out = []
+    for u, v, w, t in zip(
+        ds["u"].values, ds["v"].values, ds["w"].values, ds["temperature"].values, strict=True
+    ):
+        sos = 331.3 * np.sqrt(1.0 + t / 273.15)
+        payload = f"Q,{u:+07.2f},{v:+07.2f},{w:+07.2f},M,{sos:+07.2f},{t:+07.2f},00,"
+        check = 0
+        for byte in payload.encode("ascii"):
+            check ^= byte
+        out.append(f"\x02{payload}\x03{check:02X}\r\n")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes("".join(out).encode("latin-1"))
+    return path
+
+
+def write_sonic_samples(folder: str | os.PathLike, spec: SonicSpec) -> list[Path]:
+    """The sonic record of ``spec`` in the TOA5, TOB1, GHG (.data), Gill and Meteo-2
+    formats (Meteo-2 at its own 10.7 Hz), plus ``truth.json`` next to the folder."""
+    from cwproc.io.meteo2 import write_meteo2
+
+    folder = Path(folder)
+    ds = simulate_sonic(spec)
+    stamp = spec.start[:10].replace("-", "_") + "_" + spec.start[11:13] + spec.start[14:16]
+    written = [
+        write_toa5(ds, folder / f"TOA5_999.ts_data_{stamp}.dat"),
+        write_tob1(ds, folder / f"TOB1_999.ts_data_{stamp}.dat"),
+        write_ghg_data(ds, folder / f"{spec.start[:10]}T{spec.start[11:13]}0000_AIU-0999.data"),
+        write_gill(ds, folder / f"gill_{stamp}.txt"),
+    ]
+    meteo2 = folder / f"meteo2_{stamp}.txt"
+    write_meteo2(simulate_sonic(spec, rate_hz=10.7), meteo2, station="cwproc sample")
+    written.append(meteo2)
+    return written
+
+
 def write_sample_data(outdir: str | os.PathLike) -> list[Path]:
-    """Write ``outdir/streamline/*.hpl`` and ``outdir/streamline_truth.json``."""
+    """Write every shipped sample under ``outdir`` (see ``sample_data/README.md``).
+
+    ``streamline/*.hpl`` + ``streamline_truth.json``; ``zephir/*.ZPH.csv`` and
+    ``windcube/*.sta`` + ``wind_records_truth.json``; ``sonic/`` (TOA5, TOB1, GHG,
+    Gill, Meteo-2) + ``sonic_truth.json``. Deterministic: byte-identical on every run.
+    """
     outdir = Path(outdir)
-    return write_streamline_series(
+    written = write_streamline_series(
         outdir / "streamline", outdir / "streamline_truth.json", SAMPLE_SPEC
     )
+    records = WindRecordSpec()
+    day = records.start[:10].split("-")
+    written.append(
+        write_zephir_csv(
+            records, outdir / "zephir" / f"Wind10_999@Y{day[0]}_M{day[1]}_D{day[2]}.ZPH.csv"
+        )
+    )
+    written.append(
+        write_windcube_sta(records, outdir / "windcube" / f"WLS7-999_{'_'.join(day)}__00_00_00.sta")
+    )
+    truth = outdir / "wind_records_truth.json"
+    truth.write_text(json.dumps(wind_records_truth(records), indent=2, sort_keys=True) + "\n")
+    written.append(truth)
+    sonic = SonicSpec()
+    written += write_sonic_samples(outdir / "sonic", sonic)
+    truth = outdir / "sonic_truth.json"
+    truth.write_text(json.dumps({"spec": asdict(sonic)}, indent=2, sort_keys=True) + "\n")
+    written.append(truth)
+    return written
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -50,7 +50,8 @@ HOMODYNE_GRID_STEP_DEG = 5.0
 
 REFERENCES = (
     "Smalikho (2020), eq. 1 and eq. 8; Banakh et al. (1999), after eq. 23; "
-    "seed 002 (VAD error theory)"
+    "VAD accuracy paper (Theoretical accuracy of wind-vector reconstruction from lidar "
+    "VAD scanning), sections 2-4"
 )
 
 FloatArray = NDArray[np.float64]
@@ -837,7 +838,7 @@ def _wind_dataset(
     fit_attrs = {"method": method, "references": REFERENCES}
     error_attrs = {
         "method": "square root of the diagonal of s^2 (A^T A)^-1, s^2 = SSR/(n - 3)",
-        "references": "seed 002, section 4",
+        "references": "VAD accuracy paper, section 4",
     }
     range_m = ds["range"].values.astype(float)
     height = height_from_range(range_m, phi)

@@ -93,7 +93,7 @@ def test_simulate_montecarlo_writes_table_netcdf_and_png(tmp_path):
     res = run("simulate", "montecarlo", "-o", str(tmp_path / "out"), "-c", str(cfg), "--seed", "4")
     assert res.exit_code == 0, res.output
     assert "relative RMS error of epsilon" in res.output
-    ds = xr.open_dataset(tmp_path / "out" / "montecarlo_seed000.nc")
+    ds = xr.open_dataset(tmp_path / "out" / "montecarlo_banakh1999.nc")
     for name in ("epsilon_rel_error", "variance_rel_error", "integral_scale_rel_error"):
         assert ds[name].dims == ("n_scans", "height")
         assert ds[name].attrs["units"] == "1"
@@ -101,7 +101,7 @@ def test_simulate_montecarlo_writes_table_netcdf_and_png(tmp_path):
     assert ds["n_scans"].values.tolist() == [1, 2, 3]
     assert ds.attrs["realisations"] == 40
     ds.close()
-    assert (tmp_path / "out" / "montecarlo_seed000.png").stat().st_size > 1000
+    assert (tmp_path / "out" / "montecarlo_banakh1999.png").stat().st_size > 1000
 
 
 def test_simulate_montecarlo_rejects_a_bad_config(tmp_path):
@@ -143,14 +143,14 @@ def test_retrieve_on_the_sample_data_recovers_the_truth(tmp_path):
 @pytest.fixture(scope="module")
 def cw_products(tmp_path_factory):
     """30 scans (3 blocks of 10) of the seed-000 cw lidar at its six heights, homodyne,
-    written as scan NetCDF files and retrieved with the preset seed000."""
+    written as scan NetCDF files and retrieved with the preset banakh1999."""
     from cwproc.config import load_config
     from cwproc.pipeline import retrieve_files
     from cwproc.sim.cw import write_cw_series
     from cwproc.sim.montecarlo import lidar_from_config
 
     base = tmp_path_factory.mktemp("cw")
-    cfg = load_config("seed000")
+    cfg = load_config("banakh1999")
     sim = cfg.simulation
     written = write_cw_series(
         base / "data",

@@ -70,6 +70,7 @@ def test_point_probe_is_the_projected_tensor():
     np.testing.assert_allclose(np.diag(cov), sigma2, rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_sweep_average_converges():
     """Continuous-scan rays: 6 (default) and 12 Gauss nodes per half sweep agree on D(l) to 1e-4."""
     pattern = eg.conical_pattern(4, 1.0, sector_deg=8.0)

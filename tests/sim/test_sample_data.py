@@ -22,15 +22,51 @@ def test_sample_folder_holds_only_hpl_files_under_4_mb():
 
 @pytest.mark.slow
 def test_regeneration_is_byte_identical(tmp_path):
-    write_sample_data(tmp_path)
-    shipped = sorted((SAMPLE / "streamline").glob("*.hpl"))
-    fresh = sorted((tmp_path / "streamline").glob("*.hpl"))
-    assert [f.name for f in fresh] == [f.name for f in shipped]
-    for a, b in zip(shipped, fresh, strict=True):
-        assert a.read_bytes() == b.read_bytes(), a.name
-    assert (tmp_path / "streamline_truth.json").read_bytes() == (
-        SAMPLE / "streamline_truth.json"
-    ).read_bytes()
+    written = write_sample_data(tmp_path)
+    shipped_names = sorted(str(f.relative_to(SAMPLE)) for f in SAMPLE.rglob("*") if f.is_file())
+    names = sorted(str(f.relative_to(tmp_path)) for f in written)
+    # besides the generated files only the README and the two configurations ship
+    assert sorted(set(shipped_names) - set(names)) == ["README.md", "site.toml", "sonic.toml"]
+    for name in names:
+        assert (tmp_path / name).read_bytes() == (SAMPLE / name).read_bytes(), name
+
+
+def test_samples_total_under_4_mb():
+    total = sum(f.stat().st_size for f in SAMPLE.rglob("*") if f.is_file())
+    assert total <= 4 * 1024 * 1024
+
+
+@pytest.mark.parametrize(
+    ("folder", "fmt", "config"),
+    [
+        ("zephir", "zephir_csv", "zephir300"),
+        ("windcube", "windcube_sta", "windcube"),
+        ("sonic", "toa5", "sonic.toml"),
+        ("sonic", "tob1", "sonic.toml"),
+        ("sonic", "ghg", "sonic.toml"),
+        ("sonic", "gill", "sonic.toml"),
+        ("sonic", "meteo2", "sonic.toml"),
+    ],
+)
+def test_every_format_has_a_sample_its_reader_reads(folder, fmt, config):
+    """Every reader is covered by a shipped sample (no ../shared needed)."""
+    from cwproc.config import load_config
+    from cwproc.io import Format, detect_format
+    from cwproc.pipeline import read_input
+
+    cfg = load_config(SAMPLE / config if config.endswith(".toml") else config)
+    files = [f for f in sorted((SAMPLE / folder).iterdir()) if detect_format(f) is Format(fmt)]
+    assert len(files) == 1
+    ds = read_input(files[0], cfg).dataset
+    assert ds.sizes["time"] >= 36
+    if folder == "sonic":
+        spec = json.loads((SAMPLE / "sonic_truth.json").read_text())["spec"]
+        speed = np.hypot(ds["u"].values.mean(), ds["v"].values.mean())
+        assert speed == pytest.approx(spec["speed"], rel=0.25)
+    else:
+        truth = json.loads((SAMPLE / "wind_records_truth.json").read_text())
+        profile = ds["wind_speed"].mean("time").sel(height=truth["heights_m"], method="nearest")
+        np.testing.assert_allclose(profile.values, truth["wind_speed_m_s"], rtol=0.05)
 
 
 def test_sample_files_read_back_with_enough_scans_and_the_true_mean_wind():

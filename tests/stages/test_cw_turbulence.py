@@ -128,6 +128,7 @@ def test_epsilon_from_homodyne_cw_scans_within_20_percent(heterodyne, tmp_path):
     assert 0.15 < kept < 0.45
 
 
+@pytest.mark.slow
 def test_seed000_probe_exact_model_recovers_eps_variance_and_scale(tmp_path):
     """Exact eq-4 data of the seed-000 cw probe at h = 300, 500 m (L_V = 300, 333 m).
 
@@ -196,6 +197,7 @@ def test_seed000_probe_exact_model_recovers_eps_variance_and_scale(tmp_path):
     np.testing.assert_allclose(out["structure_function_model"].values[0], d, rtol=1e-3)
 
 
+@pytest.mark.slow
 def test_exact_cw_model_agrees_with_the_spectral_a_functions(tmp_path):
     """Two independent routes to D_L of the seed-000 cw probe agree.
 
@@ -362,6 +364,7 @@ def _exact_blocks(probe, sigma2, big_l, noise, dtheta=360.0 / 140):
     return sf, lm.scales[k]
 
 
+@pytest.mark.slow
 def test_cw_noise_is_pooled_over_neighbouring_blocks(tmp_path):
     """Seven blocks with the same sigma_e = 0.05 m/s; one block's D_L(1) is raised.
 

@@ -138,6 +138,7 @@ def test_passed_variance_without_probe_is_the_model_variance(model):
     np.testing.assert_allclose(got[0], want, rtol=1e-3)
 
 
+@pytest.mark.slow
 def test_passed_variance_is_the_variance_of_the_probe_averaged_velocity():
     """The probe removes part of sigma_V^2 at scales below its size, more for longer probes.
 

@@ -1,0 +1,58 @@
+"""The A-tables shipped in the package (tools/build_atables.py): found by the README main
+job with an empty user cache (no build), and equal to a rebuild."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from cwproc.cli import main
+from cwproc.physics import atable
+
+SAMPLE = Path(__file__).parents[2] / "sample_data"
+SHIPPED = Path(atable.shipped_path("x")).parent
+
+
+def _main_job(tmp_path: Path) -> None:
+    res = CliRunner().invoke(
+        main,
+        ["retrieve", str(SAMPLE), "-c", str(SAMPLE / "site.toml"), "-o", str(tmp_path / "out")],
+    )
+    assert res.exit_code == 0, res.output
+
+
+def test_every_shipped_table_is_listed_and_loads_under_its_key():
+    tables = sorted(SHIPPED.glob("atable-*.npz"))
+    assert tables, "no shipped A-table: run python tools/build_atables.py"
+    listed = (SHIPPED / "MANIFEST.txt").read_text()
+    for path in tables:
+        assert path.name in listed
+        key = path.stem.removeprefix("atable-")
+        with np.load(path) as data:
+            assert str(data["key"]) == key
+            assert np.isfinite(data["log_a2"]).all()
+
+
+def test_main_job_uses_the_shipped_tables(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    _main_job(tmp_path)
+    assert not list((tmp_path / "cache").rglob("atable-*.npz")), "a table was built"
+
+
+@pytest.mark.slow
+def test_shipped_tables_equal_a_rebuild(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setattr(atable, "shipped_path", lambda key: tmp_path / "none.npz")
+    _main_job(tmp_path)
+    built = sorted((tmp_path / "cache").rglob("atable-*.npz"))
+    assert built
+    for path in built:
+        shipped = SHIPPED / path.name
+        assert shipped.exists(), f"{path.name} is not shipped: run tools/build_atables.py"
+        with np.load(path) as new, np.load(shipped) as old:
+            assert sorted(new.files) == sorted(old.files)
+            for name in new.files:
+                np.testing.assert_array_equal(new[name], old[name], err_msg=name)
