@@ -138,6 +138,9 @@ FLAG_NOISE_PREDICTED = 32
 #: out 5-8 times too large, while 144-ray scans with noise 0.3 m/s recover it; 4 would
 #: trade the second for the first, see docs/physics-epsilon.md)
 MIN_NOISE_LAGS = 3
+#: the noise is fitted only where the predicted 2 sigma_e^2 is at least this share of
+#: the smallest structure function of the block (below it, the prediction is used)
+NOISE_DETECTABLE = 0.05
 
 #: a block with fewer than this share of the requested scans is not estimated (flag 16)
 MIN_BLOCK_FRACTION = 0.5
@@ -179,9 +182,13 @@ def fit_structure_function(
     """Least squares of ``D = eps^(2/3) A + 2 sigma_e^2`` over the lags (last axis).
 
     Smalikho (2020), eq. 4. The intercept ``2 sigma_e^2`` is *determined* where at least
-    :data:`MIN_NOISE_LAGS` lags are valid and it exceeds twice its standard error
+    :data:`MIN_NOISE_LAGS` lags are valid, it exceeds twice its standard error
     (``s sqrt(sum x^2 / (n sum x^2 - (sum x)^2))``, ``s^2`` the residual variance with
-    ``n - 2`` degrees of freedom). Elsewhere (insignificant, negative, or too few lags)
+    ``n - 2`` degrees of freedom), and the predicted ``2 sigma_pred^2`` is at least
+    :data:`NOISE_DETECTABLE` of the smallest ``D`` (a noise far below ``D`` at the first
+    lag is not measurable: the intercept then measures the sampling error of ``D`` and
+    the model's shape; on exact 24-ray VAD statistics it came out 6-8 times the true
+    sigma_e, and eps 22 % low). Elsewhere (insignificant, negative, or too few lags)
     the slope is refitted with the intercept fixed at ``2 sigma_pred^2`` from
     ``noise_prior`` (the noise predicted from the SNR, :mod:`cwproc.physics.noise`), or
     at 0 without a prediction; ``sigma_e`` is then the prediction, or NaN -- never a
@@ -219,6 +226,13 @@ def fit_structure_function(
         se_intercept = np.sqrt(s2 * sxx / det)
     determined = (n >= MIN_NOISE_LAGS) & (intercept > 0) & (intercept > 2.0 * se_intercept)
     prior = np.full(slope.shape, np.nan) if noise_prior is None else np.asarray(noise_prior)
+    # a noise term far below the smallest structure function cannot be told from the
+    # sampling error of D and the model's shape: the fitted intercept then measures
+    # those, not the noise (24-ray VADs: 6-8 times the true sigma_e)
+    with np.errstate(invalid="ignore"):
+        smallest = np.nanmin(np.where(w, d, np.nan), axis=-1)
+        detectable = ~np.isfinite(prior) | (2.0 * prior**2 >= NOISE_DETECTABLE * smallest)
+    determined = determined & detectable
     fixed = np.where(np.isfinite(prior), 2.0 * np.nan_to_num(prior) ** 2, 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
         fixed_slope = (sxy - fixed * sx) / sxx
