@@ -71,6 +71,8 @@ def sniff_format(head: bytes) -> Format | None:
         or head.startswith(b"CDF\x02")
     ):
         return Format.SCAN_NETCDF
+    if head.startswith(b"PK\x03\x04") and b".data" in head:
+        return Format.GHG  # a LI-COR .ghg archive (a zip holding the .data file)
     text = head.decode("latin-1")
     first = text.split("\n", 1)[0]
     if first.startswith("Filename:"):

@@ -16,6 +16,7 @@ sonic diagnostic, so ``diagnostic`` is 0 and ``attrs["diagnostic_source"]`` says
 from __future__ import annotations
 
 import os
+import zipfile
 from typing import Any
 
 import numpy as np
@@ -56,8 +57,57 @@ def sonic_temperature_from_sos(sos: np.ndarray) -> np.ndarray:
     return np.asarray(sos, dtype=float) ** 2 / SOS_COEFFICIENT - 273.15
 
 
+#: largest .data member read from a .ghg archive (bytes; a half-hour file is ~30 MB)
+GHG_MAX_BYTES = 512 << 20
+#: largest compression ratio accepted (a "zip bomb" beyond it is refused)
+GHG_MAX_RATIO = 200
+
+
+def ghg_text(path: str | os.PathLike) -> str:
+    """The text of a LI-COR ``.data`` file, or of the ``.data`` member of a ``.ghg`` zip.
+
+    The archive is read safely: exactly one ``*.data`` member, taken by name into memory
+    (nothing is extracted to disk, so no member path can escape: no zip-slip), at most
+    :data:`GHG_MAX_BYTES` uncompressed and :data:`GHG_MAX_RATIO` times its compressed
+    size.
+
+    Raises
+    ------
+    InputFileError
+        Not a readable archive, no or several ``.data`` members, a member too large.
+    """
+    with open(path, "rb") as fh:
+        magic = fh.read(4)
+    if magic != b"PK\x03\x04":
+        return read_text(path)
+    try:
+        with zipfile.ZipFile(path) as archive:
+            members = [i for i in archive.infolist() if i.filename.endswith(".data")]
+            if len(members) != 1:
+                names = ", ".join(i.filename for i in archive.infolist()[:5])
+                raise InputFileError(
+                    path, f"a .ghg archive must hold one .data file; it holds: {names}"
+                )
+            info = members[0]
+            if info.file_size > GHG_MAX_BYTES or info.file_size > GHG_MAX_RATIO * max(
+                info.compress_size, 1
+            ):
+                raise InputFileError(
+                    path, f"{info.filename}: {info.file_size} bytes unpacked is implausible"
+                )
+            raw = archive.read(info)
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError, OSError) as exc:
+        raise InputFileError(path, f"cannot read the .ghg archive: {exc}") from None
+    if b"\x00" in raw:
+        raise InputFileError(path, f"{info.filename}: binary data (NUL byte) in the text")
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
 def read_ghg(path: str | os.PathLike, **options: Any) -> xr.Dataset:
-    """Read a LI-COR GHG ``.data`` file into a sonic dataset.
+    """Read a LI-COR GHG ``.data`` file (or a ``.ghg`` archive of one) into a sonic dataset.
 
     Parameters
     ----------
@@ -84,7 +134,7 @@ def read_ghg(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     check_options(path, options, OPTIONS)
     cols = column_map(path, options, DEFAULT_COLUMNS)
 
-    lines = read_text(path).splitlines()
+    lines = ghg_text(path).splitlines()
     attrs: dict[str, str] = {}
     header_at = None
     for i, line in enumerate(lines):
