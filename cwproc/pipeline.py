@@ -56,6 +56,8 @@ class InputFile:
     format: Format
     sha256: str
     dataset: xr.Dataset | None = None
+    #: the UTC day this item holds when a file crossing midnight was split (sonic)
+    day: str | None = None
 
 
 @dataclass
@@ -205,7 +207,7 @@ def split_by_day(item: InputFile) -> list[InputFile]:
     if unique.size <= 1:
         return [item]
     return [
-        dataclasses.replace(item, dataset=ds.isel(time=np.flatnonzero(days == day)))
+        dataclasses.replace(item, dataset=ds.isel(time=np.flatnonzero(days == day)), day=str(day))
         for day in unique
     ]
 
@@ -534,8 +536,9 @@ def retrieve_files(
         Products written and one line per failed input or unit.
     """
     report = RunReport()
-    items = []
+    units: dict[tuple[str, str], ProductUnit] = {}
     accepted = set(kinds) if kinds is not None else None
+    held = 0
     for p in paths:
         try:
             item = read_input(p, config)
@@ -551,11 +554,19 @@ def retrieve_files(
                 f"expected {' or '.join(sorted(accepted))} data"
             )
             continue
-        items.append(item)
-    for unit in group_units(items):
+        for part in split_by_day(item):
+            kind, key = unit_key(part)
+            units.setdefault((kind, key), ProductUnit(key=key, kind=kind)).inputs.append(part)
+            held += _nbytes(part.dataset)
+            if held > RETRIEVE_MEMORY_BYTES:  # keep only what the budget allows
+                held -= _nbytes(part.dataset)
+                part.dataset = None
+    for unit_id in sorted(units):
+        unit = units.pop(unit_id)
         names = unit_label(unit)
         notes: list[str] = []
         try:
+            load_unit(unit, config)
             products = process_unit(unit, config, notes)
             report.written.extend(write_unit_products(unit, products, outdir, config))
             if keep_products:
@@ -564,8 +575,42 @@ def retrieve_files(
             report.failures.append(f"{names}: {exc}")
         except Exception as exc:  # a bug in cwproc: report it, keep processing the rest
             report.failures.append(f"{names}: {internal_error(exc)}")
+        finally:
+            for item in unit.inputs:  # processed: its data may go
+                item.dataset = None
         report.notes.extend(f"{names}: {n}" for n in notes)
     return report
+
+
+#: input data ``retrieve`` keeps in memory between reading and processing (bytes);
+#: beyond it, inputs are read again when their unit is processed, so memory stays flat
+#: in the number of units (a unit's own data plus this budget)
+RETRIEVE_MEMORY_BYTES = 512 << 20
+
+
+def _nbytes(ds: xr.Dataset | None) -> int:
+    return 0 if ds is None else int(ds.nbytes)
+
+
+def load_unit(unit: ProductUnit, config: Config) -> None:
+    """Read again the inputs of ``unit`` whose data were not kept (memory budget).
+
+    Raises
+    ------
+    CwprocError
+        An input changed or vanished since it was first read (its checksum differs).
+    """
+    for item in unit.inputs:
+        if item.dataset is not None:
+            continue
+        again = read_input(item.path, config)
+        if again.sha256 != item.sha256:
+            raise CwprocError(f"{item.path}: changed while cwproc was running; run again")
+        ds = again.dataset
+        if item.day is not None and ds is not None:
+            days = ds["time"].values.astype("datetime64[D]")
+            ds = ds.isel(time=np.flatnonzero(days == np.datetime64(item.day, "D")))
+        item.dataset = ds
 
 
 def internal_error(exc: BaseException) -> str:

@@ -229,3 +229,26 @@ def test_system_id_cannot_place_products_outside_the_output(tmp_path, system_id,
     outside = [p for p in tmp_path.rglob("*.nc") if p.parent != out]
     assert outside == []
     assert (out / f"streamline_{expected}_20240501_wind.nc").exists()
+
+
+def test_inputs_read_again_beyond_the_memory_budget_give_the_same_products(tmp_path, monkeypatch):
+    """retrieve keeps at most RETRIEVE_MEMORY_BYTES of inputs; beyond, it reads a unit's
+    files again when it processes the unit: same products (issue 17.8)."""
+    from cwproc import pipeline
+    from cwproc.config import load_config
+
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for day in (1, 2, 3):
+        ds = synthetic_vad(n_scans=4, seed=day)
+        ds = ds.assign_coords(time=ds["time"] + np.timedelta64(day, "D"))
+        write_hpl(ds, folder / f"VAD_77_2024050{day + 1}_100000.hpl")
+    config = load_config("streamline")
+    files = sorted(folder.glob("*.hpl"))
+    kept = pipeline.retrieve_files(files, tmp_path / "kept", config, keep_products=True)
+    monkeypatch.setattr(pipeline, "RETRIEVE_MEMORY_BYTES", 0)
+    reread = pipeline.retrieve_files(files, tmp_path / "reread", config, keep_products=True)
+    assert kept.ok and reread.ok and len(kept.products) == len(reread.products) >= 3
+    for (k1, n1, a), (k2, n2, b) in zip(kept.products, reread.products, strict=True):
+        assert (k1, n1) == (k2, n2)
+        xr.testing.assert_identical(a, b)
