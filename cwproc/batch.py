@@ -13,9 +13,11 @@
    checksums and of the configuration) is not yet in the ledger, each on its own, with
    :func:`cwproc.pipeline.process_unit` and :func:`cwproc.pipeline.write_unit_products`
    (products are written atomically: temporary file, then rename);
-4. records each finished unit in the **ledger** ``OUTPUT_DIR/.cwproc/ledger.json``,
-   rewritten atomically (temporary file, fsync, rename) after every unit, so a run
-   killed with ``kill -9`` loses nothing and redoes at most the unit in flight. Failures
+4. records each finished unit in the **ledger** ``OUTPUT_DIR/.cwproc/ledger.json``:
+   after every unit its change is appended (fsynced) to ``ledger.json.journal``, and
+   the snapshot is rewritten atomically once per run, so a run killed with ``kill -9``
+   loses nothing, redoes at most the unit in flight, and a save costs the size of the
+   change, not of the ledger. Failures
    are recorded with their reason and retried by the next run;
 5. holds an exclusive ``flock`` on ``OUTPUT_DIR/.cwproc/lock`` for the whole run, so
    two runs cannot work on the same output directory. The kernel drops the lock of a
@@ -487,6 +489,35 @@ def unit_label(task: UnitTask) -> str:
 # --------------------------------------------------------------------------------------
 
 
+class _Tracked(dict):
+    """A dict that remembers the keys set or removed since the last save of the ledger."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.changed: set[str] = set()
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        super().__setitem__(key, value)
+        self.changed.add(key)
+
+    def __delitem__(self, key: str) -> None:
+        super().__delitem__(key)
+        self.changed.add(key)
+
+    def pop(self, key: str, *default: Any) -> Any:
+        if key in self:
+            self.changed.add(key)
+        return super().pop(key, *default)
+
+    def update(self, *args: Any, **kwargs: Any) -> None:
+        for key, value in dict(*args, **kwargs).items():
+            self[key] = value
+
+
+#: the tables of the ledger
+_TABLES = ("files", "units", "failures")
+
+
 @dataclass
 class Ledger:
     """What earlier runs did, kept in ``OUTPUT_DIR/.cwproc/ledger.json``.
@@ -495,11 +526,23 @@ class Ledger:
     mtime and configuration are unchanged); ``units``: ``{unit key: record}`` of units
     whose products were written (fingerprint, inputs, products, time); ``failures``:
     ``{unit key or file path: record}`` of what failed last time and why.
+
+    On disk: a snapshot (``ledger.json``) and an append-only journal of the changes since
+    (``ledger.json.journal``, one JSON line per changed entry), so that saving after a
+    unit costs the size of the change, not of the ledger (:func:`save_ledger`).
     """
 
     files: dict[str, dict[str, Any]] = field(default_factory=dict)
     units: dict[str, dict[str, Any]] = field(default_factory=dict)
     failures: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: journal lines on disk since the snapshot
+    journal_lines: int = 0
+
+    def __post_init__(self) -> None:
+        for name in _TABLES:
+            value = getattr(self, name)
+            if not isinstance(value, _Tracked):
+                setattr(self, name, _Tracked(value))
 
     def to_json(self) -> str:
         doc = {
@@ -510,9 +553,39 @@ class Ledger:
         }
         return json.dumps(doc, indent=1, sort_keys=True)
 
+    def changes(self) -> list[dict[str, Any]]:
+        """The journal entries of the changes since the last save (sorted, JSON-ready)."""
+        out = []
+        for name in _TABLES:
+            table = getattr(self, name)
+            for key in sorted(table.changed):
+                entry: dict[str, Any] = {"table": name, "key": key}
+                if key in table:
+                    entry["value"] = table[key]
+                else:
+                    entry["deleted"] = True
+                out.append(entry)
+        return out
+
+    def mark_saved(self) -> None:
+        for name in _TABLES:
+            getattr(self, name).changed.clear()
+
+    def size(self) -> int:
+        return sum(len(getattr(self, name)) for name in _TABLES)
+
+
+def journal_path(path: str | os.PathLike) -> Path:
+    """The journal beside the ledger snapshot ``path``."""
+    path = Path(path)
+    return path.with_name(path.name + ".journal")
+
 
 def load_ledger(path: str | os.PathLike) -> Ledger:
-    """Read the ledger (an empty one when the file does not exist).
+    """Read the ledger: the snapshot, then the journal's changes in order.
+
+    An empty ledger when neither exists. A last journal line cut by a kill is ignored
+    (its change was never confirmed by the save that wrote it).
 
     Raises
     ------
@@ -523,24 +596,69 @@ def load_ledger(path: str | os.PathLike) -> Ledger:
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
-        return Ledger()
+        text = None
     except OSError as exc:
         raise CwprocError(f"{path}: cannot read the ledger: {exc.strerror or exc}") from None
+    ledger = Ledger()
+    if text is not None:
+        try:
+            doc = json.loads(text)
+            if doc.get("version") != LEDGER_VERSION:
+                raise ValueError(f"unknown ledger version {doc.get('version')!r}")
+            ledger = Ledger(
+                files=dict(doc["files"]), units=dict(doc["units"]), failures=dict(doc["failures"])
+            )
+        except (ValueError, KeyError, TypeError, AttributeError) as exc:
+            raise CwprocError(
+                f"{path}: not a valid cwproc ledger ({exc}); move it away to reprocess everything"
+            ) from None
+    _replay_journal(ledger, journal_path(path))
+    ledger.mark_saved()
+    return ledger
+
+
+def _replay_journal(ledger: Ledger, journal: Path) -> None:
     try:
-        doc = json.loads(text)
-        if doc.get("version") != LEDGER_VERSION:
-            raise ValueError(f"unknown ledger version {doc.get('version')!r}")
-        return Ledger(
-            files=dict(doc["files"]), units=dict(doc["units"]), failures=dict(doc["failures"])
-        )
-    except (ValueError, KeyError, TypeError, AttributeError) as exc:
-        raise CwprocError(
-            f"{path}: not a valid cwproc ledger ({exc}); move it away to reprocess everything"
-        ) from None
+        lines = journal.read_bytes().split(b"\n")
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise CwprocError(f"{journal}: cannot read the ledger: {exc.strerror or exc}") from None
+    complete = lines[:-1]  # the part after the last newline was never confirmed
+    for number, line in enumerate(complete, start=1):
+        try:
+            entry = json.loads(line)
+            table = getattr(ledger, entry["table"]) if entry["table"] in _TABLES else None
+            if table is None:
+                raise ValueError(f"unknown table {entry['table']!r}")
+            if entry.get("deleted"):
+                table.pop(entry["key"], None)
+            else:
+                table[entry["key"]] = entry["value"]
+        except (ValueError, KeyError, TypeError) as exc:
+            raise CwprocError(
+                f"{journal}:{number}: not a valid ledger journal line ({exc}); "
+                "move the ledger files away to reprocess everything"
+            ) from None
+    ledger.journal_lines = len(complete)
 
 
-def save_ledger(ledger: Ledger, path: str | os.PathLike) -> None:
-    """Write the ledger atomically: temporary file in the same folder, fsync, rename.
+def _fsync_folder(folder: Path) -> None:
+    dir_fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(dir_fd)
+    finally:
+        os.close(dir_fd)
+
+
+def save_ledger(ledger: Ledger, path: str | os.PathLike, *, compact: bool = False) -> None:
+    """Save the changes since the last save: appended to the journal, fsynced.
+
+    The cost is that of the change (a unit, a file), not of the ledger, so a first run
+    over 50,000 files does not rewrite the ledger 50,000 times. The snapshot is
+    rewritten (temporary file, fsync, rename; the journal then removed) when there is
+    none yet, when ``compact`` is asked (the end of a run) or when the journal has grown
+    longer than the ledger (amortised O(1) per change).
 
     Raises
     ------
@@ -548,27 +666,47 @@ def save_ledger(ledger: Ledger, path: str | os.PathLike) -> None:
         The state folder cannot be written.
     """
     path = Path(path)
-    data = ledger.to_json().encode("utf-8")
+    journal = journal_path(path)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.chmod(tmp, umask_mode())
-            os.replace(tmp, path)
-        except BaseException:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(tmp)
-            raise
-        dir_fd = os.open(path.parent, os.O_RDONLY)
-        try:
-            os.fsync(dir_fd)
-        finally:
-            os.close(dir_fd)
+        if compact or not path.exists() or ledger.journal_lines > max(1000, ledger.size()):
+            _write_snapshot(ledger, path)
+            journal.unlink(missing_ok=True)
+            _fsync_folder(path.parent)
+            ledger.journal_lines = 0
+        else:
+            entries = ledger.changes()
+            if entries:
+                data = "".join(json.dumps(e, sort_keys=True) + "\n" for e in entries)
+                new = not journal.exists()
+                fd = os.open(journal, os.O_WRONLY | os.O_APPEND | os.O_CREAT, umask_mode())
+                try:
+                    os.write(fd, data.encode("utf-8"))
+                    os.fsync(fd)
+                finally:
+                    os.close(fd)
+                if new:
+                    _fsync_folder(path.parent)
+                ledger.journal_lines += len(entries)
     except OSError as exc:
         raise CwprocError(f"{path}: cannot write the ledger: {exc.strerror or exc}") from None
+    ledger.mark_saved()
+
+
+def _write_snapshot(ledger: Ledger, path: Path) -> None:
+    """The whole ledger to ``path`` atomically (temporary file, fsync, rename)."""
+    data = ledger.to_json().encode("utf-8")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, umask_mode())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
 
 
 def cached_file_info(
@@ -1065,6 +1203,8 @@ def run_batch(
             _log_outcome(task, outcome)
             if on_unit is not None:
                 on_unit(outcome)
+        if ledger.journal_lines:  # one snapshot per run: ledger.json complete between runs
+            save_ledger(ledger, ledger_path, compact=True)
     report.seconds = time.perf_counter() - t0
     return report
 

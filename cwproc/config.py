@@ -243,6 +243,10 @@ class OutputConfig:
             raise ValueError("latitude: must be in [-90, 90]")
         if self.longitude is not None and not -180 <= self.longitude <= 360:
             raise ValueError("longitude: must be in [-180, 360]")
+        if (self.latitude is None) != (self.longitude is None):
+            given = "latitude" if self.longitude is None else "longitude"
+            missing = "longitude" if self.longitude is None else "latitude"
+            raise ValueError(f"{given}: set {missing} too (a position needs both)")
 
 
 @dataclass(frozen=True)
@@ -388,8 +392,8 @@ def load_config(path_or_preset: str | os.PathLike | None = None) -> Config:
     candidate = Path(path_or_preset)
     if candidate.suffix == ".toml" or candidate.exists() or os.sep in str(path_or_preset):
         source = str(candidate)
-        try:
-            text = candidate.read_text(encoding="utf-8")
+        try:  # utf-8-sig: a byte-order mark (as some Windows editors write) is not text
+            text = candidate.read_text(encoding="utf-8-sig")
         except OSError as exc:
             raise ConfigError(source, "-", f"cannot read: {exc.strerror or exc}") from None
         except UnicodeDecodeError:
@@ -426,8 +430,31 @@ def config_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Config:
     """Validate a nested dict (as read from TOML) into a :class:`Config`."""
     data = dict(data)
     data.pop("source", None)
+    _check_reader_tables(data.get("reader"), source)
     cfg = _build(Config, data, source, "")
     return dataclasses.replace(cfg, source=source)
+
+
+def _check_reader_tables(reader: Any, source: str) -> None:
+    """``[reader.<format>]`` tables must name formats cwproc reads, exactly.
+
+    A table under another name (``[reader.Meteo2]``, a typo) would be ignored silently
+    and the reader run with its defaults.
+    """
+    if not isinstance(reader, dict):
+        return
+    from cwproc.io import Format
+
+    known = sorted(f.value for f in Format)
+    for name in reader:
+        if name not in known:
+            close = [k for k in known if k.lower() == str(name).lower()]
+            hint = f" (did you mean [reader.{close[0]}]?)" if close else ""
+            raise ConfigError(
+                source,
+                f"reader.{name}",
+                f"not a format cwproc reads{hint}; known: {', '.join(known)}",
+            )
 
 
 def _build(cls: type, data: Any, source: str, prefix: str) -> Any:

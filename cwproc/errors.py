@@ -16,6 +16,20 @@ class CwprocError(Exception):
     """Base class of every error that cwproc reports to the user as one line."""
 
 
+#: longest problem text of an error line (characters)
+PROBLEM_MAX = 300
+
+
+def one_line(text: str, limit: int = PROBLEM_MAX) -> str:
+    """``text`` as one line of at most ``limit`` characters (control characters shown).
+
+    A file with lone-CR line ends is "one line" to a reader; quoting it must not put
+    the whole file (110 kB of a WindCube .sta) into an error message.
+    """
+    flat = "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+    return flat if len(flat) <= limit else flat[: limit - 1] + "…"
+
+
 class InputFileError(CwprocError):
     """A problem with one input file.
 
@@ -40,7 +54,7 @@ class InputFileError(CwprocError):
         unit: str = "line",
     ) -> None:
         self.path = os.fspath(path)
-        self.problem = problem
+        self.problem = one_line(problem)
         self.line = line
         self.unit = unit
         super().__init__(self.__str__())

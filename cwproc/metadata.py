@@ -89,6 +89,20 @@ PHYSICAL_RANGES: dict[str, tuple[float, float]] = {
 }
 
 
+def outside_physical_range(name: str, values: np.ndarray) -> np.ndarray:
+    """Where ``values`` of variable ``name`` are finite but impossible, or infinite.
+
+    NaN is left alone (already missing); variables without a declared range give all
+    False.
+    """
+    values = np.asarray(values, dtype=float)
+    if name not in PHYSICAL_RANGES:
+        return np.zeros(values.shape, dtype=bool)
+    low, high = PHYSICAL_RANGES[name]
+    with np.errstate(invalid="ignore"):
+        return ~np.isnan(values) & (~np.isfinite(values) | (values < low) | (values > high))
+
+
 def screen_physical_range(ds: xr.Dataset) -> tuple[xr.Dataset, dict[str, int]]:
     """Replace values outside :data:`PHYSICAL_RANGES` (or not finite) by NaN.
 

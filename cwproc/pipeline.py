@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import re
+import stat
 from collections import defaultdict
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -106,6 +107,13 @@ def read_input(path: str | os.PathLike, config: Config) -> InputFile:
         Whatever the reader found wrong with the file.
     """
     path = Path(path)
+    try:
+        mode = path.stat().st_mode
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(mode):
+        kind = "a folder" if stat.S_ISDIR(mode) else "a pipe, socket or device"
+        raise InputFileError(path, f"not a regular file ({kind}); cwproc reads files")
     fmt = (
         detect_format(path)
         if config.instrument.format == "auto"
@@ -148,12 +156,24 @@ def name_part(text: object, default: str = "x") -> str:
     return part or default
 
 
+def _sonic_station(ds: xr.Dataset) -> str:
+    """The logger or instrument identity a sonic file states ('' when none)."""
+    for key in ("toa5_station", "tob1_station", "ghg_instrument", "ghg_serial_number"):
+        value = str(ds.attrs.get(key, "")).strip()
+        if value:
+            return value
+    return str(ds.attrs.get("meteo2_station", "")).strip()
+
+
 def unit_key(item: InputFile) -> tuple[str, str]:
     """(kind, key) of the product unit an input belongs to; the key names the products.
 
-    Scan files group by instrument, system id and UTC day; sonic files by format and
-    UTC day; wind records are one unit each (named after the file). Every part taken
-    from a file is made safe by :func:`name_part`, so the key is a plain file name.
+    Scan files group by instrument, system id and UTC day; sonic files by format, the
+    station the file names (TOA5/TOB1 station, GHG instrument, Meteo-2 ``# station:``;
+    else the name of its folder) and UTC day, so two loggers of one day are never
+    merged; wind records are one unit each, named after their folder and file, so
+    same-named files of two instruments are two units. Every part taken from a file is
+    made safe by :func:`name_part`, so the key is a plain file name.
     """
     kind = KIND[item.format]
     ds = item.dataset
@@ -162,9 +182,12 @@ def unit_key(item: InputFile) -> tuple[str, str]:
         system = name_part(ds.attrs.get("system_id", ""))
         instrument = name_part(ds.attrs.get("instrument_kind", item.format.value))
         return kind, f"{instrument}_{system}_{_day(ds)}"
+    folder = name_part(Path(item.path).absolute().parent.name, "root")
     if kind == "sonic":
-        return kind, f"{item.format.value}_{_day(ds)}"
-    return kind, name_part(Path(item.path).stem)
+        station = _sonic_station(ds)
+        where = name_part(station) if station else folder
+        return kind, f"{item.format.value}_{where}_{_day(ds)}"
+    return kind, f"{folder}_{name_part(Path(item.path).stem)}"
 
 
 def split_by_day(item: InputFile) -> list[InputFile]:

@@ -742,3 +742,78 @@ def test_process_pool_gives_the_products_of_a_serial_run(tmp_path):
         xr.testing.assert_identical(a.drop_attrs(deep=False), b.drop_attrs(deep=False))
     ledger = load_ledger(tmp_path / "pool" / ".cwproc" / "ledger.json")
     assert len(ledger.units) == 2
+
+
+def test_ledger_save_appends_only_the_change(tmp_path):
+    """After the first snapshot a save costs the change, not the ledger (issue 17.8)."""
+    from cwproc.batch import journal_path
+
+    path = tmp_path / "ledger.json"
+    ledger = load_ledger(path)
+    for i in range(2000):
+        ledger.files[f"/a/{i}"] = {"size": i}
+    save_ledger(ledger, path)
+    snapshot = path.read_bytes()
+    ledger.units["u1"] = {"fingerprint": "f1"}
+    ledger.failures.pop("nothing", None)
+    save_ledger(ledger, path)
+    assert path.read_bytes() == snapshot  # the snapshot is not rewritten
+    lines = journal_path(path).read_text().splitlines()
+    assert len(lines) == 1 and json.loads(lines[0])["key"] == "u1"
+    del ledger.files["/a/0"]
+    save_ledger(ledger, path)
+    again = load_ledger(path)
+    assert again.units == {"u1": {"fingerprint": "f1"}}
+    assert "/a/0" not in again.files and len(again.files) == 1999
+    save_ledger(again, path, compact=True)
+    assert not journal_path(path).exists()
+    assert load_ledger(path).units == again.units
+
+
+def test_torn_journal_line_of_a_killed_run_is_ignored(tmp_path):
+    from cwproc.batch import journal_path
+
+    path = tmp_path / "ledger.json"
+    ledger = load_ledger(path)
+    ledger.units["a"] = {"fingerprint": "1"}
+    save_ledger(ledger, path)
+    ledger.units["b"] = {"fingerprint": "2"}
+    save_ledger(ledger, path)
+    with open(journal_path(path), "ab") as fh:
+        fh.write(b'{"table": "units", "key": "c", "val')  # killed mid-write
+    assert set(load_ledger(path).units) == {"a", "b"}
+
+
+def test_a_run_leaves_a_complete_snapshot(tmp_path):
+    from cwproc.batch import journal_path
+
+    toy_archive(tmp_path / "in", n_days=3)
+    out = tmp_path / "out"
+    report = run_toy(tmp_path / "in", out)
+    assert report.ok
+    ledger_path = out / STATE_DIR / "ledger.json"
+    assert not journal_path(ledger_path).exists()
+    assert len(json.loads(ledger_path.read_text())["units"]) == len(report.processed)
+
+
+def test_two_loggers_of_one_day_are_two_units_and_same_named_records_too(tmp_path):
+    """Sonic units are keyed by station, wind records by folder too (issue 17.2)."""
+    from cwproc.io import Format
+    from cwproc.pipeline import InputFile, group_units
+
+    t = np.array(["2012-06-07T12:00"], dtype="datetime64[ns]")
+
+    def sonic(station: str, folder: str) -> InputFile:
+        ds = xr.Dataset(coords={"time": t}, attrs={"toa5_station": station})
+        return InputFile(Path(tmp_path / folder / "TOA5_x.dat"), Format.TOA5, "0", ds)
+
+    units = group_units([sonic("6843", "a"), sonic("7777", "a"), sonic("6843", "b")])
+    assert sorted(u.key for u in units) == ["toa5_6843_20120607", "toa5_7777_20120607"]
+    assert [len(u.inputs) for u in sorted(units, key=lambda u: u.key)] == [2, 1]
+    rec = xr.Dataset(coords={"time": t})
+    records = [
+        InputFile(Path(tmp_path / f / "Wind10_1.ZPH.csv"), Format.ZEPHIR_CSV, "0", rec)
+        for f in ("site1", "site2")
+    ]
+    keys = sorted(u.key for u in group_units(records))
+    assert keys == ["site1_Wind10_1.ZPH", "site2_Wind10_1.ZPH"]

@@ -10,7 +10,6 @@ second kill -9 test run the real pipeline (Stream Line reader, qc, vad) on synth
 from __future__ import annotations
 
 import errno
-import json
 import os
 import shutil
 import signal
@@ -81,11 +80,11 @@ def wait_for(predicate, timeout_s: float = 30.0, poll_s: float = 0.02) -> None:
 
 
 def ledger_units(outdir: Path) -> dict:
+    """The units of the ledger as a reader would see it now (snapshot + journal)."""
     path = outdir / STATE_DIR / "ledger.json"
-    try:
-        return json.loads(path.read_text())["units"]
-    except FileNotFoundError:
+    if not path.exists():
         return {}
+    return load_ledger(path).units
 
 
 def leftovers(outdir: Path) -> list[Path]:

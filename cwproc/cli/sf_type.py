@@ -55,7 +55,8 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
     Gladkikh et al. (2014): per 10-min window and wind component (longitudinal,
     transverse, vertical) the normalised structure function is typed 1 (line),
     2 (parabola) or 3 (parabola then line) in lg-lg axes. Writes one product per
-    file format and UTC day, <format>_<YYYYMMDD>_sf.nc, plus
+    file format, station (from the file's header, else its folder) and UTC day,
+    <format>_<station>_<YYYYMMDD>_sf.nc, plus
     sf_type_occurrence.csv (Table 2) and sf_parameters.csv (Tables 3-5), and prints
     both tables. Exit status 0 when every input was processed, 1 otherwise, with one
     line per failed input naming the file, the line and the problem.

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import stat
 from enum import StrEnum
 from typing import Any
 
@@ -100,6 +101,8 @@ def detect_format(path: str | os.PathLike) -> Format:
     InputFileError
         The file cannot be read, is empty, or is of no format cwproc reads.
     """
+    if not is_regular_file(path):
+        raise InputFileError(path, "not a regular file (a folder, pipe, socket or device)")
     try:
         with open(path, "rb") as fh:
             head = fh.read(_HEAD_BYTES)
@@ -113,6 +116,14 @@ def detect_format(path: str | os.PathLike) -> Format:
     return fmt
 
 
+def is_regular_file(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is a regular file (opening a FIFO or a device would block)."""
+    try:
+        return stat.S_ISREG(os.stat(path).st_mode)
+    except OSError:
+        return True  # let the open() that follows report the problem with its reason
+
+
 def is_cwproc_product(path: str | os.PathLike) -> bool:
     """True when ``path`` is a product cwproc wrote (not an instrument file).
 
@@ -120,6 +131,8 @@ def is_cwproc_product(path: str | os.PathLike) -> bool:
     ``ray`` dimension (cwproc's scan NetCDF files, which are inputs, have one). Products
     found among the inputs are skipped by ``retrieve``, ``sf-type`` and ``batch``.
     """
+    if not is_regular_file(path):
+        return False
     try:
         with open(path, "rb") as fh:
             head = fh.read(8)

@@ -47,6 +47,7 @@ import xarray as xr
 
 from cwproc.errors import InputFileError
 from cwproc.io.timecheck import check_times
+from cwproc.metadata import outside_physical_range
 
 INSTRUMENT = "Meteo-2 ultrasonic weather station (IAO SB RAS)"
 MAGIC = "# cwproc meteo2"
@@ -281,6 +282,13 @@ def sonic_dataset(
         "w": np.asarray(w, float)[keep],
         "temperature": np.asarray(temperature, float)[keep],
     }
+    for name, values in data.items():  # impossible values are missing (flag 4), not data
+        bad = outside_physical_range(name, values)
+        if bad.any():
+            notes.append(
+                f"{int(bad.sum())} value(s) of {name} outside its physical range: set to missing"
+            )
+            data[name] = np.where(bad, np.nan, values)
     diag = np.asarray(diagnostic)[keep]
     diag_f = diag.astype(float)
     with np.errstate(invalid="ignore"):

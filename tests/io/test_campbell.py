@@ -64,7 +64,9 @@ def test_toa5_nan_inf_and_record_gap_are_reported(tmp_path, toa5_lines):
     ds = read_toa5(_write(tmp_path, lines))
     assert np.isnan(ds["u"].values[6])
     assert ds["sample_flag"].values[6] & 4
-    assert ds["v"].values[16] == -np.inf and ds["sample_flag"].values[16] & 4
+    # an infinite value is impossible: filled as missing and flagged (issue 17.3)
+    assert np.isnan(ds["v"].values[16]) and ds["sample_flag"].values[16] & 4
+    assert any("of v outside its physical range" in w for w in ds.attrs["warnings"])
     assert ds.attrs["n_not_finite"] == 2
     assert ds.attrs["n_gaps"] == 1
     assert ds.attrs["gap_seconds"] == pytest.approx(0.5, abs=1e-6)

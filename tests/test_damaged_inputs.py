@@ -1,0 +1,128 @@
+"""Damaged copies of every shipped sample, through every reader (issue 17, Show).
+
+The damage is generated here (committed generators, never committed damaged files):
+cut at any byte, bytes flipped, a line duplicated or deleted, a number replaced by an
+absurd one, junk appended. Whatever the damage, reading a file
+
+- raises :class:`cwproc.errors.CwprocError` (one line naming the file) or succeeds;
+- never raises anything else (a traceback) and never says "internal error";
+- when it succeeds, gives no value outside :data:`cwproc.metadata.PHYSICAL_RANGES`
+  and no time outside the plausible window of :mod:`cwproc.io.timecheck`;
+
+and ``cwproc retrieve`` on it writes nothing outside ``-o``.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from cwproc.cli import main
+from cwproc.errors import CwprocError
+from cwproc.io import read
+from cwproc.io.timecheck import first_implausible
+from cwproc.metadata import PHYSICAL_RANGES
+
+SAMPLE = Path(__file__).resolve().parents[1] / "sample_data"
+#: every shipped instrument sample with the reader options its format needs
+FILES = {
+    "hpl": (SAMPLE / "streamline" / "VAD_999_20240601_120000.hpl", {}),
+    "zephir": (SAMPLE / "zephir" / "Wind10_999@Y2024_M06_D01.ZPH.csv", {}),
+    "windcube": (SAMPLE / "windcube" / "WLS7-999_2024_06_01__00_00_00.sta", {}),
+    "toa5": (SAMPLE / "sonic" / "TOA5_999.ts_data_2024_06_01_1200.dat", {}),
+    "tob1": (SAMPLE / "sonic" / "TOB1_999.ts_data_2024_06_01_1200.dat", {}),
+    "ghg": (SAMPLE / "sonic" / "2024-06-01T120000_AIU-0999.data", {}),
+    "meteo2": (SAMPLE / "sonic" / "meteo2_2024_06_01_1200.txt", {}),
+    "gill": (
+        SAMPLE / "sonic" / "gill_2024_06_01_1200.txt",
+        {"start_time": "2024-06-01T12:00:00", "sampling_rate_hz": 10.0},
+    ),
+}
+#: bytes kept of each sample (the damage is anywhere in them; reading stays fast)
+KEEP = 60_000
+
+NUMBER = re.compile(rb"-?\d+\.\d+")
+
+
+def damage(raw: bytes, kind: int, where: float, junk: bytes) -> bytes:
+    """One kind of damage at relative position ``where`` of ``raw``."""
+    at = int(where * max(len(raw) - 1, 0))
+    if kind == 0:  # cut (a file still being written, a full disk)
+        return raw[:at]
+    if kind == 1:  # flipped bytes
+        return raw[:at] + bytes(b ^ 0x5A for b in raw[at : at + 8]) + raw[at + 8 :]
+    if kind == 2:  # a line deleted
+        start = raw.rfind(b"\n", 0, at) + 1
+        end = raw.find(b"\n", at)
+        return raw[:start] + (raw[end + 1 :] if end >= 0 else b"")
+    if kind == 3:  # a line duplicated
+        start = raw.rfind(b"\n", 0, at) + 1
+        end = raw.find(b"\n", at)
+        line = raw[start : end + 1] if end >= 0 else raw[start:]
+        return raw[:start] + line + raw[start:]
+    if kind == 4:  # a number replaced by an absurd one
+        numbers = list(NUMBER.finditer(raw))
+        if not numbers:
+            return raw
+        m = numbers[int(where * (len(numbers) - 1))]
+        return raw[: m.start()] + b"1e308" + raw[m.end() :]
+    return raw + junk  # junk appended (zero padding, a second program's output)
+
+
+def check_dataset(ds) -> None:
+    for name, (low, high) in PHYSICAL_RANGES.items():
+        if name in ds and ds[name].dtype.kind == "f":
+            values = ds[name].values
+            finite = values[np.isfinite(values)]
+            assert np.all((finite >= low) & (finite <= high)), name
+    if "time" in ds.coords or "time" in ds:
+        assert first_implausible(ds["time"].values) is None
+
+
+@pytest.mark.parametrize("name", sorted(FILES))
+@settings(
+    max_examples=60,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
+@given(
+    kind=st.integers(0, 5),
+    where=st.floats(0.0, 1.0),
+    junk=st.binary(min_size=1, max_size=64),
+)
+def test_damaged_file_is_an_error_or_a_sane_dataset(tmp_path, name, kind, where, junk):
+    path, options = FILES[name]
+    raw = path.read_bytes()[:KEEP] if path.suffix != ".dat" else path.read_bytes()
+    bad = tmp_path / f"damaged{path.suffix}"
+    bad.write_bytes(damage(raw, kind, where, junk))
+    try:
+        ds = read(bad, **options)
+    except CwprocError as exc:
+        text = str(exc)
+        assert "internal error" not in text
+        assert "\n" not in text and len(text) < 1000
+        return
+    check_dataset(ds)
+
+
+@pytest.mark.parametrize("name", ["hpl", "zephir", "toa5"])
+def test_retrieve_on_damaged_copies_writes_only_inside_the_output(tmp_path, name):
+    path, _ = FILES[name]
+    raw = path.read_bytes()
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for k in range(6):
+        (folder / f"{k}_{path.name}").write_bytes(damage(raw, k, 0.37, b"\x00junk\n"))
+    out = tmp_path / "deep" / "out"
+    result = CliRunner().invoke(main, ["retrieve", str(folder), "-o", str(out)])
+    assert result.exit_code in (0, 1), result.output
+    assert "Traceback" not in result.output and "internal error" not in result.output
+    written = [p for p in tmp_path.rglob("*.nc")]
+    assert all(p.parent == out for p in written)
