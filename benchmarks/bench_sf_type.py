@@ -84,11 +84,8 @@ def main() -> None:
             write_toa5_day(path, day)
             files.append(path)
         size = files[0].stat().st_size / 1e6
-        read = min(
-            run([sys.executable, "-c", f"import pandas; pandas.read_csv({str(files[0])!r}, "
-                 "skiprows=[0, 2, 3])"])  # fmt: skip
-            for _ in range(args.repeat)
-        )
+        code = f"import pandas; pandas.read_csv({str(files[0])!r}, skiprows=[0, 2, 3])"
+        read = min(run([sys.executable, "-c", code]) for _ in range(args.repeat))
         t0 = time.perf_counter()
         pd.read_csv(files[0], skiprows=[0, 2, 3])
         read_inproc = time.perf_counter() - t0
@@ -97,7 +94,7 @@ def main() -> None:
             for _ in range(args.repeat)
         )
         print(f"one day, {size:.1f} MB, {RATE_HZ} Hz TOA5")
-        print(f"  pandas.read_csv             {read_inproc:6.2f} s in-process, {read:6.2f} s process")
+        print(f"  pandas.read_csv  {read_inproc:6.2f} s in-process, {read:6.2f} s process")
         print(f"  cwproc sf-type (process)    {sf:6.2f} s")
         print(f"  ratio sf-type / read_csv    {sf / read_inproc:6.2f} (in-process read), "
               f"{sf / read:.2f} (process)")  # fmt: skip

@@ -41,6 +41,7 @@ from cwproc.io.netcdf import (
     add_site_coordinates,
     discard,
     publish,
+    remove_stale_temporaries,
     sha256_file,
     site_attributes,
     write_product,
@@ -536,6 +537,8 @@ def retrieve_files(
         Products written and one line per failed input or unit.
     """
     report = RunReport()
+    for stale in remove_stale_temporaries(outdir):
+        report.notes.append(f"{stale}: removed a temporary file of an interrupted run")
     units: dict[tuple[str, str], ProductUnit] = {}
     accepted = set(kinds) if kinds is not None else None
     held = 0

@@ -63,3 +63,23 @@ def test_whole_unit_is_published(tmp_path):
     paths = write_unit_products(unit, {"wind": tiny(), "turbulence": tiny()}, tmp_path, Config())
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in paths)
     assert len(paths) == 2
+
+
+def test_retrieve_removes_stale_temporaries_of_a_killed_run(tmp_path):
+    """A killed retrieve left .tmp files no later run removed (issue 14.4, 17.6)."""
+    import time as _time
+
+    from cwproc.io.netcdf import STALE_TEMPORARY_S
+    from cwproc.pipeline import retrieve_files
+
+    out = tmp_path / "out"
+    out.mkdir()
+    stale = out / ".streamline_1_20240601_wind.nc.k1ll3d.tmp"
+    fresh = out / ".streamline_1_20240601_turbulence.nc.l1v3.tmp"
+    for path in (stale, fresh):
+        path.write_bytes(b"\x89HDF partial")
+    old = _time.time() - STALE_TEMPORARY_S - 10
+    os.utime(stale, (old, old))
+    report = retrieve_files([], out, Config())
+    assert not stale.exists() and fresh.exists()  # a live run's temporary stays
+    assert any("interrupted run" in n for n in report.notes)

@@ -14,6 +14,7 @@ import json
 import os
 import shutil
 import tempfile
+import time
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
@@ -331,6 +332,31 @@ def write_netcdf_atomic(
     """
     path = Path(path)
     return publish([(stage_netcdf(ds, path, compression_level=compression_level), path)])[0]
+
+
+#: a product temporary older than this (s) belongs to no live run of retrieve or sf-type
+STALE_TEMPORARY_S = 3600.0
+
+
+def remove_stale_temporaries(
+    outdir: str | os.PathLike, older_than_s: float = STALE_TEMPORARY_S
+) -> list[Path]:
+    """Delete product temporaries (``.<name>.nc.<random>.tmp``) a killed run left behind.
+
+    ``retrieve`` and ``sf-type`` hold no lock, so only temporaries older than
+    ``older_than_s`` are removed (a live run renames its temporaries within seconds);
+    ``batch`` removes them all under its lock.
+    """
+    removed = []
+    now = time.time()
+    for path in Path(outdir).glob(".*.nc.*.tmp"):
+        try:
+            if path.is_file() and now - path.stat().st_mtime > older_than_s:
+                path.unlink()
+                removed.append(path)
+        except FileNotFoundError:
+            continue
+    return removed
 
 
 def umask_mode(mode: int = 0o666) -> int:
