@@ -13,6 +13,7 @@ product of one time step is drawn as profiles.
 from __future__ import annotations
 
 import os
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -20,6 +21,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import ProductError
+from cwproc.io.netcdf import umask_mode
 
 #: figure size in inches and resolution of every quicklook
 FIGSIZE = (10.0, 6.0)
@@ -544,12 +546,16 @@ def save_png(fig, out: str | os.PathLike) -> Path:
     plt = _pyplot()
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.name}.tmp.png")
-    try:
-        fig.savefig(tmp, dpi=DPI, format="png")
+    tmp = None
+    try:  # an unpredictable name created exclusively: no planted symlink is followed
+        fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
+        with os.fdopen(fd, "wb") as fh:
+            fig.savefig(fh, dpi=DPI, format="png")
+        os.chmod(tmp, umask_mode())
         os.replace(tmp, out)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
         raise ProductError(f"{out}: cannot write picture: {exc.strerror or exc}") from None
     finally:
         plt.close(fig)

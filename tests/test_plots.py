@@ -3,6 +3,8 @@ give a clear error."""
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -312,3 +314,25 @@ def test_png_gets_the_umask_mode(tmp_path):
         os.umask(old)
     assert out.stat().st_mode & 0o777 == 0o644
     assert not list(tmp_path.glob(".*tmp*"))
+
+
+def test_png_temporary_is_unpredictable_and_follows_no_symlink(tmp_path):
+    """plot wrote .<name>.tmp.png and followed a planted symlink (issue 17.6)."""
+    pytest.importorskip("matplotlib")
+    import matplotlib.pyplot as plt
+
+    from cwproc.plots import save_png
+
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep me")
+    (tmp_path / ".out.png.tmp.png").symlink_to(victim)
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [0, 1])
+    old = os.umask(0o022)
+    try:
+        out = save_png(fig, tmp_path / "out.png")
+    finally:
+        os.umask(old)
+    assert victim.read_text() == "keep me"
+    assert out.read_bytes().startswith(b"\x89PNG")
+    assert (out.stat().st_mode & 0o777) == 0o644
