@@ -21,7 +21,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import ProductError
-from cwproc.io.netcdf import umask_mode
+from cwproc.io.netcdf import remove_stale_temporaries, umask_mode
 
 #: figure size in inches and resolution of every quicklook
 FIGSIZE = (10.0, 6.0)
@@ -546,6 +546,7 @@ def save_png(fig, out: str | os.PathLike) -> Path:
     plt = _pyplot()
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale_temporaries(out.parent)  # of a plot killed earlier
     tmp = None
     try:  # an unpredictable name created exclusively: no planted symlink is followed
         fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)

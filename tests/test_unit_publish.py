@@ -2,6 +2,7 @@
 
 import os
 import stat
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -83,3 +84,19 @@ def test_retrieve_removes_stale_temporaries_of_a_killed_run(tmp_path):
     report = retrieve_files([], out, Config())
     assert not stale.exists() and fresh.exists()  # a live run's temporary stays
     assert any("interrupted run" in n for n in report.notes)
+
+
+def test_writers_of_pictures_and_simulated_files_clean_stale_temporaries(tmp_path):
+    """plot and simulate (write_hpl) remove what a killed run of theirs left (issue 14.4)."""
+    import time as _time
+
+    from cwproc.io.halo import read_hpl, write_hpl
+    from cwproc.io.netcdf import STALE_TEMPORARY_S
+
+    stale = tmp_path / ".VAD_1.hpl.dead.tmp"
+    stale.write_bytes(b"partial")
+    old = _time.time() - STALE_TEMPORARY_S - 10
+    os.utime(stale, (old, old))
+    sample = next((Path(__file__).parent.parent / "sample_data" / "streamline").glob("*.hpl"))
+    write_hpl(read_hpl(sample), tmp_path / "VAD_2.hpl")
+    assert not stale.exists()

@@ -50,7 +50,7 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import ConfigError, CwprocError, InputFileError
-from cwproc.io.netcdf import umask_mode
+from cwproc.io.netcdf import remove_stale_temporaries, umask_mode
 from cwproc.io.timecheck import check_times
 
 try:  # the optional compiled tokenizer (setup.py); pandas does the same work without it
@@ -1351,6 +1351,7 @@ def write_hpl(ds: xr.Dataset, path: str | os.PathLike) -> Path:
     """
     path = Path(path)
     data = hpl_text(ds, path.name).encode("ascii")
+    remove_stale_temporaries(path.parent)  # of a simulation killed earlier
     tmp = None
     try:  # an unpredictable name created exclusively: no planted symlink is followed
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)

@@ -334,6 +334,8 @@ def write_netcdf_atomic(
     return publish([(stage_netcdf(ds, path, compression_level=compression_level), path)])[0]
 
 
+#: extensions of the files whose temporaries :func:`remove_stale_temporaries` removes
+_TEMP_EXTENSIONS = ("nc", "png", "hpl")
 #: a product temporary older than this (s) belongs to no live run of retrieve or sf-type
 STALE_TEMPORARY_S = 3600.0
 
@@ -341,15 +343,17 @@ STALE_TEMPORARY_S = 3600.0
 def remove_stale_temporaries(
     outdir: str | os.PathLike, older_than_s: float = STALE_TEMPORARY_S
 ) -> list[Path]:
-    """Delete product temporaries (``.<name>.nc.<random>.tmp``) a killed run left behind.
+    """Delete temporaries of cwproc's writers (``.<name>.<ext>.<random>.tmp``, products,
+    pictures and simulated files) that a killed run left in ``outdir``.
 
-    ``retrieve`` and ``sf-type`` hold no lock, so only temporaries older than
+    Commands other than ``batch`` hold no lock, so only temporaries older than
     ``older_than_s`` are removed (a live run renames its temporaries within seconds);
     ``batch`` removes them all under its lock.
     """
     removed = []
     now = time.time()
-    for path in Path(outdir).glob(".*.nc.*.tmp"):
+    candidates = [p for ext in _TEMP_EXTENSIONS for p in Path(outdir).glob(f".*.{ext}.*.tmp")]
+    for path in candidates:
         try:
             if path.is_file() and now - path.stat().st_mtime > older_than_s:
                 path.unlink()
