@@ -59,6 +59,8 @@ def sonic_temperature_from_sos(sos: np.ndarray) -> np.ndarray:
 
 #: largest .data member read from a .ghg archive (bytes; a half-hour file is ~30 MB)
 GHG_MAX_BYTES = 512 << 20
+#: zip compression methods the standard library reads
+_ZIP_METHODS = (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED, zipfile.ZIP_BZIP2, zipfile.ZIP_LZMA)
 #: largest compression ratio accepted (a "zip bomb" beyond it is refused)
 GHG_MAX_RATIO = 200
 
@@ -95,8 +97,12 @@ def ghg_text(path: str | os.PathLike) -> str:
                 raise InputFileError(
                     path, f"{info.filename}: {info.file_size} bytes unpacked is implausible"
                 )
+            if info.compress_type not in _ZIP_METHODS:
+                raise InputFileError(
+                    path, f"{info.filename}: zip compression method {info.compress_type}"
+                )
             raw = archive.read(info)
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError, OSError) as exc:
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError) as exc:
         raise InputFileError(path, f"cannot read the .ghg archive: {exc}") from None
     if b"\x00" in raw:
         raise InputFileError(path, f"{info.filename}: binary data (NUL byte) in the text")

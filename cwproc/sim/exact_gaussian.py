@@ -67,7 +67,7 @@ __all__ = [
     "gaussian_scans",
     "structure_functions",
 ]
-from cwproc.sim.pulsed import pulsed_range_weight, wind_components
+from cwproc.sim.pulsed import pulsed_range_weight, streamline_scans, wind_components
 
 #: half extent of the range weighting used, in units of Delta_p beyond Delta_R/2
 _TAIL_PULSES = 3.0
@@ -507,33 +507,17 @@ def gaussian_scans(
     n_rays = n_blocks * n
     azimuth = np.tile(np.asarray(pattern.azimuth_deg), n_blocks * n_scans)
     scan = np.repeat(np.arange(n_blocks * n_scans), m).astype(np.int64)
-    return xr.Dataset(
-        {
-            "radial_velocity": (("ray", "range"), velocity.reshape(n_rays, ranges.size)),
-            "snr": (("ray", "range"), np.full((n_rays, ranges.size), float(snr))),
-            "qc_flag_radial": (("ray", "range"), np.zeros((n_rays, ranges.size), np.int8)),
-        },
-        coords={
-            "time": ("ray", times),
-            "azimuth": ("ray", azimuth),
-            "elevation": ("ray", np.full(n_rays, float(elevation_deg))),
-            "range": ("range", ranges),
-            "scan": ("ray", scan),
-        },
-        attrs={
-            "instrument": "Halo Photonics Stream Line",
-            "instrument_kind": "streamline",
-            "system_id": "sim",
-            "source_files": [],
-            "scan_type": "VAD",
-            "gate_length_m": float(delta_r_m),
-            "homodyne": 0,
-            "points_per_gate": max(1, round(delta_r_m / 3.0)),
-            "pulses_per_ray": 10000,
-            "focus_range_m": 65535.0,
-            "velocity_resolution_m_s": 0.0382,
-            "delta_p_m": float(delta_p_m),
-            "delta_r_m": float(delta_r_m),
+    ds = streamline_scans(
+        velocity.reshape(n_rays, ranges.size),
+        times=times,
+        azimuth=azimuth,
+        elevation_deg=elevation_deg,
+        ranges_m=ranges,
+        scan=scan,
+        snr=snr,
+        delta_p_m=delta_p_m,
+        delta_r_m=delta_r_m,
+        truth={
             "sim_generator": "exact Gaussian (cwproc.sim.exact_gaussian)",
             "sim_epsilon": float(epsilon),
             "sim_integral_scale_m": float(outer_scale_m),
@@ -544,11 +528,11 @@ def gaussian_scans(
             "sim_wind_direction_deg": float(wind_direction_deg),
             "sim_scan_period_s": float(pattern.period_s),
             "sim_covariance_clipped": worst,
-            "sim_velocity_variance": float(
-                spectra.variance_from(epsilon, outer_scale_m, model)  # type: ignore[arg-type]
-            ),
+            "sim_velocity_variance": float(spectra.variance_from(epsilon, outer_scale_m, model)),
         },
     )
+    ds["qc_flag_radial"] = (("ray", "range"), np.zeros((n_rays, ranges.size), np.int8))
+    return ds
 
 
 def covariance_factor(cov: np.ndarray) -> tuple[np.ndarray, float]:

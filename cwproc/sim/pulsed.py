@@ -203,7 +203,52 @@ def sample_conical_scans(
     times = t0 + np.round(t_centre * 1e9).astype("timedelta64[ns]")
     azimuth = (start_azimuth_deg + sign * 360.0 * t_centre / scan_period_s) % 360.0
     scan = (np.arange(n_rays) // rays_per_scan).astype(np.int64)
-    ds = xr.Dataset(
+    return streamline_scans(
+        velocity,
+        times=times,
+        azimuth=azimuth,
+        elevation_deg=elevation_deg,
+        ranges_m=ranges,
+        scan=scan,
+        snr=snr,
+        delta_p_m=delta_p_m,
+        delta_r_m=delta_r_m,
+        truth={
+            "sim_epsilon": field.epsilon,
+            "sim_integral_scale_m": field.integral_scale_m,
+            "sim_field_seed": field.seed,
+            "sim_field_spacing_m": field.spacing_m,
+            "sim_noise_std": float(noise_std_m_s),
+            "sim_noise_seed": int(seed),
+            "sim_wind_speed": float(wind_speed_m_s),
+            "sim_wind_direction_deg": float(wind_direction_deg),
+            "sim_vertical_wind": float(vertical_wind_m_s),
+            "sim_scan_period_s": float(scan_period_s),
+        },
+    )
+
+
+def streamline_scans(
+    velocity: np.ndarray,
+    *,
+    times: np.ndarray,
+    azimuth: np.ndarray,
+    elevation_deg: float,
+    ranges_m: np.ndarray,
+    scan: np.ndarray,
+    snr: float,
+    delta_p_m: float,
+    delta_r_m: float,
+    truth: dict[str, object],
+) -> xr.Dataset:
+    """The canonical scan dataset of simulated Stream Line rays (``velocity``: ray x gate).
+
+    Attributes are those of a Stream Line (gate length, points per gate, pulses per ray,
+    velocity resolution, the range weighting's Delta_p and Delta_R) plus the simulation
+    truth ``truth`` (``sim_*`` attributes).
+    """
+    n_rays = velocity.shape[0]
+    return xr.Dataset(
         {
             "radial_velocity": (("ray", "range"), velocity),
             "snr": (("ray", "range"), np.full(velocity.shape, float(snr))),
@@ -212,7 +257,7 @@ def sample_conical_scans(
             "time": ("ray", times),
             "azimuth": ("ray", azimuth),
             "elevation": ("ray", np.full(n_rays, float(elevation_deg))),
-            "range": ("range", ranges),
+            "range": ("range", np.asarray(ranges_m, dtype=float)),
             "scan": ("ray", scan),
         },
         attrs={
@@ -229,16 +274,6 @@ def sample_conical_scans(
             "velocity_resolution_m_s": 0.0382,
             "delta_p_m": float(delta_p_m),
             "delta_r_m": float(delta_r_m),
-            "sim_epsilon": field.epsilon,
-            "sim_integral_scale_m": field.integral_scale_m,
-            "sim_field_seed": field.seed,
-            "sim_field_spacing_m": field.spacing_m,
-            "sim_noise_std": float(noise_std_m_s),
-            "sim_noise_seed": int(seed),
-            "sim_wind_speed": float(wind_speed_m_s),
-            "sim_wind_direction_deg": float(wind_direction_deg),
-            "sim_vertical_wind": float(vertical_wind_m_s),
-            "sim_scan_period_s": float(scan_period_s),
+            **truth,
         },
     )
-    return ds
