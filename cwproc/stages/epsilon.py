@@ -230,7 +230,7 @@ def fit_structure_function(
     # sampling error of D and the model's shape: the fitted intercept then measures
     # those, not the noise (24-ray VADs: 6-8 times the true sigma_e)
     with np.errstate(invalid="ignore"):
-        smallest = np.nanmin(np.where(w, d, np.nan), axis=-1)
+        smallest = np.min(np.where(w, d, np.inf), axis=-1)  # inf: no valid lag
         detectable = ~np.isfinite(prior) | (2.0 * prior**2 >= NOISE_DETECTABLE * smallest)
     determined = determined & detectable
     fixed = np.where(np.isfinite(prior), 2.0 * np.nan_to_num(prior) ** 2, 0.0)
