@@ -517,6 +517,7 @@ def gaussian_scans(
         snr=snr,
         delta_p_m=delta_p_m,
         delta_r_m=delta_r_m,
+        stepped=pattern.sweep_deg == 0,
         truth={
             "sim_generator": "exact Gaussian (cwproc.sim.exact_gaussian)",
             "sim_epsilon": float(epsilon),

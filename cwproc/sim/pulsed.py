@@ -240,12 +240,14 @@ def streamline_scans(
     delta_p_m: float,
     delta_r_m: float,
     truth: dict[str, object],
+    stepped: bool = False,
 ) -> xr.Dataset:
     """The canonical scan dataset of simulated Stream Line rays (``velocity``: ray x gate).
 
     Attributes are those of a Stream Line (gate length, points per gate, pulses per ray,
     velocity resolution, the range weighting's Delta_p and Delta_R) plus the simulation
-    truth ``truth`` (``sim_*`` attributes).
+    truth ``truth`` (``sim_*`` attributes); ``stepped``: a step-stare VAD (the beam still
+    during each ray), named as the Halo names it (``Scan type: VAD - stepped``).
     """
     n_rays = velocity.shape[0]
     return xr.Dataset(
@@ -265,7 +267,7 @@ def streamline_scans(
             "instrument_kind": "streamline",
             "system_id": "sim",
             "source_files": [],
-            "scan_type": "VAD",
+            "scan_type": "VAD - stepped" if stepped else "VAD",
             "gate_length_m": float(delta_r_m),
             "homodyne": 0,
             "points_per_gate": max(1, round(delta_r_m / 3.0)),

@@ -144,6 +144,7 @@ def test_samples_have_the_covariance_and_the_mean_wind():
     times = ds["time"].values
     assert np.all(np.diff(times) > np.timedelta64(0, "ns"))
     assert ds.attrs["sim_epsilon"] == 1e-2
+    assert ds.attrs["scan_type"] == "VAD - stepped"  # the beam stands still during a ray
 
 
 def test_inertial_field_is_refused():
