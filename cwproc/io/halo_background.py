@@ -99,15 +99,15 @@ def parse_background(data: bytes, path: str | os.PathLike = "<bytes>") -> np.nda
     text = data.strip()
     if not text:
         raise InputFileError(path, "background file is empty")
-    if b"\n" in text:
-        values = _parse_lines(text, path)
-    else:
-        values = _parse_joined(text, path)
+    lines = b"\n" in text
+    values = _parse_lines(text, path) if lines else _parse_joined(text, path)
     bad = np.flatnonzero(~np.isfinite(values) | (values < 0))
     if bad.size:
         i = int(bad[0])
         raise InputFileError(
-            path, f"gate {i}: background {values[i]!r} is not a finite value >= 0", i + 1
+            path,
+            f"gate {i}: background {float(values[i])!r} is not a finite value >= 0",
+            i + 1 if lines else 1,
         )
     return values
 
