@@ -94,9 +94,11 @@ def run_case(site: str, hpl: Path, bg: Path | None) -> None:
     print(f"  method: {out.attrs['snr_correction']}")
     print(f"  noise floor F (median over range): {np.round(out['noise_floor'].values, 6)}")
     print(f"  noise sd of SNR (signal-free gates): before {sd0:.5f}, after {sd1:.5f}")
+    far = rng > 90.0  # gates within 90 m are left as the instrument gave them
     print(
         f"  gates with SNR >= {SNR_MIN}: before {int((before >= SNR_MIN).sum())}, "
-        f"after {int((after >= SNR_MIN).sum())} of {before.size}"
+        f"after {int((after >= SNR_MIN).sum())} of {before.size}; beyond 90 m: "
+        f"{int((before[:, far] >= SNR_MIN).sum())} -> {int((after[:, far] >= SNR_MIN).sum())}"
     )
     print(
         f"  gates with SNR >= 5 noise sd: before {int((before >= 5 * sd0).sum())} "
@@ -106,13 +108,13 @@ def run_case(site: str, hpl: Path, bg: Path | None) -> None:
     if ref is None:
         print("  doppy not installed: no comparison")
         return
-    far = rng > 90.0
     ratio_i = ((after + 1.0) / (ref + 1.0))[:, far].ravel()
     both = (after >= SNR_MIN) & (ref >= SNR_MIN)
     print(f"  (SNR+1) cwproc / doppy, gates beyond 90 m: {percentiles(ratio_i)}")
     print(f"  SNR cwproc / doppy, both >= {SNR_MIN}: {percentiles((after / ref)[both])}")
     print(
-        f"  doppy: gates with SNR >= {SNR_MIN}: {int((ref >= SNR_MIN).sum())}, "
+        f"  doppy: gates with SNR >= {SNR_MIN}: {int((ref >= SNR_MIN).sum())} "
+        f"(beyond 90 m {int((ref[:, far] >= SNR_MIN).sum())}), "
         f"noise sd {noise_sd(ref, rng):.5f}"
     )
 

@@ -239,7 +239,9 @@ def corrected_snr(
     -------
     snr : numpy.ndarray
         Corrected SNR ``(ray, range)``; rays whose noise floor cannot be fitted keep
-        the background-reweighted SNR I_b - 1.
+        the background-reweighted SNR I_b - 1; gates nearer than ``min_range_m`` keep
+        the instrument's I - 1 (the fits leave them out: the background there, e.g.
+        0.04 of the far value at 24 m in the Eriswil file, is not the extrapolated fit).
     floor : numpy.ndarray
         F ``(ray, range)`` (NaN where not fitted).
     noise : numpy.ndarray of bool
@@ -249,4 +251,6 @@ def corrected_snr(
     noise = signal_free_gates(ib, range_m, min_range_m=min_range_m)
     floor, _ = fit_noise_floor(ib, range_m, noise)
     snr = np.where(np.isfinite(floor), ib / floor - 1.0, ib - 1.0)
+    near = np.asarray(range_m, dtype=float) <= min_range_m
+    snr[:, near] = np.atleast_2d(intensity)[:, near] - 1.0  # outside the fits: not corrected
     return snr, floor, noise
