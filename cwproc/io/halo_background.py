@@ -34,6 +34,12 @@ NAME_TIME = re.compile(r"Background_(\d{6}-\d{6})(?:\.txt)?$", re.IGNORECASE)
 _JOINED_VALUE = re.compile(rb"-?\d+\.\d{6}")
 #: one value of the line layout (point or comma decimal separator)
 _LINE_VALUE = re.compile(rb"[+-]?\d+(?:[.,]\d+)?(?:[eE][+-]?\d+)?")
+#: a line of the line layout, for recognising the format (decimals required)
+_SNIFF_LINE = re.compile(rb"\d+[.,]\d+")
+#: the joined layout, possibly cut at the end
+_SNIFF_JOINED = re.compile(rb"(?:\d+\.\d{6})+\d*\.?\d*")
+#: a head this long may end inside a line (cwproc.io reads 4096 bytes to recognise files)
+_SNIFF_FULL = 4096
 #: largest background file read (bytes); 10000 gates x 20 characters is 200 kB
 MAX_BYTES = 1 << 20
 
@@ -64,15 +70,17 @@ def background_time(path: str | os.PathLike) -> np.datetime64:
 def is_background_text(head: bytes) -> bool:
     """Whether the first bytes of a file look like a Stream Line background file.
 
-    Either a first line that is one number with decimals (CRLF layout), or a run of
-    numbers with six decimals joined without separators (joined layout).
+    Either at least two lines, every complete line of ``head`` one number with decimals
+    (CRLF layout), or one run of at least two numbers with six decimals joined without
+    separators (joined layout; ``head`` may cut its last number).
     """
-    first = head.split(b"\n", 1)[0].rstrip(b"\r")
-    if not first or len(first) > 4096:
-        return False
-    if re.fullmatch(rb"\d+[.,]\d+", first) and (b"\n" in head or len(head) < 64):
-        return True
-    return bool(re.fullmatch(rb"(?:\d+\.\d{6})+\d*\.?\d*", first)) and first.count(b".") >= 2
+    text = head.strip()
+    if b"\n" in text:
+        lines = text.split(b"\n")
+        if len(head) >= _SNIFF_FULL:  # the last line may be cut by the head
+            lines = lines[:-1]
+        return len(lines) >= 2 and all(_SNIFF_LINE.fullmatch(ln.strip()) for ln in lines)
+    return bool(_SNIFF_JOINED.fullmatch(text)) and text.count(b".") >= 2
 
 
 def parse_background(data: bytes, path: str | os.PathLike = "<bytes>") -> np.ndarray:

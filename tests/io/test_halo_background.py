@@ -93,6 +93,8 @@ def test_hpl_and_sonic_text_are_not_taken_for_backgrounds():
     assert sniff_format(b"Filename:\tStare_91_20221214_11.hpl\r\n") is Format.HPL
     assert sniff_format(b"hello world\n") is None
     assert sniff_format(b"12\n13\n") is None  # integers only: no background file
+    assert sniff_format(b"3.14\nhello\n") is None  # a number, then text
+    assert sniff_format(b"1.500000") is None  # one number alone says nothing
 
 
 values_st = st.lists(
