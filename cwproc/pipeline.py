@@ -425,7 +425,9 @@ def correct_background(
         return scans
     return background.correct_snr(
         scans,
-        background.read_backgrounds(files, notes),
+        background.read_backgrounds(
+            files, notes, ray_time=scans["time"].values, max_age_h=opts.max_age_h
+        ),
         max_age_h=opts.max_age_h,
         min_range_m=opts.min_range_m,
         notes=notes,

@@ -41,13 +41,35 @@ def find_background_files(
 
 
 def read_backgrounds(
-    paths: Sequence[str | os.PathLike], notes: list[str] | None = None
+    paths: Sequence[str | os.PathLike],
+    notes: list[str] | None = None,
+    *,
+    ray_time: np.ndarray | None = None,
+    max_age_h: float | None = None,
 ) -> list[xr.Dataset]:
-    """Read background files; a damaged one is named in ``notes`` and left out."""
-    from cwproc.io.halo_background import read_halo_background
+    """Read background files; a damaged one is named in ``notes`` and left out.
 
+    With ``ray_time``, only the files that :func:`match_rays` can give to one of these
+    rays are read (chosen by the time in their names), so a folder of a year of hourly
+    backgrounds costs one directory listing, not 8760 reads per unit.
+    """
+    from cwproc.io.halo_background import background_time, read_halo_background
+
+    selected: Sequence[str | os.PathLike] = paths
+    if ray_time is not None and len(paths):
+        named = []
+        for p in paths:
+            try:
+                named.append((background_time(p), p))
+            except CwprocError as exc:
+                if notes is not None:
+                    notes.append(f"background file not used: {exc}")
+        named.sort(key=lambda item: item[0])
+        times = np.array([t for t, _ in named], dtype="datetime64[ns]")
+        wanted = np.unique(match_rays(ray_time, times, max_age_h))
+        selected = [named[i][1] for i in wanted if i >= 0]
     out = []
-    for p in paths:
+    for p in selected:
         try:
             out.append(read_halo_background(p))
         except CwprocError as exc:

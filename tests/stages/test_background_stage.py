@@ -109,3 +109,21 @@ def test_real_stares_corrected_like_doppy_figures(real_data):
     np.testing.assert_array_equal(
         out["snr"].values[:, near], out["snr_uncorrected"].values[:, near]
     )
+
+
+def test_only_the_backgrounds_the_rays_need_are_read(tmp_path):
+    from cwproc.stages.background import read_backgrounds
+
+    good = "".join(f"{1.7e7 + i:.6f}\r\n" for i in range(130)).encode()
+    for name in ("Background_010624-100002.txt", "Background_010624-110003.txt"):
+        (tmp_path / name).write_bytes(good)
+    (tmp_path / "Background_010624-090001.txt").write_bytes(b"damaged\r\n")  # not needed
+    (tmp_path / "Background_010624-120001.txt").write_bytes(b"damaged\r\n")  # after the rays
+    rays = _t("2024-06-01T11:10:00") + np.arange(3) * np.timedelta64(15, "m")
+    notes: list[str] = []
+    found = read_backgrounds(sorted(tmp_path.iterdir()), notes, ray_time=rays, max_age_h=2.0)
+    assert [b.attrs["source_files"][0] for b in found] == ["Background_010624-110003.txt"]
+    assert notes == []
+    rays = np.r_[_t("2024-06-01T09:30:00"), rays]  # now the 09:00 one is needed
+    found = read_backgrounds(sorted(tmp_path.iterdir()), notes, ray_time=rays, max_age_h=2.0)
+    assert len(found) == 1 and "Background_010624-090001.txt:1: expected one" in notes[0]
