@@ -126,4 +126,4 @@ def test_only_the_backgrounds_the_rays_need_are_read(tmp_path):
     assert notes == []
     rays = np.r_[_t("2024-06-01T09:30:00"), rays]  # now the 09:00 one is needed
     found = read_backgrounds(sorted(tmp_path.iterdir()), notes, ray_time=rays, max_age_h=2.0)
-    assert len(found) == 1 and "Background_010624-090001.txt:1: expected one" in notes[0]
+    assert len(found) == 1 and "Background_010624-090001.txt:1: byte 1: joined" in notes[0]
