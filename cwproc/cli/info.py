@@ -199,6 +199,7 @@ def info(files: tuple[str, ...]) -> None:
     \b
     Scan files (.hpl, scan NetCDF): system id, scan type, rays, gates and gate length,
     time span, elevation(s), azimuth coverage, number of 360-degree scans.
+    Stream Line background files (Background_DDMMYY-HHMMSS.txt): time, gates, layout.
     Other formats (wind records, sonic): dimensions, time span and variables.
     A file that cannot be read gives one line "error: <file>:<line>: <problem>" on
     stderr; the others are still listed. Exit status 1 when any file failed.
