@@ -6,11 +6,11 @@ a gate divided by the background B_m(r) it measured without a pulse (the hour's
 level drifts, so I of signal-free gates is not 1 and a fixed SNR threshold keeps noise or
 drops weak signal. The correction has two steps:
 
-1. **background shape** (Vakkari et al. (2019), sect. 2.2, for firmware that writes
-   background files; Manninen et al. (2016), sect. 3): replace the measured B_m(r) by a
+1. **background shape** (Vakkari et al. (2019), for firmware that writes
+   background files; Manninen et al. (2016)): replace the measured B_m(r) by a
    smooth fit B_f(r), I_b = I B_m / B_f  (:func:`fit_background_shape`,
    :func:`reweight_intensity`);
-2. **noise floor** (Manninen et al. (2016), sect. 3, step "noise floor"): fit a straight
+2. **noise floor** (Manninen et al. (2016)): fit a straight
    line F(r) = a + b r to I_b of the signal-free gates of each ray and divide by it, so
    that signal-free gates have SNR = 0 on average: SNR_c = I_b / F - 1
    (:func:`signal_free_gates`, :func:`fit_noise_floor`).
@@ -24,7 +24,7 @@ import numpy as np
 from scipy import ndimage
 
 #: gates nearer than this (m) are left out of every fit: the outgoing pulse and the
-#: telescope's near-field leak into them (Manninen et al. (2016), sect. 3; 3 pulse lengths)
+#: telescope's near-field leak into them (3 pulse lengths, as in doppy)
 MIN_FIT_RANGE_M = 90.0
 #: scaled-MAD threshold of the iterative clipping of background peaks (detector artefacts)
 PEAK_CLIP_MADS = 4.0
@@ -57,7 +57,7 @@ def fit_background_shape(
 ) -> tuple[np.ndarray, str]:
     """Smooth fit B_f(r) of a measured background profile B_m(r).
 
-    Vakkari et al. (2019), sect. 2.2: the background of newer Stream Line firmware is
+    Vakkari et al. (2019): the background of newer Stream Line firmware is
     smooth in range apart from gate-to-gate noise, with (in some instruments) an
     exponential rise near the lidar. Two models are fitted by least squares to the gates
     beyond ``min_range_m`` after iterative clipping of peaks (> 4 scaled MADs):
@@ -132,7 +132,7 @@ def reweight_intensity(
 ) -> np.ndarray:
     """I_b = I B_m / B_f: the intensity relative to the smooth background (step 1).
 
-    Vakkari et al. (2019), sect. 2.2: I = P / B_m, so I B_m / B_f = P / B_f.
+    Vakkari et al. (2019): I = P / B_m, so I B_m / B_f = P / B_f.
     ``measured`` and ``fitted`` broadcast against ``intensity`` (e.g. ``(ray, range)``).
     """
     return np.asarray(intensity, dtype=float) * (np.asarray(measured) / np.asarray(fitted))
@@ -143,7 +143,7 @@ def signal_free_gates(
 ) -> np.ndarray:
     """Gates holding only noise (True), per ray, from the intensity I_b.
 
-    Manninen et al. (2016), sect. 3, fit the noise floor to the cloud- and aerosol-free
+    Manninen et al. (2016), fit the noise floor to the cloud- and aerosol-free
     gates. Here a gate is signal when the 5-gate running median along range of its ray
     exceeds the ray's median by ``SIGNAL_SIGMAS`` standard errors of a 5-gate median of
     Gaussian noise (noise sd: scaled MAD of the ray; standard error of a median of n:
@@ -173,7 +173,7 @@ def fit_noise_floor(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Noise floor F(r) = a + b r of each ray from its signal-free gates (step 2).
 
-    Manninen et al. (2016), sect. 3: the intensity of signal-free gates is fitted with a
+    Manninen et al. (2016): the intensity of signal-free gates is fitted with a
     straight line in range, and the intensity divided by it. Least squares per ray
     (normal equations, vectorised over rays).
 
@@ -222,7 +222,7 @@ def corrected_snr(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """SNR after both steps: SNR_c = (I B_m / B_f) / F - 1.
 
-    Manninen et al. (2016), sect. 3, and Vakkari et al. (2019), sect. 2.2.
+    Manninen et al. (2016); Vakkari et al. (2019).
 
     Parameters
     ----------
