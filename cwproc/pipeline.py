@@ -587,7 +587,7 @@ def retrieve_files(
             report.failures.append(f"{p}: {internal_error(exc)}")
             continue
         if KIND[item.format] == "background":  # not a product input (see correct_background)
-            report.notes.append(f"{p}: Stream Line background file, used for the SNR of scans")
+            report.notes.append(f"{p}: Stream Line background file, not a product input")
             continue
         if accepted is not None and KIND[item.format] not in accepted:
             report.failures.append(
