@@ -124,7 +124,6 @@ def main() -> None:
     parser.add_argument(
         "--shared", default=str(Path(__file__).resolve().parents[1].parent / "shared")
     )
-    parser.add_argument("--quick", action="store_true", help="same run (it takes ~2 s)")
     args = parser.parse_args()
     folder = Path(args.shared) / "real_data" / "hpl"
     if not folder.is_dir():
