@@ -164,7 +164,8 @@ def correct_snr(
             snr0[rays] + 1.0, rng, measured, fitted, min_range_m=min_range_m
         )
         snr[rays] = corr
-        floor_median[rays] = np.nanmedian(floor, axis=1) if floor.size else np.nan
+        fitted_rows = np.isfinite(floor).any(axis=1)  # rays with too few noise gates: NaN
+        floor_median[rays[fitted_rows]] = np.nanmedian(floor[fitted_rows], axis=1)
         models.append(model)
         used.append(usable[k].attrs["source_files"][0])
         done_k.append(k)
@@ -173,7 +174,11 @@ def correct_snr(
     bg_time[done] = times[idx[done]]
     out = scans.assign(
         snr=(scans["snr"].dims, snr, scans["snr"].attrs),
-        snr_uncorrected=(scans["snr"].dims, snr0, {"long_name": "SNR as given by the instrument"}),
+        snr_uncorrected=(
+            scans["snr"].dims,
+            snr0,
+            {"long_name": "SNR as given by the instrument", "units": "1"},
+        ),
         background_time=("ray", bg_time),
         noise_floor=("ray", floor_median, {"long_name": "median noise floor F", "units": "1"}),
     )
