@@ -40,6 +40,11 @@ SIGNAL_SIGMAS = 3.0
 SIGNAL_DILATION_GATES = 2
 #: fewest signal-free gates for a noise-floor fit of a ray
 MIN_NOISE_GATES = 10
+#: largest |F - 1| of an accepted noise floor. The floors of the real files are within
+#: 0.0009 of 1 (docs/streamline-background.md); a "floor" beyond 0.005 (below the 0.008
+#: SNR screen) is signal that filled the ray (a short-range VAD inside the boundary
+#: layer), and dividing by it would erase the signal, so such rays keep I_b - 1
+MAX_FLOOR_OFFSET = 0.005
 
 
 def _robust_sd(x: np.ndarray, axis: int | None = None) -> np.ndarray:
@@ -212,6 +217,13 @@ def fit_noise_floor(
     return floor, np.column_stack([a, b])
 
 
+def plausible_floor(floor: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """Rays whose fitted floor stays within ``MAX_FLOOR_OFFSET`` of 1 over their
+    signal-free gates (bool, shape ``(ray,)``); see :data:`MAX_FLOOR_OFFSET`."""
+    off = np.where(noise, np.abs(floor - 1.0), 0.0)
+    return np.isfinite(floor).all(axis=1) & (off.max(axis=1) <= MAX_FLOOR_OFFSET)
+
+
 def corrected_snr(
     intensity: np.ndarray,
     range_m: np.ndarray,
@@ -238,9 +250,10 @@ def corrected_snr(
     Returns
     -------
     snr : numpy.ndarray
-        Corrected SNR ``(ray, range)``; rays whose noise floor cannot be fitted keep
-        the background-reweighted SNR I_b - 1; gates nearer than ``min_range_m`` keep
-        the instrument's I - 1 (the fits leave them out: the background there, e.g.
+        Corrected SNR ``(ray, range)``; rays whose noise floor cannot be fitted (fewer
+        than ``MIN_NOISE_GATES`` signal-free gates, or a floor farther than
+        ``MAX_FLOOR_OFFSET`` from 1) keep the background-reweighted SNR I_b - 1; gates
+        nearer than ``min_range_m`` keep the instrument's I - 1 (the fits leave them out: the background there, e.g.
         0.04 of the far value at 24 m in the Eriswil file, is not the extrapolated fit).
     floor : numpy.ndarray
         F ``(ray, range)`` (NaN where not fitted).
@@ -250,6 +263,7 @@ def corrected_snr(
     ib = np.atleast_2d(reweight_intensity(intensity, measured, fitted))
     noise = signal_free_gates(ib, range_m, min_range_m=min_range_m)
     floor, _ = fit_noise_floor(ib, range_m, noise)
+    floor[~plausible_floor(floor, noise)] = np.nan
     snr = np.where(np.isfinite(floor), ib / floor - 1.0, ib - 1.0)
     near = np.asarray(range_m, dtype=float) <= min_range_m
     snr[:, near] = np.atleast_2d(intensity)[:, near] - 1.0  # outside the fits: not corrected

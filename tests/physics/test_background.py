@@ -113,6 +113,17 @@ def test_known_noise_floor_recovered_by_the_correction():
     assert abs(layer.mean() - snr_true[:, 20:50].mean()) < 5 * sd / np.sqrt(layer.size) + 2e-5
 
 
+def test_a_ray_full_of_signal_keeps_its_snr():
+    """A short-range ray inside an aerosol layer: no noise floor to find, SNR not erased."""
+    r = RANGE[:24]  # 24 gates to 720 m, as a boundary-layer VAD
+    background = np.full(r.size, 1.7e7)
+    snr_true = 0.05 + 0.01 * np.sin(r / 100.0)
+    intensity = np.vstack([1.0 + snr_true, 1.0 + 0.9 * snr_true])
+    snr, floor, _ = corrected_snr(intensity, r, background, background)
+    assert np.isnan(floor).all()
+    np.testing.assert_allclose(snr, intensity - 1.0, rtol=1e-12)
+
+
 def test_signal_free_gates_exclude_near_range():
     intensity = np.ones((2, RANGE.size))
     free = signal_free_gates(intensity, RANGE)
