@@ -253,8 +253,9 @@ def corrected_snr(
         Corrected SNR ``(ray, range)``; rays whose noise floor cannot be fitted (fewer
         than ``MIN_NOISE_GATES`` signal-free gates, or a floor farther than
         ``MAX_FLOOR_OFFSET`` from 1) keep the background-reweighted SNR I_b - 1; gates
-        nearer than ``min_range_m`` keep the instrument's I - 1 (the fits leave them out: the background there, e.g.
-        0.04 of the far value at 24 m in the Eriswil file, is not the extrapolated fit).
+        nearer than ``min_range_m`` keep the instrument's I - 1 (the fits leave them
+        out: the background there, e.g. 0.04 of the far value at 24 m in the Eriswil
+        file, is not the extrapolated fit).
     floor : numpy.ndarray
         F ``(ray, range)`` (NaN where not fitted).
     noise : numpy.ndarray of bool
