@@ -104,7 +104,8 @@ class BackgroundConfig:
 
     #: correct the SNR with the Background_*.txt files found (rays without one keep theirs)
     enabled: bool = True
-    #: folder of the background files; "" = the folder of each .hpl file
+    #: folder of the background files; "" = the folder of each .hpl file. Background
+    #: files do not name their instrument: keep one instrument's files in a folder
     folder: str = ""
     #: oldest background (hours before a ray) that may correct it; the Stream Line
     #: measures one at the start of every hour
