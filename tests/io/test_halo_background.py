@@ -41,6 +41,23 @@ def test_real_joined_layout(real_data):
     assert ds["time"].values == np.datetime64("2023-08-15T12:28:11")
 
 
+@pytest.mark.realdata
+def test_damaged_copies_of_the_real_files(real_data, tmp_path):
+    """A character changed in line 100 of Eriswil's file; Hyytiala's cut inside a number."""
+    folder = real_data / "hpl" / "background"
+    lines = (folder / ERISWIL).read_bytes().split(b"\r\n")
+    lines[99] = lines[99][:4] + b"x" + lines[99][5:]
+    bad = tmp_path / ERISWIL
+    bad.write_bytes(b"\r\n".join(lines))
+    with pytest.raises(InputFileError, match=rf"{ERISWIL}:100: expected one background value"):
+        read_halo_background(bad)
+    joined = (folder / HYYTIALA).read_bytes()
+    cut = tmp_path / HYYTIALA
+    cut.write_bytes(joined[:-3])  # the last value loses 3 of its 6 decimals
+    with pytest.raises(InputFileError, match=r":1: byte \d+: joined background values"):
+        read_halo_background(cut)
+
+
 def _write(tmp_path, text: bytes, name: str = "Background_010624-120005.txt"):
     path = tmp_path / name
     path.write_bytes(text)
