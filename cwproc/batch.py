@@ -354,6 +354,13 @@ def classify_file(path: str, config_toml: str, config_source: str = "<batch>") -
             format=PRODUCT_FORMAT,
             error=f"{path}: a cwproc product, not an instrument file: skipped",
         )
+    if fmt is Format.HALO_BACKGROUND:
+        return replace(
+            base,
+            format=fmt.value,
+            error=f"{path}: a Stream Line background file (used for the SNR of the scans "
+            "beside it, not a product input): skipped",
+        )
     pinned = config.instrument.format
     if pinned != "auto" and fmt != Format(pinned):
         return replace(

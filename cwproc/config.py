@@ -94,6 +94,32 @@ class QCConfig:
 
 
 @dataclass(frozen=True)
+class BackgroundConfig:
+    """SNR correction of Stream Line scans with the background files (stage ``background``).
+
+    Manninen et al. (2016); Vakkari et al. (2019). The instrument writes one
+    ``Background_DDMMYY-HHMMSS.txt`` per hour beside its ``.hpl`` files; each ray is
+    corrected with the latest background measured before it.
+    """
+
+    #: correct the SNR with the Background_*.txt files found (rays without one keep theirs)
+    enabled: bool = True
+    #: folder of the background files; "" = the folder of each .hpl file. Background
+    #: files do not name their instrument: keep one instrument's files in a folder
+    folder: str = ""
+    #: oldest background (hours before a ray) that may correct it; the Stream Line
+    #: measures one at the start of every hour
+    max_age_h: float = 2.0
+    #: gates nearer than this (m) are left out of the fits (outgoing pulse, near field)
+    min_range_m: float = 90.0
+
+    def __post_init__(self) -> None:
+        _positive(self, "max_age_h")
+        if not (math.isfinite(self.min_range_m) and self.min_range_m >= 0):
+            raise ValueError("min_range_m: must be a finite number >= 0")
+
+
+@dataclass(frozen=True)
 class VADConfig:
     """Wind-vector fit (stage ``vad``), Smalikho (2020) eq. 1."""
 
@@ -233,6 +259,12 @@ class OutputConfig:
     latitude: float | None = None
     longitude: float | None = None
     altitude_m: float | None = None
+    #: persistent identifier of the instrument (e.g. an ePIC handle of the ACTRIS
+    #: instrument PID registry); written as global attribute ``instrument_pid`` when set
+    instrument_pid: str = ""
+    #: serial number of the instrument, written as ``instrument_serial_number`` when set
+    #: (a Stream Line's System ID is also kept as ``system_id`` when the inputs give one)
+    instrument_serial_number: str = ""
     #: zlib compression level of the NetCDF variables (0 = none)
     compression_level: int = 4
 
@@ -323,6 +355,7 @@ class Config:
 
     instrument: InstrumentConfig = field(default_factory=InstrumentConfig)
     qc: QCConfig = field(default_factory=QCConfig)
+    background: BackgroundConfig = field(default_factory=BackgroundConfig)
     vad: VADConfig = field(default_factory=VADConfig)
     turbulence: TurbulenceConfig = field(default_factory=TurbulenceConfig)
     sonic: SonicConfig = field(default_factory=SonicConfig)

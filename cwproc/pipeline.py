@@ -126,6 +126,8 @@ def read_input(path: str | os.PathLike, config: Config) -> InputFile:
         checksum = sha256_file(path)
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    if fmt is Format.HALO_BACKGROUND:  # read by correct_background for the scans beside it
+        return InputFile(path=path, format=fmt, sha256=checksum)
     ds = get_reader(fmt)(path, **reader_options(config, fmt))
     return InputFile(path=path, format=fmt, sha256=checksum, dataset=ds)
 
@@ -393,10 +395,43 @@ def process_unit(
     """
     ds = concat_unit(unit)
     if unit.kind == "scan":
+        ds = correct_background(ds, unit, config, notes)
         return process_scans(ds, config, notes)
     if unit.kind == "wind_record":
         return process_wind_record(ds, config)
     return process_sonic(ds, config)
+
+
+def correct_background(
+    scans: xr.Dataset, unit: ProductUnit, config: Config, notes: list[str] | None = None
+) -> xr.Dataset:
+    """Stream Line scans with the SNR corrected by the background files (stage ``background``).
+
+    Background files (``*Background_*.txt``) are looked for in ``[background] folder``,
+    else beside each ``.hpl`` file of the unit; each ray takes the latest one measured
+    at most ``max_age_h`` before it (Manninen et al. (2016); Vakkari et al. (2019)).
+    Other scans, a switched-off correction or no background file: ``scans`` unchanged.
+    A damaged background file is named in ``notes`` and the others are used.
+    """
+    opts = config.background
+    if not opts.enabled or "snr" not in scans:
+        return scans
+    if str(scans.attrs.get("instrument_kind", "")).lower() != "streamline":
+        return scans
+    from cwproc.stages import background
+
+    files = background.find_background_files((i.path for i in unit.inputs), opts.folder or None)
+    if not files:
+        return scans
+    return background.correct_snr(
+        scans,
+        background.read_backgrounds(
+            files, notes, ray_time=scans["time"].values, max_age_h=opts.max_age_h
+        ),
+        max_age_h=opts.max_age_h,
+        min_range_m=opts.min_range_m,
+        notes=notes,
+    )
 
 
 # --------------------------------------------------------------------------------------
@@ -550,6 +585,9 @@ def retrieve_files(
             continue
         except Exception as exc:  # a reader bug must not stop the other files
             report.failures.append(f"{p}: {internal_error(exc)}")
+            continue
+        if KIND[item.format] == "background":  # not a product input (see correct_background)
+            report.notes.append(f"{p}: Stream Line background file, not a product input")
             continue
         if accepted is not None and KIND[item.format] not in accepted:
             report.failures.append(

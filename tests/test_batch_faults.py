@@ -48,6 +48,7 @@ from test_batch import (  # noqa: E402
 
 #: global attributes that hold the processing time (differ between any two runs)
 DATE_ATTRS = {"history", "date_created", "date_modified", "date_issued", "date_metadata_modified"}
+DATE_ATTRS.add("file_uuid")  # ACTRIS/Cloudnet: every file written has its own
 
 _SCRIPT = """
 import os, sys

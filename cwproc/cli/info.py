@@ -24,6 +24,7 @@ FORMAT_NAMES: dict[Format, str] = {
     Format.GHG: "LI-COR GHG .data",
     Format.METEO2: "Meteo-2 sonic log",
     Format.GILL: "Gill UVW ASCII",
+    Format.HALO_BACKGROUND: "Halo Photonics Stream Line background profile",
 }
 
 #: elevations differing by less than this (deg) are listed as one
@@ -116,6 +117,18 @@ def describe_scan(ds: xr.Dataset) -> list[str]:
     return lines
 
 
+def describe_background(ds: xr.Dataset) -> list[str]:
+    """Lines describing a Stream Line background file (gates, time, values)."""
+    values = np.asarray(ds["background"].values, dtype=float)
+    return [
+        "  kind          background (corrects the SNR of the scans beside it; not a product input)",
+        f"  time          {_iso(np.datetime64(ds['time'].values))}",
+        f"  gates         {values.size} ({ds.attrs.get('layout', '?')} layout)",
+        f"  background    min {values.min():.6g}, median {np.median(values):.6g}, "
+        f"max {values.max():.6g}",
+    ]
+
+
 def describe_dataset(ds: xr.Dataset) -> list[str]:
     """Lines describing any other dataset: dims, time span, variables."""
     dims = ", ".join(f"{k}={v}" for k, v in ds.sizes.items())
@@ -173,6 +186,8 @@ def describe_file(path: str | os.PathLike) -> list[str]:
     header = [f"{os.fspath(path)}", f"  format        {fmt.value} ({FORMAT_NAMES[fmt]})"]
     if KIND[fmt] == "scan":
         return header + describe_scan(ds)
+    if KIND[fmt] == "background":
+        return header + describe_background(ds)
     return [*header, f"  kind          {KIND[fmt]}", *describe_dataset(ds)]
 
 
@@ -184,6 +199,7 @@ def info(files: tuple[str, ...]) -> None:
     \b
     Scan files (.hpl, scan NetCDF): system id, scan type, rays, gates and gate length,
     time span, elevation(s), azimuth coverage, number of 360-degree scans.
+    Stream Line background files (Background_DDMMYY-HHMMSS.txt): time, gates, layout.
     Other formats (wind records, sonic): dimensions, time span and variables.
     A file that cannot be read gives one line "error: <file>:<line>: <problem>" on
     stderr; the others are still listed. Exit status 1 when any file failed.

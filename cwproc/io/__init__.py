@@ -32,6 +32,7 @@ class Format(StrEnum):
     GHG = "ghg"  # LI-COR GHG .data text
     METEO2 = "meteo2"  # IAO SB RAS Meteo-2 text log (configurable layout)
     GILL = "gill"  # Gill WindMaster / R3 UVW ASCII
+    HALO_BACKGROUND = "halo_background"  # Stream Line Background_DDMMYY-HHMMSS.txt
 
 
 #: format -> "module:function" of its reader
@@ -45,9 +46,11 @@ READERS: dict[Format, str] = {
     Format.GHG: "cwproc.io.licor:read_ghg",
     Format.METEO2: "cwproc.io.meteo2:read_meteo2",
     Format.GILL: "cwproc.io.gill:read_gill",
+    Format.HALO_BACKGROUND: "cwproc.io.halo_background:read_halo_background",
 }
 
-#: what each format holds: "scan", "wind_record" or "sonic"
+#: what each format holds: "scan", "wind_record", "sonic" or "background" (a Stream Line
+#: background profile: used to correct the SNR of the scans beside it, never a product)
 KIND: dict[Format, str] = {
     Format.HPL: "scan",
     Format.SCAN_NETCDF: "scan",
@@ -58,6 +61,7 @@ KIND: dict[Format, str] = {
     Format.GHG: "sonic",
     Format.METEO2: "sonic",
     Format.GILL: "sonic",
+    Format.HALO_BACKGROUND: "background",
 }
 
 _HEAD_BYTES = 4096
@@ -92,6 +96,10 @@ def sniff_format(head: bytes) -> Format | None:
     stripped = first.lstrip("\x02")
     if len(stripped) > 2 and stripped[1] == "," and stripped[0].isalpha() and ",M," in stripped:
         return Format.GILL
+    from cwproc.io.halo_background import is_background_text
+
+    if is_background_text(head):
+        return Format.HALO_BACKGROUND
     return None
 
 

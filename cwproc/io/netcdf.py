@@ -15,6 +15,7 @@ import os
 import shutil
 import tempfile
 import time
+import uuid
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
@@ -158,6 +159,34 @@ def global_attributes(
     return attrs
 
 
+def source_file_uuids(inputs: Iterable[str | os.PathLike]) -> str:
+    """``file_uuid`` global attributes of the NetCDF inputs, comma-separated ('' if none).
+
+    ACTRIS/Cloudnet convention: a product names the ``file_uuid`` of every input product
+    it was made from. Inputs that are not NetCDF or carry no ``file_uuid`` (instrument
+    files such as ``.hpl``) are identified by their SHA-256 in ``input_sha256`` instead.
+    """
+    found: list[str] = []
+    for path in inputs:
+        try:
+            with open(path, "rb") as fh:
+                magic = fh.read(8)
+        except OSError:
+            continue
+        if not (magic.startswith(b"\x89HDF") or magic.startswith(b"CDF")):
+            continue
+        import netCDF4
+
+        try:
+            with netCDF4.Dataset(path) as nc:
+                value = str(getattr(nc, "file_uuid", "")).strip()
+        except OSError:
+            continue
+        if value and value not in found:
+            found.append(value)
+    return ", ".join(found)
+
+
 def site_attributes(output: OutputConfig) -> dict[str, object]:
     """ACDD attributes from the ``[output]`` table: who made the data, where.
 
@@ -176,6 +205,10 @@ def site_attributes(output: OutputConfig) -> dict[str, object]:
         value = getattr(output, key)
         if value:
             attrs[key] = value
+    if output.instrument_pid:  # ACTRIS/Cloudnet: persistent identifier of the instrument
+        attrs["instrument_pid"] = output.instrument_pid
+    if output.instrument_serial_number:
+        attrs["instrument_serial_number"] = output.instrument_serial_number
     if output.institution:
         attrs["creator_institution"] = output.institution
         attrs["publisher_institution"] = output.institution
@@ -414,12 +447,14 @@ def write_product(
     """
     out = apply_metadata(ds)
     attrs = dict(ds.attrs)
+    attrs.pop("file_uuid", None)  # an input's identity is not this file's
+    inputs = list(inputs)
     attrs.update(
         global_attributes(
             out,
             title=title,
             summary=summary,
-            inputs=list(inputs),
+            inputs=inputs,
             checksums=checksums,
             config_toml=config_toml,
             references=references,
@@ -428,6 +463,13 @@ def write_product(
         )
     )
     attrs["id"] = Path(path).stem
+    # ACTRIS/Cloudnet: a new identity for every file written, and those of its input products
+    attrs["file_uuid"] = str(uuid.uuid4())
+    sources = source_file_uuids(inputs)
+    if sources:
+        attrs["source_file_uuids"] = sources
+    else:
+        attrs.pop("source_file_uuids", None)
     out.attrs = attrs
     if stage_only:
         return stage_netcdf(out, path, compression_level=compression_level)

@@ -18,6 +18,7 @@ Notes
 from __future__ import annotations
 
 import os
+import uuid
 from pathlib import Path
 
 import numpy as np
@@ -139,6 +140,7 @@ def write_scan_netcdf(ds: xr.Dataset, path: str | os.PathLike) -> Path:
     attrs["homodyne"] = int(str(attrs["homodyne"]).strip().lower() in {"1", "true"})
     attrs["source_files"] = ", ".join(_split_files(attrs.get("source_files", [])))
     attrs.setdefault("Conventions", "CF-1.10")
+    attrs["file_uuid"] = str(uuid.uuid4())  # ACTRIS/Cloudnet: products name it as a source
     out.attrs = attrs
     return write_netcdf_atomic(out, path)
 
