@@ -152,6 +152,31 @@ class TurbulenceConfig:
 
 
 @dataclass(frozen=True)
+class StareConfig:
+    """Vertical-stare w statistics and eps (stage ``stare``, O'Connor et al. (2010))."""
+
+    enabled: bool = True
+    #: length T of the window of w statistics and eps (s); L_1 = U T
+    window_s: float = 300.0
+    #: fewest valid rays of a window for eps (fewer: flag bit 2)
+    min_samples: int = 20
+    #: consecutive parts of a window whose scatter gives the standard error of eps
+    parts: int = 4
+    #: pulse repetition frequency (Hz) for the ray time pulses/PRF (Stream Line 15 kHz,
+    #: XR 10 kHz)
+    prf_hz: float = 15000.0
+    #: a VAD wind more than this far from a window (s) is used, with flag bit 8
+    max_wind_gap_s: float = 3600.0
+
+    def __post_init__(self) -> None:
+        _positive(self, "window_s", "prf_hz", "max_wind_gap_s")
+        if self.min_samples < 3:
+            raise ValueError("min_samples: must be >= 3 (variance and skewness)")
+        if self.parts < 2:
+            raise ValueError("parts: must be >= 2 (a scatter needs two parts)")
+
+
+@dataclass(frozen=True)
 class SonicConfig:
     """Structure-function typing of sonic data (stage ``sonic_sf``), Gladkikh et al. (2014).
 
@@ -325,6 +350,7 @@ class Config:
     qc: QCConfig = field(default_factory=QCConfig)
     vad: VADConfig = field(default_factory=VADConfig)
     turbulence: TurbulenceConfig = field(default_factory=TurbulenceConfig)
+    stare: StareConfig = field(default_factory=StareConfig)
     sonic: SonicConfig = field(default_factory=SonicConfig)
     zephir: ZephirConfig = field(default_factory=ZephirConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
