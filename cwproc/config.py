@@ -156,12 +156,14 @@ class StareConfig:
     """Vertical-stare w statistics and eps (stage ``stare``, O'Connor et al. (2010))."""
 
     enabled: bool = True
-    #: length T of the window of w statistics and eps (s); L_1 = U T
+    #: length of the product window of w statistics and eps (s)
     window_s: float = 300.0
-    #: fewest valid rays of a window for eps (fewer: flag bit 2)
+    #: window T of each variance of w (s), L_1 = U T (O'Connor et al. (2010), eq. 4);
+    #: the product window averages window_s / variance_window_s of them (their scatter
+    #: gives the standard error)
+    variance_window_s: float = 30.0
+    #: fewest valid rays of a product window for eps (fewer: flag bit 2)
     min_samples: int = 20
-    #: consecutive parts of a window whose scatter gives the standard error of eps
-    parts: int = 4
     #: pulse repetition frequency (Hz) for the ray time pulses/PRF (Stream Line 15 kHz,
     #: XR 10 kHz)
     prf_hz: float = 15000.0
@@ -169,11 +171,11 @@ class StareConfig:
     max_wind_gap_s: float = 3600.0
 
     def __post_init__(self) -> None:
-        _positive(self, "window_s", "prf_hz", "max_wind_gap_s")
+        _positive(self, "window_s", "variance_window_s", "prf_hz", "max_wind_gap_s")
         if self.min_samples < 3:
             raise ValueError("min_samples: must be >= 3 (variance and skewness)")
-        if self.parts < 2:
-            raise ValueError("parts: must be >= 2 (a scatter needs two parts)")
+        if self.variance_window_s > self.window_s:
+            raise ValueError("variance_window_s: must not exceed window_s")
 
 
 @dataclass(frozen=True)

@@ -416,7 +416,8 @@ VARIABLES: dict[str, VarMeta] = {
     ),
     "w_mean": VarMeta("mean upward air velocity over the window", "m s-1", "upward_air_velocity"),
     "w_variance": VarMeta(
-        "variance of the upward air velocity of the rays of the window (noise not removed)",
+        "mean variance of the upward air velocity over the variance windows T of the "
+        "window (noise not removed)",
         "m2 s-2",
     ),
     "w_variance_corrected": VarMeta(
@@ -439,7 +440,9 @@ VARIABLES: dict[str, VarMeta] = {
         comment="linear in time and height between good VAD values, the nearest beyond",
     ),
     "length_scale_window": VarMeta(
-        "length L_1 = U T of air advected past the beam in the window", "m", references=OCONNOR_2010
+        "length L_1 = U T of air advected past the beam in one variance window T",
+        "m",
+        references=OCONNOR_2010,
     ),
     "length_scale_ray": VarMeta(
         "length L_N = U t of air advected past the beam during one ray",
@@ -467,8 +470,9 @@ VARIABLES: dict[str, VarMeta] = {
         "standard error of the stare dissipation rate",
         "m2 s-3",
         comment=(
-            "1.5 eps SE(sigma_v^2)/sigma_v^2 (scatter of the variances of consecutive parts "
-            "of the window) and SE(U)/U combined"
+            "1.5 eps SE(sigma_v^2)/sigma_v^2 (SE: scatter of the variances of the "
+            "variance windows in the product window over the square root of their number) "
+            "and SE(U)/U combined"
         ),
         coverage_content_type="qualityInformation",
     ),

@@ -409,7 +409,7 @@ def stare_products(
     options = StareOptions(
         window_s=config.stare.window_s,
         min_samples=config.stare.min_samples,
-        parts=config.stare.parts,
+        variance_window_s=config.stare.variance_window_s,
         snr_min=config.qc.snr_min,
         prf_hz=config.stare.prf_hz,
         max_wind_gap_s=config.stare.max_wind_gap_s,

@@ -174,7 +174,7 @@ def band_variance_factor(
     # k from 1e-3/L_1 to 1e3/min(L_N, gate): beyond, the integrand is negligible
     small = np.minimum(hi, max(delta_p_m, delta_r_m, 1e-9)) if delta_r_m > 0 else hi
     k_min, k_max = 1e-3 / lo.max(), 1e3 / small.min()
-    n = int(math.ceil(math.log10(k_max / k_min) * _NODES_PER_DECADE)) + 1
+    n = math.ceil(math.log10(k_max / k_min) * _NODES_PER_DECADE) + 1
     k = np.logspace(math.log10(k_min), math.log10(k_max), n)
     ratio = gate_transfer_ratio(k, delta_p_m, delta_r_m)
     window = 1.0 - np.sinc(k[None, :] * lo[:, None] / (2 * np.pi)) ** 2
@@ -247,35 +247,6 @@ def window_mean(values: np.ndarray, window: np.ndarray, n_windows: int) -> np.nd
     np.add.at(count, window, valid.astype(float))
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(count > 0, total / count, np.nan)
-
-
-def variance_standard_error(
-    part_variances: np.ndarray, part_factor: np.ndarray, factor: np.ndarray
-) -> np.ndarray:
-    """Standard error of a window's noise-free variance from the scatter of its parts.
-
-    The window is cut into ``m`` consecutive parts; each part's variance (noise removed)
-    is scaled by ``G(L_1)/G(L_1/m)`` (:func:`band_variance_factor`) to estimate the whole
-    window's variance, and the standard error is ``std(scaled)/sqrt(m)`` (the parts as
-    independent samples; the large eddies shared by neighbouring parts make this a
-    lower bound when ``L_1/m`` approaches the integral scale).
-
-    Parameters
-    ----------
-    part_variances : numpy.ndarray
-        ``(part, window, gate)`` noise-free variances of the parts (m2 s-2).
-    part_factor, factor : numpy.ndarray
-        ``G`` of a part and of the whole window (m^(4/3)), broadcastable to
-        ``(window, gate)``.
-    """
-    scaled = part_variances * (np.asarray(factor) / np.asarray(part_factor))[None]
-    finite = np.isfinite(scaled)
-    n = np.sum(finite, axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = np.sum(np.where(finite, scaled, 0.0), axis=0) / n
-        ss = np.sum(np.where(finite, (scaled - mean) ** 2, 0.0), axis=0)
-        se = np.sqrt(ss / (n - 1)) / np.sqrt(n)
-    return np.where(n >= 2, se, np.nan)
 
 
 def epsilon_standard_error(

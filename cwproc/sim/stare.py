@@ -192,3 +192,84 @@ def daily_cycle(
     for ds in out:
         ds.attrs["system_id"] = "999"
     return out
+
+
+def _w_structure(r_x: np.ndarray, r_z: np.ndarray, model: str, outer_scale_m: float) -> np.ndarray:
+    """``D_33`` per eps^(2/3) (m^(2/3)) at separations ``(r_x, 0, r_z)`` (m).
+
+    ``D_33 = D_perp + (D_par - D_perp) (r_z/r)^2``, the isotropic tensor of Banakh et al.
+    (1999), eq. 16 in structure-function form; inertial: ``D_par = 2 r^(2/3)``,
+    ``D_perp = 4/3 D_par`` (Smalikho (2020), eq. 12).
+    """
+    from cwproc.sim.exact_gaussian import structure_functions
+
+    r = np.hypot(r_x, r_z)
+    if model == "inertial":
+        d_par = 2.0 * r ** (2 / 3)
+        d_perp = 4.0 / 3.0 * d_par
+    else:
+        d_par, d_perp = structure_functions(r, model, outer_scale_m)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos2 = np.where(r > 0, (r_z / np.where(r > 0, r, 1.0)) ** 2, 0.0)
+    return d_perp + (d_par - d_perp) * cos2
+
+
+def stare_covariance(
+    n_rays: int,
+    *,
+    ray_duration_s: float,
+    wind_speed_m_s: float,
+    model: str = "inertial",
+    outer_scale_m: float = 1000.0,
+    delta_p_m: float = 15.3,
+    delta_r_m: float = 18.0,
+    sub_points: int = 6,
+    range_step_m: float = 3.0,
+) -> np.ndarray:
+    """Covariance per eps^(2/3) of the ray- and gate-averaged w of ``n_rays`` stare rays.
+
+    ``B(i, k) = B_0 - (1/2) <D_33(U (t_i - t_k + tau - tau'), s - s')>``, averaged over
+    ``sub_points`` instants ``tau`` of each ray's dwell and the pulsed range weighting
+    ``s`` (:func:`cwproc.sim.exact_gaussian.range_nodes`); Toeplitz in ``i - k``. The
+    constant ``B_0`` (the largest half structure function) keeps the matrix positive
+    definite; the variances about a window mean do not depend on it (a pure Kolmogorov
+    field has no finite variance).
+    """
+    from cwproc.sim.exact_gaussian import range_nodes
+
+    s, ws = range_nodes(delta_p_m, delta_r_m, range_step_m)
+    tau = ((np.arange(sub_points) + 0.5) / sub_points - 0.5) * ray_duration_s
+    dtau = (tau[:, None] - tau[None, :]).ravel()
+    ds = (s[:, None] - s[None, :]).ravel()
+    wpair = (ws[:, None] * ws[None, :]).ravel()
+    lags = np.arange(n_rays) * ray_duration_s
+    half = np.empty(n_rays)
+    for j, lag in enumerate(lags):  # one lag at a time: (sub^2, nodes^2) points
+        rx = wind_speed_m_s * (lag + dtau)[:, None]
+        d = _w_structure(rx, ds[None, :], model, outer_scale_m)
+        half[j] = 0.5 * np.mean(d @ wpair)
+    b0 = half.max() * 1.05
+    index = np.abs(np.arange(n_rays)[:, None] - np.arange(n_rays)[None, :])
+    return b0 - half[index]
+
+
+def gaussian_stares(
+    n_windows: int,
+    n_rays: int,
+    *,
+    epsilon: float,
+    noise_std_m_s: float,
+    seed: int,
+    **covariance_options: float | str,
+) -> np.ndarray:
+    """``(n_windows, n_rays)`` independent windows of stare w with exact statistics.
+
+    Gaussian vectors with covariance ``eps^(2/3)`` :func:`stare_covariance` plus white
+    noise ``sigma_e`` (m s-1): the truth of a stare eps retrieval with no grid and no
+    periodic box.
+    """
+    cov = stare_covariance(n_rays, **covariance_options)  # type: ignore[arg-type]
+    factor = np.linalg.cholesky(cov + 1e-9 * np.trace(cov) / n_rays * np.eye(n_rays))
+    rng = np.random.default_rng(seed)
+    w = epsilon ** (1 / 3) * rng.standard_normal((n_windows, n_rays)) @ factor.T
+    return w + noise_std_m_s * rng.standard_normal(w.shape)

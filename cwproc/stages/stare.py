@@ -37,8 +37,8 @@ class StareOptions:
     """Settings of the stare product (the ``[stare]`` configuration section)."""
 
     window_s: float = 300.0
+    variance_window_s: float = 30.0
     min_samples: int = 20
-    parts: int = 4
     snr_min: float = 0.008
     prf_hz: float = HALO_PRF_HZ
     max_wind_gap_s: float = 3600.0
@@ -96,7 +96,7 @@ def window_index(time: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndar
     seconds = (t - day) / np.timedelta64(1, "s")
     raw = np.floor(seconds / window_s).astype(np.int64)
     labels, index = np.unique(raw, return_inverse=True)
-    step = np.timedelta64(int(round(window_s * 1e9)), "ns")
+    step = np.timedelta64(round(window_s * 1e9), "ns")
     centre = day + labels * step + step // 2
     return index.ravel(), centre, labels
 
@@ -151,21 +151,44 @@ def interpolate_wind(
     return out, err, far
 
 
-def _part_variances(
-    w: np.ndarray, index: np.ndarray, n_windows: int, parts: int, noise_var: np.ndarray
-) -> np.ndarray:
-    """``(part, window, gate)`` noise-free variances of ``parts`` consecutive parts."""
-    order = np.arange(index.size)  # rays in time order: a window's rays are contiguous
-    counts = np.bincount(index, minlength=n_windows)
-    starts = np.r_[0, np.cumsum(counts)[:-1]]
-    position = order - starts[index]
-    part = np.minimum((position * parts) // np.maximum(counts[index], 1), parts - 1)
-    out = np.full((parts, n_windows, w.shape[1]), np.nan)
-    for p in range(parts):
-        sub = np.where((part == p)[:, None], w, np.nan)
-        count, _, var, _ = stare.window_moments(sub, index, n_windows)
-        out[p] = np.where(count >= 3, var - noise_var, np.nan)
-    return out
+def subwindow_variances(
+    w: np.ndarray, sub: np.ndarray, n_sub: int, noise_var_ray: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Noise-free variance of w in every variance window (``T`` of O'Connor et al. (2010)).
+
+    Returns
+    -------
+    variance, noise : numpy.ndarray
+        ``(sub-window, gate)``: the variance of the valid rays about the sub-window mean
+        minus the sub-window's mean predicted noise variance, and that noise variance
+        (m2 s-2); NaN with fewer than 3 valid rays.
+    """
+    count, _, var, _ = stare.window_moments(w, sub, n_sub)
+    noise_var = stare.window_mean(np.where(np.isfinite(w), noise_var_ray, np.nan), sub, n_sub)
+    keep = count >= 3
+    return np.where(keep, var - noise_var, np.nan), np.where(keep, noise_var, np.nan)
+
+
+def group_mean_se(
+    values: np.ndarray, group: np.ndarray, n_groups: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mean, standard error (std/sqrt(n)) and count of the finite rows of each group."""
+    finite = np.isfinite(values)
+    x = np.where(finite, values, 0.0)
+    n = np.zeros((n_groups, values.shape[1]))
+    total = np.zeros_like(n)
+    np.add.at(n, group, finite.astype(float))
+    np.add.at(total, group, x)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = total / n
+        ss = np.zeros_like(n)
+        np.add.at(ss, group, np.where(finite, (values - mean[group]) ** 2, 0.0))
+        se = np.sqrt(ss / (n - 1) / n)
+    return (
+        np.where(n >= 1, mean, np.nan),
+        np.where(n >= 2, se, np.nan),
+        n.astype(np.int64),
+    )
 
 
 def stare_product(stares: xr.Dataset, wind: xr.Dataset | None, options: StareOptions) -> xr.Dataset:
@@ -196,20 +219,22 @@ def stare_product(stares: xr.Dataset, wind: xr.Dataset | None, options: StareOpt
     t_ray = ray_duration_s(stares, options.prf_hz)
     index, centre, _ = window_index(stares["time"].values, options.window_s)
     n_win = centre.size
-    count, mean, var, skew = stare.window_moments(w, index, n_win)
+    count, mean, _, skew = stare.window_moments(w, index, n_win)
+    # variance windows T inside each product window (O'Connor et al. (2010), eq. 4)
+    sub_raw, _, _ = window_index(stares["time"].values, options.variance_window_s)
+    sub_ids, sub = np.unique(index * (1 << 32) + sub_raw, return_inverse=True)
+    sub = sub.ravel()
+    sub_window = (sub_ids >> 32).astype(np.int64)
     sigma_e = noise_std_per_ray(stares)
-    noise_var = stare.window_mean(np.where(np.isfinite(w), sigma_e**2, np.nan), index, n_win)
-    var_corr = var - noise_var
+    var_sub, noise_sub = subwindow_variances(w, sub, sub_ids.size, sigma_e**2)
+    var_corr, var_se, _ = group_mean_se(var_sub, sub_window, n_win)
+    noise_var, _, _ = group_mean_se(noise_sub, sub_window, n_win)
+    var = var_corr + np.where(np.isfinite(noise_var), noise_var, 0.0)
     speed, speed_err, far = interpolate_wind(wind, centre, height, options.max_wind_gap_s)
-    l1 = speed * options.window_s
+    l1 = speed * options.variance_window_s
     ln = speed * t_ray
     factor = stare.band_variance_factor(l1, ln, options.delta_p_m, options.delta_r_m)
     eps = stare.epsilon_from_variance(var_corr, factor)
-    part_factor = stare.band_variance_factor(
-        l1 / options.parts, ln, options.delta_p_m, options.delta_r_m
-    )
-    parts = _part_variances(w, index, n_win, options.parts, noise_var)
-    var_se = stare.variance_standard_error(parts, part_factor, factor)
     eps_se = stare.epsilon_standard_error(eps, var_corr, var_se, speed, speed_err)
     flag = np.zeros((n_win, height.size), dtype=np.int8)
     flag |= np.where(~np.isfinite(speed), FLAG_NO_WIND, 0).astype(np.int8)
@@ -242,6 +267,7 @@ def stare_product(stares: xr.Dataset, wind: xr.Dataset | None, options: StareOpt
         },
         attrs={
             "window_s": float(options.window_s),
+            "variance_window_s": float(options.variance_window_s),
             "ray_duration_s": float(t_ray),
             "elevation_deg": elevation,
         },
