@@ -360,7 +360,7 @@ def describe_scan_inputs(unit: ProductUnit) -> list[str]:
         if unused:
             parts.append(f"{unused} rays neither vertical nor in a conical scan: not used")
         kind = str(ds.attrs.get("scan_type", "")).strip() or "scan"
-        lines.append(f"{Path(item.path).name}: {kind}: " + "; ".join(parts or ["no rays"]))
+        lines.append(f"{os.fspath(item.path)}: {kind}: " + "; ".join(parts or ["no rays"]))
     return lines
 
 
@@ -683,7 +683,8 @@ def retrieve_files(
         finally:
             for item in unit.inputs:  # processed: its data may go
                 item.dataset = None
-        report.notes.extend(f"{names}: {n}" for n in notes)
+        own = tuple(f"{os.fspath(i.path)}: " for i in unit.inputs)
+        report.notes.extend(n if n.startswith(own) else f"{names}: {n}" for n in notes)
     return report
 
 

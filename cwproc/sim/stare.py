@@ -135,11 +135,15 @@ def daily_cycle(
     start_time: str = "2024-01-01T00:00:00",
     snr: float = 0.05,
     pulses_per_ray: int = 20000,
+    stare_noise_std_m_s: float | None = None,
 ) -> list[xr.Dataset]:
     """A Stream Line cycle: a VAD every ``vad_every_s`` s, vertical stares in between.
 
     Each VAD (``vad_rays`` rays in ``vad_period_s``, at ``vad_elevation_deg``) and each
     stare segment is one dataset (one file), all from ``field`` on one clock.
+
+    ``noise_std_m_s`` is the noise of the VAD rays, ``stare_noise_std_m_s`` that of the
+    stare rays (default: the same).
 
     Returns
     -------
@@ -156,7 +160,7 @@ def daily_cycle(
         vad = sample_conical_scans(
             field,
             elevation_deg=vad_elevation_deg,
-            ranges_m=np.asarray(ranges_m) / np.sin(np.deg2rad(vad_elevation_deg)),
+            ranges_m=np.asarray(ranges_m),
             rays_per_scan=vad_rays,
             scan_period_s=vad_period_s,
             n_scans=1,
@@ -180,7 +184,9 @@ def daily_cycle(
                     ray_duration_s=ray_duration_s,
                     wind_speed_m_s=wind_speed_m_s,
                     wind_direction_deg=wind_direction_deg,
-                    noise_std_m_s=noise_std_m_s,
+                    noise_std_m_s=(
+                        noise_std_m_s if stare_noise_std_m_s is None else stare_noise_std_m_s
+                    ),
                     seed=seed + 2 * k + 2,
                     start_offset_s=stare_start,
                     start_time=start_time,
@@ -273,3 +279,136 @@ def gaussian_stares(
     rng = np.random.default_rng(seed)
     w = epsilon ** (1 / 3) * rng.standard_normal((n_windows, n_rays)) @ factor.T
     return w + noise_std_m_s * rng.standard_normal(w.shape)
+
+
+def stare_noise_std(snr: float, points_per_gate: int, pulses_per_ray: int) -> float:
+    """sigma_e (m s-1) of a simulated stare ray: Pearson et al. (2009), eq. 3.
+
+    The prediction the stare stage removes (:func:`cwproc.physics.noise.velocity_noise_std`,
+    velocity resolution 0.0382 m s-1), so the virtual instrument's noise is the one its
+    header and SNR declare.
+    """
+    from cwproc.physics.noise import bandwidth_from_resolution, velocity_noise_std
+
+    return float(
+        velocity_noise_std(snr, points_per_gate, pulses_per_ray, bandwidth_from_resolution(0.0382))
+    )
+
+
+def write_stare_series(
+    folder,
+    truth_path,
+    spec,
+    *,
+    scan: str,
+    hours: float,
+    vad_every_s: float = 900.0,
+    pulses_per_ray: int = 20000,
+    prf_hz: float = 15000.0,
+) -> list:
+    """Write simulated stares (``scan="stare"``) or a daily cycle (``"mixed"``) as .hpl.
+
+    Parameters
+    ----------
+    folder, truth_path : path
+        Folder of the ``.hpl`` files (old ones removed) and the truth JSON.
+    spec : cwproc.sim.sample_data.StreamLineSpec
+        Field, wind, VAD geometry and SNR (``n_scans`` is ignored).
+    scan : {"stare", "mixed"}
+        Stares only (one file per hour, as the Stream Line writes them), or a VAD every
+        ``vad_every_s`` s with stares in between (one file per VAD and per stare).
+    hours : float
+        Length of the series (h).
+    pulses_per_ray, prf_hz : int, float
+        Stare rays last ``pulses_per_ray / prf_hz`` s.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written, truth last.
+    """
+    import json
+    from pathlib import Path
+
+    from cwproc.io.halo import write_hpl
+    from cwproc.sim.field3d import von_karman_field
+    from cwproc.sim.sample_data import noise_from_snr, streamline_truth
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    for old in folder.glob("*.hpl"):
+        old.unlink()
+    field = von_karman_field(
+        spec.field_shape,
+        spec.field_spacing_m,
+        epsilon=spec.epsilon,
+        integral_scale_m=spec.integral_scale_m,
+        seed=spec.seed,
+    )
+    ray_s = pulses_per_ray / prf_hz
+    stare_noise = stare_noise_std(spec.snr, round(spec.gate_length_m / 3), pulses_per_ray)
+    if scan == "stare":
+        parts = [
+            sample_vertical_stare(
+                field,
+                ranges_m=spec.ranges_m,
+                n_rays=int(min(3600.0, hours * 3600.0 - h * 3600.0) // ray_s),
+                ray_duration_s=ray_s,
+                wind_speed_m_s=spec.wind_speed,
+                wind_direction_deg=spec.wind_direction_deg,
+                noise_std_m_s=stare_noise,
+                seed=spec.seed + 1 + h,
+                start_offset_s=h * 3600.0,
+                start_time=spec.start,
+                snr=spec.snr,
+                pulses_per_ray=pulses_per_ray,
+            )
+            for h in range(int(np.ceil(hours)))
+        ]
+    elif scan == "mixed":
+        parts = daily_cycle(
+            field,
+            hours=hours,
+            vad_every_s=vad_every_s,
+            vad_rays=spec.rays_per_scan,
+            vad_period_s=spec.scan_period_s,
+            vad_elevation_deg=spec.elevation_deg,
+            ranges_m=spec.ranges_m,
+            ray_duration_s=ray_s,
+            wind_speed_m_s=spec.wind_speed,
+            wind_direction_deg=spec.wind_direction_deg,
+            noise_std_m_s=noise_from_snr(spec.snr),
+            seed=spec.seed + 1,
+            start_time=spec.start,
+            snr=spec.snr,
+            pulses_per_ray=pulses_per_ray,
+            stare_noise_std_m_s=stare_noise,
+        )
+    else:
+        raise ValueError(f"scan must be 'stare' or 'mixed', got {scan!r}")
+    written = []
+    for part in parts:
+        part.attrs.update(
+            system_id="999",
+            points_per_gate=round(spec.gate_length_m / 3),
+            gate_length_m=float(spec.gate_length_m),
+        )
+        kind = "Stare" if part.attrs.get("scan_type") == "Stare" else "VAD"
+        stamp = np.datetime_as_string(part["time"].values[0], unit="s")
+        stamp = stamp.replace("-", "").replace(":", "").replace("T", "_")
+        written.append(write_hpl(part, folder / f"{kind}_999_{stamp}.hpl"))
+    truth = streamline_truth(spec)
+    truth.update(
+        description=f"truth of a simulated Stream Line {scan} series (cwproc virtual instrument)",
+        scan=scan,
+        stare_ray_duration_s=ray_s,
+        stare_noise_std_m_s=stare_noise,
+        stare_heights_m=[round(float(h), 3) for h in spec.ranges_m],
+    )
+    if scan == "mixed":
+        truth["vad_every_s"] = float(vad_every_s)
+    truth_path = Path(truth_path)
+    truth_path.parent.mkdir(parents=True, exist_ok=True)
+    truth_path.write_text(json.dumps(truth, indent=2, sort_keys=True) + "\n")
+    written.append(truth_path)
+    return written
