@@ -432,29 +432,18 @@ VARIABLES: dict[str, VarMeta] = {
         comment="Pearson et al. (2009), eq. 3 (cwproc.physics.noise)",
         coverage_content_type="qualityInformation",
     ),
-    "w_n_samples": VarMeta("number of valid rays in the window", "1"),
+    "w_n_samples": VarMeta(
+        "number of valid rays in the window", "1", "upward_air_velocity number_of_observations"
+    ),
     "stare_wind_speed": VarMeta(
         "horizontal wind speed U from the VADs of the day, at the window and height",
         "m s-1",
         "wind_speed",
-        comment="linear in time and height between good VAD values, the nearest beyond",
-    ),
-    "length_scale_window": VarMeta(
-        "length L_1 = U T of air advected past the beam in one variance window T",
-        "m",
-        references=OCONNOR_2010,
-    ),
-    "length_scale_ray": VarMeta(
-        "length L_N = U t of air advected past the beam during one ray",
-        "m",
-        references=OCONNOR_2010,
-    ),
-    "band_variance_factor": VarMeta(
-        "G = sigma_w^2 / eps^(2/3) of the window: transverse inertial spectrum filtered by "
-        "the window mean, the ray and the range gate",
-        "m4/3",
-        comment="units m^(4/3); see cwproc.physics.stare.band_variance_factor",
-        references=OCONNOR_2010 + ", eqs. 1-4",
+        comment=(
+            "linear in time and height between good VAD values, the nearest beyond; the "
+            "length scales of O'Connor et al. (2010) are L_1 = U variance_window_s and "
+            "L_N = U ray_duration_s (global attributes)"
+        ),
     ),
     "epsilon_stare": VarMeta(
         "turbulent kinetic energy dissipation rate from the variance of w of a vertical stare",
