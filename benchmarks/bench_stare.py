@@ -106,9 +106,9 @@ def truth_table(n_windows: int) -> None:
 
 
 def simulate_cycle(folder: Path, hours: float) -> None:
+    simulate = ["simulate", "lidar", "-o", str(folder), "--scan", "mixed"]
     for args in (
-        ["simulate", "lidar", "-o", str(folder), "--scan", "mixed", "--hours", str(hours)]
-        + ["--outer-scale", "500"],
+        [*simulate, "--hours", str(hours), "--outer-scale", "500"],
         ["retrieve", str(folder / "data"), "-o", str(folder / "out"), "-q"],
     ):
         subprocess.run([sys.executable, "-m", "cwproc", *args], check=True, capture_output=True)
