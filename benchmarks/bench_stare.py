@@ -225,7 +225,9 @@ def doppy_real_table() -> None:
         span = float((ds["time"].values[-1] - ds["time"].values[0]) / np.timedelta64(1, "s"))
         both = np.isfinite(w).all(axis=0)  # heights where both rays pass the SNR screen
         var = np.full(w.shape[1], np.nan)
-        var[both] = np.var(w[:, both], axis=0) - np.mean(noise_std_per_ray(ds)[:, both] ** 2, 0)
+        share = (n - 1) / n  # white noise about the rays' own mean
+        noise_var = np.mean(noise_std_per_ray(ds)[:, both] ** 2, 0)
+        var[both] = np.var(w[:, both], axis=0) - share * noise_var
         g = ps.band_variance_factor(5.0 * (span + t_ray), 5.0 * t_ray, 15.3, 18.0)
         ours = ps.epsilon_from_variance(var, g)
         ratio = e_d / ours

@@ -153,20 +153,27 @@ def interpolate_wind(
 
 def subwindow_variances(
     w: np.ndarray, sub: np.ndarray, n_sub: int, noise_var_ray: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Noise-free variance of w in every variance window (``T`` of O'Connor et al. (2010)).
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Variance of w in every variance window (``T`` of O'Connor et al. (2010)).
 
     Returns
     -------
-    variance, noise : numpy.ndarray
-        ``(sub-window, gate)``: the variance of the valid rays about the sub-window mean
-        minus the sub-window's mean predicted noise variance, and that noise variance
-        (m2 s-2); NaN with fewer than 3 valid rays.
+    variance, corrected, noise : numpy.ndarray
+        ``(sub-window, gate)`` (m2 s-2): the variance of the ``n`` valid rays about the
+        sub-window mean; that minus the noise's share of it, ``(n - 1)/n`` times the
+        rays' mean predicted noise variance (white noise about the window's own mean);
+        and the rays' mean noise variance. NaN with fewer than 3 valid rays.
     """
     count, _, var, _ = stare.window_moments(w, sub, n_sub)
     noise_var = stare.window_mean(np.where(np.isfinite(w), noise_var_ray, np.nan), sub, n_sub)
     keep = count >= 3
-    return np.where(keep, var - noise_var, np.nan), np.where(keep, noise_var, np.nan)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corrected = var - noise_var * (count - 1) / count
+    return (
+        np.where(keep, var, np.nan),
+        np.where(keep, corrected, np.nan),
+        np.where(keep, noise_var, np.nan),
+    )
 
 
 def group_mean_se(
@@ -226,10 +233,10 @@ def stare_product(stares: xr.Dataset, wind: xr.Dataset | None, options: StareOpt
     sub = sub.ravel()
     sub_window = (sub_ids >> 32).astype(np.int64)
     sigma_e = noise_std_per_ray(stares)
-    var_sub, noise_sub = subwindow_variances(w, sub, sub_ids.size, sigma_e**2)
+    raw_sub, var_sub, noise_sub = subwindow_variances(w, sub, sub_ids.size, sigma_e**2)
     var_corr, var_se, _ = group_mean_se(var_sub, sub_window, n_win)
+    var, _, _ = group_mean_se(raw_sub, sub_window, n_win)
     noise_var, _, _ = group_mean_se(noise_sub, sub_window, n_win)
-    var = var_corr + np.where(np.isfinite(noise_var), noise_var, 0.0)
     speed, speed_err, far = interpolate_wind(wind, centre, height, options.max_wind_gap_s)
     l1 = speed * options.variance_window_s
     ln = speed * t_ray
@@ -239,7 +246,7 @@ def stare_product(stares: xr.Dataset, wind: xr.Dataset | None, options: StareOpt
     flag = np.zeros((n_win, height.size), dtype=np.int8)
     flag |= np.where(~np.isfinite(speed), FLAG_NO_WIND, 0).astype(np.int8)
     flag |= np.where(count < options.min_samples, FLAG_TOO_FEW_SAMPLES, 0).astype(np.int8)
-    noisy = ~(var_corr > 0) & (count >= 2)
+    noisy = np.isfinite(var_corr) & ~(var_corr > 0)
     flag |= np.where(noisy, FLAG_NOISE_DOMINATED, 0).astype(np.int8)
     flag |= np.where(far & np.isfinite(speed), FLAG_WIND_FAR, 0).astype(np.int8)
     bad = (flag & (FLAG_NO_WIND | FLAG_TOO_FEW_SAMPLES | FLAG_NOISE_DOMINATED)) != 0

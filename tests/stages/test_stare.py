@@ -11,6 +11,8 @@ from cwproc.sim.pulsed import streamline_scans
 from cwproc.sim.stare import gaussian_stares
 from cwproc.stages.stare import (
     FLAG_NO_WIND,
+    FLAG_NOISE_DOMINATED,
+    FLAG_TOO_FEW_SAMPLES,
     StareOptions,
     split_stares,
     stare_product,
@@ -79,6 +81,18 @@ def test_simulated_truth_recovered(eps):
     assert product["w_noise_variance"].values[0, 0] == pytest.approx(noise**2, rel=1e-6)
 
 
+def test_pure_noise_is_flagged_not_turned_into_eps():
+    """w = instrument noise only: the noise variance from the SNR takes it all away."""
+    noise = float(velocity_noise_std(SNR, 10, 20000, bandwidth_from_resolution(0.0382)))
+    w = noise * np.random.default_rng(4).standard_normal((40, 225))
+    product = stare_product(stare_dataset(w), constant_wind(5.0), StareOptions())
+    flagged = (product["stare_flag"].values[:, 0] & FLAG_NOISE_DOMINATED) != 0
+    assert 0.2 < flagged.mean() < 0.8  # the corrected variance scatters about zero
+    assert np.isnan(product["epsilon_stare"].values[flagged, 0]).all()
+    corrected = product["w_variance_corrected"].values[:, 0]
+    assert abs(np.mean(corrected)) < 0.05 * noise**2 * 10
+
+
 def test_no_wind_gives_w_statistics_and_flag():
     rng = np.random.default_rng(1)
     w = 0.3 * rng.standard_normal((2, 225))
@@ -117,5 +131,7 @@ def test_real_stares_read_and_processed(real_data):
         # SNR-screened w of a real stare: most |w| below 1.5 m/s (clear air, Dec/Sep
         # nights); a few gates of Warsaw reach 16 m/s at SNR > 0.008 (not air motion)
         assert np.nanpercentile(np.abs(w), 90) < 1.5, name
-        # one or two rays: no variance window holds three, so no eps (flag bit 2)
+        # one or two rays: no variance window holds three, so no eps (flag bit 2, not 4)
         assert np.isnan(product["epsilon_stare"].values).all()
+        flag = product["stare_flag"].values
+        assert (flag & FLAG_TOO_FEW_SAMPLES).all() and not (flag & FLAG_NOISE_DOMINATED).any()
