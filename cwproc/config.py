@@ -164,6 +164,9 @@ class StareConfig:
     variance_window_s: float = 30.0
     #: fewest valid rays of a product window for eps (fewer: flag bit 2)
     min_samples: int = 20
+    #: w farther than this many scaled MADs from the median of its variance window is
+    #: screened out (6: a Gaussian w of 20-40 rays keeps > 99.9 % of its rays)
+    outlier_threshold: float = 6.0
     #: pulse repetition frequency (Hz) for the ray time pulses/PRF (Stream Line 15 kHz,
     #: XR 10 kHz)
     prf_hz: float = 15000.0
@@ -171,7 +174,9 @@ class StareConfig:
     max_wind_gap_s: float = 3600.0
 
     def __post_init__(self) -> None:
-        _positive(self, "window_s", "variance_window_s", "prf_hz", "max_wind_gap_s")
+        _positive(
+            self, "window_s", "variance_window_s", "prf_hz", "max_wind_gap_s", "outlier_threshold"
+        )
         if self.min_samples < 3:
             raise ValueError("min_samples: must be >= 3 (variance and skewness)")
         if self.variance_window_s > self.window_s:

@@ -410,7 +410,8 @@ VARIABLES: dict[str, VarMeta] = {
     # ---------------------------------------------------------------- stare product
     "ray_time": VarMeta("time of the ray (UTC)", None, "time", coverage_content_type="coordinate"),
     "w_ray": VarMeta(
-        "upward air velocity of each vertical ray (SNR-screened radial velocity)",
+        "upward air velocity of each vertical ray (radial velocity screened for SNR and "
+        "outliers within each variance window)",
         "m s-1",
         "upward_air_velocity",
     ),

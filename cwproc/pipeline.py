@@ -411,6 +411,7 @@ def stare_products(
         min_samples=config.stare.min_samples,
         variance_window_s=config.stare.variance_window_s,
         snr_min=config.qc.snr_min,
+        outlier_threshold=config.stare.outlier_threshold,
         prf_hz=config.stare.prf_hz,
         max_wind_gap_s=config.stare.max_wind_gap_s,
         delta_p_m=config.instrument.delta_p_m,

@@ -11,6 +11,7 @@ made and eps is NaN with flag bit 1.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,6 +41,7 @@ class StareOptions:
     variance_window_s: float = 30.0
     min_samples: int = 20
     snr_min: float = 0.008
+    outlier_threshold: float = 6.0
     prf_hz: float = HALO_PRF_HZ
     max_wind_gap_s: float = 3600.0
     delta_p_m: float = 15.3
@@ -151,6 +153,33 @@ def interpolate_wind(
     return out, err, far
 
 
+def outlier_mask(w: np.ndarray, sub: np.ndarray, n_sub: int, threshold: float) -> np.ndarray:
+    """Rays whose w is an outlier within its variance window and gate.
+
+    ``|w - median| > threshold x max(1.4826 MAD, MIN_SPREAD_M_S)`` over the valid rays of
+    the window (at least 5; fewer: nothing flagged), the robust screen of
+    :mod:`cwproc.stages.qc` applied to the window instead of a VAD fit.
+    """
+    from cwproc.stages.qc import MAD_TO_STD, MIN_SPREAD_M_S
+
+    order = np.argsort(sub, kind="stable")
+    counts = np.bincount(sub, minlength=n_sub)
+    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    slot = np.empty(sub.size, dtype=np.int64)
+    slot[order] = np.arange(sub.size) - starts[sub[order]]
+    padded = np.full((n_sub, max(int(counts.max()), 1), w.shape[1]), np.nan)
+    padded[sub, slot] = w
+    valid = np.sum(np.isfinite(padded), axis=1)
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN windows: NaN, not flagged
+        median = np.nanmedian(padded, axis=1)
+        mad = np.nanmedian(np.abs(padded - median[:, None]), axis=1)
+    spread = np.maximum(MAD_TO_STD * mad, MIN_SPREAD_M_S)
+    with np.errstate(invalid="ignore"):
+        far = np.abs(w - median[sub]) > threshold * spread[sub]
+    return far & (valid[sub] >= 5)
+
+
 def subwindow_variances(
     w: np.ndarray, sub: np.ndarray, n_sub: int, noise_var_ray: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -226,12 +255,13 @@ def stare_product(stares: xr.Dataset, wind: xr.Dataset | None, options: StareOpt
     t_ray = ray_duration_s(stares, options.prf_hz)
     index, centre, _ = window_index(stares["time"].values, options.window_s)
     n_win = centre.size
-    count, mean, _, skew = stare.window_moments(w, index, n_win)
     # variance windows T inside each product window (O'Connor et al. (2010), eq. 4)
     sub_raw, _, _ = window_index(stares["time"].values, options.variance_window_s)
     sub_ids, sub = np.unique(index * (1 << 32) + sub_raw, return_inverse=True)
     sub = sub.ravel()
     sub_window = (sub_ids >> 32).astype(np.int64)
+    w = np.where(outlier_mask(w, sub, sub_ids.size, options.outlier_threshold), np.nan, w)
+    count, mean, _, skew = stare.window_moments(w, index, n_win)
     sigma_e = noise_std_per_ray(stares)
     raw_sub, var_sub, noise_sub = subwindow_variances(w, sub, sub_ids.size, sigma_e**2)
     var_corr, var_se, _ = group_mean_se(var_sub, sub_window, n_win)

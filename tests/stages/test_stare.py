@@ -99,7 +99,9 @@ def test_no_wind_gives_w_statistics_and_flag():
     product = stare_product(stare_dataset(w), None, StareOptions())
     assert np.isnan(product["epsilon_stare"].values).all()
     assert (product["stare_flag"].values & FLAG_NO_WIND).all()
-    np.testing.assert_allclose(product["w_mean"].values[:, 0], w.mean(axis=1))
+    kept = product["w_ray"].values[:, 0].reshape(w.shape)
+    assert np.isfinite(kept).mean() > 0.99  # the outlier screen spares Gaussian w
+    np.testing.assert_allclose(product["w_mean"].values[:, 0], np.nanmean(kept, axis=1))
     assert product["w_variance"].values[0, 0] == pytest.approx(0.09, rel=0.2)
 
 
@@ -135,3 +137,15 @@ def test_real_stares_read_and_processed(real_data):
         assert np.isnan(product["epsilon_stare"].values).all()
         flag = product["stare_flag"].values
         assert (flag & FLAG_TOO_FEW_SAMPLES).all() and not (flag & FLAG_NOISE_DOMINATED).any()
+
+
+def test_spikes_are_screened_within_the_variance_window():
+    rng = np.random.default_rng(5)
+    w = 0.3 * rng.standard_normal((3, 225))
+    spiked = w.copy()
+    spiked[:, ::40] = 16.0  # the kind of gate a real Warsaw stare has at SNR > 0.008
+    clean = stare_product(stare_dataset(w), constant_wind(5.0), StareOptions())
+    screened = stare_product(stare_dataset(spiked), constant_wind(5.0), StareOptions())
+    rays = (np.arange(3)[:, None] * 225 + np.arange(0, 225, 40)[None, :]).ravel()
+    assert np.isnan(screened["w_ray"].values[rays]).all()
+    np.testing.assert_allclose(screened["w_variance"].values, clean["w_variance"].values, rtol=0.15)
