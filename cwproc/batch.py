@@ -161,6 +161,8 @@ class UnitOutcome:
     peak_rss_mib: float = 0.0
     pid: int = 0
     host: str = ""
+    #: what the unit's files gave and products that could not be made (not failures)
+    notes: tuple[str, ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -437,13 +439,19 @@ def process_unit_task(task: UnitTask) -> UnitOutcome:
     t0 = time.perf_counter()
     host = socket.gethostname()
 
-    def outcome(products: Sequence[Path] = (), error: str = "", detail: str = "") -> UnitOutcome:
+    def outcome(
+        products: Sequence[Path] = (),
+        error: str = "",
+        detail: str = "",
+        notes: Sequence[str] = (),
+    ) -> UnitOutcome:
         return UnitOutcome(
             key=task.key,
             fingerprint=task.fingerprint,
             products=tuple(os.fspath(p) for p in products),
             error=error,
             detail=detail,
+            notes=tuple(notes),
             seconds=time.perf_counter() - t0,
             peak_rss_mib=peak_rss_mib(),
             pid=os.getpid(),
@@ -470,7 +478,8 @@ def _process_unit_task(task: UnitTask, outcome: Callable[..., UnitOutcome]) -> U
         if len(units) != 1 or units[0].key != task.key:
             found = ", ".join(u.key for u in units)
             return outcome(error=f"{unit_label(task)}: its inputs now group as {found}")
-        products = process_unit(units[0], config)
+        notes: list[str] = []
+        products = process_unit(units[0], config, notes)
         written = write_unit_products(units[0], products, task.outdir, config)
     except (InputFileError, ProductError) as exc:
         return outcome(error=str(exc))  # already names the file
@@ -481,7 +490,7 @@ def _process_unit_task(task: UnitTask, outcome: Callable[..., UnitOutcome]) -> U
             error=f"{unit_label(task)}: internal error {type(exc).__name__}: {exc}",
             detail=traceback.format_exc(),
         )
-    return outcome(written)
+    return outcome(written, notes=notes)
 
 
 def unit_label(task: UnitTask) -> str:

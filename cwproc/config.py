@@ -178,6 +178,38 @@ class TurbulenceConfig:
 
 
 @dataclass(frozen=True)
+class StareConfig:
+    """Vertical-stare w statistics and eps (stage ``stare``, O'Connor et al. (2010))."""
+
+    enabled: bool = True
+    #: length of the product window of w statistics and eps (s)
+    window_s: float = 300.0
+    #: window T of each variance of w (s), L_1 = U T (O'Connor et al. (2010), eq. 4);
+    #: the product window averages window_s / variance_window_s of them (their scatter
+    #: gives the standard error)
+    variance_window_s: float = 30.0
+    #: fewest valid rays of a product window for eps (fewer: flag bit 2)
+    min_samples: int = 20
+    #: w farther than this many scaled MADs from the median of its variance window is
+    #: screened out (6: a Gaussian w of 20-40 rays keeps > 99.9 % of its rays)
+    outlier_threshold: float = 6.0
+    #: pulse repetition frequency (Hz) for the ray time pulses/PRF (Stream Line 15 kHz,
+    #: XR 10 kHz)
+    prf_hz: float = 15000.0
+    #: a VAD wind more than this far from a window (s) is used, with flag bit 8
+    max_wind_gap_s: float = 3600.0
+
+    def __post_init__(self) -> None:
+        _positive(
+            self, "window_s", "variance_window_s", "prf_hz", "max_wind_gap_s", "outlier_threshold"
+        )
+        if self.min_samples < 3:
+            raise ValueError("min_samples: must be >= 3 (variance and skewness)")
+        if self.variance_window_s > self.window_s:
+            raise ValueError("variance_window_s: must not exceed window_s")
+
+
+@dataclass(frozen=True)
 class SonicConfig:
     """Structure-function typing of sonic data (stage ``sonic_sf``), Gladkikh et al. (2014).
 
@@ -358,6 +390,7 @@ class Config:
     background: BackgroundConfig = field(default_factory=BackgroundConfig)
     vad: VADConfig = field(default_factory=VADConfig)
     turbulence: TurbulenceConfig = field(default_factory=TurbulenceConfig)
+    stare: StareConfig = field(default_factory=StareConfig)
     sonic: SonicConfig = field(default_factory=SonicConfig)
     zephir: ZephirConfig = field(default_factory=ZephirConfig)
     output: OutputConfig = field(default_factory=OutputConfig)

@@ -153,6 +153,13 @@ WAGNER_DTU = (
     "with a continuous wave, conically scanning lidar, Risoe-R report."
 )
 
+OCONNOR_2010 = (
+    "O'Connor E.J., Illingworth A.J., Brooks I.M., Westbrook C.D., Hogan R.J., Davies F., "
+    "Brooks B.J. (2010), A method for estimating the turbulent kinetic energy dissipation "
+    "rate from a vertically pointing Doppler lidar, and independent evaluation from "
+    "balloon-borne in situ measurements, J. Atmos. Oceanic Technol. 27, 1652-1664"
+)
+
 
 VARIABLES: dict[str, VarMeta] = {
     # ---------------------------------------------------------------- coordinates
@@ -399,6 +406,77 @@ VARIABLES: dict[str, VarMeta] = {
         "block-median signal-to-noise ratio of the valid rays",
         "1",
         coverage_content_type="auxiliaryInformation",
+    ),
+    # ---------------------------------------------------------------- stare product
+    "ray_time": VarMeta("time of the ray (UTC)", None, "time", coverage_content_type="coordinate"),
+    "w_ray": VarMeta(
+        "upward air velocity of each vertical ray (radial velocity screened for SNR and "
+        "outliers within each variance window)",
+        "m s-1",
+        "upward_air_velocity",
+    ),
+    "w_mean": VarMeta("mean upward air velocity over the window", "m s-1", "upward_air_velocity"),
+    "w_variance": VarMeta(
+        "mean variance of the upward air velocity over the variance windows T of the "
+        "window (noise not removed)",
+        "m2 s-2",
+    ),
+    "w_variance_corrected": VarMeta(
+        "variance of the upward air velocity of the window, instrumental noise removed",
+        "m2 s-2",
+        references=OCONNOR_2010,
+    ),
+    "w_skewness": VarMeta("skewness of the upward air velocity over the window", "1"),
+    "w_noise_variance": VarMeta(
+        "mean instrumental noise variance sigma_e^2 of the rays, predicted from the SNR",
+        "m2 s-2",
+        comment="Pearson et al. (2009), eq. 3 (cwproc.physics.noise)",
+        coverage_content_type="qualityInformation",
+    ),
+    "w_n_samples": VarMeta(
+        "number of valid rays in the window", "1", "upward_air_velocity number_of_observations"
+    ),
+    "stare_wind_speed": VarMeta(
+        "horizontal wind speed U from the VADs of the day, at the window and height",
+        "m s-1",
+        "wind_speed",
+        comment=(
+            "linear in time and height between good VAD values, the nearest beyond; the "
+            "length scales of O'Connor et al. (2010) are L_1 = U variance_window_s and "
+            "L_N = U ray_duration_s (global attributes)"
+        ),
+    ),
+    "epsilon_stare": VarMeta(
+        "turbulent kinetic energy dissipation rate from the variance of w of a vertical stare",
+        "m2 s-3",
+        comment=(
+            "eps = ((sigma_w^2 - sigma_e^2)/G)^(3/2), transverse constant a_T = 0.664 "
+            "(C_K = 2); O'Connor et al. (2010) and doppy use a = 0.55 and sharp band "
+            "limits, see docs/stare.md"
+        ),
+        references=OCONNOR_2010,
+    ),
+    "epsilon_stare_standard_error": VarMeta(
+        "standard error of the stare dissipation rate",
+        "m2 s-3",
+        comment=(
+            "1.5 eps SE(sigma_v^2)/sigma_v^2 (SE: scatter of the variances of the "
+            "variance windows in the product window over the square root of their number) "
+            "and SE(U)/U combined"
+        ),
+        coverage_content_type="qualityInformation",
+    ),
+    "stare_flag": VarMeta(
+        "stare dissipation-rate quality flag (bits combine; 0 = good)",
+        "1",
+        flag_masks=(1, 2, 4, 8),
+        flag_meanings="no_wind too_few_samples noise_dominated wind_far_in_time",
+        comment=(
+            "0 good; bit 1 no VAD wind this day (eps NaN); bit 2 fewer valid rays than "
+            "stare.min_samples (eps NaN); bit 4 variance not above the noise variance (eps "
+            "NaN); bit 8 the nearest VAD is more than stare.max_wind_gap_s away"
+        ),
+        coverage_content_type="qualityInformation",
     ),
     # ---------------------------------------------------------------- sonic SF product
     "sf_type": VarMeta(

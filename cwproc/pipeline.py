@@ -46,7 +46,14 @@ from cwproc.io.netcdf import (
     site_attributes,
     write_product,
 )
-from cwproc.metadata import BANAKH_1999, GLADKIKH_2014, SMALIKHO_2020, WAGNER_DTU
+from cwproc.metadata import (
+    BANAKH_1999,
+    GLADKIKH_2014,
+    OCONNOR_2010,
+    SMALIKHO_2020,
+    WAGNER_DTU,
+)
+from cwproc.physics.noise import PEARSON_2009
 
 
 @dataclass
@@ -328,6 +335,93 @@ def process_scans(
     return products
 
 
+# --------------------------------------------------------------------------------------
+# one day of mixed scans (issue 13): stares -> stare product, the rest -> wind/turbulence
+# --------------------------------------------------------------------------------------
+
+
+def describe_scan_inputs(unit: ProductUnit) -> list[str]:
+    """One line per scan file of a unit: what it holds and which product it feeds."""
+    from cwproc.stages.stare import stare_mask
+
+    lines = []
+    for item in unit.inputs:
+        ds = item.dataset
+        if ds is None:
+            continue
+        vertical = stare_mask(ds)
+        n_vertical, n_other = int(vertical.sum()), int((~vertical).sum())
+        scan = ds["scan"].values if "scan" in ds.coords else np.full(ds.sizes["ray"], -1)
+        n_conical = int(np.unique(scan[(scan >= 0) & ~vertical]).size)
+        parts = []
+        if n_vertical:
+            parts.append(f"{n_vertical} vertical stare rays -> stare product")
+        if n_conical:
+            parts.append(f"{n_conical} conical scan(s) -> wind (and turbulence)")
+        unused = n_other - int(np.sum((scan >= 0) & ~vertical))
+        if unused:
+            parts.append(f"{unused} rays neither vertical nor in a conical scan: not used")
+        kind = str(ds.attrs.get("scan_type", "")).strip() or "scan"
+        lines.append(f"{os.fspath(item.path)}: {kind}: " + "; ".join(parts or ["no rays"]))
+    return lines
+
+
+def process_scan_day(
+    scans: xr.Dataset, config: Config, notes: list[str] | None = None
+) -> dict[str, xr.Dataset]:
+    """Products of the scans of one instrument-day: wind/turbulence and stare.
+
+    Vertical stares (elevation >= 85 deg) go to the stare product (w statistics and
+    eps of O'Connor et al. (2010), the wind speed from this day's VADs); the other rays
+    to :func:`process_scans`. A day of stares only gives the stare product (eps NaN,
+    flag bit 1, and a note); a day without stares gives what it gave before.
+    """
+    from cwproc.stages.stare import split_stares
+
+    stares, others = split_stares(scans)
+    products: dict[str, xr.Dataset] = {}
+    if others is not None:
+        try:
+            products = process_scans(others, config, notes)
+        except CwprocError as exc:
+            if stares is None:
+                raise
+            if notes is not None:
+                notes.append(f"wind not computed: {exc}")
+    elif stares is None:
+        return process_scans(scans, config, notes)
+    if stares is not None and config.stare.enabled:
+        products["stare"] = stare_products(stares, products.get("wind"), config, notes)
+    return products
+
+
+def stare_products(
+    stares: xr.Dataset, wind: xr.Dataset | None, config: Config, notes: list[str] | None
+) -> xr.Dataset:
+    """The stare product of the vertical rays, with a note when no VAD gives the wind."""
+    from cwproc.stages.stare import StareOptions, stare_product
+
+    has_wind = wind is not None and bool(np.isfinite(wind["wind_speed"].values).any())
+    if not has_wind and notes is not None:
+        notes.append(
+            "stare eps not computed: no VAD or PPI of this instrument and day gives the "
+            "horizontal wind that O'Connor et al. (2010) need; w statistics written, "
+            "epsilon_stare NaN with stare_flag bit 1 (add the day's VAD files)"
+        )
+    options = StareOptions(
+        window_s=config.stare.window_s,
+        min_samples=config.stare.min_samples,
+        variance_window_s=config.stare.variance_window_s,
+        snr_min=config.qc.snr_min,
+        outlier_threshold=config.stare.outlier_threshold,
+        prf_hz=config.stare.prf_hz,
+        max_wind_gap_s=config.stare.max_wind_gap_s,
+        delta_p_m=config.instrument.delta_p_m,
+        delta_r_m=config.instrument.delta_r_m,
+    )
+    return stare_product(stares, wind if has_wind else None, options)
+
+
 def process_wind_record(record: xr.Dataset, config: Config) -> dict[str, xr.Dataset]:
     """Wind product from an instrument's own 10-min/1-s wind records (ZephIR, WindCube)."""
     from cwproc.stages import zephir
@@ -395,8 +489,10 @@ def process_unit(
     """
     ds = concat_unit(unit)
     if unit.kind == "scan":
+        if notes is not None:
+            notes.extend(describe_scan_inputs(unit))
         ds = correct_background(ds, unit, config, notes)
-        return process_scans(ds, config, notes)
+        return process_scan_day(ds, config, notes)
     if unit.kind == "wind_record":
         return process_wind_record(ds, config)
     return process_sonic(ds, config)
@@ -445,6 +541,11 @@ _TITLES = {
         "Azimuth structure function, dissipation rate (methods 1 and 2), noise, velocity "
         "variance and integral scale",
     ),
+    "stare": (
+        "Vertical-velocity statistics and dissipation rate from vertical stares",
+        "Mean, variance and skewness of w per window, the noise variance from the SNR, and "
+        "the dissipation rate from the variance of w and the VAD wind speed",
+    ),
     "sf": (
         "Structure-function types of sonic anemometer data",
         "Types (1 line, 2 parabola, 3 parabola then line in lg-lg axes) and fitted "
@@ -456,11 +557,13 @@ _KEYWORDS = {
     "wind": "Doppler lidar, VAD, wind profile",
     "turbulence": "Doppler lidar, turbulence, dissipation rate, structure function",
     "sf": "sonic anemometer, structure function, turbulence, surface layer",
+    "stare": "Doppler lidar, vertical stare, vertical velocity, turbulence, dissipation rate",
 }
 _REFERENCES = {
     "wind": SMALIKHO_2020,
     "turbulence": SMALIKHO_2020 + "; " + BANAKH_1999,
     "sf": GLADKIKH_2014,
+    "stare": OCONNOR_2010 + "; " + PEARSON_2009,
 }
 
 
@@ -619,7 +722,8 @@ def retrieve_files(
         finally:
             for item in unit.inputs:  # processed: its data may go
                 item.dataset = None
-        report.notes.extend(f"{names}: {n}" for n in notes)
+        own = tuple(f"{os.fspath(i.path)}: " for i in unit.inputs)
+        report.notes.extend(n if n.startswith(own) else f"{names}: {n}" for n in notes)
     return report
 
 

@@ -294,6 +294,9 @@ def batch(
     for line in report.failure_lines():
         report_failure(line)
     if not quiet:
+        for outcome in report.processed:
+            for line in outcome.notes:
+                click.echo(f"note: unit {outcome.key}: {line}", err=True)
         for line in summary_lines(report, verbose):
             click.echo(line)
     sys.exit(0 if report.ok else 1)

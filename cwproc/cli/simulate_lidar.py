@@ -61,6 +61,22 @@ _ZEPHIR_HEIGHTS = (40.0, 60.0, 80.0, 100.0, 150.0, 200.0)
     show_default=True,
     help="Linear SNR of the Stream Line; sets the noise, 0.005/SNR m/s.",
 )
+@click.option(
+    "--scan",
+    type=click.Choice(["vad", "stare", "mixed"]),
+    default="vad",
+    show_default=True,
+    help="Stream Line only: VADs; vertical stares (one file per hour); or the daily cycle "
+    "of the networks, a VAD every --vad-every minutes and stares in between, all from one "
+    "turbulent field.",
+)
+@click.option(
+    "--vad-every",
+    type=click.FloatRange(min=1.0),
+    default=15.0,
+    show_default=True,
+    help="Minutes between the VADs of --scan mixed.",
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
 def simulate_lidar(
     outdir: str,
@@ -71,13 +87,17 @@ def simulate_lidar(
     epsilon: float | None,
     outer_scale: float | None,
     snr: float,
+    scan: str,
+    vad_every: float,
     seed: int,
 ) -> None:
     """Files in the real formats from a virtual lidar, plus the truth that made them.
 
     \b
     Stream Line: a frozen von Karman field advected by the wind, scanned at 35.3 deg
-    (180 rays per 36 s scan, 24 gates of 30 m), written as .hpl files in DIR/data/.
+    (180 rays per 36 s scan, 24 gates of 30 m), written as .hpl files in DIR/data/;
+    --scan stare / mixed: vertical stares (20000 pulses, 1.33 s rays, noise of
+    Pearson et al. (2009) at --snr) of the same field, alone or between the VADs.
     cw / zephir: Doppler spectra and centroid velocities of Banakh et al. (1999)
     (eq. 17 field, corrected Q_s, homodyne |V_r|), written as scan NetCDF.
     The truth (wind, epsilon, L_V, sigma_V^2) goes to DIR/truth/truth.json, outside
@@ -87,7 +107,23 @@ def simulate_lidar(
     data, truth = out / "data", out / "truth" / "truth.json"
     hours = _DEFAULT_HOURS[instrument] if hours is None else hours
     try:
-        if instrument == "streamline":
+        if instrument != "streamline" and scan != "vad":
+            raise CwprocError(f"--scan {scan} needs --instrument streamline")
+        if instrument == "streamline" and scan != "vad":
+            written = _streamline_stares(
+                data,
+                truth,
+                scan,
+                hours,
+                vad_every,
+                wind,
+                direction,
+                epsilon,
+                outer_scale,
+                snr,
+                seed,
+            )
+        elif instrument == "streamline":
             written = _streamline(
                 data, truth, hours, wind, direction, epsilon, outer_scale, snr, seed
             )
@@ -131,6 +167,38 @@ def _streamline(
         seed=seed,
     )
     return write_streamline_series(data, truth, spec)
+
+
+def _streamline_stares(
+    data: Path,
+    truth: Path,
+    scan: str,
+    hours: float,
+    vad_every_min: float,
+    wind: float | None,
+    direction: float,
+    epsilon: float | None,
+    outer_scale: float | None,
+    snr: float,
+    seed: int,
+) -> list[Path]:
+    from cwproc.sim.sample_data import StreamLineSpec
+    from cwproc.sim.stare import write_stare_series
+
+    base = StreamLineSpec()
+    spec = dataclasses.replace(
+        base,
+        start="2024-01-01T00:00:00",
+        wind_speed=base.wind_speed if wind is None else wind,
+        wind_direction_deg=direction,
+        epsilon=base.epsilon if epsilon is None else epsilon,
+        integral_scale_m=base.integral_scale_m if outer_scale is None else outer_scale,
+        snr=snr,
+        seed=seed,
+    )
+    return write_stare_series(
+        data, truth, spec, scan=scan, hours=hours, vad_every_s=60.0 * vad_every_min
+    )
 
 
 def _cw(

@@ -1,0 +1,363 @@
+"""Stare product: vertical-velocity statistics and eps from vertical stares.
+
+Chain (:func:`stare_product`): the rays at elevation >= ``MIN_STARE_ELEVATION_DEG``
+are taken from the scans of an instrument-day (:func:`split_stares`), screened for SNR,
+grouped into windows of ``window_s`` seconds, and per window and gate give the mean,
+variance and skewness of w, the noise variance predicted from the SNR (Pearson et al.
+(2009), eq. 3), and eps of O'Connor et al. (2010) with the horizontal wind of the VADs
+of the same day (:mod:`cwproc.physics.stare`). Without a wind, the w statistics are still
+made and eps is NaN with flag bit 1.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+import xarray as xr
+
+from cwproc.errors import CwprocError
+from cwproc.physics import noise, stare
+from cwproc.physics.geometry import height_from_range
+from cwproc.stages.qc import snr_flags
+
+#: rays at or above this elevation (deg) are vertical stares
+MIN_STARE_ELEVATION_DEG = 85.0
+#: flag bits of the stare product
+FLAG_NO_WIND = 1
+FLAG_TOO_FEW_SAMPLES = 2
+FLAG_NOISE_DOMINATED = 4
+FLAG_WIND_FAR = 8
+#: Halo Stream Line pulse repetition frequency (Hz); 10 kHz for the XR
+HALO_PRF_HZ = 15000.0
+
+
+@dataclass(frozen=True)
+class StareOptions:
+    """Settings of the stare product (the ``[stare]`` configuration section)."""
+
+    window_s: float = 300.0
+    variance_window_s: float = 30.0
+    min_samples: int = 20
+    snr_min: float = 0.008
+    outlier_threshold: float = 6.0
+    prf_hz: float = HALO_PRF_HZ
+    max_wind_gap_s: float = 3600.0
+    delta_p_m: float = 15.3
+    delta_r_m: float = 18.0
+
+
+def stare_mask(ds: xr.Dataset) -> np.ndarray:
+    """Rays of ``ds`` that are vertical stares (elevation >= 85 deg, < 95 deg)."""
+    el = np.asarray(ds["elevation"].values, dtype=float)
+    return np.isfinite(el) & (el >= MIN_STARE_ELEVATION_DEG) & (el <= 180 - MIN_STARE_ELEVATION_DEG)
+
+
+def split_stares(scans: xr.Dataset) -> tuple[xr.Dataset | None, xr.Dataset | None]:
+    """``(stares, others)``: the vertical rays and the rest (``None`` when there are none)."""
+    vertical = stare_mask(scans)
+    stares = scans.isel(ray=np.flatnonzero(vertical)) if vertical.any() else None
+    others = scans.isel(ray=np.flatnonzero(~vertical)) if (~vertical).any() else None
+    return stares, others
+
+
+def ray_duration_s(ds: xr.Dataset, prf_hz: float) -> float:
+    """Accumulation time of one ray (s): pulses per ray / PRF, else the median ray step.
+
+    Raises
+    ------
+    CwprocError
+        Neither the pulses per ray nor two ray times are known.
+    """
+    pulses = float(ds.attrs.get("pulses_per_ray", 0) or 0)
+    if pulses > 0 and prf_hz > 0:
+        return pulses / prf_hz
+    t = np.sort(ds["time"].values.astype("datetime64[ns]").astype(np.int64)) / 1e9
+    if t.size >= 2 and np.median(np.diff(t)) > 0:
+        return float(np.median(np.diff(t)))
+    raise CwprocError(
+        "stare: the ray accumulation time is unknown (no pulses_per_ray, a single ray)"
+    )
+
+
+def window_index(time: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Window of each ray (windows of ``window_s`` s from 00:00 UTC of the first day).
+
+    Returns
+    -------
+    index : numpy.ndarray of int
+        Window of each ray, 0 .. n-1 (only windows holding rays are numbered).
+    centre : numpy.ndarray of datetime64[ns]
+        Centre time of each window.
+    labels : numpy.ndarray of int
+        Number of each window counted from 00:00 UTC.
+    """
+    t = time.astype("datetime64[ns]")
+    day = t.min().astype("datetime64[D]").astype("datetime64[ns]")
+    seconds = (t - day) / np.timedelta64(1, "s")
+    raw = np.floor(seconds / window_s).astype(np.int64)
+    labels, index = np.unique(raw, return_inverse=True)
+    step = np.timedelta64(round(window_s * 1e9), "ns")
+    centre = day + labels * step + step // 2
+    return index.ravel(), centre, labels
+
+
+def interpolate_wind(
+    wind: xr.Dataset | None, time: np.ndarray, height: np.ndarray, max_gap_s: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Horizontal wind speed and its error at (window time, height) from VAD profiles.
+
+    Linear in time and height between good VAD values (``qc_flag == 0``), the nearest
+    value outside (as Cloudnet does for doppy's eps), per height first.
+
+    Returns
+    -------
+    speed, error : numpy.ndarray
+        ``(time, height)`` (m s-1); NaN where no VAD value exists.
+    far : numpy.ndarray of bool
+        The nearest VAD time is more than ``max_gap_s`` away.
+    """
+    shape = (time.size, height.size)
+    nan = np.full(shape, np.nan)
+    if wind is None or int(wind.sizes.get("time", 0)) == 0:
+        return nan, nan.copy(), np.ones(shape, dtype=bool)
+    speed = np.asarray(wind["wind_speed"].values, dtype=float)
+    error = (
+        np.asarray(wind["wind_speed_error"].values, dtype=float)
+        if "wind_speed_error" in wind
+        else np.zeros_like(speed)
+    )
+    good = np.isfinite(speed)
+    if "qc_flag" in wind:
+        good &= np.asarray(wind["qc_flag"].values) == 0
+    heights = np.asarray(wind["height"].values, dtype=float)
+    tw = wind["time"].values.astype("datetime64[ns]").astype(np.int64) / 1e9
+    tt = time.astype("datetime64[ns]").astype(np.int64) / 1e9
+    # per VAD time: the profile interpolated to the stare heights (nearest beyond)
+    on_h = np.full((tw.size, height.size), np.nan)
+    err_h = np.full_like(on_h, np.nan)
+    for i in range(tw.size):  # one VAD profile each (tens a day)
+        ok = good[i]
+        if ok.sum() >= 1:
+            on_h[i] = np.interp(height, heights[ok], speed[i, ok])
+            err_h[i] = np.interp(height, heights[ok], np.nan_to_num(error[i, ok]))
+    have = np.isfinite(on_h[:, 0])
+    if not have.any():
+        return nan, nan.copy(), np.ones(shape, dtype=bool)
+    tv, on_h, err_h = tw[have], on_h[have], err_h[have]
+    out = np.stack([np.interp(tt, tv, on_h[:, j]) for j in range(height.size)], axis=1)
+    err = np.stack([np.interp(tt, tv, err_h[:, j]) for j in range(height.size)], axis=1)
+    gap = np.min(np.abs(tt[:, None] - tv[None, :]), axis=1)
+    far = np.broadcast_to((gap > max_gap_s)[:, None], shape).copy()
+    return out, err, far
+
+
+def outlier_mask(w: np.ndarray, sub: np.ndarray, n_sub: int, threshold: float) -> np.ndarray:
+    """Rays whose w is an outlier within its variance window and gate.
+
+    ``|w - median| > threshold x max(1.4826 MAD, MIN_SPREAD_M_S)`` over the valid rays of
+    the window (at least 5; fewer: nothing flagged), the robust screen of
+    :mod:`cwproc.stages.qc` applied to the window instead of a VAD fit.
+    """
+    from cwproc.stages.qc import MAD_TO_STD, MIN_SPREAD_M_S
+
+    order = np.argsort(sub, kind="stable")
+    counts = np.bincount(sub, minlength=n_sub)
+    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    slot = np.empty(sub.size, dtype=np.int64)
+    slot[order] = np.arange(sub.size) - starts[sub[order]]
+    padded = np.full((n_sub, max(int(counts.max()), 1), w.shape[1]), np.nan)
+    padded[sub, slot] = w
+    valid = np.sum(np.isfinite(padded), axis=1)
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN windows: NaN, not flagged
+        median = np.nanmedian(padded, axis=1)
+        mad = np.nanmedian(np.abs(padded - median[:, None]), axis=1)
+    spread = np.maximum(MAD_TO_STD * mad, MIN_SPREAD_M_S)
+    with np.errstate(invalid="ignore"):
+        far = np.abs(w - median[sub]) > threshold * spread[sub]
+    return far & (valid[sub] >= 5)
+
+
+def subwindow_variances(
+    w: np.ndarray, sub: np.ndarray, n_sub: int, noise_var_ray: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Variance of w in every variance window (``T`` of O'Connor et al. (2010)).
+
+    Returns
+    -------
+    variance, corrected, noise : numpy.ndarray
+        ``(sub-window, gate)`` (m2 s-2): the variance of the ``n`` valid rays about the
+        sub-window mean; that minus the noise's share of it, ``(n - 1)/n`` times the
+        rays' mean predicted noise variance (white noise about the window's own mean);
+        and the rays' mean noise variance. NaN with fewer than 3 valid rays.
+    """
+    count, _, var, _ = stare.window_moments(w, sub, n_sub)
+    noise_var = stare.window_mean(np.where(np.isfinite(w), noise_var_ray, np.nan), sub, n_sub)
+    keep = count >= 3
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corrected = var - noise_var * (count - 1) / count
+    return (
+        np.where(keep, var, np.nan),
+        np.where(keep, corrected, np.nan),
+        np.where(keep, noise_var, np.nan),
+    )
+
+
+def group_mean_se(
+    values: np.ndarray, group: np.ndarray, n_groups: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mean, standard error (std/sqrt(n)) and count of the finite rows of each group."""
+    finite = np.isfinite(values)
+    x = np.where(finite, values, 0.0)
+    n = np.zeros((n_groups, values.shape[1]))
+    total = np.zeros_like(n)
+    np.add.at(n, group, finite.astype(float))
+    np.add.at(total, group, x)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = total / n
+        ss = np.zeros_like(n)
+        np.add.at(ss, group, np.where(finite, (values - mean[group]) ** 2, 0.0))
+        se = np.sqrt(ss / (n - 1) / n)
+    return (
+        np.where(n >= 1, mean, np.nan),
+        np.where(n >= 2, se, np.nan),
+        n.astype(np.int64),
+    )
+
+
+def stare_product(stares: xr.Dataset, wind: xr.Dataset | None, options: StareOptions) -> xr.Dataset:
+    """w statistics and eps per window and height from vertical stares.
+
+    Parameters
+    ----------
+    stares : xarray.Dataset
+        Scan dataset of vertical rays (:func:`split_stares`), rays in time order.
+    wind : xarray.Dataset or None
+        Wind product of the VADs of the same instrument-day (``wind_speed(time,
+        height)``), or ``None``: eps is NaN and flag bit 1 set.
+    options : StareOptions
+
+    Returns
+    -------
+    xarray.Dataset
+        Dims ``time`` (window centres), ``height``, ``ray``; see ``cwproc.metadata``.
+    """
+    if stares.sizes.get("ray", 0) == 0:
+        raise CwprocError("stare: no vertical rays")
+    elevation = float(np.nanmedian(stares["elevation"].values))
+    height = height_from_range(stares["range"].values.astype(float), elevation)
+    flag_radial = snr_flags(stares["snr"].values, options.snr_min) if "snr" in stares else 0
+    velocity = stares["radial_velocity"].values.astype(float)
+    w = np.where((flag_radial == 0) & np.isfinite(velocity), velocity, np.nan)
+    w = w * np.sign(np.sin(np.deg2rad(stares["elevation"].values)))[:, None]
+    t_ray = ray_duration_s(stares, options.prf_hz)
+    index, centre, _ = window_index(stares["time"].values, options.window_s)
+    n_win = centre.size
+    # variance windows T inside each product window (O'Connor et al. (2010), eq. 4)
+    sub_raw, _, _ = window_index(stares["time"].values, options.variance_window_s)
+    sub_ids, sub = np.unique(index * (1 << 32) + sub_raw, return_inverse=True)
+    sub = sub.ravel()
+    sub_window = (sub_ids >> 32).astype(np.int64)
+    w = np.where(outlier_mask(w, sub, sub_ids.size, options.outlier_threshold), np.nan, w)
+    count, mean, _, skew = stare.window_moments(w, index, n_win)
+    sigma_e = noise_std_per_ray(stares)
+    raw_sub, var_sub, noise_sub = subwindow_variances(w, sub, sub_ids.size, sigma_e**2)
+    var_corr, var_se, _ = group_mean_se(var_sub, sub_window, n_win)
+    var, _, _ = group_mean_se(raw_sub, sub_window, n_win)
+    noise_var, _, _ = group_mean_se(noise_sub, sub_window, n_win)
+    speed, speed_err, far = interpolate_wind(wind, centre, height, options.max_wind_gap_s)
+    l1 = speed * options.variance_window_s
+    ln = speed * t_ray
+    factor = stare.band_variance_factor(l1, ln, options.delta_p_m, options.delta_r_m)
+    eps = stare.epsilon_from_variance(var_corr, factor)
+    eps_se = stare.epsilon_standard_error(eps, var_corr, var_se, speed, speed_err)
+    flag = np.zeros((n_win, height.size), dtype=np.int8)
+    flag |= np.where(~np.isfinite(speed), FLAG_NO_WIND, 0).astype(np.int8)
+    flag |= np.where(count < options.min_samples, FLAG_TOO_FEW_SAMPLES, 0).astype(np.int8)
+    noisy = np.isfinite(var_corr) & ~(var_corr > 0)
+    flag |= np.where(noisy, FLAG_NOISE_DOMINATED, 0).astype(np.int8)
+    flag |= np.where(far & np.isfinite(speed), FLAG_WIND_FAR, 0).astype(np.int8)
+    bad = (flag & (FLAG_NO_WIND | FLAG_TOO_FEW_SAMPLES | FLAG_NOISE_DOMINATED)) != 0
+    eps = np.where(bad, np.nan, eps)
+    eps_se = np.where(bad, np.nan, eps_se)
+    return _assemble(
+        stares,
+        height=height,
+        centre=centre,
+        w_ray=w,
+        values={
+            "w_mean": mean,
+            "w_variance": var,
+            "w_variance_corrected": var_corr,
+            "w_skewness": skew,
+            "w_noise_variance": noise_var,
+            "w_n_samples": count,
+            "stare_wind_speed": speed,
+            "epsilon_stare": eps,
+            "epsilon_stare_standard_error": eps_se,
+            "stare_flag": flag,
+        },
+        attrs={
+            "window_s": float(options.window_s),
+            "variance_window_s": float(options.variance_window_s),
+            "ray_duration_s": float(t_ray),
+            "elevation_deg": elevation,
+        },
+    )
+
+
+def noise_std_per_ray(ds: xr.Dataset) -> np.ndarray:
+    """Predicted sigma_e (m s-1) of every ray and gate from the SNR (Pearson et al. (2009)).
+
+    NaN everywhere when the SNR, points per gate or pulses per ray are unknown.
+    """
+    shape = ds["radial_velocity"].shape
+    m = float(ds.attrs.get("points_per_gate", 0) or 0)
+    n = float(ds.attrs.get("pulses_per_ray", 0) or 0)
+    if "snr" not in ds or m <= 0 or n <= 0:
+        return np.full(shape, np.nan)
+    bandwidth = noise.bandwidth_from_resolution(
+        float(ds.attrs.get("velocity_resolution_m_s", 0) or 0)
+    )
+    return noise.velocity_noise_std(ds["snr"].values, m, n, bandwidth)
+
+
+def _assemble(
+    stares: xr.Dataset,
+    *,
+    height: np.ndarray,
+    centre: np.ndarray,
+    w_ray: np.ndarray,
+    values: dict[str, np.ndarray],
+    attrs: dict[str, float],
+) -> xr.Dataset:
+    """The stare product dataset (metadata attached later by the writer)."""
+    dims = ("time", "height")
+    method = {
+        "epsilon_stare": {
+            "method": (
+                "eps = (sigma_w^2 - sigma_e^2)^(3/2) / G^(3/2), G = int a_T k^(-5/3) "
+                "[1 - sinc^2(k L_1/2)] sinc^2(k L_N/2) R_gate(k) dk, a_T = "
+                f"{stare.A_TRANSVERSE:.4f}"
+            ),
+            "references": stare.OCONNOR_2010 + ", eqs. 1-4",
+        }
+    }
+    data = {name: (dims, value, method.get(name, {})) for name, value in values.items()}
+    data["w_ray"] = (("ray", "height"), w_ray, {})
+    ds = xr.Dataset(
+        data,
+        coords={
+            "time": ("time", centre.astype("datetime64[ns]")),
+            "height": ("height", height),
+            "ray_time": ("ray", stares["time"].values.astype("datetime64[ns]")),
+        },
+        attrs={
+            "instrument": str(stares.attrs.get("instrument", "")),
+            "system_id": str(stares.attrs.get("system_id", "")),
+            **attrs,
+        },
+    )
+    return ds
