@@ -38,14 +38,17 @@ from __future__ import annotations
 import io
 import os
 import re
+import tempfile
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 import xarray as xr
 
-from cwproc.errors import InputFileError
+from cwproc.errors import CwprocError, InputFileError
+from cwproc.io.netcdf import remove_stale_temporaries, umask_mode
 from cwproc.io.timecheck import check_times
 from cwproc.metadata import outside_physical_range
 
@@ -605,7 +608,9 @@ def write_meteo2(
         ``time`` (UTC), ``u``, ``v``, ``w`` (m s-1), optional ``temperature`` (degC)
         and ``diagnostic``.
     path : path
-        Output file (written through a temporary name, then renamed).
+        Output file, written through an unpredictable temporary in its folder (mode from
+        the umask), then renamed: a killed run leaves no half-written file, and the stale
+        temporaries of an earlier killed run are removed.
     station : str
         Written to the ``# station:`` header line.
     decimals : int
@@ -627,8 +632,17 @@ def write_meteo2(
         f"{MAGIC} v1\n# instrument: {INSTRUMENT}\n# station: {station}\n# time: UTC\n"
         "# units: u v w m/s, t degC, diag 0=good\n"
     )
-    tmp = f"{os.fspath(path)}.part"
-    with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
-        fh.write(head)
-        frame.to_csv(fh, index=False, float_format=f"%.{decimals}f", na_rep="NaN")
-    os.replace(tmp, path)
+    text = head + frame.to_csv(index=False, float_format=f"%.{decimals}f", na_rep="NaN")
+    path = Path(path)
+    remove_stale_temporaries(path.parent)  # of a simulation killed earlier
+    tmp = None
+    try:  # an unpredictable name created exclusively: no planted symlink is followed
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+        os.chmod(tmp, umask_mode())
+        os.replace(tmp, path)
+    except OSError as exc:
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
+        raise CwprocError(f"write_meteo2 {path}: cannot write: {exc.strerror or exc}") from None
