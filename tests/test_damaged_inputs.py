@@ -49,6 +49,20 @@ FILES = {
         {"start_time": "2024-06-01T12:00:00", "sampling_rate_hz": 10.0},
     ),
 }
+#: the scan NetCDF sample is made here from the Stream Line sample (none ships)
+SCAN_NETCDF = Path(__import__("tempfile").gettempdir()) / "cwproc-damaged-sample-scan.nc"
+
+
+def _scan_netcdf_sample() -> Path:
+    """A scan NetCDF file of the first Stream Line sample (made once per session)."""
+    from cwproc.io.halo import read_hpl
+    from cwproc.io.scan_netcdf import write_scan_netcdf
+
+    if not SCAN_NETCDF.is_file():
+        write_scan_netcdf(read_hpl(FILES["hpl"][0]), SCAN_NETCDF)
+    return SCAN_NETCDF
+
+
 #: bytes kept of each sample (the damage is anywhere in them; reading stays fast)
 KEEP = 60_000
 
@@ -91,7 +105,9 @@ SPAN_SLACK = np.timedelta64(1, "s")
 
 
 def sample_bytes(name: str) -> bytes:
-    """The part of a sample that is damaged (all of a binary TOA5/TOB1 log)."""
+    """The part of a sample that is damaged (all of a binary TOB1 log or NetCDF file)."""
+    if name == "scan_netcdf":
+        return _scan_netcdf_sample().read_bytes()
     path, _ = FILES[name]
     return path.read_bytes()[:KEEP] if path.suffix != ".dat" else path.read_bytes()
 
@@ -100,6 +116,8 @@ def sample_bytes(name: str) -> bytes:
 def own_time_span(name: str) -> tuple[np.datetime64, np.datetime64]:
     """First and last time of the whole undamaged sample (the damaged bytes are a prefix
     of it, so their span lies within this one)."""
+    if name == "scan_netcdf":
+        name = "hpl"
     path, options = FILES[name]
     times = read(path, **options)["time"].values
     return times.min(), times.max()
@@ -123,7 +141,7 @@ def check_dataset(ds, name: str) -> None:
         ), f"{name}: times {times.min()} .. {times.max()} outside the file's {first} .. {last}"
 
 
-@pytest.mark.parametrize("name", sorted(FILES))
+@pytest.mark.parametrize("name", [*sorted(FILES), "scan_netcdf"])
 @settings(
     max_examples=60,
     deadline=None,
@@ -136,7 +154,7 @@ def check_dataset(ds, name: str) -> None:
     junk=st.binary(min_size=1, max_size=64),
 )
 def test_damaged_file_is_an_error_or_a_sane_dataset(tmp_path, name, kind, where, junk):
-    path, options = FILES[name]
+    path, options = FILES.get(name, (SCAN_NETCDF, {}))
     bad = tmp_path / f"damaged{path.suffix}"
     bad.write_bytes(damage(sample_bytes(name), kind, where, junk))
     try:
