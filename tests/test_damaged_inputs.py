@@ -49,18 +49,16 @@ FILES = {
         {"start_time": "2024-06-01T12:00:00", "sampling_rate_hz": 10.0},
     ),
 }
-#: the scan NetCDF sample is made here from the Stream Line sample (none ships)
-SCAN_NETCDF = Path(__import__("tempfile").gettempdir()) / "cwproc-damaged-sample-scan.nc"
 
 
-def _scan_netcdf_sample() -> Path:
-    """A scan NetCDF file of the first Stream Line sample (made once per session)."""
+@pytest.fixture(scope="session")
+def scan_netcdf_sample(tmp_path_factory) -> Path:
+    """A scan NetCDF file of the first Stream Line sample (none ships)."""
     from cwproc.io.halo import read_hpl
     from cwproc.io.scan_netcdf import write_scan_netcdf
 
-    if not SCAN_NETCDF.is_file():
-        write_scan_netcdf(read_hpl(FILES["hpl"][0]), SCAN_NETCDF)
-    return SCAN_NETCDF
+    path = tmp_path_factory.mktemp("scan-netcdf") / "sample.nc"
+    return write_scan_netcdf(read_hpl(FILES["hpl"][0]), path)
 
 
 #: bytes kept of each sample (the damage is anywhere in them; reading stays fast)
@@ -105,9 +103,7 @@ SPAN_SLACK = np.timedelta64(1, "s")
 
 
 def sample_bytes(name: str) -> bytes:
-    """The part of a sample that is damaged (all of a binary TOB1 log or NetCDF file)."""
-    if name == "scan_netcdf":
-        return _scan_netcdf_sample().read_bytes()
+    """The part of a sample that is damaged (all of a binary TOB1 log)."""
     path, _ = FILES[name]
     return path.read_bytes()[:KEEP] if path.suffix != ".dat" else path.read_bytes()
 
@@ -153,10 +149,13 @@ def check_dataset(ds, name: str) -> None:
     where=st.floats(0.0, 1.0),
     junk=st.binary(min_size=1, max_size=64),
 )
-def test_damaged_file_is_an_error_or_a_sane_dataset(tmp_path, name, kind, where, junk):
-    path, options = FILES.get(name, (SCAN_NETCDF, {}))
+def test_damaged_file_is_an_error_or_a_sane_dataset(
+    tmp_path, scan_netcdf_sample, name, kind, where, junk
+):
+    path, options = FILES.get(name, (scan_netcdf_sample, {}))
+    raw = path.read_bytes() if name == "scan_netcdf" else sample_bytes(name)
     bad = tmp_path / f"damaged{path.suffix}"
-    bad.write_bytes(damage(sample_bytes(name), kind, where, junk))
+    bad.write_bytes(damage(raw, kind, where, junk))
     try:
         ds = read(bad, **options)
     except CwprocError as exc:
