@@ -28,12 +28,13 @@ from cwproc.batch import (
     UnitOutcome,
     UnitTask,
     config_hash,
+    parsed_config,
     record_file,
     record_outcome,
     run_batch,
     save_ledger,
 )
-from cwproc.config import Config, config_from_toml
+from cwproc.config import Config
 
 CONFIG = Config()
 
@@ -52,7 +53,7 @@ def toy_classify(path: str, config_toml: str, config_source: str = "<batch>") ->
         kind="toy",
         unit=f"toy_{index // 2:06d}",
         start="2024-06-01T00:00:00",
-        config_hash=config_hash(config_from_toml(config_toml, source=config_source)),
+        config_hash=parsed_config(config_toml, config_source)[1],  # as classify_file
     )
 
 

@@ -101,7 +101,7 @@ def _log_ticks(cbar_or_axis, vmin: float, vmax: float) -> None:
     labels on a colour bar spanning about a decade.
     """
     from matplotlib.colorbar import Colorbar
-    from matplotlib.ticker import FixedLocator, FuncFormatter, NullLocator
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter, NullLocator
 
     if not (vmin > 0 and vmax > vmin):
         return
@@ -113,9 +113,38 @@ def _log_ticks(cbar_or_axis, vmin: float, vmax: float) -> None:
         cbar_or_axis.set_ticks(ticks, labels=[label(t) for t in ticks])
         cbar_or_axis.ax.yaxis.set_minor_locator(NullLocator())
         return
-    cbar_or_axis.set_major_locator(FixedLocator(ticks))
+    if cbar_or_axis.axis_name == "x":
+        # labels side by side: keep those that do not touch, the rest become grid ticks
+        labelled = _spaced_ticks(ticks, LABEL_GAP_DECADES * _log_span(vmin, vmax))
+        cbar_or_axis.set_major_locator(FixedLocator(labelled))
+        cbar_or_axis.set_minor_locator(FixedLocator(np.setdiff1d(ticks, labelled)))
+        cbar_or_axis.set_minor_formatter(NullFormatter())
+    else:
+        cbar_or_axis.set_major_locator(FixedLocator(ticks))
+        cbar_or_axis.set_minor_locator(NullLocator())
     cbar_or_axis.set_major_formatter(FuncFormatter(label))
-    cbar_or_axis.set_minor_locator(NullLocator())
+
+
+#: smallest distance between two labels of a horizontal log axis, as a share of the
+#: axis span in decades (a label such as 5x10^-3 is about a seventh of a panel wide)
+LABEL_GAP_DECADES = 0.16
+
+
+def _log_span(vmin: float, vmax: float) -> float:
+    """Decades spanned by [vmin, vmax] with matplotlib's 5 % margins on either side."""
+    return 1.1 * max(float(np.log10(vmax / vmin)), 0.05)
+
+
+def _spaced_ticks(ticks: np.ndarray, min_gap: float) -> np.ndarray:
+    """The ticks to label, at least ``min_gap`` decades apart: powers of ten first, then
+    mantissas 2 and 5, then the others, each kept if it keeps the gap to those kept."""
+    mantissa = np.round(ticks / 10.0 ** np.floor(np.log10(ticks) + 1e-9), 6)
+    rank = np.where(mantissa == 1.0, 0, np.where(np.isin(mantissa, (2.0, 5.0)), 1, 2))
+    kept: list[float] = []
+    for t in ticks[np.argsort(rank, kind="stable")]:
+        if all(abs(np.log10(t / k)) >= min_gap - 1e-12 for k in kept):
+            kept.append(float(t))
+    return np.sort(np.array(kept))
 
 
 def _all_missing(da: xr.DataArray) -> bool:
@@ -126,7 +155,8 @@ def _refuse_empty(ds: xr.Dataset, names: tuple[str, ...], kind: str) -> None:
     """Refuse to draw a picture whose variables hold no finite value."""
     if all(_all_missing(ds[n]) for n in names):
         raise ProductError(
-            f"cannot draw '{kind}': {' and '.join(names)} hold no finite value "
+            f"cannot draw '{kind}': {' and '.join(names)} "
+            f"{'holds' if len(names) == 1 else 'hold'} no finite value "
             "(every estimate of the product is missing)"
         )
 
@@ -238,7 +268,8 @@ def _plot_epsilon_profiles(ds: xr.Dataset):
             ls="--",
             mfc="none",
         )
-    finite = eps.values[np.isfinite(eps.values)]
+    shown = [ds[n].values for n in ("epsilon", "epsilon_method1") if n in ds]
+    finite = np.concatenate([v[np.isfinite(v) & (v > 0)] for v in shown])
     _log_ticks(ax1.xaxis, float(finite.min()), float(finite.max()))
     ax1.set_xlabel("dissipation rate (m$^2$ s$^{-3}$)")
     ax1.legend()
@@ -537,7 +568,10 @@ def render(
 ) -> Path:
     """Draw ``kind`` of ``ds`` into the PNG ``out`` (written atomically)."""
     check_variables(ds, kind, source)
-    fig = KINDS[kind][0](ds, **options)
+    try:
+        fig = KINDS[kind][0](ds, **options)
+    except ProductError as exc:  # a picture refused: say of which file
+        raise ProductError(f"{source}: {exc}") from None
     return save_png(fig, out)
 
 

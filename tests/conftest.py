@@ -55,13 +55,25 @@ def pytest_collection_modifyitems(config, items):
         items[:] = keep
 
 
+def _absent_note() -> str | None:
+    if SHARED.is_dir():
+        return None
+    return (
+        f"cwproc: {SHARED} is absent: tests of the project's real instrument files and "
+        "reference values are deselected (the shipped samples cover every reader)"
+    )
+
+
 def pytest_report_header(config):
-    if not SHARED.is_dir():
-        return (
-            f"cwproc: {SHARED} is absent: tests of the project's real instrument files and "
-            "reference values are deselected (the shipped samples cover every reader)"
-        )
-    return None
+    return _absent_note()
+
+
+def pytest_terminal_summary(terminalreporter):
+    """The note once more at the end: ``-q`` hides the header, and with ``-n auto`` the
+    workers deselect, so the summary line does not count the deselected tests."""
+    note = _absent_note()
+    if note:
+        terminalreporter.write_line(note)
 
 
 def _check(path: Path, test: str) -> dict:

@@ -71,3 +71,24 @@ def test_provenance_toml_round_trips_awkward_values():
     assert again.output == cfg.output
     assert again.reader == cfg.reader
     assert again.reader["toa5"]["nested"] == {"deeper": {"x": [1, 2]}}
+
+
+def test_old_preset_name_seed000_warns_and_loads_banakh1999():
+    """The preset is named after its paper; the old file-number name still works, with a
+    warning (issue 14, point 7)."""
+    from cwproc.config import PresetAliasWarning
+
+    assert "seed000" not in preset_names() and "banakh1999" in preset_names()
+    with pytest.warns(PresetAliasWarning, match="now called 'banakh1999'"):
+        old = load_config("seed000")
+    assert old == load_config("banakh1999")
+
+
+def test_cli_names_the_new_preset_when_the_old_one_is_used(tmp_path):
+    from click.testing import CliRunner
+
+    from cwproc.cli import main
+
+    res = CliRunner().invoke(main, ["retrieve", "-c", "seed000", str(tmp_path), "-o", "x"])
+    first = res.output.strip().splitlines()[0]
+    assert first.startswith("warning: preset 'seed000' is now called 'banakh1999'"), res.output

@@ -336,3 +336,107 @@ def test_png_temporary_is_unpredictable_and_follows_no_symlink(tmp_path):
     assert victim.read_text() == "keep me"
     assert out.read_bytes().startswith(b"\x89PNG")
     assert (out.stat().st_mode & 0o777) == 0o644
+
+
+# --- the VAD picture of a scan file: normal, one scan, every velocity missing ----------
+
+SAMPLE_HPL = (
+    __import__("pathlib").Path(__file__).parents[1]
+    / "sample_data/streamline/VAD_999_20240601_120000.hpl"
+)
+
+
+def _vad_variant(variant: str):
+    """The sample scans (six), their first scan only, or every radial velocity missing;
+    screened and fitted as ``cwproc plot --kind vad`` does."""
+    from cwproc.config import Config
+    from cwproc.pipeline import read_input
+    from cwproc.stages import qc, vad
+
+    cfg = Config()
+    scans = read_input(str(SAMPLE_HPL), cfg).dataset
+    if variant == "one-step":
+        scans = scans.isel(ray=np.flatnonzero(scans["scan"].values == 0))
+    elif variant == "all-missing":
+        scans = scans.assign(radial_velocity=scans["radial_velocity"].where(False))
+    screened = qc.screen_radial_velocity(
+        scans, snr_min=cfg.qc.snr_min, outlier_threshold=cfg.qc.outlier_threshold
+    )
+    wind = vad.fit_vad(
+        screened,
+        min_rays=cfg.vad.min_rays,
+        max_gap_deg=cfg.vad.max_gap_deg,
+        reference_direction_deg=cfg.vad.reference_direction_deg,
+        max_residual_std=cfg.vad.max_residual_std,
+    )
+    return screened, wind
+
+
+@pytest.mark.parametrize("variant", ["normal", "one-step", "all-missing"])
+def test_vad_draws_data_or_refuses(variant):
+    """The seventh kind, on a scan file: data in both panels, or refused with a reason."""
+    import matplotlib.pyplot as plt
+
+    screened, wind = _vad_variant(variant)
+    scan = 0 if variant == "one-step" else None
+    try:
+        fig = plots.plot_vad_fit(screened, wind, scan=scan)
+    except ProductError as exc:
+        assert variant == "all-missing", f"vad refused a {variant} scan file: {exc}"
+        assert "has no VAD fit" in str(exc)
+        return
+    try:
+        counts = _data_pixels(fig)
+    finally:
+        plt.close(fig)
+    assert variant != "all-missing", "vad drew a scan without one finite velocity"
+    assert min(counts) > 40, f"vad/{variant}: data pixels per panel {counts}"
+
+
+def _overlapping_labels(fig, axis) -> list[tuple[str, str]]:
+    """Pairs of neighbouring tick labels of a horizontal axis whose boxes overlap."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    labels = sorted(
+        (t for t in axis.get_ticklabels() if t.get_visible() and t.get_text()),
+        key=lambda t: t.get_window_extent(renderer).x0,
+    )
+    boxes = [t.get_window_extent(renderer) for t in labels]
+    return [
+        (a.get_text(), b.get_text())
+        for a, b, ba, bb in zip(labels, labels[1:], boxes, boxes[1:], strict=False)
+        if ba.x1 > bb.x0
+    ]
+
+
+@pytest.mark.parametrize(("lo", "hi"), [(4.1e-3, 1.13e-2), (4e-3, 1.9e-2), (1e-5, 1e-1)])
+def test_epsilon_profile_axis_labels_do_not_touch(lo, hi):
+    """A one-block epsilon profile over part of a decade (labels 4x10^-3 .. 10^-2 were
+    drawn over each other), with method 1 reaching beyond method 2: readable labels,
+    at least two of them, and the axis covers every point drawn."""
+    import matplotlib.pyplot as plt
+
+    ds = _one_step(turbulence_product())
+    h = ds["height"].values
+    ds["epsilon"][:] = np.geomspace(lo, hi / 2, h.size)[None, :]
+    ds["epsilon_method1"] = ds["epsilon"] * np.linspace(2, 1, h.size)[None, :]
+    ds["epsilon_ratio"] = ds["epsilon_method1"] / ds["epsilon"]
+    fig = plots.KINDS["epsilon"][0](ds)
+    try:
+        ax = fig.axes[0]
+        assert _overlapping_labels(fig, ax.xaxis) == []
+        labelled = [t for t in ax.get_xticks() if ax.get_xlim()[0] <= t <= ax.get_xlim()[1]]
+        assert len(labelled) >= 2
+        assert ax.get_xlim()[1] >= float(ds["epsilon_method1"].max())
+    finally:
+        plt.close(fig)
+
+
+def test_refused_picture_names_the_file(tmp_path):
+    empty = write_product(
+        _all_missing(wind_product()), tmp_path / "empty.nc", title="t", summary="s"
+    )
+    res = CliRunner().invoke(main, ["plot", str(empty), "-o", str(tmp_path / "e.png")])
+    assert res.exit_code == 1
+    assert "empty.nc: cannot draw 'wind'" in res.output and "no finite value" in res.output
+    assert not (tmp_path / "e.png").exists()

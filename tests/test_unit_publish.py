@@ -100,3 +100,57 @@ def test_writers_of_pictures_and_simulated_files_clean_stale_temporaries(tmp_pat
     sample = next((Path(__file__).parent.parent / "sample_data" / "streamline").glob("*.hpl"))
     write_hpl(read_hpl(sample), tmp_path / "VAD_2.hpl")
     assert not stale.exists()
+
+
+def test_meteo2_writer_uses_an_unpredictable_temporary_and_cleans_stale_ones(tmp_path):
+    """simulate sonic wrote <file>.part (predictable, a planted symlink was followed) and
+    left it when killed (issue 17.6, 14.4)."""
+    import time as _time
+
+    import numpy as np
+    import pandas as pd
+
+    from cwproc.io.meteo2 import read_meteo2, write_meteo2
+    from cwproc.io.netcdf import STALE_TEMPORARY_S
+
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep me")
+    target = tmp_path / "meteo2_x_20240601.txt"
+    (tmp_path / f"{target.name}.part").symlink_to(victim)
+    stale = tmp_path / f".{target.name}.dead.tmp"
+    stale.write_text("partial")
+    old = _time.time() - STALE_TEMPORARY_S - 10
+    os.utime(stale, (old, old))
+    n = 200
+    t = pd.date_range("2024-06-01T12:00", periods=n, freq="100ms").values
+    rng = np.random.default_rng(0)
+    ds = xr.Dataset(
+        {c: ("time", 3.0 + rng.normal(0, 0.5, n)) for c in ("u", "v", "w")},
+        coords={"time": t},
+    )
+    mask = os.umask(0o022)
+    try:
+        write_meteo2(ds, target, station="x")
+    finally:
+        os.umask(mask)
+    assert victim.read_text() == "keep me"
+    assert not stale.exists()
+    assert target.stat().st_mode & 0o777 == 0o644
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")) == []
+    back = read_meteo2(target)
+    assert back.sizes["time"] == n
+    assert np.allclose(back["u"].values, ds["u"].values, atol=1e-3)
+
+
+def test_product_writer_removes_stale_temporaries(tmp_path):
+    """write_product (simulate montecarlo --no-png, sf-type) cleans what a killed writer left."""
+    import time as _time
+
+    from cwproc.io.netcdf import STALE_TEMPORARY_S, write_product
+
+    stale = tmp_path / ".montecarlo_banakh1999.nc.k1ll3d.tmp"
+    stale.write_bytes(b"\x89HDF partial")
+    old = _time.time() - STALE_TEMPORARY_S - 10
+    os.utime(stale, (old, old))
+    write_product(tiny(), tmp_path / "x.nc", title="t", summary="s")
+    assert not stale.exists()

@@ -96,6 +96,34 @@ def _header_fields(path: str | os.PathLike, line: str, number: int) -> list[str]
     return [f.strip() for f in fields]
 
 
+def misaligned_from(record: np.ndarray) -> int | None:
+    """Index of the first record read off its boundary in a binary file, or ``None``.
+
+    Bytes inserted into or lost from a TOB1 file shift every later record: its fields
+    become garbage, the RECORD counter included, whose steps are then no longer 1 except
+    by chance. Lost records and logger restarts break the counting once and it resumes
+    (step 1 again); garbage never resumes. The data are off their boundaries from the
+    first break after which fewer than half of the steps are 1; the record before that
+    break is counted in, as the shift may start inside it, after its RECORD field.
+
+    Parameters
+    ----------
+    record : ndarray of int
+        The RECORD field, file order.
+    """
+    step = np.diff(np.asarray(record, dtype=np.int64))
+    if step.size == 0:
+        return None
+    ok = (step == 1).astype(float)
+    # share of unit steps from each step to the end
+    tail_share = np.cumsum(ok[::-1])[::-1] / np.arange(ok.size, 0, -1)
+    broken = np.flatnonzero((ok == 0) & (tail_share < 0.5))
+    if broken.size == 0:
+        return None
+    # the record before the break may hold the inserted bytes after its RECORD field
+    return int(broken[0])
+
+
 def record_warnings(record: np.ndarray) -> list[str]:
     """Describe RECORD numbers that do not step by one (lost records, restarts)."""
     step = np.diff(np.asarray(record, dtype=float))
@@ -333,6 +361,20 @@ def read_tob1(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         notes.append(
             f"partial trailing record ({extra} of {dtype.itemsize} bytes) ignored: the file was cut"
         )
+    if "RECORD" in names and records["RECORD"].dtype.kind in "iu":
+        shifted = misaligned_from(records["RECORD"])
+        if shifted is not None:
+            if shifted == 0:
+                raise InputFileError(
+                    path, "RECORD numbers never count up: not TOB1 records", 1, unit="record"
+                )
+            notes.append(
+                f"records {shifted + 1}-{n_rec} dropped: from record {shifted + 1} the RECORD "
+                "numbers stop counting up (bytes inserted or lost: the records are off their "
+                "boundaries)"
+            )
+            records = records[:shifted]
+            n_rec = shifted
     typ = dict(zip(names, types, strict=True))
     for key in ("SECONDS", "NANOSECONDS"):
         field = records[key]

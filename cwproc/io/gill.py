@@ -60,13 +60,17 @@ CHECKSUM_MISMATCH = 256
 
 
 def xor_checksum(payloads: pd.Series) -> np.ndarray:
-    """XOR of the bytes of each payload (the text between STX and ETX)."""
+    """XOR of the bytes of each payload (the text between STX and ETX).
+
+    The XOR runs over code points: a character beyond one byte (damage, a wrong file)
+    gives a value above 255 that matches no two-hex-digit checksum.
+    """
     out = np.zeros(len(payloads), dtype=np.int64)
     width = int(payloads.str.len().max() or 0)
     if width == 0:
         return out
     padded = payloads.str.pad(width, side="right", fillchar="\x00")
-    codes = np.frombuffer("".join(padded).encode("latin-1"), dtype=np.uint8)
+    codes = np.frombuffer("".join(padded).encode("utf-32-le"), dtype=np.uint32)
     return np.bitwise_xor.reduce(codes.reshape(len(payloads), width), axis=1).astype(np.int64)
 
 

@@ -38,14 +38,17 @@ from __future__ import annotations
 import io
 import os
 import re
+import tempfile
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 import xarray as xr
 
-from cwproc.errors import InputFileError
+from cwproc.errors import CwprocError, InputFileError
+from cwproc.io.netcdf import remove_stale_temporaries, umask_mode
 from cwproc.io.timecheck import check_times
 from cwproc.metadata import outside_physical_range
 
@@ -157,6 +160,47 @@ def measure_sampling_rate(time_ns: np.ndarray) -> float:
     return float(regular.size / (regular.sum() * 1e-9))
 
 
+#: a stamp farther than this many typical intervals from both neighbours is stray
+STRAY_INTERVALS = 10
+
+
+def stray_stamps(time_ns: np.ndarray) -> np.ndarray:
+    """Records whose time stamp alone is wrong (a damaged record, file order).
+
+    A stamp is stray when it lies more than :data:`STRAY_INTERVALS` typical sampling
+    intervals from both neighbours while the neighbours are within that distance of each
+    other, in time order: the series runs on around it, so the stamp, not the clock, is
+    wrong (a flipped byte of a TOB1 SECONDS field gave a sample 20 years early). The first
+    and last records are judged against the two records next to them. Gaps, restarts
+    and out-of-order blocks of more than one record are left alone.
+
+    Parameters
+    ----------
+    time_ns : ndarray of int64
+        Time stamps (ns), file order.
+
+    Returns
+    -------
+    ndarray of bool
+    """
+    t = np.asarray(time_ns, dtype=np.int64)
+    stray = np.zeros(t.size, dtype=bool)
+    if t.size < 3:
+        return stray
+    dt = np.diff(t)
+    positive = dt[dt > 0]
+    if positive.size == 0:
+        return stray
+    limit = STRAY_INTERVALS * float(np.median(positive))
+    far = np.abs(dt.astype(float)) > limit  # far[i]: t[i + 1] is far from t[i]
+    bridge = t[2:] - t[:-2]
+    joined = (bridge > 0) & (bridge <= limit)  # t[i] and t[i + 2] agree
+    stray[1:-1] = far[:-1] & far[1:] & joined
+    stray[0] = far[0] and 0 < t[2] - t[1] <= limit
+    stray[-1] = far[-1] and 0 < t[-2] - t[-3] <= limit
+    return stray
+
+
 def spike_mask(x: np.ndarray, width: int, threshold: float, scale_width: int) -> np.ndarray:
     """Samples that depart from the centred running median by more than ``threshold``.
 
@@ -255,9 +299,17 @@ def sonic_dataset(
         raise InputFileError(path, "time stamp missing", int(np.flatnonzero(np.isnat(t))[0]))
     notes = list(warnings)
     t_ns = t.astype(np.int64)
-    steps = np.diff(t_ns)
+    stray = stray_stamps(t_ns)
+    if stray.any():
+        notes.append(
+            f"{int(stray.sum())} time stamp(s) far from both neighbours, which agree with "
+            f"each other (a damaged record; first at record {int(np.argmax(stray)) + 1}): "
+            "dropped"
+        )
+    valid = np.flatnonzero(~stray)
+    steps = np.diff(t_ns[valid])
     n_back = int(np.sum(steps < 0))
-    order = np.argsort(t_ns, kind="stable")
+    order = valid[np.argsort(t_ns[valid], kind="stable")]
     t_sorted = t_ns[order]
     dup = np.concatenate([[False], np.diff(t_sorted) == 0])
     n_dup = int(dup.sum())
@@ -538,6 +590,13 @@ def read_meteo2(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     if n_comment >= len(lines):
         raise InputFileError(path, "no column header line", n_comment + 1)
     header_line = n_comment + 1
+    notes = []
+    if _cut_last_line(lines, n_comment, delimiter):
+        notes.append(
+            f"line {len(lines)}: last line cut short (no end of line, fewer fields than "
+            "the header; a file still being written?): dropped"
+        )
+        lines = lines[:-1]
     frame = read_table(
         path, "".join(lines[n_comment:]), delimiter=delimiter, skip=n_comment, names=None
     )
@@ -586,8 +645,17 @@ def read_meteo2(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         frame=str(options.get("frame", "instrument x, y, z axes of the Meteo-2 array")),
         orientation_deg=orientation,
         attrs=header_attrs,
+        warnings=notes,
         spike_threshold=spike_threshold,
     )
+
+
+def _cut_last_line(lines: list[str], n_comment: int, delimiter: str) -> bool:
+    """Whether the last data line was cut while being written: no end of line and fewer
+    fields than the column header (a cut ``2024-06-01`` stamp read as midnight)."""
+    if len(lines) <= n_comment + 2 or lines[-1].endswith(("\n", "\r")):
+        return False
+    return lines[-1].count(delimiter) < lines[n_comment].count(delimiter)
 
 
 def write_meteo2(
@@ -605,7 +673,9 @@ def write_meteo2(
         ``time`` (UTC), ``u``, ``v``, ``w`` (m s-1), optional ``temperature`` (degC)
         and ``diagnostic``.
     path : path
-        Output file (written through a temporary name, then renamed).
+        Output file, written through an unpredictable temporary in its folder (mode from
+        the umask), then renamed: a killed run leaves no half-written file, and the stale
+        temporaries of an earlier killed run are removed.
     station : str
         Written to the ``# station:`` header line.
     decimals : int
@@ -627,8 +697,17 @@ def write_meteo2(
         f"{MAGIC} v1\n# instrument: {INSTRUMENT}\n# station: {station}\n# time: UTC\n"
         "# units: u v w m/s, t degC, diag 0=good\n"
     )
-    tmp = f"{os.fspath(path)}.part"
-    with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
-        fh.write(head)
-        frame.to_csv(fh, index=False, float_format=f"%.{decimals}f", na_rep="NaN")
-    os.replace(tmp, path)
+    text = head + frame.to_csv(index=False, float_format=f"%.{decimals}f", na_rep="NaN")
+    path = Path(path)
+    remove_stale_temporaries(path.parent)  # of a simulation killed earlier
+    tmp = None
+    try:  # an unpredictable name created exclusively: no planted symlink is followed
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+        os.chmod(tmp, umask_mode())
+        os.replace(tmp, path)
+    except OSError as exc:
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
+        raise CwprocError(f"write_meteo2 {path}: cannot write: {exc.strerror or exc}") from None

@@ -302,6 +302,7 @@ def stage_netcdf(ds: xr.Dataset, path: str | os.PathLike, *, compression_level: 
         ds[name].attrs = {k: _clean_attr(v) for k, v in ds[name].attrs.items()}
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
+        remove_stale_temporaries(path.parent)  # of any writer killed earlier
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
         os.close(fd)
     except OSError as exc:
@@ -368,7 +369,7 @@ def write_netcdf_atomic(
 
 
 #: extensions of the files whose temporaries :func:`remove_stale_temporaries` removes
-_TEMP_EXTENSIONS = ("nc", "png", "hpl")
+_TEMP_EXTENSIONS = ("nc", "png", "hpl", "txt")
 #: a product temporary older than this (s) belongs to no live run of retrieve or sf-type
 STALE_TEMPORARY_S = 3600.0
 

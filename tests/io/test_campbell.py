@@ -247,3 +247,38 @@ def test_every_real_sonic_file_reads_through_format_detection(real_data):
         for c in ("u", "v", "w"):
             assert np.all(np.abs(ds[c].values) < 30), (p.name, c)
         assert np.all((ds["temperature"].values > -40) & (ds["temperature"].values < 50))
+
+
+def test_tob1_records_shifted_by_inserted_bytes_are_dropped(tmp_path):
+    """A "line" duplicated inside TOB1 binary data shifted every later record off its
+    boundary; their garbage SECONDS fields gave samples of foreign days (2024-10-23 in a
+    file of 2024-06-01, found by tests/test_damaged_inputs.py)."""
+    from pathlib import Path
+
+    sample = Path(__file__).parents[2] / "sample_data/sonic/TOB1_999.ts_data_2024_06_01_1200.dat"
+    raw = sample.read_bytes()
+    whole = read_tob1(sample)
+    header_end = 0
+    for _ in range(5):
+        header_end = raw.index(b"\n", header_end) + 1
+    at = header_end + (len(raw) - header_end) // 3  # inside the data, a third of the way
+    damaged = tmp_path / "TOB1_shifted.dat"
+    damaged.write_bytes(raw[:at] + b"\x17\x2a\x05" + raw[at:])
+    ds = read_tob1(damaged)
+    assert ds["time"].values.min() >= whole["time"].values.min()
+    assert ds["time"].values.max() <= whole["time"].values.max()
+    assert 0.3 * whole.sizes["time"] <= ds.sizes["time"] < 0.34 * whole.sizes["time"]
+    assert any("RECORD numbers stop counting up" in w for w in ds.attrs["warnings"])
+    np.testing.assert_array_equal(ds["u"].values, whole["u"].values[: ds.sizes["time"]])
+
+
+def test_misaligned_from_tells_garbage_from_lost_records_and_restarts():
+    from cwproc.io.campbell import misaligned_from
+
+    r = np.arange(200)
+    assert misaligned_from(r) is None
+    assert misaligned_from(np.concatenate([r[:100], r[:100]])) is None  # logger restart
+    assert misaligned_from(np.concatenate([r[:100], r[120:]])) is None  # records lost
+    garbage = r.copy()
+    garbage[130:] = np.random.default_rng(0).integers(0, 2**31, 70)
+    assert misaligned_from(garbage) == 129  # the record holding the shift is dropped too

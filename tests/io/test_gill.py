@@ -119,3 +119,15 @@ def test_mutated_gill_gives_dataset_or_input_file_error(tmp_path, data):
     except InputFileError:
         return
     assert isinstance(ds, xr.Dataset) and ds.sizes["time"] > 0
+
+
+def test_character_beyond_one_byte_is_a_checksum_mismatch_not_a_crash(tmp_path):
+    """Junk bytes \\xc4\\x80 (U+0100 in UTF-8) after a framed line raised
+    UnicodeEncodeError from the checksum (found by tests/test_damaged_inputs.py)."""
+    payloads = pd.Series(["Q,+001.00,-002.00", "Q,+001.00,-002.0\u0100"], dtype="string")
+    sums = xor_checksum(payloads)
+    expected = 0
+    for b in b"Q,+001.00,-002.00":
+        expected ^= b
+    assert sums[0] == expected
+    assert sums[1] > 255  # matches no two-hex-digit checksum: flagged as a mismatch

@@ -149,3 +149,48 @@ def test_mutated_meteo2_gives_dataset_or_input_file_error(tmp_path, m2file, data
     except InputFileError:
         return
     assert isinstance(ds, xr.Dataset) and ds.sizes["time"] > 0
+
+
+@pytest.mark.parametrize(
+    "cut", ["2024-06-01", "2024-06-01T12:00:00.9", "2024-06-01T12:00:00.930,4.1"]
+)
+def test_last_line_cut_while_written_is_dropped_not_read_as_midnight(tmp_path, cut):
+    """A Meteo-2 file cut in its last line (still being written, a full disk) gave a sample
+    at 00:00 of the day, 12 h before the file's first record (issue 17.4, found by
+    tests/test_damaged_inputs.py)."""
+    from pathlib import Path
+
+    sample = Path(__file__).parents[2] / "sample_data/sonic/meteo2_2024_06_01_1200.txt"
+    lines = sample.read_text().splitlines(keepends=True)[:16]
+    path = tmp_path / "meteo2_cut.txt"
+    path.write_text("".join(lines) + cut)
+    ds = read_meteo2(path)
+    assert ds.sizes["time"] == 10  # the 10 complete records
+    assert ds["time"].values.min() == np.datetime64("2024-06-01T12:00:00")
+    assert any("line 17: last line cut short" in w for w in ds.attrs["warnings"])
+    # a complete last line without an end of line is data
+    path.write_text("".join(lines[:-1]) + lines[-1].rstrip("\n"))
+    assert read_meteo2(path).sizes["time"] == 10
+
+
+def test_stray_stamp_of_a_damaged_record_is_dropped():
+    """A flipped byte in one TOB1 SECONDS field gave a sample 20 years before the file's
+    first record (found by tests/test_damaged_inputs.py): a stamp far from both of its
+    neighbours, which agree with each other, is dropped and reported."""
+    from cwproc.io.meteo2 import sonic_dataset, stray_stamps
+
+    t = np.datetime64("2024-06-01T12:00", "ns") + np.arange(100) * np.timedelta64(100, "ms")
+    for i in (0, 40, 99):
+        bad = t.copy()
+        bad[i] = np.datetime64("2004-04-20T06:50:25", "ns")
+        assert np.flatnonzero(stray_stamps(bad.astype(np.int64))).tolist() == [i]
+        x = np.ones(100)
+        ds = sonic_dataset("f.dat", bad, x, x, x, x, np.zeros(100), instrument="i", frame="f")
+        assert ds.sizes["time"] == 99 and ds["time"].values.min() >= t[0]
+        assert any("far from both neighbours" in w for w in ds.attrs["warnings"])
+    # a gap, a restart and a swapped pair are data, not stray stamps
+    gap = np.concatenate([t[:50], t[50:] + np.timedelta64(1, "h")])
+    swapped = t.copy()
+    swapped[[10, 11]] = swapped[[11, 10]]
+    for ok in (gap, np.concatenate([t[:50], t[:50]]), swapped):
+        assert not stray_stamps(ok.astype(np.int64)).any()

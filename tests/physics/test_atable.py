@@ -317,3 +317,42 @@ def test_swept_rays_seen_at_their_own_times(cache, mu):
             ray_duration_s=t0,
         ).mean()
         assert float(tab.evaluate(lag, h, mu)[1]) == pytest.approx(float(direct), rel=2.5e-2)
+
+
+class _Terminal:
+    """A stand-in for stderr: records what is written, says whether it is a terminal."""
+
+    def __init__(self, tty: bool) -> None:
+        self.tty, self.text = tty, ""
+
+    def isatty(self) -> bool:
+        return self.tty
+
+    def write(self, text: str) -> int:
+        self.text += text
+        return len(text)
+
+    def flush(self) -> None:
+        pass
+
+
+@pytest.mark.parametrize("tty", [True, False])
+def test_a_table_build_says_so_on_a_terminal(tmp_path, monkeypatch, tty):
+    """The first run was silent for 40 s while a table was built (issue 14, point 6): on a
+    terminal one line says what is built and where it is cached, then how long it took;
+    logs and pipes (batch, cron) stay clean."""
+    import sys
+
+    err = _Terminal(tty)
+    monkeypatch.setattr(sys, "stderr", err)
+    params = {**SMALL, "height_range_m": (80.0, 110.0), "n_lags": 2}
+    get_a_table(PROBE, cache_dir=tmp_path, mu_max=0.5, **params)
+    if not tty:
+        assert err.text == ""
+        return
+    assert "building the A-function table of this configuration (inertial)" in err.text
+    assert str(tmp_path) in err.text
+    assert err.text.rstrip().endswith(" s") and " done in " in err.text
+    err.text = ""
+    get_a_table(PROBE, cache_dir=tmp_path, mu_max=0.5, **params)
+    assert err.text == "", "a cached table is loaded silently"
