@@ -31,6 +31,9 @@ FLAG_NOISE_DOMINATED = 4
 FLAG_WIND_FAR = 8
 #: Halo Stream Line pulse repetition frequency (Hz); 10 kHz for the XR
 HALO_PRF_HZ = 15000.0
+#: global attributes of the scans that the stare product keeps (the SNR correction by
+#: the background files, :mod:`cwproc.stages.background`, as the wind product keeps them)
+CARRIED_ATTRS = ("snr_correction", "background_files")
 
 
 @dataclass(frozen=True)
@@ -357,6 +360,7 @@ def _assemble(
         attrs={
             "instrument": str(stares.attrs.get("instrument", "")),
             "system_id": str(stares.attrs.get("system_id", "")),
+            **{k: stares.attrs[k] for k in CARRIED_ATTRS if k in stares.attrs},
             **attrs,
         },
     )
