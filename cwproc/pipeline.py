@@ -518,6 +518,8 @@ def correct_background(
 
     files = background.find_background_files((i.path for i in unit.inputs), opts.folder or None)
     if not files:
+        if opts.folder and notes is not None:  # a configured folder: say why nothing is used
+            notes.append(background.missing_folder_note(opts.folder))
         return scans
     return background.correct_snr(
         scans,
