@@ -480,8 +480,9 @@ VARIABLES: dict[str, VarMeta] = {
         flag_meanings="no_wind too_few_samples noise_dominated wind_far_in_time",
         comment=(
             "0 good; bit 1 no VAD wind this day (eps NaN); bit 2 fewer valid rays than "
-            "stare.min_samples (eps NaN); bit 4 variance not above the noise variance (eps "
-            "NaN); bit 8 the nearest VAD is more than stare.max_wind_gap_s away"
+            "stare.min_samples, or no variance window with 3 valid rays (eps NaN); bit 4 "
+            "variance not above the noise variance (eps NaN); bit 8 the nearest VAD is more "
+            "than stare.max_wind_gap_s away"
         ),
         coverage_content_type="qualityInformation",
     ),

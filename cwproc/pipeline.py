@@ -419,7 +419,15 @@ def stare_products(
         delta_p_m=config.instrument.delta_p_m,
         delta_r_m=config.instrument.delta_r_m,
     )
-    return stare_product(stares, wind if has_wind else None, options)
+    product = stare_product(stares, wind if has_wind else None, options)
+    ray_s = float(product.attrs["ray_duration_s"])
+    if notes is not None and options.variance_window_s < 3 * ray_s:
+        notes.append(
+            f"stare: [stare] variance_window_s = {options.variance_window_s:g} s holds fewer "
+            f"than 3 rays of {ray_s:.2f} s: no variance and no eps (stare_flag bit 2); "
+            "lengthen it"
+        )
+    return product
 
 
 def process_wind_record(record: xr.Dataset, config: Config) -> dict[str, xr.Dataset]:

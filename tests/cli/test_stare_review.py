@@ -114,3 +114,18 @@ def test_a_stare_file_cut_mid_line_is_named_as_cut(stares, tmp_path):
     assert f"Stare_999_20240101_000000.hpl:{line}: gate line has" in result.output
     assert "the file ends inside this line: it was cut short" in result.output
     assert "Traceback" not in result.output
+
+
+def test_variance_windows_too_short_for_three_rays_are_flagged_and_named(stares, tmp_path):
+    """1-s variance windows of 1.33-s rays hold one ray: eps NaN must carry flag bit 2."""
+    from cwproc.stages.stare import FLAG_TOO_FEW_SAMPLES
+
+    config = tmp_path / "short.toml"
+    config.write_text("[stare]\nvariance_window_s = 1\n", encoding="utf-8")
+    result = run("retrieve", stares, "-o", tmp_path / "out", "-c", config)
+    assert result.exit_code == 0, result.output
+    assert "variance_window_s = 1 s holds fewer than 3 rays of 1.33 s" in result.output
+    with xr.open_dataset(tmp_path / "out" / STARE) as ds:
+        assert (ds["w_n_samples"].values >= 20).any()  # enough rays in the 300-s windows
+        assert np.isnan(ds["w_variance_corrected"].values).all()
+        assert (ds["stare_flag"].values & FLAG_TOO_FEW_SAMPLES).all()
