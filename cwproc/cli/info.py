@@ -171,6 +171,20 @@ def describe_product(path: str | os.PathLike, ds: xr.Dataset) -> list[str]:
     return lines + describe_dataset(ds)
 
 
+def damaged_background(path: str | os.PathLike) -> None:
+    """Raise the reader's error for a file named like a background file that is damaged.
+
+    The content sniffer does not recognise a damaged background file, and "not a
+    format cwproc reads" would hide the line at fault; a file that is not named
+    ``*Background_DDMMYY-HHMMSS.txt``, or that reads, returns silently.
+    """
+    from cwproc.io.halo_background import NAME_TIME, read_halo_background
+
+    if NAME_TIME.search(os.path.basename(os.fspath(path))) is None:
+        return
+    read_halo_background(path)
+
+
 def describe_file(path: str | os.PathLike) -> list[str]:
     """What a file is, as printable lines (the first line is the path).
 
@@ -179,7 +193,11 @@ def describe_file(path: str | os.PathLike) -> list[str]:
     CwprocError
         The file cannot be read (unknown format, damaged, no reader in this build).
     """
-    fmt = detect_format(path)
+    try:
+        fmt = detect_format(path)
+    except CwprocError:
+        damaged_background(path)  # a damaged background file: its own line and problem
+        raise
     if fmt is Format.SCAN_NETCDF:
         product = open_product(path)
         if product is not None:

@@ -129,3 +129,16 @@ def test_variance_windows_too_short_for_three_rays_are_flagged_and_named(stares,
         assert (ds["w_n_samples"].values >= 20).any()  # enough rays in the 300-s windows
         assert np.isnan(ds["w_variance_corrected"].values).all()
         assert (ds["stare_flag"].values & FLAG_TOO_FEW_SAMPLES).all()
+
+
+def test_info_names_the_line_of_a_damaged_background_file(tmp_path):
+    lines = [f"{1.7e7 + k:.6f}" for k in range(10)]
+    lines[5] = "1680x000.5"
+    path = tmp_path / "Background_010124-000000.txt"
+    path.write_bytes("\r\n".join(lines).encode())
+    result = run("info", path)
+    assert result.exit_code == 1
+    assert f"{path}:6: expected one background value per line, got '1680x000.5'" in result.output
+    other = tmp_path / "notes.txt"  # not named as a background file: the sniffer's message
+    other.write_bytes(path.read_bytes())
+    assert "not a format cwproc reads" in run("info", other).output
