@@ -434,7 +434,10 @@ VARIABLES: dict[str, VarMeta] = {
         coverage_content_type="qualityInformation",
     ),
     "w_n_samples": VarMeta(
-        "number of valid rays in the window", "1", "upward_air_velocity number_of_observations"
+        "number of valid rays of upward air velocity in the window",
+        "1",
+        "number_of_observations",  # the modifier form is deprecated since CF-1.10
+        coverage_content_type="auxiliaryInformation",
     ),
     "stare_wind_speed": VarMeta(
         "horizontal wind speed U from the VADs of the day, at the window and height",
@@ -452,7 +455,11 @@ VARIABLES: dict[str, VarMeta] = {
         comment=(
             "eps = ((sigma_w^2 - sigma_e^2)/G)^(3/2), transverse constant a_T = 0.664 "
             "(C_K = 2); O'Connor et al. (2010) and doppy use a = 0.55 and sharp band "
-            "limits, see docs/stare.md"
+            "limits, see docs/stare.md. Valid only where L_1 = stare_wind_speed x "
+            "variance_window_s lies in the inertial subrange, well below the integral scale "
+            "L_V of w (integral_scale of the turbulence product): on exact von Karman "
+            "statistics eps is 0.86 of the truth at L_1 = 0.4 L_V and 0.75 at L_1 = 1.2 L_V "
+            "(median); it is biased low where L_1 is not small against L_V"
         ),
         references=OCONNOR_2010,
     ),
@@ -473,8 +480,9 @@ VARIABLES: dict[str, VarMeta] = {
         flag_meanings="no_wind too_few_samples noise_dominated wind_far_in_time",
         comment=(
             "0 good; bit 1 no VAD wind this day (eps NaN); bit 2 fewer valid rays than "
-            "stare.min_samples (eps NaN); bit 4 variance not above the noise variance (eps "
-            "NaN); bit 8 the nearest VAD is more than stare.max_wind_gap_s away"
+            "stare.min_samples, or no variance window with 3 valid rays (eps NaN); bit 4 "
+            "variance not above the noise variance (eps NaN); bit 8 the nearest VAD is more "
+            "than stare.max_wind_gap_s away"
         ),
         coverage_content_type="qualityInformation",
     ),

@@ -419,7 +419,15 @@ def stare_products(
         delta_p_m=config.instrument.delta_p_m,
         delta_r_m=config.instrument.delta_r_m,
     )
-    return stare_product(stares, wind if has_wind else None, options)
+    product = stare_product(stares, wind if has_wind else None, options)
+    ray_s = float(product.attrs["ray_duration_s"])
+    if notes is not None and options.variance_window_s < 3 * ray_s:
+        notes.append(
+            f"stare: [stare] variance_window_s = {options.variance_window_s:g} s holds fewer "
+            f"than 3 rays of {ray_s:.2f} s: no variance and no eps (stare_flag bit 2); "
+            "lengthen it"
+        )
+    return product
 
 
 def process_wind_record(record: xr.Dataset, config: Config) -> dict[str, xr.Dataset]:
@@ -518,6 +526,8 @@ def correct_background(
 
     files = background.find_background_files((i.path for i in unit.inputs), opts.folder or None)
     if not files:
+        if opts.folder and notes is not None:  # a configured folder: say why nothing is used
+            notes.append(background.missing_folder_note(opts.folder))
         return scans
     return background.correct_snr(
         scans,

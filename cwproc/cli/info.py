@@ -11,7 +11,7 @@ import xarray as xr
 
 from cwproc.cli._common import report_failure
 from cwproc.errors import CwprocError
-from cwproc.io import KIND, Format, detect_format, read
+from cwproc.io import KIND, Format, detect_format, is_product_layout, read
 
 #: human names of the formats
 FORMAT_NAMES: dict[Format, str] = {
@@ -93,6 +93,11 @@ def describe_scan(ds: xr.Dataset) -> list[str]:
         )
     else:
         scan_text = f"no conical scan; {in_none} ray(s) in no scan"
+    from cwproc.stages.stare import stare_mask
+
+    n_stare = int(stare_mask(ds).sum()) if "elevation" in ds else 0
+    if n_stare:
+        scan_text += f" ({n_stare} vertical stare ray(s): stare product)"
     az = np.asarray(ds["azimuth"].values, dtype=float)
     az_text = (
         f"{np.nanmin(az):.2f} - {np.nanmax(az):.2f} deg, coverage {azimuth_coverage(az):.1f} deg"
@@ -147,7 +152,7 @@ def open_product(path: str | os.PathLike) -> xr.Dataset | None:
     """The file as a cwproc product (a NetCDF written by cwproc), or None if it is not one."""
     try:
         with xr.open_dataset(path, engine="netcdf4") as ds:
-            if "cwproc_version" in ds.attrs and "ray" not in ds.dims:
+            if is_product_layout(ds.attrs, ds.dims):
                 return ds.load()
     except (OSError, ValueError):
         return None
@@ -166,6 +171,20 @@ def describe_product(path: str | os.PathLike, ds: xr.Dataset) -> list[str]:
     return lines + describe_dataset(ds)
 
 
+def damaged_background(path: str | os.PathLike) -> None:
+    """Raise the reader's error for a file named like a background file that is damaged.
+
+    The content sniffer does not recognise a damaged background file, and "not a
+    format cwproc reads" would hide the line at fault; a file that is not named
+    ``*Background_DDMMYY-HHMMSS.txt``, or that reads, returns silently.
+    """
+    from cwproc.io.halo_background import NAME_TIME, read_halo_background
+
+    if NAME_TIME.search(os.path.basename(os.fspath(path))) is None:
+        return
+    read_halo_background(path)
+
+
 def describe_file(path: str | os.PathLike) -> list[str]:
     """What a file is, as printable lines (the first line is the path).
 
@@ -174,7 +193,11 @@ def describe_file(path: str | os.PathLike) -> list[str]:
     CwprocError
         The file cannot be read (unknown format, damaged, no reader in this build).
     """
-    fmt = detect_format(path)
+    try:
+        fmt = detect_format(path)
+    except CwprocError:
+        damaged_background(path)  # a damaged background file: its own line and problem
+        raise
     if fmt is Format.SCAN_NETCDF:
         product = open_product(path)
         if product is not None:

@@ -16,7 +16,16 @@ from cwproc.cli._common import (
 )
 from cwproc.errors import CwprocError
 
-KIND_CHOICES = ["wind", "epsilon", "structure", "vad", "sf-types", "sf-window", "montecarlo"]
+KIND_CHOICES = [
+    "wind",
+    "epsilon",
+    "structure",
+    "vad",
+    "stare",
+    "sf-types",
+    "sf-window",
+    "montecarlo",
+]
 
 
 @click.command("plot")
@@ -66,6 +75,8 @@ def plot(source, out, kind, time_index, height, scan, window, component, config)
                   (profiles for a product of one block)
       structure   D_L against lag with the fitted model and the noise floor
       vad         one scan: radial velocity against azimuth, fit and residuals
+      stare       vertical stares: time-height of w (every ray), sigma_w^2 and
+                  eps_stare (log scales; profiles for a product of one window)
       sf-types    sonic: occurrence of each structure-function type per component
       sf-window   sonic: one window's normalised structure function with fit and r_max
       montecarlo  simulate montecarlo: relative errors against N per height
@@ -89,7 +100,8 @@ def plot(source, out, kind, time_index, height, scan, window, component, config)
                 ds = read_product(source)
             except (OSError, ValueError) as exc:
                 raise CwprocError(f"{source}: not a readable NetCDF product ({exc})") from None
-            kind = kind or plots.default_kind(ds)
+            if kind is None:
+                kind = "stare" if plots.is_stare_product(ds) else plots.default_kind(ds)
             _check_applicable(
                 kind, time_index=time_index, scan=scan, window=window, component=component
             )

@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from cwproc.cli._common import fail
+from cwproc.cli._common import fail, usage_error
 from cwproc.errors import CwprocError
 
 #: scans written when --hours is not given
@@ -59,7 +59,8 @@ _ZEPHIR_HEIGHTS = (40.0, 60.0, 80.0, 100.0, 150.0, 200.0)
     type=click.FloatRange(min=0.0, min_open=True),
     default=0.05,
     show_default=True,
-    help="Linear SNR of the Stream Line; sets the noise, 0.005/SNR m/s.",
+    help="Linear SNR of the Stream Line; sets the noise: 0.005/SNR m/s for the VADs, "
+    "Pearson et al. (2009) for the stares.",
 )
 @click.option(
     "--scan",
@@ -103,12 +104,11 @@ def simulate_lidar(
     The truth (wind, epsilon, L_V, sigma_V^2) goes to DIR/truth/truth.json, outside
     the data folder, so that `cwproc retrieve DIR/data -o out/` reads only data.
     """
+    _check_scan_options(instrument, scan)
     out = Path(outdir)
     data, truth = out / "data", out / "truth" / "truth.json"
     hours = _DEFAULT_HOURS[instrument] if hours is None else hours
     try:
-        if instrument != "streamline" and scan != "vad":
-            raise CwprocError(f"--scan {scan} needs --instrument streamline")
         if instrument == "streamline" and scan != "vad":
             written = _streamline_stares(
                 data,
@@ -136,6 +136,16 @@ def simulate_lidar(
         return
     for path in written:
         click.echo(f"wrote {path}")
+
+
+def _check_scan_options(instrument: str, scan: str) -> None:
+    """Exit 2 when --scan or --vad-every do not fit the instrument (they would be ignored)."""
+    ctx = click.get_current_context()
+    if instrument != "streamline" and scan != "vad":
+        usage_error(f"--scan {scan} needs --instrument streamline (got --instrument {instrument})")
+    given = ctx.get_parameter_source("vad_every") is click.core.ParameterSource.COMMANDLINE
+    if given and scan != "mixed":
+        usage_error(f"--vad-every is used by --scan mixed only, not --scan {scan}")
 
 
 def _streamline(

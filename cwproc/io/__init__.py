@@ -12,6 +12,7 @@ from __future__ import annotations
 import importlib
 import os
 import stat
+from collections.abc import Iterable
 from enum import StrEnum
 from typing import Any
 
@@ -134,12 +135,25 @@ def is_regular_file(path: str | os.PathLike) -> bool:
         return True  # let the open() that follows report the problem with its reason
 
 
+#: dimensions of a scan dataset (the canonical schema of the readers), which is an input
+SCAN_DIMS = frozenset({"ray", "range"})
+
+
+def is_product_layout(attrs: Iterable[str], dims: Iterable[str]) -> bool:
+    """Whether global attribute names and dimension names are those of a cwproc product.
+
+    A product has the global attribute ``cwproc_version`` and is not laid out as a scan
+    dataset (dimensions ``ray`` and ``range``; cwproc's scan NetCDF files are inputs).
+    The stare product has a ``ray`` dimension (``w_ray(ray, height)``) but no ``range``.
+    """
+    return "cwproc_version" in set(attrs) and not SCAN_DIMS <= set(dims)
+
+
 def is_cwproc_product(path: str | os.PathLike) -> bool:
     """True when ``path`` is a product cwproc wrote (not an instrument file).
 
-    A product is a NetCDF file with the global attribute ``cwproc_version`` and no
-    ``ray`` dimension (cwproc's scan NetCDF files, which are inputs, have one). Products
-    found among the inputs are skipped by ``retrieve``, ``sf-type`` and ``batch``.
+    See :func:`is_product_layout`. Products found among the inputs are skipped by
+    ``retrieve``, ``sf-type`` and ``batch``.
     """
     if not is_regular_file(path):
         return False
@@ -154,7 +168,7 @@ def is_cwproc_product(path: str | os.PathLike) -> bool:
 
     try:
         with netCDF4.Dataset(path) as nc:
-            return "cwproc_version" in nc.ncattrs() and "ray" not in nc.dimensions
+            return is_product_layout(nc.ncattrs(), nc.dimensions)
     except OSError:
         return False
 

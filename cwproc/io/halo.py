@@ -599,6 +599,13 @@ def _is_number(token: bytes) -> bool:
     return _NUMBER.fullmatch(token) is not None and bool(np.isfinite(float(token)))
 
 
+#: added to the error of a bad last line when the file does not end with a line end
+_CUT_HINT = (
+    "; the file ends inside this line: it was cut short (a broken copy, or the file of "
+    "the current hour still being written)"
+)
+
+
 def diagnose(
     path: str | os.PathLike,
     body: bytes,
@@ -619,16 +626,19 @@ def diagnose(
     first = HEADER_LINES + 1  # file line number of body row 0
     ray_ok = (3, 5) if ray_fields is None else (ray_fields,)
     gate_ok = (4, 5) if gate_fields is None else (gate_fields,)
+    cut_short = not body.endswith((b"\n", b"\r"))
     for row in range(start_row, min(start_row + block, len(lines))):
         line_no = first + row
         tokens = lines[row].split()
         pos = row - start_row
+        # the last line of a file without a final line end: a file cut off mid-line
+        cut = _CUT_HINT if cut_short and row == len(lines) - 1 else ""
         if not tokens:
             return InputFileError(path, "empty line inside the data", line_no)
         bad = [t for t in tokens if not _is_number(t)]
         if bad:
             token = bad[0].decode("latin-1")
-            return InputFileError(path, f"field {token[:20]!r} is not a number", line_no)
+            return InputFileError(path, f"field {token[:20]!r} is not a number{cut}", line_no)
         if pos == 0:
             if b"." not in tokens[0]:
                 restart = (
@@ -646,7 +656,9 @@ def diagnose(
             if len(tokens) not in ray_ok:
                 return InputFileError(
                     path,
-                    f"ray line has {len(tokens)} fields, expected " + " or ".join(map(str, ray_ok)),
+                    f"ray line has {len(tokens)} fields, expected "
+                    + " or ".join(map(str, ray_ok))
+                    + cut,
                     line_no,
                 )
             continue
@@ -660,7 +672,9 @@ def diagnose(
         if len(tokens) not in gate_ok:
             return InputFileError(
                 path,
-                f"gate line has {len(tokens)} fields, expected " + " or ".join(map(str, gate_ok)),
+                f"gate line has {len(tokens)} fields, expected "
+                + " or ".join(map(str, gate_ok))
+                + cut,
                 line_no,
             )
         if b"." in tokens[0] or float(tokens[0]) != gate:

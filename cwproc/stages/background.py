@@ -40,6 +40,16 @@ def find_background_files(
     return sorted(found)
 
 
+def missing_folder_note(folder: str | os.PathLike) -> str:
+    """Why the configured ``[background] folder`` gave no background file."""
+    if not Path(folder).is_dir():
+        return f"SNR not corrected: [background] folder {os.fspath(folder)} is not a folder"
+    return (
+        f"SNR not corrected: no background file ({BACKGROUND_GLOB}) in [background] folder "
+        f"{os.fspath(folder)}"
+    )
+
+
 def read_backgrounds(
     paths: Sequence[str | os.PathLike],
     notes: list[str] | None = None,
@@ -195,7 +205,7 @@ def correct_snr(
 def _summary(done: np.ndarray, used: list[str], idx: np.ndarray) -> str:
     n, n_done = done.size, int(done.sum())
     if n_done == 0:
-        why = " (none measured at most max_age_h before them)" if (idx < 0).all() else ""
+        why = " (no readable one measured at most max_age_h before them)" if (idx < 0).all() else ""
         return f"SNR not corrected: none of {n} rays has a usable background file{why}"
     return (
         f"SNR of {n_done} of {n} rays corrected with {len(set(used))} background file(s) "

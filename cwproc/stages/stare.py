@@ -31,6 +31,9 @@ FLAG_NOISE_DOMINATED = 4
 FLAG_WIND_FAR = 8
 #: Halo Stream Line pulse repetition frequency (Hz); 10 kHz for the XR
 HALO_PRF_HZ = 15000.0
+#: global attributes of the scans that the stare product keeps (the SNR correction by
+#: the background files, :mod:`cwproc.stages.background`, as the wind product keeps them)
+CARRIED_ATTRS = ("snr_correction", "background_files")
 
 
 @dataclass(frozen=True)
@@ -275,7 +278,9 @@ def stare_product(stares: xr.Dataset, wind: xr.Dataset | None, options: StareOpt
     eps_se = stare.epsilon_standard_error(eps, var_corr, var_se, speed, speed_err)
     flag = np.zeros((n_win, height.size), dtype=np.int8)
     flag |= np.where(~np.isfinite(speed), FLAG_NO_WIND, 0).astype(np.int8)
-    flag |= np.where(count < options.min_samples, FLAG_TOO_FEW_SAMPLES, 0).astype(np.int8)
+    # too few rays in the window, or in every one of its variance windows (< 3 each)
+    few = (count < options.min_samples) | ~np.isfinite(var)
+    flag |= np.where(few, FLAG_TOO_FEW_SAMPLES, 0).astype(np.int8)
     noisy = np.isfinite(var_corr) & ~(var_corr > 0)
     flag |= np.where(noisy, FLAG_NOISE_DOMINATED, 0).astype(np.int8)
     flag |= np.where(far & np.isfinite(speed), FLAG_WIND_FAR, 0).astype(np.int8)
@@ -357,6 +362,7 @@ def _assemble(
         attrs={
             "instrument": str(stares.attrs.get("instrument", "")),
             "system_id": str(stares.attrs.get("system_id", "")),
+            **{k: stares.attrs[k] for k in CARRIED_ATTRS if k in stares.attrs},
             **attrs,
         },
     )
