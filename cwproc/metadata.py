@@ -382,6 +382,12 @@ VARIABLES: dict[str, VarMeta] = {
         "m2 s-2",
         coverage_content_type="qualityInformation",
     ),
+    "statistics_covariance": VarMeta(
+        "covariance of the block means of (D_L(1), ..., D_L(L), variance of V'_L) from "
+        "the scatter over scans",
+        "m4 s-4",
+        coverage_content_type="qualityInformation",
+    ),
     "wind_to_direction": VarMeta(
         "direction the block-mean wind blows towards", "degree", "wind_to_direction"
     ),
