@@ -153,6 +153,8 @@ METHOD1_RATIO_LIMIT = 1.1
 INERTIAL_FRACTION = 0.02
 #: bisection steps of the outer-scale root (bracket ratio (3000/10)^(1/6) -> 0.2 %)
 _BISECTIONS = 9
+#: bisections from a bracket of a factor 2 on either side of a known root (-> 1.1 %)
+_BISECTIONS_NEAR = 6
 
 
 def eq5_epsilon(d_l: np.ndarray, d_1: np.ndarray, a_l: np.ndarray, a_1: np.ndarray) -> np.ndarray:
@@ -1172,6 +1174,7 @@ def _outer_scale_root(
     vc: np.ndarray,
     var_c: np.ndarray,
     prior: np.ndarray,
+    start: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(root, has_root, below)`` of the variance condition in L_V for cells ``(n,)``.
 
@@ -1181,6 +1184,8 @@ def _outer_scale_root(
     squares of Smalikho (2020), eq. 4 with the model's A_2 over all valid lags. Coarse
     scan of ``finite["nodes"]``, then bisection of the largest sign change in log L_V;
     ``below``: even the smallest node gives too much variance (lags not inertial).
+    With ``start`` (a root per cell, for the small changes of :func:`delta_method_errors`)
+    the scan covers ``start / 2 .. 2 start`` and fewer bisections reach the same bracket.
     """
     scale_grid = finite["scale_grid"]
 
@@ -1197,15 +1202,21 @@ def _outer_scale_root(
             measured = np.log(var_c[:, None] - np.nan_to_num(noise_l, nan=0.0) ** 2)
         return np.broadcast_to(model_var - measured, (dc.shape[0], k))
 
-    nodes = finite["nodes"]
-    resid = residual(np.broadcast_to(nodes, (dc.shape[0], nodes.size)))
+    if start is None:
+        nodes = np.broadcast_to(finite["nodes"], (dc.shape[0], finite["nodes"].size))
+        steps = _BISECTIONS
+    else:
+        nodes = start[:, None] * np.array([0.5, 1.0, 2.0])
+        steps = _BISECTIONS_NEAR
+    resid = residual(nodes)
     sign_change = (resid[:, :-1] < 0) & (resid[:, 1:] >= 0)
     has_root = sign_change.any(axis=1)
-    last = nodes.size - 2 - np.argmax(sign_change[:, ::-1], axis=1)
-    log_lo, log_hi = np.log(nodes[last]), np.log(nodes[last + 1])
+    last = nodes.shape[1] - 2 - np.argmax(sign_change[:, ::-1], axis=1)
+    cells = np.arange(last.size)
+    log_lo, log_hi = np.log(nodes[cells, last]), np.log(nodes[cells, last + 1])
     r_lo = resid[np.arange(last.size), last]
     r_hi = resid[np.arange(last.size), last + 1]
-    for _ in range(_BISECTIONS):  # fixed count: each step halves every bracket
+    for _ in range(steps):  # fixed count: each step halves every bracket
         mid = 0.5 * (log_lo + log_hi)
         r_mid = residual(np.exp(mid)[:, None])[:, 0]
         upper = r_mid >= 0
@@ -1220,7 +1231,9 @@ def _outer_scale_root(
     return root, has_root, below
 
 
-def _retrieve(fixed: dict, d: np.ndarray, var_raw: np.ndarray) -> dict:
+def _retrieve(
+    fixed: dict, d: np.ndarray, var_raw: np.ndarray, near: np.ndarray | None = None
+) -> dict:
     """eps (methods 1 and 2), sigma_e, sigma_V^2 and L_V of every cell from D and the variance.
 
     The least squares of Smalikho (2020), eq. 4 over all valid lags with the cell's
@@ -1228,7 +1241,9 @@ def _retrieve(fixed: dict, d: np.ndarray, var_raw: np.ndarray) -> dict:
     a length exceeds :data:`INERTIAL_FRACTION` of the inertial L_V, the A-functions at the
     root of the variance condition (:func:`_outer_scale_root`). A pure function of ``(d,
     var_raw)`` given ``fixed`` (the A-functions, tables, noise prediction, ...), so that
-    :func:`standard_errors` can differentiate it.
+    :func:`delta_method_errors` can differentiate it; ``near`` (that function's base
+    roots, NaN where the finite-outer-scale fit was not used) fixes the cells of that
+    fit and starts its root search there.
     """
     a1, a2 = fixed["a1"].copy(), fixed["a2"].copy()
     valid, prior, c_model = fixed["valid"], fixed["noise_pred"], fixed["c_model"]
@@ -1245,10 +1260,13 @@ def _retrieve(fixed: dict, d: np.ndarray, var_raw: np.ndarray) -> dict:
         l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / efit, np.nan)
     too_small = np.zeros(shape, dtype=bool)
     finite_used = np.zeros(shape, dtype=bool)
+    root_cell = np.full(shape, np.nan)
     finite = fixed["finite"]
     if finite is not None:
         passed_fraction = np.full(shape, np.nan)
         need = np.isfinite(l_v) & (finite["longest"] > INERTIAL_FRACTION * l_v) & ~fixed["exact"]
+        if near is not None:
+            need = np.isfinite(near)
         lags, height, mu_eval, sector = fixed["lags"], fixed["height"], fixed["mu"], fixed["sector"]
         for rows, (_, table) in fixed["groups"].values():  # one table per configuration
             ti, hi_ = np.nonzero(need & rows[:, None])
@@ -1267,6 +1285,7 @@ def _retrieve(fixed: dict, d: np.ndarray, var_raw: np.ndarray) -> dict:
                 valid[ti, hi_],
                 var_raw[ti, hi_],
                 prior[ti, hi_][:, None],
+                None if near is None else near[ti, hi_],
             )
             if np.any(use):
                 tu, hu = ti[use], hi_[use]
@@ -1280,6 +1299,7 @@ def _retrieve(fixed: dict, d: np.ndarray, var_raw: np.ndarray) -> dict:
                 a1[tu, hu] = g1
                 a2[tu, hu] = g2 * sector[tu, hu]
                 finite_used[tu, hu] = True
+                root_cell[tu, hu] = root[use]
                 scale_grid = finite["scale_grid"]
                 through = _interp_log_scale(scale_grid, passed[use], root[use][:, None])[:, 0]
                 total = np.interp(np.log(root[use]), np.log(scale_grid), finite["full_var"])
@@ -1304,6 +1324,7 @@ def _retrieve(fixed: dict, d: np.ndarray, var_raw: np.ndarray) -> dict:
         "l_v": l_v,
         "too_small": too_small,
         "finite_used": finite_used,
+        "root": root_cell,
     }
 
 
@@ -1330,7 +1351,7 @@ def delta_method_errors(
     for k in range(n_l + 1):
         s_k = stats.copy()
         s_k[..., k] += step[..., k]
-        res = _retrieve(fixed, s_k[..., :n_l], s_k[..., n_l])
+        res = _retrieve(fixed, s_k[..., :n_l], s_k[..., n_l], near=base["root"])
         for key in keys:
             with np.errstate(invalid="ignore"):
                 grad[key][..., k] = (res[key] - base[key]) / step[..., k]
