@@ -255,7 +255,7 @@ def test_flags_explain_every_missing_value(options):
     d = model_d(table, 0.003, 0.1, mu)
     pairs = np.full(d.shape, 1000)
     pairs[0, 0, :] = 50  # too few pairs
-    d[1, 0, 2] = d[1, 0, 0] * 0.9  # D(3) < D(1): fit fails
+    d[1, 0] = d[1, 0, ::-1].copy()  # D decreasing with the lag: no positive slope, fit fails
     sf = make_sf(d, mu=mu, pairs=pairs)
     sf["wind_speed"][2, 0] = np.nan  # no wind for mu
     sf["radial_velocity_variance"][3, 0] = 1e-4  # tiny variance: L_V below the lags
