@@ -1656,7 +1656,8 @@ def estimate_epsilon(
     out["integral_scale"].attrs["exact_cw_model_cells"] = int(exact.sum())
     out["epsilon"].attrs.update(
         common,
-        method="Smalikho (2020), eq. 5 with A_2 of eq. 15 (method 2); finite-outer-scale "
+        method="least squares of Smalikho (2020), eq. 4 over all valid lags with A_2 of "
+        "eq. 15 (method 2; eq. 5 is its two-lag case); finite-outer-scale "
         f"A-functions where a length exceeds {INERTIAL_FRACTION:g} L_V; cw cells with "
         f"mu <= {CW_EXACT_MU_MAX:g}: least squares of D_L with the exact B_D of Banakh et "
         "al. (1999), eqs. 15-17, eps = c sigma_V^3 / L_V (eq. 19)",
@@ -1664,7 +1665,8 @@ def estimate_epsilon(
     )
     out["epsilon_method1"].attrs.update(
         common,
-        method="Smalikho (2020), eq. 5 with A_1 = A_perp (method 1); written wherever "
+        method="least squares of Smalikho (2020), eq. 4 with A_1 = A_perp (method 1); "
+        "written wherever "
         f"computable, flag 4 where eps1/eps2 > {METHOD1_RATIO_LIMIT}",
     )
     out["epsilon_fit"].attrs.update(
@@ -1677,7 +1679,8 @@ def estimate_epsilon(
     )
     out["noise_std"].attrs.update(
         method="intercept 2 sigma_e^2 of the least-squares fit, Smalikho (2020), eq. 4, "
-        "where it exceeds twice its standard error; elsewhere (flag 32) the prediction "
+        "where it exceeds twice its standard error or is precise and within a factor "
+        f"{NOISE_PLAUSIBLE:g} of the prediction; elsewhere (flag 32) the prediction "
         "noise_std_predicted, used in the fit; NaN when neither exists"
     )
     out["velocity_variance"].attrs.update(
