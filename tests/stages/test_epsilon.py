@@ -842,9 +842,11 @@ def test_exact_statistics_eps_is_unbiased_and_its_error_bar_calibrated(
 ):
     """Mean eps_hat/eps within 5 % plus two standard errors of the mean; se/sd in 0.8-1.2.
 
-    Measured (docs/physics-epsilon.md): 24-ray VAD mu 1: 1.005 +- 0.024, se/sd 1.06;
-    72-ray continuous mu 0.5 (5 scans per block). A 180-ray block covariance takes minutes
-    to build, so that case is measured by ``benchmarks/bench_epsilon_accuracy.py``.
+    Measured (docs/physics-epsilon.md, 10 scans per block): 24-ray VAD mu 1: 1.051 +-
+    0.042, se/sd 0.93 (100 blocks); 72-ray continuous mu 0.5: 1.003 +- 0.011, se/sd
+    1.23; here the 72-ray case runs with 5 scans per block to keep the generator fast.
+    A 180-ray block covariance takes minutes to build, so that case is measured by
+    ``benchmarks/bench_epsilon_accuracy.py`` only.
     """
     from cwproc.sim import exact_gaussian as eg
 
