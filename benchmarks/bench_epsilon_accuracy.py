@@ -11,7 +11,8 @@ on ``--blocks`` independent blocks of ``n_scans`` scans and prints, per retrieva
 - ``sig_e``: mean of noise_std/sigma_e (the fitted noise where it is determined);
 - ``var``, ``L_V``: mean of sigma_V^2_hat/sigma_V^2 and L_V_hat/L_V;
 - ``se/sd``: mean reported standard error of eps over the scatter of eps_hat (when the
-  product has ``epsilon_standard_error``);
+  product has ``epsilon_standard_error``); ``var_se``, ``L_se``: the same for sigma_V^2
+  and L_V;
 - ``ok``: share of blocks with a valid eps.
 
 Cases: 24- and 36-ray step-stare VADs, 72- and 180-ray continuous scans, mu = U/V_s
@@ -129,6 +130,13 @@ def summarise(turb, truth_var: float) -> dict[str, float]:
     if "epsilon_standard_error" in turb:
         se = turb["epsilon_standard_error"].values[:, 0][good] / EPS
         row["se/sd"] = np.nanmean(se) / e.std(ddof=1)
+    for name, key in (("velocity_variance", "var se/sd"), ("integral_scale", "L_V se/sd")):
+        if f"{name}_standard_error" in turb:
+            v = turb[name].values[:, 0][good]
+            se = turb[f"{name}_standard_error"].values[:, 0][good]
+            ok = np.isfinite(v) & np.isfinite(se)
+            if ok.sum() > 2:
+                row[key] = np.mean(se[ok]) / np.std(v[ok], ddof=1)
     return row
 
 
@@ -147,7 +155,8 @@ def main() -> None:
         f"{N_SCANS} scans per block, {args.blocks} blocks per case"
     )
     header = f"{'case':22s} {'mu':>4s} {'model':>10s} {'eps':>15s} {'rms':>6s}"
-    header += f" {'sig_e':>6s} {'var':>6s} {'L_V':>6s} {'se/sd':>6s} {'ok':>5s} {'s':>5s}"
+    header += f" {'sig_e':>6s} {'var':>6s} {'L_V':>6s} {'se/sd':>6s} {'var_se':>6s}"
+    header += f" {'L_se':>6s} {'ok':>5s} {'s':>5s}"
     print(header)
     for i, case in enumerate(cases(args.quick)):
         pattern, mu = case["pattern"], case["mu"]
@@ -188,6 +197,7 @@ def main() -> None:
             print(
                 f"{case['label']:22s} {mu:4.1f} {model:>10s} {eps:>15s} {fmt('eps_rms')}"
                 f" {fmt('sig_e')} {fmt('var')} {fmt('L_V')} {fmt('se/sd')}"
+                f" {fmt('var se/sd')} {fmt('L_V se/sd')}"
                 f" {row['ok']:5.2f} {seconds:5.1f}" + (f"  ({notes[0][:60]})" if notes else ""),
                 flush=True,
             )

@@ -50,14 +50,20 @@ def synthetic_day(n_rays: int, ray_s: float, n_lags: int, seed: int = 1) -> xr.D
     d = (8 / 3) * eps[..., None] ** (2 / 3) * (lags * dy[:, None]) ** (2 / 3) + 2 * 0.1**2
     speed = rng.uniform(1.0, 15.0, (N_BLOCKS, HEIGHTS.size))
     times = np.datetime64("2024-06-01T00:05", "ns") + np.arange(N_BLOCKS) * np.timedelta64(10, "m")
+    variance = (eps * 300 / 1.33) ** (2 / 3)
+    # covariance of (D_L(1..L), variance) over the scans: 5 % errors, lags correlated 0.5
+    stats = np.concatenate([d, variance[..., None]], axis=-1)
+    corr = 0.5 ** np.abs(np.subtract.outer(np.arange(n_lags + 1), np.arange(n_lags + 1)))
+    cov = (0.05 * stats)[..., :, None] * (0.05 * stats)[..., None, :] * corr
     return xr.Dataset(
         {
             "structure_function": (("time", "height", "lag"), d),
             "n_pairs": (("time", "height", "lag"), np.full(d.shape, 2000)),
             "structure_function_se": (("time", "height", "lag"), 0.05 * d),
             "structure_function_difference_se": (("time", "height", "lag"), 0.05 * d),
-            "radial_velocity_variance": (("time", "height"), (eps * 300 / 1.33) ** (2 / 3)),
-            "radial_velocity_variance_se": (("time", "height"), np.full(eps.shape, 0.05)),
+            "radial_velocity_variance": (("time", "height"), variance),
+            "radial_velocity_variance_se": (("time", "height"), 0.05 * variance),
+            "statistics_covariance": (("time", "height", "statistic", "statistic_b"), cov),
             "wind_speed": (("time", "height"), speed),
             "wind_to_direction": (("time", "height"), rng.uniform(0, 360, speed.shape)),
             "pair_azimuth_weights": (

@@ -278,12 +278,12 @@ VARIABLES: dict[str, VarMeta] = {
         "turbulent kinetic energy dissipation rate (method 2: volume averaging and wind "
         "transport accounted for)",
         "m2 s-3",
-        references=SMALIKHO_2020 + ", eqs. 5, 15-20",
+        references=SMALIKHO_2020 + ", eqs. 4-5, 15-20 (least squares of eq. 4 over all lags)",
     ),
     "epsilon_method1": VarMeta(
         "turbulent kinetic energy dissipation rate (method 1: no wind transport)",
         "m2 s-3",
-        references=SMALIKHO_2020 + ", eq. 5 with A_1 = A_perp",
+        references=SMALIKHO_2020 + ", eqs. 4-5 with A_1 = A_perp (least squares over all lags)",
     ),
     "epsilon_ratio": VarMeta(
         "ratio of the method-1 to the method-2 dissipation rate estimates",
@@ -357,21 +357,22 @@ VARIABLES: dict[str, VarMeta] = {
         "standard error of the turbulent kinetic energy dissipation rate",
         "m2 s-3",
         comment=(
-            "1.5 eps SE(D(l) - D(1)) / (D(l) - D(1)), SE from the scatter of the per-scan "
-            "structure functions of the block (scans as independent samples)"
+            "delta method through the whole fit (eps and L_V together) with the covariance "
+            "of D_L(1..L) and the variance of V'_L over the block's scans (scans as "
+            "independent samples)"
         ),
         coverage_content_type="qualityInformation",
     ),
     "velocity_variance_standard_error": VarMeta(
         "standard error of the radial-velocity variance sigma_V^2",
         "m2 s-2",
-        comment="scatter of the per-scan variances of V'_L, scaled like sigma_V^2",
+        comment="delta method through the whole fit, as epsilon_standard_error",
         coverage_content_type="qualityInformation",
     ),
     "integral_scale_standard_error": VarMeta(
         "standard error of the integral scale L_V",
         "m",
-        comment="relative errors of sigma_V^2 (x 1.5) and eps combined as independent",
+        comment="delta method through the whole fit, as epsilon_standard_error",
         coverage_content_type="qualityInformation",
     ),
     "structure_function_se": VarMeta(
@@ -387,6 +388,12 @@ VARIABLES: dict[str, VarMeta] = {
     "radial_velocity_variance_se": VarMeta(
         "standard error of the variance of V'_L from the scatter over scans",
         "m2 s-2",
+        coverage_content_type="qualityInformation",
+    ),
+    "statistics_covariance": VarMeta(
+        "covariance of the block means of (D_L(1), ..., D_L(L), variance of V'_L) from "
+        "the scatter over scans",
+        "m4 s-4",
         coverage_content_type="qualityInformation",
     ),
     "wind_to_direction": VarMeta(

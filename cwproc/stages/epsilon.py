@@ -16,17 +16,23 @@ volume (:mod:`cwproc.physics.afunctions`, tabulated by :mod:`cwproc.physics.atab
 
 Estimates, per block of scans and height, all vectorised:
 
-- ``epsilon`` (method 2) and ``epsilon_method1``: Smalikho (2020), eq. 5,
-  ``eps_i = [(D(l) - D(1)) / (A_i(l dy) - A_i(dy))]^(3/2)`` with ``l = lag_number``;
-  their ratio is ``epsilon_ratio`` (identical to Smalikho (2020), eq. 21);
-- ``epsilon_fit`` and ``noise_std``: least squares of ``eps^(2/3) A_2(l dy) + 2 sigma_e^2``
-  over ``l = 1..L`` (:func:`fit_structure_function`); where the intercept is not
-  significant (below twice its standard error, fewer than three lags) or negative, it is
-  fixed at ``2 sigma_pred^2`` of ``noise_std_predicted`` (:func:`predicted_noise`,
-  Pearson et al. (2009), eq. 3) and flag 32 is set: ``noise_std`` is then the prediction,
-  or NaN without one, never a measured 0;
-- ``edr = eps^(1/3)``; standard errors of eps, sigma_V^2 and L_V from the scatter over
-  the block's scans (:func:`standard_errors`);
+- ``epsilon`` (method 2, equal to ``epsilon_fit``) and ``epsilon_method1``: the least
+  squares of ``eps^(2/3) A_i(l dy) + 2 sigma_e^2`` over all valid lags ``l = 1..L``
+  (:func:`fit_structure_function`) with ``A_2`` and ``A_1``; Smalikho (2020), eq. 5 is
+  its two-lag case (:func:`eq5_epsilon`). On exact 24-ray VAD statistics eq. 5 (lags 3
+  and 1) scattered 68 % per block against 34 % for the least squares, and its heavy
+  tail moved the mean by +8 %; ``epsilon_ratio`` is ``epsilon_method1 / epsilon`` (the
+  observed counterpart of eq. 21);
+- ``noise_std``: the intercept of that fit. Where it is not determined (fewer than
+  three lags, negative, a standard error above half the predicted ``2 sigma_pred^2``,
+  further than a factor :data:`NOISE_PLAUSIBLE` from the prediction, or below
+  :data:`NOISE_DETECTABLE`) it is fixed at ``2 sigma_pred^2`` of
+  ``noise_std_predicted`` (:func:`predicted_noise`, Pearson et al. (2009), eq. 3; without
+  a prediction: twice its standard error decides) and flag 32 is set: ``noise_std`` is
+  then the prediction, or NaN without one, never a measured 0;
+- ``edr = eps^(1/3)``; standard errors of eps, sigma_V^2 and L_V by the delta method
+  through the whole fit (:func:`delta_method_errors`, the covariance of ``D_L`` and the
+  variance over the block's scans);
 - ``A_1`` and ``A_2`` come from tables of the exact two-beam geometry (any azimuth step,
   :mod:`cwproc.physics.two_beam`, :func:`cwproc.physics.atable.geometry_correction`),
   ``A_2`` averaged over the azimuths of the pairs present (``pair_azimuth_weights``:
@@ -83,10 +89,9 @@ eps``. The A-functions at that ``L_V`` still give ``epsilon_method1`` and the ra
 Flags (``turbulence_flag``, bits combine; bits 1, 2, 8, 16 make the estimates NaN):
 
 - 1: too few pairs (``n_pairs`` < ``min_pairs`` at lag 1 or lag ``l``): no ``eps``;
-- 2: lag beyond the inertial range (Smalikho (2020), after eq. 4): ``l dy (1 + mu) >
-  L_V`` with the inertial model, ``l dy > L_V`` with the finite-outer-scale models (their
-  A-functions describe the larger separations of wind transport), or ``L_V`` below the
-  A-table's range: no ``eps``;
+- 2: lag beyond the inertial range (Smalikho (2020), after eq. 4): ``L dy (1 + mu) >
+  L_V`` with the inertial model; with the finite-outer-scale models (whose A-functions
+  hold at any separation) only ``L_V`` below the A-table's range: no ``eps``;
 - 4: ``mu`` beyond the validity of method 1, ``eps_1/eps_2 > 1.1`` (Smalikho (2020),
   eq. 21 and its discussion): ``epsilon_method1`` is kept (its bias is the observable of
   eq. 21), ``epsilon`` stays;
@@ -141,6 +146,8 @@ MIN_NOISE_LAGS = 3
 #: the noise is fitted only where the predicted 2 sigma_e^2 is at least this share of
 #: the smallest structure function of the block (below it, the prediction is used)
 NOISE_DETECTABLE = 0.05
+#: a fitted sigma_e further than this factor from the predicted one is not kept (flag 32)
+NOISE_PLAUSIBLE = 2.0
 
 #: a block with fewer than this share of the requested scans is not estimated (flag 16)
 MIN_BLOCK_FRACTION = 0.5
@@ -151,6 +158,8 @@ METHOD1_RATIO_LIMIT = 1.1
 INERTIAL_FRACTION = 0.02
 #: bisection steps of the outer-scale root (bracket ratio (3000/10)^(1/6) -> 0.2 %)
 _BISECTIONS = 9
+#: bisections from a bracket of a factor 2 on either side of a known root (-> 1.1 %)
+_BISECTIONS_NEAR = 6
 
 
 def eq5_epsilon(d_l: np.ndarray, d_1: np.ndarray, a_l: np.ndarray, a_1: np.ndarray) -> np.ndarray:
@@ -224,8 +233,20 @@ def fit_structure_function(
         resid = np.where(w, y - slope[..., None] * x - intercept[..., None], 0.0)
         s2 = (resid**2).sum(-1) / (n - 2)
         se_intercept = np.sqrt(s2 * sxx / det)
-    determined = (n >= MIN_NOISE_LAGS) & (intercept > 0) & (intercept > 2.0 * se_intercept)
     prior = np.full(slope.shape, np.nan) if noise_prior is None else np.asarray(noise_prior)
+    # an intercept above twice its standard error is kept; where there is a prediction,
+    # so is one the fit measures precisely (standard error below half the predicted
+    # 2 sigma_pred^2) within a factor NOISE_PLAUSIBLE of it: judged on the fitted value
+    # alone, the blocks whose intercept fell low by chance took the prediction and those
+    # that rose kept theirs, and the "fitted" noise read 14-37 % high (180-ray scans)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        pred2 = 2.0 * np.nan_to_num(prior) ** 2
+        plausible = np.abs(np.log(np.maximum(intercept, 1e-300) / pred2)) <= 2.0 * math.log(
+            NOISE_PLAUSIBLE
+        )
+        precise = np.isfinite(prior) & (2.0 * se_intercept < pred2) & plausible
+        significant = (intercept > 2.0 * se_intercept) | precise
+    determined = (n >= MIN_NOISE_LAGS) & (intercept > 0) & significant
     # a noise term far below the smallest structure function cannot be told from the
     # sampling error of D and the model's shape: the fitted intercept then measures
     # those, not the noise (24-ray VADs: 6-8 times the true sigma_e)
@@ -889,38 +910,79 @@ def _fit_exact_cells(
     return out
 
 
+#: nodes of mu = U/V_s of :func:`mean_removed_share` (linear interpolation between them)
+REMOVED_SHARE_MU = np.array([0.0, 0.5, 1.0, 2.0, 3.0, 5.0, 10.0])
+#: wind directions (from the scan's first ray) averaged in :func:`mean_removed_share`
+_REMOVED_SHARE_DIRECTIONS = 4
+
+
 @functools.lru_cache(maxsize=16)
 def _removed_share_curve(phi_deg: float, model: str) -> tuple[np.ndarray, np.ndarray]:
-    """``(log x, r(x))`` of :func:`mean_removed_share` on 81 nodes of ``x = R'/L_V``."""
-    x = np.geomspace(1e-3, 1e3, 81)
-    n_az = 72
+    """``(log x, r(mu, x))`` of :func:`mean_removed_share` on 25 nodes of ``x = R'/L_V``.
+
+    ``tr(H B)/M`` of the VAD hat matrix ``H = (1 + 2 cos(theta_i - theta_j))/M`` of a
+    full circle of 48 point beams and the correlation tensor ``B`` of the frozen field
+    at the probes' positions in the field's frame, ``R' e(theta_m) - U t_m``: the rays
+    follow each other over one scan period, so the wind carries the field ``mu R'
+    theta_m`` along its direction (Smalikho (2020), eq. 3: ``U T = 2 pi mu R'``);
+    averaged over :data:`_REMOVED_SHARE_DIRECTIONS` wind directions.
+    """
+    x = np.geomspace(1e-2, 1e2, 25)
+    n_az = 48
     theta = 2.0 * np.pi * np.arange(n_az) / n_az
     ph = math.radians(phi_deg)
     s = np.stack(
         [np.full(n_az, math.sin(ph)), math.cos(ph) * np.cos(theta), math.cos(ph) * np.sin(theta)],
         axis=-1,
     )
-    pos = x[:, None, None] * np.stack([np.zeros(n_az), np.cos(theta), np.sin(theta)], -1)[None]
-    r_vec = pos - pos[:, :1, :]  # from the first ray's probe on the circle of radius x
-    r = np.linalg.norm(r_vec, axis=-1)
-    f, g = spectra._correlations(r, model, 1.0)
-    unit = np.where(r[..., None] > 0, r_vec / np.where(r > 0, r, 1.0)[..., None], 0.0)
-    dot = s @ s[0]
-    row = g * dot[None] + (f - g) * (unit @ s[0]) * np.sum(unit * s[None], axis=-1)
-    return np.log(x), hat_trace_per_ray(row, n_az)
+    dot = s @ s.T
+    hat = (1.0 + 2.0 * np.cos(theta[:, None] - theta[None, :])) / n_az**2
+    circle = np.stack([np.zeros(n_az), np.cos(theta), np.sin(theta)], -1)
+    share = np.zeros((REMOVED_SHARE_MU.size, x.size))
+    for i, mu in enumerate(REMOVED_SHARE_MU):
+        directions = 1 if mu == 0 else _REMOVED_SHARE_DIRECTIONS
+        for k in range(directions):
+            a = 2.0 * np.pi * k / directions
+            wind = np.array([0.0, math.cos(a), math.sin(a)])
+            pos = x[:, None, None] * (circle - mu * theta[:, None] * wind)[None]
+            r_vec = pos[:, :, None, :] - pos[:, None, :, :]  # (x, i, j, 3)
+            r = np.linalg.norm(r_vec, axis=-1)
+            f, g = spectra._correlations(r, model, 1.0)
+            unit = np.where(r[..., None] > 0, r_vec / np.where(r > 0, r, 1.0)[..., None], 0.0)
+            proj_i = np.einsum("xijk,ik->xij", unit, s)
+            proj_j = np.einsum("xijk,jk->xij", unit, s)
+            b = g * dot[None] + (f - g) * proj_i * proj_j
+            share[i] += np.einsum("xij,ij->x", b, hat) / directions
+    return np.log(x), share
 
 
-def mean_removed_share(ratio: np.ndarray, phi_deg: float, model: str) -> np.ndarray:
+def mean_removed_share(
+    ratio: np.ndarray, phi_deg: float, model: str, mu: np.ndarray | float = 0.0
+) -> np.ndarray:
     """Share of sigma_V^2 the scan-mean (VAD) wind takes from one scan's V'_L.
 
-    ``tr(H B)/(M sigma_V^2)`` (:func:`hat_trace_per_ray`) of a full circle of point
-    beams, Banakh et al. (1999), eqs. 15-16 with the isotropic tensor of ``model``; a
-    function of ``ratio = R'/L_V`` only (tabulated once per elevation and model). The
+    ``tr(H B)/(M sigma_V^2)`` of a full circle of point beams, Banakh et al. (1999),
+    eqs. 15-16 with the isotropic tensor of ``model``, the rays seen at their own times
+    in the field carried by the wind (:func:`_removed_share_curve`); a function of
+    ``ratio = R'/L_V`` and ``mu = U/V_s`` (tabulated once per elevation and model). The
     block mean of N independent scans removes this divided by N. The probe volume is
     neglected (the share is carried by scales of the circle, far above the probe).
+    Transport matters: on exact 24-ray statistics at ``mu = 3`` (R'/L_V = 0.71) the
+    block-mean wind removed 2.4 % of sigma_V^2, the frozen circle predicts 5.0 %; the
+    overestimate biased the variance condition and eps 8 % low.
     """
     log_x, share = _removed_share_curve(round(float(phi_deg), 2), model)
-    return np.interp(np.log(np.clip(ratio, 1e-3, 1e3)), log_x, share)
+    lx = np.log(np.clip(ratio, 1e-2, 1e2))
+    m = np.clip(np.nan_to_num(np.asarray(mu, float), nan=0.0), 0.0, REMOVED_SHARE_MU[-1])
+    lx, m = np.broadcast_arrays(lx, m)
+    j = np.clip(
+        np.searchsorted(REMOVED_SHARE_MU, m, side="right") - 1, 0, REMOVED_SHARE_MU.size - 2
+    )
+    w = (m - REMOVED_SHARE_MU[j]) / (REMOVED_SHARE_MU[j + 1] - REMOVED_SHARE_MU[j])
+    rows = np.stack([np.interp(lx, log_x, row) for row in share])  # (mu node, ...)
+    lo = np.take_along_axis(rows, j[None], axis=0)[0]
+    hi = np.take_along_axis(rows, (j + 1)[None], axis=0)[0]
+    return (1.0 - w) * lo + w * hi
 
 
 def pair_weights(sf: xr.Dataset) -> np.ndarray:
@@ -991,6 +1053,10 @@ def standard_errors(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Standard errors of eps, sigma_V^2 and L_V per block from the scatter over scans.
 
+    The first-order form kept for the exact cw cells and for structure functions
+    without ``statistics_covariance``; elsewhere :func:`delta_method_errors` replaces it
+    (it omits the scatter of the fitted L_V: se/sd 0.63-1.05 on exact VAD statistics).
+
     - eps of Smalikho (2020), eq. 5, ``eps ~ (D(l) - D(1))^(3/2)``: relative error
       ``1.5 SE(D(l) - D(1)) / (D(l) - D(1))``, ``SE`` the standard error of the block's
       per-scan differences (``structure_function_difference_se``: the scans are the
@@ -1055,6 +1121,252 @@ def _product_arrays(
         "velocity_variance": np.where(bad | ~(sigma2 > 0), np.nan, sigma2),
         "integral_scale": np.where(bad, np.nan, l_v),
     }
+
+
+def _finite_scale_inputs(
+    probe: Any,
+    model: str,
+    options: dict,
+    uniq: np.ndarray,
+    inverse: np.ndarray,
+    scans: np.ndarray,
+    radius: np.ndarray,
+    phi: np.ndarray,
+    range_th: np.ndarray,
+    mu_eval: np.ndarray,
+    n_outer_scales: int,
+) -> dict:
+    """What the finite-outer-scale fit needs besides D and the variance (per cell).
+
+    The probe-passed variance per eps^(2/3) of the model on a log grid of L_V (ratio
+    <= 1.1), per distinct (dy, range) cell (:func:`passed_variance`), less the share
+    the block-mean VAD wind removes (:func:`mean_removed_share` at the cell's ``mu``,
+    divided by the scans of the block); the full variance per eps^(2/3) on that grid;
+    the coarse L_V nodes.
+    """
+    n_t, n_h = range_th.shape
+    lo, hi = options.get("outer_scale_range_m", (10.0, 3000.0))
+    scale_grid = np.geomspace(lo, hi, int(np.ceil(np.log(hi / lo) / np.log(1.1))) + 1)
+    cells_u = np.nonzero(uniq[:, 0] >= 0)[0]
+    passed_u = np.full((uniq.shape[0], scale_grid.size), np.nan)
+    if cells_u.size:
+        passed_u[cells_u] = passed_variance(
+            probe, np.abs(uniq[cells_u, 0]), np.abs(uniq[cells_u, 1]), model, scale_grid
+        )
+    passed_cell = passed_u[inverse.ravel()].reshape(n_t, n_h, scale_grid.size)
+    full_var = np.array([spectra.variance_per_eps23(model, x) for x in scale_grid])
+    n_eff = np.where(np.isfinite(scans) & (scans >= 1), scans, 1.0)
+    ratio_rl = radius[:, :, None] / scale_grid[None, None, :]
+    removed = full_var * mean_removed_share(
+        ratio_rl, float(np.nanmedian(phi)), model, mu_eval[:, :, None]
+    )
+    return {
+        "nodes": np.geomspace(lo, hi, n_outer_scales),
+        "scale_grid": scale_grid,
+        "passed": passed_cell - removed / n_eff[:, None, None],
+        "full_var": full_var,
+    }
+
+
+def _outer_scale_root(
+    table: Any,
+    finite: dict,
+    lags: np.ndarray,
+    cell_h: np.ndarray,
+    cell_mu: np.ndarray,
+    cell_sector: np.ndarray,
+    passed: np.ndarray,
+    dc: np.ndarray,
+    vc: np.ndarray,
+    var_c: np.ndarray,
+    prior: np.ndarray,
+    start: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(root, has_root, below)`` of the variance condition in L_V for cells ``(n,)``.
+
+    The variance of V'_L the model predicts, eps^(2/3) times the probe-passed part of
+    sigma_V^2 = (eps L_V / c)^(2/3) (Banakh et al. (1999), eq. 19; :func:`passed_variance`),
+    must equal the measured one minus sigma_e^2; eps(L_V) and sigma_e(L_V) from the least
+    squares of Smalikho (2020), eq. 4 with the model's A_2 over all valid lags. Coarse
+    scan of ``finite["nodes"]``, then bisection of the largest sign change in log L_V;
+    ``below``: even the smallest node gives too much variance (lags not inertial).
+    With ``start`` (a root per cell, for the small changes of :func:`delta_method_errors`)
+    the scan covers ``start / 2 .. 2 start`` and fewer bisections reach the same bracket.
+    """
+    scale_grid = finite["scale_grid"]
+
+    def residual(big_l: np.ndarray) -> np.ndarray:
+        k = big_l.shape[1]
+        _, f2 = _evaluate(
+            table, lags[None, None, :], cell_h[:, :, None], cell_mu[:, :, None], big_l[:, :, None]
+        )
+        f2 = f2 * cell_sector[:, None, :]
+        eps_l, noise_l, _ = fit_structure_function(dc[:, None, :], f2, vc[:, None, :], prior)
+        through = _interp_log_scale(scale_grid, passed, np.broadcast_to(big_l, (dc.shape[0], k)))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            model_var = np.log(eps_l ** (2 / 3) * through)
+            measured = np.log(var_c[:, None] - np.nan_to_num(noise_l, nan=0.0) ** 2)
+        return np.broadcast_to(model_var - measured, (dc.shape[0], k))
+
+    if start is None:
+        nodes = np.broadcast_to(finite["nodes"], (dc.shape[0], finite["nodes"].size))
+        steps = _BISECTIONS
+    else:
+        nodes = start[:, None] * np.array([0.5, 1.0, 2.0])
+        steps = _BISECTIONS_NEAR
+    resid = residual(nodes)
+    sign_change = (resid[:, :-1] < 0) & (resid[:, 1:] >= 0)
+    has_root = sign_change.any(axis=1)
+    last = nodes.shape[1] - 2 - np.argmax(sign_change[:, ::-1], axis=1)
+    cells = np.arange(last.size)
+    log_lo, log_hi = np.log(nodes[cells, last]), np.log(nodes[cells, last + 1])
+    r_lo = resid[np.arange(last.size), last]
+    r_hi = resid[np.arange(last.size), last + 1]
+    for _ in range(steps):  # fixed count: each step halves every bracket
+        mid = 0.5 * (log_lo + log_hi)
+        r_mid = residual(np.exp(mid)[:, None])[:, 0]
+        upper = r_mid >= 0
+        log_hi = np.where(upper, mid, log_hi)
+        r_hi = np.where(upper, r_mid, r_hi)
+        log_lo = np.where(upper, log_lo, mid)
+        r_lo = np.where(upper, r_lo, r_mid)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frac = np.clip(np.nan_to_num(r_lo / (r_lo - r_hi), nan=0.5), 0.0, 1.0)
+    root = np.exp(log_lo + frac * (log_hi - log_lo))
+    below = ~has_root & np.all(resid > 0, axis=1)
+    return root, has_root, below
+
+
+def _retrieve(
+    fixed: dict, d: np.ndarray, var_raw: np.ndarray, near: np.ndarray | None = None
+) -> dict:
+    """eps (methods 1 and 2), sigma_e, sigma_V^2 and L_V of every cell from D and the variance.
+
+    The least squares of Smalikho (2020), eq. 4 over all valid lags with the cell's
+    A-functions (:func:`fit_structure_function`); with a finite-outer-scale model, where
+    a length exceeds :data:`INERTIAL_FRACTION` of the inertial L_V, the A-functions at the
+    root of the variance condition (:func:`_outer_scale_root`). A pure function of ``(d,
+    var_raw)`` given ``fixed`` (the A-functions, tables, noise prediction, ...), so that
+    :func:`delta_method_errors` can differentiate it; ``near`` (that function's base
+    roots, NaN where the finite-outer-scale fit was not used) fixes the cells of that
+    fit and starts its root search there.
+    """
+    a1, a2 = fixed["a1"].copy(), fixed["a2"].copy()
+    valid, prior, c_model = fixed["valid"], fixed["noise_pred"], fixed["c_model"]
+    shape = d.shape[:2]
+
+    def solve() -> tuple:
+        e1, _, _ = fit_structure_function(d, a1, valid, prior)
+        efit, noise, fitted = fit_structure_function(d, a2, valid, prior)
+        return e1, efit, noise, fitted
+
+    e1, efit, noise, fitted = solve()
+    sigma2 = var_raw - np.nan_to_num(noise, nan=0.0) ** 2 + efit ** (2 / 3) * fixed["loss"]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / efit, np.nan)
+    too_small = np.zeros(shape, dtype=bool)
+    finite_used = np.zeros(shape, dtype=bool)
+    root_cell = np.full(shape, np.nan)
+    finite = fixed["finite"]
+    if finite is not None:
+        passed_fraction = np.full(shape, np.nan)
+        need = np.isfinite(l_v) & (finite["longest"] > INERTIAL_FRACTION * l_v) & ~fixed["exact"]
+        if near is not None:
+            need = np.isfinite(near)
+        lags, height, mu_eval, sector = fixed["lags"], fixed["height"], fixed["mu"], fixed["sector"]
+        for rows, (_, table) in fixed["groups"].values():  # one table per configuration
+            ti, hi_ = np.nonzero(need & rows[:, None])
+            if ti.size == 0:
+                continue
+            passed = finite["passed"][ti, hi_]
+            root, use, below = _outer_scale_root(
+                table,
+                finite,
+                lags,
+                height[hi_][:, None],
+                mu_eval[ti, hi_][:, None],
+                sector[ti, hi_],
+                passed,
+                d[ti, hi_],
+                valid[ti, hi_],
+                var_raw[ti, hi_],
+                prior[ti, hi_][:, None],
+                None if near is None else near[ti, hi_],
+            )
+            if np.any(use):
+                tu, hu = ti[use], hi_[use]
+                g1, g2 = _evaluate(
+                    table,
+                    lags[None, :],
+                    height[hu][:, None],
+                    mu_eval[tu, hu][:, None],
+                    root[use][:, None],
+                )
+                a1[tu, hu] = g1
+                a2[tu, hu] = g2 * sector[tu, hu]
+                finite_used[tu, hu] = True
+                root_cell[tu, hu] = root[use]
+                scale_grid = finite["scale_grid"]
+                through = _interp_log_scale(scale_grid, passed[use], root[use][:, None])[:, 0]
+                total = np.interp(np.log(root[use]), np.log(scale_grid), finite["full_var"])
+                passed_fraction[tu, hu] = through / total
+            too_small[ti[below], hi_[below]] = True
+        e1, efit, noise, fitted = solve()
+        sigma2 = np.where(
+            finite_used,
+            (var_raw - np.nan_to_num(noise, nan=0.0) ** 2) / passed_fraction,
+            var_raw - np.nan_to_num(noise, nan=0.0) ** 2 + efit ** (2 / 3) * fixed["loss"],
+        )
+        with np.errstate(invalid="ignore", divide="ignore"):
+            l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / efit, np.nan)
+    return {
+        "a1": a1,
+        "a2": a2,
+        "e1": e1,
+        "efit": efit,
+        "noise": noise,
+        "fitted": fitted,
+        "sigma2": sigma2,
+        "l_v": l_v,
+        "too_small": too_small,
+        "finite_used": finite_used,
+        "root": root_cell,
+    }
+
+
+def delta_method_errors(
+    fixed: dict, d: np.ndarray, var_raw: np.ndarray, cov: np.ndarray, base: dict
+):
+    """Standard errors of eps, sigma_V^2 and L_V by the delta method (m2 s-3, m2 s-2, m).
+
+    The estimates are one function ``f(s)`` (:func:`_retrieve`) of the block-mean
+    statistics ``s = (D_L(1), ..., D_L(L), variance of V'_L)``: eps and L_V fitted
+    together, so the scatter of the fitted L_V enters the error of eps through the
+    A-functions. ``SE(f) = sqrt(g^T C g)``, ``C`` the covariance of ``s`` from the
+    scatter over the block's scans (``statistics_covariance`` of
+    :func:`cwproc.stages.structure.block_statistics`) and ``g`` the gradient of ``f`` by
+    forward differences of one standard error of each component (a secant over the
+    range the sampling error spans).
+    """
+    n_l = d.shape[-1]
+    stats = np.concatenate([d, var_raw[..., None]], axis=-1)
+    step = np.sqrt(np.abs(np.diagonal(cov, axis1=-2, axis2=-1)))
+    step = np.where(np.isfinite(step) & (step > 0), step, 1e-3 * np.abs(stats))
+    keys = ("efit", "sigma2", "l_v")
+    grad = {k: np.zeros(stats.shape) for k in keys}
+    for k in range(n_l + 1):
+        s_k = stats.copy()
+        s_k[..., k] += step[..., k]
+        res = _retrieve(fixed, s_k[..., :n_l], s_k[..., n_l], near=base["root"])
+        for key in keys:
+            with np.errstate(invalid="ignore"):
+                grad[key][..., k] = (res[key] - base[key]) / step[..., k]
+    out = []
+    for key in keys:
+        g = grad[key]
+        with np.errstate(invalid="ignore"):
+            out.append(np.sqrt(np.einsum("...i,...ij,...j->...", g, cov, g)))
+    return tuple(out)
 
 
 def estimate_epsilon(
@@ -1179,146 +1491,48 @@ def estimate_epsilon(
     c_model = spectra.integral_scale_coefficient("exponential" if model == "inertial" else model)
     noise_pred = predicted_noise(sf, probe)
 
-    def solve(a1_: np.ndarray, a2_: np.ndarray, dd: np.ndarray, vl: np.ndarray) -> tuple:
-        e2 = eq5_epsilon(dd[..., lag_used - 1], dd[..., 0], a2_[..., lag_used - 1], a2_[..., 0])
-        e1 = eq5_epsilon(dd[..., lag_used - 1], dd[..., 0], a1_[..., lag_used - 1], a1_[..., 0])
-        efit, noise, fitted = fit_structure_function(dd, a2_, vl, noise_pred)
-        return e1, e2, efit, noise, fitted
-
-    def variance(eps: np.ndarray, noise: np.ndarray, raw: np.ndarray, lost: np.ndarray):
-        return raw - np.nan_to_num(noise, nan=0.0) ** 2 + eps ** (2 / 3) * lost
-
-    e1, e2, efit, noise, fitted = solve(a1, a2, d, valid_lag)
-    sigma2 = variance(e2, noise, var_raw, loss)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / e2, np.nan)
-    too_small = np.zeros((n_t, n_h), dtype=bool)
-    finite_used = np.zeros((n_t, n_h), dtype=bool)
-    # cw probes scanning fast (mu small): the exact model of B_D (see the module doc)
     exact = np.zeros((n_t, n_h), dtype=bool)
     if model != "inertial" and is_cw_probe(probe) and n_l >= 2:
         with np.errstate(invalid="ignore"):
             exact = (mu <= CW_EXACT_MU_MAX) & np.isfinite(phi + dtheta)[:, None]
-    passed_fraction = np.full((n_t, n_h), np.nan)
+    finite = None
     if model != "inertial" and groups:
-        probe_len = np.broadcast_to(np.asarray(probe.length_scale_m(range_th), float), (n_t, n_h))
-        longest = np.maximum(n_l * dy * (1 + mu_eval), probe_len)
-        need = np.isfinite(l_v) & (longest > INERTIAL_FRACTION * l_v) & ~exact
-        lo, hi = options.get("outer_scale_range_m", (10.0, 3000.0))
-        nodes = np.geomspace(lo, hi, n_outer_scales)
-        # probe-passed variance per eps^(2/3) of the model, per distinct (dy, range) cell
-        # on a log grid of L_V (ratio <= 1.1); the variance condition uses it
-        scale_grid = np.geomspace(lo, hi, int(np.ceil(np.log(hi / lo) / np.log(1.1))) + 1)
-        cells_u = np.unique(inverse.ravel()[need.ravel()])
-        passed_u = np.full((uniq.shape[0], scale_grid.size), np.nan)
-        if cells_u.size:
-            passed_u[cells_u] = passed_variance(
-                probe, np.abs(uniq[cells_u, 0]), np.abs(uniq[cells_u, 1]), model, scale_grid
-            )
-        passed_cell = passed_u[inverse.ravel()].reshape(n_t, n_h, scale_grid.size)
-        full_var = np.array([spectra.variance_per_eps23(model, x) for x in scale_grid])
-        # the block-mean wind removes a share of the variance of V'_L (cw: ExactLagModel)
-        n_eff = np.where(np.isfinite(scans) & (scans >= 1), scans, 1.0)
-        ratio_rl = radius[:, :, None] / scale_grid[None, None, :]
-        removed = full_var * mean_removed_share(ratio_rl, float(np.nanmedian(phi)), model)
-        passed_cell = passed_cell - removed / n_eff[:, None, None]
-        for rows, (_, table) in groups.values():  # one table per configuration
-            sel = need & rows[:, None]
-            if not np.any(sel):
-                continue
-            ti, hi_ = np.nonzero(sel)
-            cell_h = height[hi_][:, None]
-            cell_mu = mu_eval[ti, hi_][:, None]
-            dc, vc, var_c = d[ti, hi_], valid_lag[ti, hi_], var_raw[ti, hi_]
-            passed = passed_cell[ti, hi_]
-            cell_sector = sector[ti, hi_]
-            cell_prior = noise_pred[ti, hi_][:, None]
-
-            def residual(
-                big_l: np.ndarray,
-                ti=ti,
-                cell_h=cell_h,
-                cell_mu=cell_mu,
-                dc=dc,
-                vc=vc,
-                var_c=var_c,
-                passed=passed,
-                table=table,
-                cell_sector=cell_sector,
-                cell_prior=cell_prior,
-            ) -> np.ndarray:
-                """log model variance - log measured variance at outer scales (cells, k).
-
-                The variance of V'_L the model predicts, eps^(2/3) times the probe-passed
-                part of sigma_V^2 = (eps L_V / c)^(2/3) (Banakh et al. (1999), eq. 19;
-                :func:`passed_variance`), must equal the measured one minus sigma_e^2;
-                eps(L_V) and sigma_e(L_V) from the least squares of Smalikho (2020),
-                eq. 4 with the model's A_2 over all valid lags.
-                """
-                k = big_l.shape[1]
-                _, f2 = _evaluate(
-                    table,
-                    lags[None, None, :],
-                    cell_h[:, :, None],
-                    cell_mu[:, :, None],
-                    big_l[:, :, None],
-                )
-                f2 = f2 * cell_sector[:, None, :]
-                eps_l, noise_l, _ = fit_structure_function(
-                    dc[:, None, :], f2, vc[:, None, :], cell_prior
-                )
-                through = _interp_log_scale(
-                    scale_grid, passed, np.broadcast_to(big_l, (ti.size, k))
-                )
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    model_var = np.log(eps_l ** (2 / 3) * through)
-                    measured = np.log(var_c[:, None] - np.nan_to_num(noise_l, nan=0.0) ** 2)
-                return np.broadcast_to(model_var - measured, (ti.size, k))
-
-            # coarse scan of L_V, then bisection of the largest sign change in log L_V
-            resid = residual(np.broadcast_to(nodes, (ti.size, nodes.size)))
-            sign_change = (resid[:, :-1] < 0) & (resid[:, 1:] >= 0)
-            has_root = sign_change.any(axis=1)
-            last = nodes.size - 2 - np.argmax(sign_change[:, ::-1], axis=1)
-            log_lo, log_hi = np.log(nodes[last]), np.log(nodes[last + 1])
-            r_lo = resid[np.arange(last.size), last]
-            r_hi = resid[np.arange(last.size), last + 1]
-            for _ in range(_BISECTIONS):  # fixed count: each step halves every bracket
-                mid = 0.5 * (log_lo + log_hi)
-                r_mid = residual(np.exp(mid)[:, None])[:, 0]
-                upper = r_mid >= 0
-                log_hi = np.where(upper, mid, log_hi)
-                r_hi = np.where(upper, r_mid, r_hi)
-                log_lo = np.where(upper, log_lo, mid)
-                r_lo = np.where(upper, r_lo, r_mid)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                frac = np.clip(np.nan_to_num(r_lo / (r_lo - r_hi), nan=0.5), 0.0, 1.0)
-            root = np.exp(log_lo + frac * (log_hi - log_lo))
-            below = ~has_root & np.all(resid > 0, axis=1)  # L_V < lo: lags not inertial
-            use = has_root
-            if np.any(use):
-                g1, g2 = _evaluate(
-                    table,
-                    lags[None, :],
-                    height[hi_[use]][:, None],
-                    mu_eval[ti[use], hi_[use]][:, None],
-                    root[use][:, None],
-                )
-                a1[ti[use], hi_[use]] = g1
-                a2[ti[use], hi_[use]] = g2 * sector[ti[use], hi_[use]]
-                finite_used[ti[use], hi_[use]] = True
-                through = _interp_log_scale(scale_grid, passed[use], root[use][:, None])[:, 0]
-                total = np.interp(np.log(root[use]), np.log(scale_grid), full_var)
-                passed_fraction[ti[use], hi_[use]] = through / total
-            too_small[ti[below], hi_[below]] = True
-        e1, e2, efit, noise, fitted = solve(a1, a2, d, valid_lag)
-        sigma2 = np.where(
-            finite_used,
-            (var_raw - np.nan_to_num(noise, nan=0.0) ** 2) / passed_fraction,
-            variance(e2, noise, var_raw, loss),
+        finite = _finite_scale_inputs(
+            probe,
+            model,
+            options,
+            uniq,
+            inverse,
+            scans,
+            radius,
+            phi,
+            range_th,
+            mu_eval,
+            n_outer_scales,
         )
-        with np.errstate(invalid="ignore", divide="ignore"):
-            l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / e2, np.nan)
+        probe_len = np.broadcast_to(np.asarray(probe.length_scale_m(range_th), float), (n_t, n_h))
+        finite["longest"] = np.maximum(n_l * dy * (1 + mu_eval), probe_len)
+    fixed = {
+        "a1": a1,
+        "a2": a2,
+        "sector": sector,
+        "valid": valid_lag,
+        "noise_pred": noise_pred,
+        "loss": loss,
+        "c_model": c_model,
+        "groups": groups,
+        "lags": lags,
+        "height": height,
+        "mu": mu_eval,
+        "exact": exact,
+        "finite": finite,
+    }
+    res = _retrieve(fixed, d, var_raw)
+    a1, a2 = res["a1"], res["a2"]
+    e1, efit, noise, fitted = res["e1"], res["efit"], res["noise"], res["fitted"]
+    sigma2, l_v, too_small = res["sigma2"], res["l_v"], res["too_small"]
+    finite_used = res["finite_used"]
+    e2 = efit
 
     sf_model_exact = np.full(d.shape, np.nan)
     if np.any(exact):
@@ -1349,7 +1563,7 @@ def estimate_epsilon(
                 np.clip(fit["integral_scale"][ti, hi_], lo, hi)[:, None],
             )
             a1[ti, hi_], a2[ti, hi_] = g1, g2 * sector[ti, hi_]
-        e1, _, _, _, _ = solve(a1, a2, d, valid_lag)
+        e1, _, _ = fit_structure_function(d, a1, valid_lag, noise_pred)
         e2 = np.where(exact, fit["epsilon"], e2)
         efit = np.where(exact, fit["epsilon"], efit)
         noise = np.where(exact, fit["noise_std"], noise)
@@ -1364,11 +1578,13 @@ def estimate_epsilon(
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = ((a2[..., lag_used - 1] - a2[..., 0]) / (a1[..., lag_used - 1] - a1[..., 0])) ** 1.5
 
-    # inertial form: the largest separation l dy (1 + mu) must stay below L_V; the
-    # finite-outer-scale A-functions model larger separations, so there l dy > L_V
-    # (Smalikho (2020), after eq. 4) is the limit
-    spread = (1 + mu_eval) if model == "inertial" else 1.0
-    beyond = too_small | (np.isfinite(l_v) & (lag_used * dy * spread > l_v))
+    # inertial form: the largest separation L dy (1 + mu) must stay below L_V (Smalikho
+    # (2020), after eq. 4). The finite-outer-scale A-functions hold at any separation: a
+    # limit on the fitted L_V there only dropped the blocks whose sampling error made
+    # L_V small (eps high), and biased the mean eps of 24-ray VADs 8-16 % low
+    beyond = too_small
+    if model == "inertial":
+        beyond = beyond | (np.isfinite(l_v) & (n_l * dy * (1 + mu_eval) > l_v))
     flag |= np.where(beyond, FLAG_BEYOND_INERTIAL, 0).astype(np.int16)
     failed = ~np.isfinite(e2) | ~np.isfinite(mu) | (n_l < 2)
     flag |= np.where(failed, FLAG_FIT_FAILED, 0).astype(np.int16)
@@ -1392,6 +1608,18 @@ def estimate_epsilon(
         var_raw - np.nan_to_num(noise, nan=0.0) ** 2,
         arrays["integral_scale"],
     )
+    if "statistics_covariance" in sf:
+        cov = sf["statistics_covariance"].transpose("time", "height", ...).values.astype(float)
+        delta = delta_method_errors(fixed, d, var_raw, cov, res)
+        eps_se, sigma2_se, scale_se = (
+            np.where(exact | ~np.isfinite(v), old, new)
+            for old, new, v in zip(
+                (eps_se, sigma2_se, scale_se),
+                delta,
+                (arrays["epsilon"], arrays["velocity_variance"], arrays["integral_scale"]),
+                strict=True,
+            )
+        )
 
     dims = ("time", "height")
     out = xr.Dataset(
@@ -1428,7 +1656,8 @@ def estimate_epsilon(
     out["integral_scale"].attrs["exact_cw_model_cells"] = int(exact.sum())
     out["epsilon"].attrs.update(
         common,
-        method="Smalikho (2020), eq. 5 with A_2 of eq. 15 (method 2); finite-outer-scale "
+        method="least squares of Smalikho (2020), eq. 4 over all valid lags with A_2 of "
+        "eq. 15 (method 2; eq. 5 is its two-lag case); finite-outer-scale "
         f"A-functions where a length exceeds {INERTIAL_FRACTION:g} L_V; cw cells with "
         f"mu <= {CW_EXACT_MU_MAX:g}: least squares of D_L with the exact B_D of Banakh et "
         "al. (1999), eqs. 15-17, eps = c sigma_V^3 / L_V (eq. 19)",
@@ -1436,7 +1665,8 @@ def estimate_epsilon(
     )
     out["epsilon_method1"].attrs.update(
         common,
-        method="Smalikho (2020), eq. 5 with A_1 = A_perp (method 1); written wherever "
+        method="least squares of Smalikho (2020), eq. 4 with A_1 = A_perp (method 1); "
+        "written wherever "
         f"computable, flag 4 where eps1/eps2 > {METHOD1_RATIO_LIMIT}",
     )
     out["epsilon_fit"].attrs.update(
@@ -1449,7 +1679,8 @@ def estimate_epsilon(
     )
     out["noise_std"].attrs.update(
         method="intercept 2 sigma_e^2 of the least-squares fit, Smalikho (2020), eq. 4, "
-        "where it exceeds twice its standard error; elsewhere (flag 32) the prediction "
+        "where it exceeds twice its standard error or is precise and within a factor "
+        f"{NOISE_PLAUSIBLE:g} of the prediction; elsewhere (flag 32) the prediction "
         "noise_std_predicted, used in the fit; NaN when neither exists"
     )
     out["velocity_variance"].attrs.update(

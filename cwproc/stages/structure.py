@@ -241,6 +241,27 @@ def _scan_spread(per_scan: np.ndarray, starts: np.ndarray) -> np.ndarray:
         return np.where(n > 1, np.sqrt(np.maximum(var, 0.0) / n), np.nan)
 
 
+def _scan_covariance(per_scan: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Covariance of the block means of a statistics vector from its per-scan scatter.
+
+    ``per_scan`` is ``(scan, height, k)``; the scans of a block where all ``k`` values
+    are finite are the samples, ``cov(ddof=1) / n``; NaN with fewer than two.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(block, height, k, k)``.
+    """
+    ok = np.all(np.isfinite(per_scan), axis=-1)
+    x = np.where(ok[..., None], per_scan, 0.0)
+    n = _block_sum(ok.astype(float), starts)[..., None, None]
+    s1 = _block_sum(x, starts)
+    s2 = _block_sum(x[..., :, None] * x[..., None, :], starts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cov = (s2 - s1[..., :, None] * s1[..., None, :] / n) / (n - 1) / n
+    return np.where(n > 1, cov, np.nan)
+
+
 def block_statistics(vprime: np.ndarray, n_scans: int, n_lags: int) -> tuple[np.ndarray, ...]:
     """D_L, pair counts and variance of V'_L per block of ``n_scans`` consecutive scans.
 
@@ -262,10 +283,13 @@ def block_statistics(vprime: np.ndarray, n_scans: int, n_lags: int) -> tuple[np.
 
     Returns
     -------
-    (sf, pairs, variance, sf_se, diff_se, variance_se) : tuple of numpy.ndarray
+    (sf, pairs, variance, sf_se, diff_se, variance_se, covariance) : tuple of numpy.ndarray
         ``(block, height, lag)`` D_L (m2 s-2), pair counts, standard errors of D_L and of
         ``D_L(l) - D_L(1)`` (m2 s-2); ``(block, height)`` variance of V'_L (m2 s-2, ddof
-        1) and its standard error.
+        1) and its standard error; ``(block, height, lag + 1, lag + 1)`` covariance of
+        the block means of ``(D_L(1), ..., D_L(L), variance)`` (m4 s-4) from their
+        per-scan scatter (the errors of estimates that combine them, e.g. eps and L_V
+        fitted together, follow by the delta method).
     """
     starts = np.arange(0, vprime.shape[0], n_scans)
     n_h = vprime.shape[2]
@@ -274,6 +298,7 @@ def block_statistics(vprime: np.ndarray, n_scans: int, n_lags: int) -> tuple[np.
     sf_se = np.empty_like(sf)
     diff_se = np.empty_like(sf)
     first = None
+    per_stats = np.empty((vprime.shape[0], n_h, n_lags + 1))
     for lag in range(1, n_lags + 1):  # each lag vectorised
         d2 = (vprime[:, lag:, :] - vprime[:, :-lag, :]) ** 2
         ok = np.isfinite(d2)
@@ -285,6 +310,7 @@ def block_statistics(vprime: np.ndarray, n_scans: int, n_lags: int) -> tuple[np.
             sf[:, :, lag - 1] = np.where(count > 0, total / count, np.nan)
             per_scan = np.where(per_count > 0, per_total / per_count, np.nan)
         pairs[:, :, lag - 1] = count
+        per_stats[:, :, lag - 1] = per_scan
         first = per_scan if first is None else first
         sf_se[:, :, lag - 1] = _scan_spread(per_scan, starts)
         diff_se[:, :, lag - 1] = _scan_spread(per_scan - first, starts)
@@ -296,7 +322,9 @@ def block_statistics(vprime: np.ndarray, n_scans: int, n_lags: int) -> tuple[np.
         variance = np.where(n_val > 1, (s2 - s1**2 / n_val) / (n_val - 1), np.nan)
         per_n = ok.sum(axis=1).astype(float)
         per_var = np.where(per_n > 1, (np.nansum(vprime**2, axis=1)) / per_n, np.nan)
-    return sf, pairs, variance, sf_se, diff_se, _scan_spread(per_var, starts)
+    per_stats[:, :, n_lags] = per_var
+    covariance = _scan_covariance(per_stats, starts)
+    return sf, pairs, variance, sf_se, diff_se, _scan_spread(per_var, starts), covariance
 
 
 def lag_count(dtheta_deg: float, max_lag_deg: float, min_lags: int = MIN_LAGS) -> int:
@@ -434,6 +462,7 @@ def azimuth_structure_function(
     sf_se = np.empty((n_blocks, n_h, n_lags))
     diff_se = np.empty((n_blocks, n_h, n_lags))
     variance_se = np.empty((n_blocks, n_h))
+    covariance = np.empty((n_blocks, n_h, n_lags + 1, n_lags + 1))
     weights = np.full((n_blocks, n_h, N_BINS), np.nan)
     snr_median = np.full((n_blocks, n_h), np.nan)
     has_snr = "snr" in screened_ds
@@ -464,7 +493,7 @@ def azimuth_structure_function(
         vprime[scan_pos[cells] - t0_, m[cells]] = vr - model
         stats = block_statistics(vprime, n_scans, n_lags)
         sf[b0:b1], pairs[b0:b1], variance[b0:b1] = stats[:3]
-        sf_se[b0:b1], diff_se[b0:b1], variance_se[b0:b1] = stats[3:]
+        sf_se[b0:b1], diff_se[b0:b1], variance_se[b0:b1], covariance[b0:b1] = stats[3:]
         weights[b0:b1] = pair_azimuth_weights(
             vprime, n_scans, first_az[np.arange(b0, b1) * n_scans], dtheta, sign, wind_to[b0:b1]
         )
@@ -503,6 +532,7 @@ def azimuth_structure_function(
             "structure_function_se": (("time", "height", "lag"), sf_se),
             "structure_function_difference_se": (("time", "height", "lag"), diff_se),
             "radial_velocity_variance_se": (("time", "height"), variance_se),
+            "statistics_covariance": (("time", "height", "statistic", "statistic_b"), covariance),
             "wind_speed": (("time", "height"), np.hypot(u_b, v_b)),
             "wind_to_direction": (("time", "height"), np.mod(wind_to, 360.0)),
             "pair_azimuth_weights": (("time", "height", "azimuth_node"), weights),

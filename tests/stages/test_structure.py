@@ -251,3 +251,29 @@ def test_pair_azimuth_weights_full_circle_and_sector():
     expected = azimuth_bin_weights(np.radians(-(wind_to - mids)))
     np.testing.assert_allclose(ws, expected, atol=1e-9)
     assert np.count_nonzero(ws > 0) <= 11
+
+
+def test_statistics_covariance_is_the_scatter_of_the_scan_means():
+    """Per block: the sample covariance over its scans of (D_L(1..L), variance) / n.
+
+    Scans with any missing statistic are left out; a block with one scan gets NaN.
+    """
+    from cwproc.stages.structure import block_statistics
+
+    rng = np.random.default_rng(4)
+    vprime = rng.normal(0.0, 1.0, (13, 36, 2))  # blocks of 6, 6 and 1 scans
+    vprime[2, :, 1] = np.nan  # scan 2 has nothing at the second height
+    *_, cov = block_statistics(vprime, 6, 3)
+    assert cov.shape == (3, 2, 4, 4)
+    for b, h in ((0, 0), (0, 1), (1, 0)):
+        per_scan = []
+        for s in range(6 * b, 6 * b + 6):
+            v = vprime[s, :, h]
+            if np.all(np.isnan(v)):
+                continue
+            stats = [np.mean((v[lag:] - v[:-lag]) ** 2) for lag in (1, 2, 3)]
+            per_scan.append([*stats, np.mean(v**2)])
+        per_scan = np.array(per_scan)
+        expected = np.cov(per_scan, rowvar=False) / len(per_scan)
+        np.testing.assert_allclose(cov[b, h], expected, rtol=1e-10)
+    assert np.all(np.isnan(cov[2]))
