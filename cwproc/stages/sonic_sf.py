@@ -34,7 +34,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-import scipy.fft
 import xarray as xr
 
 from cwproc.errors import CwprocError
@@ -165,6 +164,24 @@ def remove_running_mean(x: np.ndarray, width: int) -> np.ndarray:
     return np.where(finite, x - mean, np.nan)
 
 
+def next_fast_len(n: int) -> int:
+    """The smallest 5-smooth number (2^a 3^b 5^c) >= n: a fast real FFT length.
+
+    The same length as ``scipy.fft.next_fast_len(n, real=True)``; numpy's FFT (the
+    same pocketfft) is used so that sf-type does not pay scipy's import.
+    """
+    best = 1 << max(int(n - 1).bit_length(), 0)
+    p5 = 1
+    while p5 < best:
+        p35 = p5
+        while p35 < best:
+            p235 = p35 << max(int(-(-n // p35) - 1).bit_length(), 0)  # smallest 2^a p35 >= n
+            best = min(best, p235)
+            p35 *= 3
+        p5 *= 5
+    return best
+
+
 def structure_function_fft(x: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
     """Structure function D(j) for lags j = 1..max_lag by FFT, missing samples pairwise.
 
@@ -190,12 +207,12 @@ def structure_function_fft(x: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.
     m = np.isfinite(x).astype(float)
     a = np.where(m > 0, x, 0.0)
     s = a * a
-    nfft = scipy.fft.next_fast_len(n + max_lag + 1, real=True)
-    fm, fa, fs = (scipy.fft.rfft(v, nfft, axis=-1) for v in (m, a, s))
+    nfft = next_fast_len(n + max_lag + 1)
+    fm, fa, fs = (np.fft.rfft(v, nfft, axis=-1) for v in (m, a, s))
 
     def corr(p: np.ndarray, q: np.ndarray) -> np.ndarray:
         # sum_i p_i q_{i+j} for j = 1..max_lag
-        return scipy.fft.irfft(np.conj(p) * q, nfft, axis=-1)[..., 1 : max_lag + 1]
+        return np.fft.irfft(np.conj(p) * q, nfft, axis=-1)[..., 1 : max_lag + 1]
 
     pairs = np.rint(corr(fm, fm))
     squares = corr(fm, fs) + corr(fs, fm)
@@ -253,11 +270,6 @@ def running_sums(x: np.ndarray, y: np.ndarray, deg: int) -> dict[str, np.ndarray
     return out
 
 
-def _window_sum(c: np.ndarray, start: np.ndarray) -> np.ndarray:
-    """Sums over lags start..n for every end n: shape (S, K)."""
-    return c[:, 1:] - np.take_along_axis(c, start[:, None], axis=1)
-
-
 def grow_polynomial_fit(
     sums: dict[str, np.ndarray],
     start: np.ndarray,
@@ -293,13 +305,70 @@ def grow_polynomial_fit(
     n_series, k1 = sums["n"].shape
     n_lags = k1 - 1
     start = np.asarray(start, dtype=np.int64)
-    cnt = _window_sum(sums["n"], start)
-    sx = [cnt] + [_window_sum(sums[f"x{p}"], start) for p in range(1, 2 * deg + 1)]
-    sxy = [_window_sum(sums["y"], start)] + [
-        _window_sum(sums[f"x{p}y"], start) for p in range(1, deg + 1)
-    ]
-    syy = _window_sum(sums["yy"], start)
-    ends = np.arange(n_lags)[None, :]
+    end = np.full(n_series, -1, dtype=np.int64)
+    coef = np.full((n_series, deg + 1), np.nan)
+    kd_end = np.full(n_series, np.nan)
+    first_test = np.full(n_series, n_lags, dtype=np.int64)
+    # ends in blocks of growing width: a series leaves once its fit has failed, so the
+    # lags beyond the first failure (most of them) are never computed
+    rows = np.arange(n_series)
+    lo = min(int(start.min(initial=n_lags)) + min_points - 1, n_lags)
+    width = _FIRST_BLOCK
+    while rows.size and lo < n_lags:
+        hi = min(lo + width, n_lags)
+        block = _fit_block(sums, start[rows], rows, lo, hi, deg, min_points)
+        testable, kd, beta = block
+        passed = testable & (kd >= kd_threshold)
+        failed = testable & ~passed
+        has_test = testable.any(axis=1)
+        new_test = has_test & (first_test[rows] == n_lags)
+        first_test[rows[new_test]] = lo + np.argmax(testable[new_test], axis=1)
+        fails = failed.any(axis=1)
+        stop = np.where(fails, np.argmax(failed, axis=1), hi - lo)  # first failure in block
+        last = stop - 1  # last end before it, in block columns (-1: the previous block)
+        take = last >= 0
+        pos = np.flatnonzero(take & (lo + last >= first_test[rows]))
+        sel = rows[pos]
+        end[sel] = lo + last[pos]
+        coef[sel] = beta[pos, last[pos]]
+        kd_end[sel] = kd[pos, last[pos]]
+        rows = rows[~fails]
+        lo, width = hi, 2 * width
+    ok = end >= 0
+    coef[~ok] = np.nan
+    kd_end[~ok] = np.nan
+    return GrownFit(end=end, coef=coef, kd=kd_end)
+
+
+#: width (lags) of the first block of ends of :func:`grow_polynomial_fit` (then doubled)
+_FIRST_BLOCK = 48
+
+
+def _fit_block(
+    sums: dict[str, np.ndarray],
+    start: np.ndarray,
+    rows: np.ndarray,
+    lo: int,
+    hi: int,
+    deg: int,
+    min_points: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Fits of ``rows`` over lags start..n for the ends n = lo..hi-1 (eqs. 4-6).
+
+    Returns whether each end is testable (at least ``min_points`` lags and deg + 2 usable
+    ones), k_d = 1 - SS_res/SS_tot and the coefficients, shapes (R, hi - lo) and
+    (R, hi - lo, deg + 1).
+    """
+
+    def wsum(key: str) -> np.ndarray:
+        c = sums[key]
+        return c[rows, lo + 1 : hi + 1] - c[rows, start][:, None]
+
+    cnt = wsum("n")
+    sx = [cnt] + [wsum(f"x{p}") for p in range(1, 2 * deg + 1)]
+    sxy = [wsum("y")] + [wsum(f"x{p}y") for p in range(1, deg + 1)]
+    syy = wsum("yy")
+    ends = np.arange(lo, hi)[None, :]
     testable = (ends >= start[:, None] + min_points - 1) & (cnt >= deg + 2)
     with np.errstate(invalid="ignore", divide="ignore"):
         beta = solve_normal_equations(sx, sxy, testable)
@@ -307,18 +376,7 @@ def grow_polynomial_fit(
     with np.errstate(invalid="ignore", divide="ignore"):
         ss_tot = syy - sxy[0] ** 2 / cnt
         kd = 1.0 - ss_res / ss_tot
-    passed = testable & (kd >= kd_threshold)
-    failed = testable & ~passed
-    first_fail = np.where(failed.any(axis=1), np.argmax(failed, axis=1), n_lags)
-    first_test = np.where(testable.any(axis=1), np.argmax(testable, axis=1), n_lags)
-    end = first_fail - 1
-    ok = (end >= first_test) & (first_test < n_lags)
-    end = np.where(ok, end, -1)
-    rows = np.arange(n_series)
-    safe_end = np.clip(end, 0, n_lags - 1)
-    coef = np.where(ok[:, None], beta[rows, safe_end], np.nan)
-    kd_end = np.where(ok, kd[rows, safe_end], np.nan)
-    return GrownFit(end=end, coef=coef, kd=kd_end)
+    return testable, kd, beta
 
 
 def solve_normal_equations(

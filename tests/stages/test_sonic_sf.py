@@ -282,3 +282,26 @@ def test_constant_or_missing_components_are_not_typed(sims):
     sf = S.structure_function_types(ds)
     assert np.all(sf["window_flag"].values == S.FLAG_FEW_SAMPLES)
     assert np.all(sf["sf_type"].values == 0)
+
+
+@pytest.mark.parametrize("deg", [1, 2])
+def test_grown_fit_in_blocks_equals_one_block(monkeypatch, deg):
+    """Growing the fits block by block (series leave after their first failure) gives
+    exactly the ends, coefficients and k_d of evaluating every end at once."""
+    rng = np.random.default_rng(7)
+    n_series, n_lags = 60, 400
+    x = np.log10(np.arange(1, n_lags + 1) * 0.05)[None, :].repeat(n_series, axis=0)
+    curve = rng.uniform(-1.0, 1.0, (n_series, 1)) * x**2 + rng.uniform(0.5, 1.0, (n_series, 1)) * x
+    y = curve + rng.normal(0, rng.uniform(1e-4, 1e-3, (n_series, 1)), x.shape)
+    y[rng.random(y.shape) < 0.02] = np.nan
+    sums = S.running_sums(x, y, 2)
+    start = rng.integers(0, 100, n_series)
+    args = {"kd_threshold": 0.999, "min_points": 5}
+    blocked = S.grow_polynomial_fit(sums, start, deg, **args)
+    monkeypatch.setattr(S, "_FIRST_BLOCK", 10 * n_lags)
+    whole = S.grow_polynomial_fit(sums, start, deg, **args)
+    assert (blocked.end >= 0).sum() > n_series // 4  # many fits grow, some stop early
+    assert len(set(blocked.end[blocked.end >= 0])) > 5
+    np.testing.assert_array_equal(blocked.end, whole.end)
+    np.testing.assert_array_equal(blocked.coef, whole.coef)
+    np.testing.assert_array_equal(blocked.kd, whole.kd)
