@@ -277,6 +277,7 @@ def grow_polynomial_fit(
     *,
     kd_threshold: float,
     min_points: int,
+    series: np.ndarray | None = None,
 ) -> GrownFit:
     """Grow a least-squares polynomial fit of y(x) from lag ``start`` while k_d >= k_dL.
 
@@ -297,12 +298,16 @@ def grow_polynomial_fit(
         k_dL (dimensionless).
     min_points : int
         Fewest lags of a fit (the first tested end is start + min_points - 1).
+    series : ndarray of int, shape (S,), optional
+        Rows of ``sums`` to fit (default: all, in order).
 
     Returns
     -------
     GrownFit
     """
-    n_series, k1 = sums["n"].shape
+    k1 = sums["n"].shape[1]
+    series = np.arange(sums["n"].shape[0]) if series is None else np.asarray(series)
+    n_series = series.size
     n_lags = k1 - 1
     start = np.asarray(start, dtype=np.int64)
     end = np.full(n_series, -1, dtype=np.int64)
@@ -316,7 +321,7 @@ def grow_polynomial_fit(
     width = _FIRST_BLOCK
     while rows.size and lo < n_lags:
         hi = min(lo + width, n_lags)
-        block = _fit_block(sums, start[rows], rows, lo, hi, deg, min_points)
+        block = _fit_block(sums, start[rows], series[rows], lo, hi, deg, min_points)
         testable, kd, beta = block
         passed = testable & (kd >= kd_threshold)
         failed = testable & ~passed
@@ -548,8 +553,9 @@ def decide_types(
                 break
             continue
         start = para.end[rows] + off
-        sub = {k: v[rows] for k, v in sums.items()}
-        fit = grow_polynomial_fit(sub, start, 1, kd_threshold=kd_threshold, min_points=min_points)
+        fit = grow_polynomial_fit(
+            sums, start, 1, kd_threshold=kd_threshold, min_points=min_points, series=rows
+        )
         r_sub = r[rows]
         r_l = r_sub[np.arange(rows.size), start]
         r_e = _lag_at(r_sub, fit.end)
