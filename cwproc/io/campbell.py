@@ -394,32 +394,52 @@ def toa5_stamps(windows: np.ndarray) -> np.ndarray | None:
         fractional digits, closing quote and comma) or names an impossible date or
         time, so that the caller's general parser decides and names the line.
     """
-    w = windows
-    head = w[:, : _STAMP_LOW.size]
-    if not np.all((head - _STAMP_LOW) <= _STAMP_SPAN):
+    w = np.ascontiguousarray(windows)
+    n = w.shape[0]
+    # "yyyy-mm-dd HH:MM" (bytes 0-16) changes once a minute: decoded once per run
+    words = w.view(np.uint64)
+    new = np.ones(n, dtype=bool)
+    new[1:] = (words[1:, 0] != words[:-1, 0]) | (words[1:, 1] != words[:-1, 1])
+    new[1:] |= w[1:, 16] != w[:-1, 16]
+    first = np.flatnonzero(new)
+    minutes = _minute_ns(w[first])
+    if minutes is None:
         return None
-    year, month, day = _number(w, 1, 4), _number(w, 6, 2), _number(w, 9, 2)
-    hour, minute, second = _number(w, 12, 2), _number(w, 15, 2), _number(w, 18, 2)
-    leap = (year % 4 == 0) & ((year % 100 != 0) | (year % 400 == 0))
-    if np.any((month < 1) | (month > 12) | (hour > 23) | (minute > 59) | (second > 59)):
-        return None
-    if np.any((day < 1) | (day > _MONTH_DAYS[month] + (leap & (month == 2)))):
+    tens, units = w[:, 18] - np.uint8(48), w[:, 19] - np.uint8(48)
+    if np.any(w[:, 17] != ord(":")) or np.any((tens > 5) | (units > 9)):
         return None
     frac = w[:, 21:30] - np.uint8(48)
-    digit = np.concatenate([frac <= 9, np.zeros((w.shape[0], 1), bool)], axis=1)
+    digit = np.concatenate([frac <= 9, np.zeros((n, 1), bool)], axis=1)
     n_frac = digit.argmin(axis=1)
     dotted = w[:, 20] == ord(".")
     if np.any(~dotted & (w[:, 20] != ord('"'))) or np.any(dotted & (n_frac == 0)):
         return None
     close = np.where(dotted, 21 + n_frac, 20)
-    rows = np.arange(w.shape[0])
+    rows = np.arange(n)
     if np.any(w[rows, close] != ord('"')) or np.any(w[rows, close + 1] != ord(",")):
         return None
     kept = np.where(np.arange(9) < np.where(dotted, n_frac, 0)[:, None], frac, np.uint8(0))
     nanos = _number(kept + np.uint8(48), 0, 9)
+    nanos += (tens.astype(np.int64) * 10 + units) * 1_000_000_000
+    nanos += np.repeat(minutes, np.diff(np.append(first, n)))
+    return nanos.astype("datetime64[ns]")
+
+
+def _minute_ns(w: np.ndarray) -> np.ndarray | None:
+    """Nanoseconds since 1970 of ``"yyyy-mm-dd HH:MM`` (bytes 0-16 of ``w``), or None
+    when a byte is out of place or the date or time does not exist."""
+    head = w[:, :17]
+    if not np.all((head - _STAMP_LOW[:17]) <= _STAMP_SPAN[:17]):
+        return None
+    year, month, day = _number(w, 1, 4), _number(w, 6, 2), _number(w, 9, 2)
+    hour, minute = _number(w, 12, 2), _number(w, 15, 2)
+    leap = (year % 4 == 0) & ((year % 100 != 0) | (year % 400 == 0))
+    if np.any((month < 1) | (month > 12) | (hour > 23) | (minute > 59)):
+        return None
+    if np.any((day < 1) | (day > _MONTH_DAYS[month] + (leap & (month == 2)))):
+        return None
     days = days_from_civil(year, month, day)
-    total = ((days * 24 + hour) * 60 + minute) * 60 + second
-    return (total * 1_000_000_000 + nanos).astype("datetime64[ns]")
+    return ((days * 24 + hour) * 60 + minute) * 60_000_000_000
 
 
 def decode_fp2(raw: np.ndarray) -> np.ndarray:
