@@ -190,12 +190,11 @@ def spike_mask(x: np.ndarray, width: int, threshold: float, scale_width: int) ->
         return np.zeros(x.shape, dtype=bool)
     mean = series.rolling(max(scale_width, 3), center=True, min_periods=1).mean().to_numpy()
     limit = threshold * _robust_scale(np.abs(x - mean)[finite])
-    # |x - median| <= max - min of the window: the median is needed only where the
-    # window's range exceeds the limit (a few samples of a day)
-    rolling = series.rolling(width, center=True, min_periods=1)
-    span = rolling.max().to_numpy() - rolling.min().to_numpy()
+    # |x - median| <= max - min of the window <= that of the three blocks of ``width``
+    # samples around it: the median is needed only where this exceeds the limit (a few
+    # samples of a day)
     with np.errstate(invalid="ignore"):
-        candidates = np.flatnonzero(finite & (span >= limit))
+        candidates = np.flatnonzero(finite & (_block_span(x, width) >= limit))
     out = np.zeros(x.shape, dtype=bool)
     if candidates.size:
         padded = np.concatenate([np.full(width // 2, np.nan), x, np.full(width // 2, np.nan)])
@@ -203,6 +202,19 @@ def spike_mask(x: np.ndarray, width: int, threshold: float, scale_width: int) ->
         med = np.nanmedian(windows, axis=1)
         out[candidates] = np.abs(x[candidates] - med) > limit
     return out
+
+
+def _block_span(x: np.ndarray, width: int) -> np.ndarray:
+    """Per sample, max - min (NaN left out) over its block of ``width`` samples and the
+    two neighbouring blocks: at least the range of any centred window of ``width``."""
+    n_blocks = -(-x.size // width)
+    blocks = np.full(n_blocks * width, np.nan)
+    blocks[: x.size] = x
+    blocks = blocks.reshape(n_blocks, width)
+    hi, lo = np.fmax.reduce(blocks, axis=1), np.fmin.reduce(blocks, axis=1)
+    hi = np.fmax(np.fmax(hi, np.append(hi[1:], np.nan)), np.insert(hi[:-1], 0, np.nan))
+    lo = np.fmin(np.fmin(lo, np.append(lo[1:], np.nan)), np.insert(lo[:-1], 0, np.nan))
+    return np.repeat(hi - lo, width)[: x.size]
 
 
 def _robust_scale(spread: np.ndarray) -> float:
