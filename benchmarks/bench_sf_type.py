@@ -1,19 +1,24 @@
 """Speed of ``cwproc sf-type`` on a day of 10.7 Hz TOA5 against a bare pandas read (issue 15).
 
 Writes one UTC day of synthetic 10.7 Hz sonic data (the virtual sonic,
-:mod:`cwproc.sim.sonic`) as a Campbell TOA5 file (924,480 records, about 80 MB), then
-prints, in one run:
+:mod:`cwproc.sim.sonic`) as a Campbell TOA5 file (924,480 records, 62 MB), then prints,
+in one run, for each interpreter given (``--python``; e.g. the project's venv, which
+has the optional dask installed, and a plain ``pip install cwproc``):
 
-1. ``pandas.read_csv`` of that file (the four header lines skipped), in-process;
-2. ``cwproc sf-type FILE -o OUT`` as a whole process (start-up, read, typing, writing);
-3. their ratio (target: <= 2);
-4. with ``--days N`` (N >= 2): N such days typed by ``cwproc sf-type`` on one core
-   (``CWPROC_WORKERS=1``) and on two (``--workers 2``), and the speed-up (target >= 1.8).
+1. ``pandas.read_csv`` of that file (the four header lines skipped) as a whole process;
+2. ``cwproc sf-type FILE -o OUT`` as a whole process (start-up, imports, read, typing,
+   writing the product and the tables);
+3. their ratio, of wall times and of CPU times (user + system; the steadier figure on a
+   shared machine), each the best of ``--repeat`` alternated runs (target: <= 2);
+4. with ``--days N``: ``cwproc batch`` over N days (one file per day, the path a user
+   runs for a month) serially, on a pool of one and of two workers, and the speed-up of
+   two workers (target >= 1.8 on two free cores).
 
 Run::
 
-    python benchmarks/bench_sf_type.py            # one day
-    python benchmarks/bench_sf_type.py --days 4   # and the parallel speed-up
+    python benchmarks/bench_sf_type.py                       # one day, this venv
+    python benchmarks/bench_sf_type.py --python .venv/bin/python /tmp/plain/bin/python
+    python benchmarks/bench_sf_type.py --days 30 --repeat 1  # and a month in parallel
 """
 
 from __future__ import annotations
@@ -95,9 +100,41 @@ def compare_one_day(path: Path, out: Path, python: str, repeat: int) -> dict[str
     return {"read wall": rw, "read cpu": rc, "sf wall": sw, "sf cpu": sc}
 
 
+def write_month(folder: Path, days: int) -> list[Path]:
+    """``days`` (<= 30) consecutive UTC days of June 2014: day 1 simulated, the others
+    the same samples with their date changed (one file per day, as a logger writes)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    first = folder / "TOA5_6843.ts_Above_2014_06_01_0000.dat"
+    write_toa5_day(first, 0)
+    text = first.read_bytes()
+    paths = [first]
+    for day in range(2, days + 1):
+        path = folder / f"TOA5_6843.ts_Above_2014_06_{day:02d}_0000.dat"
+        path.write_bytes(text.replace(b'"2014-06-01 ', f'"2014-06-{day:02d} '.encode()))
+        paths.append(path)
+    return paths
+
+
+def compare_month(folder: Path, out: Path, python: str) -> dict[str, tuple[float, float]]:
+    """``cwproc batch`` of the month serially, on a pool of 1 and of 2 workers."""
+    times = {}
+    for label, extra in (("serial", []), ("1 worker", ["--workers", "1"]),
+                         ("2 workers", ["--workers", "2"])):  # fmt: skip
+        target = out / label.replace(" ", "_")
+        cmd = [python, "-m", "cwproc", "batch", str(folder), str(target), "-q", *extra]
+        times[label] = run(cmd)
+    return times
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument(
+        "--days",
+        type=int,
+        default=0,
+        help="also time `cwproc batch` over this many days (<= 30), 1 and 2 workers",
+    )
     parser.add_argument(
         "--python",
         nargs="+",
@@ -127,6 +164,15 @@ def main() -> None:
                   f"{f['sf cpu']:6.2f} s CPU")  # fmt: skip
             print(f"    ratio sf-type / read_csv {f['sf wall'] / f['read wall']:6.2f} wall, "
                   f"{f['sf cpu'] / f['read cpu']:.2f} CPU (target <= 2)")  # fmt: skip
+        if args.days:
+            month = write_month(tmp_path / f"month_{args.days}", min(args.days, 30))
+            t = compare_month(month[0].parent, tmp_path / "month_out", args.python[0])
+            print(f"{len(month)} days ({len(month) * path.stat().st_size / 1e9:.1f} GB), "
+                  f"cwproc batch, {args.python[0]}")  # fmt: skip
+            for label, (wall, cpu) in t.items():
+                print(f"  {label:<10} {wall:7.2f} s wall, {cpu:7.2f} s CPU")
+            print(f"  speed-up 2 workers / 1 worker {t['1 worker'][0] / t['2 workers'][0]:.2f}, "
+                  f"/ serial {t['serial'][0] / t['2 workers'][0]:.2f} (target >= 1.8)")  # fmt: skip
 
 
 if __name__ == "__main__":
