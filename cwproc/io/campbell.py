@@ -354,7 +354,7 @@ STAMP_WIDTH = 32
 _STAMP_LOW = np.frombuffer(b'"0000-00-00 00:00:00', dtype=np.uint8)
 _STAMP_SPAN = np.where(np.frombuffer(b'"0000-00-00 00:00:00', dtype=np.uint8) == 48, 9, 0)
 _STAMP_SPAN = _STAMP_SPAN.astype(np.uint8)
-#: days before each month (non-leap year) and month lengths
+#: days of each month (index 1-12) in a common year
 _MONTH_DAYS = np.array([0, 31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31])
 
 
