@@ -345,9 +345,8 @@ def _plain_stamps(body: np.ndarray, n_fields: int) -> np.ndarray | None:
     crlf = int(np.count_nonzero(body[newlines - 1] == 13))
     if crlf not in (0, newlines.size):
         return None
-    # control characters other than the line ends, or non-ASCII bytes: not plain
-    odd = np.count_nonzero((body - np.uint8(32)) >= 95)
-    if odd != newlines.size + crlf:
+    # non-ASCII bytes or DEL, or control characters other than the line ends: not plain
+    if body.max() > 126 or np.count_nonzero(body < 32) != newlines.size + crlf:
         return None
     commas = np.flatnonzero(body == 44)
     per_line = np.diff(np.searchsorted(commas, newlines), prepend=0)

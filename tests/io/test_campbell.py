@@ -320,3 +320,20 @@ def test_days_from_civil_matches_numpy():
     day = np.array([int(s[8:]) for s in ymd])
     days = campbell.days_from_civil(year, month, day)
     np.testing.assert_array_equal(days, dates.astype(np.int64))
+
+
+@pytest.mark.parametrize(
+    ("old", "new"),
+    [
+        (b"\r\n", b"\n"),  # one LF line among CRLF lines
+        (b",", b",,"),  # an extra field
+        (b",", b"\x0b,"),  # a vertical tab (a line break for str.splitlines)
+        (b",", b"\xc2\xb5,"),  # non-ASCII
+    ],
+)
+def test_fast_toa5_reader_leaves_odd_lines_to_the_checking_reader(tmp_path, toa5_lines, old, new):
+    lines = list(toa5_lines[:30])
+    lines[9] = lines[9].replace(old, new, 1)
+    path = _write(tmp_path, lines)
+    assert campbell.toa5_fast(path, path.read_bytes(), campbell.DEFAULT_COLUMNS) is None
+    assert campbell.toa5_fast(path, b"".join(toa5_lines[:30]), campbell.DEFAULT_COLUMNS)
