@@ -208,13 +208,18 @@ def structure_function_fft(x: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.
     a = np.where(m > 0, x, 0.0)
     s = a * a
     nfft = next_fast_len(n + max_lag + 1)
-    fm, fa, fs = (np.fft.rfft(v, nfft, axis=-1) for v in (m, a, s))
+    # no sample missing: one transform of the mask serves every series (same values)
+    complete = bool(m.all())
+    fm = np.fft.rfft(m[(0,) * (m.ndim - 1)] if complete else m, nfft, axis=-1)
+    fa, fs = (np.fft.rfft(v, nfft, axis=-1) for v in (a, s))
 
     def corr(p: np.ndarray, q: np.ndarray) -> np.ndarray:
         # sum_i p_i q_{i+j} for j = 1..max_lag
         return np.fft.irfft(np.conj(p) * q, nfft, axis=-1)[..., 1 : max_lag + 1]
 
     pairs = np.rint(corr(fm, fm))
+    if complete:
+        pairs = np.broadcast_to(pairs, (*x.shape[:-1], max_lag))
     squares = corr(fm, fs) + corr(fs, fm)
     cross = corr(fa, fa)
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -305,3 +305,22 @@ def test_grown_fit_in_blocks_equals_one_block(monkeypatch, deg):
     np.testing.assert_array_equal(blocked.end, whole.end)
     np.testing.assert_array_equal(blocked.coef, whole.coef)
     np.testing.assert_array_equal(blocked.kd, whole.kd)
+
+
+def test_structure_function_of_complete_series_equals_the_batched_transform():
+    """Without missing samples one transform of the mask serves all series: D and N_j
+    are exactly those of transforming every series' mask (pairs N_j = N - j)."""
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(7, 1000))
+    d, pairs = S.structure_function_fft(x, 64)
+    nfft = S.next_fast_len(1000 + 65)
+    fm, fa, fs = (np.fft.rfft(v, nfft, axis=-1) for v in (np.ones_like(x), x, x * x))
+
+    def corr(p, q):
+        return np.fft.irfft(np.conj(p) * q, nfft, axis=-1)[..., 1:65]
+
+    ref_pairs = np.rint(corr(fm, fm))
+    ref_d = (corr(fm, fs) + corr(fs, fm) - 2.0 * corr(fa, fa)) / ref_pairs
+    np.testing.assert_array_equal(pairs, ref_pairs)
+    np.testing.assert_array_equal(pairs[0], 1000 - np.arange(1, 65))
+    np.testing.assert_array_equal(d, np.maximum(ref_d, 0.0))
