@@ -324,3 +324,27 @@ def test_structure_function_of_complete_series_equals_the_batched_transform():
     np.testing.assert_array_equal(pairs, ref_pairs)
     np.testing.assert_array_equal(pairs[0], 1000 - np.arange(1, 65))
     np.testing.assert_array_equal(d, np.maximum(ref_d, 0.0))
+
+
+def test_running_mean_and_grid_shortcuts_equal_the_general_paths():
+    """A complete series uses the window lengths as counts, and time-ordered samples
+    skip the sort of the window indices: both give exactly the general results."""
+    rng = np.random.default_rng(11)
+    x = rng.normal(size=(4, 500))
+    gappy = x.copy()
+    gappy[0, 0] = np.nan  # another row with a gap sends the call to the general path
+    complete = S.remove_running_mean(x, 61)
+    general = S.remove_running_mean(np.concatenate([x, gappy[:1]]), 61)[:4]
+    np.testing.assert_array_equal(complete, general)
+    t0 = np.datetime64("2024-06-01T00:00:00", "ns")
+    time = t0 + (np.arange(3000) * 1e8).astype("timedelta64[ns]")  # 10 Hz, 5 min
+    values = rng.normal(size=(3, 3000))
+    valid = rng.random((3, 3000)) > 0.01
+    order = rng.permutation(3000)
+    ordered = S.grid_windows(time, values, valid, window_s=60.0, rate_hz=10.0)
+    shuffled = S.grid_windows(
+        time[order], values[:, order], valid[:, order], window_s=60.0, rate_hz=10.0
+    )
+    for a, b in zip(ordered, shuffled, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert ordered[1].shape == (5, 3, 600)
