@@ -29,7 +29,6 @@ import csv
 import io
 import os
 from collections.abc import Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -278,11 +277,9 @@ def toa5_fast(
     number of fields and a quoted ``"yyyy-mm-dd HH:MM:SS[.f]"`` stamp first (the
     logger's own layout, FORMATS.md section 4.1). The stamps are decoded from the
     bytes (:func:`toa5_stamps`) and only the fields the dataset uses are parsed, by
-    pandas' C parser with float dtypes, in a second thread while the layout is checked
-    (the parser releases the GIL: on two free cores the read takes the longer of the
-    two, not their sum). Returns None when the file is not plain or a field does not
-    parse, and the caller reads it with the checking reader, which names the line of
-    the problem; results are identical where both apply.
+    pandas' C parser with float dtypes. Returns None when the file is not plain or a
+    field does not parse, and the caller reads it with the checking reader, which
+    names the line of the problem; results are identical where both apply.
     """
     ends = []
     pos = 0
@@ -302,13 +299,11 @@ def toa5_fast(
         return None
     wanted = _wanted(names, cols)
     body = np.frombuffer(raw, dtype=np.uint8, offset=ends[3])
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        # pandas' C parser releases the GIL: the fields are parsed while the layout is
-        # checked and the stamps decoded
-        parsing = pool.submit(_parse_fields, raw[ends[3] :], names, wanted)
-        times = _plain_stamps(body, len(names))
-        frame = parsing.result()
-    if times is None or frame is None or len(frame) != times.size:
+    times = _plain_stamps(body, len(names))
+    if times is None:
+        return None
+    frame = _parse_fields(raw[ends[3] :], names, wanted)
+    if frame is None or len(frame) != times.size:
         return None
     columns = {name: frame[name].to_numpy(dtype=float) for name in wanted}
     return env, names, units, check_times(path, times, 5), columns
