@@ -1,19 +1,24 @@
 """Speed of ``cwproc sf-type`` on a day of 10.7 Hz TOA5 against a bare pandas read (issue 15).
 
 Writes one UTC day of synthetic 10.7 Hz sonic data (the virtual sonic,
-:mod:`cwproc.sim.sonic`) as a Campbell TOA5 file (924,480 records, about 80 MB), then
-prints, in one run:
+:mod:`cwproc.sim.sonic`) as a Campbell TOA5 file (924,480 records, 62 MB), then prints,
+in one run, for each interpreter given (``--python``; e.g. the project's venv, which
+has the optional dask installed, and a plain ``pip install cwproc``):
 
-1. ``pandas.read_csv`` of that file (the four header lines skipped), in-process;
-2. ``cwproc sf-type FILE -o OUT`` as a whole process (start-up, read, typing, writing);
-3. their ratio (target: <= 2);
-4. with ``--days N`` (N >= 2): N such days typed by ``cwproc sf-type`` on one core
-   (``CWPROC_WORKERS=1``) and on two (``--workers 2``), and the speed-up (target >= 1.8).
+1. ``pandas.read_csv`` of that file (the four header lines skipped) as a whole process;
+2. ``cwproc sf-type FILE -o OUT`` as a whole process (start-up, imports, read, typing,
+   writing the product and the tables);
+3. their ratio, of wall times and of CPU times (user + system; the steadier figure on a
+   shared machine), each the best of ``--repeat`` alternated runs (target: <= 2);
+4. with ``--days N``: ``cwproc batch`` over N days (one file per day, the path a user
+   runs for a month) serially, on a pool of one and of two workers, and the speed-up of
+   two workers (target >= 1.8 on two free cores).
 
 Run::
 
-    python benchmarks/bench_sf_type.py            # one day
-    python benchmarks/bench_sf_type.py --days 4   # and the parallel speed-up
+    python benchmarks/bench_sf_type.py                       # one day, this venv
+    python benchmarks/bench_sf_type.py --python .venv/bin/python /tmp/plain/bin/python
+    python benchmarks/bench_sf_type.py --days 30 --repeat 1  # and a month in parallel
 """
 
 from __future__ import annotations
@@ -65,47 +70,109 @@ def write_toa5_day(path: Path, day: int, seed: int = 0) -> None:
             record += n
 
 
-def run(cmd: list[str], env: dict | None = None) -> float:
+def run(cmd: list[str], env: dict | None = None) -> tuple[float, float]:
+    """Wall time and CPU time (user + system, s) of one process."""
     t0 = time.perf_counter()
-    subprocess.run(cmd, check=True, capture_output=True, env=env)
-    return time.perf_counter() - t0
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    err = proc.stderr.read().decode() if proc.stderr else ""
+    if proc.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}): {err[-2000:]}")
+    return wall, usage.ru_utime + usage.ru_stime
+
+
+def best(times: list[tuple[float, float]]) -> tuple[float, float]:
+    """The fastest wall time and the smallest CPU time of repeated runs."""
+    return min(t[0] for t in times), min(t[1] for t in times)
+
+
+def compare_one_day(path: Path, out: Path, python: str, repeat: int) -> dict[str, float]:
+    """Bare ``pandas.read_csv`` and ``cwproc sf-type`` of one file, alternated ``repeat``
+    times (the machine is shared: each figure is the best of its runs)."""
+    code = f"import pandas; pandas.read_csv({str(path)!r}, skiprows=[0, 2, 3])"
+    reads, types = [], []
+    for _ in range(repeat):
+        reads.append(run([python, "-c", code]))
+        types.append(run([python, "-m", "cwproc", "sf-type", str(path), "-o", str(out), "-q"]))
+    (rw, rc), (sw, sc) = best(reads), best(types)
+    return {"read wall": rw, "read cpu": rc, "sf wall": sw, "sf cpu": sc}
+
+
+def write_month(folder: Path, days: int) -> list[Path]:
+    """``days`` (<= 30) consecutive UTC days of June 2014: day 1 simulated, the others
+    the same samples with their date changed (one file per day, as a logger writes)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    first = folder / "TOA5_6843.ts_Above_2014_06_01_0000.dat"
+    write_toa5_day(first, 0)
+    text = first.read_bytes()
+    paths = [first]
+    for day in range(2, days + 1):
+        path = folder / f"TOA5_6843.ts_Above_2014_06_{day:02d}_0000.dat"
+        path.write_bytes(text.replace(b'"2014-06-01 ', f'"2014-06-{day:02d} '.encode()))
+        paths.append(path)
+    return paths
+
+
+def compare_month(folder: Path, out: Path, python: str) -> dict[str, tuple[float, float]]:
+    """``cwproc batch`` of the month serially, on a pool of 1 and of 2 workers."""
+    times = {}
+    for label, extra in (("serial", []), ("1 worker", ["--workers", "1"]),
+                         ("2 workers", ["--workers", "2"])):  # fmt: skip
+        target = out / label.replace(" ", "_")
+        cmd = [python, "-m", "cwproc", "batch", str(folder), str(target), "-q", *extra]
+        times[label] = run(cmd)
+    return times
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--days", type=int, default=1)
-    parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument(
+        "--days",
+        type=int,
+        default=0,
+        help="also time `cwproc batch` over this many days (<= 30), 1 and 2 workers",
+    )
+    parser.add_argument(
+        "--python",
+        nargs="+",
+        default=[sys.executable],
+        help="interpreters of the installs to time (e.g. one with and one without dask)",
+    )
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         tmp_path = Path(tmp)
-        files = []
-        for day in range(args.days):
-            path = tmp_path / f"TOA5_6843.ts_Above_2014_06_{day + 1:02d}_0000.dat"
-            write_toa5_day(path, day)
-            files.append(path)
-        size = files[0].stat().st_size / 1e6
-        code = f"import pandas; pandas.read_csv({str(files[0])!r}, skiprows=[0, 2, 3])"
-        read = min(run([sys.executable, "-c", code]) for _ in range(args.repeat))
+        path = tmp_path / "TOA5_6843.ts_Above_2014_06_01_0000.dat"
+        write_toa5_day(path, 0)
         t0 = time.perf_counter()
-        pd.read_csv(files[0], skiprows=[0, 2, 3])
+        pd.read_csv(path, skiprows=[0, 2, 3])
         read_inproc = time.perf_counter() - t0
-        sf = min(
-            run(["cwproc", "sf-type", str(files[0]), "-o", str(tmp_path / "out"), "-q"])
-            for _ in range(args.repeat)
-        )
-        print(f"one day, {size:.1f} MB, {RATE_HZ} Hz TOA5")
-        print(f"  pandas.read_csv  {read_inproc:6.2f} s in-process, {read:6.2f} s process")
-        print(f"  cwproc sf-type (process)    {sf:6.2f} s")
-        print(f"  ratio sf-type / read_csv    {sf / read_inproc:6.2f} (in-process read), "
-              f"{sf / read:.2f} (process)")  # fmt: skip
-        if args.days >= 2:
-            paths = [str(f) for f in files]
-            env1 = dict(os.environ, CWPROC_WORKERS="1")
-            one = run(["cwproc", "sf-type", *paths, "-o", str(tmp_path / "o1"), "-q"], env1)
-            env2 = dict(os.environ, CWPROC_WORKERS="2")
-            two = run(["cwproc", "sf-type", *paths, "-o", str(tmp_path / "o2"), "-q"], env2)
-            print(f"{args.days} days: one core {one:.2f} s, two cores {two:.2f} s, "
-                  f"speed-up {one / two:.2f}")  # fmt: skip
+        print(f"one day, {path.stat().st_size / 1e6:.1f} MB, {RATE_HZ} Hz TOA5, "
+              f"best of {args.repeat} alternated runs")  # fmt: skip
+        print(f"  pandas.read_csv in-process {read_inproc:.2f} s")
+        for python in args.python:
+            has_dask = (
+                subprocess.run([python, "-c", "import dask"], capture_output=True).returncode == 0
+            )
+            f = compare_one_day(path, tmp_path / "out", python, args.repeat)
+            print(f"  {python} ({'with' if has_dask else 'without'} dask installed)")
+            print(f"    pandas.read_csv process  {f['read wall']:6.2f} s wall, "
+                  f"{f['read cpu']:6.2f} s CPU")  # fmt: skip
+            print(f"    cwproc sf-type process   {f['sf wall']:6.2f} s wall, "
+                  f"{f['sf cpu']:6.2f} s CPU")  # fmt: skip
+            print(f"    ratio sf-type / read_csv {f['sf wall'] / f['read wall']:6.2f} wall, "
+                  f"{f['sf cpu'] / f['read cpu']:.2f} CPU (target <= 2)")  # fmt: skip
+        if args.days:
+            month = write_month(tmp_path / f"month_{args.days}", min(args.days, 30))
+            t = compare_month(month[0].parent, tmp_path / "month_out", args.python[0])
+            print(f"{len(month)} days ({len(month) * path.stat().st_size / 1e9:.1f} GB), "
+                  f"cwproc batch, {args.python[0]}")  # fmt: skip
+            for label, (wall, cpu) in t.items():
+                print(f"  {label:<10} {wall:7.2f} s wall, {cpu:7.2f} s CPU")
+            print(f"  speed-up 2 workers / 1 worker {t['1 worker'][0] / t['2 workers'][0]:.2f}, "
+                  f"/ serial {t['serial'][0] / t['2 workers'][0]:.2f} (target >= 1.8)")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -78,6 +78,8 @@ SPIKE_WINDOW_S = 1.0
 SPIKE_SCALE_S = 60.0
 
 _NA = ["", "NaN", "NAN", "nan", "NA"]
+#: texts read as a missing value
+NA_TEXT = _NA
 
 READER_OPTIONS = {
     "delimiter",
@@ -222,17 +224,62 @@ def spike_mask(x: np.ndarray, width: int, threshold: float, scale_width: int) ->
     scale_width : int
         Running-mean width of the scale (samples).
     """
+    x = np.asarray(x, dtype=float)
     series = pd.Series(x)
-    med = series.rolling(max(width, 3) | 1, center=True, min_periods=1).median().to_numpy()
+    width = max(width, 3) | 1
+    if np.isinf(x).any():
+        return _spike_mask_everywhere(series, width, threshold, scale_width)
+    finite = np.isfinite(x)
+    if not finite.any():
+        return np.zeros(x.shape, dtype=bool)
+    mean = series.rolling(max(scale_width, 3), center=True, min_periods=1).mean().to_numpy()
+    limit = threshold * _robust_scale(np.abs(x - mean)[finite])
+    # |x - median| <= max - min of the window <= that of the three blocks of ``width``
+    # samples around it: the median is needed only where this exceeds the limit (a few
+    # samples of a day)
+    with np.errstate(invalid="ignore"):
+        candidates = np.flatnonzero(finite & (_block_span(x, width) >= limit))
+    out = np.zeros(x.shape, dtype=bool)
+    if candidates.size:
+        padded = np.concatenate([np.full(width // 2, np.nan), x, np.full(width // 2, np.nan)])
+        windows = np.lib.stride_tricks.sliding_window_view(padded, width)[candidates]
+        med = np.nanmedian(windows, axis=1)
+        out[candidates] = np.abs(x[candidates] - med) > limit
+    return out
+
+
+def _block_span(x: np.ndarray, width: int) -> np.ndarray:
+    """Per sample, max - min (NaN left out) over its block of ``width`` samples and the
+    two neighbouring blocks: at least the range of any centred window of ``width``."""
+    n_blocks = -(-x.size // width)
+    blocks = np.full(n_blocks * width, np.nan)
+    blocks[: x.size] = x
+    blocks = blocks.reshape(n_blocks, width)
+    hi, lo = np.fmax.reduce(blocks, axis=1), np.fmin.reduce(blocks, axis=1)
+    hi = np.fmax(np.fmax(hi, np.append(hi[1:], np.nan)), np.insert(hi[:-1], 0, np.nan))
+    lo = np.fmin(np.fmin(lo, np.append(lo[1:], np.nan)), np.insert(lo[:-1], 0, np.nan))
+    return np.repeat(hi - lo, width)[: x.size]
+
+
+def _robust_scale(spread: np.ndarray) -> float:
+    """1.4826 median of |departures| (robust standard deviation), never zero."""
+    scale = 1.4826 * np.median(spread)
+    return float(scale) if scale != 0 else float(np.finfo(float).tiny)
+
+
+def _spike_mask_everywhere(
+    series: pd.Series, width: int, threshold: float, scale_width: int
+) -> np.ndarray:
+    """:func:`spike_mask` with the running median at every sample (infinite values)."""
+    x = series.to_numpy()
+    med = series.rolling(width, center=True, min_periods=1).median().to_numpy()
     mean = series.rolling(max(scale_width, 3), center=True, min_periods=1).mean().to_numpy()
     resid = np.abs(x - med)
     spread = np.abs(x - mean)
     finite = np.isfinite(resid) & np.isfinite(spread)
     if not finite.any():
         return np.zeros(x.shape, dtype=bool)
-    scale = 1.4826 * np.median(spread[finite])
-    if scale == 0:
-        scale = np.finfo(float).tiny
+    scale = _robust_scale(spread[finite])
     with np.errstate(invalid="ignore"):
         return finite & (resid > threshold * scale)
 
@@ -501,8 +548,8 @@ def _to_utc(raw: pd.Series, fmt: str) -> pd.Series:
     return pd.Series(parsed).dt.tz_localize(None).reset_index(drop=True)
 
 
-def read_text(path: str | os.PathLike) -> str:
-    """The whole file as text (UTF-8, falling back to Latin-1); I/O errors name the file."""
+def read_bytes(path: str | os.PathLike) -> bytes:
+    """The whole file as bytes; I/O errors and a NUL byte (binary data) name the file."""
     try:
         with open(path, "rb") as fh:
             raw = fh.read()
@@ -511,10 +558,20 @@ def read_text(path: str | os.PathLike) -> str:
     if b"\x00" in raw:
         line = raw[: raw.index(b"\x00")].count(b"\n") + 1
         raise InputFileError(path, "binary data (NUL byte) in a text file", line)
+    return raw
+
+
+def decode_text(raw: bytes) -> str:
+    """Bytes as text: UTF-8, falling back to Latin-1."""
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError:
         return raw.decode("latin-1")
+
+
+def read_text(path: str | os.PathLike) -> str:
+    """The whole file as text (UTF-8, falling back to Latin-1); I/O errors name the file."""
+    return decode_text(read_bytes(path))
 
 
 def blank_row(path: str | os.PathLike, frame: pd.DataFrame, first_line: int) -> None:

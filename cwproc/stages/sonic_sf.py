@@ -34,7 +34,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-import scipy.fft
 import xarray as xr
 
 from cwproc.errors import CwprocError
@@ -88,7 +87,11 @@ def grid_windows(
     win_ns = round(window_s * 1e9)
     n_slots = int(np.floor(window_s * rate_hz + 1e-9))
     widx = np.floor_divide(t_ns, win_ns)
-    uniq, inverse = np.unique(widx, return_inverse=True)
+    if widx.size and np.all(widx[1:] >= widx[:-1]):  # time order (a reader's output)
+        first = np.flatnonzero(np.concatenate([[True], widx[1:] != widx[:-1]]))
+        uniq, inverse = widx[first], np.cumsum(np.concatenate([[False], widx[1:] != widx[:-1]]))
+    else:
+        uniq, inverse = np.unique(widx, return_inverse=True)
     slot = np.rint((t_ns - widx * win_ns) * 1e-9 * rate_hz).astype(np.int64)
     inside = slot < n_slots
     grid = np.full((uniq.size, 3, n_slots), np.nan)
@@ -151,18 +154,40 @@ def remove_running_mean(x: np.ndarray, width: int) -> np.ndarray:
     ndarray, same shape as ``x``.
     """
     finite = np.isfinite(x)
-    filled = np.where(finite, x, 0.0)
+    complete = bool(finite.all())
+    filled = x if complete else np.where(finite, x, 0.0)
     zero = np.zeros((*x.shape[:-1], 1))
     csum = np.concatenate([zero, np.cumsum(filled, axis=-1)], axis=-1)
-    ccnt = np.concatenate([zero, np.cumsum(finite, axis=-1)], axis=-1)
     n = x.shape[-1]
     idx = np.arange(n)
     lo = np.clip(idx - width // 2, 0, n)
     hi = np.clip(idx - width // 2 + width, 0, n)
-    cnt = ccnt[..., hi] - ccnt[..., lo]
+    if complete:  # the counts are the window lengths (the same numbers, not summed)
+        cnt = (hi - lo).astype(float)
+    else:
+        ccnt = np.concatenate([zero, np.cumsum(finite, axis=-1)], axis=-1)
+        cnt = ccnt[..., hi] - ccnt[..., lo]
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = (csum[..., hi] - csum[..., lo]) / cnt
-    return np.where(finite, x - mean, np.nan)
+    return x - mean if complete else np.where(finite, x - mean, np.nan)
+
+
+def next_fast_len(n: int) -> int:
+    """The smallest 5-smooth number (2^a 3^b 5^c) >= n: a fast real FFT length.
+
+    The same length as ``scipy.fft.next_fast_len(n, real=True)``; numpy's FFT (the
+    same pocketfft) is used so that sf-type does not pay scipy's import.
+    """
+    best = 1 << max(int(n - 1).bit_length(), 0)
+    p5 = 1
+    while p5 < best:
+        p35 = p5
+        while p35 < best:
+            p235 = p35 << max(int(-(-n // p35) - 1).bit_length(), 0)  # smallest 2^a p35 >= n
+            best = min(best, p235)
+            p35 *= 3
+        p5 *= 5
+    return best
 
 
 def structure_function_fft(x: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
@@ -190,14 +215,19 @@ def structure_function_fft(x: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.
     m = np.isfinite(x).astype(float)
     a = np.where(m > 0, x, 0.0)
     s = a * a
-    nfft = scipy.fft.next_fast_len(n + max_lag + 1, real=True)
-    fm, fa, fs = (scipy.fft.rfft(v, nfft, axis=-1) for v in (m, a, s))
+    nfft = next_fast_len(n + max_lag + 1)
+    # no sample missing: one transform of the mask serves every series (same values)
+    complete = bool(m.all())
+    fm = np.fft.rfft(m[(0,) * (m.ndim - 1)] if complete else m, nfft, axis=-1)
+    fa, fs = (np.fft.rfft(v, nfft, axis=-1) for v in (a, s))
 
     def corr(p: np.ndarray, q: np.ndarray) -> np.ndarray:
         # sum_i p_i q_{i+j} for j = 1..max_lag
-        return scipy.fft.irfft(np.conj(p) * q, nfft, axis=-1)[..., 1 : max_lag + 1]
+        return np.fft.irfft(np.conj(p) * q, nfft, axis=-1)[..., 1 : max_lag + 1]
 
     pairs = np.rint(corr(fm, fm))
+    if complete:
+        pairs = np.broadcast_to(pairs, (*x.shape[:-1], max_lag))
     squares = corr(fm, fs) + corr(fs, fm)
     cross = corr(fa, fa)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -253,11 +283,6 @@ def running_sums(x: np.ndarray, y: np.ndarray, deg: int) -> dict[str, np.ndarray
     return out
 
 
-def _window_sum(c: np.ndarray, start: np.ndarray) -> np.ndarray:
-    """Sums over lags start..n for every end n: shape (S, K)."""
-    return c[:, 1:] - np.take_along_axis(c, start[:, None], axis=1)
-
-
 def grow_polynomial_fit(
     sums: dict[str, np.ndarray],
     start: np.ndarray,
@@ -265,6 +290,7 @@ def grow_polynomial_fit(
     *,
     kd_threshold: float,
     min_points: int,
+    series: np.ndarray | None = None,
 ) -> GrownFit:
     """Grow a least-squares polynomial fit of y(x) from lag ``start`` while k_d >= k_dL.
 
@@ -285,21 +311,82 @@ def grow_polynomial_fit(
         k_dL (dimensionless).
     min_points : int
         Fewest lags of a fit (the first tested end is start + min_points - 1).
+    series : ndarray of int, shape (S,), optional
+        Rows of ``sums`` to fit (default: all, in order).
 
     Returns
     -------
     GrownFit
     """
-    n_series, k1 = sums["n"].shape
+    k1 = sums["n"].shape[1]
+    series = np.arange(sums["n"].shape[0]) if series is None else np.asarray(series)
+    n_series = series.size
     n_lags = k1 - 1
     start = np.asarray(start, dtype=np.int64)
-    cnt = _window_sum(sums["n"], start)
-    sx = [cnt] + [_window_sum(sums[f"x{p}"], start) for p in range(1, 2 * deg + 1)]
-    sxy = [_window_sum(sums["y"], start)] + [
-        _window_sum(sums[f"x{p}y"], start) for p in range(1, deg + 1)
-    ]
-    syy = _window_sum(sums["yy"], start)
-    ends = np.arange(n_lags)[None, :]
+    end = np.full(n_series, -1, dtype=np.int64)
+    coef = np.full((n_series, deg + 1), np.nan)
+    kd_end = np.full(n_series, np.nan)
+    first_test = np.full(n_series, n_lags, dtype=np.int64)
+    # ends in blocks of growing width: a series leaves once its fit has failed, so the
+    # lags beyond the first failure (most of them) are never computed
+    rows = np.arange(n_series)
+    lo = min(int(start.min(initial=n_lags)) + min_points - 1, n_lags)
+    width = _FIRST_BLOCK
+    while rows.size and lo < n_lags:
+        hi = min(lo + width, n_lags)
+        block = _fit_block(sums, start[rows], series[rows], lo, hi, deg, min_points)
+        testable, kd, beta = block
+        passed = testable & (kd >= kd_threshold)
+        failed = testable & ~passed
+        has_test = testable.any(axis=1)
+        new_test = has_test & (first_test[rows] == n_lags)
+        first_test[rows[new_test]] = lo + np.argmax(testable[new_test], axis=1)
+        fails = failed.any(axis=1)
+        stop = np.where(fails, np.argmax(failed, axis=1), hi - lo)  # first failure in block
+        last = stop - 1  # last end before it, in block columns (-1: the previous block)
+        take = last >= 0
+        pos = np.flatnonzero(take & (lo + last >= first_test[rows]))
+        sel = rows[pos]
+        end[sel] = lo + last[pos]
+        coef[sel] = beta[pos, last[pos]]
+        kd_end[sel] = kd[pos, last[pos]]
+        rows = rows[~fails]
+        lo, width = hi, 2 * width
+    ok = end >= 0
+    coef[~ok] = np.nan
+    kd_end[~ok] = np.nan
+    return GrownFit(end=end, coef=coef, kd=kd_end)
+
+
+#: width (lags) of the first block of ends of :func:`grow_polynomial_fit` (then doubled)
+_FIRST_BLOCK = 48
+
+
+def _fit_block(
+    sums: dict[str, np.ndarray],
+    start: np.ndarray,
+    rows: np.ndarray,
+    lo: int,
+    hi: int,
+    deg: int,
+    min_points: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Fits of ``rows`` over lags start..n for the ends n = lo..hi-1 (eqs. 4-6).
+
+    Returns whether each end is testable (at least ``min_points`` lags and deg + 2 usable
+    ones), k_d = 1 - SS_res/SS_tot and the coefficients, shapes (R, hi - lo) and
+    (R, hi - lo, deg + 1).
+    """
+
+    def wsum(key: str) -> np.ndarray:
+        c = sums[key]
+        return c[rows, lo + 1 : hi + 1] - c[rows, start][:, None]
+
+    cnt = wsum("n")
+    sx = [cnt] + [wsum(f"x{p}") for p in range(1, 2 * deg + 1)]
+    sxy = [wsum("y")] + [wsum(f"x{p}y") for p in range(1, deg + 1)]
+    syy = wsum("yy")
+    ends = np.arange(lo, hi)[None, :]
     testable = (ends >= start[:, None] + min_points - 1) & (cnt >= deg + 2)
     with np.errstate(invalid="ignore", divide="ignore"):
         beta = solve_normal_equations(sx, sxy, testable)
@@ -307,18 +394,7 @@ def grow_polynomial_fit(
     with np.errstate(invalid="ignore", divide="ignore"):
         ss_tot = syy - sxy[0] ** 2 / cnt
         kd = 1.0 - ss_res / ss_tot
-    passed = testable & (kd >= kd_threshold)
-    failed = testable & ~passed
-    first_fail = np.where(failed.any(axis=1), np.argmax(failed, axis=1), n_lags)
-    first_test = np.where(testable.any(axis=1), np.argmax(testable, axis=1), n_lags)
-    end = first_fail - 1
-    ok = (end >= first_test) & (first_test < n_lags)
-    end = np.where(ok, end, -1)
-    rows = np.arange(n_series)
-    safe_end = np.clip(end, 0, n_lags - 1)
-    coef = np.where(ok[:, None], beta[rows, safe_end], np.nan)
-    kd_end = np.where(ok, kd[rows, safe_end], np.nan)
-    return GrownFit(end=end, coef=coef, kd=kd_end)
+    return testable, kd, beta
 
 
 def solve_normal_equations(
@@ -490,8 +566,9 @@ def decide_types(
                 break
             continue
         start = para.end[rows] + off
-        sub = {k: v[rows] for k, v in sums.items()}
-        fit = grow_polynomial_fit(sub, start, 1, kd_threshold=kd_threshold, min_points=min_points)
+        fit = grow_polynomial_fit(
+            sums, start, 1, kd_threshold=kd_threshold, min_points=min_points, series=rows
+        )
         r_sub = r[rows]
         r_l = r_sub[np.arange(rows.size), start]
         r_e = _lag_at(r_sub, fit.end)

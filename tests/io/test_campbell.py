@@ -9,7 +9,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from cwproc.errors import InputFileError
-from cwproc.io import Format, detect_format
+from cwproc.io import Format, campbell, detect_format
 from cwproc.io.campbell import decode_fp2, read_toa5, read_tob1
 
 TOA5 = "sonic/TOA5_6843.ts_Above_2012_06_07_1245.dat"
@@ -282,3 +282,93 @@ def test_misaligned_from_tells_garbage_from_lost_records_and_restarts():
     garbage = r.copy()
     garbage[130:] = np.random.default_rng(0).integers(0, 2**31, 70)
     assert misaligned_from(garbage) == 129  # the record holding the shift is dropped too
+
+
+def _checked_and_fast(path):
+    """The checking reader's and the fast reader's results for one file."""
+    raw = path.read_bytes()
+    fast = campbell.toa5_fast(path, raw, campbell.DEFAULT_COLUMNS)
+    return campbell._toa5_checked(path, raw, campbell.DEFAULT_COLUMNS), fast
+
+
+def _assert_same(checked, fast):
+    assert fast is not None
+    assert checked[:3] == fast[:3]
+    np.testing.assert_array_equal(checked[3], fast[3])
+    assert checked[4].keys() == fast[4].keys()
+    for name in checked[4]:
+        np.testing.assert_array_equal(checked[4][name], fast[4][name])
+
+
+def test_fast_toa5_reader_equals_the_checking_reader(tmp_path, toa5_lines, real_data):
+    """Identical stamps and values on the real CRLF file and on an LF copy with NAN/INF,
+    stamps of 0 to 9 fractional digits and a leap day."""
+    _assert_same(*_checked_and_fast(real_data / TOA5))
+    lines = [line.replace(b"\r\n", b"\n") for line in toa5_lines[:40]]
+    stamps = [
+        b'"2012-02-29 23:59:59"',
+        b'"2012-02-29 23:59:59.5"',
+        b'"2012-02-29 23:59:59.123456789"',
+        b'"2012-03-01 00:00:00.05"',
+    ]
+    for i, stamp in enumerate(stamps):
+        lines[4 + i] = stamp + lines[4 + i][lines[4 + i].index(b",") :]
+    fields = lines[10].split(b",")
+    fields[2], fields[3] = b"NAN", b"-INF"
+    lines[10] = b",".join(fields)
+    _assert_same(*_checked_and_fast(_write(tmp_path, lines)))
+
+
+@pytest.mark.parametrize(
+    "stamp",
+    [
+        b'"2012-02-30 12:00:00"',  # no such day
+        b'"2013-02-29 12:00:00"',  # not a leap year
+        b'"2012-06-07 24:00:00"',
+        b'"2012-06-07T12:00:00"',
+        b"2012-06-07 12:00:00",  # unquoted
+        b'"2012-06-07 12:00:00."',
+        b'"2012-06-07 12:00:00.1234567890"',
+        b'"2012-06-07 12:00:00+01"',
+    ],
+)
+def test_fast_toa5_reader_leaves_other_stamps_to_the_checking_reader(tmp_path, toa5_lines, stamp):
+    """Any stamp outside the logger's own layout sends the file to the checking reader,
+    whose result (a dataset or an error naming line 7) is what read_toa5 gives."""
+    lines = list(toa5_lines[:30])
+    lines[6] = stamp + lines[6][lines[6].index(b",") :]
+    path = _write(tmp_path, lines)
+    assert campbell.toa5_fast(path, path.read_bytes(), campbell.DEFAULT_COLUMNS) is None
+    try:
+        ds = read_toa5(path)
+    except InputFileError as err:
+        assert err.line == 7
+    else:
+        assert ds.sizes["time"] >= 25
+
+
+def test_days_from_civil_matches_numpy():
+    dates = np.arange("1995-01-01", "2101-01-01", dtype="datetime64[D]")
+    ymd = np.datetime_as_string(dates).astype("U10")
+    year = np.array([int(s[:4]) for s in ymd])
+    month = np.array([int(s[5:7]) for s in ymd])
+    day = np.array([int(s[8:]) for s in ymd])
+    days = campbell.days_from_civil(year, month, day)
+    np.testing.assert_array_equal(days, dates.astype(np.int64))
+
+
+@pytest.mark.parametrize(
+    ("old", "new"),
+    [
+        (b"\r\n", b"\n"),  # one LF line among CRLF lines
+        (b",", b",,"),  # an extra field
+        (b",", b"\x0b,"),  # a vertical tab (a line break for str.splitlines)
+        (b",", b"\xc2\xb5,"),  # non-ASCII
+    ],
+)
+def test_fast_toa5_reader_leaves_odd_lines_to_the_checking_reader(tmp_path, toa5_lines, old, new):
+    lines = list(toa5_lines[:30])
+    lines[9] = lines[9].replace(old, new, 1)
+    path = _write(tmp_path, lines)
+    assert campbell.toa5_fast(path, path.read_bytes(), campbell.DEFAULT_COLUMNS) is None
+    assert campbell.toa5_fast(path, b"".join(toa5_lines[:30]), campbell.DEFAULT_COLUMNS)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 import xarray as xr
 from hypothesis import HealthCheck, given, settings
@@ -10,7 +11,13 @@ from hypothesis import strategies as st
 
 from cwproc.errors import InputFileError
 from cwproc.io import Format, detect_format
-from cwproc.io.meteo2 import measure_sampling_rate, read_meteo2, write_meteo2
+from cwproc.io.meteo2 import (
+    _spike_mask_everywhere,
+    measure_sampling_rate,
+    read_meteo2,
+    spike_mask,
+    write_meteo2,
+)
 from cwproc.sim.sonic import METEO2_RATE_HZ, simulate_sonic_dataset
 
 FIXTURE_CHECK = HealthCheck.function_scoped_fixture
@@ -194,3 +201,23 @@ def test_stray_stamp_of_a_damaged_record_is_dropped():
     swapped[[10, 11]] = swapped[[11, 10]]
     for ok in (gap, np.concatenate([t[:50], t[:50]]), swapped):
         assert not stray_stamps(ok.astype(np.int64)).any()
+
+
+def test_spike_mask_equals_the_running_median_everywhere():
+    """The candidate-only median (window range >= limit) flags exactly the samples the
+    running median at every sample flags: random walks with spikes, gaps, constants."""
+    rng = np.random.default_rng(3)
+    for trial in range(60):
+        n = int(rng.integers(5, 3000))
+        x = np.cumsum(rng.normal(size=n)) * 0.1 + rng.normal(size=n)
+        k = int(rng.integers(0, 20))
+        x[rng.integers(0, n, k)] += rng.normal(size=k) * rng.choice([1.0, 10.0, 100.0])
+        if trial % 3 == 0:
+            x[rng.integers(0, n, int(rng.integers(0, n // 3 + 1)))] = np.nan
+        if trial % 17 == 0:
+            x[:] = 1.0
+        width, scale_width = int(rng.integers(1, 30)), int(rng.integers(3, 700))
+        threshold = float(rng.choice([2.0, 3.0, 6.0]))
+        fast = spike_mask(x, width, threshold, scale_width)
+        full = _spike_mask_everywhere(pd.Series(x), max(width, 3) | 1, threshold, scale_width)
+        np.testing.assert_array_equal(fast, full)

@@ -282,3 +282,69 @@ def test_constant_or_missing_components_are_not_typed(sims):
     sf = S.structure_function_types(ds)
     assert np.all(sf["window_flag"].values == S.FLAG_FEW_SAMPLES)
     assert np.all(sf["sf_type"].values == 0)
+
+
+@pytest.mark.parametrize("deg", [1, 2])
+def test_grown_fit_in_blocks_equals_one_block(monkeypatch, deg):
+    """Growing the fits block by block (series leave after their first failure) gives
+    exactly the ends, coefficients and k_d of evaluating every end at once."""
+    rng = np.random.default_rng(7)
+    n_series, n_lags = 60, 400
+    x = np.log10(np.arange(1, n_lags + 1) * 0.05)[None, :].repeat(n_series, axis=0)
+    curve = rng.uniform(-1.0, 1.0, (n_series, 1)) * x**2 + rng.uniform(0.5, 1.0, (n_series, 1)) * x
+    y = curve + rng.normal(0, rng.uniform(1e-4, 1e-3, (n_series, 1)), x.shape)
+    y[rng.random(y.shape) < 0.02] = np.nan
+    sums = S.running_sums(x, y, 2)
+    start = rng.integers(0, 100, n_series)
+    args = {"kd_threshold": 0.999, "min_points": 5}
+    blocked = S.grow_polynomial_fit(sums, start, deg, **args)
+    monkeypatch.setattr(S, "_FIRST_BLOCK", 10 * n_lags)
+    whole = S.grow_polynomial_fit(sums, start, deg, **args)
+    assert (blocked.end >= 0).sum() > n_series // 4  # many fits grow, some stop early
+    assert len(set(blocked.end[blocked.end >= 0])) > 5
+    np.testing.assert_array_equal(blocked.end, whole.end)
+    np.testing.assert_array_equal(blocked.coef, whole.coef)
+    np.testing.assert_array_equal(blocked.kd, whole.kd)
+
+
+def test_structure_function_of_complete_series_equals_the_batched_transform():
+    """Without missing samples one transform of the mask serves all series: D and N_j
+    are exactly those of transforming every series' mask (pairs N_j = N - j)."""
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(7, 1000))
+    d, pairs = S.structure_function_fft(x, 64)
+    nfft = S.next_fast_len(1000 + 65)
+    fm, fa, fs = (np.fft.rfft(v, nfft, axis=-1) for v in (np.ones_like(x), x, x * x))
+
+    def corr(p, q):
+        return np.fft.irfft(np.conj(p) * q, nfft, axis=-1)[..., 1:65]
+
+    ref_pairs = np.rint(corr(fm, fm))
+    ref_d = (corr(fm, fs) + corr(fs, fm) - 2.0 * corr(fa, fa)) / ref_pairs
+    np.testing.assert_array_equal(pairs, ref_pairs)
+    np.testing.assert_array_equal(pairs[0], 1000 - np.arange(1, 65))
+    np.testing.assert_array_equal(d, np.maximum(ref_d, 0.0))
+
+
+def test_running_mean_and_grid_shortcuts_equal_the_general_paths():
+    """A complete series uses the window lengths as counts, and time-ordered samples
+    skip the sort of the window indices: both give exactly the general results."""
+    rng = np.random.default_rng(11)
+    x = rng.normal(size=(4, 500))
+    gappy = x.copy()
+    gappy[0, 0] = np.nan  # another row with a gap sends the call to the general path
+    complete = S.remove_running_mean(x, 61)
+    general = S.remove_running_mean(np.concatenate([x, gappy[:1]]), 61)[:4]
+    np.testing.assert_array_equal(complete, general)
+    t0 = np.datetime64("2024-06-01T00:00:00", "ns")
+    time = t0 + (np.arange(3000) * 1e8).astype("timedelta64[ns]")  # 10 Hz, 5 min
+    values = rng.normal(size=(3, 3000))
+    valid = rng.random((3, 3000)) > 0.01
+    order = rng.permutation(3000)
+    ordered = S.grid_windows(time, values, valid, window_s=60.0, rate_hz=10.0)
+    shuffled = S.grid_windows(
+        time[order], values[:, order], valid[:, order], window_s=60.0, rate_hz=10.0
+    )
+    for a, b in zip(ordered, shuffled, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert ordered[1].shape == (5, 3, 600)

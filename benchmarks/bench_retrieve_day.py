@@ -1,0 +1,150 @@
+"""``cwproc retrieve`` of a day of Stream Line scans: peak memory and time against reading.
+
+Issue 15.3: a simulated 24-h day of 180-ray VAD scans every 45 s with 100 gates (1920
+scans, one ``.hpl`` file per scan as the Stream Line writes them) is
+
+1. read file by file with :func:`cwproc.io.halo.read_hpl` in a child process (imports
+   included): the time to read the files;
+2. retrieved with ``cwproc retrieve DAY -o OUT -c streamline`` in a child process (wind
+   and turbulence products of the day);
+
+and the script prints both times (wall and CPU, best of ``--repeat``), their ratio
+(target <= 1.5) and the peak resident memory of the retrieve process (``VmHWM``;
+target < 300 MiB).
+
+Run::
+
+    python benchmarks/bench_retrieve_day.py [--repeat 2] [--scans 1920]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from cwproc.io.halo import write_hpl
+
+#: the issue's day: 180-ray scans every 45 s, 100 gates of 30 m
+RAYS, PERIOD_S, GATES, GATE_M, ELEVATION = 180, 45.0, 100, 30.0, 75.0
+
+_READ = """
+import sys
+from pathlib import Path
+from cwproc.io.halo import read_hpl
+for p in sorted(Path(sys.argv[1]).glob("*.hpl")):
+    read_hpl(p)
+"""
+
+_RETRIEVE = """
+import atexit, sys
+def _peak_mib():
+    with open("/proc/self/status") as f:
+        return int(f.read().split("VmHWM:")[1].split()[0]) / 1024
+atexit.register(lambda: print(f"PEAK_MIB {_peak_mib():.0f}", file=sys.stderr))
+from cwproc.cli import main
+main(sys.argv[1:], prog_name="cwproc")
+"""
+
+
+def scan(start: np.datetime64, seed: int) -> xr.Dataset:
+    """One 180-ray VAD of a sheared wind with noise (0.25 s per ray)."""
+    rng = np.random.default_rng(seed)
+    az = np.arange(RAYS) * (360.0 / RAYS)
+    rng_m = (np.arange(GATES) + 0.5) * GATE_M
+    height = rng_m * np.sin(np.radians(ELEVATION))
+    u, v = 5.0 + 0.004 * height, -2.0 + 0.002 * height
+    cos_el = np.cos(np.radians(ELEVATION))
+    vr = cos_el * (np.outer(np.sin(np.radians(az)), u) + np.outer(np.cos(np.radians(az)), v))
+    snr = 0.5 * np.exp(-rng_m / 1500.0)[None, :] * rng.uniform(0.8, 1.2, (RAYS, GATES))
+    vr = vr + rng.normal(0, 0.1, vr.shape) / np.sqrt(snr + 0.01)
+    dt = PERIOD_S / RAYS * 1e9
+    times = start + (np.arange(RAYS) * dt).astype("timedelta64[ns]")
+    return xr.Dataset(
+        {
+            "radial_velocity": (("ray", "range"), np.round(vr, 4)),
+            "snr": (("ray", "range"), np.round(snr, 6)),
+            "beta": (("ray", "range"), 1e-6 * snr),
+            "pitch": ("ray", np.full(RAYS, -0.1)),
+            "roll": ("ray", np.full(RAYS, 0.2)),
+        },
+        coords={
+            "time": ("ray", times),
+            "azimuth": ("ray", az),
+            "elevation": ("ray", np.full(RAYS, ELEVATION)),
+            "range": ("range", rng_m),
+        },
+        attrs={
+            "system_id": "999",
+            "scan_type": "VAD",
+            "gate_length_m": GATE_M,
+            "points_per_gate": 10,
+            "pulses_per_ray": 10000,
+            "velocity_resolution_m_s": 0.0382,
+        },
+    )
+
+
+def write_day(folder: Path, n_scans: int) -> int:
+    """``n_scans`` scans from 2024-06-01 00:00 UTC, one file each; total bytes."""
+    day = np.datetime64("2024-06-01T00:00:00", "ns")
+    total = 0
+    for k in range(n_scans):
+        start = day + np.timedelta64(int(PERIOD_S * 1e9) * k, "ns")
+        stamp = np.datetime_as_string(start, unit="s").replace("-", "").replace(":", "")
+        path = write_hpl(scan(start, k), folder / f"VAD_999_{stamp[:8]}_{stamp[9:15]}.hpl")
+        total += path.stat().st_size
+    return total
+
+
+def run(cmd: list[str]) -> tuple[float, float, str]:
+    """Wall time, CPU time (user + system, s) and stderr of one child process."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    err = proc.stderr.read() if proc.stderr else ""
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise SystemExit(f"{' '.join(cmd[:4])} ... failed: {err[-2000:]}")
+    return wall, usage.ru_utime + usage.ru_stime, err
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument("--scans", type=int, default=int(86400 / PERIOD_S))
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory(prefix="cwproc_bench_day_") as tmp:
+        folder = Path(tmp) / "day"
+        folder.mkdir()
+        t0 = time.perf_counter()
+        size = write_day(folder, args.scans)
+        print(f"day: {args.scans} scans of {RAYS} rays x {GATES} gates, one file each, "
+              f"{size / 2**20:.0f} MiB (written in {time.perf_counter() - t0:.0f} s); "
+              f"load average {os.getloadavg()[0]:.1f}")  # fmt: skip
+        reads, retrieves, peaks = [], [], []
+        for k in range(args.repeat):
+            reads.append(run([sys.executable, "-c", _READ, str(folder)]))
+            out = Path(tmp) / f"out{k}"
+            cmd = [sys.executable, "-c", _RETRIEVE, "retrieve", str(folder), "-o", str(out)]
+            wall, cpu, err = run([*cmd, "-q", "-c", "streamline"])
+            retrieves.append((wall, cpu, err))
+            peaks += [float(x.split()[1]) for x in err.splitlines() if x.startswith("PEAK_MIB")]
+        rw, rc = min(r[0] for r in reads), min(r[1] for r in reads)
+        tw, tc = min(r[0] for r in retrieves), min(r[1] for r in retrieves)
+        print(f"  read_hpl of every file (process) {rw:7.2f} s wall, {rc:7.2f} s CPU")
+        print(f"  cwproc retrieve (process)        {tw:7.2f} s wall, {tc:7.2f} s CPU")
+        print(f"  ratio retrieve / read            {tw / rw:7.2f} wall, {tc / rc:7.2f} CPU "
+              "(target <= 1.5)")  # fmt: skip
+        print(f"  retrieve peak RSS                {max(peaks):7.0f} MiB (target < 300)")
+
+
+if __name__ == "__main__":
+    main()
