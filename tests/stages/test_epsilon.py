@@ -20,7 +20,9 @@ from cwproc.stages.epsilon import (
     estimate_epsilon,
     fit_structure_function,
     mean_removed_share,
+    partial_circle,
     passed_variance,
+    sector_removed_share,
 )
 
 PHI = 35.3  # deg
@@ -857,3 +859,71 @@ def test_exact_statistics_eps_is_unbiased_and_its_error_bar_calibrated(
     assert abs(ratio.mean() - 1.0) < 0.05 + 2 * sem
     assert 0.8 < np.mean(se) / ratio.std(ddof=1) < 1.2
     assert abs(np.nanmean(var) - 1.0) < 0.05
+
+
+def _pair_node_weights(azimuth_deg: np.ndarray, wind_to_deg: float) -> np.ndarray:
+    """Node weights of the lag-1 pairs of one scan, as the structure stage records them."""
+    from cwproc.physics.atable import azimuth_bin_weights
+
+    az = np.asarray(azimuth_deg, float)
+    step = np.diff(az)
+    regular = step < 1.5 * np.median(step)  # pairs across a gap are not lag-1 pairs
+    mids = (az[:-1] + step / 2)[regular]
+    return azimuth_bin_weights(np.radians(wind_to_deg - mids))[None]
+
+
+def test_partial_circle_tells_sectors_and_gaps_from_regular_scans():
+    cases = {
+        "24-ray VAD": (np.arange(7.5, 360.0, 15.0), 15.0, False),
+        "12-ray VAD": (np.arange(15.0, 360.0, 30.0), 30.0, False),
+        "180-ray scan": (np.arange(1.0, 360.0, 2.0), 2.0, False),
+        "60 deg gap": (np.arange(61.0, 360.0, 2.0), 2.0, True),
+        "90 deg sector": (np.arange(1.0, 90.0, 2.0), 2.0, True),
+    }
+    for label, (az, step, expected) in cases.items():
+        w = _pair_node_weights(az, 250.0)
+        assert bool(partial_circle(w, np.array([step]))[0]) is expected, label
+
+
+def test_sector_vad_removal_matches_exact_block_statistics():
+    """The share of sigma_V^2 the block-mean VAD wind takes from V'_L, against the exact
+    covariance of the rays of a block (:func:`cwproc.sim.exact_gaussian.block_covariance`).
+
+    A 90 deg step-stare sector (15 rays, 1 s each, 2 s back), 4 scans per block, mu = 1,
+    R'/L_V = 0.7: the scans are 0.8 R' apart, so their VAD winds correlate and the block
+    removes far more than the full circle's share over N (which is 2.5 times too small).
+    """
+    from cwproc.sim import exact_gaussian as eg
+
+    phi, height, scale, n_scans, mu = 35.0, 100.0, 200.0, 4, 1.0
+    radius = height / np.tan(np.radians(phi))
+    pattern = eg.conical_pattern(15, 15.0, sector_deg=90.0, continuous=False, return_s=2.0)
+    t_scan = 15.0 * 4  # a full circle at the sector's rate (s)
+    u, v = eg.wind_components(mu * 2 * np.pi * radius / t_scan, 250.0)
+    cov = eg.block_covariance(
+        pattern,
+        n_scans,
+        elevation_deg=phi,
+        range_m=height / np.sin(np.radians(phi)),
+        epsilon=0.01,
+        outer_scale_m=scale,
+        mean_wind=(u, v, 0.0),
+    )
+    az = np.radians(np.asarray(pattern.azimuth_deg))
+    design = np.stack([np.ones(az.size), np.cos(az), np.sin(az)], -1)
+    hat = design @ np.linalg.solve(design.T @ design, design.T)
+    keep = np.eye(n_scans * az.size) - np.kron(np.full((n_scans, n_scans), 1 / n_scans), hat)
+    sigma2 = spectra.variance_from(0.01, scale, "von_karman")
+    exact = (np.trace(cov) - np.trace(keep @ cov @ keep.T)) / cov.shape[0] / sigma2
+    model = sector_removed_share(
+        _pair_node_weights(pattern.azimuth_deg, 250.0),
+        np.array([[radius / scale]]),
+        np.array([mu]),
+        np.array([pattern.period_s / t_scan]),
+        np.array([float(n_scans)]),
+        phi,
+        "von_karman",
+    )[0, 0]
+    circle = mean_removed_share(np.array(radius / scale), phi, "von_karman", mu) / n_scans
+    assert model == pytest.approx(exact, rel=0.12)
+    assert exact > 2.0 * circle
