@@ -996,8 +996,8 @@ def mean_removed_share(
     return (1.0 - w) * lo + w * hi
 
 
-#: nodes of x = R'/L_V of :func:`sector_removed_share` (log-linear interpolation)
-_SECTOR_X = np.geomspace(1e-2, 1e2, 13)
+#: nodes of x = R'/L_V of :func:`sector_removed_share` (log-log interpolation)
+_SECTOR_X = np.geomspace(1e-2, 1e2, 9)
 
 
 @functools.lru_cache(maxsize=4)
@@ -1114,20 +1114,30 @@ def sector_removed_share(
         hw = h * wc[:, :, None] * wc[:, None, :] / wc.sum(-1)[:, None, None]
         phase = _scan_start_phase(wc > 1e-12)
         pos = circle[None] - (mu[c][:, None] * phase)[..., None] * wind  # (c, k, 3), R' units
+        # only the occupied nodes (a sector's few): the others have no weight
+        occupied = wc > 1e-12
+        idx = np.argsort(~occupied, axis=1, kind="stable")[:, : occupied.sum(1).max()]
+        rows = np.arange(c.size)[:, None]
+        hw, pos, bc = (
+            hw[rows[..., None], idx[:, :, None], idx[:, None, :]],
+            pos[rows, idx],
+            beam[idx],
+        )
         shift = (mu[c] * 2.0 * np.pi * interval[c])[:, None] * m[None]  # (c, m)
         r_vec = pos[:, :, None, None, :] - pos[:, None, :, None, :]
         r_vec = r_vec - shift[:, None, None, :, None] * wind  # (c, k, l, m, 3)
         r = np.linalg.norm(r_vec, axis=-1)
         unit = r_vec / np.where(r > 0, r, 1.0)[..., None]
-        proj = np.einsum("cklmi,ki->cklm", unit, beam) * np.einsum("cklmi,li->cklm", unit, beam)
-        dot = (beam @ beam.T)[None, :, :, None]
+        proj = np.einsum("cklmi,cki->cklm", unit, bc) * np.einsum("cklmi,cli->cklm", unit, bc)
+        dot = np.einsum("cki,cli->ckl", bc, bc)[..., None]
         lr = np.log(np.maximum(r[..., None] * _SECTOR_X, 1e-5))  # (c, k, l, m, x)
         f, g = np.interp(lr, log_r, f_c), np.interp(lr, log_r, g_c)
         s_m = np.einsum("ckl,cklmx->cmx", hw, g * dot[..., None] + (f - g) * proj[..., None])
         n = n_scans[c][:, None]
         mult = np.where(m[None] == 0, n, 2.0 * np.clip(n - m[None], 0.0, None)) / n**2
         share = np.einsum("cm,cmx->cx", mult, s_m)
-        out[c] = _interp_log_scale(_SECTOR_X, share, np.clip(ratio[c], _SECTOR_X[0], _SECTOR_X[-1]))
+        query = np.clip(ratio[c], _SECTOR_X[0], _SECTOR_X[-1])  # log-log interpolation
+        out[c] = np.exp(_interp_log_scale(_SECTOR_X, np.log(np.maximum(share, 1e-12)), query))
     return out
 
 
