@@ -927,3 +927,65 @@ def test_sector_vad_removal_matches_exact_block_statistics():
     circle = mean_removed_share(np.array(radius / scale), phi, "von_karman", mu) / n_scans
     assert model == pytest.approx(exact, rel=0.12)
     assert exact > 2.0 * circle
+
+
+def test_sector_scans_use_the_sector_vad_removal_in_the_variance_condition(options, monkeypatch):
+    """A 90 deg sector scan (scans 18 s apart, T_scan 60 s), von Karman L_V = 300 m.
+
+    Data consistent with the sector's A_2 and with the share of sigma_V^2 its block-mean
+    VAD wind removes (:func:`sector_removed_share`, 3-4 times the full circle's here) give
+    eps, L_V and sigma_V^2 back; with the full circle's share (measured: L_V 27-30 % low,
+    eps 4-5 % high) L_V is more than 10 % off.
+    """
+    from cwproc.physics.atable import azimuth_bin_weights
+    from cwproc.stages.epsilon import _sector_evaluate
+
+    eps, noise, big_l, mu, interval = 0.003, 0.1, 300.0, 0.5, 18.0 / T_SCAN
+    lags = np.arange(1, N_LAGS + 1, dtype=float)
+    weights = azimuth_bin_weights(np.radians(250.0 - np.arange(2.0, 90.0, 2.0)))
+    weights = np.broadcast_to(weights, (1, HEIGHTS.size, weights.size)).copy()
+    mu_c = np.full((1, HEIGHTS.size), mu)
+    inertial = get_a_table(
+        PROBE,
+        phi_deg=PHI,
+        delta_theta_deg=DTHETA,
+        n_lags=N_LAGS,
+        model="inertial",
+        **{k: v for k, v in options.items() if k != "outer_scale_range_m"},
+    )
+    table = get_a_table(
+        PROBE, phi_deg=PHI, delta_theta_deg=DTHETA, n_lags=N_LAGS, model="von_karman", **options
+    )
+    _, _, ratio = _sector_evaluate(inertial, lags, HEIGHTS, mu_c, weights)
+    d = (model_d(table, eps, 0.0, mu_c, outer=big_l)) * ratio + 2 * noise**2
+    radius = HEIGHTS / np.tan(np.deg2rad(PHI))
+    dy = np.deg2rad(DTHETA) * radius
+    share = sector_removed_share(
+        weights[0],
+        (radius / big_l)[:, None],
+        np.full(HEIGHTS.size, mu),
+        np.full(HEIGHTS.size, interval),
+        np.full(HEIGHTS.size, 10.0),
+        PHI,
+        "von_karman",
+    )[:, 0]
+    circle = mean_removed_share(radius / big_l, PHI, "von_karman", mu) / 10
+    assert np.all(share > 2.5 * circle)
+    passed = passed_variance(PROBE, dy, HEIGHTS / np.sin(np.deg2rad(PHI)), "von_karman", [big_l])
+    full = spectra.variance_per_eps23("von_karman", big_l)
+    var_raw = eps ** (2 / 3) * (passed[:, 0] - full * share) + noise**2
+    sf = make_sf(d, mu=mu_c, variance=var_raw[None, :])
+    sf["pair_azimuth_weights"] = (("time", "height", "azimuth_node"), weights)
+    sf["scan_interval"] = ("time", [18.0])
+    out = estimate_epsilon(sf, probe=PROBE, lag_number=3, model="von_karman", table_options=options)
+    np.testing.assert_allclose(out["epsilon"].values, eps, rtol=0.03)
+    np.testing.assert_allclose(out["integral_scale"].values, big_l, rtol=0.05)
+    np.testing.assert_allclose(out["velocity_variance"].values, eps ** (2 / 3) * full, rtol=0.03)
+    # the same data with the full circle's share (partial circles not recognised)
+    monkeypatch.setattr(
+        "cwproc.stages.epsilon.partial_circle", lambda w, step: np.zeros(w.shape[:-1], bool)
+    )
+    circle_only = estimate_epsilon(
+        sf, probe=PROBE, lag_number=3, model="von_karman", table_options=options
+    )
+    assert np.all(np.abs(circle_only["integral_scale"].values / big_l - 1) > 0.1)
