@@ -45,7 +45,10 @@ Estimates, per block of scans and height, all vectorised:
   with the inertial spectrum of eq. 18 (:func:`averaging_loss`). The inertial loss must
   not be used with a long probe: a cw probe of half width 300 m (h = 500 m, seed-000
   lidar) passes only 25 % of sigma_V^2 of an L_V = 333 m field, and the inertial
-  loss overestimated sigma_V^2 2.5-fold, so L_V came out too large and eps 40 % low;
+  loss overestimated sigma_V^2 2.5-fold, so L_V came out too large and eps 40 % low.
+  The share the block-mean VAD wind takes is that of the full circle
+  (:func:`mean_removed_share`), or for sectors and gaps (:func:`partial_circle`) that of
+  the azimuths present with the scans' correlation (:func:`sector_removed_share`);
 - ``integral_scale``: ``L_V = c sigma_V^3 / eps``, Banakh et al. (1999), eq. 19, with the
   correlation model named by ``model`` (``c = 1.331`` for the model of Banakh et al.
   (1999), eq. 17, also used with ``model="inertial"``; ``c = 0.697`` for von Kármán).
