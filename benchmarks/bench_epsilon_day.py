@@ -10,14 +10,16 @@ heights 50-2000 m, 10-min blocks, random wind 1-15 m s-1, eps 1e-4 to 1e-2) for
 each with the spectrum model ``--model`` (default von Karman, the default of the
 configuration). The A-tables are built first (timed separately, cached in a temporary
 directory), then the stage is run ``--repeat`` times on warm tables; the best time is
-printed. Target: under 1 s per day and configuration (measured warm: 0.13 / 0.16 s
-inertial, 0.50 / 0.72 s von Karman for the 24-ray VAD / the 180-ray scan on a shared
-2-core box; cold builds 0.7 / 7 s and 8 / 22 s).
+printed. Target: under 1 s per day and configuration, error bars included (measured
+warm, same run on a shared 2-core box: 0.13 / 0.16 s inertial, 0.49 / 0.62 s von
+Karman for the 24-ray VAD / the 180-ray scan; 0.77 / 2.3-3.0 s before the outer-scale
+root search used :meth:`cwproc.physics.atable.ATable.at_cells`).
 
 Run::
 
     python benchmarks/bench_epsilon_day.py                  # von Karman
     python benchmarks/bench_epsilon_day.py --model inertial
+    python benchmarks/bench_epsilon_day.py --cache-dir /tmp/tables   # keep the tables
 """
 
 from __future__ import annotations
@@ -95,9 +97,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", default="von_karman")
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument(
+        "--cache-dir", default=None, help="keep the A-tables here (default: a temporary directory)"
+    )
     args = parser.parse_args()
     probe = PulsedProbe(15.3, 18.0)
-    with tempfile.TemporaryDirectory() as cache:
+    with tempfile.TemporaryDirectory() as tmp:
+        cache = args.cache_dir or tmp
         options = {"cache_dir": cache}
         for label, n_rays, ray_s, n_lags in (("24-ray VAD", 24, 3.0, 3), ("180-ray", 180, 0.2, 4)):
             sf = synthetic_day(n_rays, ray_s, n_lags)

@@ -648,6 +648,9 @@ VARIABLES: dict[str, VarMeta] = {
     ),
     "azimuth_step": VarMeta("azimuth step dtheta between rays", "degree"),
     "scan_period": VarMeta("duration T_scan of one 360 degree rotation", "s"),
+    "scan_interval": VarMeta(
+        "median time between the starts of consecutive scans of the block", "s"
+    ),
     "epsilon_fit": VarMeta(
         "turbulent kinetic energy dissipation rate from the least-squares fit of "
         "eps^(2/3) A_2 + 2 sigma_e^2 over all lags (method 2)",

@@ -229,6 +229,84 @@ class ATable:
         out2 = np.where(ok2, np.exp(log2), np.nan).reshape(shape)
         return out1, out2
 
+    def at_cells(self, lags: ArrayLike, height_m: ArrayLike, mu: ArrayLike) -> CellTable:
+        """This table interpolated in height and ``mu`` to fixed cells, kept over ``L_V``.
+
+        For root searches in ``L_V`` (:mod:`cwproc.stages.epsilon`): the height and
+        ``mu`` weights of :meth:`evaluate` are applied once, so each later evaluation
+        at new outer scales only interpolates in ``log L_V`` (the same 4-point Lagrange
+        weights: equal to :meth:`evaluate` up to rounding).
+
+        Parameters
+        ----------
+        lags : array_like of int
+            ``(n_lag,)`` lag numbers in ``1..n_lags``.
+        height_m, mu : array_like
+            ``(cells,)`` heights (m) and ``mu = U / V_s``.
+        """
+        lag = np.asarray(lags, dtype=float).ravel()
+        h = np.asarray(height_m, dtype=float).ravel()
+        li = np.clip(np.where(np.isfinite(lag), lag, 1), 1, self.n_lags).astype(int) - 1
+        lag_ok = (lag >= 1) & (lag <= self.n_lags) & (lag == np.round(lag))
+        h_unique, h_inverse = np.unique(h, return_inverse=True)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ihu, whu, vhu = _lagrange4(np.log(self.heights_m), np.log(h_unique))
+            im, wm, vm = _lagrange4(self.mu, np.asarray(mu, dtype=float).ravel())
+        h_inverse = h_inverse.ravel()
+        a1_h = np.einsum("lukj,uk->luj", self.log_a1[:, ihu, :], whu)[:, h_inverse][..., li]
+        a2_h = np.einsum("lukjm,uk->lujm", self.log_a2[:, ihu, :, :], whu)[..., li, :]
+        # per outer-scale node: gather the (cells, n_lag, 4) mu neighbours, then weight
+        rows, cols = h_inverse[:, None, None], np.arange(li.size)[None, :, None]
+        log_a2 = np.stack(
+            [np.einsum("qjc,qc->qj", node[rows, cols, im[:, None, :]], wm) for node in a2_h],
+            axis=1,
+        )
+        valid = lag_ok[None, :] & vhu[h_inverse][:, None]
+        return CellTable(
+            np.log(self.outer_scales_m), np.moveaxis(a1_h, 0, 1), log_a2, valid, valid & vm[:, None]
+        )
+
+
+@dataclass(frozen=True)
+class CellTable:
+    """An :class:`ATable` at fixed cells and lags, a function of ``L_V`` (:meth:`ATable.at_cells`).
+
+    Attributes
+    ----------
+    log_scales : (nL,) ``ln L_V`` of the nodes (L_V in m).
+    log_a1, log_a2 : (cells, nL, n_lag) ``ln A_1``, ``ln A_2`` at the nodes.
+    valid1, valid2 : (cells, n_lag) height, lag (and for A_2, ``mu``) in range.
+    """
+
+    log_scales: np.ndarray
+    log_a1: np.ndarray
+    log_a2: np.ndarray
+    valid1: np.ndarray
+    valid2: np.ndarray
+
+    def evaluate(
+        self, outer_scale_m: ArrayLike, cells: ArrayLike | None = None, a1: bool = True
+    ) -> tuple[np.ndarray | None, np.ndarray]:
+        """``(A_1, A_2)`` (m^(2/3)), ``(n, k, n_lag)``, at outer scales ``(n, k)`` (m).
+
+        ``cells`` (``(n,)`` indices, default all) selects the rows; NaN outside the
+        tabulated ranges, as :meth:`ATable.evaluate`. ``a1=False`` skips ``A_1`` (None).
+        """
+        n_cells, n_nodes, n_lag = self.log_a2.shape
+        rows = np.arange(n_cells) if cells is None else np.asarray(cells)
+        big_l = np.asarray(outer_scale_m, dtype=float)
+        n, k = big_l.shape
+        with np.errstate(divide="ignore", invalid="ignore"):
+            il, wl, vl = _lagrange4(self.log_scales, np.log(big_l).ravel())
+        r = np.repeat(rows, k)
+        flat = r[:, None] * n_nodes + il  # (q, 4) rows of the (cells * nL, n_lag) tables
+        out = []
+        for table, valid in ((self.log_a1, self.valid1), (self.log_a2, self.valid2))[1 - a1 :]:
+            log_a = np.einsum("qa,qaj->qj", wl, table.reshape(-1, n_lag).take(flat, axis=0))
+            ok = valid.take(r, axis=0) & vl[:, None]
+            out.append(np.where(ok, np.exp(log_a), np.nan).reshape(n, k, n_lag))
+        return (out[0] if a1 else None), out[-1]
+
 
 def _probe_params(probe: Probe) -> dict:
     if isinstance(probe, PulsedProbe):

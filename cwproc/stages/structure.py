@@ -522,6 +522,16 @@ def azimuth_structure_function(
     rel = (wind_time - t0) / np.timedelta64(1, "ns")
     centre = t0 + np.rint(block_mean(rel[:, None].astype(float))[:, 0]).astype("timedelta64[ns]")
     scans_in_block = _block_sum(np.ones(n_time, dtype=np.int64), starts)
+    # time between the starts of consecutive scans (a sector scan's return included)
+    gaps_s = np.diff(rel) / 1e9
+    inside = block_of_time[1:] == block_of_time[:-1]
+    scan_interval = (
+        pd.Series(gaps_s[inside])
+        .groupby(block_of_time[1:][inside])
+        .median()
+        .reindex(np.arange(n_blocks))
+        .to_numpy()
+    )
     elevation = block_mean(wind["elevation"].values.astype(float)[:, None])[:, 0]
 
     out = xr.Dataset(
@@ -539,6 +549,7 @@ def azimuth_structure_function(
             "snr_median": (("time", "height"), snr_median),
             "azimuth_step": ("time", np.full(n_blocks, dtheta)),
             "scan_period": ("time", scan_period),
+            "scan_interval": ("time", scan_interval),
             "n_scans": ("time", scans_in_block),
         },
         coords={

@@ -215,6 +215,34 @@ def test_interpolation_is_exact_for_cubics():
     np.testing.assert_allclose(a2_v, np.exp(poly(np.log(big_l), np.log(h), lag, mu)), rtol=1e-11)
 
 
+def test_cell_table_equals_evaluate():
+    # ATable.at_cells: the height and mu weights applied once, L_V interpolated later;
+    # the same Lagrange interpolation, so equal to evaluate up to rounding, NaN included
+    heights = np.geomspace(10.0, 3000.0, 12)
+    mu_nodes = atable.default_mu_grid(4.0)
+    scales = np.geomspace(10.0, 3000.0, 9)
+    rng = np.random.default_rng(3)
+    log_a1 = rng.normal(size=(scales.size, heights.size, 3))
+    log_a2 = rng.normal(size=(scales.size, heights.size, 3, mu_nodes.size))
+    tab = atable.ATable(heights, mu_nodes, scales, log_a1, log_a2, {"model": "von_karman"})
+    n = 300
+    h = rng.uniform(5.0, 3100.0, n)  # a few outside the heights: NaN
+    mu = rng.uniform(0.0, 4.5, n)  # and outside mu: NaN in A_2 only
+    big_l = rng.uniform(8.0, 3200.0, (n, 5))  # and outside L_V
+    lags = np.arange(1, 4)
+    cells = tab.at_cells(lags, h, mu)
+    a1_c, a2_c = cells.evaluate(big_l)
+    a1_e, a2_e = tab.evaluate(lags, h[:, None, None], mu[:, None, None], big_l[:, :, None])
+    for got, want in ((a1_c, a1_e), (a2_c, a2_e)):
+        np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
+        np.testing.assert_allclose(got, want, rtol=1e-12)
+    assert np.isnan(a2_e).any() and np.isfinite(a2_e).any()
+    rows = np.array([7, 3, 250])
+    none, a2_r = cells.evaluate(big_l[rows, :2], rows, a1=False)
+    assert none is None
+    np.testing.assert_allclose(a2_r, a2_e[rows, :2], rtol=1e-12)
+
+
 @pytest.fixture(scope="module")
 def stare_table(cache):
     # 24-ray step-stare VAD (15 deg steps): exact two-beam geometry, no sweep

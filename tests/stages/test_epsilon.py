@@ -20,7 +20,9 @@ from cwproc.stages.epsilon import (
     estimate_epsilon,
     fit_structure_function,
     mean_removed_share,
+    partial_circle,
     passed_variance,
+    sector_removed_share,
 )
 
 PHI = 35.3  # deg
@@ -857,3 +859,133 @@ def test_exact_statistics_eps_is_unbiased_and_its_error_bar_calibrated(
     assert abs(ratio.mean() - 1.0) < 0.05 + 2 * sem
     assert 0.8 < np.mean(se) / ratio.std(ddof=1) < 1.2
     assert abs(np.nanmean(var) - 1.0) < 0.05
+
+
+def _pair_node_weights(azimuth_deg: np.ndarray, wind_to_deg: float) -> np.ndarray:
+    """Node weights of the lag-1 pairs of one scan, as the structure stage records them."""
+    from cwproc.physics.atable import azimuth_bin_weights
+
+    az = np.asarray(azimuth_deg, float)
+    step = np.diff(az)
+    regular = step < 1.5 * np.median(step)  # pairs across a gap are not lag-1 pairs
+    mids = (az[:-1] + step / 2)[regular]
+    return azimuth_bin_weights(np.radians(wind_to_deg - mids))[None]
+
+
+def test_partial_circle_tells_sectors_and_gaps_from_regular_scans():
+    cases = {
+        "24-ray VAD": (np.arange(7.5, 360.0, 15.0), 15.0, False),
+        "12-ray VAD": (np.arange(15.0, 360.0, 30.0), 30.0, False),
+        "180-ray scan": (np.arange(1.0, 360.0, 2.0), 2.0, False),
+        "60 deg gap": (np.arange(61.0, 360.0, 2.0), 2.0, True),
+        "90 deg sector": (np.arange(1.0, 90.0, 2.0), 2.0, True),
+    }
+    for label, (az, step, expected) in cases.items():
+        w = _pair_node_weights(az, 250.0)
+        assert bool(partial_circle(w, np.array([step]))[0]) is expected, label
+
+
+def test_sector_vad_removal_matches_exact_block_statistics():
+    """The share of sigma_V^2 the block-mean VAD wind takes from V'_L, against the exact
+    covariance of the rays of a block (:func:`cwproc.sim.exact_gaussian.block_covariance`).
+
+    A 90 deg step-stare sector (15 rays, 1 s each, 2 s back), 4 scans per block, mu = 1,
+    R'/L_V = 0.7: the scans are 0.8 R' apart, so their VAD winds correlate and the block
+    removes far more than the full circle's share over N (which is 2.5 times too small).
+    """
+    from cwproc.sim import exact_gaussian as eg
+
+    phi, height, scale, n_scans, mu = 35.0, 100.0, 200.0, 4, 1.0
+    radius = height / np.tan(np.radians(phi))
+    pattern = eg.conical_pattern(15, 15.0, sector_deg=90.0, continuous=False, return_s=2.0)
+    t_scan = 15.0 * 4  # a full circle at the sector's rate (s)
+    u, v = eg.wind_components(mu * 2 * np.pi * radius / t_scan, 250.0)
+    cov = eg.block_covariance(
+        pattern,
+        n_scans,
+        elevation_deg=phi,
+        range_m=height / np.sin(np.radians(phi)),
+        epsilon=0.01,
+        outer_scale_m=scale,
+        mean_wind=(u, v, 0.0),
+    )
+    az = np.radians(np.asarray(pattern.azimuth_deg))
+    design = np.stack([np.ones(az.size), np.cos(az), np.sin(az)], -1)
+    hat = design @ np.linalg.solve(design.T @ design, design.T)
+    keep = np.eye(n_scans * az.size) - np.kron(np.full((n_scans, n_scans), 1 / n_scans), hat)
+    sigma2 = spectra.variance_from(0.01, scale, "von_karman")
+    exact = (np.trace(cov) - np.trace(keep @ cov @ keep.T)) / cov.shape[0] / sigma2
+    model = sector_removed_share(
+        _pair_node_weights(pattern.azimuth_deg, 250.0),
+        np.array([[radius / scale]]),
+        np.array([mu]),
+        np.array([pattern.period_s / t_scan]),
+        np.array([float(n_scans)]),
+        phi,
+        "von_karman",
+    )[0, 0]
+    circle = mean_removed_share(np.array(radius / scale), phi, "von_karman", mu) / n_scans
+    assert model == pytest.approx(exact, rel=0.12)
+    assert exact > 2.0 * circle
+
+
+def test_sector_scans_use_the_sector_vad_removal_in_the_variance_condition(options, monkeypatch):
+    """A 90 deg sector scan (scans 18 s apart, T_scan 60 s), von Karman L_V = 300 m.
+
+    Data consistent with the sector's A_2 and with the share of sigma_V^2 its block-mean
+    VAD wind removes (:func:`sector_removed_share`, 3-4 times the full circle's here) give
+    eps, L_V and sigma_V^2 back; with the full circle's share (measured: L_V 27-30 % low,
+    eps 4-5 % high) L_V is more than 10 % off.
+    """
+    from cwproc.physics.atable import azimuth_bin_weights
+    from cwproc.stages.epsilon import _sector_evaluate
+
+    eps, noise, big_l, mu, interval = 0.003, 0.1, 300.0, 0.5, 18.0 / T_SCAN
+    lags = np.arange(1, N_LAGS + 1, dtype=float)
+    weights = azimuth_bin_weights(np.radians(250.0 - np.arange(2.0, 90.0, 2.0)))
+    weights = np.broadcast_to(weights, (1, HEIGHTS.size, weights.size)).copy()
+    mu_c = np.full((1, HEIGHTS.size), mu)
+    inertial = get_a_table(
+        PROBE,
+        phi_deg=PHI,
+        delta_theta_deg=DTHETA,
+        n_lags=N_LAGS,
+        model="inertial",
+        **{k: v for k, v in options.items() if k != "outer_scale_range_m"},
+    )
+    table = get_a_table(
+        PROBE, phi_deg=PHI, delta_theta_deg=DTHETA, n_lags=N_LAGS, model="von_karman", **options
+    )
+    _, _, ratio = _sector_evaluate(inertial, lags, HEIGHTS, mu_c, weights)
+    d = (model_d(table, eps, 0.0, mu_c, outer=big_l)) * ratio + 2 * noise**2
+    radius = HEIGHTS / np.tan(np.deg2rad(PHI))
+    dy = np.deg2rad(DTHETA) * radius
+    share = sector_removed_share(
+        weights[0],
+        (radius / big_l)[:, None],
+        np.full(HEIGHTS.size, mu),
+        np.full(HEIGHTS.size, interval),
+        np.full(HEIGHTS.size, 10.0),
+        PHI,
+        "von_karman",
+    )[:, 0]
+    circle = mean_removed_share(radius / big_l, PHI, "von_karman", mu) / 10
+    assert np.all(share > 2.5 * circle)
+    passed = passed_variance(PROBE, dy, HEIGHTS / np.sin(np.deg2rad(PHI)), "von_karman", [big_l])
+    full = spectra.variance_per_eps23("von_karman", big_l)
+    var_raw = eps ** (2 / 3) * (passed[:, 0] - full * share) + noise**2
+    sf = make_sf(d, mu=mu_c, variance=var_raw[None, :])
+    sf["pair_azimuth_weights"] = (("time", "height", "azimuth_node"), weights)
+    sf["scan_interval"] = ("time", [18.0])
+    out = estimate_epsilon(sf, probe=PROBE, lag_number=3, model="von_karman", table_options=options)
+    np.testing.assert_allclose(out["epsilon"].values, eps, rtol=0.03)
+    np.testing.assert_allclose(out["integral_scale"].values, big_l, rtol=0.05)
+    np.testing.assert_allclose(out["velocity_variance"].values, eps ** (2 / 3) * full, rtol=0.03)
+    # the same data with the full circle's share (partial circles not recognised)
+    monkeypatch.setattr(
+        "cwproc.stages.epsilon.partial_circle", lambda w, step: np.zeros(w.shape[:-1], bool)
+    )
+    circle_only = estimate_epsilon(
+        sf, probe=PROBE, lag_number=3, model="von_karman", table_options=options
+    )
+    assert np.all(np.abs(circle_only["integral_scale"].values / big_l - 1) > 0.1)

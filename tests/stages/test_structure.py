@@ -91,6 +91,8 @@ def test_ramp_gives_exact_structure_function_and_pair_counts():
     np.testing.assert_array_equal(sf["n_pairs"].values[0, 0], 6 * (120 - np.array([1, 2, 3])))
     np.testing.assert_allclose(sf["azimuth_step"].values, 3.0)
     np.testing.assert_allclose(sf["scan_period"].values, 60.0, rtol=1e-6)
+    # consecutive full circles: the scans start one scan period apart
+    np.testing.assert_allclose(sf["scan_interval"].values, 60.0, rtol=1e-6)
     np.testing.assert_allclose(sf["wind_speed"].values, np.hypot(U0, V0))
     # pooled over the 6 x 120 values of the block, ddof = 1
     pooled = 0.01**2 * (120**2 - 1) / 12 * 720 / 719
