@@ -50,6 +50,12 @@ READERS: dict[Format, str] = {
     Format.HALO_BACKGROUND: "cwproc.io.halo_background:read_halo_background",
 }
 
+#: format -> "module:function" that tells from a file's header alone what it is (its
+#: unit: instrument, identity, day) without reading its data; formats not listed are read
+IDENTIFIERS: dict[Format, str] = {
+    Format.HPL: "cwproc.io.halo:read_hpl_identity",
+}
+
 #: what each format holds: "scan", "wind_record", "sonic" or "background" (a Stream Line
 #: background profile: used to correct the SNR of the scans beside it, never a product)
 KIND: dict[Format, str] = {
@@ -176,6 +182,15 @@ def is_cwproc_product(path: str | os.PathLike) -> bool:
 def get_reader(fmt: Format | str):
     """The reader function of a format."""
     module_name, func = READERS[Format(fmt)].split(":")
+    return getattr(importlib.import_module(module_name), func)
+
+
+def get_identifier(fmt: Format | str):
+    """The header-only identifier of a format (see ``IDENTIFIERS``), None when it has none."""
+    target = IDENTIFIERS.get(Format(fmt))
+    if target is None:
+        return None
+    module_name, func = target.split(":")
     return getattr(importlib.import_module(module_name), func)
 
 

@@ -867,6 +867,36 @@ def read_hpl(path: str | os.PathLike, **options: object) -> xr.Dataset:
     )
 
 
+def read_hpl_identity(path: str | os.PathLike) -> xr.Dataset:
+    """What a ``.hpl`` file is, from its header and first ray line only (no data).
+
+    For grouping files into product units without reading them (instrument, system
+    id, UTC day): the attributes :func:`read_hpl` gives and a ``time(ray)`` of the first
+    ray alone (the earliest: ray times run forward, across midnight too, see
+    :func:`decimal_hours_to_time`). The data are checked when the file is read.
+
+    Raises
+    ------
+    InputFileError
+        The file cannot be read, its header is garbled, or no ray line follows it.
+    """
+    path = Path(path)
+    try:
+        with path.open("rb") as f:
+            head = f.read(_HEAD_BYTES)
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    lines, offset = split_header(path, head)
+    header = parse_header(path, lines)
+    first = head[offset:].lstrip(b"\r\n").split(b"\n", 1)[0].split(b"\r", 1)[0].split()
+    try:
+        hours = float(first[0])
+    except (IndexError, ValueError):
+        raise InputFileError(path, "no ray line after the header", HEADER_LINES + 1) from None
+    time = decimal_hours_to_time(np.array([hours]), header.start_time)
+    return xr.Dataset(coords={"time": ("ray", time)}, attrs=_attrs(path, header))
+
+
 def scan_dataset(
     gates: dict[str, np.ndarray],
     per_ray: dict[str, np.ndarray],
