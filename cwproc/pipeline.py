@@ -36,7 +36,7 @@ import xarray as xr
 
 from cwproc.config import Config
 from cwproc.errors import CwprocError, InputFileError
-from cwproc.io import KIND, Format, detect_format, get_identifier, get_reader
+from cwproc.io import KIND, FileIdentity, Format, detect_format, get_identifier, get_reader
 from cwproc.io.netcdf import (
     add_site_coordinates,
     discard,
@@ -69,7 +69,7 @@ class InputFile:
     #: time of its first ray (scan files; orders the files of a streamed day)
     start: np.datetime64 | None = None
     #: what the header says (attributes, first time) when the data are not read yet
-    identity: xr.Dataset | None = None
+    identity: FileIdentity | None = None
 
 
 @dataclass
@@ -162,20 +162,27 @@ def read_input(
     return InputFile(path=path, format=fmt, sha256=checksum, dataset=ds, start=_start(ds))
 
 
-def held_or_identity(item: InputFile) -> xr.Dataset | None:
+def held_or_identity(item: InputFile) -> xr.Dataset | FileIdentity | None:
     """The dataset of an input when held, else what its header said (attributes)."""
     return item.dataset if item.dataset is not None else item.identity
 
 
-def _start(ds: xr.Dataset) -> np.datetime64 | None:
+def _times(ds: xr.Dataset | FileIdentity) -> np.ndarray:
+    """The times of a dataset or of a file's identity (empty when it has none)."""
+    if isinstance(ds, FileIdentity):
+        return ds.time
+    return ds["time"].values if "time" in ds.variables else np.array([], "datetime64[ns]")
+
+
+def _start(ds: xr.Dataset | FileIdentity) -> np.datetime64 | None:
     """The earliest valid time of a dataset (None when it has none)."""
-    t = ds["time"].values if "time" in ds.variables else np.array([], "datetime64[ns]")
+    t = _times(ds)
     t = t[~np.isnat(t)]
     return t.min() if t.size else None
 
 
-def _day(ds: xr.Dataset) -> str:
-    t = ds["time"].values
+def _day(ds: xr.Dataset | FileIdentity) -> str:
+    t = _times(ds)
     t = t[~np.isnat(t)]
     if t.size == 0:
         return "nodate"

@@ -28,9 +28,12 @@ import xarray as xr
 
 from cwproc.config import Config
 from cwproc.errors import CwprocError, InputFileError
+from cwproc.io import FileIdentity
 
-#: input data joined into one chunk (bytes of the read datasets)
-STREAM_CHUNK_BYTES = 64 << 20
+#: input data joined into one chunk (bytes of the read datasets): the stages need about
+#: ten times this at once (padded per-scan arrays of the robust VAD fits), so 8 MiB
+#: (14 files of 180 rays x 100 gates) keeps a day under 300 MiB
+STREAM_CHUNK_BYTES = 8 << 20
 
 
 class StreamMismatch(Exception):
@@ -336,7 +339,7 @@ def stream_scan_unit(
             return None
         item.dataset = None  # the chunk holds it now; released with the chunk
         if ds is not None:
-            item.identity = xr.Dataset(attrs=ds.attrs)  # what the products name
+            item.identity = FileIdentity(dict(ds.attrs), ds["time"].values[:1])  # for products
             own.extend(describe_scan_inputs(_single(unit, item, ds)))
             seen[position[id(item)]] = xr.Dataset(attrs=ds.attrs)
         return ds

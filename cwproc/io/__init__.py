@@ -13,9 +13,11 @@ import importlib
 import os
 import stat
 from collections.abc import Iterable
+from dataclasses import dataclass
 from enum import StrEnum
 from typing import Any
 
+import numpy as np
 import xarray as xr
 
 from cwproc.errors import InputFileError
@@ -49,6 +51,18 @@ READERS: dict[Format, str] = {
     Format.GILL: "cwproc.io.gill:read_gill",
     Format.HALO_BACKGROUND: "cwproc.io.halo_background:read_halo_background",
 }
+
+
+@dataclass(frozen=True)
+class FileIdentity:
+    """What a file's header says it is, without its data: attributes and ray times.
+
+    ``time`` holds the times known from the header (for ``.hpl``: the first ray's).
+    """
+
+    attrs: dict
+    time: np.ndarray
+
 
 #: format -> "module:function" that tells from a file's header alone what it is (its
 #: unit: instrument, identity, day) without reading its data; formats not listed are read

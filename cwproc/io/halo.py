@@ -50,6 +50,7 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import ConfigError, CwprocError, InputFileError
+from cwproc.io import FileIdentity
 from cwproc.io.netcdf import remove_stale_temporaries, umask_mode
 from cwproc.io.timecheck import check_times
 
@@ -867,7 +868,7 @@ def read_hpl(path: str | os.PathLike, **options: object) -> xr.Dataset:
     )
 
 
-def read_hpl_identity(path: str | os.PathLike) -> xr.Dataset:
+def read_hpl_identity(path: str | os.PathLike) -> FileIdentity:
     """What a ``.hpl`` file is, from its header and first ray line only (no data).
 
     For grouping files into product units without reading them (instrument, system
@@ -894,7 +895,7 @@ def read_hpl_identity(path: str | os.PathLike) -> xr.Dataset:
     except (IndexError, ValueError):
         raise InputFileError(path, "no ray line after the header", HEADER_LINES + 1) from None
     time = decimal_hours_to_time(np.array([hours]), header.start_time)
-    return xr.Dataset(coords={"time": ("ray", time)}, attrs=_attrs(path, header))
+    return FileIdentity(attrs=_attrs(path, header), time=time)
 
 
 def scan_dataset(
