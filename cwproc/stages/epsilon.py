@@ -723,10 +723,15 @@ def _evaluate(table: Any, lags: np.ndarray, height: np.ndarray, mu: np.ndarray, 
     b = np.broadcast_arrays(*[np.asarray(x, dtype=float) for x in args])
     shape = b[0].shape
     flat = [x.ravel() for x in b]
-    a1, a2 = table.evaluate(
-        flat[0], flat[1], flat[2], outer_scale_m=None if outer is None else flat[3]
-    )
-    return np.asarray(a1, float).reshape(shape), np.asarray(a2, float).reshape(shape)
+    a1 = np.empty(flat[0].size)
+    a2 = np.empty(flat[0].size)
+    step = EVALUATION_CELLS * 8  # values per call: bounded working memory of the table
+    for start in range(0, a1.size, step):
+        part = [x[start : start + step] for x in flat]
+        a1[start : start + step], a2[start : start + step] = table.evaluate(
+            part[0], part[1], part[2], outer_scale_m=None if outer is None else part[3]
+        )
+    return a1.reshape(shape), a2.reshape(shape)
 
 
 #: the A-table's default height range (m) and the smallest height it is widened to
