@@ -1174,10 +1174,15 @@ def _finite_scale_inputs(
     passed_cell = passed_u[inverse.ravel()].reshape(n_t, n_h, scale_grid.size)
     full_var = np.array([spectra.variance_per_eps23(model, x) for x in scale_grid])
     n_eff = np.where(np.isfinite(scans) & (scans >= 1), scans, 1.0)
-    ratio_rl = radius[:, :, None] / scale_grid[None, None, :]
-    removed = full_var * mean_removed_share(
-        ratio_rl, float(np.nanmedian(phi)), model, mu_eval[:, :, None]
-    )
+    phi_median = float(np.nanmedian(phi))
+    removed = np.empty(passed_cell.shape)
+    step = max(1, EVALUATION_CELLS // max(n_h, 1))  # blocks at once: bounded memory
+    for t0 in range(0, n_t, step):
+        rows = slice(t0, t0 + step)
+        ratio_rl = radius[rows, :, None] / scale_grid[None, None, :]
+        removed[rows] = full_var * mean_removed_share(
+            ratio_rl, phi_median, model, mu_eval[rows, :, None]
+        )
     return {
         "nodes": np.geomspace(lo, hi, n_outer_scales),
         "scale_grid": scale_grid,
