@@ -123,3 +123,18 @@ def test_streamed_background_correction_equals_whole_day(tmp_path, config):
     whole = whole_day(tmp_path / "day", config)
     assert len(whole["wind"].attrs["background_files"]) == 2
     assert_same_products(streamed_day(tmp_path / "day", config), whole)
+
+
+def test_header_identity_groups_like_the_full_read(tmp_path, config):
+    """retrieve groups .hpl files by header: same unit and first time as reading them."""
+    from cwproc.pipeline import unit_key
+
+    spec = StreamLineSpec(n_scans=4, scans_per_file=1, n_gates=24, start="2024-06-01T23:59:00")
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    for path in sorted((tmp_path / "day").glob("*.hpl")):
+        full = read_input(path, config)
+        light = read_input(path, config, identify_only=True)
+        assert light.dataset is None and light.identity is not None
+        assert unit_key(light) == unit_key(full)
+        assert light.start == full.start
+        assert light.sha256 == full.sha256
