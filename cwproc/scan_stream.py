@@ -53,12 +53,16 @@ class StreamState:
     last_time: np.datetime64 | None = None
     #: per-ray time, azimuth, elevation and streamed scan index of every chunk
     pointing: list[tuple[np.ndarray, ...]] = field(default_factory=list)
-    #: (vad elevation, vad scans left out, snr_correction) of every chunk with scans
+    #: (vad elevation, vad scans left out) of every chunk with conical scans
     choices: set[tuple[object, ...]] = field(default_factory=set)
+    #: the SNR correction method of every chunk ("None": not corrected)
+    snr_corrections: set[str] = field(default_factory=set)
     background_files: set[str] = field(default_factory=set)
     #: (wind time origin, ray time origin) of the structure function, from the first block
     origins: tuple[np.datetime64, np.datetime64] | None = None
     turbulence: bool = True
+    #: per chunk, the rays whose SNR a background file corrected
+    corrected: list[np.ndarray] = field(default_factory=list)
     #: scan type of the day's files (joined), for the scan numbering of the whole day
     scan_type: str = ""
 
@@ -192,14 +196,7 @@ def take_chunk(chunk: xr.Dataset, state: StreamState, config: Config) -> None:
     except CwprocError as exc:
         raise StreamMismatch(f"wind of a chunk: {exc}") from None
     state.winds.append(wind)
-    state.choices.add(
-        (
-            wind.attrs["vad_elevation_deg"],
-            wind.attrs["vad_scans_other_elevation"],
-            str(chunk.attrs.get("snr_correction")),
-        )
-    )
-    state.background_files.update(chunk.attrs.get("background_files", []))
+    state.choices.add((wind.attrs["vad_elevation_deg"], wind.attrs["vad_scans_other_elevation"]))
     if state.turbulence:
         if state.carry is not None:
             screened = _join([state.carry[0], screened], "ray")
@@ -223,7 +220,7 @@ def check_day_choices(state: StreamState, config: Config) -> None:
     whole, _ = scan_indices(time, az, el, scan_type=state.scan_type)
     if not np.array_equal(whole, streamed):
         raise StreamMismatch("scan numbering")
-    if len(state.choices) > 1:
+    if len(state.choices) > 1 or len(state.snr_corrections) > 1:
         raise StreamMismatch("conical elevation or background method")
     if not state.winds:
         return
@@ -231,7 +228,7 @@ def check_day_choices(state: StreamState, config: Config) -> None:
         vad.scan_layout(whole, np.isfinite(az) & np.isfinite(el)), el
     )
     wind_scans = np.concatenate([w["scan"].values for w in state.winds])
-    chosen, other = next(iter(state.choices))[:2]
+    chosen, other = next(iter(state.choices))
     if (phi, n_other) != (chosen, other) or not np.array_equal(layout.scan_ids, wind_scans):
         raise StreamMismatch("conical scans of the day")
     if state.sfs:
@@ -247,8 +244,8 @@ def day_attrs(first: dict, files: list[str], scan_types: list[str], state: Strea
     from cwproc.stages.scans import joined_attrs
 
     attrs = joined_attrs(first, files, scan_types)
-    if state.choices:
-        snr_correction = next(iter(state.choices))[2]
+    if state.snr_corrections:
+        snr_correction = next(iter(state.snr_corrections))
         if snr_correction != "None":
             attrs["snr_correction"] = snr_correction
             attrs["background_files"] = sorted(state.background_files)
@@ -319,7 +316,6 @@ def stream_scan_unit(
         module docstring) and the caller must process the day whole.
     """
     from cwproc.pipeline import (
-        correct_background,
         describe_scan_inputs,
         drop_input,
         probe_mismatch,
@@ -349,7 +345,7 @@ def stream_scan_unit(
         for parts in chunks_of(ordered, take, chunk_bytes):
             chunk = concat_scans(parts)
             del parts
-            chunk = correct_background(chunk, unit, config, own)
+            chunk = corrected_chunk(chunk, unit, config, own, state)
             state.scan_type = str(chunk.attrs.get("scan_type", ""))
             chunk = number_scans(chunk, state)
             if state.turbulence and not state.winds and not state.stares:
@@ -371,10 +367,42 @@ def stream_scan_unit(
         return None
     if not state.winds:
         return None  # no conical scan: the whole-day run words what it cannot make
+    if state.corrected:
+        own.append(background_summary(state))
     products = stream_products(state, day_attrs(firsts[0].attrs, files, types, state), config, own)
     if notes is not None:
         notes.extend(dict.fromkeys(own))
     return products
+
+
+def corrected_chunk(
+    chunk: xr.Dataset, unit, config: Config, notes: list[str], state: StreamState
+) -> xr.Dataset:
+    """The chunk with its SNR background-corrected (:func:`cwproc.pipeline.correct_background`).
+
+    The per-chunk summary line is left out of ``notes`` and the rays counted instead, so
+    the day gets one summary (:func:`background_summary`), as the whole-day run words it.
+    """
+    from cwproc.pipeline import correct_background
+
+    own: list[str] = []
+    out = correct_background(chunk, unit, config, own)
+    state.snr_corrections.add(str(out.attrs.get("snr_correction")))
+    state.background_files.update(out.attrs.get("background_files", []))
+    if "background_time" in out and own:
+        own.pop()  # the summary line correct_snr appends last
+        state.corrected.append(~np.isnat(out["background_time"].values))
+    notes.extend(own)
+    return out
+
+
+def background_summary(state: StreamState) -> str:
+    """One line for the day: rays whose SNR was corrected, with how many files."""
+    from cwproc.stages.background import _summary
+
+    done = np.concatenate(state.corrected)
+    used = sorted(state.background_files)
+    return _summary(done, used, np.where(done, 0, -1))
 
 
 def _single(unit, item, ds: xr.Dataset):

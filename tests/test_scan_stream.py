@@ -24,20 +24,20 @@ from cwproc.sim.stare import write_stare_series
 SMALL_CHUNK = 3 * 180 * 40 * 8 * 6
 
 
-def whole_day(folder, config):
-    """Products and notes of the unit processed whole (the definition)."""
+def whole_day(folder, config, notes=None):
+    """Products of the unit processed whole (the definition); its notes to ``notes``."""
     (unit,) = group_units(read_input(p, config) for p in sorted(folder.glob("*.hpl")))
-    notes: list[str] = []
+    notes = [] if notes is None else notes
     scans = correct_background(concat_unit(unit), unit, config, notes)
     return process_scan_day(scans, config, notes)
 
 
-def streamed_day(folder, config, chunk_bytes=SMALL_CHUNK):
+def streamed_day(folder, config, chunk_bytes=SMALL_CHUNK, notes=None):
     (unit,) = group_units(read_input(p, config) for p in sorted(folder.glob("*.hpl")))
     for item in unit.inputs[::2]:  # half the files not held: read again when streamed
         item.dataset = None
     products = stream_scan_unit(
-        unit, config, [], lambda item: load_item(item, config), chunk_bytes=chunk_bytes
+        unit, config, notes, lambda item: load_item(item, config), chunk_bytes=chunk_bytes
     )
     assert products is not None, "the day was not streamed (a chunk chose differently)"
     return products
@@ -120,9 +120,13 @@ def test_streamed_background_correction_equals_whole_day(tmp_path, config):
     ):
         text = "".join(f"{v * scale:.6f}\r\n" for v in ramp)
         (tmp_path / "day" / name).write_bytes(text.encode())
-    whole = whole_day(tmp_path / "day", config)
+    whole_notes: list[str] = []
+    whole = whole_day(tmp_path / "day", config, whole_notes)
     assert len(whole["wind"].attrs["background_files"]) == 2
-    assert_same_products(streamed_day(tmp_path / "day", config), whole)
+    notes: list[str] = []
+    assert_same_products(streamed_day(tmp_path / "day", config, notes=notes), whole)
+    summary = [n for n in whole_notes if n.startswith("SNR of")]
+    assert len(summary) == 1 and [n for n in notes if n.startswith("SNR")] == summary
 
 
 def test_header_identity_groups_like_the_full_read(tmp_path, config):
