@@ -12,6 +12,9 @@ scan data (Stream Line ``.hpl``, cw line-of-sight NetCDF)::
     read -> concat_scans -> qc.screen_radial_velocity -> vad.fit_vad -> wind product
     screened scans + wind -> structure.azimuth_structure_function
                           -> epsilon.estimate_epsilon -> turbulence product
+
+    (a day of scans runs chunk by chunk, :mod:`cwproc.scan_stream`, with the products
+    of the whole day)
 wind records (ZephIR, WindCube)::
 
     read -> zephir.wind_record_product (qc, TI corrected for volume averaging) -> wind product
