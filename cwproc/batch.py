@@ -480,7 +480,9 @@ def _process_unit_task(task: UnitTask, outcome: Callable[..., UnitOutcome]) -> U
 
     try:
         config = parsed_config(task.config_toml, task.config_source)[0]
-        items = [read_input(p, config) for p in task.paths]
+        # .hpl data are read once, chunk by chunk, when the unit streams (classification
+        # already read them whole and judged them readable)
+        items = [read_input(p, config, identify_only=True) for p in task.paths]
         for item, expected in zip(items, task.sha256, strict=True):
             if item.sha256 != expected:
                 return outcome(
@@ -493,6 +495,8 @@ def _process_unit_task(task: UnitTask, outcome: Callable[..., UnitOutcome]) -> U
             return outcome(error=f"{unit_label(task)}: its inputs now group as {found}")
         notes: list[str] = []
         products = process_unit(units[0], config, notes)
+        if units[0].failures:  # readable when classified, not now: redo on the next run
+            return outcome(error="; ".join(units[0].failures))
         written = write_unit_products(units[0], products, task.outdir, config)
     except (InputFileError, ProductError) as exc:
         return outcome(error=str(exc))  # already names the file

@@ -12,6 +12,9 @@ scan data (Stream Line ``.hpl``, cw line-of-sight NetCDF)::
     read -> concat_scans -> qc.screen_radial_velocity -> vad.fit_vad -> wind product
     screened scans + wind -> structure.azimuth_structure_function
                           -> epsilon.estimate_epsilon -> turbulence product
+
+    (a day of scans runs chunk by chunk, :mod:`cwproc.scan_stream`, with the products
+    of the whole day)
 wind records (ZephIR, WindCube)::
 
     read -> zephir.wind_record_product (qc, TI corrected for volume averaging) -> wind product
@@ -36,7 +39,7 @@ import xarray as xr
 
 from cwproc.config import Config
 from cwproc.errors import CwprocError, InputFileError
-from cwproc.io import KIND, Format, detect_format, get_reader
+from cwproc.io import KIND, FileIdentity, Format, detect_format, get_identifier, get_reader
 from cwproc.io.netcdf import (
     add_site_coordinates,
     discard,
@@ -66,6 +69,10 @@ class InputFile:
     dataset: xr.Dataset | None = None
     #: the UTC day this item holds when a file crossing midnight was split (sonic)
     day: str | None = None
+    #: time of its first ray (scan files; orders the files of a streamed day)
+    start: np.datetime64 | None = None
+    #: what the header says (attributes, first time) when the data are not read yet
+    identity: FileIdentity | None = None
 
 
 @dataclass
@@ -75,6 +82,8 @@ class ProductUnit:
     key: str
     kind: str
     inputs: list[InputFile] = field(default_factory=list)
+    #: one line per input left out when its data were read (damaged beyond its header)
+    failures: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -108,8 +117,15 @@ def reader_options(config: Config, fmt: Format) -> dict:
     return dict(config.reader.get(fmt.value, {}))
 
 
-def read_input(path: str | os.PathLike, config: Config) -> InputFile:
+def read_input(
+    path: str | os.PathLike, config: Config, *, identify_only: bool = False
+) -> InputFile:
     """Detect the format of one file, checksum it and read it.
+
+    With ``identify_only``, a format with a header-only identifier (``.hpl``) is not
+    read: the item gets ``identity`` (attributes and first time, enough for
+    :func:`unit_key`) and no dataset, and its data are read when its unit is processed.
+    A header the identifier cannot take is read whole (and its error reported).
 
     Raises
     ------
@@ -135,12 +151,41 @@ def read_input(path: str | os.PathLike, config: Config) -> InputFile:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
     if fmt is Format.HALO_BACKGROUND:  # read by correct_background for the scans beside it
         return InputFile(path=path, format=fmt, sha256=checksum)
+    identify = get_identifier(fmt) if identify_only and not reader_options(config, fmt) else None
+    if identify is not None:
+        try:
+            identity = identify(path)
+        except CwprocError:
+            identity = None  # read whole below: its reader words the problem
+        if identity is not None:
+            return InputFile(
+                path=path, format=fmt, sha256=checksum, identity=identity, start=_start(identity)
+            )
     ds = get_reader(fmt)(path, **reader_options(config, fmt))
-    return InputFile(path=path, format=fmt, sha256=checksum, dataset=ds)
+    return InputFile(path=path, format=fmt, sha256=checksum, dataset=ds, start=_start(ds))
 
 
-def _day(ds: xr.Dataset) -> str:
-    t = ds["time"].values
+def held_or_identity(item: InputFile) -> xr.Dataset | FileIdentity | None:
+    """The dataset of an input when held, else what its header said (attributes)."""
+    return item.dataset if item.dataset is not None else item.identity
+
+
+def _times(ds: xr.Dataset | FileIdentity) -> np.ndarray:
+    """The times of a dataset or of a file's identity (empty when it has none)."""
+    if isinstance(ds, FileIdentity):
+        return ds.time
+    return ds["time"].values if "time" in ds.variables else np.array([], "datetime64[ns]")
+
+
+def _start(ds: xr.Dataset | FileIdentity) -> np.datetime64 | None:
+    """The earliest valid time of a dataset (None when it has none)."""
+    t = _times(ds)
+    t = t[~np.isnat(t)]
+    return t.min() if t.size else None
+
+
+def _day(ds: xr.Dataset | FileIdentity) -> str:
+    t = _times(ds)
     t = t[~np.isnat(t)]
     if t.size == 0:
         return "nodate"
@@ -188,7 +233,7 @@ def unit_key(item: InputFile) -> tuple[str, str]:
     made safe by :func:`name_part`, so the key is a plain file name.
     """
     kind = KIND[item.format]
-    ds = item.dataset
+    ds = held_or_identity(item)
     assert ds is not None
     if kind == "scan":
         system = name_part(ds.attrs.get("system_id", ""))
@@ -489,12 +534,32 @@ def concat_unit(unit: ProductUnit) -> xr.Dataset:
 
 
 def process_unit(
-    unit: ProductUnit, config: Config, notes: list[str] | None = None
+    unit: ProductUnit,
+    config: Config,
+    notes: list[str] | None = None,
+    *,
+    chunk_bytes: int | None = None,
 ) -> dict[str, xr.Dataset]:
     """Run the stage chain of one unit; returns ``{product_name: dataset}``.
 
     Non-fatal remarks (a product that could not be made) are appended to ``notes``.
+    A scan unit is processed chunk by chunk (:func:`cwproc.scan_stream.stream_scan_unit`,
+    identical products in bounded memory); a day whose chunks would choose differently
+    from the whole day is processed whole.
     """
+    if unit.kind == "scan":
+        from cwproc.scan_stream import STREAM_CHUNK_BYTES, stream_scan_unit
+
+        products = stream_scan_unit(
+            unit,
+            config,
+            notes,
+            lambda item: load_item(item, config),
+            chunk_bytes or STREAM_CHUNK_BYTES,
+        )
+        if products is not None:
+            return products
+    load_unit(unit, config)
     ds = concat_unit(unit)
     if unit.kind == "scan":
         if notes is not None:
@@ -617,7 +682,7 @@ def _write_staged(
 ) -> list[Path]:
     """Stage every product of ``unit`` (appending to ``staged``), then publish them."""
     instrument_attrs = site_attributes(config.output)
-    first = unit.inputs[0].dataset if unit.inputs else None
+    first = held_or_identity(unit.inputs[0]) if unit.inputs else None
     if first is not None and first.attrs.get("instrument"):
         instrument_attrs["instrument"] = str(first.attrs["instrument"])
     for name, ds in products.items():
@@ -692,7 +757,7 @@ def retrieve_files(
     held = 0
     for p in paths:
         try:
-            item = read_input(p, config)
+            item = read_input(p, config, identify_only=True)
         except CwprocError as exc:
             report.failures.append(str(exc))
             continue
@@ -720,7 +785,6 @@ def retrieve_files(
         names = unit_label(unit)
         notes: list[str] = []
         try:
-            load_unit(unit, config)
             products = process_unit(unit, config, notes)
             report.written.extend(write_unit_products(unit, products, outdir, config))
             if keep_products:
@@ -730,6 +794,7 @@ def retrieve_files(
         except Exception as exc:  # a bug in cwproc: report it, keep processing the rest
             report.failures.append(f"{names}: {internal_error(exc)}")
         finally:
+            report.failures.extend(unit.failures)
             for item in unit.inputs:  # processed: its data may go
                 item.dataset = None
         own = tuple(f"{os.fspath(i.path)}: " for i in unit.inputs)
@@ -755,17 +820,38 @@ def load_unit(unit: ProductUnit, config: Config) -> None:
     CwprocError
         An input changed or vanished since it was first read (its checksum differs).
     """
-    for item in unit.inputs:
-        if item.dataset is not None:
-            continue
-        again = read_input(item.path, config)
-        if again.sha256 != item.sha256:
-            raise CwprocError(f"{item.path}: changed while cwproc was running; run again")
-        ds = again.dataset
-        if item.day is not None and ds is not None:
-            days = ds["time"].values.astype("datetime64[D]")
-            ds = ds.isel(time=np.flatnonzero(days == np.datetime64(item.day, "D")))
-        item.dataset = ds
+    for item in list(unit.inputs):
+        if item.dataset is None:
+            try:
+                item.dataset = load_item(item, config)
+            except InputFileError as exc:  # identified by its header, damaged beyond it
+                drop_input(unit, item, exc)
+
+
+def drop_input(unit: ProductUnit, item: InputFile, exc: InputFileError) -> None:
+    """Leave out of ``unit`` an input whose data cannot be read; its line in ``failures``."""
+    unit.inputs.remove(item)
+    unit.failures.append(str(exc))
+
+
+def load_item(item: InputFile, config: Config) -> xr.Dataset | None:
+    """The dataset of ``item``: the one held, else the file read again (not stored).
+
+    Raises
+    ------
+    CwprocError
+        The input changed or vanished since it was first read (its checksum differs).
+    """
+    if item.dataset is not None:
+        return item.dataset
+    again = read_input(item.path, config)
+    if again.sha256 != item.sha256:
+        raise CwprocError(f"{item.path}: changed while cwproc was running; run again")
+    ds = again.dataset
+    if item.day is not None and ds is not None:
+        days = ds["time"].values.astype("datetime64[D]")
+        ds = ds.isel(time=np.flatnonzero(days == np.datetime64(item.day, "D")))
+    return ds
 
 
 def internal_error(exc: BaseException) -> str:

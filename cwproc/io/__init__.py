@@ -13,9 +13,11 @@ import importlib
 import os
 import stat
 from collections.abc import Iterable
+from dataclasses import dataclass
 from enum import StrEnum
 from typing import Any
 
+import numpy as np
 import xarray as xr
 
 from cwproc.errors import InputFileError
@@ -48,6 +50,24 @@ READERS: dict[Format, str] = {
     Format.METEO2: "cwproc.io.meteo2:read_meteo2",
     Format.GILL: "cwproc.io.gill:read_gill",
     Format.HALO_BACKGROUND: "cwproc.io.halo_background:read_halo_background",
+}
+
+
+@dataclass(frozen=True)
+class FileIdentity:
+    """What a file's header says it is, without its data: attributes and ray times.
+
+    ``time`` holds the times known from the header (for ``.hpl``: the first ray's).
+    """
+
+    attrs: dict
+    time: np.ndarray
+
+
+#: format -> "module:function" that tells from a file's header alone what it is (its
+#: unit: instrument, identity, day) without reading its data; formats not listed are read
+IDENTIFIERS: dict[Format, str] = {
+    Format.HPL: "cwproc.io.halo:read_hpl_identity",
 }
 
 #: what each format holds: "scan", "wind_record", "sonic" or "background" (a Stream Line
@@ -176,6 +196,15 @@ def is_cwproc_product(path: str | os.PathLike) -> bool:
 def get_reader(fmt: Format | str):
     """The reader function of a format."""
     module_name, func = READERS[Format(fmt)].split(":")
+    return getattr(importlib.import_module(module_name), func)
+
+
+def get_identifier(fmt: Format | str):
+    """The header-only identifier of a format (see ``IDENTIFIERS``), None when it has none."""
+    target = IDENTIFIERS.get(Format(fmt))
+    if target is None:
+        return None
+    module_name, func = target.split(":")
     return getattr(importlib.import_module(module_name), func)
 
 

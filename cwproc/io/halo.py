@@ -50,6 +50,7 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import ConfigError, CwprocError, InputFileError
+from cwproc.io import FileIdentity
 from cwproc.io.netcdf import remove_stale_temporaries, umask_mode
 from cwproc.io.timecheck import check_times
 
@@ -865,6 +866,36 @@ def read_hpl(path: str | os.PathLike, **options: object) -> xr.Dataset:
         scan=(scan, scan_attrs),
         attrs=_attrs(path, header),
     )
+
+
+def read_hpl_identity(path: str | os.PathLike) -> FileIdentity:
+    """What a ``.hpl`` file is, from its header and first ray line only (no data).
+
+    For grouping files into product units without reading them (instrument, system
+    id, UTC day): the attributes :func:`read_hpl` gives and a ``time(ray)`` of the first
+    ray alone (the earliest: ray times run forward, across midnight too, see
+    :func:`decimal_hours_to_time`). The data are checked when the file is read.
+
+    Raises
+    ------
+    InputFileError
+        The file cannot be read, its header is garbled, or no ray line follows it.
+    """
+    path = Path(path)
+    try:
+        with path.open("rb") as f:
+            head = f.read(_HEAD_BYTES)
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    lines, offset = split_header(path, head)
+    header = parse_header(path, lines)
+    first = head[offset:].lstrip(b"\r\n").split(b"\n", 1)[0].split(b"\r", 1)[0].split()
+    try:
+        hours = float(first[0])
+    except (IndexError, ValueError):
+        raise InputFileError(path, "no ray line after the header", HEADER_LINES + 1) from None
+    time = decimal_hours_to_time(np.array([hours]), header.start_time)
+    return FileIdentity(attrs=_attrs(path, header), time=time)
 
 
 def scan_dataset(

@@ -737,10 +737,15 @@ def _evaluate(table: Any, lags: np.ndarray, height: np.ndarray, mu: np.ndarray, 
     b = np.broadcast_arrays(*[np.asarray(x, dtype=float) for x in args])
     shape = b[0].shape
     flat = [x.ravel() for x in b]
-    a1, a2 = table.evaluate(
-        flat[0], flat[1], flat[2], outer_scale_m=None if outer is None else flat[3]
-    )
-    return np.asarray(a1, float).reshape(shape), np.asarray(a2, float).reshape(shape)
+    a1 = np.empty(flat[0].size)
+    a2 = np.empty(flat[0].size)
+    step = EVALUATION_CELLS * 8  # values per call: bounded working memory of the table
+    for start in range(0, a1.size, step):
+        part = [x[start : start + step] for x in flat]
+        a1[start : start + step], a2[start : start + step] = table.evaluate(
+            part[0], part[1], part[2], outer_scale_m=None if outer is None else part[3]
+        )
+    return a1.reshape(shape), a2.reshape(shape)
 
 
 #: the A-table's default height range (m) and the smallest height it is widened to
@@ -970,6 +975,11 @@ def _removed_share_curve(phi_deg: float, model: str) -> tuple[np.ndarray, np.nda
     return np.log(x), share
 
 
+#: cells (block, height) whose A-functions or passed variances are evaluated at once:
+#: the evaluations hold a few kB per cell, so a day of blocks is done in pieces
+EVALUATION_CELLS = 2048
+
+
 def mean_removed_share(
     ratio: np.ndarray, phi_deg: float, model: str, mu: np.ndarray | float = 0.0
 ) -> np.ndarray:
@@ -993,9 +1003,14 @@ def mean_removed_share(
         np.searchsorted(REMOVED_SHARE_MU, m, side="right") - 1, 0, REMOVED_SHARE_MU.size - 2
     )
     w = (m - REMOVED_SHARE_MU[j]) / (REMOVED_SHARE_MU[j + 1] - REMOVED_SHARE_MU[j])
-    rows = np.stack([np.interp(lx, log_x, row) for row in share])  # (mu node, ...)
-    lo = np.take_along_axis(rows, j[None], axis=0)[0]
-    hi = np.take_along_axis(rows, (j + 1)[None], axis=0)[0]
+    # the two bracketing mu rows interpolated in lg(R'/L_V) where each is needed only
+    # (not every row everywhere: that held a (mu node, time, height, L_V) array)
+    lo = np.empty(lx.shape)
+    hi = np.empty(lx.shape)
+    for k in np.unique(j):
+        at = j == k
+        lo[at] = np.interp(lx[at], log_x, share[k])
+        hi[at] = np.interp(lx[at], log_x, share[k + 1])
     return (1.0 - w) * lo + w * hi
 
 
@@ -1169,8 +1184,10 @@ def _sector_evaluate(
     a1, a2_full = _evaluate(table, lags[None, None, :], height[None, :, None], mu[:, :, None], None)
     known = np.all(np.isfinite(weights), axis=-1)
     ratio = np.ones(a2_full.shape)
-    if np.any(known):
-        ti, hi = np.nonzero(known)
+    all_ti, all_hi = np.nonzero(known)
+    for start in range(0, all_ti.size, EVALUATION_CELLS):  # bounded working memory
+        ti = all_ti[start : start + EVALUATION_CELLS]
+        hi = all_hi[start : start + EVALUATION_CELLS]
         _, part = table.evaluate(
             np.broadcast_to(lags[None, :], (ti.size, lags.size)).ravel(),
             np.repeat(height[hi], lags.size),
@@ -1312,22 +1329,27 @@ def _finite_scale_inputs(
     scale_grid = np.geomspace(lo, hi, int(np.ceil(np.log(hi / lo) / np.log(1.1))) + 1)
     cells_u = np.nonzero(uniq[:, 0] >= 0)[0]
     passed_u = np.full((uniq.shape[0], scale_grid.size), np.nan)
-    if cells_u.size:
-        passed_u[cells_u] = passed_variance(
-            probe, np.abs(uniq[cells_u, 0]), np.abs(uniq[cells_u, 1]), model, scale_grid
+    for start in range(0, cells_u.size, EVALUATION_CELLS):  # bounded working memory
+        cells = cells_u[start : start + EVALUATION_CELLS]
+        passed_u[cells] = passed_variance(
+            probe, np.abs(uniq[cells, 0]), np.abs(uniq[cells, 1]), model, scale_grid
         )
     passed_cell = passed_u[inverse.ravel()].reshape(n_t, n_h, scale_grid.size)
     full_var = np.array([spectra.variance_per_eps23(model, x) for x in scale_grid])
     n_eff = np.where(np.isfinite(scans) & (scans >= 1), scans, 1.0)
-    ratio_rl = radius[:, :, None] / scale_grid[None, None, :]
     phi_med = float(np.nanmedian(phi))
-    share = mean_removed_share(ratio_rl, phi_med, model, mu_eval[:, :, None])
-    share = share / n_eff[:, None, None]
+    share = np.empty(passed_cell.shape)
+    step = max(1, EVALUATION_CELLS // max(n_h, 1))  # blocks at once: bounded memory
+    for t0 in range(0, n_t, step):
+        rows = slice(t0, t0 + step)
+        ratio_rl = radius[rows, :, None] / scale_grid[None, None, :]
+        share[rows] = mean_removed_share(ratio_rl, phi_med, model, mu_eval[rows, :, None])
+    share /= n_eff[:, None, None]
     ti, hi_ = np.nonzero(partial_circle(weights, np.broadcast_to(dtheta[:, None], (n_t, n_h))))
     if ti.size:
         share[ti, hi_] = sector_removed_share(
             weights[ti, hi_],
-            ratio_rl[ti, hi_],
+            radius[ti, hi_, None] / scale_grid[None, :],
             mu_eval[ti, hi_],
             interval[ti],
             n_eff[ti],

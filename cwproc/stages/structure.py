@@ -352,6 +352,7 @@ def azimuth_structure_function(
     n_scans: int,
     max_lag_deg: float,
     min_lags: int = MIN_LAGS,
+    time_origins: tuple[np.datetime64, np.datetime64] | None = None,
 ) -> xr.Dataset:
     """Azimuth structure function D_L(l dtheta) per block of scans and height.
 
@@ -373,6 +374,10 @@ def azimuth_structure_function(
         Largest azimuth lag l dtheta (deg) of dense scans (:func:`lag_count`).
     min_lags : int
         Fewest lags of coarse scans (:func:`lag_count`).
+    time_origins : (datetime64, datetime64), optional
+        Origins of the block-centre times and of the ray times of the scan period
+        (default: the first wind time and the first ray used). A day processed in
+        chunks passes the day's, so its blocks equal those of the whole day to the bit.
 
     Returns
     -------
@@ -504,7 +509,9 @@ def azimuth_structure_function(
             snr_median[b0:b1] = block_median(snr, n_scans)
 
     # scan period from the ray times: median time per azimuth step, times M
-    t_sec = (t_ray - t_ray[0]) / np.timedelta64(1, "s")
+    wind_time = wind["time"].values
+    wind_t0, ray_t0 = time_origins if time_origins is not None else (wind_time[0], t_ray[0])
+    t_sec = (t_ray - ray_t0) / np.timedelta64(1, "s")
     same = scan_pos[1:] == scan_pos[:-1]
     dm = (sign * wrapped_azimuth_difference(az[1:], az[:-1]) / dtheta)[same]
     dt = np.diff(t_sec)[same]
@@ -517,8 +524,7 @@ def azimuth_structure_function(
     step_time = per_step.reindex(np.arange(n_blocks)).to_numpy()
     scan_period = step_time * n_az
 
-    wind_time = wind["time"].values
-    t0 = wind_time[0]
+    t0 = wind_t0
     rel = (wind_time - t0) / np.timedelta64(1, "ns")
     centre = t0 + np.rint(block_mean(rel[:, None].astype(float))[:, 0]).astype("timedelta64[ns]")
     scans_in_block = _block_sum(np.ones(n_time, dtype=np.int64), starts)

@@ -690,13 +690,19 @@ def _reference_directions(
 
 
 def _mean_times(ds: xr.Dataset, layout: ScanLayout) -> np.ndarray:
-    times = ds["time"].values.astype("datetime64[ns]")
-    good = ~np.isnat(times)
-    t0 = times[good].min() if good.any() else np.datetime64(0, "ns")
-    offsets = np.where(good, (times - t0).astype(np.int64), 0).astype(float)
+    """Mean ray time of each scan, averaged from the scan's own earliest ray.
+
+    Offsets from the scan's own origin keep the float sums small (exact to the
+    nanosecond) and make the result independent of what else the dataset holds.
+    """
+    times = layout.take(ds["time"].values.astype("datetime64[ns]").astype(np.int64))
+    good = layout.present & (times != np.iinfo(np.int64).min)
+    t0 = np.where(good, times, np.iinfo(np.int64).max).min(axis=1)
+    t0 = np.where(good.any(axis=1), t0, 0)
+    offsets = np.where(good, times - t0[:, None], 0).astype(float)
     offsets[~good] = np.nan
-    mean = np.nanmean(layout.take(offsets), axis=1)
-    return t0 + np.round(mean).astype(np.int64).astype("timedelta64[ns]")
+    mean = np.nanmean(offsets, axis=1)
+    return (t0 + np.round(mean).astype(np.int64)).astype("datetime64[ns]")
 
 
 def fit_vad(

@@ -1,0 +1,412 @@
+"""A day of scans processed chunk by chunk in bounded memory (issue 15.3).
+
+The files of a scan unit are taken in time order and joined into chunks of about
+``STREAM_CHUNK_BYTES``; each chunk is background-corrected, split into stares and
+conical scans, screened and VAD-fitted (all per ray or per scan). The structure
+function (Smalikho (2020), eqs. 1-2) is computed for the complete blocks of N scans
+held so far; the scans of an incomplete last block are carried, screened, into the next
+chunk, so every block is the one the whole-day run forms. Only the per-scan wind rows,
+the per-block structure statistics and the (vertical) stare rays are kept; the
+dissipation rate (which may pool noise over neighbouring blocks) and the stare product
+are computed once over the day.
+
+The whole-day run is the definition: the choices it makes over the whole day (scan
+numbering, the most common conical elevation, the azimuth step and rotation, the
+background method) are recomputed at the end from the per-ray pointing kept on the way
+(24 bytes a ray) and compared with those of the chunks; should any differ (a day of
+mixed geometries), or a chunk fail, the unit is processed whole instead, so the
+products are identical either way.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import xarray as xr
+
+from cwproc.config import Config
+from cwproc.errors import CwprocError, InputFileError
+from cwproc.io import FileIdentity
+
+#: input data joined into one chunk (bytes of the read datasets): the stages need about
+#: ten times this at once (padded per-scan arrays of the robust VAD fits), so 8 MiB
+#: (14 files of 180 rays x 100 gates) keeps a day under 300 MiB
+STREAM_CHUNK_BYTES = 8 << 20
+
+
+class StreamMismatch(Exception):
+    """A chunk made a choice the whole-day run would not make: process the day whole."""
+
+
+@dataclass
+class StreamState:
+    """What a streamed day keeps: small per-scan and per-block results, and pointing."""
+
+    winds: list[xr.Dataset] = field(default_factory=list)
+    sfs: list[xr.Dataset] = field(default_factory=list)
+    stares: list[xr.Dataset] = field(default_factory=list)
+    #: screened rays and wind rows of the scans of the incomplete last block
+    carry: tuple[xr.Dataset, xr.Dataset] | None = None
+    scan_offset: int = 0
+    last_time: np.datetime64 | None = None
+    #: per-ray time, azimuth, elevation and streamed scan index of every chunk
+    pointing: list[tuple[np.ndarray, ...]] = field(default_factory=list)
+    #: (vad elevation, vad scans left out) of every chunk with conical scans
+    choices: set[tuple[object, ...]] = field(default_factory=set)
+    #: the SNR correction method of every chunk ("None": not corrected)
+    snr_corrections: set[str] = field(default_factory=set)
+    background_files: set[str] = field(default_factory=set)
+    #: (wind time origin, ray time origin) of the structure function, from the first block
+    origins: tuple[np.datetime64, np.datetime64] | None = None
+    turbulence: bool = True
+    #: per chunk, the rays whose SNR a background file corrected
+    corrected: list[np.ndarray] = field(default_factory=list)
+    #: scan type of the day's files (joined), for the scan numbering of the whole day
+    scan_type: str = ""
+
+
+def time_ordered(items: list, start: Callable[[object], np.datetime64]) -> list:
+    """The inputs sorted by their first ray time (stable for equal times)."""
+    return sorted(items, key=lambda item: start(item))
+
+
+def chunks_of(items: list, load: Callable, max_bytes: int):
+    """Yield lists of loaded datasets of consecutive inputs of about ``max_bytes``.
+
+    ``load(item)`` returns the dataset of an input (reading it when not held) and is
+    called once per input; the datasets are released by the caller after each chunk.
+    """
+    chunk: list[xr.Dataset] = []
+    size = 0
+    for item in items:
+        ds = load(item)
+        if ds is None:
+            continue
+        chunk.append(ds)
+        size += int(ds.nbytes)
+        if size >= max_bytes:
+            yield chunk
+            chunk, size = [], 0
+    if chunk:
+        yield chunk
+
+
+def number_scans(chunk: xr.Dataset, state: StreamState) -> xr.Dataset:
+    """The chunk with its scan indices shifted to follow those of earlier chunks.
+
+    Raises
+    ------
+    StreamMismatch
+        The chunk's rays do not all come after those of the previous chunk.
+    """
+    time = chunk["time"].values
+    if state.last_time is not None and time.size and time[0] <= state.last_time:
+        raise StreamMismatch("files overlap in time")
+    scan = chunk["scan"].values
+    shifted = np.where(scan >= 0, scan + state.scan_offset, scan)
+    if scan.size:
+        state.scan_offset += int(scan.max()) + 1 if (scan >= 0).any() else 0
+        state.last_time = time[-1]
+    state.pointing.append(
+        (
+            time,
+            chunk["azimuth"].values.astype(float),
+            chunk["elevation"].values.astype(float),
+            shifted,
+        )
+    )
+    return chunk.assign_coords(scan=("ray", shifted, chunk["scan"].attrs))
+
+
+def screened_wind(others: xr.Dataset, config: Config) -> tuple[xr.Dataset, xr.Dataset]:
+    """Screened conical scans and their VAD wind rows (stages ``qc`` and ``vad``)."""
+    from cwproc.stages import qc, vad
+
+    screened = qc.screen_radial_velocity(
+        others, snr_min=config.qc.snr_min, outlier_threshold=config.qc.outlier_threshold
+    )
+    wind = vad.fit_vad(
+        screened,
+        min_rays=config.vad.min_rays,
+        max_gap_deg=config.vad.max_gap_deg,
+        reference_direction_deg=config.vad.reference_direction_deg,
+        max_residual_std=config.vad.max_residual_std,
+    )
+    return screened, wind
+
+
+def _join(parts: list[xr.Dataset], dim: str) -> xr.Dataset:
+    return parts[0] if len(parts) == 1 else xr.concat(parts, dim=dim, combine_attrs="override")
+
+
+def flush_blocks(
+    screened: xr.Dataset, wind: xr.Dataset, state: StreamState, config: Config, final: bool
+) -> None:
+    """Structure function of the complete blocks of ``wind``; the rest is carried.
+
+    Blocks are ``[turbulence] n_scans`` consecutive wind rows from the first of the day
+    (Smalikho (2020), eq. 1), as :func:`cwproc.stages.structure.azimuth_structure_function`
+    forms them on the whole day; the last, shorter block is flushed at the end.
+    """
+    from cwproc.stages import structure
+
+    n_scans = config.turbulence.n_scans
+    n = int(wind.sizes["time"])
+    k = n if final else n // n_scans * n_scans
+    if k < n:
+        rest = wind["scan"].values[k:]
+        carried = np.flatnonzero(np.isin(screened["scan"].values, rest))
+        state.carry = (screened.isel(ray=carried), wind.isel(time=slice(k, None)))
+    else:
+        state.carry = None
+    if k == 0:
+        return
+    done = wind.isel(time=slice(0, k)) if k < n else wind
+    if state.origins is None:
+        in_wind = np.isin(screened["scan"].values, done["scan"].values)
+        state.origins = (done["time"].values[0], screened["time"].values[in_wind].min())
+    try:
+        state.sfs.append(
+            structure.azimuth_structure_function(
+                screened,
+                done,
+                n_scans=n_scans,
+                max_lag_deg=config.turbulence.max_lag_deg,
+                min_lags=config.turbulence.min_lags,
+                time_origins=state.origins,
+            )
+        )
+    except CwprocError as exc:
+        raise StreamMismatch(f"structure function of a chunk: {exc}") from None
+
+
+def take_chunk(chunk: xr.Dataset, state: StreamState, config: Config) -> None:
+    """Stares kept, conical scans screened, fitted and their complete blocks reduced."""
+    from cwproc.stages.stare import split_stares
+
+    stares, others = split_stares(chunk)
+    if stares is not None:
+        state.stares.append(stares)
+    if others is None:
+        return
+    try:
+        screened, wind = screened_wind(others, config)
+    except CwprocError as exc:
+        raise StreamMismatch(f"wind of a chunk: {exc}") from None
+    state.winds.append(wind)
+    state.choices.add((wind.attrs["vad_elevation_deg"], wind.attrs["vad_scans_other_elevation"]))
+    if state.turbulence:
+        if state.carry is not None:
+            screened = _join([state.carry[0], screened], "ray")
+            wind = _join([state.carry[1], wind], "time")
+        flush_blocks(screened, wind, state, config, final=False)
+
+
+def check_day_choices(state: StreamState, config: Config) -> None:
+    """Compare the chunks' choices with the whole day's (recomputed from the pointing).
+
+    Raises
+    ------
+    StreamMismatch
+        Scan numbering, conical elevation, azimuth step or rotation, or the background
+        method of a chunk differs from the whole day's.
+    """
+    from cwproc.stages import structure, vad
+    from cwproc.stages.scans import scan_indices
+
+    time, az, el, streamed = (np.concatenate(p) for p in zip(*state.pointing, strict=True))
+    whole, _ = scan_indices(time, az, el, scan_type=state.scan_type)
+    if not np.array_equal(whole, streamed):
+        raise StreamMismatch("scan numbering")
+    if len(state.choices) > 1 or len(state.snr_corrections) > 1:
+        raise StreamMismatch("conical elevation or background method")
+    if not state.winds:
+        return
+    layout, phi, _, n_other = vad.select_conical_scans(
+        vad.scan_layout(whole, np.isfinite(az) & np.isfinite(el)), el
+    )
+    wind_scans = np.concatenate([w["scan"].values for w in state.winds])
+    chosen, other = next(iter(state.choices))
+    if (phi, n_other) != (chosen, other) or not np.array_equal(layout.scan_ids, wind_scans):
+        raise StreamMismatch("conical scans of the day")
+    if state.sfs:
+        rays = np.isin(whole, wind_scans)
+        day_step = structure.azimuth_step(az[rays], whole[rays])
+        for sf in state.sfs:
+            if (float(sf["azimuth_step"].values[0]), float(sf.attrs["rotation"])) != day_step:
+                raise StreamMismatch("azimuth step")
+
+
+def day_attrs(first: dict, files: list[str], scan_types: list[str], state: StreamState) -> dict:
+    """Attributes of the whole day's scans (those the whole-day run would carry)."""
+    from cwproc.stages.scans import joined_attrs
+
+    attrs = joined_attrs(first, files, scan_types)
+    if state.snr_corrections:
+        snr_correction = next(iter(state.snr_corrections))
+        if snr_correction != "None":
+            attrs["snr_correction"] = snr_correction
+            attrs["background_files"] = sorted(state.background_files)
+    return attrs
+
+
+def stream_products(
+    state: StreamState, attrs: dict, config: Config, notes: list[str] | None
+) -> dict[str, xr.Dataset]:
+    """Wind, turbulence and stare products of the day from what the chunks kept."""
+    from cwproc.pipeline import probe_for, stare_products
+    from cwproc.stages import epsilon
+    from cwproc.stages.structure import INSTRUMENT_SETTINGS
+
+    products: dict[str, xr.Dataset] = {}
+    if state.winds:
+        wind = _join(state.winds, "time")
+        wind.attrs = {**attrs, **{k: v for k, v in wind.attrs.items() if k.startswith("vad_")}}
+        products["wind"] = wind
+    if state.sfs:
+        sf = _join(state.sfs, "time")
+        sf.attrs["instrument"] = str(attrs.get("instrument", ""))
+        for key in INSTRUMENT_SETTINGS:  # the day's, as the whole-day run has them
+            sf.attrs.pop(key, None)
+            if key in attrs:
+                sf.attrs[key] = attrs[key]
+        products["turbulence"] = epsilon.estimate_epsilon(
+            sf,
+            probe=probe_for(config),
+            lag_number=config.turbulence.lag_number,
+            model=config.turbulence.model,
+        )
+    elif state.turbulence and state.winds and notes is not None:
+        notes.append("turbulence not computed: no complete block of scans")
+    if state.stares and config.stare.enabled:
+        stares = _join(state.stares, "ray")
+        stares.attrs = dict(attrs)
+        products["stare"] = stare_products(stares, products.get("wind"), config, notes)
+    return products
+
+
+def stream_scan_unit(
+    unit,
+    config: Config,
+    notes: list[str] | None,
+    load: Callable,
+    chunk_bytes: int = STREAM_CHUNK_BYTES,
+) -> dict[str, xr.Dataset] | None:
+    """Products of a scan unit processed chunk by chunk; None when it must run whole.
+
+    Parameters
+    ----------
+    unit : cwproc.pipeline.ProductUnit
+        A scan unit; its inputs carry ``start`` (first ray time).
+    config : Config
+    notes : list of str, optional
+        Receives the notes of the run (only when the streamed run succeeds).
+    load : callable
+        ``load(item) -> xarray.Dataset`` reading an input whose data are not held.
+    chunk_bytes : int
+        Input data joined into one chunk (bytes).
+
+    Returns
+    -------
+    dict or None
+        ``{product name: dataset}``, identical to :func:`cwproc.pipeline.process_scan_day`
+        of the whole day; None when a chunk's choices differ from the day's (see the
+        module docstring) and the caller must process the day whole.
+    """
+    from cwproc.pipeline import (
+        describe_scan_inputs,
+        drop_input,
+        probe_mismatch,
+    )
+    from cwproc.stages.scans import _source_files, concat_scans
+
+    state = StreamState(turbulence=config.turbulence.enabled)
+    own: list[str] = []
+    seen: dict[int, xr.Dataset] = {}
+    position = {id(item): k for k, item in enumerate(unit.inputs)}
+
+    def take(item) -> xr.Dataset | None:
+        try:
+            ds = item.dataset if item.dataset is not None else load(item)
+        except InputFileError as exc:  # identified by its header, damaged beyond it
+            drop_input(unit, item, exc)
+            return None
+        item.dataset = None  # the chunk holds it now; released with the chunk
+        if ds is not None:
+            item.identity = FileIdentity(dict(ds.attrs), ds["time"].values[:1])  # for products
+            own.extend(describe_scan_inputs(_single(unit, item, ds)))
+            seen[position[id(item)]] = xr.Dataset(attrs=ds.attrs)
+        return ds
+
+    ordered = time_ordered(list(unit.inputs), lambda item: item.start)
+    try:
+        for parts in chunks_of(ordered, take, chunk_bytes):
+            chunk = concat_scans(parts)
+            del parts
+            chunk = corrected_chunk(chunk, unit, config, own, state)
+            state.scan_type = str(chunk.attrs.get("scan_type", ""))
+            chunk = number_scans(chunk, state)
+            if state.turbulence and not state.winds and not state.stares:
+                mismatch = probe_mismatch(chunk, config)
+                if mismatch:
+                    state.turbulence = False
+                    own.append(f"turbulence not computed: {mismatch}")
+            take_chunk(chunk, state, config)
+        if not seen:  # every input damaged beyond its header: each has its failure line
+            return {} if not unit.inputs else None
+        if state.carry is not None:
+            flush_blocks(*state.carry, state, config, final=True)
+        firsts = [seen[k] for k in sorted(seen)]
+        files = [f for ds in firsts for f in _source_files(ds)]
+        types = [str(ds.attrs.get("scan_type", "")) for ds in firsts]
+        state.scan_type = "; ".join(t for t in dict.fromkeys(types) if t)
+        check_day_choices(state, config)
+    except StreamMismatch:
+        return None
+    if not state.winds:
+        return None  # no conical scan: the whole-day run words what it cannot make
+    if state.corrected:
+        own.append(background_summary(state))
+    products = stream_products(state, day_attrs(firsts[0].attrs, files, types, state), config, own)
+    if notes is not None:
+        notes.extend(dict.fromkeys(own))
+    return products
+
+
+def corrected_chunk(
+    chunk: xr.Dataset, unit, config: Config, notes: list[str], state: StreamState
+) -> xr.Dataset:
+    """The chunk with its SNR background-corrected (:func:`cwproc.pipeline.correct_background`).
+
+    The per-chunk summary line is left out of ``notes`` and the rays counted instead, so
+    the day gets one summary (:func:`background_summary`), as the whole-day run words it.
+    """
+    from cwproc.pipeline import correct_background
+
+    own: list[str] = []
+    out = correct_background(chunk, unit, config, own)
+    state.snr_corrections.add(str(out.attrs.get("snr_correction")))
+    state.background_files.update(out.attrs.get("background_files", []))
+    if "background_time" in out and own:
+        own.pop()  # the summary line correct_snr appends last
+        state.corrected.append(~np.isnat(out["background_time"].values))
+    notes.extend(own)
+    return out
+
+
+def background_summary(state: StreamState) -> str:
+    """One line for the day: rays whose SNR was corrected, with how many files."""
+    from cwproc.stages.background import _summary
+
+    done = np.concatenate(state.corrected)
+    used = sorted(state.background_files)
+    return _summary(done, used, np.where(done, 0, -1))
+
+
+def _single(unit, item, ds: xr.Dataset):
+    """A one-input copy of ``unit`` holding ``ds`` (for per-file descriptions)."""
+    import dataclasses
+
+    return dataclasses.replace(unit, inputs=[dataclasses.replace(item, dataset=ds)])

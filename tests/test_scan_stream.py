@@ -1,0 +1,144 @@
+"""A day of scans processed chunk by chunk gives the products of the whole day (issue 15.3)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from cwproc.config import load_config
+from cwproc.pipeline import (
+    concat_unit,
+    correct_background,
+    group_units,
+    load_item,
+    process_scan_day,
+    process_unit,
+    read_input,
+)
+from cwproc.scan_stream import stream_scan_unit
+from cwproc.sim.sample_data import StreamLineSpec, write_streamline_series
+from cwproc.sim.stare import write_stare_series
+
+#: a chunk of about three 180-ray files: many chunks, blocks that straddle them
+SMALL_CHUNK = 3 * 180 * 40 * 8 * 6
+
+
+def whole_day(folder, config, notes=None):
+    """Products of the unit processed whole (the definition); its notes to ``notes``."""
+    (unit,) = group_units(read_input(p, config) for p in sorted(folder.glob("*.hpl")))
+    notes = [] if notes is None else notes
+    scans = correct_background(concat_unit(unit), unit, config, notes)
+    return process_scan_day(scans, config, notes)
+
+
+def streamed_day(folder, config, chunk_bytes=SMALL_CHUNK, notes=None):
+    (unit,) = group_units(read_input(p, config) for p in sorted(folder.glob("*.hpl")))
+    for item in unit.inputs[::2]:  # half the files not held: read again when streamed
+        item.dataset = None
+    products = stream_scan_unit(
+        unit, config, notes, lambda item: load_item(item, config), chunk_bytes=chunk_bytes
+    )
+    assert products is not None, "the day was not streamed (a chunk chose differently)"
+    return products
+
+
+def assert_same_products(streamed: dict, whole: dict) -> None:
+    """Same products, values and attributes (bit for bit)."""
+    assert sorted(streamed) == sorted(whole)
+    for name in whole:
+        xr.testing.assert_identical(streamed[name], whole[name])
+        assert streamed[name].attrs == whole[name].attrs, name
+
+
+@pytest.fixture(scope="module")
+def config():
+    return load_config("streamline")
+
+
+def test_streamed_vad_day_equals_whole_day(tmp_path, config):
+    spec = StreamLineSpec(n_scans=25, scans_per_file=1, n_gates=40, seed=3)
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    whole = whole_day(tmp_path / "day", config)
+    streamed = streamed_day(tmp_path / "day", config)
+    assert {"wind", "turbulence"} <= set(whole)
+    # 25 scans in blocks of 10: the last block is the short one of the whole day
+    assert whole["turbulence"].sizes["time"] == 3
+    np.testing.assert_array_equal(whole["turbulence"]["n_scans"].values, [10, 10, 5])
+    assert_same_products(streamed, whole)
+
+
+def test_streamed_mixed_day_equals_whole_day(tmp_path, config):
+    spec = StreamLineSpec(n_gates=40, seed=5)
+    write_stare_series(
+        tmp_path / "day", tmp_path / "truth.json", spec, scan="mixed", hours=0.5, vad_every_s=120
+    )
+    whole = whole_day(tmp_path / "day", config)
+    streamed = streamed_day(tmp_path / "day", config)
+    assert {"wind", "stare"} <= set(whole)
+    assert_same_products(streamed, whole)
+
+
+def test_chunk_larger_than_day_is_the_whole_run(tmp_path, config):
+    spec = StreamLineSpec(n_scans=12, scans_per_file=2, n_gates=24, seed=7)
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    assert_same_products(
+        streamed_day(tmp_path / "day", config, chunk_bytes=1 << 40),
+        whole_day(tmp_path / "day", config),
+    )
+
+
+def test_process_unit_streams_and_falls_back_identically(tmp_path, config, monkeypatch):
+    """process_unit (retrieve and batch) gives the whole-day products, streamed or not."""
+    spec = StreamLineSpec(n_scans=14, scans_per_file=1, n_gates=24, seed=11)
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    whole = whole_day(tmp_path / "day", config)
+    (unit,) = group_units(read_input(p, config) for p in sorted((tmp_path / "day").glob("*.hpl")))
+    assert_same_products(process_unit(unit, config, [], chunk_bytes=SMALL_CHUNK), whole)
+    # a chunk choosing differently from the day: the day is processed whole
+    monkeypatch.setattr("cwproc.scan_stream.check_day_choices", _mismatch)
+    (unit,) = group_units(read_input(p, config) for p in sorted((tmp_path / "day").glob("*.hpl")))
+    assert stream_scan_unit(unit, config, [], lambda i: load_item(i, config), SMALL_CHUNK) is None
+    (unit,) = group_units(read_input(p, config) for p in sorted((tmp_path / "day").glob("*.hpl")))
+    assert_same_products(process_unit(unit, config, [], chunk_bytes=SMALL_CHUNK), whole)
+
+
+def _mismatch(state, config):
+    from cwproc.scan_stream import StreamMismatch
+
+    raise StreamMismatch("azimuth step")
+
+
+def test_streamed_background_correction_equals_whole_day(tmp_path, config):
+    """Chunks matched to different background files: the SNR corrected as on the whole day."""
+    spec = StreamLineSpec(n_scans=25, scans_per_file=1, n_gates=40, seed=13)
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    ramp = 1.7e7 * (1.0 + 1e-5 * (np.arange(130) + 0.5) * 30.0)
+    for name, scale in (
+        ("Background_010624-115000.txt", 1.0),
+        ("Background_010624-120400.txt", 1.01),
+    ):
+        text = "".join(f"{v * scale:.6f}\r\n" for v in ramp)
+        (tmp_path / "day" / name).write_bytes(text.encode())
+    whole_notes: list[str] = []
+    whole = whole_day(tmp_path / "day", config, whole_notes)
+    assert len(whole["wind"].attrs["background_files"]) == 2
+    notes: list[str] = []
+    assert_same_products(streamed_day(tmp_path / "day", config, notes=notes), whole)
+    summary = [n for n in whole_notes if n.startswith("SNR of")]
+    assert len(summary) == 1 and [n for n in notes if n.startswith("SNR")] == summary
+
+
+def test_header_identity_groups_like_the_full_read(tmp_path, config):
+    """retrieve groups .hpl files by header: same unit and first time as reading them."""
+    from cwproc.pipeline import unit_key
+
+    spec = StreamLineSpec(n_scans=4, scans_per_file=1, n_gates=24, start="2024-06-01T23:59:00")
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    for path in sorted((tmp_path / "day").glob("*.hpl")):
+        full = read_input(path, config)
+        light = read_input(path, config, identify_only=True)
+        assert light.dataset is None and light.identity is not None
+        assert unit_key(light) == unit_key(full)
+        assert light.start == full.start
+        assert light.sha256 == full.sha256
