@@ -49,7 +49,6 @@ import logging
 import os
 import socket
 import sys
-import tempfile
 import time
 import traceback
 from collections.abc import Callable, Iterable, Iterator, Sequence
@@ -62,7 +61,7 @@ import numpy as np
 from cwproc.config import Config, config_from_toml
 from cwproc.errors import CwprocError, InputFileError, ProductError
 from cwproc.io import Format, is_cwproc_product, sniff_format
-from cwproc.io.netcdf import umask_mode
+from cwproc.io.netcdf import umask_mode, write_bytes_atomic
 
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())  # a library: the application decides where logs go
@@ -727,19 +726,7 @@ def save_ledger(ledger: Ledger, path: str | os.PathLike, *, compact: bool = Fals
 
 def _write_snapshot(ledger: Ledger, path: Path) -> None:
     """The whole ledger to ``path`` atomically (temporary file, fsync, rename)."""
-    data = ledger.to_json().encode("utf-8")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, umask_mode())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
+    write_bytes_atomic(path, ledger.to_json().encode("utf-8"), fsync=True)
 
 
 def cached_file_info(

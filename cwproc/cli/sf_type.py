@@ -24,6 +24,7 @@ from cwproc.cli._common import (
     load_config_or_fail,
     report_failure,
 )
+from cwproc.io.netcdf import write_bytes_atomic
 from cwproc.pipeline import retrieve_files
 from cwproc.stages.sonic_sf import parameter_statistics, type_occurrence
 
@@ -78,8 +79,17 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
     if products:
         occurrence, stats = summary_tables(products)
         out = Path(outdir)
-        occurrence.to_csv(out / "sf_type_occurrence.csv", float_format="%.2f")
-        stats.to_csv(out / "sf_parameters.csv", index=False, float_format="%.4f")
+        tables = {
+            out / "sf_type_occurrence.csv": occurrence.to_csv(float_format="%.2f"),
+            out / "sf_parameters.csv": stats.to_csv(index=False, float_format="%.4f"),
+        }
+        for path, text in tables.items():  # whole or not at all, as the products
+            try:
+                write_bytes_atomic(path, text.encode("utf-8"))
+            except OSError as exc:
+                raise click.ClickException(
+                    f"{path}: cannot write the table: {exc.strerror or exc}"
+                ) from None
         if not quiet:
             with pd.option_context("display.width", 120, "display.max_rows", 200):
                 click.echo(

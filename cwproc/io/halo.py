@@ -39,7 +39,6 @@ import io
 import itertools
 import os
 import re
-import tempfile
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -51,7 +50,7 @@ import xarray as xr
 
 from cwproc.errors import ConfigError, CwprocError, InputFileError
 from cwproc.io import FileIdentity
-from cwproc.io.netcdf import remove_stale_temporaries, umask_mode
+from cwproc.io.netcdf import write_bytes_atomic
 from cwproc.io.timecheck import check_times
 
 try:  # the optional compiled tokenizer (setup.py); pandas does the same work without it
@@ -1396,16 +1395,8 @@ def write_hpl(ds: xr.Dataset, path: str | os.PathLike) -> Path:
     """
     path = Path(path)
     data = hpl_text(ds, path.name).encode("ascii")
-    remove_stale_temporaries(path.parent)  # of a simulation killed earlier
-    tmp = None
-    try:  # an unpredictable name created exclusively: no planted symlink is followed
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.chmod(tmp, umask_mode())
-        os.replace(tmp, path)
+    try:
+        write_bytes_atomic(path, data)
     except OSError as exc:
-        if tmp is not None:
-            Path(tmp).unlink(missing_ok=True)
         raise CwprocError(f"write_hpl {path}: cannot write: {exc.strerror or exc}") from None
     return path

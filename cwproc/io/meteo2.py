@@ -38,7 +38,6 @@ from __future__ import annotations
 import io
 import os
 import re
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -48,7 +47,7 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import CwprocError, InputFileError
-from cwproc.io.netcdf import remove_stale_temporaries, umask_mode
+from cwproc.io.netcdf import write_bytes_atomic
 from cwproc.io.timecheck import check_times
 from cwproc.metadata import outside_physical_range
 
@@ -756,15 +755,7 @@ def write_meteo2(
     )
     text = head + frame.to_csv(index=False, float_format=f"%.{decimals}f", na_rep="NaN")
     path = Path(path)
-    remove_stale_temporaries(path.parent)  # of a simulation killed earlier
-    tmp = None
-    try:  # an unpredictable name created exclusively: no planted symlink is followed
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(text)
-        os.chmod(tmp, umask_mode())
-        os.replace(tmp, path)
+    try:
+        write_bytes_atomic(path, text.encode("utf-8"))
     except OSError as exc:
-        if tmp is not None:
-            Path(tmp).unlink(missing_ok=True)
         raise CwprocError(f"write_meteo2 {path}: cannot write: {exc.strerror or exc}") from None

@@ -369,7 +369,7 @@ def write_netcdf_atomic(
 
 
 #: extensions of the files whose temporaries :func:`remove_stale_temporaries` removes
-_TEMP_EXTENSIONS = ("nc", "png", "hpl", "txt")
+_TEMP_EXTENSIONS = ("nc", "png", "hpl", "txt", "csv", "json")
 #: a product temporary older than this (s) belongs to no live run of retrieve or sf-type
 STALE_TEMPORARY_S = 3600.0
 
@@ -395,6 +395,39 @@ def remove_stale_temporaries(
         except FileNotFoundError:
             continue
     return removed
+
+
+def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, fsync: bool = False) -> Path:
+    """Write ``data`` to ``path`` whole or not at all; returns ``path``.
+
+    The bytes go to an unpredictable temporary created exclusively beside ``path``
+    (:func:`tempfile.mkstemp`: no planted symlink is followed), get the umask's mode
+    (:func:`umask_mode`), optionally reach the disk (``fsync``), and are renamed onto
+    ``path``; a killed run leaves only a hidden ``.<name>.<random>.tmp``, which
+    :func:`remove_stale_temporaries` removes. Stale temporaries of earlier runs in the
+    folder are removed first.
+
+    Raises
+    ------
+    OSError
+        The folder cannot be written; no temporary is left behind. Callers name the
+        file and the command in their own error.
+    """
+    path = Path(path)
+    remove_stale_temporaries(path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            if fsync:
+                fh.flush()
+                os.fsync(fh.fileno())
+        os.chmod(tmp, umask_mode())
+        os.replace(tmp, path)
+    except BaseException:
+        _unlink_quietly(tmp)
+        raise
+    return path
 
 
 def umask_mode(mode: int = 0o666) -> int:

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from cwproc.io.netcdf import write_bytes_atomic
 from cwproc.sim.turbulence import (
     CorrelationModel,
     ProbeQuadrature,
@@ -629,6 +630,8 @@ def write_cw_series(
     }
     truth_path = Path(truth_path)
     truth_path.parent.mkdir(parents=True, exist_ok=True)
-    truth_path.write_text(json.dumps(truth, indent=2, sort_keys=True) + "\n")
+    write_bytes_atomic(
+        truth_path, (json.dumps(truth, indent=2, sort_keys=True) + "\n").encode("utf-8")
+    )
     written.append(truth_path)
     return written

@@ -27,6 +27,8 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from cwproc.io.netcdf import write_bytes_atomic
+
 
 @dataclass(frozen=True)
 class StreamLineSpec:
@@ -220,7 +222,10 @@ def write_streamline_series(
     ]
     truth_path = Path(truth_path)
     truth_path.parent.mkdir(parents=True, exist_ok=True)
-    truth_path.write_text(json.dumps(streamline_truth(spec), indent=2, sort_keys=True) + "\n")
+    write_bytes_atomic(
+        truth_path,
+        (json.dumps(streamline_truth(spec), indent=2, sort_keys=True) + "\n").encode("utf-8"),
+    )
     written.append(truth_path)
     return written
 
@@ -664,12 +669,18 @@ def write_sample_data(outdir: str | os.PathLike) -> list[Path]:
         write_windcube_sta(records, outdir / "windcube" / f"WLS7-999_{'_'.join(day)}__00_00_00.sta")
     )
     truth = outdir / "wind_records_truth.json"
-    truth.write_text(json.dumps(wind_records_truth(records), indent=2, sort_keys=True) + "\n")
+    write_bytes_atomic(
+        truth,
+        (json.dumps(wind_records_truth(records), indent=2, sort_keys=True) + "\n").encode("utf-8"),
+    )
     written.append(truth)
     sonic = SonicSpec()
     written += write_sonic_samples(outdir / "sonic", sonic)
     truth = outdir / "sonic_truth.json"
-    truth.write_text(json.dumps({"spec": asdict(sonic)}, indent=2, sort_keys=True) + "\n")
+    write_bytes_atomic(
+        truth,
+        (json.dumps({"spec": asdict(sonic)}, indent=2, sort_keys=True) + "\n").encode("utf-8"),
+    )
     written.append(truth)
     return written
 

@@ -27,6 +27,8 @@ import numpy as np
 import scipy.fft
 import xarray as xr
 
+from cwproc.io.netcdf import write_bytes_atomic
+
 #: Meteo-2 sample rate f_d (Hz), Gladkikh et al. (2014), section 1
 METEO2_RATE_HZ = 10.7
 
@@ -317,5 +319,7 @@ def write_simulation(
         write_meteo2(xr.concat(chunks, dim="time"), path, station="cwproc simulator")
         files.append(path)
     truth = outdir / f"meteo2_sim_type{sf_type}_truth.json"
-    truth.write_text(json.dumps(asdict(sonic_truth(**args)), indent=2) + "\n")
+    write_bytes_atomic(
+        truth, (json.dumps(asdict(sonic_truth(**args)), indent=2) + "\n").encode("utf-8")
+    )
     return files, truth

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from cwproc.io.netcdf import write_bytes_atomic
 from cwproc.sim.field3d import FrozenField
 from cwproc.sim.pulsed import (
     range_quadrature,
@@ -409,6 +410,8 @@ def write_stare_series(
         truth["vad_every_s"] = float(vad_every_s)
     truth_path = Path(truth_path)
     truth_path.parent.mkdir(parents=True, exist_ok=True)
-    truth_path.write_text(json.dumps(truth, indent=2, sort_keys=True) + "\n")
+    write_bytes_atomic(
+        truth_path, (json.dumps(truth, indent=2, sort_keys=True) + "\n").encode("utf-8")
+    )
     written.append(truth_path)
     return written
