@@ -30,7 +30,7 @@ CI_RUN = REPO / ".ci" / "run"
 
 #: the two commands of a new user, the first code block of the README
 MAIN_JOB = "pip install . && cwproc retrieve sample_data/ -c sample_data/site.toml -o out/"
-TEST_LINE = 'pip install ".[test]" && python3 -m pytest -q -n auto -m "slow or not slow"'
+TEST_LINE = 'pip install -e ".[test]" && python3 -m pytest -q -n auto -m "slow or not slow"'
 
 #: marker of the README blocks that the slow test runs
 TESTED = "<!-- tested -->"
