@@ -282,6 +282,41 @@ def gaussian_stares(
     return w + noise_std_m_s * rng.standard_normal(w.shape)
 
 
+def stare_windows_dataset(
+    w: np.ndarray,
+    snr: float,
+    *,
+    window_s: float = 300.0,
+    ray_s: float = 20000 / 15000.0,
+    range_m: float = 300.0,
+) -> xr.Dataset:
+    """Windows of stare rays ``w`` ``(n_windows, n_rays)`` (m s-1) as a Stream Line scan
+    dataset of one gate at ``range_m``: window ``k`` starts at ``k window_s``, its rays
+    are ``ray_s`` long (20000 pulses at 15 kHz), vertical, at the linear ``snr``.
+
+    What :func:`gaussian_stares` draws, ready for :func:`cwproc.stages.stare.stare_product`.
+    """
+    n_win, n_ray = w.shape
+    seconds = np.arange(n_win)[:, None] * window_s + (np.arange(n_ray)[None, :] + 0.5) * ray_s
+    times = np.datetime64("2024-01-01T00:00", "ns") + np.round(seconds.ravel() * 1e9).astype(
+        "timedelta64[ns]"
+    )
+    ds = streamline_scans(
+        w.reshape(-1, 1),
+        times=times,
+        azimuth=np.zeros(times.size),
+        elevation_deg=90.0,
+        ranges_m=np.array([range_m]),
+        scan=np.full(times.size, -1),
+        snr=snr,
+        delta_p_m=15.3,
+        delta_r_m=18.0,
+        truth={},
+    )
+    ds.attrs.update(points_per_gate=10, pulses_per_ray=20000, scan_type="Stare")
+    return ds
+
+
 def stare_noise_std(snr: float, points_per_gate: int, pulses_per_ray: int) -> float:
     """sigma_e (m s-1) of a simulated stare ray: Pearson et al. (2009), eq. 3.
 

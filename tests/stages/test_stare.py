@@ -7,8 +7,7 @@ import pytest
 import xarray as xr
 
 from cwproc.physics.noise import bandwidth_from_resolution, velocity_noise_std
-from cwproc.sim.pulsed import streamline_scans
-from cwproc.sim.stare import gaussian_stares
+from cwproc.sim.stare import gaussian_stares, stare_windows_dataset
 from cwproc.stages.stare import (
     FLAG_NO_WIND,
     FLAG_NOISE_DOMINATED,
@@ -25,25 +24,7 @@ SNR = 0.02  # -17 dB: sigma_e = 0.14 m/s at 10 points per gate, 20000 pulses
 
 def stare_dataset(w: np.ndarray, snr: float = SNR) -> xr.Dataset:
     """Windows of stare rays (one gate at 300 m) as a canonical scan dataset."""
-    n_win, n_ray = w.shape
-    seconds = np.arange(n_win)[:, None] * WINDOW_S + (np.arange(n_ray)[None, :] + 0.5) * RAY_S
-    times = np.datetime64("2024-01-01T00:00", "ns") + np.round(seconds.ravel() * 1e9).astype(
-        "timedelta64[ns]"
-    )
-    ds = streamline_scans(
-        w.reshape(-1, 1),
-        times=times,
-        azimuth=np.zeros(times.size),
-        elevation_deg=90.0,
-        ranges_m=np.array([300.0]),
-        scan=np.full(times.size, -1),
-        snr=snr,
-        delta_p_m=15.3,
-        delta_r_m=18.0,
-        truth={},
-    )
-    ds.attrs.update(points_per_gate=10, pulses_per_ray=20000, scan_type="Stare")
-    return ds
+    return stare_windows_dataset(w, snr, window_s=WINDOW_S, ray_s=RAY_S)
 
 
 def constant_wind(speed: float) -> xr.Dataset:
