@@ -324,16 +324,8 @@ def probe_mismatch(scans: xr.Dataset, config: Config) -> str:
     )
 
 
-def process_scans(
-    scans: xr.Dataset, config: Config, notes: list[str] | None = None
-) -> dict[str, xr.Dataset]:
-    """Wind and turbulence products from a scan dataset (already concatenated).
-
-    A wind profile that can be fitted is always returned. When the turbulence chain
-    cannot run on these scans (e.g. azimuth steps wider than the 9 degree lag limit of
-    Smalikho (2020)), the reason is appended to ``notes`` and only the wind product is
-    returned.
-    """
+def screened_wind(scans: xr.Dataset, config: Config) -> tuple[xr.Dataset, xr.Dataset]:
+    """Screened conical scans and their VAD wind rows (stages ``qc`` and ``vad``)."""
     from cwproc.stages import qc, vad
 
     screened = qc.screen_radial_velocity(
@@ -346,6 +338,20 @@ def process_scans(
         reference_direction_deg=config.vad.reference_direction_deg,
         max_residual_std=config.vad.max_residual_std,
     )
+    return screened, wind
+
+
+def process_scans(
+    scans: xr.Dataset, config: Config, notes: list[str] | None = None
+) -> dict[str, xr.Dataset]:
+    """Wind and turbulence products from a scan dataset (already concatenated).
+
+    A wind profile that can be fitted is always returned. When the turbulence chain
+    cannot run on these scans (e.g. azimuth steps wider than the 9 degree lag limit of
+    Smalikho (2020)), the reason is appended to ``notes`` and only the wind product is
+    returned.
+    """
+    screened, wind = screened_wind(scans, config)
     products = {"wind": wind}
     if not config.turbulence.enabled or int(wind.sizes.get("time", 0)) < 1:
         return products

@@ -120,23 +120,6 @@ def number_scans(chunk: xr.Dataset, state: StreamState) -> xr.Dataset:
     return chunk.assign_coords(scan=("ray", shifted, chunk["scan"].attrs))
 
 
-def screened_wind(others: xr.Dataset, config: Config) -> tuple[xr.Dataset, xr.Dataset]:
-    """Screened conical scans and their VAD wind rows (stages ``qc`` and ``vad``)."""
-    from cwproc.stages import qc, vad
-
-    screened = qc.screen_radial_velocity(
-        others, snr_min=config.qc.snr_min, outlier_threshold=config.qc.outlier_threshold
-    )
-    wind = vad.fit_vad(
-        screened,
-        min_rays=config.vad.min_rays,
-        max_gap_deg=config.vad.max_gap_deg,
-        reference_direction_deg=config.vad.reference_direction_deg,
-        max_residual_std=config.vad.max_residual_std,
-    )
-    return screened, wind
-
-
 def _join(parts: list[xr.Dataset], dim: str) -> xr.Dataset:
     return parts[0] if len(parts) == 1 else xr.concat(parts, dim=dim, combine_attrs="override")
 
@@ -184,6 +167,7 @@ def flush_blocks(
 
 def take_chunk(chunk: xr.Dataset, state: StreamState, config: Config) -> None:
     """Stares kept, conical scans screened, fitted and their complete blocks reduced."""
+    from cwproc.pipeline import screened_wind
     from cwproc.stages.stare import split_stares
 
     stares, others = split_stares(chunk)

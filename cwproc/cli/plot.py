@@ -169,8 +169,7 @@ def _vad_figure(source: str, config: str | None, scan: int | None, height: float
     import numpy as np
 
     from cwproc import plots
-    from cwproc.pipeline import read_input
-    from cwproc.stages import qc, vad
+    from cwproc.pipeline import read_input, screened_wind
 
     cfg = load_config_or_fail(config)
     scans = read_input(source, cfg).dataset
@@ -188,14 +187,5 @@ def _vad_figure(source: str, config: str | None, scan: int | None, height: float
     if height is not None:
         el = np.radians(float(np.nanmedian(scans["elevation"].values)))
         _check_height(height, scans["range"].values * np.sin(el))
-    screened = qc.screen_radial_velocity(
-        scans, snr_min=cfg.qc.snr_min, outlier_threshold=cfg.qc.outlier_threshold
-    )
-    wind = vad.fit_vad(
-        screened,
-        min_rays=cfg.vad.min_rays,
-        max_gap_deg=cfg.vad.max_gap_deg,
-        reference_direction_deg=cfg.vad.reference_direction_deg,
-        max_residual_std=cfg.vad.max_residual_std,
-    )
+    screened, wind = screened_wind(scans, cfg)
     return plots.plot_vad_fit(screened, wind, scan=scan, height=height)
