@@ -6,6 +6,7 @@ import json
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import settings
 
@@ -107,3 +108,33 @@ def compliance():
     """The IOOS compliance checker as a function: path -> (CF high failures, ACDD score)."""
     pytest.importorskip("compliance_checker")
     return _compliance
+
+
+def _chromatic_pixels(fig) -> list[int]:
+    """Coloured (chromatic) pixels inside each data panel, legends and colour bars aside.
+
+    Axes, text and the grey background of gaps are achromatic; data are drawn in colour.
+    """
+    for ax in fig.axes:
+        if ax.get_legend() is not None:
+            ax.get_legend().remove()
+    fig.canvas.draw()
+    img = np.asarray(fig.canvas.buffer_rgba())[..., :3].astype(float) / 255.0
+    chroma = img.max(axis=-1) - img.min(axis=-1)
+    counts = []
+    height = img.shape[0]
+    for ax in fig.axes:
+        if hasattr(ax, "_colorbar"):
+            continue
+        bb = ax.get_window_extent()
+        rows = slice(int(height - bb.y1) + 2, int(height - bb.y0) - 2)
+        cols = slice(int(bb.x0) + 2, int(bb.x1) - 2)
+        counts.append(int((chroma[rows, cols] > 0.15).sum()))
+    return counts
+
+
+@pytest.fixture
+def data_pixels():
+    """Counts of coloured pixels per data panel of a matplotlib figure (the screenshot
+    check of tests/test_plots.py and tests/test_plots_stare.py)."""
+    return _chromatic_pixels

@@ -188,29 +188,6 @@ def _all_missing(ds: xr.Dataset) -> xr.Dataset:
     return out
 
 
-def _data_pixels(fig) -> list[int]:
-    """Coloured (chromatic) pixels inside each data panel, legends and colour bars aside.
-
-    Axes, text and the grey background of gaps are achromatic; data are drawn in colour.
-    """
-    for ax in fig.axes:
-        if ax.get_legend() is not None:
-            ax.get_legend().remove()
-    fig.canvas.draw()
-    img = np.asarray(fig.canvas.buffer_rgba())[..., :3].astype(float) / 255.0
-    chroma = img.max(axis=-1) - img.min(axis=-1)
-    counts = []
-    height = img.shape[0]
-    for ax in fig.axes:
-        if hasattr(ax, "_colorbar"):
-            continue
-        bb = ax.get_window_extent()
-        rows = slice(int(height - bb.y1) + 2, int(height - bb.y0) - 2)
-        cols = slice(int(bb.x0) + 2, int(bb.x1) - 2)
-        counts.append(int((chroma[rows, cols] > 0.15).sum()))
-    return counts
-
-
 KIND_FACTORIES = [
     ("wind", wind_product),
     ("epsilon", turbulence_product),
@@ -223,7 +200,7 @@ KIND_FACTORIES = [
 
 @pytest.mark.parametrize(("kind", "factory"), KIND_FACTORIES)
 @pytest.mark.parametrize("variant", ["normal", "one-step", "all-missing"])
-def test_every_kind_draws_data_or_refuses(kind, factory, variant):
+def test_every_kind_draws_data_or_refuses(kind, factory, variant, data_pixels):
     """A picture is either drawn with data in every panel or refused with a reason."""
     import matplotlib.pyplot as plt
 
@@ -237,7 +214,7 @@ def test_every_kind_draws_data_or_refuses(kind, factory, variant):
         assert "no finite value" in str(exc) or "no structure function" in str(exc)
         return
     try:
-        counts = _data_pixels(fig)
+        counts = data_pixels(fig)
     finally:
         plt.close(fig)
     if kind != "sf-types":  # sf_type is an integer: 'none' for every window is data
@@ -373,7 +350,7 @@ def _vad_variant(variant: str):
 
 
 @pytest.mark.parametrize("variant", ["normal", "one-step", "all-missing"])
-def test_vad_draws_data_or_refuses(variant):
+def test_vad_draws_data_or_refuses(variant, data_pixels):
     """The seventh kind, on a scan file: data in both panels, or refused with a reason."""
     import matplotlib.pyplot as plt
 
@@ -386,7 +363,7 @@ def test_vad_draws_data_or_refuses(variant):
         assert "has no VAD fit" in str(exc)
         return
     try:
-        counts = _data_pixels(fig)
+        counts = data_pixels(fig)
     finally:
         plt.close(fig)
     assert variant != "all-missing", "vad drew a scan without one finite velocity"

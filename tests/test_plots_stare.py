@@ -65,32 +65,15 @@ def all_missing(ds: xr.Dataset) -> xr.Dataset:
     return out
 
 
-def _data_pixels(fig) -> list[int]:
-    """Chromatic pixels inside each panel, colour bars aside (as tests/test_plots.py)."""
-    fig.canvas.draw()
-    img = np.asarray(fig.canvas.buffer_rgba())[..., :3].astype(float) / 255.0
-    chroma = img.max(axis=-1) - img.min(axis=-1)
-    counts = []
-    height = img.shape[0]
-    for ax in fig.axes:
-        if hasattr(ax, "_colorbar"):
-            continue
-        bb = ax.get_window_extent()
-        rows = slice(int(height - bb.y1) + 2, int(height - bb.y0) - 2)
-        cols = slice(int(bb.x0) + 2, int(bb.x1) - 2)
-        counts.append(int((chroma[rows, cols] > 0.15).sum()))
-    return counts
-
-
 @pytest.mark.parametrize("variant", ["normal", "one-window"])
-def test_stare_quicklook_draws_data_in_every_panel(variant):
+def test_stare_quicklook_draws_data_in_every_panel(variant, data_pixels):
     import matplotlib.pyplot as plt
 
     ds = stare_product() if variant == "normal" else one_window(stare_product())
     plots.check_variables(ds, "stare")
     fig = plots.plot_stare(ds)
     try:
-        counts = _data_pixels(fig)
+        counts = data_pixels(fig)
     finally:
         plt.close(fig)
     assert len(counts) == 3, counts
@@ -102,7 +85,7 @@ def test_stare_quicklook_refuses_a_product_without_a_value():
         plots.plot_stare(all_missing(stare_product()))
 
 
-def test_a_day_without_vads_says_why_eps_is_missing():
+def test_a_day_without_vads_says_why_eps_is_missing(data_pixels):
     import matplotlib.pyplot as plt
 
     ds = stare_product()
@@ -111,7 +94,7 @@ def test_a_day_without_vads_says_why_eps_is_missing():
     fig = plots.plot_stare(ds)
     try:
         texts = [t.get_text() for ax in fig.axes for t in ax.texts]
-        counts = _data_pixels(fig)
+        counts = data_pixels(fig)
     finally:
         plt.close(fig)
     assert "no value: no VAD wind this day (flag 1)" in texts
