@@ -35,7 +35,7 @@ import numpy as np
 
 from cwproc.config import load_config
 from cwproc.physics.atable import get_a_table
-from cwproc.physics.transfer import probe_from_config
+from cwproc.pipeline import probe_from_config
 
 
 def time_one(probe, phi: float, dtheta: float, lags: int, model: str, cache: str) -> None:

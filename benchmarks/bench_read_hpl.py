@@ -39,7 +39,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.io.halo import read_hpl, read_hpl_files, write_hpl
-from cwproc.stages.scans import concat_scans
+from cwproc.io.scans import concat_scans
 
 #: real files below this size (bytes) are "small" (per-call costs dominate)
 _SMALL_BYTES = 100_000
@@ -208,7 +208,7 @@ _READ_MEMORY_SCRIPT = (
 import sys
 from pathlib import Path
 from cwproc.io.halo import read_hpl, read_hpl_files
-from cwproc.stages.scans import concat_scans
+from cwproc.io.scans import concat_scans
 paths = sorted(Path(sys.argv[2]).glob("*.hpl"))
 base = _peak_mib()
 ds = read_hpl_files(paths) if sys.argv[1] == "files" else concat_scans([read_hpl(p) for p in paths])

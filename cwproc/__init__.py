@@ -7,11 +7,6 @@ for volume averaging and wind transport, structure-function types, and a virtual
 lidar for planning experiments.
 """
 
-from importlib.metadata import PackageNotFoundError, version
-
-try:
-    __version__ = version("cwproc")
-except PackageNotFoundError:  # running from a source tree that was never installed
-    __version__ = "0.1.0+unknown"
+from cwproc._version import __version__
 
 __all__ = ["__version__"]

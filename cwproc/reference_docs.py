@@ -17,7 +17,7 @@ from pathlib import Path
 
 from cwproc import config as config_module
 from cwproc.config import Config, preset_names
-from cwproc.metadata import VARIABLES
+from cwproc.products.metadata import VARIABLES
 
 
 def variables_markdown() -> str:

@@ -6,7 +6,7 @@ absurd one, junk appended. Whatever the damage, reading a file
 
 - raises :class:`cwproc.errors.CwprocError` (one line naming the file) or succeeds;
 - never raises anything else (a traceback) and never says "internal error";
-- when it succeeds, gives no value outside :data:`cwproc.metadata.PHYSICAL_RANGES`,
+- when it succeeds, gives no value outside :data:`cwproc.io.ranges.PHYSICAL_RANGES`,
   no time outside the plausible window of :mod:`cwproc.io.timecheck` and no time
   outside the undamaged file's own time span (junk after the data made products of
   1990-01-01 and other days the file never held);
@@ -31,8 +31,8 @@ from hypothesis import strategies as st
 from cwproc.cli import main
 from cwproc.errors import CwprocError
 from cwproc.io import read
+from cwproc.io.ranges import PHYSICAL_RANGES
 from cwproc.io.timecheck import first_implausible
-from cwproc.metadata import PHYSICAL_RANGES
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data"
 #: every shipped instrument sample with the reader options its format needs

@@ -14,7 +14,7 @@ from click.testing import CliRunner
 from cwproc import plots
 from cwproc.cli import main
 from cwproc.errors import ProductError
-from cwproc.io.netcdf import write_product
+from cwproc.products.writer import write_product
 
 pytest.importorskip("matplotlib")
 

@@ -40,7 +40,7 @@ def test_a_failing_product_publishes_none_of_its_unit(tmp_path, monkeypatch):
             raise ProductError(f"{path}: cannot write product: No space left on device")
         return real(ds, path, **kw)
 
-    monkeypatch.setattr(netcdf, "stage_netcdf", failing_second)
+    monkeypatch.setattr("cwproc.products.writer.stage_netcdf", failing_second)
     unit = ProductUnit(key="streamline_1_20240601", kind="scan")
     with pytest.raises(ProductError, match="No space"):
         write_unit_products(unit, {"wind": tiny(), "turbulence": tiny()}, tmp_path, Config())
@@ -146,7 +146,8 @@ def test_product_writer_removes_stale_temporaries(tmp_path):
     """write_product (simulate montecarlo --no-png, sf-type) cleans what a killed writer left."""
     import time as _time
 
-    from cwproc.io.netcdf import STALE_TEMPORARY_S, write_product
+    from cwproc.io.netcdf import STALE_TEMPORARY_S
+    from cwproc.products.writer import write_product
 
     stale = tmp_path / ".montecarlo_banakh1999.nc.k1ll3d.tmp"
     stale.write_bytes(b"\x89HDF partial")

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import click
 
-from cwproc import __version__
+from cwproc._version import __version__
 from cwproc.cli._group import CwprocGroup
 
 #: command -> (module:attribute, one-line help = first line of its docstring)

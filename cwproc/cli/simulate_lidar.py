@@ -223,9 +223,9 @@ def _cw(
     seed: int,
 ) -> list[Path]:
     from cwproc.config import load_config
+    from cwproc.physics.spectra import epsilon_from, variance_from
     from cwproc.sim.cw import ZEPHIR, write_cw_series
     from cwproc.sim.montecarlo import lidar_from_config
-    from cwproc.sim.turbulence import epsilon_from_variance, variance_from_epsilon
 
     sim = load_config("banakh1999").simulation
     if instrument == "cw":
@@ -239,17 +239,13 @@ def _cw(
         heights = np.asarray(_ZEPHIR_HEIGHTS)
         speed = np.full(heights.size, 8.0)
         scale = np.full(heights.size, 150.0)
-        sigma2 = variance_from_epsilon(0.01, scale)
+        sigma2 = variance_from(0.01, scale)
     if wind is not None:
         speed = np.full(heights.size, wind)
     if epsilon is not None or outer_scale is not None:
-        eps = (
-            epsilon_from_variance(sigma2, scale)
-            if epsilon is None
-            else np.full(heights.size, epsilon)
-        )
+        eps = epsilon_from(sigma2, scale) if epsilon is None else np.full(heights.size, epsilon)
         scale = scale if outer_scale is None else np.full(heights.size, outer_scale)
-        sigma2 = variance_from_epsilon(eps, scale)
+        sigma2 = variance_from(eps, scale)
     n_scans = max(1, round(hours * 3600.0 / lidar.scan_period_s))
     return write_cw_series(
         data,

@@ -51,8 +51,8 @@ def simulate_montecarlo(
     if png:
         require_extra("matplotlib", "plot", f"the picture {STEM}.png (or pass --no-png)")
     from cwproc.errors import CwprocError
-    from cwproc.io.netcdf import write_product
-    from cwproc.metadata import BANAKH_1999
+    from cwproc.products.writer import write_product
+    from cwproc.references import BANAKH_1999
     from cwproc.sim.montecarlo import format_table, run_study
 
     cfg = load_config_or_fail(config)

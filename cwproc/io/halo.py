@@ -852,7 +852,7 @@ def read_hpl(path: str | os.PathLike, **options: object) -> xr.Dataset:
     if gate_fields == 5:
         gates["spectral_width"] = grids[4]
     per_ray = {"pitch": rays[:, 3], "roll": rays[:, 4]} if ray_fields == 5 else {}
-    from cwproc.stages.scans import scan_indices
+    from cwproc.io.scans import scan_indices
 
     scan, scan_attrs = scan_indices(time, azimuth, elevation, scan_type=header.scan_type)
     return scan_dataset(
@@ -1170,7 +1170,7 @@ def _read_together(paths: list[Path]) -> xr.Dataset | None:
     only the dataset arrays of a batch are kept, so the peak memory is the result
     plus one batch.
     """
-    from cwproc.stages.scans import joined_attrs, time_sorted_scans
+    from cwproc.io.scans import joined_attrs, time_sorted_scans
 
     first: HplHeader | None = None
     scan_types: list[str] = []
@@ -1244,7 +1244,7 @@ def read_hpl_files(paths: list[str | os.PathLike], **options: object) -> xr.Data
         A file is damaged (as :func:`read_hpl`).
     CwprocError
         No files, or files that cannot be concatenated (as
-        :func:`cwproc.stages.scans.concat_scans`).
+        :func:`cwproc.io.scans.concat_scans`).
     """
     _check_options(options)
     paths = [Path(p) for p in paths]
@@ -1252,7 +1252,7 @@ def read_hpl_files(paths: list[str | os.PathLike], **options: object) -> xr.Data
         together = _read_together(paths)
         if together is not None:
             return together
-    from cwproc.stages.scans import concat_scans
+    from cwproc.io.scans import concat_scans
 
     return concat_scans([read_hpl(path) for path in paths])
 

@@ -48,8 +48,8 @@ import xarray as xr
 
 from cwproc.errors import CwprocError, InputFileError
 from cwproc.io.netcdf import write_bytes_atomic
+from cwproc.io.ranges import outside_physical_range
 from cwproc.io.timecheck import check_times
-from cwproc.metadata import outside_physical_range
 
 INSTRUMENT = "Meteo-2 ultrasonic weather station (IAO SB RAS)"
 MAGIC = "# cwproc meteo2"

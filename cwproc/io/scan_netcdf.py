@@ -1,7 +1,7 @@
 """The canonical scan dataset as NetCDF (e.g. cw lidar line-of-sight data, simulator output).
 
 :func:`write_scan_netcdf` writes a scan dataset (docs/DEVELOPING.md, "Scan dataset")
-atomically with CF attributes from :mod:`cwproc.metadata`; :func:`read_scan_netcdf`
+atomically with CF attributes from :mod:`cwproc.products.metadata`; :func:`read_scan_netcdf`
 reads one back and validates the schema, so that a file missing a variable, a
 dimension or the detection attributes fails with the file and the missing name
 instead of somewhere inside a stage.
@@ -26,7 +26,7 @@ import xarray as xr
 
 from cwproc.errors import InputFileError
 from cwproc.io.netcdf import write_netcdf_atomic
-from cwproc.metadata import apply_metadata
+from cwproc.products.metadata import apply_metadata
 
 #: required variables and their dimensions
 REQUIRED_VARIABLES: dict[str, tuple[str, ...]] = {
@@ -130,7 +130,7 @@ def write_scan_netcdf(ds: xr.Dataset, path: str | os.PathLike) -> Path:
     validate_scan_schema(ds, "<dataset to write>")
     out = ds
     if "scan" not in out.coords:
-        from cwproc.stages.scans import assign_scans
+        from cwproc.io.scans import assign_scans
 
         out = assign_scans(out)
     out = out.set_coords([c for c in _COORDS if c in out.variables])
@@ -190,7 +190,7 @@ def read_scan_netcdf(path: str | os.PathLike, **options: object) -> xr.Dataset:
     attrs["source_files"] = _split_files(attrs.get("source_files")) or [path.name]
     ds.attrs = attrs
     if "scan" not in ds.coords:
-        from cwproc.stages.scans import assign_scans
+        from cwproc.io.scans import assign_scans
 
         ds = assign_scans(ds)
     else:

@@ -47,8 +47,8 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import ConfigError, InputFileError
+from cwproc.io.ranges import range_warnings, screen_physical_range
 from cwproc.io.timecheck import check_times
-from cwproc.metadata import range_warnings, screen_physical_range
 
 #: per-height column prefix -> canonical variable name (8 columns per height)
 HEIGHT_COLUMNS: dict[str, str] = {
@@ -98,7 +98,7 @@ _HEADER_LINES = 2
 
 
 def with_range_screen(ds: xr.Dataset) -> xr.Dataset:
-    """Impossible values (:data:`cwproc.metadata.PHYSICAL_RANGES`) as missing, reported."""
+    """Impossible values (:data:`cwproc.io.ranges.PHYSICAL_RANGES`) as missing, reported."""
     screened, counts = screen_physical_range(ds)
     if counts:
         screened.attrs["warnings"] = [*ds.attrs.get("warnings", []), *range_warnings(counts)]

@@ -810,7 +810,7 @@ def get_a_table(
     Parameters
     ----------
     probe : PulsedProbe or CWProbe
-        Probe volume (:func:`cwproc.physics.transfer.probe_from_config`).
+        Probe volume (:func:`cwproc.pipeline.probe_from_config`).
     phi_deg : float
         Elevation of the scan cone (degrees).
     delta_theta_deg : float

@@ -44,16 +44,6 @@ HALO_SPECTRUM_BINS = 1024
 #: velocity bandwidth (m s-1) when the resolution is unknown: lambda f_s / 2, 1.5 um, 50 MHz
 DEFAULT_BANDWIDTH_M_S = 38.4
 
-PEARSON_2009 = (
-    "Pearson, G., Davies, F. and Collier, C. (2009), An analysis of the performance of the "
-    "UFAM pulsed Doppler lidar for observing the boundary layer, J. Atmos. Oceanic "
-    "Technol. 26, 240-250"
-)
-RYE_HARDESTY_1993 = (
-    "Rye, B. J. and Hardesty, R. M. (1993), Discrete spectral peak estimation in "
-    "incoherent backscatter heterodyne lidar. I, IEEE Trans. Geosci. Remote Sens. 31, 16-27"
-)
-
 
 def bandwidth_from_resolution(
     resolution_m_s: float | None, bins: int = HALO_SPECTRUM_BINS

@@ -100,7 +100,7 @@ def variance_per_eps23(model: Model, outer_scale_m: float) -> float:
     raise ValueError("the inertial (Kolmogorov) model has no finite variance")
 
 
-def integral_scale_coefficient(model: Model) -> float:
+def integral_scale_coefficient(model: Model = "exponential") -> float:
     """``c`` in ``L_V = c sigma_V^3 / eps``.
 
     Banakh et al. (1999), eq. 19: ``c = (2 * 1.21 / C_K)^(3/2) = 1.331`` for the model of
@@ -125,7 +125,9 @@ def outer_scale_from(sigma2: ArrayLike, eps: ArrayLike, model: Model) -> np.ndar
     )
 
 
-def epsilon_from(sigma2: ArrayLike, outer_scale_m: ArrayLike, model: Model) -> np.ndarray:
+def epsilon_from(
+    sigma2: ArrayLike, outer_scale_m: ArrayLike, model: Model = "exponential"
+) -> np.ndarray:
     """``eps = c sigma_V^3 / L_V`` (m2 s-3), Banakh et al. (1999), eq. 19."""
     return (
         integral_scale_coefficient(model)
@@ -134,7 +136,9 @@ def epsilon_from(sigma2: ArrayLike, outer_scale_m: ArrayLike, model: Model) -> n
     )
 
 
-def variance_from(eps: ArrayLike, outer_scale_m: ArrayLike, model: Model) -> np.ndarray:
+def variance_from(
+    eps: ArrayLike, outer_scale_m: ArrayLike, model: Model = "exponential"
+) -> np.ndarray:
     """``sigma_V^2 = (eps L_V / c)^(2/3)`` (m2 s-2), Banakh et al. (1999), eq. 19."""
     c = integral_scale_coefficient(model)
     return (np.asarray(eps, float) * np.asarray(outer_scale_m, float) / c) ** (2.0 / 3.0)

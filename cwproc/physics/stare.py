@@ -47,7 +47,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.special import gamma
 
-from cwproc.metadata import OCONNOR_2010
+from cwproc.references import OCONNOR_2010
 
 __all__ = ["OCONNOR_2010"]
 

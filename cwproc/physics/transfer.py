@@ -39,8 +39,6 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy import special
 
-from cwproc.config import InstrumentConfig
-
 #: speed of light (m s-1)
 SPEED_OF_LIGHT = 299_792_458.0
 
@@ -356,33 +354,3 @@ def pulse_parameters(pulse_fwhm_s: float, window_s: float) -> tuple[float, float
         raise ValueError("pulse and window durations must be >= 0")
     sigma_p = pulse_fwhm_s / (2.0 * math.sqrt(math.log(2.0)))
     return SPEED_OF_LIGHT * sigma_p / 2.0, SPEED_OF_LIGHT * window_s / 2.0
-
-
-def probe_from_config(
-    instrument: InstrumentConfig, *, pulse_transfer: Literal["physical", "printed"] = "physical"
-) -> Probe:
-    """The probe of an instrument configuration.
-
-    Parameters
-    ----------
-    instrument : cwproc.config.InstrumentConfig
-        ``kind == "pulsed"`` gives a :class:`PulsedProbe` from ``delta_p_m`` and
-        ``delta_r_m``; ``kind == "cw"`` a :class:`CWProbe` from ``beam_radius_m`` and
-        ``wavelength_m`` when the beam radius is set, else from ``z_r_coefficient``.
-    pulse_transfer : {"physical", "printed"}
-        Form of the Gaussian term of a pulsed probe (see :class:`PulsedProbe`).
-
-    Raises
-    ------
-    ValueError
-        For ``kind == "sonic"`` (no probe volume) or an impossible parameter.
-    """
-    if instrument.kind == "pulsed":
-        return PulsedProbe(instrument.delta_p_m, instrument.delta_r_m, pulse_transfer)
-    if instrument.kind == "cw":
-        if instrument.beam_radius_m is not None:
-            return CWProbe(
-                instrument.z_r_coefficient, instrument.wavelength_m, instrument.beam_radius_m
-            )
-        return CWProbe(instrument.z_r_coefficient)
-    raise ValueError(f"instrument kind {instrument.kind!r} has no lidar probe volume")

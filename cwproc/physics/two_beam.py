@@ -146,7 +146,7 @@ def beam_quadrature(probe: Any, range_m: float) -> BeamQuadrature:
 
     Pulsed: :func:`pulsed_pairs` with ``a = gaussian_width_m / pi`` (so ``"printed"``
     probes keep their transfer function). cw: the product of the cut Lorentzian ``Q_s``
-    rule of Banakh et al. (1999) (:func:`cwproc.sim.cw.lorentzian_quadrature`,
+    rule of Banakh et al. (1999) (:func:`cwproc.physics.cw_probe.lorentzian_quadrature`,
     :data:`CW_NODES` nodes; one rule for the cross and the same-beam terms, so that their
     cusps cancel at small separations: 0.3 % from the 300-node limit at 8 m separation of
     a 65 m probe). ``None``: a point.
@@ -156,7 +156,7 @@ def beam_quadrature(probe: Any, range_m: float) -> BeamQuadrature:
         one = np.array([r])
         return BeamQuadrature(one, one, np.ones(1))
     if hasattr(probe, "rayleigh_half_width"):
-        from cwproc.sim.cw import lorentzian_quadrature
+        from cwproc.physics.cw_probe import lorentzian_quadrature
 
         q = lorentzian_quadrature(
             float(probe.centre_range(r)), float(probe.rayleigh_half_width(r)), CW_NODES, 1

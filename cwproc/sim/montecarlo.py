@@ -41,19 +41,21 @@ import numpy as np
 import xarray as xr
 
 from cwproc.config import SimulationConfig
-from cwproc.sim.cw import CWLidar, along_beam_offsets, cw_probe_quadrature, probe_grid
-from cwproc.sim.turbulence import (
+from cwproc.physics.correlation import (
     ProbeQuadrature,
     ScanGeometry,
-    along_beam_fluctuations,
     beam_vectors,
     circulant_correlation_row,
-    epsilon_from_variance,
-    integral_scale_coefficient,
+    wind_vector,
+)
+from cwproc.physics.cw_probe import cw_probe_quadrature, probe_grid
+from cwproc.physics.spectra import epsilon_from, integral_scale_coefficient
+from cwproc.sim.cw import CWLidar, along_beam_offsets
+from cwproc.sim.turbulence import (
+    along_beam_fluctuations,
     probe_weighted_moments,
     scan_cholesky,
     simulate_scan_velocities,
-    wind_vector,
 )
 from cwproc.stages.epsilon import fit_correlation_shape
 
@@ -252,7 +254,7 @@ def estimate_parameters(
     """
     c = integral_scale_coefficient("exponential")
     sigma2_fit, scale_fit = fit_structure_function(stats["structure"], model.lag_model)
-    epsilon = epsilon_from_variance(np.maximum(sigma2_fit, 0.0), scale_fit)
+    epsilon = epsilon_from(np.maximum(sigma2_fit, 0.0), scale_fit)
     raw = stats["residual_variance"] + width2
     n = np.arange(1, raw.shape[1] + 1)[None, :]
     variance = raw
@@ -349,7 +351,7 @@ def run_study(
     for j, h in enumerate(heights):
         sigma2 = float(sim.sigma_v_m_s[j]) ** 2
         scale = float(sim.outer_scale_m[j])
-        eps = float(epsilon_from_variance(sigma2, scale))
+        eps = float(epsilon_from(sigma2, scale))
         truth_eps[j] = eps
         model = height_model(lidar, float(h), sim.max_lag)
         vd, valid, width2 = simulate_height(

@@ -142,9 +142,9 @@ def streamline_truth(spec: StreamLineSpec) -> dict[str, object]:
     grid of the field holds somewhat less (``grid_velocity_variance_m2_s2``, the
     variance of the horizontal components the grid resolves).
     """
+    from cwproc.physics.spectra import variance_from
     from cwproc.sim.field3d import grid_variance
     from cwproc.sim.pulsed import wind_components
-    from cwproc.sim.turbulence import variance_from_epsilon
 
     u, v = wind_components(spec.wind_speed, spec.wind_direction_deg)
     grid = grid_variance(
@@ -163,7 +163,7 @@ def streamline_truth(spec: StreamLineSpec) -> dict[str, object]:
         "epsilon_m2_s3": spec.epsilon,
         "integral_scale_m": spec.integral_scale_m,
         "velocity_variance_m2_s2": float(
-            variance_from_epsilon(spec.epsilon, spec.integral_scale_m, "von_karman")
+            variance_from(spec.epsilon, spec.integral_scale_m, "von_karman")
         ),
         "grid_velocity_variance_m2_s2": float(np.mean(grid[:2])),
         "noise_std_m_s": spec.noise_std,

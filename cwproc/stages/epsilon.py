@@ -129,9 +129,9 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from cwproc.metadata import BANAKH_1999, SMALIKHO_2020
 from cwproc.physics import spectra
 from cwproc.physics.transfer import transverse
+from cwproc.references import BANAKH_1999, SMALIKHO_2020
 
 #: turbulence_flag bits
 FLAG_TOO_FEW_PAIRS = 1
@@ -393,7 +393,7 @@ def probe_quadrature(probe: Any, range_m: float, n: int = 40, n_fine: int = 300)
 
     cw probe: the Lorentzian ``Q_s`` of Banakh et al. (1999) (centre ``probe.centre_range``,
     half width ``probe.rayleigh_half_width``), cut at the lidar, by Gauss-Legendre nodes
-    equal in weight (:func:`cwproc.sim.cw.lorentzian_quadrature`), with a fine quadrature
+    equal in weight (:func:`cwproc.physics.cw_probe.lorentzian_quadrature`), with a fine quadrature
     of ``n_fine`` nodes for the same-beam variance. Pulsed probe (a few tens of metres,
     small against the scan circle): one node at the gate centre.
 
@@ -409,8 +409,8 @@ def probe_quadrature(probe: Any, range_m: float, n: int = 40, n_fine: int = 300)
     -------
     cwproc.sim.turbulence.ProbeQuadrature
     """
-    from cwproc.sim.cw import lorentzian_quadrature
-    from cwproc.sim.turbulence import ProbeQuadrature
+    from cwproc.physics.correlation import ProbeQuadrature
+    from cwproc.physics.cw_probe import lorentzian_quadrature
 
     if not is_cw_probe(probe):
         return ProbeQuadrature((float(range_m),), (1.0,))
@@ -470,7 +470,7 @@ def vad_removed_variance(
     numpy.ndarray
         Shape ``(cells, outer scales)``.
     """
-    from cwproc.sim.turbulence import ScanGeometry, circulant_correlation_row
+    from cwproc.physics.correlation import ScanGeometry, circulant_correlation_row
 
     geometry = ScanGeometry(float(elevation_deg), int(n_azimuths), 1.0)
     lags = np.arange(1, int(n_azimuths))
@@ -571,7 +571,7 @@ def exact_lag_model(
     scales : numpy.ndarray
         L_V grid (m).
     """
-    from cwproc.sim.turbulence import ScanGeometry, circulant_correlation_row
+    from cwproc.physics.correlation import ScanGeometry, circulant_correlation_row
 
     n_az = round(360.0 / float(azimuth_step_deg))
     geometry = ScanGeometry(float(elevation_deg), n_az, 1.0)
@@ -1580,7 +1580,7 @@ def estimate_epsilon(
     sf : xarray.Dataset
         Output of :func:`cwproc.stages.structure.azimuth_structure_function`.
     probe : PulsedProbe or CWProbe
-        Probe volume (:func:`cwproc.physics.transfer.probe_from_config`).
+        Probe volume (:func:`cwproc.pipeline.probe_from_config`).
     lag_number : int
         l of Smalikho (2020), eq. 5 (>= 2); the largest available lag is used when
         ``l dtheta`` exceeds the structure function's lags (recorded in the attrs).

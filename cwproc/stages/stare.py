@@ -245,7 +245,7 @@ def stare_product(stares: xr.Dataset, wind: xr.Dataset | None, options: StareOpt
     Returns
     -------
     xarray.Dataset
-        Dims ``time`` (window centres), ``height``, ``ray``; see ``cwproc.metadata``.
+        Dims ``time`` (window centres), ``height``, ``ray``; see ``cwproc.products.metadata``.
     """
     if stares.sizes.get("ray", 0) == 0:
         raise CwprocError("stare: no vertical rays")

@@ -33,8 +33,8 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import CwprocError
-from cwproc.metadata import SMALIKHO_2020
 from cwproc.physics.atable import N_BINS, azimuth_bin_weights, azimuth_nodes
+from cwproc.references import SMALIKHO_2020
 
 #: largest relative mismatch (m) between wind-product gate ranges and scan gate ranges
 _RANGE_TOLERANCE_M = 0.5

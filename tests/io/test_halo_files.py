@@ -16,7 +16,7 @@ import xarray as xr
 import cwproc.io.halo as halo
 from cwproc.errors import CwprocError, InputFileError
 from cwproc.io.halo import line_ends, read_hpl, read_hpl_files, write_hpl
-from cwproc.stages.scans import concat_scans
+from cwproc.io.scans import concat_scans
 
 #: a large file with pitch/roll, and one with 3-field ray lines and no final newline
 REAL_SINGLE = ("User5_96_20190308_200500.hpl", "hyytiala-2023-09-13-Stare_46_20230913_23.hpl")

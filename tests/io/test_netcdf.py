@@ -13,8 +13,9 @@ import xarray as xr
 from cwproc import __version__
 from cwproc.config import Config, OutputConfig
 from cwproc.errors import ProductError
-from cwproc.io.netcdf import read_product, sha256_file, site_attributes, write_product
-from cwproc.metadata import VARIABLES, apply_metadata, undeclared_variables
+from cwproc.io.netcdf import read_product, sha256_file
+from cwproc.products.metadata import VARIABLES, apply_metadata, undeclared_variables
+from cwproc.products.writer import site_attributes, write_product
 
 
 def wind_like(n_time: int = 6, n_height: int = 4) -> xr.Dataset:

@@ -13,10 +13,10 @@ from cwproc.physics.transfer import (
     SPEED_OF_LIGHT,
     CWProbe,
     PulsedProbe,
-    probe_from_config,
     pulse_parameters,
     transverse,
 )
+from cwproc.pipeline import probe_from_config
 
 
 def _power_transfer(weight, kappa, half_width):
@@ -126,8 +126,8 @@ def test_probe_from_config():
 def test_cw_probe_with_beam_radius_has_the_banakh_half_width_and_centre():
     # seed-000 lidar (lambda = 10.6 um, a0 = 7.5 cm): z_d = 2 pi a0^2/lambda = 3334 m;
     # at R = 1000 m (h = 500 m, phi = 30 deg) w = z_R/(1 + (R/z_d)^2) = 0.917 z_R,
-    # the same Lorentzian the simulator draws (cwproc.sim.cw.lorentzian_parameters)
-    from cwproc.sim.cw import lorentzian_parameters
+    # the same Lorentzian the simulator draws (cwproc.physics.cw_probe.lorentzian_parameters)
+    from cwproc.physics.cw_probe import lorentzian_parameters
 
     probe = CWProbe(wavelength_m=10.6e-6, beam_radius_m=0.075)
     z_d = 2 * math.pi * 0.075**2 / 10.6e-6

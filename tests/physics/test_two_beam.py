@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from cwproc.physics import afunctions, spectra
+from cwproc.physics import correlation as corr
 from cwproc.physics import two_beam as tb
+from cwproc.physics.cw_probe import lorentzian_quadrature
 from cwproc.physics.transfer import CWProbe, PulsedProbe
-from cwproc.sim import turbulence as st
-from cwproc.sim.cw import lorentzian_quadrature
 
 EL = 60.0
 R = 1000.0
@@ -57,7 +57,7 @@ def test_small_wind_reduces_to_a2() -> None:
         R,
         probe=probe,
         time_separation_s=3 * t0,
-        mean_wind=st.wind_vector(speed, 70.0),
+        mean_wind=corr.wind_vector(speed, 70.0),
         sweep_deg=1.0,
         n_sweep=6,
     ).mean()
@@ -71,7 +71,7 @@ def test_structure_function_equals_covariance_form() -> None:
         probe=PulsedProbe(),
         model="von_karman",
         outer_scale_m=200.0,
-        mean_wind=st.wind_vector(8.0, 30.0),
+        mean_wind=corr.wind_vector(8.0, 30.0),
     )
     baa = tb.two_beam_covariance(10.0, 10.0, EL, R, **args)
     bbb = tb.two_beam_covariance(25.0, 25.0, EL, R, **args)
@@ -94,10 +94,10 @@ def test_cw_covariance_matches_simulator_matrix() -> None:
     q = lorentzian_quadrature(
         float(probe.centre_range(r)), float(probe.rayleigh_half_width(r)), 40, 300
     )
-    geo = st.ScanGeometry(EL, 50, 1.0)
-    wind = st.wind_vector(8.0, 30.0)
+    geo = corr.ScanGeometry(EL, 50, 1.0)
+    wind = corr.wind_vector(8.0, 30.0)
     s2 = spectra.variance_per_eps23("von_karman", big_l)
-    b = st.azimuth_correlation_matrix(
+    b = corr.azimuth_correlation_matrix(
         geo, q, sigma2=s2, outer_scale=big_l, mean_wind=wind, model="von_karman"
     )
     az, ts = geo.azimuth_deg, geo.time_s

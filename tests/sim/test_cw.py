@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import integrate
 
+from cwproc.physics import cw_probe
 from cwproc.sim import cw
 
 LAMBDA, A0 = 10.6e-6, 0.075
@@ -19,33 +20,33 @@ def test_corrected_q_s_is_the_squared_form_normalised_after_the_cut():
     zd = 2 * np.pi * A0**2 / LAMBDA
     z = np.array([10.0, 300.0, 550.0, 600.0, 2000.0])
     printed_fixed = 1.0 / (np.pi * zd * ((1 - z / R) ** 2 + (z / zd) ** 2))
-    kept = 1.0 - cw.fraction_behind_lidar(R, LAMBDA, A0)
-    assert cw.probe_weight(z, R, LAMBDA, A0) == pytest.approx(printed_fixed / kept, rel=1e-10)
-    near, _ = integrate.quad(cw.probe_weight, 0, 2 * R, args=(R, LAMBDA, A0), points=[R])
-    far, _ = integrate.quad(cw.probe_weight, 2 * R, np.inf, args=(R, LAMBDA, A0))
+    kept = 1.0 - cw_probe.fraction_behind_lidar(R, LAMBDA, A0)
+    assert cw_probe.probe_weight(z, R, LAMBDA, A0) == pytest.approx(printed_fixed / kept, rel=1e-10)
+    near, _ = integrate.quad(cw_probe.probe_weight, 0, 2 * R, args=(R, LAMBDA, A0), points=[R])
+    far, _ = integrate.quad(cw_probe.probe_weight, 2 * R, np.inf, args=(R, LAMBDA, A0))
     assert near + far == pytest.approx(1.0, rel=1e-6)
-    assert cw.probe_weight(np.array([-5.0]), R, LAMBDA, A0)[0] == 0.0
+    assert cw_probe.probe_weight(np.array([-5.0]), R, LAMBDA, A0)[0] == 0.0
 
 
 def test_lorentzian_parameters_and_the_share_behind_the_lidar():
     # REFERENCE_VALUES.md section 3: z_c = R/(1+(R/z_d)^2); up to 9 % behind the lidar
-    zc, w = cw.lorentzian_parameters(1000.0, LAMBDA, A0)
+    zc, w = cw_probe.lorentzian_parameters(1000.0, LAMBDA, A0)
     zd = 2 * np.pi * A0**2 / LAMBDA
     assert zc == pytest.approx(1000.0 / (1 + (1000.0 / zd) ** 2))
-    assert w == pytest.approx(cw.rayleigh_range(1000.0, LAMBDA, A0) / (1 + (1000 / zd) ** 2))
-    assert cw.fraction_behind_lidar(1000.0, LAMBDA, A0) == pytest.approx(0.093, abs=0.002)
-    assert cw.fraction_behind_lidar(100.0, LAMBDA, A0) < 0.01
+    assert w == pytest.approx(cw_probe.rayleigh_range(1000.0, LAMBDA, A0) / (1 + (1000 / zd) ** 2))
+    assert cw_probe.fraction_behind_lidar(1000.0, LAMBDA, A0) == pytest.approx(0.093, abs=0.002)
+    assert cw_probe.fraction_behind_lidar(100.0, LAMBDA, A0) < 0.01
     # ZephIR: z_R = 0.0013 R^2 (Wagner et al. (DTU))
     assert cw.ZEPHIR.z_r_coefficient == pytest.approx(0.0013, rel=1e-9)
 
 
 def test_quadrature_integrates_the_probe_weight():
     R = 400.0
-    quad = cw.cw_probe_quadrature(R, LAMBDA, A0, 40)
+    quad = cw_probe.cw_probe_quadrature(R, LAMBDA, A0, 40)
     assert quad.w.sum() == pytest.approx(1.0)
     f = lambda z: np.exp(-(((z - 380.0) / 150.0) ** 2))  # noqa: E731
     exact, _ = integrate.quad(
-        lambda z: cw.probe_weight(z, R, LAMBDA, A0) * f(z), 0, 3000.0, points=[R], limit=200
+        lambda z: cw_probe.probe_weight(z, R, LAMBDA, A0) * f(z), 0, 3000.0, points=[R], limit=200
     )
     assert quad.w @ f(quad.z) == pytest.approx(exact, rel=1e-4)
 
@@ -69,7 +70,7 @@ def test_spectrum_of_one_velocity_peaks_there_and_the_centroid_recovers_it():
 def test_centroid_is_unbiased_for_turbulent_spectra_high_snr():
     """Under conditions (5)-(10) eq. 4 gives the Q_s-weighted mean of eq. 11."""
     rng = np.random.default_rng(4)
-    _dr, q = cw.probe_grid(300.0, LAMBDA, A0)
+    _dr, q = cw_probe.probe_grid(300.0, LAMBDA, A0)
     vr = 7.0 + rng.normal(0.0, 0.6, size=(500, q.size))
     spec = cw.doppler_spectrum(vr, q, resolution=0.1, n_channels=256)
     res = cw.centroid_velocity(spec, resolution=0.1)
@@ -81,7 +82,7 @@ def test_centroid_is_unbiased_for_turbulent_spectra_high_snr():
 
 
 def test_homodyne_measures_the_modulus_and_drops_slow_peaks():
-    _dr, q = cw.probe_grid(100.0, LAMBDA, A0)
+    _dr, q = cw_probe.probe_grid(100.0, LAMBDA, A0)
     rng = np.random.default_rng(6)
     base = rng.normal(0.0, 0.2, size=(3, q.size))
     vr = base + np.array([[-6.0], [6.0], [0.4]])
@@ -162,7 +163,7 @@ def test_centroid_moves_with_the_spectrum(mean, spread, shift, seed):
     the estimate by j dV while the window stays inside the channels, and a
     homodyne spectrum does not depend on the sign of V_r (eq. 3 with |V_r|)."""
     rng = np.random.default_rng(seed)
-    _dr, q = cw.probe_grid(200.0, LAMBDA, A0)
+    _dr, q = cw_probe.probe_grid(200.0, LAMBDA, A0)
     profile = np.convolve(rng.normal(size=q.size + 20), np.ones(21) / np.sqrt(21), "valid")
     vr = mean + spread * profile
     both = np.stack([vr, vr + shift * 0.1])

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from cwproc.physics import correlation as corr
 from cwproc.physics import spectra
 from cwproc.sim import exact_gaussian as eg
-from cwproc.sim import turbulence as tb
 from cwproc.sim.pulsed import range_quadrature
 
 PHI = 35.0
@@ -31,11 +31,11 @@ def test_covariance_matches_the_tensor_form_of_banakh_eq15(wind):
         mean_wind=wind,
     )
     s, w = range_quadrature(15.3, 18.0, 0.5)
-    probe = tb.ProbeQuadrature(tuple(RANGE + s), tuple(w))
-    ref = tb.azimuth_correlation_matrix(
-        tb.ScanGeometry(PHI, 12, 24.0),
+    probe = corr.ProbeQuadrature(tuple(RANGE + s), tuple(w))
+    ref = corr.azimuth_correlation_matrix(
+        corr.ScanGeometry(PHI, 12, 24.0),
         probe,
-        sigma2=float(tb.variance_from_epsilon(1.0, L_V, "von_karman")),
+        sigma2=float(spectra.variance_from(1.0, L_V, "von_karman")),
         outer_scale=L_V,
         mean_wind=None if not any(wind) else np.array([wind[2], wind[1], wind[0]]),
         model="von_karman",

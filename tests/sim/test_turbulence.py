@@ -6,37 +6,41 @@ import numpy as np
 import pytest
 from scipy import integrate
 
+from cwproc.physics import correlation as corr
+from cwproc.physics import spectra
+from cwproc.physics.cw_probe import cw_probe_quadrature
 from cwproc.sim import turbulence as T
-from cwproc.sim.cw import cw_probe_quadrature
 
 
 def test_eq17_values_and_integral_scale():
     r = np.array([0.0, 100.0, 800.0])
-    b = T.exponential_correlation(r, 2.0, 100.0)
+    b = corr.exponential_correlation(r, 2.0, 100.0)
     assert b[0] == pytest.approx(2.0)
     assert b[1] == pytest.approx(2.0 * np.exp(-1.21))
     assert b[2] == pytest.approx(2.0 * np.exp(-1.21 * 4.0))
     # int_0^inf exp(-1.21 x^(2/3)) dx = (3/2) Gamma(3/2) 1.21^(-3/2) = 0.99875
-    val, _ = integrate.quad(lambda x: T.exponential_correlation(x, 1.0, 1.0), 0, np.inf)
+    val, _ = integrate.quad(lambda x: corr.exponential_correlation(x, 1.0, 1.0), 0, np.inf)
     assert val == pytest.approx(0.998753, rel=1e-4)
 
 
 def test_von_karman_integral_scale_and_inertial_limit():
-    val, _ = integrate.quad(lambda x: T.von_karman_correlation(x, 1.0, 100.0), 0, np.inf, limit=400)
+    val, _ = integrate.quad(
+        lambda x: corr.von_karman_correlation(x, 1.0, 100.0), 0, np.inf, limit=400
+    )
     assert val == pytest.approx(100.0, rel=1e-5)
     # D = 2 (sigma^2 - B) -> C_k eps^(2/3) r^(2/3) for r << L with eps = c sigma^3/L
-    eps = T.epsilon_from_variance(1.0, 100.0, "von_karman")
+    eps = spectra.epsilon_from(1.0, 100.0, "von_karman")
     r = 0.01
-    d = 2.0 * (1.0 - T.von_karman_correlation(r, 1.0, 100.0))
+    d = 2.0 * (1.0 - corr.von_karman_correlation(r, 1.0, 100.0))
     assert d == pytest.approx(2.0 * eps ** (2 / 3) * r ** (2 / 3), rel=2e-3)
 
 
 def test_eq19_coefficients():
-    assert T.integral_scale_coefficient("exponential") == pytest.approx(1.331, abs=1e-3)
-    assert T.integral_scale_coefficient("von_karman") == pytest.approx(0.6973, abs=1e-3)
-    eps = T.epsilon_from_variance(1.23**2, 133.0)
+    assert spectra.integral_scale_coefficient("exponential") == pytest.approx(1.331, abs=1e-3)
+    assert spectra.integral_scale_coefficient("von_karman") == pytest.approx(0.6973, abs=1e-3)
+    eps = spectra.epsilon_from(1.23**2, 133.0)
     assert eps == pytest.approx(0.018, abs=0.001)  # the table of Banakh et al. (1999)
-    assert T.variance_from_epsilon(eps, 133.0) == pytest.approx(1.23**2)
+    assert spectra.variance_from(eps, 133.0) == pytest.approx(1.23**2)
 
 
 @pytest.mark.parametrize("model", ["exponential", "von_karman"])
@@ -44,24 +48,24 @@ def test_correlation_derivative_matches_finite_difference(model):
     r = np.array([1.0, 30.0, 250.0])
     h = 1e-4
     fd = (
-        T.longitudinal_correlation(r + h, 1.3, 120.0, model)
-        - T.longitudinal_correlation(r - h, 1.3, 120.0, model)
+        corr.longitudinal_correlation(r + h, 1.3, 120.0, model)
+        - corr.longitudinal_correlation(r - h, 1.3, 120.0, model)
     ) / (2 * h)
-    assert T.correlation_derivative(r, 1.3, 120.0, model) == pytest.approx(fd, rel=1e-5)
+    assert corr.correlation_derivative(r, 1.3, 120.0, model) == pytest.approx(fd, rel=1e-5)
 
 
 def test_isotropic_tensor_longitudinal_and_transverse_components():
     """Eq. 16: along r the tensor gives B_V, across r B_V + (r/2) B_V' (for eq. 17:
     B_V [1 - (1.21/3) (r/L)^(2/3)])."""
     sigma2, scale, r = 1.5, 100.0, 37.0
-    tensor = T.correlation_tensor(np.array([r, 0.0, 0.0]), sigma2, scale)
-    b = T.exponential_correlation(r, sigma2, scale)
+    tensor = corr.correlation_tensor(np.array([r, 0.0, 0.0]), sigma2, scale)
+    b = corr.exponential_correlation(r, sigma2, scale)
     assert tensor[0, 0] == pytest.approx(b)
     transverse = b * (1.0 - 1.21 / 3.0 * (r / scale) ** (2 / 3))
     assert tensor[1, 1] == pytest.approx(transverse)
     assert tensor[2, 2] == pytest.approx(transverse)
     assert tensor[0, 1] == pytest.approx(0.0, abs=1e-15)
-    assert T.correlation_tensor(np.zeros(3), sigma2, scale) == pytest.approx(sigma2 * np.eye(3))
+    assert corr.correlation_tensor(np.zeros(3), sigma2, scale) == pytest.approx(sigma2 * np.eye(3))
 
 
 def test_projected_correlation_is_the_contracted_tensor():
@@ -71,39 +75,41 @@ def test_projected_correlation_is_the_contracted_tensor():
     s1 /= np.linalg.norm(s1, axis=1, keepdims=True)
     s2 = rng.normal(size=(20, 3))
     s2 /= np.linalg.norm(s2, axis=1, keepdims=True)
-    full = np.einsum("pi,pij,pj->p", s1, T.correlation_tensor(r_vec, 1.0, 80.0), s2)
-    assert T.projected_correlation(r_vec, s1, s2, 1.0, 80.0) == pytest.approx(full)
+    full = np.einsum("pi,pij,pj->p", s1, corr.correlation_tensor(r_vec, 1.0, 80.0), s2)
+    assert corr.projected_correlation(r_vec, s1, s2, 1.0, 80.0) == pytest.approx(full)
 
 
 @pytest.fixture(scope="module")
 def cw_setup():
-    geometry = T.ScanGeometry(30.0, 140, 7.0)
+    geometry = corr.ScanGeometry(30.0, 140, 7.0)
     probe = cw_probe_quadrature(200.0, 10.6e-6, 0.075, 24, n_fine=200)
     return geometry, probe
 
 
 def test_azimuth_correlation_matrix_without_wind_is_circulant(cw_setup):
     geometry, probe = cw_setup
-    b = T.azimuth_correlation_matrix(geometry, probe, sigma2=1.0, outer_scale=200.0)
+    b = corr.azimuth_correlation_matrix(geometry, probe, sigma2=1.0, outer_scale=200.0)
     assert b == pytest.approx(b.T)
-    row = T.circulant_correlation_row(geometry, probe, np.array([200.0]))[0]
+    row = corr.circulant_correlation_row(geometry, probe, np.array([200.0]))[0]
     assert b[0] == pytest.approx(row, abs=1e-12)
     assert b[17] == pytest.approx(np.roll(row, 17), abs=1e-12)
     assert np.linalg.eigvalsh(b).min() > 0
     # probe averaging: the variance of V_D is below sigma_V^2, the same-beam integral
-    assert b[0, 0] == pytest.approx(T.same_beam_variance(probe, 1.0, 200.0))
+    assert b[0, 0] == pytest.approx(corr.same_beam_variance(probe, 1.0, 200.0))
     assert 0.5 < b[0, 0] < 1.0
 
 
 def test_point_probe_correlation_is_the_projected_tensor():
-    geometry = T.ScanGeometry(30.0, 8, 8.0)
-    probe = T.ProbeQuadrature((300.0,), (1.0,))
-    wind = T.wind_vector(10.0, 270.0)
-    b = T.azimuth_correlation_matrix(geometry, probe, sigma2=1.0, outer_scale=150.0, mean_wind=wind)
-    s = T.beam_vectors(geometry.azimuth_deg, 30.0)
+    geometry = corr.ScanGeometry(30.0, 8, 8.0)
+    probe = corr.ProbeQuadrature((300.0,), (1.0,))
+    wind = corr.wind_vector(10.0, 270.0)
+    b = corr.azimuth_correlation_matrix(
+        geometry, probe, sigma2=1.0, outer_scale=150.0, mean_wind=wind
+    )
+    s = corr.beam_vectors(geometry.azimuth_deg, 30.0)
     t = geometry.time_s
     r_vec = 300.0 * s[2] - 300.0 * s[5] - wind * (t[2] - t[5])  # Taylor transport
-    assert b[2, 5] == pytest.approx(T.projected_correlation(r_vec, s[2], s[5], 1.0, 150.0))
+    assert b[2, 5] == pytest.approx(corr.projected_correlation(r_vec, s[2], s[5], 1.0, 150.0))
 
 
 @pytest.mark.slow
@@ -111,7 +117,7 @@ def test_simulated_scan_velocities_have_the_model_covariance(cw_setup):
     geometry, probe = cw_setup
     wind = (0.0, -4.0, -6.9)
     factor = T.scan_cholesky(geometry, probe, 200.0, wind)
-    b = T.azimuth_correlation_matrix(
+    b = corr.azimuth_correlation_matrix(
         geometry, probe, sigma2=1.0, outer_scale=200.0, mean_wind=np.array(wind)
     )
     v = T.simulate_scan_velocities(np.random.default_rng(1), factor, 2.0, (4000,))
@@ -131,7 +137,7 @@ def test_along_beam_fluctuations_follow_eq17():
     assert np.var(x) == pytest.approx(1.5, rel=0.03)
     for lag in (5, 30, 100):  # 10, 60, 200 m
         emp = np.mean(x[:, :-lag] * x[:, lag:])
-        assert emp == pytest.approx(T.exponential_correlation(2.0 * lag, 1.5, 60.0), abs=0.05)
+        assert emp == pytest.approx(corr.exponential_correlation(2.0 * lag, 1.5, 60.0), abs=0.05)
 
 
 def test_probe_weighted_moments_match_direct_sums():

@@ -148,9 +148,9 @@ def test_passed_variance_is_the_variance_of_the_probe_averaged_velocity():
     for a cw Lorentzian with a negligible part behind the lidar (a0 = 0.3 m: 0.1 % at
     R = 400 m), exponential model, L_V = 100 m: within 1 %.
     """
+    from cwproc.physics.correlation import same_beam_variance
+    from cwproc.physics.cw_probe import cw_probe_quadrature
     from cwproc.physics.transfer import CWProbe
-    from cwproc.sim.cw import cw_probe_quadrature
-    from cwproc.sim.turbulence import same_beam_variance
 
     probe = CWProbe(wavelength_m=10.6e-6, beam_radius_m=0.3)
     ranges = np.array([100.0, 400.0])

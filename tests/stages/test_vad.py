@@ -18,9 +18,9 @@ from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from cwproc.errors import CwprocError
-from cwproc.metadata import undeclared_variables
 from cwproc.physics import vad_errors as ve
 from cwproc.physics.geometry import radial_velocity
+from cwproc.products.metadata import undeclared_variables
 from cwproc.stages import vad
 from cwproc.stages.vad import fit_vad
 

@@ -189,7 +189,7 @@ def test_turbulence_parameter_from_a_homodyne_vad_fit():
      ("wind_direction", 720.0), ("w", 99.0)],
 )  # fmt: skip
 def test_impossible_values_are_missing_never_good(name, value):
-    """Values outside metadata.PHYSICAL_RANGES become missing (bit 4) (issue 17.3)."""
+    """Values outside io.ranges.PHYSICAL_RANGES become missing (bit 4) (issue 17.3)."""
     from cwproc.io.zephir import with_range_screen
 
     rec = _record()

@@ -197,8 +197,8 @@ def check_day_choices(state: StreamState, config: Config) -> None:
         Scan numbering, conical elevation, azimuth step or rotation, or the background
         method of a chunk differs from the whole day's.
     """
+    from cwproc.io.scans import scan_indices
     from cwproc.stages import structure, vad
-    from cwproc.stages.scans import scan_indices
 
     time, az, el, streamed = (np.concatenate(p) for p in zip(*state.pointing, strict=True))
     whole, _ = scan_indices(time, az, el, scan_type=state.scan_type)
@@ -225,7 +225,7 @@ def check_day_choices(state: StreamState, config: Config) -> None:
 
 def day_attrs(first: dict, files: list[str], scan_types: list[str], state: StreamState) -> dict:
     """Attributes of the whole day's scans (those the whole-day run would carry)."""
-    from cwproc.stages.scans import joined_attrs
+    from cwproc.io.scans import joined_attrs
 
     attrs = joined_attrs(first, files, scan_types)
     if state.snr_corrections:
@@ -299,12 +299,12 @@ def stream_scan_unit(
         of the whole day; None when a chunk's choices differ from the day's (see the
         module docstring) and the caller must process the day whole.
     """
+    from cwproc.io.scans import _source_files, concat_scans
     from cwproc.pipeline import (
         describe_scan_inputs,
         drop_input,
         probe_mismatch,
     )
-    from cwproc.stages.scans import _source_files, concat_scans
 
     state = StreamState(turbulence=config.turbulence.enabled)
     own: list[str] = []

@@ -16,7 +16,7 @@ from cwproc.pipeline import (
     process_unit,
     read_input,
 )
-from cwproc.scan_stream import stream_scan_unit
+from cwproc.pipeline.stream import stream_scan_unit
 from cwproc.sim.sample_data import StreamLineSpec, write_streamline_series
 from cwproc.sim.stare import write_stare_series
 
@@ -96,7 +96,7 @@ def test_process_unit_streams_and_falls_back_identically(tmp_path, config, monke
     (unit,) = group_units(read_input(p, config) for p in sorted((tmp_path / "day").glob("*.hpl")))
     assert_same_products(process_unit(unit, config, [], chunk_bytes=SMALL_CHUNK), whole)
     # a chunk choosing differently from the day: the day is processed whole
-    monkeypatch.setattr("cwproc.scan_stream.check_day_choices", _mismatch)
+    monkeypatch.setattr("cwproc.pipeline.stream.check_day_choices", _mismatch)
     (unit,) = group_units(read_input(p, config) for p in sorted((tmp_path / "day").glob("*.hpl")))
     assert stream_scan_unit(unit, config, [], lambda i: load_item(i, config), SMALL_CHUNK) is None
     (unit,) = group_units(read_input(p, config) for p in sorted((tmp_path / "day").glob("*.hpl")))
@@ -104,7 +104,7 @@ def test_process_unit_streams_and_falls_back_identically(tmp_path, config, monke
 
 
 def _mismatch(state, config):
-    from cwproc.scan_stream import StreamMismatch
+    from cwproc.pipeline.stream import StreamMismatch
 
     raise StreamMismatch("azimuth step")
 

@@ -13,7 +13,7 @@ scan data (Stream Line ``.hpl``, cw line-of-sight NetCDF)::
     screened scans + wind -> structure.azimuth_structure_function
                           -> epsilon.estimate_epsilon -> turbulence product
 
-    (a day of scans runs chunk by chunk, :mod:`cwproc.scan_stream`, with the products
+    (a day of scans runs chunk by chunk, :mod:`cwproc.pipeline.stream`, with the products
     of the whole day)
 wind records (ZephIR, WindCube)::
 
@@ -33,30 +33,18 @@ from collections import defaultdict
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import xarray as xr
 
-from cwproc.config import Config
+from cwproc.config import Config, InstrumentConfig
 from cwproc.errors import CwprocError, InputFileError
 from cwproc.io import KIND, FileIdentity, Format, detect_format, get_identifier, get_reader
-from cwproc.io.netcdf import (
-    add_site_coordinates,
-    discard,
-    publish,
-    remove_stale_temporaries,
-    sha256_file,
-    site_attributes,
-    write_product,
-)
-from cwproc.metadata import (
-    BANAKH_1999,
-    GLADKIKH_2014,
-    OCONNOR_2010,
-    SMALIKHO_2020,
-    WAGNER_DTU,
-)
-from cwproc.physics.noise import PEARSON_2009
+from cwproc.io.netcdf import discard, publish, remove_stale_temporaries, sha256_file
+from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
+from cwproc.products.catalogue import describe_product
+from cwproc.products.writer import add_site_coordinates, site_attributes, write_product
 
 
 @dataclass
@@ -283,7 +271,38 @@ def group_units(items: Iterable[InputFile]) -> list[ProductUnit]:
 # --------------------------------------------------------------------------------------
 
 
-def probe_for(config: Config):
+def probe_from_config(
+    instrument: InstrumentConfig, *, pulse_transfer: Literal["physical", "printed"] = "physical"
+) -> Probe:
+    """The probe of an instrument configuration.
+
+    Parameters
+    ----------
+    instrument : InstrumentConfig
+        ``kind == "pulsed"`` gives a ``PulsedProbe`` from ``delta_p_m`` and ``delta_r_m``;
+        ``kind == "cw"`` a ``CWProbe`` from ``beam_radius_m`` and ``wavelength_m`` when
+        the beam radius is set, else from ``z_r_coefficient``
+        (:mod:`cwproc.physics.transfer`).
+    pulse_transfer : {"physical", "printed"}
+        Form of the Gaussian term of a pulsed probe (see ``PulsedProbe``).
+
+    Raises
+    ------
+    ValueError
+        For ``kind == "sonic"`` (no probe volume) or an impossible parameter.
+    """
+    if instrument.kind == "pulsed":
+        return PulsedProbe(instrument.delta_p_m, instrument.delta_r_m, pulse_transfer)
+    if instrument.kind == "cw":
+        if instrument.beam_radius_m is not None:
+            return CWProbe(
+                instrument.z_r_coefficient, instrument.wavelength_m, instrument.beam_radius_m
+            )
+        return CWProbe(instrument.z_r_coefficient)
+    raise ValueError(f"instrument kind {instrument.kind!r} has no lidar probe volume")
+
+
+def probe_for(config: Config) -> Probe:
     """The probe-volume description of the configured instrument (physics object).
 
     Raises
@@ -291,8 +310,6 @@ def probe_for(config: Config):
     CwprocError
         The configuration describes no lidar (``instrument.kind = "sonic"``).
     """
-    from cwproc.physics.transfer import probe_from_config
-
     if config.instrument.kind not in ("pulsed", "cw"):
         raise CwprocError(
             f"configuration {config.source}: instrument.kind = {config.instrument.kind!r} "
@@ -529,7 +546,7 @@ def concat_unit(unit: ProductUnit) -> xr.Dataset:
     """The datasets of a unit as one (scans and sonic days: joined in time order)."""
     datasets = [i.dataset for i in unit.inputs if i.dataset is not None]
     if unit.kind == "scan":
-        from cwproc.stages.scans import concat_scans
+        from cwproc.io.scans import concat_scans
 
         return concat_scans(datasets)
     if unit.kind == "sonic":
@@ -549,12 +566,12 @@ def process_unit(
     """Run the stage chain of one unit; returns ``{product_name: dataset}``.
 
     Non-fatal remarks (a product that could not be made) are appended to ``notes``.
-    A scan unit is processed chunk by chunk (:func:`cwproc.scan_stream.stream_scan_unit`,
+    A scan unit is processed chunk by chunk (:func:`cwproc.pipeline.stream.stream_scan_unit`,
     identical products in bounded memory); a day whose chunks would choose differently
     from the whole day is processed whole.
     """
     if unit.kind == "scan":
-        from cwproc.scan_stream import STREAM_CHUNK_BYTES, stream_scan_unit
+        from cwproc.pipeline.stream import STREAM_CHUNK_BYTES, stream_scan_unit
 
         products = stream_scan_unit(
             unit,
@@ -615,38 +632,6 @@ def correct_background(
 # writing
 # --------------------------------------------------------------------------------------
 
-_TITLES = {
-    "wind": ("Wind profile", "Horizontal and vertical wind from VAD fits of conical scans"),
-    "turbulence": (
-        "Turbulence from conical scans",
-        "Azimuth structure function, dissipation rate (methods 1 and 2), noise, velocity "
-        "variance and integral scale",
-    ),
-    "stare": (
-        "Vertical-velocity statistics and dissipation rate from vertical stares",
-        "Mean, variance and skewness of w per window, the noise variance from the SNR, and "
-        "the dissipation rate from the variance of w and the VAD wind speed",
-    ),
-    "sf": (
-        "Structure-function types of sonic anemometer data",
-        "Types (1 line, 2 parabola, 3 parabola then line in lg-lg axes) and fitted "
-        "coefficients of the normalised structure functions of the longitudinal, "
-        "transverse and vertical wind per 10-min window",
-    ),
-}
-_KEYWORDS = {
-    "wind": "Doppler lidar, VAD, wind profile",
-    "turbulence": "Doppler lidar, turbulence, dissipation rate, structure function",
-    "sf": "sonic anemometer, structure function, turbulence, surface layer",
-    "stare": "Doppler lidar, vertical stare, vertical velocity, turbulence, dissipation rate",
-}
-_REFERENCES = {
-    "wind": SMALIKHO_2020,
-    "turbulence": SMALIKHO_2020 + "; " + BANAKH_1999,
-    "sf": GLADKIKH_2014,
-    "stare": OCONNOR_2010 + "; " + PEARSON_2009,
-}
-
 
 def product_path(outdir: str | os.PathLike, unit: ProductUnit, name: str) -> Path:
     """``OUTDIR/<unit key>_<product>.nc``.
@@ -692,31 +677,20 @@ def _write_staged(
     if first is not None and first.attrs.get("instrument"):
         instrument_attrs["instrument"] = str(first.attrs["instrument"])
     for name, ds in products.items():
-        title, summary = _TITLES.get(name, (name, name))
-        if unit.kind == "wind_record":
-            title, summary = (
-                "Wind profile (instrument wind records)",
-                (
-                    "Wind speed, direction and turbulence intensity from the instrument's own "
-                    "averages, with the turbulence intensity corrected for volume averaging"
-                ),
-            )
-            refs = WAGNER_DTU
-        else:
-            refs = _REFERENCES.get(name, "")
+        about = describe_product(name, unit.kind)
         path = product_path(outdir, unit, name)
         staged.append(
             (
                 write_product(
                     add_site_coordinates(ds, config.output),
                     path,
-                    title=f"cwproc {title}: {unit.key}",
-                    summary=summary,
+                    title=f"cwproc {about.title}: {unit.key}",
+                    summary=about.summary,
                     inputs=list(dict.fromkeys(i.path for i in unit.inputs)),
                     checksums={os.fspath(i.path): i.sha256 for i in unit.inputs},
                     config_toml=config.to_toml(),
-                    references=refs,
-                    keywords=_KEYWORDS.get(name, ""),
+                    references=about.references,
+                    keywords=about.keywords,
                     extra_attrs=instrument_attrs,
                     compression_level=config.output.compression_level,
                     stage_only=True,

@@ -10,7 +10,7 @@ import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.io.halo import read_hpl
-from cwproc.stages.scans import assign_scans, azimuth_steps, concat_scans
+from cwproc.io.scans import assign_scans, azimuth_steps, concat_scans
 
 T0 = np.datetime64("2024-06-01T12:00:00", "ns")
 

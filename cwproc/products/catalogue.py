@@ -1,0 +1,78 @@
+"""What each product is: its title, summary, keywords and references (ACDD attributes).
+
+The one home of the descriptions of the product files; the variables' own names, units
+and flags are in :mod:`cwproc.products.metadata`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from cwproc.references import (
+    BANAKH_1999,
+    GLADKIKH_2014,
+    OCONNOR_2010,
+    PEARSON_2009,
+    SMALIKHO_2020,
+    WAGNER_DTU,
+)
+
+
+@dataclass(frozen=True)
+class ProductDescription:
+    """ACDD ``title``, ``summary``, ``keywords`` and ``references`` of one product."""
+
+    title: str
+    summary: str
+    keywords: str
+    references: str
+
+
+_TITLES = {
+    "wind": ("Wind profile", "Horizontal and vertical wind from VAD fits of conical scans"),
+    "turbulence": (
+        "Turbulence from conical scans",
+        "Azimuth structure function, dissipation rate (methods 1 and 2), noise, velocity "
+        "variance and integral scale",
+    ),
+    "stare": (
+        "Vertical-velocity statistics and dissipation rate from vertical stares",
+        "Mean, variance and skewness of w per window, the noise variance from the SNR, and "
+        "the dissipation rate from the variance of w and the VAD wind speed",
+    ),
+    "sf": (
+        "Structure-function types of sonic anemometer data",
+        "Types (1 line, 2 parabola, 3 parabola then line in lg-lg axes) and fitted "
+        "coefficients of the normalised structure functions of the longitudinal, "
+        "transverse and vertical wind per 10-min window",
+    ),
+}
+_KEYWORDS = {
+    "wind": "Doppler lidar, VAD, wind profile",
+    "turbulence": "Doppler lidar, turbulence, dissipation rate, structure function",
+    "sf": "sonic anemometer, structure function, turbulence, surface layer",
+    "stare": "Doppler lidar, vertical stare, vertical velocity, turbulence, dissipation rate",
+}
+_REFERENCES = {
+    "wind": SMALIKHO_2020,
+    "turbulence": SMALIKHO_2020 + "; " + BANAKH_1999,
+    "sf": GLADKIKH_2014,
+    "stare": OCONNOR_2010 + "; " + PEARSON_2009,
+}
+
+_WIND_RECORD = ProductDescription(
+    "Wind profile (instrument wind records)",
+    "Wind speed, direction and turbulence intensity from the instrument's own averages, "
+    "with the turbulence intensity corrected for volume averaging",
+    "Doppler lidar, wind profile, turbulence intensity",
+    WAGNER_DTU,
+)
+
+
+def describe_product(name: str, unit_kind: str) -> ProductDescription:
+    """The description of product ``name`` (``"wind"``, ``"turbulence"``, ``"stare"``, ``"sf"``)
+    of a unit of kind ``unit_kind`` (``"wind_record"`` for instrument wind records)."""
+    if unit_kind == "wind_record":
+        return _WIND_RECORD
+    title, summary = _TITLES.get(name, (name, name))
+    return ProductDescription(title, summary, _KEYWORDS.get(name, ""), _REFERENCES.get(name, ""))

@@ -1,0 +1,40 @@
+"""Citations of the papers cwproc implements, one home for each.
+
+Every module that cites a paper in a product attribute or a docstring table takes
+the text from here, so that a citation is written once.
+"""
+
+SMALIKHO_2020 = (
+    "Smalikho I.N. (2020), Wind transfer of turbulent inhomogeneities when estimating the "
+    "dissipation rate from a conically scanning coherent Doppler lidar. Part I. Theory, "
+    "Atmos. Oceanic Opt."
+)
+BANAKH_1999 = (
+    "Banakh V.A., Werner Ch., Krivolutskii N.P., Smalikho I.N. (1999), Computer simulation "
+    "of cw Doppler wind lidar operation in a turbulent atmosphere, Atmos. Oceanic Opt."
+)
+GLADKIKH_2014 = (
+    "Gladkikh V.A., Nevzorova I.V., Odintsov S.L., Fedorov V.A. (2014), Structure functions "
+    "of wind velocity components over an inhomogeneous underlying surface, Atmos. Oceanic Opt."
+)
+WAGNER_DTU = (
+    "Wagner R., Mikkelsen T., Courtney M. (DTU), Investigation of turbulence measurements "
+    "with a continuous wave, conically scanning lidar, Risoe-R report."
+)
+
+OCONNOR_2010 = (
+    "O'Connor E.J., Illingworth A.J., Brooks I.M., Westbrook C.D., Hogan R.J., Davies F., "
+    "Brooks B.J. (2010), A method for estimating the turbulent kinetic energy dissipation "
+    "rate from a vertically pointing Doppler lidar, and independent evaluation from "
+    "balloon-borne in situ measurements, J. Atmos. Oceanic Technol. 27, 1652-1664"
+)
+
+PEARSON_2009 = (
+    "Pearson, G., Davies, F. and Collier, C. (2009), An analysis of the performance of the "
+    "UFAM pulsed Doppler lidar for observing the boundary layer, J. Atmos. Oceanic "
+    "Technol. 26, 240-250"
+)
+RYE_HARDESTY_1993 = (
+    "Rye, B. J. and Hardesty, R. M. (1993), Discrete spectral peak estimation in "
+    "incoherent backscatter heterodyne lidar. I, IEEE Trans. Geosci. Remote Sens. 31, 16-27"
+)
