@@ -1,9 +1,9 @@
-"""Readers of instrument files (one module per format) and the product writer.
+"""Readers of instrument files (one module per format), giving the canonical datasets.
 
 :func:`detect_format` recognises a file by its content (not its name) and
 :func:`read` dispatches to the reader of that format. Every reader has the signature
 ``read_<format>(path, **options) -> xarray.Dataset`` and returns one of the
-canonical datasets of DESIGN.md section 2 (scan, wind-record or sonic), raising
+canonical datasets (scan, wind-record or sonic), raising
 :class:`cwproc.errors.InputFileError` (file, line, problem) on bad input.
 """
 

@@ -70,7 +70,7 @@ def exact_plane_constant() -> float:
 
     ``C = 3 beta B(1/2, 4/3) / (11 pi) = 0.065239`` with ``beta = alpha (2 pi)^(-2/3)``;
     identical to ``(8/3) / [2 (2pi)^(2/3) (-Gamma(-2/3)/2) (I(2/3) + (8/3) I(8/3))]``,
-    ``I(p) = int_0^(pi/2) sin^p`` (``reference/REFERENCE_VALUES.md`` section 1.1).
+    ``I(p) = int_0^(pi/2) sin^p``.
     """
     return 3.0 * _beta_cycles() * _B1 / (11.0 * np.pi)
 

@@ -16,13 +16,13 @@ Conventions: ``kappa`` is in cycles per metre, the Fourier transform is
   sinc(pi dR kappa)``. The extracted eq. 19 prints ``exp(-(dp kappa)^2)``, without the
   ``pi``; with ``kappa`` in cycles per metre only the form with ``pi`` is the transform of
   the physical weighting, and only it reproduces the three figure claims of the paper
-  (``reference/REFERENCE_VALUES.md`` section 1.4). ``gaussian="printed"`` keeps the
+  on epsilon_1/epsilon_2 versus mu (Smalikho (2020), eqs. 21-23). ``gaussian="printed"`` keeps the
   printed form as an option.
 - Continuous-wave lidar (Banakh et al. (1999) Q_s; Wagner et al. (DTU), eq. 2): the
   Lorentzian ``Q(s) = (w / pi) / (w^2 + s^2)``; its transform is ``exp(-2 pi w |kappa|)``,
   so ``H_par = exp(-4 pi w |kappa|)``. With the wavelength and the beam radius known,
-  Banakh et al. (1999) Q_s (``k0 a0^2`` squared, ``reference/REFERENCE_VALUES.md``
-  section 3) gives the half width ``w = z_R / (1 + (R/z_d)^2)``, centred at
+  Banakh et al. (1999) Q_s (after eq. 3, with ``k0 a0^2`` squared so that the
+  dimensions agree) gives the half width ``w = z_R / (1 + (R/z_d)^2)``, centred at
   ``R / (1 + (R/z_d)^2)``, with ``z_d = k0 a0^2 = 2 pi a0^2 / lambda`` and
   ``z_R = lambda R^2 / (2 pi a0^2)``; ZephIR's empirical ``w = Z_R = 0.0013 R^2``
   (Wagner et al. (DTU)) has no such correction.
@@ -146,8 +146,8 @@ class PulsedProbe:
 class CWProbe:
     """Lorentzian range weighting of a focused continuous-wave lidar.
 
-    Banakh et al. (1999), Q_s (with ``k0 a0^2`` squared, see
-    ``reference/REFERENCE_VALUES.md`` section 3); Wagner et al. (DTU), eq. 2.
+    Banakh et al. (1999), Q_s after eq. 3 (with ``k0 a0^2`` squared so that the
+    dimensions agree); Wagner et al. (DTU), eq. 2.
 
     Parameters
     ----------
@@ -237,7 +237,7 @@ class CWProbe:
         With ``lambda`` and ``a0``: the squared modulus of the transform of the Lorentzian
         of Banakh et al. (1999), Q_s, cut at the lidar and renormalised
         (:func:`cut_lorentzian_transform`; up to 9 % of Q_s lies behind the lidar at
-        R = 1000 m for the seed-000 lidar, ``reference/REFERENCE_VALUES.md`` section 3).
+        R = 1000 m for the lidar of Banakh et al. (1999)).
         ``kappa`` in cycles m-1, ``range_m`` the focus distance (m); both broadcast.
         """
         if range_m is None:
@@ -299,7 +299,7 @@ def cut_lorentzian_transform(
 
     ``Q(s) = (w/pi)/(w^2 + s^2) / K`` for ``s >= -a`` (``s`` from the centre, ``a`` the
     centre's distance from the lidar), ``K = 1/2 + atan(a/w)/pi``: Banakh et al. (1999),
-    Q_s, with the part behind the lidar cut (``reference/REFERENCE_VALUES.md`` section 3).
+    Q_s, with the part behind the lidar cut.
     ``F = [exp(-w k) - T(k)] / K`` with ``k = 2 pi |kappa|`` and the cut tail
     ``T = int_a^inf (w/pi) exp(i k u)/(w^2 + u^2) du
     = exp(i k a) [g(-k w - i k a) - g(k w - i k a)] / (2 pi i)``, ``g(z) = exp(z) E1(z)``

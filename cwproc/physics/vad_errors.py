@@ -1,9 +1,11 @@
-"""Error theory of the least-squares VAD wind fit (seed 002, reconstructed).
+"""Error theory of the least-squares VAD wind fit, reconstructed.
 
-The formulas of seed 002 were lost in the text extraction; they are re-derived here
-from its prose and checked against ``reference/REFERENCE_VALUES.md`` section 2.
+The paper (:data:`cwproc.references.VAD_ACCURACY`, "the paper" below) states its results
+in prose; its formulas were lost from the text, and are re-derived here from the prose
+and the surrounding equations (the prose values, e.g. 11 % growth of the along-bisector
+error for a missing sector, are tests).
 
-Convention (seed 002, section 2): a right-handed frame with x and y horizontal and z
+Convention (the paper, section 2): a right-handed frame with x and y horizontal and z
 up; a ray at elevation ``phi`` and azimuth ``theta`` (counted from the x axis towards
 y) measures
 
@@ -15,19 +17,19 @@ order ``(V_x, V_y, V_z)``. Angles are in degrees.
 
 Two estimators are covered:
 
-* the **decoupled estimator** of seed 002, eq. 4: each component from its own
+* the **decoupled estimator** of the paper, eq. 4: each component from its own
   trigonometric sum, ``V_x = sum(V_r cos) / (cos(phi) sum(cos^2))``,
   ``V_y = sum(V_r sin) / (cos(phi) sum(sin^2))``, ``V_z = sum(V_r) / (n sin(phi))``.
   It is the least-squares solution for a full circle of uniformly spaced azimuths
   (N >= 3) and the estimator the paper analyses for a missing sector;
 * the **true least squares** ``(A^T A)^-1 A^T V_r``, which is what ``fit_vad`` uses.
   With a missing sector ``sum(cos) != 0`` and V_x, V_z couple, so the true LS errors
-  differ from the paper's (``REFERENCE_VALUES.md`` section 2.2).
+  differ from the paper's.
 
 A radial error model is either a bound ``|d_i| <= bound`` (maximum error: the
-worst case ``d_i = bound * sign(weight_i)`` gives ``bound * sum|weight_i|``, seed 002,
+worst case ``d_i = bound * sign(weight_i)`` gives ``bound * sum|weight_i|``, the paper,
 eqs. 6, 13) or independent Gaussian errors of standard deviation ``sigma``
-(RMS error ``sigma * sqrt(sum weight_i^2)``, seed 002, section 4).
+(RMS error ``sigma * sqrt(sum weight_i^2)``, the paper, section 4).
 """
 
 from __future__ import annotations
@@ -49,10 +51,10 @@ def uniform_azimuths_deg(n_azimuths: int, sector_deg: float = 0.0) -> FloatArray
     Parameters
     ----------
     n_azimuths : int
-        Number of azimuths N of the full circle (seed 002, section 2: uniform spacing).
+        Number of azimuths N of the full circle (the paper, section 2: uniform spacing).
     sector_deg : float, optional
         Full width s (deg) of a missing sector centred on the x axis: azimuths with
-        ``|theta| < s/2`` are removed (seed 002, section 5).
+        ``|theta| < s/2`` are removed (the paper, section 5).
 
     Returns
     -------
@@ -100,7 +102,7 @@ def design_matrix(azimuth_deg: ArrayLike, phi_deg: float) -> FloatArray:
 def least_squares_weights(azimuth_deg: ArrayLike, phi_deg: float) -> FloatArray:
     """Weights ``W = (A^T A)^-1 A^T`` of the true least-squares VAD fit.
 
-    The error of the fitted wind is ``W d`` for radial errors ``d`` (seed 002, eq. 5).
+    The error of the fitted wind is ``W d`` for radial errors ``d`` (the paper, eq. 5).
 
     Parameters
     ----------
@@ -118,7 +120,7 @@ def least_squares_weights(azimuth_deg: ArrayLike, phi_deg: float) -> FloatArray:
 
 
 def decoupled_weights(azimuth_deg: ArrayLike, phi_deg: float) -> FloatArray:
-    """Weights of the decoupled estimator of seed 002, eq. 4 (and section 5).
+    """Weights of the decoupled estimator of the paper, eq. 4 (and section 5).
 
     ``V_x = sum(V_r cos th) / (cos phi sum cos^2 th)``,
     ``V_y = sum(V_r sin th) / (cos phi sum sin^2 th)``,
@@ -194,7 +196,7 @@ def rms_errors(weights: ArrayLike, sigma: float) -> FloatArray:
 
 
 def max_error_full_circle(n_azimuths: int, phi_deg: float, bound: float) -> FloatArray:
-    """Maximum errors for N uniform azimuths (seed 002, eqs. 6a-6c), closed sums.
+    """Maximum errors for N uniform azimuths (the paper, eqs. 6a-6c), closed sums.
 
     ``max|dV_x| = 2 bound sum|cos th_i| / (N cos phi)``, the same with ``|sin|`` for
     V_y, and ``max|dV_z| = bound / sin phi`` (independent of N).
@@ -225,7 +227,7 @@ def max_error_full_circle(n_azimuths: int, phi_deg: float, bound: float) -> Floa
 
 
 def max_error_full_circle_limit(phi_deg: float, bound: float) -> FloatArray:
-    """Limit N -> infinity of the maximum errors (seed 002, eq. 12).
+    """Limit N -> infinity of the maximum errors (the paper, eq. 12).
 
     ``max|dV_x| = max|dV_y| = 4 bound / (pi cos phi)``, ``max|dV_z| = bound / sin phi``.
 
@@ -246,7 +248,7 @@ def max_error_full_circle_limit(phi_deg: float, bound: float) -> FloatArray:
 
 
 def rms_error_full_circle(n_azimuths: int, phi_deg: float, sigma: float) -> FloatArray:
-    """RMS errors for N >= 3 uniform azimuths (seed 002, section 4), exact.
+    """RMS errors for N >= 3 uniform azimuths (the paper, section 4), exact.
 
     ``rms dV_x = rms dV_y = sigma sqrt(2/N) / cos phi``,
     ``rms dV_z = sigma / (sqrt(N) sin phi)``.
@@ -309,7 +311,7 @@ def max_error_sector_asymptotic(phi_deg: float, sector_deg: float, bound: float)
 
 
 def sector_error_factor(sector_deg: ArrayLike) -> FloatArray:
-    """Growth factor of the along-bisector maximum error, small sector (seed 002, eq. 16).
+    """Growth factor of the along-bisector maximum error, small sector (the paper, eq. 16).
 
     Linearising eq. 15 in ``alpha = s/2`` (sin a ~ a, sin 2a ~ 2a, dropping a^2):
     ``k(s) = 1 + (2/pi - 1/2) s/2``; ``k(90 deg) = 1.107``, the "about 11 %" of the
@@ -360,7 +362,7 @@ def max_error_sector_linearised(phi_deg: float, sector_deg: float, bound: float)
 def shear_radial_error(
     azimuth_deg: ArrayLike, phi_deg: float, radius_m: float, dvx_dx: float, dvy_dx: float
 ) -> FloatArray:
-    """Extra radial velocity of a linear horizontal gradient along x (seed 002, eq. 18).
+    """Extra radial velocity of a linear horizontal gradient along x (the paper, eq. 18).
 
     With ``V_x = V_x0 + a x``, ``V_y = V_y0 + b x`` and the measurement points at
     ``x_i = R' cos th_i``: ``d_i = R' cos phi (a cos^2 th_i + b cos th_i sin th_i)``.
@@ -396,7 +398,7 @@ def shear_bias(
     *,
     estimator: str = "least_squares",
 ) -> FloatArray:
-    """Bias of the fitted mean wind caused by a linear horizontal gradient (seed 002, eq. 19).
+    """Bias of the fitted mean wind caused by a linear horizontal gradient (the paper, eq. 19).
 
     For N >= 4 uniform azimuths only V_z is biased, by :func:`shear_w_bias`; N = 3 also
     biases the horizontal components (``sum cos^3 th_i != 0``).
@@ -448,7 +450,7 @@ def shear_w_bias(phi_deg: float, radius_m: ArrayLike, dvx_dx: float) -> FloatArr
 def shear_error_bound(
     azimuth_deg: ArrayLike, phi_deg: float, radius_m: float, dvx_dx: float, dvy_dx: float
 ) -> FloatArray:
-    """Triangle-inequality bound of the gradient error, finite N (seed 002, eqs. 20a-20c).
+    """Triangle-inequality bound of the gradient error, finite N (the paper, eqs. 20a-20c).
 
     The gradient term is treated as an extra bounded radial error
     ``|d_i| <= R' cos phi (|a| cos^2 th_i + |b| |cos th_i sin th_i|)`` of the decoupled
@@ -480,7 +482,7 @@ def shear_error_bound(
 def shear_error_bound_limit(
     phi_deg: float, radius_m: float, dvx_dx: float, dvy_dx: float
 ) -> FloatArray:
-    """Limit N -> infinity of :func:`shear_error_bound` (seed 002, eq. 23).
+    """Limit N -> infinity of :func:`shear_error_bound` (the paper, eq. 23).
 
     ``|dV_x| <= (R'/pi)(8|a|/3 + 4|b|/3)``, ``|dV_y| <= (R'/pi)(4|a|/3 + 4|b|/3)``,
     ``|dV_z| <= (R'/tan phi)(|a|/2 + |b|/pi)``.
@@ -522,7 +524,7 @@ def tilt_bias_first_order(
     dvx_dz: float,
     radius_m: float,
 ) -> FloatArray:
-    """First-order bias of a cone axis tilted by gamma towards +x (seed 002, eq. 24).
+    """First-order bias of a cone axis tilted by gamma towards +x (the paper, eq. 24).
 
     ``dV_x = -gamma V_z``, ``dV_y = 0``,
     ``dV_z = gamma V_x - gamma (dV_x/dz) R' / (2 tan phi)``: the tilt projects V_x on
@@ -568,8 +570,8 @@ def tilt_bias_exact(
 
     The beams are the nominal beams rotated by gamma about the y axis; each ray
     samples ``V = (V_x + (dV_x/dz)(z_i - R sin phi), V_y, V_z)`` at its true height
-    ``z_i``; the fit assumes the nominal geometry. This is the model behind seed 002,
-    eq. 24 (and ``REFERENCE_VALUES.md`` section 2.4) without the linearisation.
+    ``z_i``; the fit assumes the nominal geometry. This is the model behind the paper,
+    eq. 24 without the linearisation.
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Volume averaging of a conically scanning cw lidar (ZephIR): Wagner et al. (DTU), seed 004.
+"""Volume averaging of a conically scanning cw lidar (ZephIR): Wagner et al. (DTU).
 
 A ZephIR measures the wind at height ``h`` by focusing a cw beam, tilted 30 degrees
 from the vertical, at the range ``R = h / cos 30°`` and turning it once per second

@@ -10,8 +10,7 @@ k0 = 2 pi / lambda, the weight is
 Q_s(z) = {pi z_d [(1 - z/R)^2 + (z/z_d)^2]}^(-1), a Lorentzian centred at
 z_c = R / (1 + (R/z_d)^2) with half width w = z_R / (1 + (R/z_d)^2),
 z_R = lambda R^2 / (2 pi a0^2) (the paper's Delta z equals pi z_R). The part behind
-the lidar (z < 0, up to 9 % at R = 1000 m) is cut and Q_s renormalised
-(REFERENCE_VALUES.md section 3).
+the lidar (z < 0, up to 9 % at R = 1000 m) is cut and Q_s renormalised.
 """
 
 from __future__ import annotations
@@ -206,11 +205,11 @@ class CWLidar:
     wavelength_m, beam_radius_m : float
         lambda and a0 (m).
     elevation_deg : float
-        phi, beam elevation (deg); seed 000: 30, ZephIR: 60 (30 deg from vertical).
+        phi, beam elevation (deg); Banakh et al. (1999): 30, ZephIR: 60 (30 deg from vertical).
     scan_period_s : float
-        T (s); seed 000: 7, ZephIR: 1.
+        T (s); Banakh et al. (1999): 7, ZephIR: 1.
     spectra_per_scan : int
-        T / t0; seed 000: 140 (t0 = 50 ms), ZephIR: 50.
+        T / t0; Banakh et al. (1999): 140 (t0 = 50 ms), ZephIR: 50.
     velocity_resolution_m_s : float
         dV (m s-1).
     n_channels : int

@@ -25,8 +25,8 @@ the N-scan VAD fit
 averaged over the probe volume, D_L(l) = 2 sigma^2 [b_0(L) - b_l(L)] with b_k the
 azimuth correlation of eq. 15 for unit variance (no transport: mu = U/V_s = 0.01-0.09
 here). The fit gives (sigma^2, L); epsilon = 1.33 sigma^3 / L (eq. 19). The inertial-range
-A-functions would bias epsilon low by 28-68 % at these heights
-(REFERENCE_VALUES.md section 3). The variance is the paper's estimate: the mean squared
+A-functions would bias epsilon low by 28-68 % at these heights (the probe length
+and the lags are not << L_V). The variance is the paper's estimate: the mean squared
 turbulent width of the spectra plus the variance of V_D about the N-scan VAD fit,
 divided by its expectation factor 1 - tr(H B_D)/(N M) (H: hat matrix of the sine fit),
 evaluated at L = 1.33 sigma^3/eps (fixed point); then L_V^ = 1.33 sigma^3^ / eps^
@@ -320,7 +320,7 @@ def run_study(
     realisations: int | None = None,
     seed: int = 0,
 ) -> xr.Dataset:
-    """The seed-000 Monte-Carlo error study.
+    """The Monte-Carlo error study of Banakh et al. (1999), section 3, Figs. 5-7.
 
     Parameters
     ----------

@@ -16,7 +16,7 @@ a Gaussian pulse ``exp(-s^2/Delta_p^2)`` convolved with the rectangular range wi
 of length ``Delta_R``. Its Fourier transform (kappa in cycles per metre) is
 ``exp(-(pi Delta_p kappa)^2) sinc(pi Delta_R kappa)``, whose square is the physical
 longitudinal transfer function of Smalikho (2020), eq. 19 (with the pi of the Gaussian
-term, see ``reference/REFERENCE_VALUES.md``); ``Delta_p = c sigma_p/2``,
+term, which the printed equation lacks); ``Delta_p = c sigma_p/2``,
 ``Delta_R = c T_w/2``, Stream Line 15.3 m and 18 m.
 
 The frozen field is carried by the mean wind (Taylor's hypothesis, Smalikho (2020),
