@@ -39,6 +39,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy import special
 
+from cwproc.physics.cw_probe import focal_parameter, lorentzian_parameters
+
 #: speed of light (m s-1)
 SPEED_OF_LIGHT = 299_792_458.0
 
@@ -183,9 +185,8 @@ class CWProbe:
     @property
     def coefficient(self) -> float:
         """``c`` (m-1) in ``Z_R = c R^2``: ``lambda/(2 pi a0^2)`` if ``a0`` is given."""
-        if self.beam_radius_m is not None and self.wavelength_m is not None:
-            return self.wavelength_m / (2.0 * math.pi * self.beam_radius_m**2)
-        return self.z_r_coefficient
+        z_d = self.focal_parameter_m
+        return self.z_r_coefficient if z_d is None else 1.0 / z_d
 
     @property
     def focal_parameter_m(self) -> float | None:
@@ -194,7 +195,7 @@ class CWProbe:
         Banakh et al. (1999), after eq. 3.
         """
         if self.beam_radius_m is not None and self.wavelength_m is not None:
-            return 2.0 * math.pi * self.beam_radius_m**2 / self.wavelength_m
+            return focal_parameter(self.wavelength_m, self.beam_radius_m)
         return None
 
     def rayleigh_half_width(self, range_m: ArrayLike) -> np.ndarray:
@@ -206,10 +207,9 @@ class CWProbe:
         ``c = 0.0013`` for ZephIR).
         """
         r = np.asarray(range_m, dtype=float)
-        z_d = self.focal_parameter_m
-        if z_d is None:
+        if self.focal_parameter_m is None:
             return self.coefficient * r**2
-        return self.coefficient * r**2 / (1.0 + (r / z_d) ** 2)
+        return lorentzian_parameters(r, self.wavelength_m, self.beam_radius_m)[1]
 
     def focus_centre(self, range_m: ArrayLike) -> np.ndarray:
         """Centre (m from the lidar) of the Lorentzian weighting focused at ``range_m`` (m).
@@ -218,8 +218,9 @@ class CWProbe:
         the beam radius is known, else ``R``.
         """
         r = np.asarray(range_m, dtype=float)
-        z_d = self.focal_parameter_m
-        return r if z_d is None else r / (1.0 + (r / z_d) ** 2)
+        if self.focal_parameter_m is None:
+            return r
+        return lorentzian_parameters(r, self.wavelength_m, self.beam_radius_m)[0]
 
     def weighting(self, s: ArrayLike, range_m: float) -> np.ndarray:
         """Lorentzian range weighting ``Q(s) = (Z_R/pi)/(Z_R^2 + s^2)`` (m-1), unit area.
