@@ -424,16 +424,26 @@ def block_covariance(
         if scan_lag == 0:
             value = np.where(np.isnan(value), value.T, value)
         blocks[scan_lag] = sigma2 * (mean_beam @ mean_beam.T) - value
+    return block_toeplitz(blocks, n_scans) * epsilon ** (2.0 / 3.0)
+
+
+def block_toeplitz(blocks: dict[int, np.ndarray], n_scans: int) -> np.ndarray:
+    """The symmetric ``(N M, N M)`` matrix of the scan-lag blocks of a stationary field.
+
+    ``blocks[s]`` holds the covariance of the rays of scan ``n`` (rows) with those of scan
+    ``n + s`` (columns); a frozen field without wind has only ``blocks[0]`` (scans
+    uncorrelated at other lags give zero blocks).
+    """
+    m = next(iter(blocks.values())).shape[0]
     out = np.zeros((n_scans * m, n_scans * m))
     for a in range(n_scans):
         for b in range(n_scans):
-            lag = b - a  # blocks[s]: rows in scan n, columns in scan n + s
+            lag = b - a
             if lag in blocks:
                 out[a * m : (a + 1) * m, b * m : (b + 1) * m] = blocks[lag]
             elif -lag in blocks:
                 out[a * m : (a + 1) * m, b * m : (b + 1) * m] = blocks[-lag].T
-    out = 0.5 * (out + out.T)
-    return out * epsilon ** (2.0 / 3.0)
+    return 0.5 * (out + out.T)
 
 
 def gaussian_scans(

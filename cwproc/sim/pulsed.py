@@ -123,31 +123,24 @@ def sample_conical_scans(
         Duration T_scan of one rotation (s); rotation is continuous.
     n_scans : int
         Number of rotations.
-    wind_speed_m_s, wind_direction_deg : float
-        Mean horizontal wind (m s-1) and the direction it blows from (deg from north).
+    wind_speed_m_s, wind_direction_deg, vertical_wind_m_s : float
+        Mean horizontal wind (m s-1), the direction it blows from (deg from north) and
+        the mean vertical wind (m s-1).
     noise_std_m_s : float
         sigma_e, standard deviation of the white estimation noise (m s-1).
     seed : int
         Seed of the noise generator.
-    vertical_wind_m_s : float
-        Mean vertical wind (m s-1).
     delta_p_m, delta_r_m : float
         Pulse and window lengths of the range weighting (m), Smalikho (2020), eq. 19.
-    start_azimuth_deg : float
-        Azimuth of the start of the first ray (deg).
-    clockwise : bool
-        Direction of rotation.
-    start_time : str or numpy.datetime64
-        UTC time of the start of the first ray.
+    start_azimuth_deg, clockwise, start_time : float, bool, str or numpy.datetime64
+        Azimuth (deg) and UTC time of the start of the first ray; direction of rotation.
     sweep_points : int
         Beam positions averaged across the azimuth step of each ray (transverse
         averaging, Smalikho (2020), eq. 20).
     sweep_advection : bool
         ``True`` (physical): the field moves with the wind while the beam sweeps across
-        the ray, so in the air's frame the ray averages along the relative path.
-        ``False``: the sweep is taken at the ray's centre time, i.e. averaged over the
-        arc ``dy`` only, which is the model behind Smalikho (2020), eq. 15 (``H_perp``
-        with the fixed ``dy``; transport acts only between rays).
+        the ray. ``False``: the sweep is taken at the ray's centre time (averaged over
+        the arc ``dy`` only), the model of Smalikho (2020), eq. 15.
     range_step_m : float, optional
         Spacing of the nodes of the range weighting (m); the field spacing by default.
     snr : float
@@ -162,45 +155,30 @@ def sample_conical_scans(
         the simulation truth (``sim_*`` attrs).
     """
     ranges = np.asarray(ranges_m, dtype=float)
-    if rays_per_scan < 3 or n_scans < 1 or sweep_points < 1:
-        raise ValueError("rays_per_scan >= 3, n_scans >= 1 and sweep_points >= 1 required")
-    if not (scan_period_s > 0 and noise_std_m_s >= 0 and ranges.size >= 1):
-        raise ValueError("scan_period_s > 0, noise_std_m_s >= 0 and at least one range needed")
+    if not (rays_per_scan >= 3 and n_scans >= 1 and sweep_points >= 1 and scan_period_s > 0):
+        raise ValueError("rays_per_scan >= 3, n_scans, sweep_points >= 1, scan_period_s > 0")
+    if not (noise_std_m_s >= 0 and ranges.size >= 1):
+        raise ValueError("noise_std_m_s >= 0 and at least one range needed")
     step = field.spacing_m if range_step_m is None else float(range_step_m)
-    s_nodes, s_weights = range_quadrature(delta_p_m, delta_r_m, step)
-    u0, v0 = wind_components(wind_speed_m_s, wind_direction_deg)
-    mean_wind = np.array([u0, v0, vertical_wind_m_s])
+    mean_wind = np.array([*wind_components(wind_speed_m_s, wind_direction_deg), vertical_wind_m_s])
     sign = 1.0 if clockwise else -1.0
-    ray_duration = scan_period_s / rays_per_scan
     n_rays = rays_per_scan * n_scans
-    t_centre = (np.arange(n_rays) + 0.5) * ray_duration
-    sub = ((np.arange(sweep_points) + 0.5) / sweep_points - 0.5) * ray_duration
-    pos0 = np.asarray(lidar_position_m, dtype=float)
-
-    points_per_ray = sweep_points * ranges.size * s_nodes.size
-    rays_per_chunk = max(1, _CHUNK_POINTS // points_per_ray)
-    velocity = np.empty((n_rays, ranges.size))
-    for start in range(0, n_rays, rays_per_chunk):  # memory-bounded chunks of rays
-        t = t_centre[start : start + rays_per_chunk, None] + sub[None, :]  # (r, J)
-        az = start_azimuth_deg + sign * 360.0 * t / scan_period_s
-        beam = beam_unit_vector(az, elevation_deg)  # (r, J, 3)
-        dist = ranges[:, None] + s_nodes[None, :]  # (G, P)
-        t_adv = t if sweep_advection else np.broadcast_to(t.mean(axis=1, keepdims=True), t.shape)
-        xyz = (
-            pos0
-            + beam[:, :, None, None, :] * dist[None, None, :, :, None]
-            - mean_wind * t_adv[:, :, None, None, None]
-        )  # (r, J, G, P, 3)
-        vel = field.interpolate(xyz[..., 0], xyz[..., 1], xyz[..., 2])  # (3, r, J, G, P)
-        vr = np.einsum("crjgp,rjc->rjgp", vel, beam) + (beam @ mean_wind)[:, :, None, None]
-        velocity[start : start + rays_per_chunk] = np.einsum("rjgp,p->rg", vr, s_weights) / (
-            sweep_points
-        )
-    rng = np.random.default_rng(seed)
-    velocity = velocity + noise_std_m_s * rng.standard_normal(velocity.shape)
-
-    t0 = np.datetime64(start_time, "ns")
-    times = t0 + np.round(t_centre * 1e9).astype("timedelta64[ns]")
+    t_centre = (np.arange(n_rays) + 0.5) * scan_period_s / rays_per_scan
+    sub = ((np.arange(sweep_points) + 0.5) / sweep_points - 0.5) * scan_period_s / rays_per_scan
+    ray_times = t_centre[:, None] + sub[None, :]  # (rays, J): the sweep of each ray
+    velocity = probe_averaged_velocity(
+        field,
+        ray_times,
+        start_azimuth_deg + sign * 360.0 * ray_times / scan_period_s,
+        elevation_deg=elevation_deg,
+        ranges_m=ranges,
+        range_quadrature_nodes=range_quadrature(delta_p_m, delta_r_m, step),
+        mean_wind=mean_wind,
+        sweep_advection=sweep_advection,
+        lidar_position_m=lidar_position_m,
+    )
+    velocity += noise_std_m_s * np.random.default_rng(seed).standard_normal(velocity.shape)
+    times = np.datetime64(start_time, "ns") + np.round(t_centre * 1e9).astype("timedelta64[ns]")
     azimuth = (start_azimuth_deg + sign * 360.0 * t_centre / scan_period_s) % 360.0
     scan = (np.arange(n_rays) // rays_per_scan).astype(np.int64)
     return streamline_scans(
@@ -214,10 +192,7 @@ def sample_conical_scans(
         delta_p_m=delta_p_m,
         delta_r_m=delta_r_m,
         truth={
-            "sim_epsilon": field.epsilon,
-            "sim_integral_scale_m": field.integral_scale_m,
-            "sim_field_seed": field.seed,
-            "sim_field_spacing_m": field.spacing_m,
+            **field_truth(field),
             "sim_noise_std": float(noise_std_m_s),
             "sim_noise_seed": int(seed),
             "sim_wind_speed": float(wind_speed_m_s),
@@ -226,6 +201,64 @@ def sample_conical_scans(
             "sim_scan_period_s": float(scan_period_s),
         },
     )
+
+
+def field_truth(field: FrozenField) -> dict[str, float | int]:
+    """The ``sim_*`` attributes that describe the simulated turbulent field."""
+    return {
+        "sim_epsilon": field.epsilon,
+        "sim_integral_scale_m": field.integral_scale_m,
+        "sim_field_seed": field.seed,
+        "sim_field_spacing_m": field.spacing_m,
+    }
+
+
+def probe_averaged_velocity(
+    field: FrozenField,
+    ray_times: np.ndarray,
+    ray_azimuths: np.ndarray,
+    *,
+    elevation_deg: float,
+    ranges_m: np.ndarray,
+    range_quadrature_nodes: tuple[np.ndarray, np.ndarray],
+    mean_wind: np.ndarray,
+    sweep_advection: bool,
+    lidar_position_m: tuple[float, float, float],
+) -> np.ndarray:
+    """Radial velocity of each ray and gate, averaged over the probe volume (m s-1).
+
+    The beam positions of a ray (``ray_times``, ``ray_azimuths``: shape (rays, J), J
+    positions across its azimuth step) sample the frozen field moved by ``mean_wind``;
+    the range weighting is the quadrature ``(nodes, weights)`` of
+    :func:`range_quadrature` (Smalikho (2020), eqs. 19-20). Computed in memory-bounded
+    chunks of rays.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (rays, gates).
+    """
+    s_nodes, s_weights = range_quadrature_nodes
+    n_rays, sweep_points = ray_times.shape
+    pos0 = np.asarray(lidar_position_m, dtype=float)
+    dist = ranges_m[:, None] + s_nodes[None, :]  # (G, P)
+    rays_per_chunk = max(1, _CHUNK_POINTS // (sweep_points * ranges_m.size * s_nodes.size))
+    velocity = np.empty((n_rays, ranges_m.size))
+    for start in range(0, n_rays, rays_per_chunk):
+        t = ray_times[start : start + rays_per_chunk]  # (r, J)
+        beam = beam_unit_vector(ray_azimuths[start : start + rays_per_chunk], elevation_deg)
+        t_adv = t if sweep_advection else np.broadcast_to(t.mean(axis=1, keepdims=True), t.shape)
+        xyz = (
+            pos0
+            + beam[:, :, None, None, :] * dist[None, None, :, :, None]
+            - mean_wind * t_adv[:, :, None, None, None]
+        )  # (r, J, G, P, 3)
+        vel = field.interpolate(xyz[..., 0], xyz[..., 1], xyz[..., 2])  # (3, r, J, G, P)
+        vr = np.einsum("crjgp,rjc->rjgp", vel, beam) + (beam @ mean_wind)[:, :, None, None]
+        velocity[start : start + rays_per_chunk] = np.einsum("rjgp,p->rg", vr, s_weights) / (
+            sweep_points
+        )
+    return velocity
 
 
 def streamline_scans(
