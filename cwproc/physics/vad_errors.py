@@ -74,7 +74,7 @@ def uniform_azimuths_deg(n_azimuths: int, sector_deg: float = 0.0) -> FloatArray
 def design_matrix(azimuth_deg: ArrayLike, phi_deg: float) -> FloatArray:
     """Rows ``(cos(phi) cos(theta), cos(phi) sin(theta), sin(phi))`` of the VAD model.
 
-    Seed 002, section 2 (projection of the wind on the beam); Smalikho (2020), eq. 8.
+    The paper, section 2 (projection of the wind on the beam); Smalikho (2020), eq. 8.
 
     Parameters
     ----------
@@ -152,7 +152,7 @@ def decoupled_weights(azimuth_deg: ArrayLike, phi_deg: float) -> FloatArray:
 def max_errors(weights: ArrayLike, bound: float) -> FloatArray:
     """Maximum errors ``bound * sum_i |W_ki|`` of the three components.
 
-    Seed 002, eqs. 6a-6c (full circle) and 13 (missing sector): the bound is attained
+    The paper, eqs. 6a-6c (full circle) and 13 (missing sector): the bound is attained
     by ``d_i = bound * sign(W_ki)``.
 
     Parameters
@@ -173,7 +173,7 @@ def max_errors(weights: ArrayLike, bound: float) -> FloatArray:
 def rms_errors(weights: ArrayLike, sigma: float) -> FloatArray:
     """RMS errors ``sigma * sqrt(sum_i W_ki^2)`` for independent radial errors.
 
-    Seed 002, section 4 (weighted sums of independent Gaussian errors).
+    The paper, section 4 (weighted sums of independent Gaussian errors).
 
     Parameters
     ----------
@@ -281,7 +281,7 @@ def rms_error_full_circle(n_azimuths: int, phi_deg: float, sigma: float) -> Floa
 def max_error_sector_asymptotic(phi_deg: float, sector_deg: float, bound: float) -> FloatArray:
     """Maximum errors of the decoupled estimator with a missing sector, N -> infinity.
 
-    Seed 002, eq. 15 (sums replaced by integrals over the kept azimuths
+    The paper, eq. 15 (sums replaced by integrals over the kept azimuths
     ``alpha <= theta <= 2 pi - alpha``, ``alpha = s/2 <= pi/2``):
 
     ``max|dV_x| = bound (4 - 2 sin a) / (cos phi (pi - a - sin(2a)/2))``,
@@ -332,7 +332,7 @@ def sector_error_factor(sector_deg: ArrayLike) -> FloatArray:
 
 
 def max_error_sector_linearised(phi_deg: float, sector_deg: float, bound: float) -> FloatArray:
-    """Seed 002, eq. 16: small-sector maximum errors of the decoupled estimator.
+    """The paper, eq. 16: small-sector maximum errors of the decoupled estimator.
 
     ``max|dV_x| = k(s) 4 bound / (pi cos phi)`` (:func:`sector_error_factor`),
     ``max|dV_y| = 4 bound / (pi cos phi)``, ``max|dV_z| = bound / sin phi``.
@@ -428,7 +428,7 @@ def shear_bias(
 def shear_w_bias(phi_deg: float, radius_m: ArrayLike, dvx_dx: float) -> FloatArray:
     """Bias of V_z from the divergence of a gradient along x: ``a R' / (2 tan phi)``.
 
-    Seed 002, eq. 22 (N >= 4 uniform azimuths; exact, not only a bound).
+    The paper, eq. 22 (N >= 4 uniform azimuths; exact, not only a bound).
 
     Parameters
     ----------
