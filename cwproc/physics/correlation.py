@@ -18,110 +18,38 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from scipy import special
 
-from cwproc.physics.spectra import EXPONENTIAL_COEFFICIENT
+from cwproc.physics.spectra import correlation_functions
 
 CorrelationModel = Literal["exponential", "von_karman"]
 
-#: integral scale of the von Karman longitudinal correlation in units of its length l
-_VK_INTEGRAL_SCALE = float(np.sqrt(np.pi) * special.gamma(5.0 / 6.0) / special.gamma(1.0 / 3.0))
 
-
-# --------------------------------------------------------------------------------------
-# correlation models
-# --------------------------------------------------------------------------------------
-
-
-def exponential_correlation(r: np.ndarray, sigma2: float, outer_scale: float) -> np.ndarray:
-    """Longitudinal correlation B_V(r) = sigma^2 exp[-1.21 (r/L_V)^(2/3)].
-
-    Banakh et al. (1999), eq. 17. Its integral scale int_0^inf B_V dr / sigma^2 is
-    (3/2) Gamma(3/2) 1.21^(-3/2) L_V = 0.9987 L_V.
-
-    Parameters
-    ----------
-    r : numpy.ndarray
-        Separation (m), >= 0.
-    sigma2 : float
-        Velocity variance sigma_V^2 (m2 s-2).
-    outer_scale : float
-        Integral scale L_V (m).
-
-    Returns
-    -------
-    numpy.ndarray
-        B_V(r) (m2 s-2).
-    """
-    return sigma2 * np.exp(-EXPONENTIAL_COEFFICIENT * (np.abs(r) / outer_scale) ** (2.0 / 3.0))
-
-
-def von_karman_correlation(r: np.ndarray, sigma2: float, outer_scale: float) -> np.ndarray:
-    """Longitudinal von Karman correlation with integral scale L_V.
-
-    B_V(r) = sigma^2 2^(2/3)/Gamma(1/3) x^(1/3) K_(1/3)(x), x = r/l,
-    l = L_V Gamma(1/3) / (sqrt(pi) Gamma(5/6)) (Lumley and Panofsky, cited as [13] by
-    Banakh et al. (1999)).
+def longitudinal_correlation(
+    r: np.ndarray, sigma2: float, outer_scale: float, model: CorrelationModel = "exponential"
+) -> np.ndarray:
+    """B_V(r) = sigma_V^2 f(r) (m2 s-2): Banakh et al. (1999), eq. 17, or von Karman.
 
     Parameters
     ----------
     r : numpy.ndarray
         Separation (m).
     sigma2 : float
-        Velocity variance (m2 s-2).
+        Velocity variance sigma_V^2 (m2 s-2).
     outer_scale : float
         Integral scale L_V (m).
-
-    Returns
-    -------
-    numpy.ndarray
-        B_V(r) (m2 s-2).
+    model : {"exponential", "von_karman"}
+        ``f`` of :func:`cwproc.physics.spectra.correlation_functions`.
     """
-    x = np.abs(np.asarray(r, dtype=float)) / (outer_scale / _VK_INTEGRAL_SCALE)
-    with np.errstate(invalid="ignore"):
-        f = (
-            2.0 ** (2.0 / 3.0)
-            / special.gamma(1.0 / 3.0)
-            * x ** (1.0 / 3.0)
-            * special.kv(1.0 / 3.0, x)
-        )
-    return sigma2 * np.where(x > 0, f, 1.0)
+    f, _ = correlation_functions(np.abs(np.asarray(r, dtype=float)), model, outer_scale)
+    return sigma2 * f
 
 
-def correlation_derivative(
+def _correlation_pair(
     r: np.ndarray, sigma2: float, outer_scale: float, model: CorrelationModel
-) -> np.ndarray:
-    """dB_V/dr of the longitudinal correlation model (m s-2 per m), r > 0.
-
-    eq. 17: dB/dr = -(2/3) 1.21 (r/L)^(-1/3) B / L; von Karman:
-    d/dx [x^nu K_nu(x)] = -x^nu K_(nu-1)(x) with nu = 1/3.
-    """
-    r = np.asarray(r, dtype=float)
-    if model == "exponential":
-        rr = np.maximum(r, 1e-300)
-        b = exponential_correlation(rr, sigma2, outer_scale)
-        return (
-            -(2.0 / 3.0)
-            * EXPONENTIAL_COEFFICIENT
-            * (rr / outer_scale) ** (-1.0 / 3.0)
-            * b
-            / outer_scale
-        )
-    length = outer_scale / _VK_INTEGRAL_SCALE
-    x = np.maximum(r / length, 1e-300)
-    c = 2.0 ** (2.0 / 3.0) / special.gamma(1.0 / 3.0)
-    return -sigma2 * c * x ** (1.0 / 3.0) * special.kv(-2.0 / 3.0, x) / length
-
-
-def longitudinal_correlation(
-    r: np.ndarray, sigma2: float, outer_scale: float, model: CorrelationModel = "exponential"
-) -> np.ndarray:
-    """B_V(r) of the chosen model (``"exponential"``: eq. 17; ``"von_karman"``)."""
-    if model == "exponential":
-        return exponential_correlation(r, sigma2, outer_scale)
-    if model == "von_karman":
-        return von_karman_correlation(r, sigma2, outer_scale)
-    raise ValueError(f"unknown correlation model {model!r}")
+) -> tuple[np.ndarray, np.ndarray]:
+    """sigma^2 g(r) and sigma^2 [g(r) - f(r)] = (r/2) dB_V/dr (m2 s-2), eq. 16."""
+    f, g = correlation_functions(r, model, outer_scale)
+    return sigma2 * g, sigma2 * (g - f)
 
 
 def correlation_tensor(
@@ -129,7 +57,8 @@ def correlation_tensor(
 ) -> np.ndarray:
     """Isotropic solenoidal correlation tensor B_ik(r), Banakh et al. (1999), eq. 16.
 
-    B_ik(r) = B_V(r) delta_ik + (r/2) dB_V/dr (delta_ik - r_i r_k / r^2).
+    B_ik(r) = sigma^2 [g(r) delta_ik - (g(r) - f(r)) r_i r_k / r^2], i.e.
+    B_V delta_ik + (r/2) dB_V/dr (delta_ik - r_i r_k / r^2).
 
     Parameters
     ----------
@@ -146,11 +75,10 @@ def correlation_tensor(
     """
     r_vec = np.asarray(r_vec, dtype=float)
     r = np.linalg.norm(r_vec, axis=-1)
-    b = longitudinal_correlation(r, sigma2, outer_scale, model)
-    rb = np.where(r > 0, 0.5 * r * correlation_derivative(r, sigma2, outer_scale, model), 0.0)
+    transverse, rb = _correlation_pair(r, sigma2, outer_scale, model)
     unit = np.where(r[..., None] > 0, r_vec / np.where(r > 0, r, 1.0)[..., None], 0.0)
     eye = np.eye(3)
-    return (b + rb)[..., None, None] * eye - rb[..., None, None] * (
+    return transverse[..., None, None] * eye - rb[..., None, None] * (
         unit[..., :, None] * unit[..., None, :]
     )
 
@@ -185,9 +113,8 @@ def projected_correlation(
     safe = np.where(r > 0, r, 1.0)
     p1 = np.sum(s1 * r_vec, axis=-1) / safe
     p2 = np.sum(s2 * r_vec, axis=-1) / safe
-    b = longitudinal_correlation(r, sigma2, outer_scale, model)
-    rb = np.where(r > 0, 0.5 * r * correlation_derivative(r, sigma2, outer_scale, model), 0.0)
-    return b * dot + rb * (dot - p1 * p2)
+    transverse, rb = _correlation_pair(r, sigma2, outer_scale, model)
+    return transverse * dot - rb * p1 * p2
 
 
 # --------------------------------------------------------------------------------------
@@ -409,11 +336,10 @@ def circulant_correlation_row(
     safe = np.where(r > 0, r, 1.0)
     p1 = np.sum(s0 * r_vec, axis=-1) / safe
     p2 = np.sum(s[:, None, None, :] * r_vec, axis=-1) / safe
-    transverse = dot[:, None, None] - p1 * p2
+    p12 = p1 * p2
     out = np.empty((np.size(outer_scales), lags.size))
     for i, scale in enumerate(np.atleast_1d(outer_scales)):
-        b = longitudinal_correlation(r, 1.0, float(scale), model)
-        rb = np.where(r > 0, 0.5 * r * correlation_derivative(r, 1.0, float(scale), model), 0.0)
-        out[i] = np.einsum("mjk,jk->m", b * dot[:, None, None] + rb * transverse, ww)
+        transverse_b, rb = _correlation_pair(r, 1.0, float(scale), model)
+        out[i] = np.einsum("mjk,jk->m", transverse_b * dot[:, None, None] - rb * p12, ww)
         out[i, lags == 0] = same_beam_variance(probe, 1.0, float(scale), model)
     return out

@@ -158,8 +158,26 @@ def _check_model(model: str, outer_scale_m: float | None) -> None:
 # --------------------------------------------------------------------------------------
 
 
-def _correlations(r: np.ndarray, model: Model, outer_scale_m: float) -> tuple:
-    """Normalised longitudinal and transverse correlations ``f(r)``, ``g = f + r f'/2``."""
+def correlation_functions(
+    r: ArrayLike, model: Model, outer_scale_m: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Normalised longitudinal and transverse correlations ``f(r)`` and ``g = f + r f'/2`` (1).
+
+    ``f = exp[-1.21 (r/L_V)^(2/3)]`` (Banakh et al. (1999), eq. 17) or von Karman
+    ``f = 2^(2/3)/Gamma(1/3) x^(1/3) K_(1/3)(x)``, ``x = k0 r`` with integral scale
+    ``L_V``; ``g`` is the transverse correlation of isotropic turbulence (eq. 16).
+
+    Parameters
+    ----------
+    r : array_like
+        Separation (m), >= 0.
+    model : {"exponential", "von_karman"}
+    outer_scale_m : float
+        Integral scale L_V (m).
+    """
+    r = np.asarray(r, dtype=float)
+    if model not in ("exponential", "von_karman"):
+        raise ValueError(f"model {model!r} has no correlation function (finite variance)")
     if model == "exponential":
         x = (r / outer_scale_m) ** (2.0 / 3.0)
         f = np.exp(-EXPONENTIAL_COEFFICIENT * x)
@@ -184,7 +202,7 @@ def longitudinal_structure_function(
     r = np.abs(np.asarray(r, dtype=float))
     if model == "inertial":
         return KOLMOGOROV_CONSTANT * r ** (2.0 / 3.0)
-    f, _ = _correlations(r, model, outer_scale_m)
+    f, _ = correlation_functions(r, model, outer_scale_m)
     return 2.0 * variance_per_eps23(model, outer_scale_m) * (1.0 - f)
 
 
@@ -200,7 +218,7 @@ def transverse_structure_function(
     r = np.abs(np.asarray(r, dtype=float))
     if model == "inertial":
         return 4.0 / 3.0 * KOLMOGOROV_CONSTANT * r ** (2.0 / 3.0)
-    _, g = _correlations(r, model, outer_scale_m)
+    _, g = correlation_functions(r, model, outer_scale_m)
     return 2.0 * variance_per_eps23(model, outer_scale_m) * (1.0 - g)
 
 

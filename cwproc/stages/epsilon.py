@@ -966,7 +966,7 @@ def _removed_share_curve(phi_deg: float, model: str) -> tuple[np.ndarray, np.nda
             pos = x[:, None, None] * (circle - mu * theta[:, None] * wind)[None]
             r_vec = pos[:, :, None, :] - pos[:, None, :, :]  # (x, i, j, 3)
             r = np.linalg.norm(r_vec, axis=-1)
-            f, g = spectra._correlations(r, model, 1.0)
+            f, g = spectra.correlation_functions(r, model, 1.0)
             unit = np.where(r[..., None] > 0, r_vec / np.where(r > 0, r, 1.0)[..., None], 0.0)
             proj_i = np.einsum("xijk,ik->xij", unit, s)
             proj_j = np.einsum("xijk,jk->xij", unit, s)
@@ -1022,7 +1022,7 @@ _SECTOR_X = np.geomspace(1e-2, 1e2, 9)
 def _correlation_curve(model: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(ln r, f, g)``: normalised correlations of ``model`` at ``r/L_V`` 1e-5 to 1e3."""
     r = np.geomspace(1e-5, 1e3, 400)
-    f, g = spectra._correlations(r, model, 1.0)
+    f, g = spectra.correlation_functions(r, model, 1.0)
     return np.log(r), f, g
 
 

@@ -14,24 +14,26 @@ from cwproc.sim import turbulence as T
 
 def test_eq17_values_and_integral_scale():
     r = np.array([0.0, 100.0, 800.0])
-    b = corr.exponential_correlation(r, 2.0, 100.0)
+    b = corr.longitudinal_correlation(r, 2.0, 100.0, "exponential")
     assert b[0] == pytest.approx(2.0)
     assert b[1] == pytest.approx(2.0 * np.exp(-1.21))
     assert b[2] == pytest.approx(2.0 * np.exp(-1.21 * 4.0))
     # int_0^inf exp(-1.21 x^(2/3)) dx = (3/2) Gamma(3/2) 1.21^(-3/2) = 0.99875
-    val, _ = integrate.quad(lambda x: corr.exponential_correlation(x, 1.0, 1.0), 0, np.inf)
+    val, _ = integrate.quad(
+        lambda x: corr.longitudinal_correlation(x, 1.0, 1.0, "exponential"), 0, np.inf
+    )
     assert val == pytest.approx(0.998753, rel=1e-4)
 
 
 def test_von_karman_integral_scale_and_inertial_limit():
     val, _ = integrate.quad(
-        lambda x: corr.von_karman_correlation(x, 1.0, 100.0), 0, np.inf, limit=400
+        lambda x: corr.longitudinal_correlation(x, 1.0, 100.0, "von_karman"), 0, np.inf, limit=400
     )
     assert val == pytest.approx(100.0, rel=1e-5)
     # D = 2 (sigma^2 - B) -> C_k eps^(2/3) r^(2/3) for r << L with eps = c sigma^3/L
     eps = spectra.epsilon_from(1.0, 100.0, "von_karman")
     r = 0.01
-    d = 2.0 * (1.0 - corr.von_karman_correlation(r, 1.0, 100.0))
+    d = 2.0 * (1.0 - corr.longitudinal_correlation(r, 1.0, 100.0, "von_karman"))
     assert d == pytest.approx(2.0 * eps ** (2 / 3) * r ** (2 / 3), rel=2e-3)
 
 
@@ -44,14 +46,17 @@ def test_eq19_coefficients():
 
 
 @pytest.mark.parametrize("model", ["exponential", "von_karman"])
-def test_correlation_derivative_matches_finite_difference(model):
+def test_transverse_correlation_is_f_plus_half_r_df_dr(model):
+    """Isotropy (Banakh et al. (1999), eq. 16): g = f + (r/2) df/dr, by finite differences."""
     r = np.array([1.0, 30.0, 250.0])
     h = 1e-4
     fd = (
         corr.longitudinal_correlation(r + h, 1.3, 120.0, model)
         - corr.longitudinal_correlation(r - h, 1.3, 120.0, model)
     ) / (2 * h)
-    assert corr.correlation_derivative(r, 1.3, 120.0, model) == pytest.approx(fd, rel=1e-5)
+    _, g = spectra.correlation_functions(r, model, 120.0)
+    f = corr.longitudinal_correlation(r, 1.3, 120.0, model) / 1.3
+    assert g == pytest.approx(f + 0.5 * r * fd / 1.3, rel=1e-6)
 
 
 def test_isotropic_tensor_longitudinal_and_transverse_components():
@@ -59,7 +64,7 @@ def test_isotropic_tensor_longitudinal_and_transverse_components():
     B_V [1 - (1.21/3) (r/L)^(2/3)])."""
     sigma2, scale, r = 1.5, 100.0, 37.0
     tensor = corr.correlation_tensor(np.array([r, 0.0, 0.0]), sigma2, scale)
-    b = corr.exponential_correlation(r, sigma2, scale)
+    b = corr.longitudinal_correlation(r, sigma2, scale, "exponential")
     assert tensor[0, 0] == pytest.approx(b)
     transverse = b * (1.0 - 1.21 / 3.0 * (r / scale) ** (2 / 3))
     assert tensor[1, 1] == pytest.approx(transverse)
@@ -137,7 +142,9 @@ def test_along_beam_fluctuations_follow_eq17():
     assert np.var(x) == pytest.approx(1.5, rel=0.03)
     for lag in (5, 30, 100):  # 10, 60, 200 m
         emp = np.mean(x[:, :-lag] * x[:, lag:])
-        assert emp == pytest.approx(corr.exponential_correlation(2.0 * lag, 1.5, 60.0), abs=0.05)
+        assert emp == pytest.approx(
+            corr.longitudinal_correlation(2.0 * lag, 1.5, 60.0, "exponential"), abs=0.05
+        )
 
 
 def test_probe_weighted_moments_match_direct_sums():
