@@ -118,11 +118,7 @@ def outer_scale_from(sigma2: ArrayLike, eps: ArrayLike, model: Model) -> np.ndar
 
     Banakh et al. (1999), eq. 19.
     """
-    return (
-        integral_scale_coefficient(model)
-        * np.asarray(sigma2, float) ** 1.5
-        / np.asarray(eps, float)
-    )
+    return epsilon_from(sigma2, eps, model)  # the same relation solved for L_V
 
 
 def epsilon_from(

@@ -15,7 +15,6 @@ the lidar (z < 0, up to 9 % at R = 1000 m) is cut and Q_s renormalised.
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,7 +22,6 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from cwproc.io.netcdf import write_bytes_atomic
 from cwproc.physics.correlation import (
     CorrelationModel,
     ScanGeometry,
@@ -31,6 +29,7 @@ from cwproc.physics.correlation import (
     wind_vector,
 )
 from cwproc.physics.cw_probe import cw_probe_quadrature, focal_parameter, probe_grid
+from cwproc.sim.output import fresh_folder, write_truth
 from cwproc.sim.turbulence import (
     along_beam_fluctuations,
     probe_weighted_moments,
@@ -451,10 +450,7 @@ def write_cw_series(
     from cwproc.io.scan_netcdf import write_scan_netcdf
     from cwproc.physics.spectra import epsilon_from
 
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    for old in folder.glob("cw_*.nc"):
-        old.unlink()
+    folder = fresh_folder(folder, "cw_*.nc")
     ds, _ = simulate_cw_scans(
         rng,
         lidar,
@@ -495,10 +491,5 @@ def write_cw_series(
         "scan_period_s": lidar.scan_period_s,
         "homodyne": bool(lidar.homodyne),
     }
-    truth_path = Path(truth_path)
-    truth_path.parent.mkdir(parents=True, exist_ok=True)
-    write_bytes_atomic(
-        truth_path, (json.dumps(truth, indent=2, sort_keys=True) + "\n").encode("utf-8")
-    )
-    written.append(truth_path)
+    written.append(write_truth(truth_path, truth))
     return written

@@ -18,7 +18,6 @@ eqs. 1, 19-20), with white instrumental noise; files are written by
 
 from __future__ import annotations
 
-import json
 import os
 import sys
 from dataclasses import asdict, dataclass
@@ -27,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from cwproc.io.netcdf import write_bytes_atomic
+from cwproc.sim.output import fresh_folder, write_truth
 
 
 @dataclass(frozen=True)
@@ -211,22 +210,13 @@ def write_streamline_series(
     """
     from cwproc.io.halo import write_hpl
 
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    for old in folder.glob("*.hpl"):
-        old.unlink()
+    folder = fresh_folder(folder, "*.hpl")
     ds = simulate_streamline(spec)
     written = [
         write_hpl(part, folder / hpl_file_name(part))
         for part in split_files(ds, spec.scans_per_file)
     ]
-    truth_path = Path(truth_path)
-    truth_path.parent.mkdir(parents=True, exist_ok=True)
-    write_bytes_atomic(
-        truth_path,
-        (json.dumps(streamline_truth(spec), indent=2, sort_keys=True) + "\n").encode("utf-8"),
-    )
-    written.append(truth_path)
+    written.append(write_truth(truth_path, streamline_truth(spec)))
     return written
 
 
@@ -668,20 +658,10 @@ def write_sample_data(outdir: str | os.PathLike) -> list[Path]:
     written.append(
         write_windcube_sta(records, outdir / "windcube" / f"WLS7-999_{'_'.join(day)}__00_00_00.sta")
     )
-    truth = outdir / "wind_records_truth.json"
-    write_bytes_atomic(
-        truth,
-        (json.dumps(wind_records_truth(records), indent=2, sort_keys=True) + "\n").encode("utf-8"),
-    )
-    written.append(truth)
+    written.append(write_truth(outdir / "wind_records_truth.json", wind_records_truth(records)))
     sonic = SonicSpec()
     written += write_sonic_samples(outdir / "sonic", sonic)
-    truth = outdir / "sonic_truth.json"
-    write_bytes_atomic(
-        truth,
-        (json.dumps({"spec": asdict(sonic)}, indent=2, sort_keys=True) + "\n").encode("utf-8"),
-    )
-    written.append(truth)
+    written.append(write_truth(outdir / "sonic_truth.json", {"spec": asdict(sonic)}))
     return written
 
 

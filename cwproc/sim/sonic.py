@@ -17,7 +17,6 @@ analysis windows.
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field
@@ -27,7 +26,7 @@ import numpy as np
 import scipy.fft
 import xarray as xr
 
-from cwproc.io.netcdf import write_bytes_atomic
+from cwproc.sim.output import write_truth
 
 #: Meteo-2 sample rate f_d (Hz), Gladkikh et al. (2014), section 1
 METEO2_RATE_HZ = 10.7
@@ -318,8 +317,9 @@ def write_simulation(
         path = outdir / f"meteo2_sim_type{sf_type}_{day}.txt"
         write_meteo2(xr.concat(chunks, dim="time"), path, station="cwproc simulator")
         files.append(path)
-    truth = outdir / f"meteo2_sim_type{sf_type}_truth.json"
-    write_bytes_atomic(
-        truth, (json.dumps(asdict(sonic_truth(**args)), indent=2) + "\n").encode("utf-8")
+    truth = write_truth(
+        outdir / f"meteo2_sim_type{sf_type}_truth.json",
+        asdict(sonic_truth(**args)),
+        sort_keys=False,
     )
     return files, truth

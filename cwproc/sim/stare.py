@@ -14,8 +14,8 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from cwproc.io.netcdf import write_bytes_atomic
 from cwproc.sim.field3d import FrozenField
+from cwproc.sim.output import fresh_folder, write_truth
 from cwproc.sim.pulsed import (
     range_quadrature,
     sample_conical_scans,
@@ -363,17 +363,12 @@ def write_stare_series(
     list of pathlib.Path
         The files written, truth last.
     """
-    import json
-    from pathlib import Path
 
     from cwproc.io.halo import write_hpl
     from cwproc.sim.field3d import von_karman_field
     from cwproc.sim.sample_data import noise_from_snr, streamline_truth
 
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    for old in folder.glob("*.hpl"):
-        old.unlink()
+    folder = fresh_folder(folder, "*.hpl")
     field = von_karman_field(
         spec.field_shape,
         spec.field_spacing_m,
@@ -443,10 +438,5 @@ def write_stare_series(
     )
     if scan == "mixed":
         truth["vad_every_s"] = float(vad_every_s)
-    truth_path = Path(truth_path)
-    truth_path.parent.mkdir(parents=True, exist_ok=True)
-    write_bytes_atomic(
-        truth_path, (json.dumps(truth, indent=2, sort_keys=True) + "\n").encode("utf-8")
-    )
-    written.append(truth_path)
+    written.append(write_truth(truth_path, truth))
     return written
