@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from cwproc.io.scan_netcdf import write_scan_netcdf
 from cwproc.physics.correlation import (
     CorrelationModel,
     ScanGeometry,
@@ -29,6 +30,7 @@ from cwproc.physics.correlation import (
     wind_vector,
 )
 from cwproc.physics.cw_probe import cw_probe_quadrature, focal_parameter, probe_grid
+from cwproc.physics.spectra import epsilon_from
 from cwproc.sim.output import fresh_folder, write_truth
 from cwproc.sim.turbulence import (
     along_beam_fluctuations,
@@ -447,8 +449,6 @@ def write_cw_series(
     list of pathlib.Path
         Files written, truth last.
     """
-    from cwproc.io.scan_netcdf import write_scan_netcdf
-    from cwproc.physics.spectra import epsilon_from
 
     folder = fresh_folder(folder, "cw_*.nc")
     ds, _ = simulate_cw_scans(

@@ -26,7 +26,13 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from cwproc.io.halo import write_hpl
+from cwproc.io.meteo2 import write_meteo2
+from cwproc.physics.spectra import variance_from
+from cwproc.sim.field3d import grid_variance, von_karman_field
 from cwproc.sim.output import fresh_folder, write_truth
+from cwproc.sim.pulsed import sample_conical_scans, wind_components
+from cwproc.sim.sonic import simulate_sonic_dataset
 
 
 @dataclass(frozen=True)
@@ -105,8 +111,6 @@ def simulate_streamline(spec: StreamLineSpec) -> xr.Dataset:
     xarray.Dataset
         Canonical scan dataset (dims ``ray``, ``range``), the truth in ``sim_*`` attrs.
     """
-    from cwproc.sim.field3d import von_karman_field
-    from cwproc.sim.pulsed import sample_conical_scans
 
     field = von_karman_field(
         spec.field_shape,
@@ -141,9 +145,6 @@ def streamline_truth(spec: StreamLineSpec) -> dict[str, object]:
     grid of the field holds somewhat less (``grid_velocity_variance_m2_s2``, the
     variance of the horizontal components the grid resolves).
     """
-    from cwproc.physics.spectra import variance_from
-    from cwproc.sim.field3d import grid_variance
-    from cwproc.sim.pulsed import wind_components
 
     u, v = wind_components(spec.wind_speed, spec.wind_direction_deg)
     grid = grid_variance(
@@ -208,7 +209,6 @@ def write_streamline_series(
     list of pathlib.Path
         The files written, truth last.
     """
-    from cwproc.io.halo import write_hpl
 
     folder = fresh_folder(folder, "*.hpl")
     ds = simulate_streamline(spec)
@@ -483,7 +483,6 @@ class SonicSpec:
 
 def simulate_sonic(spec: SonicSpec, rate_hz: float | None = None) -> xr.Dataset:
     """The record of ``spec`` at ``rate_hz`` (default the spec's)."""
-    from cwproc.sim.sonic import simulate_sonic_dataset
 
     return simulate_sonic_dataset(
         hours=spec.minutes / 60.0,
@@ -620,7 +619,6 @@ def write_gill(ds: xr.Dataset, path: str | os.PathLike) -> Path:
 def write_sonic_samples(folder: str | os.PathLike, spec: SonicSpec) -> list[Path]:
     """The sonic record of ``spec`` in the TOA5, TOB1, GHG (.data), Gill and Meteo-2
     formats (Meteo-2 at its own 10.7 Hz), plus ``truth.json`` next to the folder."""
-    from cwproc.io.meteo2 import write_meteo2
 
     folder = Path(folder)
     ds = simulate_sonic(spec)

@@ -26,6 +26,7 @@ import numpy as np
 import scipy.fft
 import xarray as xr
 
+from cwproc.io.meteo2 import write_meteo2
 from cwproc.sim.output import write_truth
 
 #: Meteo-2 sample rate f_d (Hz), Gladkikh et al. (2014), section 1
@@ -296,7 +297,6 @@ def write_simulation(
     truth : Path
         The JSON truth file.
     """
-    from cwproc.io.meteo2 import write_meteo2
 
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)

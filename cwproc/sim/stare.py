@@ -14,7 +14,10 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from cwproc.sim.field3d import FrozenField
+from cwproc.io.halo import write_hpl
+from cwproc.physics.noise import bandwidth_from_resolution, velocity_noise_std
+from cwproc.sim.exact_gaussian import range_nodes, structure_functions
+from cwproc.sim.field3d import FrozenField, von_karman_field
 from cwproc.sim.output import fresh_folder, write_truth
 from cwproc.sim.pulsed import (
     range_quadrature,
@@ -22,6 +25,7 @@ from cwproc.sim.pulsed import (
     streamline_scans,
     wind_components,
 )
+from cwproc.sim.sample_data import noise_from_snr, streamline_truth
 
 #: field points interpolated at once (memory bound)
 _CHUNK_POINTS = 2_000_000
@@ -208,7 +212,6 @@ def _w_structure(r_x: np.ndarray, r_z: np.ndarray, model: str, outer_scale_m: fl
     (1999), eq. 16 in structure-function form; inertial: ``D_par = 2 r^(2/3)``,
     ``D_perp = 4/3 D_par`` (Smalikho (2020), eq. 12).
     """
-    from cwproc.sim.exact_gaussian import structure_functions
 
     r = np.hypot(r_x, r_z)
     if model == "inertial":
@@ -242,7 +245,6 @@ def stare_covariance(
     definite; the variances about a window mean do not depend on it (a pure Kolmogorov
     field has no finite variance).
     """
-    from cwproc.sim.exact_gaussian import range_nodes
 
     s, ws = range_nodes(delta_p_m, delta_r_m, range_step_m)
     tau = ((np.arange(sub_points) + 0.5) / sub_points - 0.5) * ray_duration_s
@@ -324,7 +326,6 @@ def stare_noise_std(snr: float, points_per_gate: int, pulses_per_ray: int) -> fl
     velocity resolution 0.0382 m s-1), so the virtual instrument's noise is the one its
     header and SNR declare.
     """
-    from cwproc.physics.noise import bandwidth_from_resolution, velocity_noise_std
 
     return float(
         velocity_noise_std(snr, points_per_gate, pulses_per_ray, bandwidth_from_resolution(0.0382))
@@ -363,10 +364,6 @@ def write_stare_series(
     list of pathlib.Path
         The files written, truth last.
     """
-
-    from cwproc.io.halo import write_hpl
-    from cwproc.sim.field3d import von_karman_field
-    from cwproc.sim.sample_data import noise_from_snr, streamline_truth
 
     folder = fresh_folder(folder, "*.hpl")
     field = von_karman_field(
