@@ -52,6 +52,7 @@ from cwproc.errors import ConfigError, CwprocError, InputFileError
 from cwproc.io import FileIdentity
 from cwproc.io.netcdf import write_bytes_atomic
 from cwproc.io.timecheck import check_times
+from cwproc.physics.geometry import normalise_pointing
 
 try:  # the optional compiled tokenizer (setup.py); pandas does the same work without it
     from cwproc.io import _hpltok
@@ -761,22 +762,6 @@ def decimal_hours_to_time(hours: np.ndarray, start_time: np.datetime64) -> np.nd
         offset = offset + 24.0
     micro = np.rint((hours + offset) * 3.6e9).astype(np.int64)
     return (day.astype("datetime64[us]") + micro.astype("timedelta64[us]")).astype("datetime64[ns]")
-
-
-def normalise_pointing(azimuth: np.ndarray, elevation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Beam direction with elevation <= 90 deg and azimuth in [0, 360) (degrees).
-
-    An elevation above 90 deg points over the zenith: the same direction is azimuth
-    + 180 deg at elevation 180 deg - el. ``-0.00`` becomes 0 and 360 becomes 0.
-    """
-    azimuth = np.asarray(azimuth, dtype=np.float64)
-    elevation = np.asarray(elevation, dtype=np.float64)
-    over = elevation > 90.0
-    azimuth = np.where(over, azimuth + 180.0, azimuth)
-    elevation = np.where(over, 180.0 - elevation, elevation) + 0.0
-    azimuth = np.mod(azimuth, 360.0) + 0.0
-    azimuth = np.where(azimuth >= 360.0, azimuth - 360.0, azimuth)
-    return azimuth, elevation
 
 
 def _check_options(options: dict) -> None:

@@ -35,6 +35,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import CwprocError
+from cwproc.physics.geometry import beam_unit_vector
 from cwproc.stages.vad import (
     fit_least_absolute,
     fit_scans,
@@ -42,7 +43,6 @@ from cwproc.stages.vad import (
     pointing,
     scan_chunks,
     scan_layout,
-    vad_design,
 )
 
 FLAG_LOW_SNR = 1
@@ -210,7 +210,7 @@ def outlier_flags(
         present = sub.present[:, :, None]
         base = sub.take(good) & present
         values = sub.take(velocity)
-        design = vad_design(sub.take(azimuth), sub.take(elevation))
+        design = beam_unit_vector(sub.take(azimuth), sub.take(elevation))
         beta, residuals = fit_least_absolute(values, design, base, homodyne=homodyne)
         flagged = robust_outliers(residuals, base, threshold, min_spread)
         for _ in range(OUTLIER_PASSES):

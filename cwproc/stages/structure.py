@@ -34,6 +34,7 @@ import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.physics.atable import N_BINS, azimuth_bin_weights, azimuth_nodes
+from cwproc.physics.geometry import radial_velocity
 from cwproc.references import SMALIKHO_2020
 
 #: largest relative mismatch (m) between wind-product gate ranges and scan gate ranges
@@ -486,12 +487,8 @@ def azimuth_structure_function(
         vr = screened_ds["radial_velocity"].values[rays[cells]][:, gates].astype(float)
         flag = screened_ds["qc_flag_radial"].values[rays[cells]][:, gates]
         vr = np.where((flag == 0) & np.isfinite(vr), vr, np.nan)
-        theta = np.deg2rad(az[cells])[:, None]
-        phi = np.deg2rad(el[cells])[:, None]
         b = block_of_time[scan_pos[cells]]
-        model = w_b[b] * np.sin(phi) + np.cos(phi) * (
-            u_b[b] * np.sin(theta) + v_b[b] * np.cos(theta)
-        )
+        model = radial_velocity(u_b[b], v_b[b], w_b[b], az[cells][:, None], el[cells][:, None])
         if homodyne:
             vr = homodyne_radial_velocity(vr, model, b - b0)
         vprime = np.full((t1_ - t0_, n_az, n_h), np.nan)

@@ -33,7 +33,7 @@ import xarray as xr
 from numpy.typing import NDArray
 
 from cwproc.errors import CwprocError
-from cwproc.physics.geometry import height_from_range, normalise_pointing
+from cwproc.physics.geometry import beam_unit_vector, height_from_range, normalise_pointing
 
 #: elevations (deg) that count as conical scans; outside, w or u, v are not determined
 CONICAL_ELEVATION_RANGE_DEG = (1.0, 89.0)
@@ -137,16 +137,6 @@ def scan_chunks(layout: ScanLayout, n_gates: int) -> Iterator[slice]:
 # --------------------------------------------------------------------------------------
 # batched least squares
 # --------------------------------------------------------------------------------------
-
-
-def vad_design(azimuth_deg: np.ndarray, elevation_deg: np.ndarray) -> FloatArray:
-    """Design rows ``(cos(phi) sin(theta), cos(phi) cos(theta), sin(phi))`` for (u, v, w).
-
-    Smalikho (2020), eq. 1. Broadcasts; the last axis has length 3.
-    """
-    theta = np.deg2rad(azimuth_deg)
-    phi = np.deg2rad(elevation_deg)
-    return np.stack([np.cos(phi) * np.sin(theta), np.cos(phi) * np.cos(theta), np.sin(phi)], -1)
 
 
 @dataclass(frozen=True)
@@ -271,7 +261,7 @@ def fit_linear(velocity: FloatArray, design: FloatArray, valid: BoolArray) -> Ba
     velocity : ndarray, shape (S, R, G)
         Radial velocity (m s-1), positive away from the lidar.
     design : ndarray, shape (S, R, 3)
-        :func:`vad_design` of each ray (padding: any finite value).
+        :func:`cwproc.physics.geometry.beam_unit_vector` of each ray (padding: any finite value).
     valid : ndarray of bool, shape (S, R, G)
         Which entries enter the fit.
 
@@ -380,7 +370,7 @@ def fit_homodyne(
     magnitude : ndarray, shape (S, R, G)
         Measured ``|V_r|`` (m s-1); the sign of the input is ignored.
     design : ndarray, shape (S, R, 3)
-        :func:`vad_design` of each ray.
+        :func:`cwproc.physics.geometry.beam_unit_vector` of each ray.
     valid : ndarray of bool, shape (S, R, G)
     start : ndarray, shape (S, G, 3), optional
         A starting ``beta`` (e.g. from a previous fit of the same data); replaces the
@@ -443,7 +433,7 @@ def fit_least_absolute(
     values : ndarray, shape (S, R, G)
         Radial velocities (homodyne: magnitudes) (m s-1).
     design : ndarray, shape (S, R, 3)
-        :func:`vad_design` of each ray.
+        :func:`cwproc.physics.geometry.beam_unit_vector` of each ray.
     valid : ndarray of bool, shape (S, R, G)
     homodyne : bool
         Fit ``|A beta|`` instead of ``A beta``.
@@ -769,7 +759,7 @@ def fit_vad(
         sub = layout.subset(rows)
         present = sub.present[:, :, None]
         valid = sub.take(valid_all) & present
-        design = vad_design(sub.take(azimuth), sub.take(elevation))
+        design = beam_unit_vector(sub.take(azimuth), sub.take(elevation))
         fit = fit_scans(sub.take(velocity), design, valid, homodyne=homodyne)
         parts.append(
             {

@@ -12,7 +12,7 @@ import pytest
 
 from cwproc.errors import ConfigError, CwprocError, InputFileError
 from cwproc.io import Format, detect_format
-from cwproc.io.halo import decimal_hours_to_time, normalise_pointing, read_hpl, write_hpl
+from cwproc.io.halo import decimal_hours_to_time, read_hpl, write_hpl
 
 
 def hours_to_time(day: str, hours: float) -> np.datetime64:
@@ -464,17 +464,6 @@ def test_file_starting_after_midnight_of_its_start_time() -> None:
     start = np.datetime64("2022-12-14T23:59:59.50", "us")
     t = decimal_hours_to_time(np.array([0.001, 0.002]), start)
     assert t[0] == hours_to_time("2022-12-15", 0.001)
-
-
-def test_pointing_normalisation() -> None:
-    az, el = normalise_pointing(
-        np.array([360.0, 0.0, 39.81, 320.19, 90.0, 10.0]),
-        np.array([75.0, -0.0, 180.01, 142.47, 90.0, 90.01]),
-    )
-    np.testing.assert_allclose(az, [0.0, 0.0, 219.81, 140.19, 90.0, 190.0], atol=1e-9)
-    np.testing.assert_allclose(el, [75.0, 0.0, -0.01, 37.53, 90.0, 89.99], atol=1e-9)
-    assert not np.signbit(el[1]) and not np.signbit(az[0])
-    assert ((az >= 0) & (az < 360)).all()
 
 
 # ------------------------------------------------------------------ writer
