@@ -327,6 +327,27 @@ def test_homodyne_measured_reference_and_missing_reference() -> None:
     np.testing.assert_allclose(measured["u"].values, -from_attr["u"].values)
 
 
+@pytest.mark.parametrize("spelling", ["false", "0", 0, False, np.int8(0)])
+def test_homodyne_false_in_any_spelling_is_heterodyne(spelling: object) -> None:
+    """``bool("false")`` is True; the one parser (cwproc.io.scans) reads it as 0."""
+    ds = scan_dataset(n_scans=2, seed=14)
+    signed = fit(ds)
+    ds.attrs["homodyne"] = spelling
+    xr.testing.assert_identical(fit(ds).drop_attrs(), signed.drop_attrs())
+    assert "homodyne" not in fit(ds).attrs["vad_method"]
+
+
+def test_explicit_homodyne_argument_overrides_the_attribute() -> None:
+    ds = homodyne_dataset(n_scans=2)
+    ds.attrs["homodyne"] = "false"  # wrong on purpose: |V_r| data
+    wind = fit(ds, homodyne=True, reference_direction_deg=TRUE_DIRECTION)
+    assert "homodyne" in wind.attrs["vad_method"]
+    assert np.all(np.abs(wind["u"].values + 7.0) < 0.2)
+    ds.attrs["homodyne"] = "yes"
+    with pytest.raises(CwprocError, match="homodyne is 'yes'"):
+        fit(ds)
+
+
 # --------------------------------------------------------------------------------------
 # real files
 # --------------------------------------------------------------------------------------
