@@ -224,12 +224,11 @@ def outlier_flags(
         base = sub.take(good) & present
         values = sub.take(velocity)
         design = beam_unit_vector(sub.take(azimuth), sub.take(elevation))
-        beta, residuals = fit_least_absolute(values, design, base, homodyne=homodyne)
+        _, residuals = fit_least_absolute(values, design, base, homodyne=homodyne)
         flagged = robust_outliers(residuals, base, threshold, min_spread)
         for _ in range(OUTLIER_PASSES):
-            fit = fit_scans(values, design, base & ~flagged, homodyne=homodyne, start=beta)
+            fit = fit_scans(values, design, base & ~flagged, homodyne=homodyne)
             flagged = robust_outliers(fit.residuals, base, threshold, min_spread)
-            beta = fit.beta
         index = sub.index[sub.present]
         outlier[index] = flagged[sub.present]
     return outlier

@@ -468,7 +468,7 @@ def _wind_dataset(
     dims = ("time", "height")
     method = (
         "homodyne least squares |V_r| = |w sin(phi) + cos(phi)(u sin(theta) + v cos(theta))| "
-        "(Gauss-Newton by sign assignment)"
+        "(global minimum over the arc sign patterns, then Gauss-Newton by sign assignment)"
         if homodyne
         else "least squares V_r = w sin(phi) + cos(phi)(u sin(theta) + v cos(theta))"
     )

@@ -10,8 +10,9 @@ from the residual variance and ``(A^T A)^-1``.
 Homodyne cw lidars (ZephIR) measure only ``|V_r|``: the model becomes ``|A beta|``,
 fitted by Gauss-Newton. Because ``d|A beta|/d beta = sign(A beta) A``,
 ``J^T J = A^T A`` and a Gauss-Newton step is the linear fit of the *signed* data
-``sign(A beta) |V_r|``: the fit alternates sign assignment and linear least squares
-from several starts (:func:`fit_homodyne`). ``beta`` and ``-beta`` fit equally well;
+``sign(A beta) |V_r|``: the fit alternates sign assignment and linear least squares,
+started at the global minimum over all arc sign patterns
+(:func:`homodyne_global_start`). ``beta`` and ``-beta`` fit equally well;
 :func:`cwproc.stages.vad.resolve_homodyne_ambiguity` chooses between them.
 """
 
@@ -26,8 +27,8 @@ from numpy.typing import NDArray
 MAX_CONDITION = 1e8
 #: homodyne Gauss-Newton: most sign-assignment iterations
 HOMODYNE_MAX_ITERATIONS = 50
-#: homodyne start grid: wind directions (deg) of the candidate sign patterns
-HOMODYNE_GRID_STEP_DEG = 5.0
+#: homodyne arc search: most (scan x ray x gate) elements per block (memory bound)
+HOMODYNE_BLOCK_ELEMENTS = 500_000
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -192,76 +193,99 @@ def _sign_iterations(
     return beta, converged
 
 
-def _best_of_patterns(
-    y: FloatArray,
-    design: FloatArray,
-    weight: FloatArray,
-    inv0: FloatArray,
-    patterns: list[FloatArray],
-    best_beta: FloatArray,
+def _arc_search_block(
+    y: FloatArray, design: FloatArray, inverse: FloatArray, determined: BoolArray
 ) -> FloatArray:
-    """The linear fit of ``pattern * |V_r|`` of least ``|V_r| - |A beta|`` cost per cell."""
+    """:func:`homodyne_global_start` for one block of scans.
 
-    def cost(beta: FloatArray) -> FloatArray:
-        return np.sum(weight * (y - np.abs(_model(design, beta))) ** 2, axis=1)
-
-    best_cost = cost(best_beta)
-    for signs in patterns:
-        beta = _solve(inv0, design, y * signs)
-        c = cost(beta)
-        better = c < best_cost
-        best_cost = np.where(better, c, best_cost)
-        best_beta = np.where(better[..., None], beta, best_beta)
-    return best_beta
-
-
-def homodyne_start_patterns(theta: FloatArray) -> list[FloatArray]:
-    """Sign patterns ``sign(cos(theta - t))``, t every ``HOMODYNE_GRID_STEP_DEG`` in [0, 180).
-
-    The patterns of a purely horizontal wind; ``theta`` (S, R) azimuths (rad). Each
-    pattern is (S, R, 1).
+    With ``(A^T A)^-1 = L L^T`` (Cholesky), ``c^T (A^T A)^-1 c = |L^T c|^2`` and
+    ``b = L (L^T c)``: the prefix sums are taken of ``L^T a_r y_r``, so that the cost of
+    an arc is a sum of three squares.
     """
-    return [
-        np.where(np.cos(theta - t) >= 0, 1.0, -1.0)[:, :, None]
-        for t in np.deg2rad(np.arange(0.0, 180.0, HOMODYNE_GRID_STEP_DEG))
-    ]
+    n_scan, n_ray, n_gate = y.shape
+    factor = np.linalg.cholesky(np.where(determined[..., None, None], inverse, np.eye(3)))
+    theta = np.arctan2(design[..., 0], design[..., 1])
+    order = np.argsort(theta, axis=1, kind="stable")[..., None]
+    a = np.take_along_axis(design, order, axis=1)  # (S, R, 3) in azimuth order
+    ys = np.take_along_axis(y, order, axis=1)  # (S, R, G)
+    # L^T a_r for every gate: (S, R, G, 3)
+    rotated = np.einsum("sgkj,srk->srgj", factor, a) * ys[..., None]
+    prefix = np.zeros((n_scan, 2 * n_ray + 1, n_gate, 3))
+    np.cumsum(np.concatenate([rotated, rotated], axis=1), axis=1, out=prefix[:, 1:])
+    total = prefix[:, n_ray]  # L^T A^T y, (S, G, 3)
+    best_gain = np.sum(total**2, axis=-1)  # the all-positive pattern
+    best_length = np.zeros((n_scan, n_gate), dtype=np.int64)
+    best_start = np.zeros((n_scan, n_gate), dtype=np.int64)
+    for length in range(1, n_ray // 2 + 1):
+        # s = +1 on the arcs [k, k + length), -1 elsewhere; complements give -b
+        c = 2.0 * (prefix[:, length : length + n_ray] - prefix[:, :n_ray]) - total[:, None]
+        gain = np.einsum("srgj,srgj->srg", c, c)
+        k = np.argmax(gain, axis=1)
+        top = np.take_along_axis(gain, k[:, None], axis=1)[:, 0]
+        better = top > best_gain
+        best_gain = np.where(better, top, best_gain)
+        best_length = np.where(better, length, best_length)
+        best_start = np.where(better, k, best_start)
+    s_idx, g_idx = np.indices((n_scan, n_gate))
+    arc = prefix[s_idx, best_start + best_length, g_idx] - prefix[s_idx, best_start, g_idx]
+    c = np.where((best_length > 0)[..., None], 2.0 * arc - total, total)
+    return np.einsum("sgjk,sgk->sgj", factor, c)
 
 
-def homodyne_arc_patterns(theta: FloatArray, beta: FloatArray) -> list[FloatArray]:
-    """Sign patterns of ``a + b cos(theta - t)`` about the fitted direction ``t``.
+def homodyne_global_start(
+    y: FloatArray, design: FloatArray, inverse: FloatArray, determined: BoolArray
+) -> FloatArray:
+    """The global minimiser of ``sum (|V_r| - |A beta|)^2`` for rays at one elevation.
 
-    With a vertical wind (``a = w sin(phi) != 0``) the radial velocity changes sign at
-    two azimuths that are not 180 deg apart: the negative rays form an arc of any width
-    centred on the downwind side. Taking the direction ``t`` of a first fit (which the
-    half-circle patterns find well) and every arc half width ``h`` in 10 deg steps gives
-    the pattern of the global minimum, which Gauss-Newton from a half-circle start can
-    miss (8 rays, phi = 52 deg, u = 0, v = 2, w = 0.75 converged to v = 1.16, w = 1.13).
-    ``theta`` (S, R) (rad), ``beta`` (S, G, 3); patterns (S, R, G).
+    On a cone of elevation ``phi``, ``A beta = w sin(phi) + cos(phi) V_h cos(theta -
+    theta_w)`` (Smalikho (2020), eq. 1) is positive on one arc of azimuths centred on
+    ``theta_w`` and negative on the rest (or of one sign everywhere). For any ``beta``
+    of sign pattern ``s``, ``sum (|V_r| - |A beta|)^2 = sum (s |V_r| - A beta)^2`` is at
+    least the least-squares cost of the linear fit of ``s |V_r|``,
+    ``C(s) = |y|^2 - c_s^T (A^T A)^-1 c_s`` with ``c_s = A^T (s y)``; and the fit
+    ``b_s`` of the arc ``s`` of least ``C`` has ``|A b_s|``-cost at most ``C(s)``. So
+    the least ``C`` over all arcs is the global minimum, reached at ``b_s``, whatever
+    the wind: no start grid can miss it (Gauss-Newton from half-circle patterns
+    converged to v = 1.16, w = 1.13 for 8 rays, phi = 52 deg, u = 0, v = 2, w = 0.75).
+    With the rays sorted by azimuth, ``c_s = 2 sum_arc a_r y_r - A^T y`` comes from
+    prefix sums, so each of the ``R^2 / 2`` arcs (their complements give ``-b_s``, of
+    equal cost) costs O(1).
+
+    Parameters
+    ----------
+    y : ndarray, shape (S, R, G)
+        ``|V_r|`` (m s-1), 0 for unused entries.
+    design : ndarray, shape (S, R, 3)
+        Beam unit vectors (finite; padding rows 0).
+    inverse : ndarray, shape (S, G, 3, 3)
+        ``(A^T A)^-1`` over the used rays.
+    determined : ndarray of bool, shape (S, G)
+        Cells whose ``inverse`` is a valid (positive definite) inverse; elsewhere the
+        result is meaningless (and masked by the caller).
+
+    Returns
+    -------
+    ndarray, shape (S, G, 3)
+        ``b_s`` (m s-1), with an arbitrary overall sign.
     """
-    direction = np.arctan2(beta[..., 0], beta[..., 1])[:, None, :]  # (S, 1, G)
-    cos_dev = np.cos(theta[:, :, None] - direction)
-    out = [np.ones_like(cos_dev)]
-    for half_width in np.deg2rad(np.arange(5.0, 180.0, 10.0)):
-        out.append(np.where(cos_dev >= np.cos(half_width), 1.0, -1.0))
+    n_scan, n_ray, n_gate = y.shape
+    step = max(1, HOMODYNE_BLOCK_ELEMENTS // max(n_ray * n_gate, 1))
+    out = np.empty((n_scan, n_gate, 3))
+    for lo in range(0, n_scan, step):
+        part = slice(lo, lo + step)
+        out[part] = _arc_search_block(y[part], design[part], inverse[part], determined[part])
     return out
 
 
-def fit_homodyne(
-    magnitude: FloatArray,
-    design: FloatArray,
-    valid: BoolArray,
-    start: FloatArray | None = None,
-) -> BatchedFit:
-    """Fit ``|V_r| = |A beta|`` (homodyne cw lidar, Wagner et al. (DTU)) for every (scan, gate).
+def fit_homodyne(magnitude: FloatArray, design: FloatArray, valid: BoolArray) -> BatchedFit:
+    """Fit ``|V_r| = |A beta|`` (homodyne cw lidar; Wagner et al. (DTU)) for every (scan, gate).
 
-    Gauss-Newton on ``|A beta|``: each step is the linear fit of ``sign(A beta) |V_r|``
-    (``J^T J = A^T A``), iterated until no sign changes, started from the best of the
-    sign patterns of a horizontal wind (:func:`homodyne_start_patterns`) and the
-    all-positive pattern. The result is then refined from the arc patterns about its
-    direction (:func:`homodyne_arc_patterns`), which hold the global minimum when a
-    vertical wind moves the sign changes off the half circle; the lower cost wins.
-    ``beta`` is returned with an arbitrary overall sign (see
-    :func:`resolve_homodyne_ambiguity`).
+    Started at the global minimum over the arc sign patterns
+    (:func:`homodyne_global_start`), then Gauss-Newton on ``|A beta|``: each step is
+    the linear fit of ``sign(A beta) |V_r|`` (``J^T J = A^T A``), iterated until no sign
+    changes; each step can only lower the cost, so the fixed point keeps the global
+    minimum (and is reached in one or two steps). ``beta`` is returned with an
+    arbitrary overall sign (see :func:`cwproc.stages.vad.resolve_homodyne_ambiguity`).
 
     Parameters
     ----------
@@ -270,9 +294,6 @@ def fit_homodyne(
     design : ndarray, shape (S, R, 3)
         :func:`cwproc.physics.geometry.beam_unit_vector` of each ray.
     valid : ndarray of bool, shape (S, R, G)
-    start : ndarray, shape (S, G, 3), optional
-        A starting ``beta`` (e.g. from a previous fit of the same data); replaces the
-        grid of sign patterns where it is finite.
 
     Returns
     -------
@@ -284,26 +305,8 @@ def fit_homodyne(
     y = np.where(valid, np.abs(magnitude), 0.0)
     inverse, determined = _safe_inverse(_normal_matrix(design, weight), weight.sum(axis=1))
     inv0 = np.nan_to_num(inverse)
-    # azimuth of each ray from the design row: theta = atan2(sin, cos)
-    theta = np.arctan2(design[..., 0], design[..., 1])
-    first = _solve(inv0, design, y)
-    warm = None if start is None else np.all(np.isfinite(start), axis=-1)
-    if warm is None or not warm.all():
-        first = _best_of_patterns(y, design, weight, inv0, homodyne_start_patterns(theta), first)
-    if start is not None and warm is not None:
-        first = np.where(warm[..., None], start, first)
-    beta, converged = _sign_iterations(y, design, weight, inv0, first)
-    refined_start = _best_of_patterns(
-        y, design, weight, inv0, homodyne_arc_patterns(theta, beta), beta
-    )
-    refined, refined_converged = _sign_iterations(y, design, weight, inv0, refined_start)
-
-    def cost(b: FloatArray) -> FloatArray:
-        return np.sum(weight * (y - np.abs(_model(design, b))) ** 2, axis=1)
-
-    better = cost(refined) < cost(beta)
-    beta = np.where(better[..., None], refined, beta)
-    converged = np.where(better, refined_converged, converged)
+    start = homodyne_global_start(y, design, inv0, determined)
+    beta, converged = _sign_iterations(y, design, weight, inv0, start)
     residuals = np.abs(magnitude) - np.abs(_model(design, beta))
     return _finish(beta, inverse, determined, converged, residuals, valid)
 
@@ -370,15 +373,9 @@ def fit_least_absolute(
 
 
 def fit_scans(
-    velocity: FloatArray,
-    design: FloatArray,
-    valid: BoolArray,
-    *,
-    homodyne: bool,
-    start: FloatArray | None = None,
+    velocity: FloatArray, design: FloatArray, valid: BoolArray, *, homodyne: bool
 ) -> BatchedFit:
-    """:func:`fit_homodyne` (warm-started from ``start``) when ``homodyne``, else
-    :func:`fit_linear` (which needs no start)."""
+    """:func:`fit_homodyne` when ``homodyne``, else :func:`fit_linear`."""
     if homodyne:
-        return fit_homodyne(velocity, design, valid, start)
+        return fit_homodyne(velocity, design, valid)
     return fit_linear(velocity, design, valid)
