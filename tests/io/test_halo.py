@@ -532,11 +532,11 @@ def test_writer_refuses_what_the_format_cannot_hold(hpl: Path, tmp_path: Path) -
 def test_parallel_chunked_parse_equals_single_and_keeps_line_numbers(
     hpl: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import cwproc.io.halo as halo
+    import cwproc.io.halo_body as halo_body
 
     src = hpl / "User5_96_20190308_200500.hpl"
     single = read_hpl(src)
-    monkeypatch.setattr(halo, "_PARALLEL_BYTES", 200_000)  # 2.7 MB -> one chunk per core
+    monkeypatch.setattr(halo_body, "_PARALLEL_BYTES", 200_000)  # 2.7 MB -> one chunk per core
     chunked = read_hpl(src)
     for name in single.variables:
         np.testing.assert_array_equal(chunked[name].values, single[name].values)
