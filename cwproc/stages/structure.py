@@ -105,12 +105,12 @@ def homodyne_radial_velocity(
     well above the fluctuations the folded spectrum gives ``|V_r|`` of the wrong sign or a
     centroid pulled away from 0, which inflates D_L (+81 % eps at U = 5 m/s on the cw
     simulation); and spectra with ``|V_r| < 1 m s-1`` are dropped by the instrument
-    (seed 000, the 1 m/s exclusion), a selection by the data themselves. Rule: rays with
-    ``|m| < 1 m s-1 + 3 sigma'`` are left out, ``sigma'`` the standard deviation of
-    ``|V_r| sign(m) - m`` in the block and height: beyond it a sign error needs a 3-sigma
-    fluctuation (Gaussian probability 0.13 %), and the data-dependent 1 m/s cut cannot
-    reach the kept rays. The rule selects rays by the model, not by their values, so
-    D_L and the variance of the kept rays are not biased.
+    (Banakh et al. (1999), section 3: the 1 m/s exclusion), a selection by the data
+    themselves. Rule: rays with ``|m| < 1 m s-1 + 3 sigma'`` are left out, ``sigma'`` the
+    standard deviation of ``|V_r| sign(m) - m`` in the block and height: beyond it a
+    sign error needs a 3-sigma fluctuation (Gaussian probability 0.13 %), and the
+    data-dependent 1 m/s cut cannot reach the kept rays. The rule selects rays by the
+    model, not by their values, so D_L and the variance of the kept rays are not biased.
 
     Parameters
     ----------

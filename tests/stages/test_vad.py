@@ -1,4 +1,4 @@
-"""Stage ``vad``: recovery of known winds within the error theory of seed 002.
+"""Stage ``vad``: recovery of known winds within the VAD error theory (VAD accuracy paper).
 
 Synthetic scans are built here from V_r = w sin(phi) + cos(phi)(u sin(theta) +
 v cos(theta)) plus seeded Gaussian noise of std sigma. The predicted RMS errors come
