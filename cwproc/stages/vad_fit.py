@@ -198,21 +198,24 @@ def _arc_search_block(
 ) -> FloatArray:
     """:func:`homodyne_global_start` for one block of scans.
 
-    With ``(A^T A)^-1 = L L^T`` (Cholesky), ``c^T (A^T A)^-1 c = |L^T c|^2`` and
-    ``b = L (L^T c)``: the prefix sums are taken of ``L^T a_r y_r``, so that the cost of
-    an arc is a sum of three squares.
+    With ``(A^T A)^-1 = F F^T`` (``F = V diag(sqrt(lambda))`` from the eigenvectors V
+    and eigenvalues lambda, which never fails on a symmetric matrix),
+    ``c^T (A^T A)^-1 c = |F^T c|^2`` and ``b = F (F^T c)``: the prefix sums are taken of
+    ``F^T a_r y_r``, so that the cost of an arc is a sum of three squares.
     """
     n_scan, n_ray, n_gate = y.shape
-    factor = np.linalg.cholesky(np.where(determined[..., None, None], inverse, np.eye(3)))
+    sym = np.where(determined[..., None, None], inverse, np.eye(3))
+    eigenvalues, vectors = np.linalg.eigh(0.5 * (sym + np.swapaxes(sym, -1, -2)))
+    factor = vectors * np.sqrt(np.maximum(eigenvalues, 0.0))[..., None, :]
     theta = np.arctan2(design[..., 0], design[..., 1])
     order = np.argsort(theta, axis=1, kind="stable")[..., None]
     a = np.take_along_axis(design, order, axis=1)  # (S, R, 3) in azimuth order
     ys = np.take_along_axis(y, order, axis=1)  # (S, R, G)
-    # L^T a_r for every gate: (S, R, G, 3)
+    # F^T a_r y_r for every gate: (S, R, G, 3)
     rotated = np.einsum("sgkj,srk->srgj", factor, a) * ys[..., None]
     prefix = np.zeros((n_scan, 2 * n_ray + 1, n_gate, 3))
     np.cumsum(np.concatenate([rotated, rotated], axis=1), axis=1, out=prefix[:, 1:])
-    total = prefix[:, n_ray]  # L^T A^T y, (S, G, 3)
+    total = prefix[:, n_ray]  # F^T A^T y, (S, G, 3)
     best_gain = np.sum(total**2, axis=-1)  # the all-positive pattern
     best_length = np.zeros((n_scan, n_gate), dtype=np.int64)
     best_start = np.zeros((n_scan, n_gate), dtype=np.int64)
