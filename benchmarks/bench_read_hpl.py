@@ -38,7 +38,8 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from cwproc.io.halo import read_hpl, read_hpl_files, write_hpl
+from cwproc.io.halo import read_hpl, write_hpl
+from cwproc.io.halo_files import read_hpl_files
 from cwproc.io.scans import concat_scans
 
 #: real files below this size (bytes) are "small" (per-call costs dominate)
@@ -207,7 +208,8 @@ _READ_MEMORY_SCRIPT = (
     + """
 import sys
 from pathlib import Path
-from cwproc.io.halo import read_hpl, read_hpl_files
+from cwproc.io.halo import read_hpl
+from cwproc.io.halo_files import read_hpl_files
 from cwproc.io.scans import concat_scans
 paths = sorted(Path(sys.argv[2]).glob("*.hpl"))
 base = _peak_mib()

@@ -145,7 +145,7 @@ def doppy_eps(
 
 def doppy_simulated_table(folder: Path) -> None:
     from cwproc.config import load_config
-    from cwproc.io.halo import read_hpl_files
+    from cwproc.io.halo_files import read_hpl_files
     from cwproc.pipeline import process_scan_day
 
     files = sorted((folder / "data").glob("*.hpl"))

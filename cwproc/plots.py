@@ -22,6 +22,7 @@ import xarray as xr
 
 from cwproc.errors import ProductError
 from cwproc.io.netcdf import remove_stale_temporaries, umask_mode
+from cwproc.physics.geometry import radial_velocity
 
 #: figure size in inches and resolution of every quicklook
 FIGSIZE = (10.0, 6.0)
@@ -396,14 +397,10 @@ def plot_vad_fit(
             f"cannot draw 'vad': scan {scan} has no VAD fit at h = {float(row['height']):.0f} m "
             f"(qc_flag {int(row['qc_flag']) if 'qc_flag' in row else 'unknown'})"
         )
-    el = np.radians(float(row["elevation"]))
+    wind = (float(row["u"]), float(row["v"]), float(row["w"]))
     theta = np.radians(np.linspace(0, 360, 361))
-    model = float(row["w"]) * np.sin(el) + np.cos(el) * (
-        float(row["u"]) * np.sin(theta) + float(row["v"]) * np.cos(theta)
-    )
-    fitted = float(row["w"]) * np.sin(el) + np.cos(el) * (
-        float(row["u"]) * np.sin(np.radians(az)) + float(row["v"]) * np.cos(np.radians(az))
-    )
+    model = radial_velocity(*wind, np.degrees(theta), float(row["elevation"]))
+    fitted = radial_velocity(*wind, az, float(row["elevation"]))
     fig, (ax1, ax2) = plt.subplots(
         2,
         1,

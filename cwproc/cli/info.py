@@ -12,6 +12,7 @@ import xarray as xr
 from cwproc.cli._common import report_failure
 from cwproc.errors import CwprocError
 from cwproc.io import KIND, Format, detect_format, is_product_layout, read
+from cwproc.io.scans import is_homodyne
 
 #: human names of the formats
 FORMAT_NAMES: dict[Format, str] = {
@@ -107,8 +108,7 @@ def describe_scan(ds: xr.Dataset) -> list[str]:
     optional = [v for v in ("beta", "spectral_width", "pitch", "roll") if v in ds]
     lines = [
         f"  instrument    {attrs.get('instrument', '?')} ({attrs.get('instrument_kind', '?')}), "
-        f"system id {attrs.get('system_id', '?')}"
-        + (", homodyne" if str(attrs.get("homodyne", 0)) in {"1", "True"} else ""),
+        f"system id {attrs.get('system_id', '?')}" + (", homodyne" if is_homodyne(ds) else ""),
         f"  scan type     {attrs.get('scan_type', '?')}",
         f"  rays          {n_rays}",
         f"  gates         {n_gates}{gate_text}{range_text}",

@@ -26,6 +26,7 @@ import xarray as xr
 
 from cwproc.errors import InputFileError
 from cwproc.io.netcdf import write_netcdf_atomic
+from cwproc.io.scans import parse_homodyne
 from cwproc.products.metadata import apply_metadata
 
 #: required variables and their dimensions
@@ -86,10 +87,10 @@ def validate_scan_schema(ds: xr.Dataset, path: str | os.PathLike) -> None:
     for key in REQUIRED_ATTRS:
         if key not in ds.attrs:
             raise InputFileError(path, f"scan dataset has no global attribute {key!r}")
-    if str(ds.attrs["homodyne"]).strip().lower() not in {"0", "1", "true", "false"}:
-        raise InputFileError(
-            path, f"global attribute 'homodyne' is {ds.attrs['homodyne']!r}, not 0/1"
-        )
+    try:
+        parse_homodyne(ds.attrs["homodyne"])
+    except ValueError as exc:
+        raise InputFileError(path, f"global attribute {exc}") from None
 
 
 def _encode_time_exactly(ds: xr.Dataset) -> xr.Dataset:
@@ -137,7 +138,7 @@ def write_scan_netcdf(ds: xr.Dataset, path: str | os.PathLike) -> Path:
     out = apply_metadata(out)
     out = _encode_time_exactly(out)
     attrs = dict(out.attrs)
-    attrs["homodyne"] = int(str(attrs["homodyne"]).strip().lower() in {"1", "true"})
+    attrs["homodyne"] = int(parse_homodyne(attrs["homodyne"]))
     attrs["source_files"] = ", ".join(_split_files(attrs.get("source_files", [])))
     attrs.setdefault("Conventions", "CF-1.10")
     attrs["file_uuid"] = str(uuid.uuid4())  # ACTRIS/Cloudnet: products name it as a source
@@ -186,7 +187,7 @@ def read_scan_netcdf(path: str | os.PathLike, **options: object) -> xr.Dataset:
     validate_scan_schema(ds, path)
     ds = ds.set_coords([c for c in _COORDS if c in ds.variables])
     attrs = dict(ds.attrs)
-    attrs["homodyne"] = int(str(attrs["homodyne"]).strip().lower() in {"1", "true"})
+    attrs["homodyne"] = int(parse_homodyne(attrs["homodyne"]))
     attrs["source_files"] = _split_files(attrs.get("source_files")) or [path.name]
     ds.attrs = attrs
     if "scan" not in ds.coords:

@@ -250,6 +250,72 @@ def _files(ds: xr.Dataset) -> str:
     return ", ".join(map(str, files)) or "<unnamed dataset>"
 
 
+#: spellings of the ``homodyne`` attribute (case and surrounding blanks ignored)
+_HOMODYNE_WORDS = {"1": True, "true": True, "0": False, "false": False}
+
+
+def parse_homodyne(value: object) -> bool:
+    """The detection scheme named by a ``homodyne`` attribute value.
+
+    A homodyne cw lidar measures only ``|V_r|`` (Banakh et al. (1999), section 3).
+    Accepted: ``bool``, the integers 0 and 1 (numpy scalars and one-element arrays
+    included, as NetCDF attributes come back), and the strings ``"0"``, ``"1"``,
+    ``"true"``, ``"false"``. Python's ``bool("false")`` is True, which is why no caller
+    may test the attribute with ``bool``.
+
+    Parameters
+    ----------
+    value : object
+        The attribute value.
+
+    Returns
+    -------
+    bool
+        True for homodyne detection.
+
+    Raises
+    ------
+    ValueError
+        Any other value (named in the message).
+    """
+    if isinstance(value, str):
+        word = value.strip().lower()
+        if word in _HOMODYNE_WORDS:
+            return _HOMODYNE_WORDS[word]
+    elif isinstance(value, (bool, int, float, np.bool_, np.number, np.ndarray)):
+        array = np.asarray(value)
+        if array.size == 1 and array.dtype.kind in "biuf" and array.item() in (0, 1):
+            return bool(array.item())
+    raise ValueError(f"homodyne is {value!r}: expected 0/1, true/false")
+
+
+def is_homodyne(ds: xr.Dataset) -> bool:
+    """Whether a scan dataset holds homodyne (``|V_r|`` only) data.
+
+    Every reader sets the global attribute ``homodyne`` to the int 0 or 1; a dataset
+    without it (built in memory) is heterodyne (signed ``V_r``).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Scan dataset.
+
+    Returns
+    -------
+    bool
+
+    Raises
+    ------
+    CwprocError
+        The attribute is not one of the spellings of :func:`parse_homodyne`; the
+        message names the files of the dataset.
+    """
+    try:
+        return parse_homodyne(ds.attrs.get("homodyne", 0))
+    except ValueError as exc:
+        raise CwprocError(f"scan dataset {_files(ds)}: global attribute {exc}") from None
+
+
 def _source_files(ds: xr.Dataset) -> list[str]:
     files = ds.attrs.get("source_files", [])
     if isinstance(files, str):
@@ -270,7 +336,12 @@ def _check_compatible(datasets: Sequence[xr.Dataset]) -> None:
                 f"{ref_range.size} gates from {ref_range[0]:g} m; {_files(other)}: "
                 f"{rng.size} gates from {rng[0] if rng.size else float('nan'):g} m)"
             )
-        for key in ("system_id", "instrument_kind", "homodyne"):
+        if is_homodyne(first) != is_homodyne(other):
+            raise CwprocError(
+                f"cannot concatenate scans: homodyne differs ({_files(first)}: "
+                f"{first.attrs.get('homodyne')}; {_files(other)}: {other.attrs.get('homodyne')})"
+            )
+        for key in ("system_id", "instrument_kind"):
             a, b = first.attrs.get(key), other.attrs.get(key)
             if a is not None and b is not None and str(a) != str(b):
                 raise CwprocError(

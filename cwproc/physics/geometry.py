@@ -25,23 +25,28 @@ def normalise_pointing(
 ) -> tuple[FloatArray, FloatArray]:
     """Rewrite over-the-zenith pointing (elevation > 90 deg) as azimuth+180, 180-elevation.
 
-    Halo scanners write the same direction either way (``FORMATS.md`` 1.3); the result
-    has elevation in [-90, 90] deg and azimuth in [0, 360) deg.
+    Halo scanners write the same direction either way (an elevation of ``180.01`` is
+    azimuth + 180 deg at elevation ``-0.01``); the result has elevation in [-90, 90] deg
+    and azimuth in [0, 360) deg. Signed zeros become +0 (``-0.00`` -> 0), and an azimuth
+    that rounds to 360 (``360.00``, or ``-1e-17 mod 360``) becomes 0, never 360, so
+    equal directions compare equal and sort together.
 
     Parameters
     ----------
     azimuth_deg, elevation_deg : array_like
-        Pointing angles (deg).
+        Pointing angles (deg), azimuth clockwise from north, elevation above the horizon.
 
     Returns
     -------
     (azimuth_deg, elevation_deg) : tuple of ndarray
+        Broadcast shape of the inputs (deg).
     """
     az = np.asarray(azimuth_deg, dtype=float)
     el = np.asarray(elevation_deg, dtype=float)
     over = el > 90.0
-    az = np.where(over, az + 180.0, az) % 360.0
-    el = np.where(over, 180.0 - el, el)
+    az = np.mod(np.where(over, az + 180.0, az), 360.0) + 0.0
+    az = np.where(az >= 360.0, az - 360.0, az) + 0.0
+    el = np.where(over, 180.0 - el, el) + 0.0
     return az, el
 
 

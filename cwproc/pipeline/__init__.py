@@ -42,6 +42,7 @@ from cwproc.config import Config, InstrumentConfig
 from cwproc.errors import CwprocError, InputFileError
 from cwproc.io import KIND, FileIdentity, Format, detect_format, get_identifier, get_reader
 from cwproc.io.netcdf import discard, publish, remove_stale_temporaries, sha256_file
+from cwproc.io.scans import is_homodyne
 from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
 from cwproc.products.catalogue import describe_product
 from cwproc.products.writer import add_site_coordinates, site_attributes, write_product
@@ -345,8 +346,12 @@ def screened_wind(scans: xr.Dataset, config: Config) -> tuple[xr.Dataset, xr.Dat
     """Screened conical scans and their VAD wind rows (stages ``qc`` and ``vad``)."""
     from cwproc.stages import qc, vad
 
+    homodyne = is_homodyne(scans)
     screened = qc.screen_radial_velocity(
-        scans, snr_min=config.qc.snr_min, outlier_threshold=config.qc.outlier_threshold
+        scans,
+        snr_min=config.qc.snr_min,
+        outlier_threshold=config.qc.outlier_threshold,
+        homodyne=homodyne,
     )
     wind = vad.fit_vad(
         screened,
@@ -354,6 +359,7 @@ def screened_wind(scans: xr.Dataset, config: Config) -> tuple[xr.Dataset, xr.Dat
         max_gap_deg=config.vad.max_gap_deg,
         reference_direction_deg=config.vad.reference_direction_deg,
         max_residual_std=config.vad.max_residual_std,
+        homodyne=homodyne,
     )
     return screened, wind
 

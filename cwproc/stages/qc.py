@@ -35,15 +35,10 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import CwprocError
-from cwproc.stages.vad import (
-    fit_least_absolute,
-    fit_scans,
-    is_homodyne,
-    pointing,
-    scan_chunks,
-    scan_layout,
-    vad_design,
-)
+from cwproc.io.scans import is_homodyne
+from cwproc.physics.geometry import beam_unit_vector
+from cwproc.stages.vad import pointing, scan_chunks, scan_layout
+from cwproc.stages.vad_fit import fit_least_absolute, fit_scans
 
 FLAG_LOW_SNR = 1
 FLAG_OUTLIER = 2
@@ -114,7 +109,11 @@ def median_along_rays(values: np.ndarray, use: np.ndarray) -> np.ndarray:
 
 
 def screen_radial_velocity(
-    ds: xr.Dataset, *, snr_min: float, outlier_threshold: float
+    ds: xr.Dataset,
+    *,
+    snr_min: float = 0.008,
+    outlier_threshold: float = 4.0,
+    homodyne: bool | None = None,
 ) -> xr.Dataset:
     """Flag low-SNR, outlying and non-finite radial velocities (adds ``qc_flag_radial``).
 
@@ -123,10 +122,16 @@ def screen_radial_velocity(
     ds : xarray.Dataset
         Scan dataset (``docs/DEVELOPING.md``). Without ``snr`` (e.g. cw data) the SNR
         test is skipped, and the attrs say so.
-    snr_min : float
+    snr_min : float, optional
         Minimum linear SNR (Halo intensity - 1).
-    outlier_threshold : float
+    outlier_threshold : float, optional
         Outlier threshold in scaled MADs of the residuals of a robust VAD fit.
+    homodyne : bool, optional
+        The VAD model of the outlier test is ``|A beta|`` (homodyne detection). None:
+        the ``homodyne`` attribute of ``ds`` (:func:`cwproc.io.scans.is_homodyne`).
+
+    The defaults of the keyword arguments are those of the ``streamline`` preset
+    (``[qc]`` of ``cwproc/configs/streamline.toml``).
 
     Returns
     -------
@@ -149,8 +154,14 @@ def screen_radial_velocity(
     if has_snr:
         flag |= snr_flags(ds["snr"].values, snr_min)
     min_spread = max(MIN_SPREAD_M_S, float(ds.attrs.get("velocity_resolution_m_s", 0.0) or 0.0))
+    homodyne = is_homodyne(ds) if homodyne is None else bool(homodyne)
     outlier = outlier_flags(
-        ds, velocity, flag == 0, threshold=outlier_threshold, min_spread=min_spread
+        ds,
+        velocity,
+        flag == 0,
+        threshold=outlier_threshold,
+        min_spread=min_spread,
+        homodyne=homodyne,
     )
     flag |= np.where(outlier, FLAG_OUTLIER, 0).astype(np.int8)
     out = ds.copy()
@@ -161,7 +172,7 @@ def screen_radial_velocity(
             "method": (
                 "SNR threshold; robust outliers |r - median(r)| > k * 1.4826 MAD(r) of the "
                 f"residuals r about a VAD fit per scan and gate ({OUTLIER_PASSES} passes)"
-                + ("; homodyne |V_r| model" if is_homodyne(ds) else "")
+                + ("; homodyne |V_r| model" if homodyne else "")
             ),
             "snr_min": float(snr_min) if has_snr else "not applied (no snr in the input)",
             "outlier_threshold": float(outlier_threshold),
@@ -179,13 +190,14 @@ def outlier_flags(
     *,
     threshold: float,
     min_spread: float,
+    homodyne: bool,
 ) -> np.ndarray:
     """Robust outliers among the ``good`` (ray, range) entries of conical scans.
 
     Parameters
     ----------
     ds : xarray.Dataset
-        Scan dataset (azimuth, elevation, scan, attrs ``homodyne``).
+        Scan dataset (azimuth, elevation, scan).
     velocity : ndarray, shape (ray, range)
         Radial velocity (m s-1).
     good : ndarray of bool, shape (ray, range)
@@ -194,6 +206,8 @@ def outlier_flags(
         Multiple of the scaled MAD.
     min_spread : float
         Floor of the scaled MAD (m s-1).
+    homodyne : bool
+        Fit ``|A beta|`` to ``|V_r|`` (homodyne detection).
 
     Returns
     -------
@@ -204,19 +218,17 @@ def outlier_flags(
         return outlier
     azimuth, elevation = pointing(ds)
     layout = scan_layout(ds["scan"].values, np.isfinite(azimuth) & np.isfinite(elevation))
-    homodyne = is_homodyne(ds)
     for rows in scan_chunks(layout, velocity.shape[1]):
         sub = layout.subset(rows)
         present = sub.present[:, :, None]
         base = sub.take(good) & present
         values = sub.take(velocity)
-        design = vad_design(sub.take(azimuth), sub.take(elevation))
-        beta, residuals = fit_least_absolute(values, design, base, homodyne=homodyne)
+        design = beam_unit_vector(sub.take(azimuth), sub.take(elevation))
+        _, residuals = fit_least_absolute(values, design, base, homodyne=homodyne)
         flagged = robust_outliers(residuals, base, threshold, min_spread)
         for _ in range(OUTLIER_PASSES):
-            fit = fit_scans(values, design, base & ~flagged, homodyne=homodyne, start=beta)
+            fit = fit_scans(values, design, base & ~flagged, homodyne=homodyne)
             flagged = robust_outliers(fit.residuals, base, threshold, min_spread)
-            beta = fit.beta
         index = sub.index[sub.present]
         outlier[index] = flagged[sub.present]
     return outlier

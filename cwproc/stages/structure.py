@@ -27,13 +27,16 @@ times) and the block-mean horizontal wind speed U.
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 import xarray as xr
 
 from cwproc.errors import CwprocError
+from cwproc.io.scans import is_homodyne
 from cwproc.physics.atable import N_BINS, azimuth_bin_weights, azimuth_nodes
+from cwproc.physics.geometry import radial_velocity
 from cwproc.references import SMALIKHO_2020
 
 #: largest relative mismatch (m) between wind-product gate ranges and scan gate ranges
@@ -102,12 +105,12 @@ def homodyne_radial_velocity(
     well above the fluctuations the folded spectrum gives ``|V_r|`` of the wrong sign or a
     centroid pulled away from 0, which inflates D_L (+81 % eps at U = 5 m/s on the cw
     simulation); and spectra with ``|V_r| < 1 m s-1`` are dropped by the instrument
-    (seed 000, the 1 m/s exclusion), a selection by the data themselves. Rule: rays with
-    ``|m| < 1 m s-1 + 3 sigma'`` are left out, ``sigma'`` the standard deviation of
-    ``|V_r| sign(m) - m`` in the block and height: beyond it a sign error needs a 3-sigma
-    fluctuation (Gaussian probability 0.13 %), and the data-dependent 1 m/s cut cannot
-    reach the kept rays. The rule selects rays by the model, not by their values, so
-    D_L and the variance of the kept rays are not biased.
+    (Banakh et al. (1999), section 3: the 1 m/s exclusion), a selection by the data
+    themselves. Rule: rays with ``|m| < 1 m s-1 + 3 sigma'`` are left out, ``sigma'`` the
+    standard deviation of ``|V_r| sign(m) - m`` in the block and height: beyond it a
+    sign error needs a 3-sigma fluctuation (Gaussian probability 0.13 %), and the
+    data-dependent 1 m/s cut cannot reach the kept rays. The rule selects rays by the
+    model, not by their values, so D_L and the variance of the kept rays are not biased.
 
     Parameters
     ----------
@@ -349,10 +352,11 @@ def azimuth_structure_function(
     screened_ds: xr.Dataset,
     wind: xr.Dataset,
     *,
-    n_scans: int,
-    max_lag_deg: float,
+    n_scans: int = 10,
+    max_lag_deg: float = 9.0,
     min_lags: int = MIN_LAGS,
     time_origins: tuple[np.datetime64, np.datetime64] | None = None,
+    homodyne: bool | None = None,
 ) -> xr.Dataset:
     """Azimuth structure function D_L(l dtheta) per block of scans and height.
 
@@ -367,17 +371,24 @@ def azimuth_structure_function(
         Wind product of stage ``vad``: dims ``(time, height)``, coords ``scan(time)``,
         ``range(height)`` (m), ``elevation(time)`` (deg); vars ``u``, ``v``, ``w``
         (m s-1).
-    n_scans : int
+    n_scans : int, optional
         N, scans per block (consecutive in time; a shorter last block is kept and its
         ``n_scans`` recorded).
-    max_lag_deg : float
+    max_lag_deg : float, optional
         Largest azimuth lag l dtheta (deg) of dense scans (:func:`lag_count`).
-    min_lags : int
+    min_lags : int, optional
         Fewest lags of coarse scans (:func:`lag_count`).
     time_origins : (datetime64, datetime64), optional
         Origins of the block-centre times and of the ray times of the scan period
         (default: the first wind time and the first ray used). A day processed in
         chunks passes the day's, so its blocks equal those of the whole day to the bit.
+    homodyne : bool, optional
+        ``radial_velocity`` holds ``|V_r|`` (homodyne detection): signs are taken from
+        the block-mean wind (:func:`homodyne_radial_velocity`). None: the ``homodyne``
+        attribute of ``screened_ds`` (:func:`cwproc.io.scans.is_homodyne`).
+
+    The defaults of ``n_scans``, ``max_lag_deg`` and ``min_lags`` are those of the
+    ``streamline`` preset (``[turbulence]`` of ``cwproc/configs/streamline.toml``).
 
     Returns
     -------
@@ -394,6 +405,44 @@ def azimuth_structure_function(
         No ray of the scan dataset belongs to a scan of the wind product, the gates do
         not match, or the azimuth step exceeds ``max_lag_deg``.
     """
+    _check_inputs(screened_ds, wind, n_scans)
+    wind = wind.sortby("time")
+    grid = ray_grid(screened_ds, wind["scan"].values.astype(np.int64), max_lag_deg, min_lags)
+    gates = _match_gates(screened_ds["range"].values.astype(float), wind["range"].values)
+    homodyne = is_homodyne(screened_ds) if homodyne is None else bool(homodyne)
+    starts = np.arange(0, grid.n_time, n_scans)
+    # block-mean wind vector <V>_N per block and height (Smalikho (2020), eq. 1)
+    mean_wind = tuple(
+        _block_mean(wind[name].transpose("time", "height").values.astype(float), starts)
+        for name in ("u", "v", "w")
+    )
+    stats = _block_statistics_by_chunk(
+        screened_ds, grid, gates, mean_wind, n_scans=n_scans, homodyne=homodyne
+    )
+    times = _block_times(wind, grid, n_scans, time_origins)
+    out = _structure_dataset(wind, grid, mean_wind, stats, times)
+    out["structure_function"].attrs.update(
+        method="azimuth structure function of V_L minus the block-mean VAD wind, pairs "
+        "pooled over the block, missing rays skipped pairwise",
+        references=SMALIKHO_2020 + ", eqs. 1-2",
+        n_scans_per_block=int(n_scans),
+        max_lag_deg=float(max_lag_deg),
+    )
+    out.attrs.update(
+        {
+            "homodyne": int(homodyne),
+            "instrument": str(screened_ds.attrs.get("instrument", "")),
+            "rays_per_scan": grid.n_az,
+            "rotation": int(grid.sign),
+            "swept_rays": int(swept_rays(screened_ds.attrs)),
+            **{k: screened_ds.attrs[k] for k in INSTRUMENT_SETTINGS if k in screened_ds.attrs},
+        }
+    )
+    return out
+
+
+def _check_inputs(screened_ds: xr.Dataset, wind: xr.Dataset, n_scans: int) -> None:
+    """Raise :class:`CwprocError` when the inputs cannot give a structure function."""
     if n_scans < 1:
         raise CwprocError(f"n_scans must be >= 1, got {n_scans}")
     for name in ("radial_velocity", "qc_flag_radial"):
@@ -403,8 +452,60 @@ def azimuth_structure_function(
         if name not in wind:
             raise CwprocError(f"wind product has no '{name}'")
 
-    wind = wind.sortby("time")
-    wind_scan = wind["scan"].values.astype(np.int64)
+
+@dataclass(frozen=True)
+class RayGrid:
+    """The rays of the wind product's scans on their azimuth grids (Smalikho (2020), eq. 2).
+
+    Attributes
+    ----------
+    rays : numpy.ndarray
+        Indices (into the scan dataset) of the rays used, in time order.
+    scan_pos : numpy.ndarray
+        Wind-product time index of each ray.
+    az, el : numpy.ndarray
+        Azimuth and elevation of each ray (deg).
+    t_ray : numpy.ndarray
+        Time of each ray (datetime64).
+    dtheta, sign : float
+        Azimuth step (deg) and rotation (+1 clockwise).
+    n_lags, n_az : int
+        Lags L and rays per rotation M.
+    n_time : int
+        Scans of the wind product.
+    first_of : numpy.ndarray
+        ``(n_time,)`` index (into ``rays``) of each scan's first ray; -1 for none.
+    m : numpy.ndarray
+        Index of each ray on its scan's azimuth grid.
+    uniq : numpy.ndarray
+        Index (into ``rays``) of the first ray of each occupied (scan, m) cell.
+    """
+
+    rays: np.ndarray
+    scan_pos: np.ndarray
+    az: np.ndarray
+    el: np.ndarray
+    t_ray: np.ndarray
+    dtheta: float
+    sign: float
+    n_lags: int
+    n_az: int
+    n_time: int
+    first_of: np.ndarray
+    m: np.ndarray
+    uniq: np.ndarray
+
+
+def ray_grid(
+    screened_ds: xr.Dataset, wind_scan: np.ndarray, max_lag_deg: float, min_lags: int
+) -> RayGrid:
+    """Place the rays of the wind's scans (``wind_scan``, time order) on azimuth grids.
+
+    Raises
+    ------
+    CwprocError
+        No ray belongs to a scan of the wind product, or no lag is available.
+    """
     n_time = wind_scan.size
     order = np.argsort(wind_scan, kind="stable")
     ray_scan = screened_ds["scan"].values.astype(np.int64)
@@ -418,8 +519,6 @@ def azimuth_structure_function(
     rays = rays[np.argsort(screened_ds["time"].values[rays], kind="stable")]
     scan_pos = order[pos_sorted[rays]]  # wind time index of each kept ray
     az = screened_ds["azimuth"].values[rays].astype(float)
-    el = screened_ds["elevation"].values[rays].astype(float)
-    t_ray = screened_ds["time"].values[rays]
 
     dtheta, sign = azimuth_step(az, scan_pos)
     n_lags = lag_count(dtheta, max_lag_deg, min_lags)
@@ -439,79 +538,124 @@ def azimuth_structure_function(
     valid_cell = m < n_az
     _, uniq = np.unique(np.where(valid_cell, cell, -1), return_index=True)
     uniq = uniq[valid_cell[uniq]]  # first ray of each occupied (scan, m) cell
+    return RayGrid(
+        rays=rays,
+        scan_pos=scan_pos,
+        az=az,
+        el=screened_ds["elevation"].values[rays].astype(float),
+        t_ray=screened_ds["time"].values[rays],
+        dtheta=dtheta,
+        sign=sign,
+        n_lags=n_lags,
+        n_az=n_az,
+        n_time=n_time,
+        first_of=first_of,
+        m=m,
+        uniq=uniq,
+    )
 
-    gates = _match_gates(screened_ds["range"].values.astype(float), wind["range"].values)
-    n_h = gates.size
-    homodyne = bool(screened_ds.attrs.get("homodyne", 0))
 
-    # block-mean wind vector <V>_N per block and height (Smalikho (2020), eq. 1)
-    starts = np.arange(0, n_time, n_scans)
-    block_of_time = np.arange(n_time) // n_scans
-    n_blocks = starts.size
+def _block_mean(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Mean over the scans (axis 0) of each block, NaN skipped."""
+    ok = np.isfinite(values)
+    total = _block_sum(np.where(ok, values, 0.0), starts)
+    count = _block_sum(ok.astype(float), starts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return total / count
 
-    def block_mean(values: np.ndarray) -> np.ndarray:
-        ok = np.isfinite(values)
-        total = _block_sum(np.where(ok, values, 0.0), starts)
-        count = _block_sum(ok.astype(float), starts)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return total / count
 
-    u_b = block_mean(wind["u"].transpose("time", "height").values.astype(float))
-    v_b = block_mean(wind["v"].transpose("time", "height").values.astype(float))
-    w_b = block_mean(wind["w"].transpose("time", "height").values.astype(float))
+def _block_statistics_by_chunk(
+    screened_ds: xr.Dataset,
+    grid: RayGrid,
+    gates: np.ndarray,
+    mean_wind: tuple[np.ndarray, np.ndarray, np.ndarray],
+    *,
+    n_scans: int,
+    homodyne: bool,
+) -> dict[str, np.ndarray]:
+    """V'_L block by block in memory-bounded chunks of blocks, each fully vectorised.
 
-    # V'_L block by block in memory-bounded chunks of blocks, each fully vectorised
-    sf = np.empty((n_blocks, n_h, n_lags))
-    pairs = np.empty((n_blocks, n_h, n_lags), dtype=np.int64)
-    variance = np.empty((n_blocks, n_h))
-    sf_se = np.empty((n_blocks, n_h, n_lags))
-    diff_se = np.empty((n_blocks, n_h, n_lags))
-    variance_se = np.empty((n_blocks, n_h))
-    covariance = np.empty((n_blocks, n_h, n_lags + 1, n_lags + 1))
-    weights = np.full((n_blocks, n_h, N_BINS), np.nan)
-    snr_median = np.full((n_blocks, n_h), np.nan)
+    Returns the arrays of :func:`block_statistics` for all blocks (keys ``sf``,
+    ``pairs``, ``variance``, ``sf_se``, ``diff_se``, ``variance_se``, ``covariance``),
+    the A-table node ``weights``, ``snr_median`` and ``wind_to`` (deg).
+    """
+    u_b, v_b, w_b = mean_wind
+    n_blocks, n_h = u_b.shape
+    n_lags, n_az = grid.n_lags, grid.n_az
+    scan_pos, m, uniq, rays = grid.scan_pos, grid.m, grid.uniq, grid.rays
+    block_of_time = np.arange(grid.n_time) // n_scans
+    out = {
+        "sf": np.empty((n_blocks, n_h, n_lags)),
+        "pairs": np.empty((n_blocks, n_h, n_lags), dtype=np.int64),
+        "variance": np.empty((n_blocks, n_h)),
+        "sf_se": np.empty((n_blocks, n_h, n_lags)),
+        "diff_se": np.empty((n_blocks, n_h, n_lags)),
+        "variance_se": np.empty((n_blocks, n_h)),
+        "covariance": np.empty((n_blocks, n_h, n_lags + 1, n_lags + 1)),
+        "weights": np.full((n_blocks, n_h, N_BINS), np.nan),
+        "snr_median": np.full((n_blocks, n_h), np.nan),
+    }
+    stat_names = ("sf", "pairs", "variance", "sf_se", "diff_se", "variance_se", "covariance")
     has_snr = "snr" in screened_ds
     # the mean wind's direction of motion (deg from north, clockwise) per block and height
     wind_to = np.degrees(np.arctan2(u_b, v_b))
-    first_az = np.where(first_of >= 0, az[np.maximum(first_of, 0)], np.nan)
+    first_az = np.where(grid.first_of >= 0, grid.az[np.maximum(grid.first_of, 0)], np.nan)
     cell_scan = scan_pos[uniq]
     order_cells = np.argsort(cell_scan, kind="stable")
     sorted_scan = cell_scan[order_cells]
     per_chunk = max(1, _CHUNK_VALUES // (n_scans * n_az * n_h))
     for b0 in range(0, n_blocks, per_chunk):
         b1 = min(b0 + per_chunk, n_blocks)
-        t0_, t1_ = b0 * n_scans, min(b1 * n_scans, n_time)
+        t0_, t1_ = b0 * n_scans, min(b1 * n_scans, grid.n_time)
         lo, hi = np.searchsorted(sorted_scan, [t0_, t1_])
         cells = uniq[order_cells[lo:hi]]
         vr = screened_ds["radial_velocity"].values[rays[cells]][:, gates].astype(float)
         flag = screened_ds["qc_flag_radial"].values[rays[cells]][:, gates]
         vr = np.where((flag == 0) & np.isfinite(vr), vr, np.nan)
-        theta = np.deg2rad(az[cells])[:, None]
-        phi = np.deg2rad(el[cells])[:, None]
         b = block_of_time[scan_pos[cells]]
-        model = w_b[b] * np.sin(phi) + np.cos(phi) * (
-            u_b[b] * np.sin(theta) + v_b[b] * np.cos(theta)
+        model = radial_velocity(
+            u_b[b], v_b[b], w_b[b], grid.az[cells][:, None], grid.el[cells][:, None]
         )
         if homodyne:
             vr = homodyne_radial_velocity(vr, model, b - b0)
         vprime = np.full((t1_ - t0_, n_az, n_h), np.nan)
         vprime[scan_pos[cells] - t0_, m[cells]] = vr - model
-        stats = block_statistics(vprime, n_scans, n_lags)
-        sf[b0:b1], pairs[b0:b1], variance[b0:b1] = stats[:3]
-        sf_se[b0:b1], diff_se[b0:b1], variance_se[b0:b1], covariance[b0:b1] = stats[3:]
-        weights[b0:b1] = pair_azimuth_weights(
-            vprime, n_scans, first_az[np.arange(b0, b1) * n_scans], dtheta, sign, wind_to[b0:b1]
+        for name, value in zip(stat_names, block_statistics(vprime, n_scans, n_lags), strict=True):
+            out[name][b0:b1] = value
+        out["weights"][b0:b1] = pair_azimuth_weights(
+            vprime,
+            n_scans,
+            first_az[np.arange(b0, b1) * n_scans],
+            grid.dtheta,
+            grid.sign,
+            wind_to[b0:b1],
         )
         if has_snr:
             snr = np.full_like(vprime, np.nan)
             snr_vals = screened_ds["snr"].values[rays[cells]][:, gates].astype(float)
             snr[scan_pos[cells] - t0_, m[cells]] = np.where(np.isfinite(vr), snr_vals, np.nan)
-            snr_median[b0:b1] = block_median(snr, n_scans)
+            out["snr_median"][b0:b1] = block_median(snr, n_scans)
+    out["wind_to"] = wind_to
+    return out
 
+
+def _block_times(
+    wind: xr.Dataset,
+    grid: RayGrid,
+    n_scans: int,
+    time_origins: tuple[np.datetime64, np.datetime64] | None,
+) -> dict[str, np.ndarray]:
+    """Per block: ``centre`` time, ``scan_period`` and ``scan_interval`` (s), ``n_scans``
+    and mean ``elevation`` (deg)."""
+    n_time = grid.n_time
+    starts = np.arange(0, n_time, n_scans)
+    n_blocks = starts.size
+    block_of_time = np.arange(n_time) // n_scans
+    scan_pos, az, sign, dtheta = grid.scan_pos, grid.az, grid.sign, grid.dtheta
     # scan period from the ray times: median time per azimuth step, times M
     wind_time = wind["time"].values
-    wind_t0, ray_t0 = time_origins if time_origins is not None else (wind_time[0], t_ray[0])
-    t_sec = (t_ray - ray_t0) / np.timedelta64(1, "s")
+    wind_t0, ray_t0 = time_origins if time_origins is not None else (wind_time[0], grid.t_ray[0])
+    t_sec = (grid.t_ray - ray_t0) / np.timedelta64(1, "s")
     same = scan_pos[1:] == scan_pos[:-1]
     dm = (sign * wrapped_azimuth_difference(az[1:], az[:-1]) / dtheta)[same]
     dt = np.diff(t_sec)[same]
@@ -522,12 +666,12 @@ def azimuth_structure_function(
         .median()
     )
     step_time = per_step.reindex(np.arange(n_blocks)).to_numpy()
-    scan_period = step_time * n_az
 
     t0 = wind_t0
     rel = (wind_time - t0) / np.timedelta64(1, "ns")
-    centre = t0 + np.rint(block_mean(rel[:, None].astype(float))[:, 0]).astype("timedelta64[ns]")
-    scans_in_block = _block_sum(np.ones(n_time, dtype=np.int64), starts)
+    centre = t0 + np.rint(_block_mean(rel[:, None].astype(float), starts)[:, 0]).astype(
+        "timedelta64[ns]"
+    )
     # time between the starts of consecutive scans (a sector scan's return included)
     gaps_s = np.diff(rel) / 1e9
     inside = block_of_time[1:] == block_of_time[:-1]
@@ -538,50 +682,52 @@ def azimuth_structure_function(
         .reindex(np.arange(n_blocks))
         .to_numpy()
     )
-    elevation = block_mean(wind["elevation"].values.astype(float)[:, None])[:, 0]
+    return {
+        "centre": centre,
+        "scan_period": step_time * grid.n_az,
+        "scan_interval": scan_interval,
+        "n_scans": _block_sum(np.ones(n_time, dtype=np.int64), starts),
+        "elevation": _block_mean(wind["elevation"].values.astype(float)[:, None], starts)[:, 0],
+    }
 
-    out = xr.Dataset(
+
+def _structure_dataset(
+    wind: xr.Dataset,
+    grid: RayGrid,
+    mean_wind: tuple[np.ndarray, np.ndarray, np.ndarray],
+    stats: dict[str, np.ndarray],
+    times: dict[str, np.ndarray],
+) -> xr.Dataset:
+    """The structure-function dataset of :func:`azimuth_structure_function`."""
+    u_b, v_b, _ = mean_wind
+    n_blocks = u_b.shape[0]
+    return xr.Dataset(
         {
-            "structure_function": (("time", "height", "lag"), sf),
-            "n_pairs": (("time", "height", "lag"), pairs),
-            "radial_velocity_variance": (("time", "height"), variance),
-            "structure_function_se": (("time", "height", "lag"), sf_se),
-            "structure_function_difference_se": (("time", "height", "lag"), diff_se),
-            "radial_velocity_variance_se": (("time", "height"), variance_se),
-            "statistics_covariance": (("time", "height", "statistic", "statistic_b"), covariance),
+            "structure_function": (("time", "height", "lag"), stats["sf"]),
+            "n_pairs": (("time", "height", "lag"), stats["pairs"]),
+            "radial_velocity_variance": (("time", "height"), stats["variance"]),
+            "structure_function_se": (("time", "height", "lag"), stats["sf_se"]),
+            "structure_function_difference_se": (("time", "height", "lag"), stats["diff_se"]),
+            "radial_velocity_variance_se": (("time", "height"), stats["variance_se"]),
+            "statistics_covariance": (
+                ("time", "height", "statistic", "statistic_b"),
+                stats["covariance"],
+            ),
             "wind_speed": (("time", "height"), np.hypot(u_b, v_b)),
-            "wind_to_direction": (("time", "height"), np.mod(wind_to, 360.0)),
-            "pair_azimuth_weights": (("time", "height", "azimuth_node"), weights),
-            "snr_median": (("time", "height"), snr_median),
-            "azimuth_step": ("time", np.full(n_blocks, dtheta)),
-            "scan_period": ("time", scan_period),
-            "scan_interval": ("time", scan_interval),
-            "n_scans": ("time", scans_in_block),
+            "wind_to_direction": (("time", "height"), np.mod(stats["wind_to"], 360.0)),
+            "pair_azimuth_weights": (("time", "height", "azimuth_node"), stats["weights"]),
+            "snr_median": (("time", "height"), stats["snr_median"]),
+            "azimuth_step": ("time", np.full(n_blocks, grid.dtheta)),
+            "scan_period": ("time", times["scan_period"]),
+            "scan_interval": ("time", times["scan_interval"]),
+            "n_scans": ("time", times["n_scans"]),
         },
         coords={
-            "time": ("time", centre),
+            "time": ("time", times["centre"]),
             "height": ("height", wind["height"].values),
             "range": ("height", wind["range"].values),
-            "lag": ("lag", np.arange(1, n_lags + 1, dtype=np.int64)),
+            "lag": ("lag", np.arange(1, grid.n_lags + 1, dtype=np.int64)),
             "azimuth_node": ("azimuth_node", np.degrees(azimuth_nodes())),
-            "elevation": ("time", elevation),
+            "elevation": ("time", times["elevation"]),
         },
     )
-    out["structure_function"].attrs.update(
-        method="azimuth structure function of V_L minus the block-mean VAD wind, pairs "
-        "pooled over the block, missing rays skipped pairwise",
-        references=SMALIKHO_2020 + ", eqs. 1-2",
-        n_scans_per_block=int(n_scans),
-        max_lag_deg=float(max_lag_deg),
-    )
-    out.attrs.update(
-        {
-            "homodyne": int(bool(screened_ds.attrs.get("homodyne", 0))),
-            "instrument": str(screened_ds.attrs.get("instrument", "")),
-            "rays_per_scan": n_az,
-            "rotation": int(sign),
-            "swept_rays": int(swept_rays(screened_ds.attrs)),
-            **{k: screened_ds.attrs[k] for k in INSTRUMENT_SETTINGS if k in screened_ds.attrs},
-        }
-    )
-    return out

@@ -5,22 +5,20 @@ For every 360 deg rotation (``scan >= 0``) and range gate, the least-squares fit
 .. math:: V_r(\\theta) = w \\sin\\phi + \\cos\\phi (u \\sin\\theta + v \\cos\\theta),
 
 with ``theta`` the azimuth clockwise from north and ``phi`` the elevation of each ray
-(Smalikho (2020), eq. 1 and eq. 8; Banakh et al. (1999), after eq. 23). All scans and
-gates are solved at once: rays are laid out as ``(scan, ray in scan, gate)`` arrays
-padded with masked entries, the 3x3 normal equations are summed with masked batched
-matrix products, and solved in one batched call. Standard errors come from the
-residual variance and ``(A^T A)^-1``; their behaviour with the number of rays, a
-missing azimuth sector, shear and tilt is the error theory of seed 002
-(:mod:`cwproc.physics.vad_errors`).
+(Smalikho (2020), eq. 1 and eq. 8; Banakh et al. (1999), after eq. 23; the forward model
+is :func:`cwproc.physics.geometry.radial_velocity`). Rays are grouped by scan
+(:class:`ScanLayout`) and all scans and gates are solved at once by the batched fits of
+:mod:`cwproc.stages.vad_fit`. Standard errors come from the residual variance and
+``(A^T A)^-1``; their behaviour with the number of rays, a missing azimuth sector,
+shear and tilt is the error theory of the VAD accuracy paper (Theoretical accuracy of
+wind-vector reconstruction from lidar VAD scanning, sections 2-4;
+:mod:`cwproc.physics.vad_errors`).
 
-Homodyne cw lidars (ZephIR) measure only ``|V_r|``: the model becomes
-``|A beta|``, fitted by Gauss-Newton. Because ``d|A beta|/d beta = sign(A beta) A``,
-``J^T J = A^T A`` and a Gauss-Newton step is the linear fit of the *signed* data
-``sign(A beta) |V_r|``: the fit alternates sign assignment and linear least squares,
-starting from the best of a grid of sign patterns (wind direction every 5 deg plus the
-all-positive pattern). ``beta`` and ``-beta`` fit equally well: the 180 deg ambiguity is
-resolved by a reference direction (argument, a ``reference_direction`` variable of the
-scan dataset, or the ``reference_direction_deg`` attribute, in this order).
+Homodyne cw lidars (ZephIR) measure only ``|V_r|``: the model becomes ``|A beta|``
+(:func:`cwproc.stages.vad_fit.fit_homodyne`). ``beta`` and ``-beta`` fit equally well:
+the 180 deg ambiguity is resolved by a reference direction (argument, a
+``reference_direction`` variable of the scan dataset, or the ``reference_direction_deg``
+attribute, in this order).
 """
 
 from __future__ import annotations
@@ -33,20 +31,16 @@ import xarray as xr
 from numpy.typing import NDArray
 
 from cwproc.errors import CwprocError
-from cwproc.physics.geometry import height_from_range, normalise_pointing
+from cwproc.io.scans import is_homodyne
+from cwproc.physics.geometry import beam_unit_vector, height_from_range, normalise_pointing
+from cwproc.stages.vad_fit import fit_scans
 
 #: elevations (deg) that count as conical scans; outside, w or u, v are not determined
 CONICAL_ELEVATION_RANGE_DEG = (1.0, 89.0)
 #: scans whose elevation differs from the selected one by more than this are left out
 ELEVATION_TOLERANCE_DEG = 0.5
-#: condition number of A^T A above which a fit is "bad" (ill-posed geometry)
-MAX_CONDITION = 1e8
 #: budget of (scan x ray x gate) elements per chunk; bounds memory on long days
 CHUNK_ELEMENTS = 4_000_000
-#: homodyne Gauss-Newton: most sign-assignment iterations
-HOMODYNE_MAX_ITERATIONS = 50
-#: homodyne start grid: wind directions (deg) of the candidate sign patterns
-HOMODYNE_GRID_STEP_DEG = 5.0
 
 REFERENCES = (
     "Smalikho (2020), eq. 1 and eq. 8; Banakh et al. (1999), after eq. 23; "
@@ -132,368 +126,6 @@ def scan_chunks(layout: ScanLayout, n_gates: int) -> Iterator[slice]:
     step = max(1, CHUNK_ELEMENTS // per_scan)
     for start in range(0, n_scan, step):
         yield slice(start, min(start + step, n_scan))
-
-
-# --------------------------------------------------------------------------------------
-# batched least squares
-# --------------------------------------------------------------------------------------
-
-
-def vad_design(azimuth_deg: np.ndarray, elevation_deg: np.ndarray) -> FloatArray:
-    """Design rows ``(cos(phi) sin(theta), cos(phi) cos(theta), sin(phi))`` for (u, v, w).
-
-    Smalikho (2020), eq. 1. Broadcasts; the last axis has length 3.
-    """
-    theta = np.deg2rad(azimuth_deg)
-    phi = np.deg2rad(elevation_deg)
-    return np.stack([np.cos(phi) * np.sin(theta), np.cos(phi) * np.cos(theta), np.sin(phi)], -1)
-
-
-@dataclass(frozen=True)
-class BatchedFit:
-    """Result of a batched VAD fit over ``(scan, gate)``.
-
-    Attributes
-    ----------
-    beta : ndarray, shape (S, G, 3)
-        Fitted (u, v, w) (m s-1); NaN where the fit is not determined.
-    covariance : ndarray, shape (S, G, 3, 3)
-        ``s^2 (A^T A)^-1`` (m2 s-2); NaN without residual degrees of freedom.
-    n_rays : ndarray, shape (S, G)
-        Rays used.
-    residual_std : ndarray, shape (S, G)
-        ``sqrt(SSR / (n - 3))`` (m s-1).
-    determined : ndarray of bool, shape (S, G)
-        At least 3 rays and ``cond(A^T A) <= MAX_CONDITION``.
-    converged : ndarray of bool, shape (S, G)
-        Homodyne iterations reached a fixed point (always true for linear fits).
-    residuals : ndarray, shape (S, R, G)
-        Data minus model for every ray (also the unused ones; NaN for padding) (m s-1).
-    """
-
-    beta: FloatArray
-    covariance: FloatArray
-    n_rays: NDArray[np.int64]
-    residual_std: FloatArray
-    determined: BoolArray
-    converged: BoolArray
-    residuals: FloatArray
-
-
-def _normal_matrix(design: FloatArray, weight: FloatArray) -> FloatArray:
-    """``sum_r w_srg a_srj a_srk`` as (S, G, 3, 3) by one batched matrix product."""
-    s, r, _ = design.shape
-    outer = (design[:, :, :, None] * design[:, :, None, :]).reshape(s, r, 9)
-    return np.matmul(weight.transpose(0, 2, 1), outer).reshape(s, weight.shape[2], 3, 3)
-
-
-def inverse_3x3(m: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Batched inverse of 3x3 matrices by the adjugate, and the determinants.
-
-    Much faster than ``np.linalg.inv`` for ~1e5 small matrices (no per-matrix LAPACK
-    call). Singular matrices give non-finite entries.
-    """
-    a, b, c = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
-    d, e, f = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
-    g, h, i = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
-    cof = np.stack(
-        [
-            e * i - f * h, c * h - b * i, b * f - c * e,
-            f * g - d * i, a * i - c * g, c * d - a * f,
-            d * h - e * g, b * g - a * h, a * e - b * d,
-        ],
-        axis=-1,
-    ).reshape(m.shape)  # fmt: skip
-    det = a * cof[..., 0, 0] + b * cof[..., 1, 0] + c * cof[..., 2, 0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return cof / det[..., None, None], det
-
-
-def _safe_inverse(ata: FloatArray, n_rays: np.ndarray) -> tuple[FloatArray, BoolArray]:
-    """Batched inverse of the normal matrices; undetermined ones come back as NaN.
-
-    Undetermined: fewer than 3 rays, or the Frobenius condition number
-    ``||M||_F ||M^-1||_F`` (an upper bound of the 2-norm one, at most 3 times larger)
-    above ``MAX_CONDITION``.
-    """
-    finite = np.all(np.isfinite(ata), axis=(-2, -1))
-    ok = (n_rays >= 3) & finite
-    safe = np.where(ok[..., None, None], ata, np.eye(3))
-    inverse, _ = inverse_3x3(safe)
-    with np.errstate(invalid="ignore", over="ignore"):
-        cond = np.sqrt(np.sum(safe**2, axis=(-2, -1)) * np.sum(inverse**2, axis=(-2, -1)))
-    ok &= np.isfinite(cond) & (cond <= MAX_CONDITION)
-    inverse = np.where(ok[..., None, None], inverse, np.nan)
-    return inverse, ok
-
-
-def _solve(inverse: FloatArray, design: FloatArray, weighted_y: FloatArray) -> FloatArray:
-    """``(A^T A)^-1 A^T y`` for all (scan, gate): (S, G, 3)."""
-    aty = np.matmul(weighted_y.transpose(0, 2, 1), design)
-    return np.einsum("sgjk,sgk->sgj", inverse, aty)
-
-
-def _model(design: FloatArray, beta: FloatArray) -> FloatArray:
-    """``A beta`` for every ray: (S, R, G)."""
-    return np.matmul(design, np.nan_to_num(beta).transpose(0, 2, 1))
-
-
-def _finish(
-    beta: FloatArray,
-    inverse: FloatArray,
-    determined: BoolArray,
-    converged: BoolArray,
-    residuals: FloatArray,
-    valid: BoolArray,
-) -> BatchedFit:
-    n_rays = valid.sum(axis=1)
-    ssr = np.sum(np.where(valid, residuals, 0.0) ** 2, axis=1)
-    dof = n_rays - 3
-    with np.errstate(invalid="ignore", divide="ignore"):
-        variance = np.where(determined & (dof > 0), ssr / np.maximum(dof, 1), np.nan)
-    beta = np.where(determined[..., None], beta, np.nan)
-    return BatchedFit(
-        beta=beta,
-        covariance=variance[..., None, None] * inverse,
-        n_rays=n_rays.astype(np.int64),
-        residual_std=np.sqrt(variance),
-        determined=determined,
-        converged=converged,
-        residuals=residuals,
-    )
-
-
-def fit_linear(velocity: FloatArray, design: FloatArray, valid: BoolArray) -> BatchedFit:
-    """Least-squares VAD fit of every (scan, gate) at once (Smalikho (2020), eq. 1).
-
-    Parameters
-    ----------
-    velocity : ndarray, shape (S, R, G)
-        Radial velocity (m s-1), positive away from the lidar.
-    design : ndarray, shape (S, R, 3)
-        :func:`vad_design` of each ray (padding: any finite value).
-    valid : ndarray of bool, shape (S, R, G)
-        Which entries enter the fit.
-
-    Returns
-    -------
-    BatchedFit
-    """
-    design = np.nan_to_num(design)
-    weight = valid.astype(float)
-    y = np.where(valid, velocity, 0.0)
-    inverse, determined = _safe_inverse(_normal_matrix(design, weight), weight.sum(axis=1))
-    beta = _solve(np.nan_to_num(inverse), design, y)
-    residuals = velocity - _model(design, beta)
-    return _finish(beta, inverse, determined, np.ones_like(determined), residuals, valid)
-
-
-def _sign_iterations(
-    y: FloatArray, design: FloatArray, weight: FloatArray, inv0: FloatArray, beta: FloatArray
-) -> tuple[FloatArray, BoolArray]:
-    """Gauss-Newton on ``|A beta|`` from ``beta``: refit ``sign(A beta) |V_r|`` to a fixed point."""
-    signs = np.where(_model(design, beta) >= 0, 1.0, -1.0)
-    converged = np.zeros(beta.shape[:2], dtype=bool)
-    for _ in range(HOMODYNE_MAX_ITERATIONS):
-        beta = _solve(inv0, design, y * signs)
-        new_signs = np.where(_model(design, beta) >= 0, 1.0, -1.0)
-        converged = np.all((new_signs == signs) | (weight == 0), axis=1)
-        signs = new_signs
-        if converged.all():
-            break
-    return beta, converged
-
-
-def _best_of_patterns(
-    y: FloatArray,
-    design: FloatArray,
-    weight: FloatArray,
-    inv0: FloatArray,
-    patterns: list[FloatArray],
-    best_beta: FloatArray,
-) -> FloatArray:
-    """The linear fit of ``pattern * |V_r|`` of least ``|V_r| - |A beta|`` cost per cell."""
-
-    def cost(beta: FloatArray) -> FloatArray:
-        return np.sum(weight * (y - np.abs(_model(design, beta))) ** 2, axis=1)
-
-    best_cost = cost(best_beta)
-    for signs in patterns:
-        beta = _solve(inv0, design, y * signs)
-        c = cost(beta)
-        better = c < best_cost
-        best_cost = np.where(better, c, best_cost)
-        best_beta = np.where(better[..., None], beta, best_beta)
-    return best_beta
-
-
-def homodyne_start_patterns(theta: FloatArray) -> list[FloatArray]:
-    """Sign patterns ``sign(cos(theta - t))``, t every ``HOMODYNE_GRID_STEP_DEG`` in [0, 180).
-
-    The patterns of a purely horizontal wind; ``theta`` (S, R) azimuths (rad). Each
-    pattern is (S, R, 1).
-    """
-    return [
-        np.where(np.cos(theta - t) >= 0, 1.0, -1.0)[:, :, None]
-        for t in np.deg2rad(np.arange(0.0, 180.0, HOMODYNE_GRID_STEP_DEG))
-    ]
-
-
-def homodyne_arc_patterns(theta: FloatArray, beta: FloatArray) -> list[FloatArray]:
-    """Sign patterns of ``a + b cos(theta - t)`` about the fitted direction ``t``.
-
-    With a vertical wind (``a = w sin(phi) != 0``) the radial velocity changes sign at
-    two azimuths that are not 180 deg apart: the negative rays form an arc of any width
-    centred on the downwind side. Taking the direction ``t`` of a first fit (which the
-    half-circle patterns find well) and every arc half width ``h`` in 10 deg steps gives
-    the pattern of the global minimum, which Gauss-Newton from a half-circle start can
-    miss (8 rays, phi = 52 deg, u = 0, v = 2, w = 0.75 converged to v = 1.16, w = 1.13).
-    ``theta`` (S, R) (rad), ``beta`` (S, G, 3); patterns (S, R, G).
-    """
-    direction = np.arctan2(beta[..., 0], beta[..., 1])[:, None, :]  # (S, 1, G)
-    cos_dev = np.cos(theta[:, :, None] - direction)
-    out = [np.ones_like(cos_dev)]
-    for half_width in np.deg2rad(np.arange(5.0, 180.0, 10.0)):
-        out.append(np.where(cos_dev >= np.cos(half_width), 1.0, -1.0))
-    return out
-
-
-def fit_homodyne(
-    magnitude: FloatArray,
-    design: FloatArray,
-    valid: BoolArray,
-    start: FloatArray | None = None,
-) -> BatchedFit:
-    """Fit ``|V_r| = |A beta|`` (homodyne cw lidar, Wagner et al. (DTU)) for every (scan, gate).
-
-    Gauss-Newton on ``|A beta|``: each step is the linear fit of ``sign(A beta) |V_r|``
-    (``J^T J = A^T A``), iterated until no sign changes, started from the best of the
-    sign patterns of a horizontal wind (:func:`homodyne_start_patterns`) and the
-    all-positive pattern. The result is then refined from the arc patterns about its
-    direction (:func:`homodyne_arc_patterns`), which hold the global minimum when a
-    vertical wind moves the sign changes off the half circle; the lower cost wins.
-    ``beta`` is returned with an arbitrary overall sign (see
-    :func:`resolve_homodyne_ambiguity`).
-
-    Parameters
-    ----------
-    magnitude : ndarray, shape (S, R, G)
-        Measured ``|V_r|`` (m s-1); the sign of the input is ignored.
-    design : ndarray, shape (S, R, 3)
-        :func:`vad_design` of each ray.
-    valid : ndarray of bool, shape (S, R, G)
-    start : ndarray, shape (S, G, 3), optional
-        A starting ``beta`` (e.g. from a previous fit of the same data); replaces the
-        grid of sign patterns where it is finite.
-
-    Returns
-    -------
-    BatchedFit
-        Residuals are ``|V_r| - |A beta|``.
-    """
-    design = np.nan_to_num(design)
-    weight = valid.astype(float)
-    y = np.where(valid, np.abs(magnitude), 0.0)
-    inverse, determined = _safe_inverse(_normal_matrix(design, weight), weight.sum(axis=1))
-    inv0 = np.nan_to_num(inverse)
-    # azimuth of each ray from the design row: theta = atan2(sin, cos)
-    theta = np.arctan2(design[..., 0], design[..., 1])
-    first = _solve(inv0, design, y)
-    warm = None if start is None else np.all(np.isfinite(start), axis=-1)
-    if warm is None or not warm.all():
-        first = _best_of_patterns(y, design, weight, inv0, homodyne_start_patterns(theta), first)
-    if start is not None and warm is not None:
-        first = np.where(warm[..., None], start, first)
-    beta, converged = _sign_iterations(y, design, weight, inv0, first)
-    refined_start = _best_of_patterns(
-        y, design, weight, inv0, homodyne_arc_patterns(theta, beta), beta
-    )
-    refined, refined_converged = _sign_iterations(y, design, weight, inv0, refined_start)
-
-    def cost(b: FloatArray) -> FloatArray:
-        return np.sum(weight * (y - np.abs(_model(design, b))) ** 2, axis=1)
-
-    better = cost(refined) < cost(beta)
-    beta = np.where(better[..., None], refined, beta)
-    converged = np.where(better, refined_converged, converged)
-    residuals = np.abs(magnitude) - np.abs(_model(design, beta))
-    return _finish(beta, inverse, determined, converged, residuals, valid)
-
-
-def fit_least_absolute(
-    values: FloatArray,
-    design: FloatArray,
-    valid: BoolArray,
-    *,
-    homodyne: bool,
-    iterations: int = 20,
-    floor: float = 0.01,
-    tolerance: float = 0.005,
-) -> tuple[FloatArray, FloatArray]:
-    """Residuals about a least-absolute-deviations (L1) VAD fit of every (scan, gate).
-
-    A robust first fit for outlier screening: with a balanced azimuth design the L1 fit
-    is not pulled by a minority of wild radial velocities, unlike least squares. Solved by
-    iteratively reweighted least squares, weights ``1 / max(|r|, floor)``, started from
-    :func:`fit_scans`; for homodyne data each step re-assigns the signs as in
-    :func:`fit_homodyne`.
-
-    Parameters
-    ----------
-    values : ndarray, shape (S, R, G)
-        Radial velocities (homodyne: magnitudes) (m s-1).
-    design : ndarray, shape (S, R, 3)
-        :func:`vad_design` of each ray.
-    valid : ndarray of bool, shape (S, R, G)
-    homodyne : bool
-        Fit ``|A beta|`` instead of ``A beta``.
-    iterations : int, optional
-        Most IRLS iterations.
-    floor : float, optional
-        Smallest residual (m s-1) in the weights.
-    tolerance : float, optional
-        Stop when no coefficient changes by more than this (m s-1); screening needs
-        residuals only to a fraction of the noise.
-
-    Returns
-    -------
-    (beta, residuals) : ndarray (S, G, 3), ndarray (S, R, G)
-        The L1 coefficients (m s-1; NaN where not determined) and data minus model
-        (homodyne: ``|V_r| - |A beta|``) (m s-1).
-    """
-    start = fit_scans(values, design, valid, homodyne=homodyne)
-    design = np.nan_to_num(design)
-    ok = start.determined
-    beta = np.nan_to_num(start.beta)
-    y = np.where(valid, np.abs(values) if homodyne else values, 0.0)
-    for _ in range(iterations):
-        model = _model(design, beta)
-        target = y * np.where(model >= 0, 1.0, -1.0) if homodyne else y
-        weight = valid / np.maximum(np.abs(target - model), floor)
-        ata = np.where(ok[..., None, None], _normal_matrix(design, weight), np.eye(3))
-        new = np.where(ok[..., None], _solve(inverse_3x3(ata)[0], design, weight * target), beta)
-        change = float(np.max(np.abs(new - beta), initial=0.0))
-        beta = new
-        if change < tolerance:
-            break
-    model = _model(design, beta)
-    residuals = np.abs(values) - np.abs(model) if homodyne else values - model
-    return np.where(ok[..., None], beta, np.nan), residuals
-
-
-def fit_scans(
-    velocity: FloatArray,
-    design: FloatArray,
-    valid: BoolArray,
-    *,
-    homodyne: bool,
-    start: FloatArray | None = None,
-) -> BatchedFit:
-    """:func:`fit_homodyne` (warm-started from ``start``) when ``homodyne``, else
-    :func:`fit_linear` (which needs no start)."""
-    if homodyne:
-        return fit_homodyne(velocity, design, valid, start)
-    return fit_linear(velocity, design, valid)
 
 
 # --------------------------------------------------------------------------------------
@@ -586,14 +218,6 @@ def resolve_homodyne_ambiguity(beta: FloatArray, reference_deg: FloatArray) -> F
 # --------------------------------------------------------------------------------------
 # the stage
 # --------------------------------------------------------------------------------------
-
-
-def is_homodyne(ds: xr.Dataset) -> bool:
-    """Whether the scan dataset holds homodyne (``|V_r|`` only) data."""
-    value = ds.attrs.get("homodyne", 0)
-    if isinstance(value, str):
-        return value.strip().lower() in ("1", "true", "yes")
-    return bool(np.asarray(value).item())
 
 
 def pointing(ds: xr.Dataset) -> tuple[FloatArray, FloatArray]:
@@ -708,10 +332,11 @@ def _mean_times(ds: xr.Dataset, layout: ScanLayout) -> np.ndarray:
 def fit_vad(
     ds: xr.Dataset,
     *,
-    min_rays: int,
-    max_gap_deg: float,
+    min_rays: int = 6,
+    max_gap_deg: float = 120.0,
     reference_direction_deg: float | None = None,
     max_residual_std: float = 3.0,
+    homodyne: bool | None = None,
 ) -> xr.Dataset:
     """Wind vector per conical scan and height (Smalikho (2020), eq. 1).
 
@@ -721,9 +346,9 @@ def fit_vad(
         Scan dataset (``docs/DEVELOPING.md``), optionally screened by
         :func:`cwproc.stages.qc.screen_radial_velocity`; only entries with
         ``qc_flag_radial == 0`` (or, unscreened, finite ones) are used.
-    min_rays : int
+    min_rays : int, optional
         Fewest rays for a good fit (fewer: flag bit 1; fewer than 3: no fit).
-    max_gap_deg : float
+    max_gap_deg : float, optional
         Largest azimuth gap between used rays (deg) before flag bit 2.
     reference_direction_deg : float, optional
         Homodyne data only: wind-from direction (deg from north) that resolves the
@@ -733,6 +358,12 @@ def fit_vad(
         Residual standard deviation (m s-1) above which a fit is flagged bad (bit 4):
         3 m s-1 is far above the noise of good gates (< 0.5 m s-1) plus the turbulent
         scatter of a scan (~1 m s-1), and typical of noise gates or folded velocities.
+    homodyne : bool, optional
+        Fit ``|V_r| = |A beta|`` (homodyne detection). None: the ``homodyne`` attribute
+        of ``ds`` (:func:`cwproc.io.scans.is_homodyne`).
+
+    The defaults of the keyword arguments are those of the ``streamline`` preset
+    (``[vad]`` of ``cwproc/configs/streamline.toml``).
 
     Returns
     -------
@@ -760,7 +391,7 @@ def fit_vad(
         scan_layout(ds["scan"].values, np.isfinite(azimuth) & np.isfinite(elevation)),
         elevation,
     )
-    homodyne = is_homodyne(ds)
+    homodyne = is_homodyne(ds) if homodyne is None else bool(homodyne)
     velocity = ds["radial_velocity"].values.astype(float)
     valid_all = usable_mask(ds)
     n_gates = velocity.shape[1]
@@ -769,7 +400,7 @@ def fit_vad(
         sub = layout.subset(rows)
         present = sub.present[:, :, None]
         valid = sub.take(valid_all) & present
-        design = vad_design(sub.take(azimuth), sub.take(elevation))
+        design = beam_unit_vector(sub.take(azimuth), sub.take(elevation))
         fit = fit_scans(sub.take(velocity), design, valid, homodyne=homodyne)
         parts.append(
             {
@@ -837,7 +468,7 @@ def _wind_dataset(
     dims = ("time", "height")
     method = (
         "homodyne least squares |V_r| = |w sin(phi) + cos(phi)(u sin(theta) + v cos(theta))| "
-        "(Gauss-Newton by sign assignment)"
+        "(global minimum over the arc sign patterns, then Gauss-Newton by sign assignment)"
         if homodyne
         else "least squares V_r = w sin(phi) + cos(phi)(u sin(theta) + v cos(theta))"
     )

@@ -12,7 +12,7 @@ import pytest
 
 from cwproc.errors import ConfigError, CwprocError, InputFileError
 from cwproc.io import Format, detect_format
-from cwproc.io.halo import decimal_hours_to_time, normalise_pointing, read_hpl, write_hpl
+from cwproc.io.halo import decimal_hours_to_time, read_hpl, write_hpl
 
 
 def hours_to_time(day: str, hours: float) -> np.datetime64:
@@ -466,17 +466,6 @@ def test_file_starting_after_midnight_of_its_start_time() -> None:
     assert t[0] == hours_to_time("2022-12-15", 0.001)
 
 
-def test_pointing_normalisation() -> None:
-    az, el = normalise_pointing(
-        np.array([360.0, 0.0, 39.81, 320.19, 90.0, 10.0]),
-        np.array([75.0, -0.0, 180.01, 142.47, 90.0, 90.01]),
-    )
-    np.testing.assert_allclose(az, [0.0, 0.0, 219.81, 140.19, 90.0, 190.0], atol=1e-9)
-    np.testing.assert_allclose(el, [75.0, 0.0, -0.01, 37.53, 90.0, 89.99], atol=1e-9)
-    assert not np.signbit(el[1]) and not np.signbit(az[0])
-    assert ((az >= 0) & (az < 360)).all()
-
-
 # ------------------------------------------------------------------ writer
 
 
@@ -543,11 +532,11 @@ def test_writer_refuses_what_the_format_cannot_hold(hpl: Path, tmp_path: Path) -
 def test_parallel_chunked_parse_equals_single_and_keeps_line_numbers(
     hpl: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import cwproc.io.halo as halo
+    import cwproc.io.halo_body as halo_body
 
     src = hpl / "User5_96_20190308_200500.hpl"
     single = read_hpl(src)
-    monkeypatch.setattr(halo, "_PARALLEL_BYTES", 200_000)  # 2.7 MB -> one chunk per core
+    monkeypatch.setattr(halo_body, "_PARALLEL_BYTES", 200_000)  # 2.7 MB -> one chunk per core
     chunked = read_hpl(src)
     for name in single.variables:
         np.testing.assert_array_equal(chunked[name].values, single[name].values)

@@ -12,14 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cwproc.io.halo import (
-    _read_table,
-    _single_space_ok,
-    _tokenize,
-    content_end,
-    read_hpl,
-    split_header,
-)
+from cwproc.io.halo import read_hpl
+from cwproc.io.halo_body import _read_table, _single_space_ok, _tokenize, content_end
+from cwproc.io.halo_header import split_header
 
 REAL_FILES = (
     "User5_96_20190308_200500.hpl",

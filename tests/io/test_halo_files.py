@@ -13,9 +13,12 @@ import numpy as np
 import pytest
 import xarray as xr
 
-import cwproc.io.halo as halo
+import cwproc.io.halo_files as halo_files
 from cwproc.errors import CwprocError, InputFileError
-from cwproc.io.halo import line_ends, read_hpl, read_hpl_files, write_hpl
+from cwproc.io.halo import read_header_and_body, read_hpl, write_hpl
+from cwproc.io.halo_body import line_ends
+from cwproc.io.halo_files import read_hpl_files
+from cwproc.io.halo_header import HEADER_LINES
 from cwproc.io.scans import concat_scans
 
 #: a large file with pitch/roll, and one with 3-field ray lines and no final newline
@@ -81,7 +84,7 @@ def reference(paths: list[Path]) -> xr.Dataset:
 def test_day_equals_concat_of_single_reads(day: list[Path], order: str) -> None:
     paths = {"sorted": day, "reversed": day[::-1], "repeated": day[:3] + day[1:3]}[order]
     ds = read_hpl_files(paths)
-    assert halo._read_together([Path(p) for p in paths]) is not None  # the fast path ran
+    assert halo_files._read_together([Path(p) for p in paths]) is not None  # the fast path ran
     assert_same(ds, reference(paths))
     # physical truth: one scan per file, rays in time order, no repeated time
     assert np.unique(ds["scan"].values).size == len(dict.fromkeys(paths))
@@ -90,16 +93,16 @@ def test_day_equals_concat_of_single_reads(day: list[Path], order: str) -> None:
 
 def test_several_batches_equal_one(day: list[Path], monkeypatch: pytest.MonkeyPatch) -> None:
     one = read_hpl_files(day)
-    monkeypatch.setattr(halo, "_BATCH_BYTES", 30_000)  # about two files per batch
+    monkeypatch.setattr(halo_files, "_BATCH_BYTES", 30_000)  # about two files per batch
     calls = []
-    batch_arrays = halo._batch_arrays
+    batch_arrays = halo_files._batch_arrays
 
     def spy(batch: list, n_gates: int) -> object:
         calls.append(len(batch))
         return batch_arrays(batch, n_gates)
 
-    monkeypatch.setattr(halo, "_batch_arrays", spy)
-    several = halo._read_together(day)
+    monkeypatch.setattr(halo_files, "_batch_arrays", spy)
+    several = halo_files._read_together(day)
     assert several is not None
     assert len(calls) > 2 and sum(calls) == len(day)
     assert_same(several, one)
@@ -113,7 +116,7 @@ def test_pitch_roll_in_some_files_only(tmp_path: Path, monkeypatch: pytest.Monke
         )
         for k in range(4)
     ]
-    monkeypatch.setattr(halo, "_BATCH_BYTES", 20_000)  # batches differ in layout
+    monkeypatch.setattr(halo_files, "_BATCH_BYTES", 20_000)  # batches differ in layout
     ds = read_hpl_files(paths)
     assert_same(ds, reference(paths))
     assert np.isnan(ds["pitch"].values[:24]).all() and (ds["pitch"].values[24:] == -0.1).all()
@@ -166,9 +169,9 @@ def test_line_ends_count_lines_like_splitlines(body: bytes) -> None:
 
 @pytest.mark.parametrize("chunk", [1, 7, 4096, 1 << 20])
 def test_joined_bodies_read_like_one_joined_buffer(day: list[Path], chunk: int) -> None:
-    bodies = [halo._load_body(p) for p in day[:3]]
+    bodies = [halo_files._load_body(p) for p in day[:3]]
     expected = b"\r\n".join(item.body[: item.end] for item in bodies)
-    reader = halo._JoinedBodies(bodies)
+    reader = halo_files._JoinedBodies(bodies)
     parts = []
     while block := reader.read(chunk):
         parts.append(block)
@@ -186,6 +189,6 @@ def test_body_keeps_one_final_line_end_only(
     text = day[0].read_bytes().rstrip()
     path = tmp_path / "t.hpl"
     path.write_bytes(text + tail)
-    lines, body = halo.read_header_and_body(path)
-    assert len(lines) == halo.HEADER_LINES
-    assert body == text.split(b"\r\n", halo.HEADER_LINES)[-1] + kept
+    lines, body = read_header_and_body(path)
+    assert len(lines) == HEADER_LINES
+    assert body == text.split(b"\r\n", HEADER_LINES)[-1] + kept

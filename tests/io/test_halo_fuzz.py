@@ -16,15 +16,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from cwproc.errors import InputFileError
-from cwproc.io.halo import (
-    _single_space_ok,
-    _tokenize,
-    content_end,
-    parse_header,
-    read_hpl,
-    split_header,
-    structure_problem,
-)
+from cwproc.io.halo import read_hpl
+from cwproc.io.halo_body import _single_space_ok, _tokenize, content_end, structure_problem
+from cwproc.io.halo_header import parse_header, split_header
 
 SMALL_FILES = (
     "eriswil-2022-12-14-Stare_91_20221214_11.hpl",

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cwproc.io import halo
+from cwproc.io import halo, halo_body
 
 _hpltok = pytest.importorskip(
     "cwproc.io._hpltok", reason="the optional C tokenizer was not built (setup.py)"
@@ -97,9 +97,9 @@ def test_too_many_fields_names_the_line() -> None:
 
 def tokenized_both_ways(path: Path, monkeypatch: pytest.MonkeyPatch) -> tuple[list, list]:
     _, body = halo.read_header_and_body(path)
-    fast = halo._tokenize(path, body)
-    monkeypatch.setattr(halo, "_hpltok", None)
-    slow = halo._tokenize(path, body)
+    fast = halo_body._tokenize(path, body)
+    monkeypatch.setattr(halo_body, "_hpltok", None)
+    slow = halo_body._tokenize(path, body)
     monkeypatch.undo()
     return fast, slow
 

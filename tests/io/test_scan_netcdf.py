@@ -105,6 +105,21 @@ def test_missing_homodyne_attribute(tmp_path: Path) -> None:
         read_scan_netcdf(_write_raw(ds, tmp_path / "noattr.nc"))
 
 
+@pytest.mark.parametrize(("value", "expected"), [("false", 0), ("TRUE", 1), ("0", 0), (1, 1)])
+def test_homodyne_attribute_is_read_as_int(tmp_path: Path, value: object, expected: int) -> None:
+    ds = cw_scan()
+    ds.attrs["homodyne"] = value
+    back = read_scan_netcdf(_write_raw(ds, tmp_path / "spelled.nc"))
+    assert back.attrs["homodyne"] == expected and type(back.attrs["homodyne"]) is int
+
+
+def test_unreadable_homodyne_attribute(tmp_path: Path) -> None:
+    ds = cw_scan()
+    ds.attrs["homodyne"] = "yes"
+    with pytest.raises(InputFileError, match="homodyne is 'yes': expected 0/1, true/false"):
+        read_scan_netcdf(_write_raw(ds, tmp_path / "yes.nc"))
+
+
 def test_not_netcdf(tmp_path: Path) -> None:
     path = tmp_path / "x.nc"
     path.write_bytes(b"CDF\x01 garbage that is not netcdf")

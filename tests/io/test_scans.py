@@ -10,7 +10,13 @@ import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.io.halo import read_hpl
-from cwproc.io.scans import assign_scans, azimuth_steps, concat_scans
+from cwproc.io.scans import (
+    assign_scans,
+    azimuth_steps,
+    concat_scans,
+    is_homodyne,
+    parse_homodyne,
+)
 
 T0 = np.datetime64("2024-06-01T12:00:00", "ns")
 
@@ -201,3 +207,32 @@ def test_real_vad_file_concatenated_with_itself_keeps_two_rays(real_data: Path) 
     both = concat_scans([ds, ds])
     assert both.sizes["ray"] == 2
     assert both["scan"].values.tolist() == [0, 0]
+
+
+@pytest.mark.parametrize(
+    ("value", "expected"),
+    [
+        (True, True), (False, False), (1, True), (0, False), (np.int8(1), True),
+        (np.array([0], dtype=np.int32), False), (1.0, True),
+        ("1", True), ("0", False), ("true", True), ("false", False), (" True ", True),
+        ("FALSE", False),
+    ],
+)  # fmt: skip
+def test_parse_homodyne_accepts_bool_int_and_words(value: object, expected: bool) -> None:
+    assert parse_homodyne(value) is expected
+
+
+@pytest.mark.parametrize("value", ["yes", "", "2", 2, 0.5, None, [0, 1], np.array([1, 1])])
+def test_parse_homodyne_rejects_everything_else(value: object) -> None:
+    with pytest.raises(ValueError, match="expected 0/1, true/false"):
+        parse_homodyne(value)
+
+
+def test_is_homodyne_names_the_files_and_defaults_to_heterodyne() -> None:
+    ds = xr.Dataset(attrs={"source_files": ["a.nc"]})
+    assert is_homodyne(ds) is False
+    ds.attrs["homodyne"] = "false"
+    assert is_homodyne(ds) is False  # bool("false") would say True
+    ds.attrs["homodyne"] = "on"
+    with pytest.raises(CwprocError, match=r"a\.nc.*homodyne is 'on'"):
+        is_homodyne(ds)

@@ -52,6 +52,36 @@ def test_normalise_pointing_keeps_direction(az: float, el: float) -> None:
     np.testing.assert_allclose(g.beam_unit_vector(az2, el2), g.beam_unit_vector(az, el), atol=1e-12)
 
 
+def test_pointing_normalisation_of_halo_angles() -> None:
+    """Over-the-zenith rays (``180.01``) and signed zeros as a Halo scanner writes them."""
+    az, el = g.normalise_pointing(
+        np.array([360.0, 0.0, 39.81, 320.19, 90.0, 10.0]),
+        np.array([75.0, -0.0, 180.01, 142.47, 90.0, 90.01]),
+    )
+    np.testing.assert_allclose(az, [0.0, 0.0, 219.81, 140.19, 90.0, 190.0], atol=1e-9)
+    np.testing.assert_allclose(el, [75.0, 0.0, -0.01, 37.53, 90.0, 89.99], atol=1e-9)
+    assert not np.signbit(el[1]) and not np.signbit(az[0])
+    assert ((az >= 0) & (az < 360)).all()
+
+
+@pytest.mark.parametrize(
+    ("az", "el", "expected_az", "expected_el"),
+    [
+        (-0.0, 35.0, 0.0, 35.0),  # -0.00 in a file: azimuth 0, not 360 and not -0
+        (-1e-17, 35.0, 0.0, 35.0),  # -1e-17 mod 360 rounds to 360.0: must be 0
+        (360.0, -0.0, 0.0, 0.0),
+        (-0.0, 180.0, 180.0, 0.0),  # over the zenith to the horizon: el +0
+        (180.0, 180.0, 0.0, 0.0),
+    ],
+)
+def test_signed_zero_and_360_become_zero(
+    az: float, el: float, expected_az: float, expected_el: float
+) -> None:
+    az2, el2 = g.normalise_pointing(az, el)
+    assert float(az2) == expected_az and not np.signbit(az2)
+    assert float(el2) == expected_el and not np.signbit(el2)
+
+
 def test_heights_radius_speed_sampling() -> None:
     # phi = 30 deg, R = 1000 m: h = 500 m, R' = 866.03 m
     h = g.height_from_range(1000.0, 30.0)

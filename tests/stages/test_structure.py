@@ -172,6 +172,32 @@ def test_homodyne_magnitudes_take_the_sign_of_the_mean_wind():
     np.testing.assert_allclose(sf["structure_function"], signed["structure_function"], rtol=1e-9)
 
 
+@pytest.mark.parametrize("spelling", ["false", "FALSE ", "0", 0, False])
+def test_homodyne_false_in_any_spelling_is_heterodyne(spelling):
+    """``bool("false")`` is True: the attribute goes through the one parser instead."""
+    ds = ramp_scans()  # the default wind's V_r changes sign round the circle
+    signed = azimuth_structure_function(ds, true_wind(ds))
+    ds.attrs["homodyne"] = spelling
+    sf = azimuth_structure_function(ds, true_wind(ds))
+    xr.testing.assert_identical(sf, signed)
+    assert sf.attrs["homodyne"] == 0
+    # read as homodyne, the signs near the zero crossings are dropped: a different result
+    ds.attrs["homodyne"] = "true"
+    homo = azimuth_structure_function(ds, true_wind(ds))
+    assert homo.attrs["homodyne"] == 1
+    assert np.all(homo["n_pairs"].values < signed["n_pairs"].values)
+    # an explicit argument overrides the attribute
+    explicit = azimuth_structure_function(ds, true_wind(ds), homodyne=False)
+    np.testing.assert_array_equal(explicit["structure_function"], signed["structure_function"])
+
+
+def test_unreadable_homodyne_attribute_is_a_clear_error():
+    ds = ramp_scans(n_scans=2)
+    ds.attrs["homodyne"] = "maybe"
+    with pytest.raises(CwprocError, match="homodyne is 'maybe': expected 0/1, true/false"):
+        azimuth_structure_function(ds, true_wind(ds), n_scans=2)
+
+
 def test_impossible_inputs_raise_cwproc_errors():
     ds = ramp_scans(n_scans=2)
     wind = true_wind(ds)

@@ -1,4 +1,4 @@
-"""Stage ``vad``: recovery of known winds within the error theory of seed 002.
+"""Stage ``vad``: recovery of known winds within the VAD error theory (VAD accuracy paper).
 
 Synthetic scans are built here from V_r = w sin(phi) + cos(phi)(u sin(theta) +
 v cos(theta)) plus seeded Gaussian noise of std sigma. The predicted RMS errors come
@@ -19,10 +19,11 @@ from hypothesis import strategies as st
 
 from cwproc.errors import CwprocError
 from cwproc.physics import vad_errors as ve
-from cwproc.physics.geometry import radial_velocity
+from cwproc.physics.geometry import beam_unit_vector, radial_velocity
 from cwproc.products.metadata import undeclared_variables
 from cwproc.stages import vad
 from cwproc.stages.vad import fit_vad
+from cwproc.stages.vad_fit import fit_homodyne
 
 T0 = np.datetime64("2024-05-01T00:00:00", "ns")
 
@@ -327,6 +328,27 @@ def test_homodyne_measured_reference_and_missing_reference() -> None:
     np.testing.assert_allclose(measured["u"].values, -from_attr["u"].values)
 
 
+@pytest.mark.parametrize("spelling", ["false", "0", 0, False, np.int8(0)])
+def test_homodyne_false_in_any_spelling_is_heterodyne(spelling: object) -> None:
+    """``bool("false")`` is True; the one parser (cwproc.io.scans) reads it as 0."""
+    ds = scan_dataset(n_scans=2, seed=14)
+    signed = fit(ds)
+    ds.attrs["homodyne"] = spelling
+    xr.testing.assert_identical(fit(ds).drop_attrs(), signed.drop_attrs())
+    assert "homodyne" not in fit(ds).attrs["vad_method"]
+
+
+def test_explicit_homodyne_argument_overrides_the_attribute() -> None:
+    ds = homodyne_dataset(n_scans=2)
+    ds.attrs["homodyne"] = "false"  # wrong on purpose: |V_r| data
+    wind = fit(ds, homodyne=True, reference_direction_deg=TRUE_DIRECTION)
+    assert "homodyne" in wind.attrs["vad_method"]
+    assert np.all(np.abs(wind["u"].values + 7.0) < 0.2)
+    ds.attrs["homodyne"] = "yes"
+    with pytest.raises(CwprocError, match="homodyne is 'yes'"):
+        fit(ds)
+
+
 # --------------------------------------------------------------------------------------
 # real files
 # --------------------------------------------------------------------------------------
@@ -417,6 +439,61 @@ def test_noise_free_homodyne_scans_are_recovered_exactly(
     np.testing.assert_allclose(wind["u"].values, u, atol=1e-7)
     np.testing.assert_allclose(wind["v"].values, v, atol=1e-7)
     np.testing.assert_allclose(wind["w"].values, w, atol=1e-7)
+
+
+def test_homodyne_counterexample_of_the_start_grid_is_fitted_exactly() -> None:
+    """Issue 16: 8 rays, phi = 52 deg, u = 0, v = 2, w = 0.75 converged from the old
+    half-circle start grid to v = 1.16, w = 1.13 with qc_flag 0 (a local minimum of
+    ``sum (|V_r| - |A beta|)^2`` accepted as good)."""
+    ds = scan_dataset(0.0, 2.0, 0.75, n_scans=1, n_rays=8, n_gates=1, elevation=52.0,
+                      sigma=0.0, homodyne=True)  # fmt: skip
+    wind = fit(ds, min_rays=3, reference_direction_deg=180.0)  # v > 0: wind from the south
+    np.testing.assert_allclose(
+        [wind["u"].item(), wind["v"].item(), wind["w"].item()], [0.0, 2.0, 0.75], atol=1e-9
+    )
+    assert wind["residual_std"].item() < 1e-9
+    assert wind["qc_flag"].item() == 0
+
+
+def _arc_patterns(n_rays: int) -> np.ndarray:
+    """Every sign pattern +1 on a contiguous arc of rays, -1 elsewhere (and all +1)."""
+    patterns = [np.ones(n_rays)]
+    for start in range(n_rays):
+        for length in range(1, n_rays):
+            p = -np.ones(n_rays)
+            p[(start + np.arange(length)) % n_rays] = 1.0
+            patterns.append(p)
+    return np.array(patterns)
+
+
+@pytest.mark.parametrize(("n_rays", "elevation"), [(6, 75.0), (8, 52.0), (12, 30.0)])
+def test_homodyne_fit_reaches_the_global_minimum_with_noise(n_rays: int, elevation: float) -> None:
+    """Noisy |V_r|: the fitted cost equals the least cost over all arc sign patterns.
+
+    For rays at one elevation every beta has an arc sign pattern s, and
+    ``sum (|V_r| - |A beta|)^2 >= min_b sum (s |V_r| - A b)^2``, so the least linear-fit
+    cost over the arcs is the global minimum (brute force over all R (R - 1) + 1 arcs).
+    The old start grid missed it in about 1 % of such cells.
+    """
+    rng = np.random.default_rng(n_rays)
+    n_cells = 400
+    scale = np.where(rng.random(n_cells) < 0.4, 1.0, 10.0)  # weak and strong winds
+    beta_true = np.column_stack(
+        [rng.uniform(-1, 1, n_cells) * scale, rng.uniform(-1, 1, n_cells) * scale,
+         rng.uniform(-2, 2, n_cells)]
+    )  # fmt: skip
+    az = np.tile(np.arange(n_rays) * 360.0 / n_rays, (n_cells, 1))
+    design = beam_unit_vector(az, elevation)  # (S, R, 3)
+    noise = 0.3 * rng.standard_normal((n_cells, n_rays))
+    y = np.abs(np.einsum("srk,sk->sr", design, beta_true) + noise)
+    fitted = fit_homodyne(y[..., None], design, np.ones((n_cells, n_rays, 1), bool))
+    cost = np.sum(fitted.residuals[..., 0] ** 2, axis=1)
+    signed = y[:, None, :] * _arc_patterns(n_rays)[None]  # (S, P, R)
+    linear = np.einsum("skr,spr->spk", np.linalg.pinv(design), signed)
+    model = np.abs(np.einsum("srk,spk->spr", design, linear))
+    best = np.min(np.sum((y[:, None, :] - model) ** 2, axis=2), axis=1)
+    np.testing.assert_allclose(cost, best, rtol=1e-9, atol=1e-12)
+    assert np.all(fitted.converged)
 
 
 @pytest.mark.parametrize(("u", "v", "w"), [(0.3, 0.2, 1.5), (0.05, -0.1, -1.0)])
