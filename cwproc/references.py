@@ -38,3 +38,9 @@ RYE_HARDESTY_1993 = (
     "Rye, B. J. and Hardesty, R. M. (1993), Discrete spectral peak estimation in "
     "incoherent backscatter heterodyne lidar. I, IEEE Trans. Geosci. Remote Sens. 31, 16-27"
 )
+
+#: the VAD error theory; the available text gives neither the authors nor the year
+VAD_ACCURACY = (
+    "Theoretical accuracy of wind-vector reconstruction from lidar VAD scanning "
+    "(in Russian; authors and year not given in the available text)"
+)

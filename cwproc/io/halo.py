@@ -51,6 +51,7 @@ import xarray as xr
 from cwproc.errors import ConfigError, CwprocError, InputFileError
 from cwproc.io import FileIdentity
 from cwproc.io.netcdf import write_bytes_atomic
+from cwproc.io.schema import with_canonical_attrs
 from cwproc.io.timecheck import check_times
 
 try:  # the optional compiled tokenizer (setup.py); pandas does the same work without it
@@ -855,7 +856,7 @@ def read_hpl(path: str | os.PathLike, **options: object) -> xr.Dataset:
     from cwproc.io.scans import scan_indices
 
     scan, scan_attrs = scan_indices(time, azimuth, elevation, scan_type=header.scan_type)
-    return scan_dataset(
+    ds = scan_dataset(
         gates,
         per_ray,
         time=time,
@@ -865,6 +866,7 @@ def read_hpl(path: str | os.PathLike, **options: object) -> xr.Dataset:
         scan=(scan, scan_attrs),
         attrs=_attrs(path, header),
     )
+    return with_canonical_attrs(ds, "scan")
 
 
 def read_hpl_identity(path: str | os.PathLike) -> FileIdentity:
