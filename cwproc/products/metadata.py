@@ -516,7 +516,18 @@ PRODUCT_VARIABLES: dict[str, dict[str, VarMeta]] = {
             ),
         ),
     },
-    "sf": {"time": replace(VARIABLES["time"], comment="start of the analysis window")},
+    "sf": {
+        "time": replace(VARIABLES["time"], comment="start of the analysis window"),
+        "wind_direction": replace(
+            VARIABLES["wind_direction"],
+            long_name="direction of the window-mean wind (from which it blows, clockwise "
+            "from north)",
+            comment=(
+                "mean u, v of the window in the instrument frame turned by [sonic] "
+                "orientation_deg, the azimuth of the sonic's +x axis"
+            ),
+        ),
+    },
 }
 
 #: a variable that only the product of that name holds (how a product is recognised)
