@@ -159,9 +159,7 @@ def _campbell_dataset(
     return sonic_dataset(
         path,
         times,
-        vals["u"],
-        vals["v"],
-        vals["w"],
+        vals,
         temp,
         diag,
         instrument=INSTRUMENT.format(logger=env[2], table=env[7]),

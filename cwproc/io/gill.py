@@ -116,9 +116,7 @@ def read_gill(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     return sonic_dataset(
         path,
         times,
-        u,
-        v,
-        num["w"] * factor,
+        {"u": u, "v": v, "w": num["w"] * factor},
         num["t"],
         status + diag_extra,
         instrument="Gill ultrasonic anemometer (UVW ASCII)",

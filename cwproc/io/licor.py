@@ -194,9 +194,7 @@ def read_ghg(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     return sonic_dataset(
         path,
         times,
-        vals["u"],
-        vals["v"],
-        vals["w"],
+        vals,
         temp,
         np.zeros(n),
         instrument=f"LI-COR {attrs.get('ghg_model', 'GHG')} with sonic on Aux inputs",

@@ -285,9 +285,7 @@ def _spike_mask_everywhere(
 def sonic_dataset(
     path: str | os.PathLike,
     time: np.ndarray,
-    u: np.ndarray,
-    v: np.ndarray,
-    w: np.ndarray,
+    wind: Mapping[str, np.ndarray],
     temperature: np.ndarray,
     diagnostic: np.ndarray,
     *,
@@ -312,8 +310,9 @@ def sonic_dataset(
         The file (for messages).
     time : ndarray of datetime64
         UTC stamps, file order.
-    u, v, w : ndarray
-        Wind components (m s-1, instrument frame).
+    wind : mapping
+        ``u``, ``v``, ``w``: wind components (m s-1, instrument frame); other keys
+        are ignored.
     temperature : ndarray
         Sonic temperature (degC).
     diagnostic : ndarray of int
@@ -353,9 +352,7 @@ def sonic_dataset(
         notes.append(f"{n_gaps} gap(s) in the time stamps, {missing:.3f} s missing in total")
     data = _within_physical_range(
         {
-            "u": np.asarray(u, float)[keep],
-            "v": np.asarray(v, float)[keep],
-            "w": np.asarray(w, float)[keep],
+            **{c: np.asarray(wind[c], float)[keep] for c in ("u", "v", "w")},
             "temperature": np.asarray(temperature, float)[keep],
         },
         notes,
@@ -708,9 +705,7 @@ def read_meteo2(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     return sonic_dataset(
         path,
         times,
-        vals["u"],
-        vals["v"],
-        vals["w"],
+        vals,
         temp,
         diag,
         instrument=INSTRUMENT,

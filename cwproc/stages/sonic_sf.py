@@ -836,19 +836,7 @@ def structure_function_types(
     fit_curve = _fit_curves(x_s, dec, sf_type, normalisation_lag_m)
     fit_curve = np.where(r_s <= np.where(sf_type > 0, dec.r_max, -1.0)[:, None], fit_curve, np.nan)
 
-    params = {
-        "window_s": window_s,
-        "running_mean_s": running_mean_s,
-        "max_lag_fraction": max_lag_fraction,
-        "kd_threshold": kd_threshold,
-        "normalisation_lag_m": normalisation_lag_m,
-        "precedence_tolerance": precedence_tolerance,
-        "min_fit_points": min_fit_points,
-        "min_valid_fraction": min_valid_fraction,
-        "curvature_tolerance": curvature_tolerance,
-        "orientation_deg": orientation_deg,
-        "sampling_rate_hz": rate,
-    }
+    params = {**kwargs, "sampling_rate_hz": rate}
     dims = ("window", "component")
     ds = xr.Dataset(
         {
