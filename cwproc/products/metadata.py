@@ -484,17 +484,24 @@ _VAD_REFERENCES = (
 )
 _VAD_ERROR_REFERENCES = f"{VAD_ACCURACY}, section 4"
 
+
+def _qc_bits(bits: dict[int, str], comment: str) -> VarMeta:
+    """``qc_flag`` of one product: its bit masks -> meanings, and their description."""
+    return replace(
+        VARIABLES["qc_flag"],
+        flag_masks=tuple(bits),
+        flag_meanings=" ".join(bits.values()),
+        comment=comment,
+    )
+
+
 #: per product, the declarations that differ from :data:`VARIABLES` (flag bits, citations)
 PRODUCT_VARIABLES: dict[str, dict[str, VarMeta]] = {
     "wind": {
-        "qc_flag": replace(
-            VARIABLES["qc_flag"],
-            flag_masks=(1, 2, 4),
-            flag_meanings="too_few_rays azimuth_gap_too_large bad_fit",
-            comment=(
-                "0 good; bit 1 too few rays; bit 2 azimuth gap too large; bit 4 bad fit "
-                "(see bad_fit_definition)"
-            ),
+        "qc_flag": _qc_bits(
+            {1: "too_few_rays", 2: "azimuth_gap_too_large", 4: "bad_fit"},
+            "0 good; bit 1 too few rays; bit 2 azimuth gap too large; bit 4 bad fit "
+            "(see bad_fit_definition)",
         ),
         **{
             name: replace(VARIABLES[name], references=_VAD_REFERENCES)
@@ -506,14 +513,10 @@ PRODUCT_VARIABLES: dict[str, dict[str, VarMeta]] = {
         },
     },
     "wind_record": {
-        "qc_flag": replace(
-            VARIABLES["qc_flag"],
-            flag_masks=(1, 4, 8),
-            flag_meanings="too_few_samples missing_value rain",
-            comment=(
-                "0 good; bit 1 too few packets or too low data availability; bit 4 missing "
-                "value; bit 8 too many packets with rain"
-            ),
+        "qc_flag": _qc_bits(
+            {1: "too_few_samples", 4: "missing_value", 8: "rain"},
+            "0 good; bit 1 too few packets or too low data availability; bit 4 missing "
+            "value; bit 8 too many packets with rain",
         ),
     },
     "sf": {
