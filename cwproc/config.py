@@ -66,8 +66,6 @@ class InstrumentConfig:
     beam_radius_m: float | None = None
     #: cw homodyne detection: only |V_r| is measured (ZephIR)
     homodyne: bool = False
-    #: sonic: orientation of the instrument frame (degrees clockwise from north of +u)
-    sonic_orientation_deg: float = 0.0
 
     def __post_init__(self) -> None:
         _positive(self, "wavelength_m", "delta_p_m", "delta_r_m", "z_r_coefficient")
@@ -239,6 +237,10 @@ class SonicConfig:
     min_fit_points: int = 5
     #: windows with a smaller fraction of valid samples are skipped (window_flag 1)
     min_valid_fraction: float = 0.9
+    #: azimuth of the +x (u) axis of the sonic's instrument frame, degrees clockwise from
+    #: north (x, y, z right-handed, z up): turns the window-mean wind into the geographic
+    #: wind_direction of the product; the types do not depend on it
+    orientation_deg: float = 0.0
 
     def __post_init__(self) -> None:
         _positive(self, "window_s", "running_mean_s", "max_lag_fraction", "normalisation_lag_m")
@@ -496,9 +498,35 @@ def config_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Config:
     """Validate a nested dict (as read from TOML) into a :class:`Config`."""
     data = dict(data)
     data.pop("source", None)
+    _check_moved_keys(data, source)
     _check_reader_tables(data.get("reader"), source)
     cfg = _build(Config, data, source, "")
     return dataclasses.replace(cfg, source=source)
+
+
+#: keys of older configurations that moved: (table, key) -> where the setting is now
+MOVED_KEYS: dict[tuple[str, str], str] = {
+    ("instrument", "sonic_orientation_deg"): "[sonic] orientation_deg",
+    **{
+        ("reader." + fmt, "orientation_deg"): "[sonic] orientation_deg"
+        for fmt in ("toa5", "tob1", "ghg", "meteo2", "gill")
+    },
+}
+
+
+def _check_moved_keys(data: dict[str, Any], source: str) -> None:
+    """A key that moved is an error naming it and its new place (never silently ignored)."""
+    for (table, key), new in MOVED_KEYS.items():
+        section: Any = data
+        for part in table.split("."):
+            section = section.get(part, {}) if isinstance(section, dict) else {}
+        if isinstance(section, dict) and key in section:
+            raise ConfigError(
+                source,
+                f"{table}.{key}",
+                f"no longer read here: the sonic's orientation (azimuth of its +x axis, "
+                f"degrees clockwise from north) is now {new}",
+            )
 
 
 def _check_reader_tables(reader: Any, source: str) -> None:

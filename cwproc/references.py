@@ -39,8 +39,8 @@ RYE_HARDESTY_1993 = (
     "incoherent backscatter heterodyne lidar. I, IEEE Trans. Geosci. Remote Sens. 31, 16-27"
 )
 
+#: the VAD error theory; the available text gives neither the authors nor the year
 VAD_ACCURACY = (
     "Theoretical accuracy of wind-vector reconstruction from lidar VAD scanning "
-    "(Russian-language paper; the authors and journal are not preserved in the source "
-    "text), sections 2-6"
+    "(in Russian; authors and year not given in the available text)"
 )

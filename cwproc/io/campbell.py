@@ -38,6 +38,7 @@ import xarray as xr
 from cwproc.errors import InputFileError
 from cwproc.io.meteo2 import (
     NA_TEXT,
+    SONIC_FIELDS,
     SPIKE_THRESHOLD,
     blank_row,
     check_options,
@@ -56,15 +57,11 @@ INSTRUMENT = "Campbell Scientific CSAT3 (logger {logger}, table {table})"
 FRAME = "CSAT3 instrument frame: Ux along the boom into the array, Uy to its left, Uz up"
 
 #: canonical name -> Campbell field name (CSAT3 defaults)
-DEFAULT_COLUMNS: dict[str, str] = {
-    "u": "Ux",
-    "v": "Uy",
-    "w": "Uz",
-    "temperature": "Ts",
-    "diagnostic": "diag_csat",
-}
+DEFAULT_COLUMNS: dict[str, str] = dict(
+    zip(SONIC_FIELDS, ("Ux", "Uy", "Uz", "Ts", "diag_csat"), strict=True)
+)
 
-OPTIONS = {"utc_offset_hours", "columns", "orientation_deg", "frame", "spike_threshold"}
+OPTIONS = {"utc_offset_hours", "columns", "frame", "spike_threshold"}
 
 #: TOB1 data types -> numpy dtypes (FP2 is Campbell's 2-byte float, big-endian)
 TOB1_TYPES: dict[str, str] = {
@@ -162,14 +159,11 @@ def _campbell_dataset(
     return sonic_dataset(
         path,
         times,
-        vals["u"],
-        vals["v"],
-        vals["w"],
+        vals,
         temp,
         diag,
         instrument=INSTRUMENT.format(logger=env[2], table=env[7]),
         frame=str(options.get("frame", FRAME)),
-        orientation_deg=option_number(path, options, "orientation_deg", 0.0),
         attrs=attrs,
         warnings=notes,
         spike_threshold=option_number(path, options, "spike_threshold", SPIKE_THRESHOLD),
@@ -187,8 +181,6 @@ def read_toa5(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     columns : dict, optional
         Canonical name (``u``, ``v``, ``w``, ``temperature``, ``diagnostic``) -> field
         name; defaults are the CSAT3 names ``Ux``, ``Uy``, ``Uz``, ``Ts``, ``diag_csat``.
-    orientation_deg : float, optional
-        Azimuth of +Ux (degree clockwise from north).
     frame : str, optional
         Description of the frame (attr).
     spike_threshold : float, optional

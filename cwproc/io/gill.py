@@ -47,7 +47,6 @@ OPTIONS = {
     "u_sign",
     "v_sign",
     "swap_uv",
-    "orientation_deg",
     "frame",
     "spike_threshold",
 }
@@ -88,8 +87,6 @@ def read_gill(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         +1 (default) or -1: sign applied to U and V.
     swap_uv : bool, optional
         Exchange U and V (after the signs), default false.
-    orientation_deg : float, optional
-        Azimuth of +u (degree clockwise from north).
     frame : str, optional
         Description of the frame.
     spike_threshold : float, optional
@@ -101,6 +98,43 @@ def read_gill(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         Missing options, or file, line and problem.
     """
     check_options(path, options, OPTIONS)
+    start, rate, signs, swap = _timing_and_axes(path, options)
+    lines = pd.Series(read_text(path).splitlines(), dtype="string")
+    while len(lines) and not lines.iloc[-1].strip():
+        lines = lines.iloc[:-1]
+    if len(lines) == 0:
+        raise InputFileError(path, "no data lines", 1)
+    payload, diag_extra = _payloads(lines)
+    table, offset = _field_table(path, payload, len(lines))
+    num, factor, status = _fields(path, table, offset)
+    u = signs[0] * num["u"] * factor
+    v = signs[1] * num["v"] * factor
+    if swap:
+        u, v = v, u
+    n = len(table)
+    times = start + np.rint(np.arange(n) * (1e9 / rate)).astype("timedelta64[ns]")
+    return sonic_dataset(
+        path,
+        times,
+        {"u": u, "v": v, "w": num["w"] * factor},
+        num["t"],
+        status + diag_extra,
+        instrument="Gill ultrasonic anemometer (UVW ASCII)",
+        frame=str(options.get("frame", "Gill UVW axes mapped by u_sign, v_sign, swap_uv")),
+        attrs={
+            "gill_checksum_mismatches": int(np.sum(diag_extra > 0)),
+            "time_reference": "start_time + line index / sampling_rate_hz (configured)",
+            "speed_of_sound_mean_m_s": float(np.nanmean(num["sos"])),
+        },
+        spike_threshold=option_number(path, options, "spike_threshold", SPIKE_THRESHOLD),
+        sampling_rate_hz=rate,
+    )
+
+
+def _timing_and_axes(
+    path: str | os.PathLike, options: dict[str, Any]
+) -> tuple[np.datetime64, float, list[float], bool]:
+    """``start_time``, ``sampling_rate_hz`` (Hz), the signs of U and V and ``swap_uv``."""
     if "start_time" not in options or "sampling_rate_hz" not in options:
         raise InputFileError(
             path,
@@ -120,12 +154,11 @@ def read_gill(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     swap = options.get("swap_uv", False)
     if not isinstance(swap, bool):
         raise InputFileError(path, "reader option swap_uv must be true or false")
+    return start, rate, signs, swap
 
-    lines = pd.Series(read_text(path).splitlines(), dtype="string")
-    while len(lines) and not lines.iloc[-1].strip():
-        lines = lines.iloc[:-1]
-    if len(lines) == 0:
-        raise InputFileError(path, "no data lines", 1)
+
+def _payloads(lines: pd.Series) -> tuple[pd.Series, np.ndarray]:
+    """The text between STX and ETX of each line, and the checksum-mismatch diagnostic."""
     body = lines.str.lstrip("\x02")
     framed = body.str.contains("\x03", regex=False).to_numpy(dtype=bool)
     parts = body.str.partition("\x03")
@@ -140,7 +173,13 @@ def read_gill(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         ).to_numpy(dtype=float, na_value=np.nan)
         computed = xor_checksum(payload)
         diag_extra = np.where(framed & (given != computed), CHECKSUM_MISMATCH, 0)
-    payload = payload.str.rstrip(",")
+    return payload.str.rstrip(","), diag_extra
+
+
+def _field_table(
+    path: str | os.PathLike, payload: pd.Series, n_lines: int
+) -> tuple[pd.DataFrame, int]:
+    """The payloads split at commas, and the column of the node letter (0 or 1)."""
     n_fields = (payload.str.count(",") + 1).to_numpy()
     wrong = np.flatnonzero(n_fields != n_fields[0])
     if wrong.size:
@@ -158,7 +197,7 @@ def read_gill(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         )
     except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
         raise InputFileError(path, f"malformed data: {exc}", 1) from None
-    if len(table) != len(lines):
+    if len(table) != n_lines:
         raise InputFileError(path, "malformed data (quote or line structure)", 1)
     first = table.iloc[0, 0].strip() if table.shape[1] else ""
     offset = 0 if first[:1].isalpha() else 1
@@ -168,6 +207,13 @@ def read_gill(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     bad = np.flatnonzero(~node.str.fullmatch(r"[A-Za-z]").fillna(False).to_numpy(dtype=bool))
     if bad.size:
         raise InputFileError(path, "no node-address letter where expected", int(bad[0]) + 1)
+    return table, offset
+
+
+def _fields(
+    path: str | os.PathLike, table: pd.DataFrame, offset: int
+) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
+    """The numeric fields (U, V, W, speed of sound, temperature), unit factors, status."""
     num = {}
     for name, col in (("u", 1), ("v", 2), ("w", 3), ("sos", 5), ("t", 6)):
         raw = table.iloc[:, offset + col].str.strip()
@@ -191,28 +237,4 @@ def read_gill(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     if wrong.size:
         i = int(wrong[0])
         raise InputFileError(path, f"status field {status_txt.iloc[i]!r} is not hex", i + 1)
-    u = signs[0] * num["u"] * factor
-    v = signs[1] * num["v"] * factor
-    if swap:
-        u, v = v, u
-    n = len(table)
-    times = start + np.rint(np.arange(n) * (1e9 / rate)).astype("timedelta64[ns]")
-    return sonic_dataset(
-        path,
-        times,
-        u,
-        v,
-        num["w"] * factor,
-        num["t"],
-        status + diag_extra,
-        instrument="Gill ultrasonic anemometer (UVW ASCII)",
-        frame=str(options.get("frame", "Gill UVW axes mapped by u_sign, v_sign, swap_uv")),
-        orientation_deg=option_number(path, options, "orientation_deg", 0.0),
-        attrs={
-            "gill_checksum_mismatches": int(np.sum(diag_extra > 0)),
-            "time_reference": "start_time + line index / sampling_rate_hz (configured)",
-            "speed_of_sound_mean_m_s": float(np.nanmean(num["sos"])),
-        },
-        spike_threshold=option_number(path, options, "spike_threshold", SPIKE_THRESHOLD),
-        sampling_rate_hz=rate,
-    )
+    return num, factor, status

@@ -63,6 +63,7 @@ from cwproc.io.halo_header import (
     split_header,
 )
 from cwproc.io.netcdf import write_bytes_atomic
+from cwproc.io.schema import with_canonical_attrs
 from cwproc.physics.geometry import normalise_pointing
 
 INSTRUMENT = "Halo Photonics Stream Line"
@@ -212,7 +213,7 @@ def read_hpl(path: str | os.PathLike, **options: object) -> xr.Dataset:
     from cwproc.io.scans import scan_indices
 
     scan, scan_attrs = scan_indices(time, azimuth, elevation, scan_type=header.scan_type)
-    return scan_dataset(
+    ds = scan_dataset(
         gates,
         per_ray,
         time=time,
@@ -222,6 +223,7 @@ def read_hpl(path: str | os.PathLike, **options: object) -> xr.Dataset:
         scan=(scan, scan_attrs),
         attrs=_attrs(path, header),
     )
+    return with_canonical_attrs(ds, "scan")
 
 
 def read_hpl_identity(path: str | os.PathLike) -> FileIdentity:

@@ -46,7 +46,7 @@ DEFAULT_COLUMNS: dict[str, str] = {
     "speed_of_sound": "Aux 4 - SOS (m/s)",
 }
 
-OPTIONS = {"columns", "orientation_deg", "frame", "spike_threshold"}
+OPTIONS = {"columns", "frame", "spike_threshold"}
 
 #: c^2 = GAMMA_R T_s (m2 s-2 K-1), Kaimal and Gaynor (1991)
 SOS_COEFFICIENT = 403.0
@@ -120,8 +120,6 @@ def read_ghg(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     path : path
     columns : dict, optional
         Canonical name (``u``, ``v``, ``w``, ``speed_of_sound``) -> column name.
-    orientation_deg : float, optional
-        Azimuth of +u (degree clockwise from north).
     frame : str, optional
         Description of the sonic frame (attr).
     spike_threshold : float, optional
@@ -196,14 +194,11 @@ def read_ghg(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     return sonic_dataset(
         path,
         times,
-        vals["u"],
-        vals["v"],
-        vals["w"],
+        vals,
         temp,
         np.zeros(n),
         instrument=f"LI-COR {attrs.get('ghg_model', 'GHG')} with sonic on Aux inputs",
         frame=str(options.get("frame", "sonic frame as wired to Aux 1-3 (U, V, W)")),
-        orientation_deg=option_number(path, options, "orientation_deg", 0.0),
         attrs=attrs,
         spike_threshold=option_number(path, options, "spike_threshold", SPIKE_THRESHOLD),
     )

@@ -49,19 +49,19 @@ import xarray as xr
 from cwproc.errors import CwprocError, InputFileError
 from cwproc.io.netcdf import write_bytes_atomic
 from cwproc.io.ranges import outside_physical_range
+from cwproc.io.schema import with_canonical_attrs
 from cwproc.io.timecheck import check_times
 
 INSTRUMENT = "Meteo-2 ultrasonic weather station (IAO SB RAS)"
 MAGIC = "# cwproc meteo2"
 
+#: the measured variables of the canonical sonic dataset, in reading order
+SONIC_FIELDS = ("u", "v", "w", "temperature", "diagnostic")
+
 #: canonical name -> column name in the file (default layout)
 DEFAULT_COLUMNS: dict[str, str] = {
     "time": "time",
-    "u": "u",
-    "v": "v",
-    "w": "w",
-    "temperature": "t",
-    "diagnostic": "diag",
+    **dict(zip(SONIC_FIELDS, ("u", "v", "w", "t", "diag"), strict=True)),
 }
 
 #: sample_flag bits
@@ -87,7 +87,6 @@ READER_OPTIONS = {
     "utc_offset_hours",
     "comment",
     "frame",
-    "orientation_deg",
     "spike_threshold",
 }
 
@@ -286,15 +285,12 @@ def _spike_mask_everywhere(
 def sonic_dataset(
     path: str | os.PathLike,
     time: np.ndarray,
-    u: np.ndarray,
-    v: np.ndarray,
-    w: np.ndarray,
+    wind: Mapping[str, np.ndarray],
     temperature: np.ndarray,
     diagnostic: np.ndarray,
     *,
     instrument: str,
     frame: str,
-    orientation_deg: float = 0.0,
     attrs: Mapping[str, Any] | None = None,
     warnings: Sequence[str] = (),
     spike_threshold: float = SPIKE_THRESHOLD,
@@ -314,16 +310,15 @@ def sonic_dataset(
         The file (for messages).
     time : ndarray of datetime64
         UTC stamps, file order.
-    u, v, w : ndarray
-        Wind components (m s-1, instrument frame).
+    wind : mapping
+        ``u``, ``v``, ``w``: wind components (m s-1, instrument frame); other keys
+        are ignored.
     temperature : ndarray
         Sonic temperature (degC).
     diagnostic : ndarray of int
         Instrument status word, 0 = good.
     instrument, frame : str
         Instrument name and description of the (u, v, w) frame.
-    orientation_deg : float
-        Azimuth of the +u axis (degree clockwise from north).
     attrs : mapping, optional
         More attributes (header values).
     warnings : sequence of str
@@ -344,27 +339,8 @@ def sonic_dataset(
     if np.isnat(t).any():
         raise InputFileError(path, "time stamp missing", int(np.flatnonzero(np.isnat(t))[0]))
     notes = list(warnings)
-    t_ns = t.astype(np.int64)
-    stray = stray_stamps(t_ns)
-    if stray.any():
-        notes.append(
-            f"{int(stray.sum())} time stamp(s) far from both neighbours, which agree with "
-            f"each other (a damaged record; first at record {int(np.argmax(stray)) + 1}): "
-            "dropped"
-        )
-    valid = np.flatnonzero(~stray)
-    steps = np.diff(t_ns[valid])
-    n_back = int(np.sum(steps < 0))
-    order = valid[np.argsort(t_ns[valid], kind="stable")]
-    t_sorted = t_ns[order]
-    dup = np.concatenate([[False], np.diff(t_sorted) == 0])
-    n_dup = int(dup.sum())
-    keep = order[~dup]
-    if n_back:
-        notes.append(f"{n_back} time stamp(s) out of order: samples put in time order")
-    if n_dup:
-        notes.append(f"{n_dup} duplicated time stamp(s): later copies dropped")
-    t_ns = t_ns[keep]
+    keep, counts = _time_order(t.astype(np.int64), notes)
+    t_ns = t.astype(np.int64)[keep]
     rate = sampling_rate_hz if sampling_rate_hz is not None else measure_sampling_rate(t_ns)
     if not np.isfinite(rate) or rate <= 0:
         raise InputFileError(path, "fewer than two distinct time stamps: no sampling rate")
@@ -374,25 +350,91 @@ def sonic_dataset(
     missing = float(np.sum(dt[gap] - 1.0 / rate))
     if n_gaps:
         notes.append(f"{n_gaps} gap(s) in the time stamps, {missing:.3f} s missing in total")
-    data = {
-        "u": np.asarray(u, float)[keep],
-        "v": np.asarray(v, float)[keep],
-        "w": np.asarray(w, float)[keep],
-        "temperature": np.asarray(temperature, float)[keep],
-    }
-    for name, values in data.items():  # impossible values are missing (flag 4), not data
+    data = _within_physical_range(
+        {
+            **{c: np.asarray(wind[c], float)[keep] for c in ("u", "v", "w")},
+            "temperature": np.asarray(temperature, float)[keep],
+        },
+        notes,
+    )
+    diag_f = np.asarray(diagnostic)[keep].astype(float)
+    with np.errstate(invalid="ignore"):
+        usable = np.isfinite(diag_f) & (np.abs(diag_f) < 2.0**62)
+    diag = np.where(usable, diag_f, -1).astype(np.int64)
+    flag, flag_counts = _sample_flags(data, diag, rate, spike_threshold, notes)
+    ds = xr.Dataset(
+        {
+            **{k: (("time",), val) for k, val in data.items()},
+            "diagnostic": (("time",), diag),
+            "sample_flag": (("time",), flag),
+        },
+        coords={"time": (("time",), t_ns.astype("datetime64[ns]"))},
+    )
+    ds.attrs.update(dict(attrs or {}))
+    ds.attrs.update(
+        {
+            "instrument": instrument,
+            "frame": frame,
+            "sampling_rate_hz": float(rate),
+            "source_files": [os.path.basename(os.fspath(path))],
+            "n_gaps": n_gaps,
+            "gap_seconds": missing,
+            **counts,
+            **flag_counts,
+            "warnings": notes,
+        }
+    )
+    return with_canonical_attrs(ds, "sonic")
+
+
+def _time_order(t_ns: np.ndarray, notes: list[str]) -> tuple[np.ndarray, dict[str, int]]:
+    """Indices of the samples to keep, in time order, and the counts of what was found.
+
+    Stray stamps (far from both neighbours, which agree) are dropped, the rest put in
+    time order, exact duplicates dropped (first kept); each finding is described in
+    ``notes``.
+    """
+    stray = stray_stamps(t_ns)
+    if stray.any():
+        notes.append(
+            f"{int(stray.sum())} time stamp(s) far from both neighbours, which agree with "
+            f"each other (a damaged record; first at record {int(np.argmax(stray)) + 1}): "
+            "dropped"
+        )
+    valid = np.flatnonzero(~stray)
+    n_back = int(np.sum(np.diff(t_ns[valid]) < 0))
+    order = valid[np.argsort(t_ns[valid], kind="stable")]
+    dup = np.concatenate([[False], np.diff(t_ns[order]) == 0])
+    n_dup = int(dup.sum())
+    if n_back:
+        notes.append(f"{n_back} time stamp(s) out of order: samples put in time order")
+    if n_dup:
+        notes.append(f"{n_dup} duplicated time stamp(s): later copies dropped")
+    return order[~dup], {"n_out_of_order": n_back, "n_duplicates": n_dup}
+
+
+def _within_physical_range(data: dict[str, np.ndarray], notes: list[str]) -> dict[str, np.ndarray]:
+    """Impossible values set to missing (they get sample flag 4), reported in ``notes``."""
+    out = dict(data)
+    for name, values in data.items():
         bad = outside_physical_range(name, values)
         if bad.any():
             notes.append(
                 f"{int(bad.sum())} value(s) of {name} outside its physical range: set to missing"
             )
-            data[name] = np.where(bad, np.nan, values)
-    diag = np.asarray(diagnostic)[keep]
-    diag_f = diag.astype(float)
-    with np.errstate(invalid="ignore"):
-        usable = np.isfinite(diag_f) & (np.abs(diag_f) < 2.0**62)
-    diag = np.where(usable, diag_f, -1).astype(np.int64)
-    flag = np.zeros(t_ns.size, dtype=np.int8)
+            out[name] = np.where(bad, np.nan, values)
+    return out
+
+
+def _sample_flags(
+    data: dict[str, np.ndarray],
+    diag: np.ndarray,
+    rate: float,
+    spike_threshold: float,
+    notes: list[str],
+) -> tuple[np.ndarray, dict[str, int]]:
+    """``sample_flag`` (bits 1 diagnostic, 2 spike, 4 not finite) and the counts."""
+    flag = np.zeros(diag.size, dtype=np.int8)
     flag[diag != 0] |= FLAG_DIAGNOSTIC
     width = round(SPIKE_WINDOW_S * rate)
     n_spikes = 0
@@ -410,33 +452,7 @@ def sonic_dataset(
         notes.append(f"{n_spikes} spike value(s) flagged (threshold {spike_threshold:g} std)")
     if n_nonfinite:
         notes.append(f"{n_nonfinite} sample(s) with a missing or non-finite wind component")
-    ds = xr.Dataset(
-        {
-            **{k: (("time",), val) for k, val in data.items()},
-            "diagnostic": (("time",), diag),
-            "sample_flag": (("time",), flag),
-        },
-        coords={"time": (("time",), t_ns.astype("datetime64[ns]"))},
-    )
-    ds.attrs.update(dict(attrs or {}))
-    ds.attrs.update(
-        {
-            "instrument": instrument,
-            "frame": frame,
-            "orientation_deg": float(orientation_deg),
-            "sampling_rate_hz": float(rate),
-            "source_files": [os.path.basename(os.fspath(path))],
-            "n_gaps": n_gaps,
-            "gap_seconds": missing,
-            "n_out_of_order": n_back,
-            "n_duplicates": n_dup,
-            "n_spikes": n_spikes,
-            "n_diagnostic": n_diag,
-            "n_not_finite": n_nonfinite,
-            "warnings": notes,
-        }
-    )
-    return ds
+    return flag, {"n_spikes": n_spikes, "n_diagnostic": n_diag, "n_not_finite": n_nonfinite}
 
 
 def first_bad_row(raw: pd.Series, parsed: np.ndarray) -> int | None:
@@ -605,8 +621,6 @@ def read_meteo2(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         Prefix of header comment lines (default ``"#"``).
     frame : str, optional
         Description of the (u, v, w) frame (attr).
-    orientation_deg : float, optional
-        Azimuth of +u (degree clockwise from north).
     spike_threshold : float, optional
         Spike threshold (robust std), default 6.
 
@@ -628,7 +642,6 @@ def read_meteo2(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     if time_format not in ("iso", "epoch"):
         raise InputFileError(path, "reader option 'time_format' must be 'iso' or 'epoch'")
     offset_h = option_number(path, options, "utc_offset_hours", 0.0)
-    orientation = option_number(path, options, "orientation_deg", 0.0)
     spike_threshold = option_number(path, options, "spike_threshold", SPIKE_THRESHOLD)
 
     text = read_text(path)
@@ -692,14 +705,11 @@ def read_meteo2(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     return sonic_dataset(
         path,
         times,
-        vals["u"],
-        vals["v"],
-        vals["w"],
+        vals,
         temp,
         diag,
         instrument=INSTRUMENT,
         frame=str(options.get("frame", "instrument x, y, z axes of the Meteo-2 array")),
-        orientation_deg=orientation,
         attrs=header_attrs,
         warnings=notes,
         spike_threshold=spike_threshold,

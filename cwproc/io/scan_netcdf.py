@@ -1,7 +1,7 @@
 """The canonical scan dataset as NetCDF (e.g. cw lidar line-of-sight data, simulator output).
 
 :func:`write_scan_netcdf` writes a scan dataset (docs/DEVELOPING.md, "Scan dataset")
-atomically with CF attributes from :mod:`cwproc.products.metadata`; :func:`read_scan_netcdf`
+atomically with CF attributes from :mod:`cwproc.io.schema`; :func:`read_scan_netcdf`
 reads one back and validates the schema, so that a file missing a variable, a
 dimension or the detection attributes fails with the file and the missing name
 instead of somewhere inside a stage.
@@ -27,7 +27,7 @@ import xarray as xr
 from cwproc.errors import InputFileError
 from cwproc.io.netcdf import write_netcdf_atomic
 from cwproc.io.scans import parse_homodyne
-from cwproc.products.metadata import apply_metadata
+from cwproc.io.schema import with_canonical_attrs
 
 #: required variables and their dimensions
 REQUIRED_VARIABLES: dict[str, tuple[str, ...]] = {
@@ -135,7 +135,7 @@ def write_scan_netcdf(ds: xr.Dataset, path: str | os.PathLike) -> Path:
 
         out = assign_scans(out)
     out = out.set_coords([c for c in _COORDS if c in out.variables])
-    out = apply_metadata(out)
+    out = with_canonical_attrs(out, "scan")
     out = _encode_time_exactly(out)
     attrs = dict(out.attrs)
     attrs["homodyne"] = int(parse_homodyne(attrs["homodyne"]))
@@ -196,4 +196,4 @@ def read_scan_netcdf(path: str | os.PathLike, **options: object) -> xr.Dataset:
         ds = assign_scans(ds)
     else:
         ds["scan"] = ds["scan"].astype(np.int64)
-    return ds
+    return with_canonical_attrs(ds, "scan")

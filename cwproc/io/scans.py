@@ -32,6 +32,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import CwprocError
+from cwproc.io.schema import with_canonical_attrs
 
 #: scan_type words that declare a conical scan (a 2-ray sweep is then accepted)
 _CONICAL_WORDS = re.compile(r"\b(VAD|PPI|conical|DBS)\b", re.IGNORECASE)
@@ -498,4 +499,4 @@ def time_sorted_scans(
         "range": xr.Variable("range", ranges, coord_attrs.get("range")),
     }
     out = xr.Dataset(data_vars, coords=coords, attrs=attrs)
-    return assign_scans(out, **assign_options)
+    return with_canonical_attrs(assign_scans(out, **assign_options), "scan")

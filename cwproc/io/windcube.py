@@ -45,7 +45,12 @@ import xarray as xr
 
 from cwproc.errors import InputFileError
 from cwproc.io.timecheck import check_times
-from cwproc.io.zephir import check_reader_options, with_range_screen
+from cwproc.io.zephir import (
+    check_reader_options,
+    increasing_utc_times,
+    read_latin1_lines,
+    wind_record_dataset,
+)
 
 #: 1.x per-altitude column suffix -> canonical name
 LONG_HEIGHT_COLUMNS: dict[str, str] = {
@@ -274,19 +279,34 @@ def read_windcube_sta(
     """
     utc_offset_hours = check_reader_options("windcube_sta", utc_offset_hours, options)
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
-    if not raw.strip():
-        raise InputFileError(path, "file is empty")
-    lines = raw.decode("latin-1").replace("\r\n", "\n").split("\n")
+    lines = read_latin1_lines(path)
     if lines[-1] == "":
         lines.pop()
     column_line, items = parse_header(path, lines)
     names = lines[column_line - 1].split("\t")
-    time_col = names[0].strip()
-    if time_col not in _TIME_COLUMNS:
+    generation, heights, hcols = _layout(path, names, column_line, items)
+    table = _record_table(path, lines[column_line:], names, column_line)
+    first = column_line + 1
+    offset, sync = _utc_offset(path, items, utc_offset_hours)
+    times = increasing_utc_times(path, _parse_times(path, table[0], first), offset, first)
+    heights_sorted = np.array(sorted(heights), dtype=float)
+    data_vars, n_missing = _variables(path, table, names, hcols, heights_sorted, first)
+    steps = np.diff(times).astype(float) / 1e9
+    attrs = _attrs(path, items, generation)
+    attrs.update(
+        averaging_interval_s=float(np.median(steps)) if steps.size else 600.0,
+        utc_offset_applied_h=offset,
+        time_sync=sync,
+        n_missing=n_missing,
+    )
+    return wind_record_dataset(data_vars, times, heights_sorted, attrs)
+
+
+def _layout(
+    path: Path, names: list[str], column_line: int, items: dict[str, str]
+) -> tuple[str, list[float], dict[tuple[str, float], int]]:
+    """Column generation ("1.x" or "3.x"), heights and ``(variable, height) -> column``."""
+    if names[0].strip() not in _TIME_COLUMNS:
         raise InputFileError(
             path,
             f"expected the column header ('Timestamp (end of interval)' or 'Date', "
@@ -308,8 +328,11 @@ def read_windcube_sta(
         heights, hcols = _layout_short(path, names, column_line, altitudes)
     if not heights:
         raise InputFileError(path, "no per-altitude wind columns", column_line)
+    return generation, heights, hcols
 
-    data = lines[column_line:]
+
+def _record_table(path: Path, data: list[str], names: list[str], column_line: int) -> pd.DataFrame:
+    """The records split at TABs, each with the header's number of fields."""
     if not data:
         raise InputFileError(path, "no data records after the column header", column_line)
     series = pd.Series(data, dtype=object)
@@ -321,50 +344,54 @@ def read_windcube_sta(
         if i == len(data) - 1 and counts[i] < len(names):
             problem += " (file truncated?)"
         raise InputFileError(path, problem, column_line + 1 + i)
-    table = series.str.split("\t", expand=True, regex=False)
-    first = column_line + 1
+    return series.str.split("\t", expand=True, regex=False)
 
+
+def _utc_offset(
+    path: Path, items: dict[str, str], utc_offset_hours: float | None
+) -> tuple[float, str]:
+    """Offset of the stamps from UTC (h) and where it comes from (``time_sync``)."""
     tz = _header_value(items, "timezone", "TimeZone", "Timezone")
-    offset = 0.0
-    sync = "absent"
+    offset, sync = 0.0, "absent"
     if tz:
         m = _TZ_RE.search(tz)
         if m is None:
             raise InputFileError(path, f"cannot read the time zone {tz!r}")
-        offset = (1 if m.group(1) == "+" else -1) * float(m.group(2))
-        sync = "from file"
+        offset, sync = (1 if m.group(1) == "+" else -1) * float(m.group(2)), "from file"
     if utc_offset_hours is not None:
-        offset, sync = float(utc_offset_hours), "reader option utc_offset_hours"
-    times = _parse_times(path, table[0], first)
-    times = times - np.timedelta64(round(offset * 3600e9), "ns")
-    back = np.flatnonzero(np.diff(times) <= np.timedelta64(0, "ns"))
-    if back.size:
-        raise InputFileError(
-            path, "time stamp does not increase over the previous record", first + int(back[0]) + 1
-        )
+        return float(utc_offset_hours), "reader option utc_offset_hours"
+    return offset, sync
 
+
+def _variables(
+    path: Path,
+    table: pd.DataFrame,
+    names: list[str],
+    hcols: dict[tuple[str, float], int],
+    heights: np.ndarray,
+    first: int,
+) -> tuple[dict[str, Any], int]:
+    """The per-record and per-height variables, and the number of missing values."""
     record = {
         i: RECORD_COLUMNS[n.strip()] for i, n in enumerate(names) if n.strip() in RECORD_COLUMNS
     }
-    heights_sorted = np.array(sorted(heights), dtype=float)
     variables = sorted({v for v, _ in hcols}, key=list(dict.fromkeys(v for v, _ in hcols)).index)
-    used = list(record) + [hcols[(v, h)] for v in variables for h in heights_sorted]
+    used = list(record) + [hcols[(v, h)] for v in variables for h in heights]
     sub = table[used]
     sub.columns = [names[i] if i in record else f"{names[i]} [{i + 1}]" for i in used]
     values = _numbers(path, sub, first)
-    n_missing = int(np.isnan(values).sum())
-
     data_vars: dict[str, Any] = {}
     for j, i in enumerate(record):
         data_vars[record[i]] = (("time",), values[:, j])
-    nh = heights_sorted.size
+    nh = heights.size
     base = len(record)
     for k, var in enumerate(variables):
-        block = values[:, base + k * nh : base + (k + 1) * nh]
-        data_vars[var] = (("time", "height"), block)
+        data_vars[var] = (("time", "height"), values[:, base + k * nh : base + (k + 1) * nh])
+    return data_vars, int(np.isnan(values).sum())
 
-    steps = np.diff(times).astype(float) / 1e9
-    interval = float(np.median(steps)) if steps.size else 600.0
+
+def _attrs(path: Path, items: dict[str, str], generation: str) -> dict[str, Any]:
+    """Dataset attributes from the header: instrument, system, scan angle, location."""
     version = _header_value(items, "Version") or ""
     attrs: dict[str, Any] = {
         "instrument": f"Leosphere WindCube v1 (software {version})".strip(),
@@ -373,11 +400,7 @@ def read_windcube_sta(
         "column_generation": generation,
         "source_files": [path.name],
         "homodyne": 0,
-        "averaging_interval_s": interval,
         "time_stamp_position": "end",
-        "utc_offset_applied_h": offset,
-        "time_sync": sync,
-        "n_missing": n_missing,
         "system_id": _header_value(items, "ID System") or "",
     }
     angle = _header_value(items, "ScanAngle (°)", "ScanAngle(°)")
@@ -392,6 +415,4 @@ def read_windcube_sta(
     gps = _header_value(items, "GPS Location", "GPS Localisation")
     if gps:
         attrs["gps_location"] = gps
-    return with_range_screen(
-        xr.Dataset(data_vars, coords={"time": times, "height": heights_sorted}, attrs=attrs)
-    )
+    return attrs

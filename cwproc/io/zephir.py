@@ -48,6 +48,7 @@ import xarray as xr
 
 from cwproc.errors import ConfigError, InputFileError
 from cwproc.io.ranges import range_warnings, screen_physical_range
+from cwproc.io.schema import with_canonical_attrs
 from cwproc.io.timecheck import check_times
 
 #: per-height column prefix -> canonical variable name (8 columns per height)
@@ -103,6 +104,52 @@ def with_range_screen(ds: xr.Dataset) -> xr.Dataset:
     if counts:
         screened.attrs["warnings"] = [*ds.attrs.get("warnings", []), *range_warnings(counts)]
     return screened
+
+
+def read_latin1_lines(path: Path) -> list[str]:
+    """The lines of a Latin-1 text file (CRLF or LF ends), the last one possibly empty.
+
+    Raises
+    ------
+    InputFileError
+        The file cannot be read or holds only white space.
+    """
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    if not raw.strip():
+        raise InputFileError(path, "file is empty")
+    return raw.decode("latin-1").replace("\r\n", "\n").split("\n")
+
+
+def increasing_utc_times(
+    path: Path, stamps: np.ndarray, offset_h: float, first_line: int
+) -> np.ndarray:
+    """Stamps of ``offset_h`` hours from UTC as UTC; each must follow the previous one.
+
+    Raises
+    ------
+    InputFileError
+        A stamp does not increase over the previous record (line named).
+    """
+    times = stamps - np.timedelta64(round(offset_h * 3600e9), "ns")
+    back = np.flatnonzero(np.diff(times) <= np.timedelta64(0, "ns"))
+    if back.size:
+        raise InputFileError(
+            path,
+            "time stamp does not increase over the previous record",
+            first_line + int(back[0]) + 1,
+        )
+    return times
+
+
+def wind_record_dataset(
+    data_vars: dict[str, Any], times: np.ndarray, heights: np.ndarray, attrs: dict[str, Any]
+) -> xr.Dataset:
+    """The canonical wind-record dataset: impossible values screened, attributes attached."""
+    ds = xr.Dataset(data_vars, coords={"time": times, "height": heights}, attrs=attrs)
+    return with_canonical_attrs(with_range_screen(ds), "wind_record")
 
 
 def _number(text: str) -> float:
@@ -382,14 +429,7 @@ def read_zephir_csv(
     """
     utc_offset_hours = check_reader_options("zephir_csv", utc_offset_hours, options)
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
-    if not raw.strip():
-        raise InputFileError(path, "file is empty")
-    text = raw.decode("latin-1").replace("\r\n", "\n")
-    lines = text.split("\n")
+    lines = read_latin1_lines(path)
     if lines[-1] == "":
         lines.pop()
     elif len(lines) > _HEADER_LINES:
@@ -400,14 +440,7 @@ def read_zephir_csv(
     if len(lines) < _HEADER_LINES:
         raise InputFileError(path, "no column-header line (file truncated?)", 1)
     layout = parse_header_line(path, lines[1])
-    data_lines = lines[_HEADER_LINES:]
-    if not data_lines:
-        raise InputFileError(path, "no data records after the header", _HEADER_LINES)
-    blank = [i for i, s in enumerate(data_lines) if not s.strip()]
-    if blank:
-        raise InputFileError(path, "blank line among the records", _HEADER_LINES + 1 + blank[0])
-    names: list[str] = layout["names"]
-    _check_field_counts(path, data_lines, len(names))
+    data_lines = _data_lines(path, lines, len(layout["names"]))
     text = "\n".join(data_lines)
     first = _HEADER_LINES + 1
     record_cols = layout["record_columns"]
@@ -417,13 +450,41 @@ def read_zephir_csv(
 
     offset = meta["utc_offset_h"] if utc_offset_hours is None else float(utc_offset_hours)
     times = _parse_times(path, table[_TIME_COLUMN], first)
-    times = times - np.timedelta64(round((offset or 0.0) * 3600e9), "ns")
-    back = np.flatnonzero(np.diff(times) <= np.timedelta64(0, "ns"))
-    if back.size:
-        raise InputFileError(
-            path, "time stamp does not increase over the previous record", first + int(back[0]) + 1
-        )
+    times = increasing_utc_times(path, times, offset or 0.0, first)
+    data_vars, n9999, n9998 = _record_variables(path, text, layout, table)
+    attrs = _attrs(path, meta, layout, times, utc_offset_hours)
+    attrs.update(n_missing_9999=n9999, n_missing_9998=n9998)
+    heights = np.array(sorted(layout["heights"]), dtype=float)
+    return wind_record_dataset(data_vars, times, heights, attrs)
 
+
+def _data_lines(path: Path, lines: list[str], n_columns: int) -> list[str]:
+    """The record lines after the two header lines, checked for blanks and field counts."""
+    data_lines = lines[_HEADER_LINES:]
+    if not data_lines:
+        raise InputFileError(path, "no data records after the header", _HEADER_LINES)
+    blank = [i for i, s in enumerate(data_lines) if not s.strip()]
+    if blank:
+        raise InputFileError(path, "blank line among the records", _HEADER_LINES + 1 + blank[0])
+    _check_field_counts(path, data_lines, n_columns)
+    return data_lines
+
+
+def _record_variables(
+    path: Path, text: str, layout: dict[str, Any], table: pd.DataFrame
+) -> tuple[dict[str, Any], int, int]:
+    """The variables of the records, missing-value codes as NaN, and the codes' counts.
+
+    Returns
+    -------
+    data_vars : dict
+        ``name -> (dims, values)``: per height (``time``, ``height``) and per record.
+    n9999, n9998 : int
+        How many ``9999`` and ``9998`` codes were replaced.
+    """
+    names: list[str] = layout["names"]
+    record_cols = layout["record_columns"]
+    first = _HEADER_LINES + 1
     numeric_names = [c for c in names if c in RECORD_COLUMNS and c in record_cols]
     height_items = sorted(layout["height_columns"].items(), key=lambda kv: kv[1])
     height_names = [names[i] for _, i in height_items]
@@ -436,7 +497,7 @@ def read_zephir_csv(
     values = np.where(sentinel_mask, np.nan, values)
     col_index = {c: j for j, c in enumerate(numeric_names + height_names)}
 
-    heights = np.array(sorted(layout["heights"]), dtype=float)
+    heights = sorted(layout["heights"])
     data_vars: dict[str, Any] = {}
     for var in HEIGHT_COLUMNS.values():
         cols = [col_index[names[layout["height_columns"][(var, h)]]] for h in heights]
@@ -450,11 +511,22 @@ def read_zephir_csv(
         lat, lon = _parse_gps(path, table["GPS"], first)
         data_vars["latitude"] = (("time",), lat)
         data_vars["longitude"] = (("time",), lon)
+    return data_vars, n9999, n9998
 
-    variant, default_interval = _variant(names, path)
+
+def _attrs(
+    path: Path,
+    meta: dict[str, Any],
+    layout: dict[str, Any],
+    times: np.ndarray,
+    utc_offset_hours: float | None,
+) -> dict[str, Any]:
+    """Dataset attributes: instrument, file variant, averaging interval, time sync."""
+    variant, default_interval = _variant(layout["names"], path)
     steps = np.diff(times).astype("timedelta64[ns]").astype(float) / 1e9
     steps = steps[steps > 0]
     interval = float(np.median(steps)) if steps.size else default_interval
+    offset = meta["utc_offset_h"] if utc_offset_hours is None else float(utc_offset_hours)
     attrs: dict[str, Any] = {
         "instrument": "ZephIR 300",
         "instrument_kind": "cw",
@@ -467,8 +539,6 @@ def read_zephir_csv(
         "time_stamp_position": meta["time_stamp_position"],
         "utc_offset_applied_h": float(offset or 0.0),
         "time_sync": "from file" if meta["utc_offset_h"] is not None else "absent",
-        "n_missing_9999": n9999,
-        "n_missing_9998": n9998,
         "checksum_checked": 0,
         "checksum_note": "the Checksum field is an undocumented encoding, not checkable",
         "height_datum": "as labelled in the column names (above ground)",
@@ -483,9 +553,7 @@ def read_zephir_csv(
             attrs[key] = value
     if layout["ignored"]:
         attrs["ignored_columns"] = list(layout["ignored"])
-    ds = xr.Dataset(data_vars, coords={"time": times, "height": heights}, attrs=attrs)
-    ds["packets"].attrs["comment"] = "number of 1-s scan packets in the average"
-    return with_range_screen(ds)
+    return attrs
 
 
 def _parse_gps(

@@ -14,6 +14,7 @@ from cwproc.references import (
     OCONNOR_2010,
     PEARSON_2009,
     SMALIKHO_2020,
+    VAD_ACCURACY,
     WAGNER_DTU,
 )
 
@@ -54,7 +55,7 @@ _KEYWORDS = {
     "stare": "Doppler lidar, vertical stare, vertical velocity, turbulence, dissipation rate",
 }
 _REFERENCES = {
-    "wind": SMALIKHO_2020,
+    "wind": SMALIKHO_2020 + "; " + VAD_ACCURACY,
     "turbulence": SMALIKHO_2020 + "; " + BANAKH_1999,
     "sf": GLADKIKH_2014,
     "stare": OCONNOR_2010 + "; " + PEARSON_2009,

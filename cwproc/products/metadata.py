@@ -1,105 +1,69 @@
 """One declaration per variable that cwproc writes: CF-1.10 attributes of every product.
 
-Stages and readers never write ``units``/``standard_name``/``long_name`` strings
-themselves: they name variables as listed here and :func:`apply_metadata` (called by
-the NetCDF writer) attaches the attributes. A test checks that every variable of
-every product is declared here. Stage-specific attributes that describe *what was
-done* (method, parameters, references) are set by the stages in ``attrs`` and are
-kept.
+The only home of names, units, flags and citations of the products. The canonical
+input variables (scan, wind-record and sonic datasets) are declared in
+:mod:`cwproc.io.schema`, whose entries are taken here; the product variables are
+declared below, and :data:`PRODUCT_VARIABLES` holds what differs between products
+(the bits of ``qc_flag`` of the VAD wind and of the wind-record product, citations).
+Stages never write ``units``/``standard_name``/``long_name``/``references``/flag
+attributes: :func:`apply_metadata` (called by the NetCDF writer) replaces any such
+attribute by the declared one and keeps what records *what was done* (method,
+parameters). A test checks that every variable of every product is declared here.
 
-To add a variable: add one :class:`VarMeta` entry to ``VARIABLES`` (keep the table
-grouped by product).
+To add a variable: add one :class:`VarMeta` entry to ``_PRODUCT_VARIABLES`` (keep the
+table grouped by product).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import replace
 
-import numpy as np
 import xarray as xr
 
+from cwproc.io.schema import (
+    SCAN_VARIABLES,
+    SONIC_VARIABLES,
+    WIND_RECORD_VARIABLES,
+    VarMeta,
+    attach_attrs,
+)
 from cwproc.references import (
     BANAKH_1999,
     GLADKIKH_2014,
     OCONNOR_2010,
     SMALIKHO_2020,
+    VAD_ACCURACY,
     WAGNER_DTU,
 )
 
 
-@dataclass(frozen=True)
-class VarMeta:
-    """CF attributes of one variable."""
-
-    long_name: str
-    units: str | None
-    standard_name: str | None = None
-    comment: str | None = None
-    references: str | None = None
-    #: flag variables: values and their meanings (CF flag_values / flag_meanings)
-    flag_values: tuple[int, ...] | None = None
-    #: bit flags: the masks (CF flag_masks) whose meanings ``flag_meanings`` lists
-    flag_masks: tuple[int, ...] | None = None
-    flag_meanings: str | None = None
-    #: CF "positive" attribute for vertical coordinates
-    positive: str | None = None
-    axis: str | None = None
-    #: ACDD coverage_content_type: physicalMeasurement, qualityInformation,
-    #: auxiliaryInformation, coordinate, modelResult, referenceInformation
-    coverage_content_type: str = "physicalMeasurement"
-
-    def attrs(self) -> dict[str, object]:
-        """The attributes as a dict, without the ``None`` entries."""
-        out: dict[str, object] = {"long_name": self.long_name}
-        if self.units is not None:
-            out["units"] = self.units
-        keys = (
-            "standard_name",
-            "comment",
-            "references",
-            "flag_meanings",
-            "positive",
-            "axis",
-            "coverage_content_type",
-        )
-        for key in keys:
-            value = getattr(self, key)
-            if value is not None:
-                out[key] = value
-        if self.flag_values is not None:
-            out["flag_values"] = list(self.flag_values)
-        if self.flag_masks is not None:
-            out["flag_masks"] = list(self.flag_masks)
-        return out
+def _gladkikh(long_name: str, units: str, equation: str) -> VarMeta:
+    """A sonic SF variable defined by ``equation`` of Gladkikh et al. (2014)."""
+    return VarMeta(long_name, units, references=f"{GLADKIKH_2014}, {equation}")
 
 
-VARIABLES: dict[str, VarMeta] = {
-    # ---------------------------------------------------------------- coordinates
-    "time": VarMeta("time (UTC)", None, "time", axis="T", coverage_content_type="coordinate"),
-    "height": VarMeta(
-        "height above the instrument",
-        "m",
-        "height",
-        positive="up",
-        axis="Z",
-        coverage_content_type="coordinate",
+_TYPE_FORMS = (
+    (1, "eq. 4", "lg D_n = b + mu lg r", {"b": "intercept b", "mu": "slope mu"}),
+    (2, "eq. 5", "lg D_n = a0 + a1 x + a2 x^2", {f"a{k}": f"coefficient a{k}" for k in range(3)}),
+    (3, "eq. 6", "the parabolic part", {f"d{k}": f"coefficient d{k}" for k in range(3)}),
+    (
+        3,
+        "eq. 6",
+        "the linear part lg D_n = c + gamma x",
+        {"c": "intercept c", "gamma": "slope gamma"},
     ),
-    "range": VarMeta("distance from the lidar to the centre of the range gate", "m"),
-    "latitude": VarMeta(
-        "latitude of the instrument",
-        "degrees_north",
-        "latitude",
-        axis="Y",
-        coverage_content_type="coordinate",
-    ),
-    "longitude": VarMeta(
-        "longitude of the instrument",
-        "degrees_east",
-        "longitude",
-        axis="X",
-        coverage_content_type="coordinate",
-    ),
+)
+#: fitted coefficients sf_<name> of the three structure-function types
+_SF_COEFFICIENTS: dict[str, VarMeta] = {
+    f"sf_{name}": _gladkikh(f"type {t}: {what} of {form}", "1", eq)
+    for t, eq, form, names in _TYPE_FORMS
+    for name, what in names.items()
+}
+
+
+#: the product variables (the canonical input variables are added below)
+_PRODUCT_VARIABLES: dict[str, VarMeta] = {
     "altitude": VarMeta(
         "altitude of the instrument above mean sea level",
         "m",
@@ -107,41 +71,24 @@ VARIABLES: dict[str, VarMeta] = {
         positive="up",
         coverage_content_type="coordinate",
     ),
-    "azimuth": VarMeta(
-        "azimuth of the beam, clockwise from north", "degree", "sensor_azimuth_angle"
-    ),
-    "elevation": VarMeta("elevation of the beam above the horizon", "degree"),
-    "scan": VarMeta("index of the 360 degree rotation the ray belongs to", "1"),
     "lag": VarMeta("azimuth lag number l of the structure function", "1"),
-    "ray": VarMeta("ray index", "1"),
-    # ---------------------------------------------------------------- scan dataset
-    "radial_velocity": VarMeta(
-        "radial (line-of-sight) velocity, positive away from the lidar",
-        "m s-1",
-        "radial_velocity_of_scatterers_away_from_instrument",
-    ),
-    "snr": VarMeta("signal-to-noise ratio (Halo intensity minus 1)", "1"),
-    "beta": VarMeta("attenuated backscatter coefficient", "m-1 sr-1"),
-    "spectral_width": VarMeta("Doppler spectral width", "m s-1"),
-    "pitch": VarMeta("instrument pitch from the internal inclinometer", "degree", "platform_pitch"),
-    "roll": VarMeta("instrument roll from the internal inclinometer", "degree", "platform_roll"),
     "qc_flag_radial": VarMeta(
         "radial velocity screening flag (bits combine; 0 = good)",
         "1",
         comment="0 good; bit 1 SNR below threshold; bit 2 robust outlier; bit 4 not finite",
         flag_masks=(1, 2, 4),
         flag_meanings="low_snr outlier not_finite",
+        references=SMALIKHO_2020 + ", eq. 1",
+    ),
+    # ------------------------------------------------ scan dataset: stage background
+    "snr_uncorrected": VarMeta("signal-to-noise ratio as given by the instrument", "1"),
+    "noise_floor": VarMeta("median noise floor F of the background correction", "1"),
+    "background_time": VarMeta(
+        "time of the background measurement that corrected the ray (UTC)", None, "time"
     ),
     # ---------------------------------------------------------------- wind product
     "u": VarMeta("eastward wind", "m s-1", "eastward_wind"),
     "v": VarMeta("northward wind", "m s-1", "northward_wind"),
-    "w": VarMeta("upward air velocity", "m s-1", "upward_air_velocity"),
-    "wind_speed": VarMeta("horizontal wind speed", "m s-1", "wind_speed"),
-    "wind_direction": VarMeta(
-        "wind direction (from which the wind blows, clockwise from north)",
-        "degree",
-        "wind_from_direction",
-    ),
     "u_error": VarMeta(
         "standard error of the eastward wind", "m s-1", "eastward_wind standard_error"
     ),
@@ -167,12 +114,9 @@ VARIABLES: dict[str, VarMeta] = {
     "qc_flag": VarMeta(
         "wind quality flag (bits combine; 0 = good)",
         "1",
-        flag_masks=(1, 2, 4, 8),
-        flag_meanings="too_few_samples azimuth_gap_too_large bad_fit_or_missing rain",
         comment=(
-            "0 good; bit 1 too few rays (VAD) or packets (wind records); bit 2 azimuth gap "
-            "too large (VAD); bit 4 bad fit (VAD) or missing value (wind records); bit 8 "
-            "too many packets with rain (wind records)"
+            "the bits depend on the product: VAD wind: 1 too few rays, 2 azimuth gap too "
+            "large, 4 bad fit; wind records: 1 too few packets, 4 missing value, 8 rain"
         ),
     ),
     # ---------------------------------------------------------------- turbulence product
@@ -381,7 +325,7 @@ VARIABLES: dict[str, VarMeta] = {
             "statistics eps is 0.86 of the truth at L_1 = 0.4 L_V and 0.75 at L_1 = 1.2 L_V "
             "(median); it is biased low where L_1 is not small against L_V"
         ),
-        references=OCONNOR_2010,
+        references=OCONNOR_2010 + ", eqs. 1-4",
     ),
     "epsilon_stare_standard_error": VarMeta(
         "standard error of the stare dissipation rate",
@@ -416,10 +360,10 @@ VARIABLES: dict[str, VarMeta] = {
     ),
     "r_min": VarMeta("smallest lag of the fit", "m", references=GLADKIKH_2014),
     "r_max": VarMeta("largest lag of the fit", "m", references=GLADKIKH_2014),
-    "r_s": VarMeta(
+    "r_s": _gladkikh(
         "type 3: lag of the change from the parabolic to the linear part, (r_p + r_l)/2",
         "m",
-        references=GLADKIKH_2014 + ", eq. 10",
+        "eq. 10",
     ),
     "k_d": VarMeta("determination coefficient of the fit", "1", references=GLADKIKH_2014),
     "mean_horizontal_wind": VarMeta(
@@ -428,63 +372,16 @@ VARIABLES: dict[str, VarMeta] = {
     "sf_lag": VarMeta("lag number j of the sonic structure function (time lag j/f_d)", "1"),
     "component": VarMeta("wind component: longitudinal V_1, transverse V_2, vertical V_3", "1"),
     "window": VarMeta("analysis window index", "1"),
-    "sf_b": VarMeta(
-        "type 1: intercept b of lg D_n = b + mu lg r", "1", references=GLADKIKH_2014 + ", eq. 4"
+    **_SF_COEFFICIENTS,
+    "r_p": _gladkikh("type 3: end lag r_p of the parabolic part", "m", "eq. 6"),
+    "r_l": _gladkikh("type 3: start lag r_l of the linear part", "m", "eq. 6"),
+    "structure_constant": _gladkikh(
+        "C = 10^beta D(r_N) of D(r) = C F(r) r_n^alpha", "m2 s-2", "eq. 7"
     ),
-    "sf_mu": VarMeta(
-        "type 1: slope mu of lg D_n = b + mu lg r", "1", references=GLADKIKH_2014 + ", eq. 4"
+    "sf_at_normalisation_lag": _gladkikh(
+        "structure function at the lag nearest r_N", "m2 s-2", "eq. 3"
     ),
-    "sf_a0": VarMeta(
-        "type 2: coefficient a0 of lg D_n = a0 + a1 x + a2 x^2",
-        "1",
-        references=GLADKIKH_2014 + ", eq. 5",
-    ),
-    "sf_a1": VarMeta(
-        "type 2: coefficient a1 of lg D_n = a0 + a1 x + a2 x^2",
-        "1",
-        references=GLADKIKH_2014 + ", eq. 5",
-    ),
-    "sf_a2": VarMeta(
-        "type 2: coefficient a2 of lg D_n = a0 + a1 x + a2 x^2",
-        "1",
-        references=GLADKIKH_2014 + ", eq. 5",
-    ),
-    "sf_d0": VarMeta(
-        "type 3: coefficient d0 of the parabolic part", "1", references=GLADKIKH_2014 + ", eq. 6"
-    ),
-    "sf_d1": VarMeta(
-        "type 3: coefficient d1 of the parabolic part", "1", references=GLADKIKH_2014 + ", eq. 6"
-    ),
-    "sf_d2": VarMeta(
-        "type 3: coefficient d2 of the parabolic part", "1", references=GLADKIKH_2014 + ", eq. 6"
-    ),
-    "sf_c": VarMeta(
-        "type 3: intercept c of the linear part lg D_n = c + gamma x",
-        "1",
-        references=GLADKIKH_2014 + ", eq. 6",
-    ),
-    "sf_gamma": VarMeta(
-        "type 3: slope gamma of the linear part lg D_n = c + gamma x",
-        "1",
-        references=GLADKIKH_2014 + ", eq. 6",
-    ),
-    "r_p": VarMeta(
-        "type 3: end lag r_p of the parabolic part", "m", references=GLADKIKH_2014 + ", eq. 6"
-    ),
-    "r_l": VarMeta(
-        "type 3: start lag r_l of the linear part", "m", references=GLADKIKH_2014 + ", eq. 6"
-    ),
-    "structure_constant": VarMeta(
-        "C = 10^beta D(r_N) of D(r) = C F(r) r_n^alpha",
-        "m2 s-2",
-        references=GLADKIKH_2014 + ", eq. 7",
-    ),
-    "sf_at_normalisation_lag": VarMeta(
-        "structure function at the lag nearest r_N", "m2 s-2", references=GLADKIKH_2014 + ", eq. 3"
-    ),
-    "r_normalisation": VarMeta(
-        "lag r_j nearest r_N used for the normalisation", "m", references=GLADKIKH_2014 + ", eq. 3"
-    ),
+    "r_normalisation": _gladkikh("lag r_j nearest r_N used for the normalisation", "m", "eq. 3"),
     "valid_fraction": VarMeta("fraction of the window's samples that are valid", "1"),
     "window_flag": VarMeta(
         "sonic window flag (bits combine)",
@@ -496,29 +393,11 @@ VARIABLES: dict[str, VarMeta] = {
             "bit 4 largest lag < r_N (calm)"
         ),
     ),
-    "lag_distance": VarMeta(
-        "spatial lag r_j = j V_h / f_d", "m", references=GLADKIKH_2014 + ", eq. 2"
+    "lag_distance": _gladkikh("spatial lag r_j = j V_h / f_d", "m", "eq. 2"),
+    "normalised_sf": _gladkikh("normalised structure function D_n(r_j)", "1", "eq. 3"),
+    "normalised_sf_fit": _gladkikh(
+        "fitted model of the normalised structure function up to r_max", "1", "eqs. 4-6"
     ),
-    "normalised_sf": VarMeta(
-        "normalised structure function D_n(r_j)", "1", references=GLADKIKH_2014 + ", eq. 3"
-    ),
-    "normalised_sf_fit": VarMeta(
-        "fitted model of the normalised structure function up to r_max",
-        "1",
-        references=GLADKIKH_2014 + ", eqs. 4-6",
-    ),
-    "sample_flag": VarMeta(
-        "sonic sample flag (bits combine)",
-        "1",
-        flag_masks=(1, 2, 4),
-        flag_meanings="instrument_diagnostic spike missing_or_not_finite",
-        comment=(
-            "0 good; bit 1 non-zero instrument diagnostic; bit 2 spike; bit 4 missing or not finite"
-        ),
-    ),
-    # ---------------------------------------------------------------- sonic dataset
-    "temperature": VarMeta("sonic temperature", "degC", "virtual_temperature"),
-    "diagnostic": VarMeta("instrument diagnostic word (0 = good)", "1"),
     # ---------------------------------------------------------------- Monte-Carlo product
     "epsilon_rel_error": VarMeta(
         "relative RMS error of the dissipation rate estimate", "1", references=BANAKH_1999
@@ -571,20 +450,7 @@ VARIABLES: dict[str, VarMeta] = {
         references=SMALIKHO_2020 + ", eqs. 4, 15",
     ),
     # ---------------------------------------------------------------- wind-record product
-    "wind_speed_std": VarMeta(
-        "standard deviation of the horizontal wind speed over the averaging interval", "m s-1"
-    ),
-    "wind_speed_min": VarMeta("minimum horizontal wind speed in the averaging interval", "m s-1"),
-    "wind_speed_max": VarMeta("maximum horizontal wind speed in the averaging interval", "m s-1"),
     "n_packets": VarMeta("number of scan packets (1-s rotations) in the average", "1"),
-    "data_availability": VarMeta("proportion of valid measurements in the average", "%"),
-    "rain_percent": VarMeta("proportion of packets with rain", "%"),
-    "raining": VarMeta("rain detected by the instrument (0 no, 1 yes)", "1"),
-    "turbulence_intensity": VarMeta(
-        "turbulence intensity as measured (standard deviation over mean of the horizontal "
-        "wind speed)",
-        "1",
-    ),
     "volume_averaging_ratio": VarMeta(
         "predicted ratio of the lidar to the cup standard deviation of the wind speed",
         "1",
@@ -605,37 +471,117 @@ VARIABLES: dict[str, VarMeta] = {
 }
 
 
-def apply_metadata(ds: xr.Dataset, table: Mapping[str, VarMeta] = VARIABLES) -> xr.Dataset:
+#: every variable cwproc writes: the canonical input variables and the product variables
+VARIABLES: dict[str, VarMeta] = {
+    **SCAN_VARIABLES,
+    **WIND_RECORD_VARIABLES,
+    **{k: SONIC_VARIABLES[k] for k in ("temperature", "diagnostic", "sample_flag")},
+    **_PRODUCT_VARIABLES,
+}
+
+_VAD_REFERENCES = (
+    f"{SMALIKHO_2020}, eqs. 1 and 8; {BANAKH_1999}, after eq. 23; {VAD_ACCURACY}, sections 2-4"
+)
+_VAD_ERROR_REFERENCES = f"{VAD_ACCURACY}, section 4"
+
+
+def _qc_bits(bits: dict[int, str], comment: str) -> VarMeta:
+    """``qc_flag`` of one product: its bit masks -> meanings, and their description."""
+    return replace(
+        VARIABLES["qc_flag"],
+        flag_masks=tuple(bits),
+        flag_meanings=" ".join(bits.values()),
+        comment=comment,
+    )
+
+
+#: per product, the declarations that differ from :data:`VARIABLES` (flag bits, citations)
+PRODUCT_VARIABLES: dict[str, dict[str, VarMeta]] = {
+    "wind": {
+        "qc_flag": _qc_bits(
+            {1: "too_few_rays", 2: "azimuth_gap_too_large", 4: "bad_fit"},
+            "0 good; bit 1 too few rays; bit 2 azimuth gap too large; bit 4 bad fit "
+            "(see bad_fit_definition)",
+        ),
+        **{
+            name: replace(VARIABLES[name], references=_VAD_REFERENCES)
+            for name in ("u", "v", "w", "wind_speed", "wind_direction")
+        },
+        **{
+            name: replace(VARIABLES[name], references=_VAD_ERROR_REFERENCES)
+            for name in ("u_error", "v_error", "w_error")
+        },
+    },
+    "wind_record": {
+        "qc_flag": _qc_bits(
+            {1: "too_few_samples", 4: "missing_value", 8: "rain"},
+            "0 good; bit 1 too few packets or too low data availability; bit 4 missing "
+            "value; bit 8 too many packets with rain",
+        ),
+    },
+    "sf": {
+        "time": replace(VARIABLES["time"], comment="start of the analysis window"),
+        "wind_direction": replace(
+            VARIABLES["wind_direction"],
+            long_name="direction of the window-mean wind (from which it blows, clockwise "
+            "from north)",
+            comment=(
+                "mean u, v of the window in the instrument frame turned by [sonic] "
+                "orientation_deg, the azimuth of the sonic's +x axis"
+            ),
+        ),
+    },
+}
+
+#: a variable that only the product of that name holds (how a product is recognised)
+PRODUCT_MARKERS: dict[str, str] = {
+    "wind": "n_rays",
+    "wind_record": "volume_averaging_ratio",
+    "turbulence": "structure_function",
+    "stare": "w_ray",
+    "sf": "sf_type",
+}
+
+
+def product_of(ds: xr.Dataset) -> str | None:
+    """The product ``ds`` is (a key of :data:`PRODUCT_MARKERS`), or ``None``."""
+    for product, marker in PRODUCT_MARKERS.items():
+        if marker in ds.variables:
+            return product
+    return None
+
+
+def product_table(product: str | None) -> dict[str, VarMeta]:
+    """The declarations of ``product``: :data:`VARIABLES` with its own entries over them."""
+    return {**VARIABLES, **PRODUCT_VARIABLES.get(product or "", {})}
+
+
+def apply_metadata(ds: xr.Dataset, product: str | None = None) -> xr.Dataset:
     """Attach the declared CF attributes to every variable and coordinate of ``ds``.
 
-    Attributes already set by a stage (method, parameters, references) are kept;
-    the declared ``long_name``/``units``/``standard_name`` take precedence.
+    The declared attributes (names, units, flags, citations; see
+    :data:`cwproc.io.schema.DECLARED_ATTRS`) replace whatever a reader or a stage set;
+    the attributes that record what a stage did (method, parameters) are kept.
 
     Parameters
     ----------
     ds : xarray.Dataset
-    table : mapping, optional
-        The metadata table (default: :data:`VARIABLES`).
+    product : str, optional
+        The product (a key of :data:`PRODUCT_MARKERS`); default: recognised from its
+        variables (:func:`product_of`).
 
     Returns
     -------
     xarray.Dataset
         A shallow copy with attributes set.
     """
-    out = ds.copy()
-    for name in list(out.variables):
+    table = product_table(product or product_of(ds))
+    out = attach_attrs(ds, table)
+    for name in out.variables:
         meta = table.get(str(name))
-        if meta is None:
-            continue
-        attrs = dict(out[name].attrs)
-        attrs.update(meta.attrs())
-        attrs.update(_derived_attrs(str(name), meta, is_coord=name in out.coords))
-        for key in ("flag_values", "flag_masks"):
-            if key in attrs and out[name].dtype.kind in "iu":
-                attrs[key] = np.asarray(attrs[key], dtype=out[name].dtype)
-        if name == "time":
-            attrs.pop("units", None)  # set through the encoding by the writer
-        out[name].attrs = attrs
+        if meta is not None:
+            derived = _derived_attrs(str(name), meta, is_coord=name in out.coords)
+            out[name].attrs.update(derived)
     return out
 
 

@@ -38,7 +38,6 @@ import xarray as xr
 
 from cwproc.errors import CwprocError
 
-REFERENCE = "Gladkikh et al. (2014)"
 COMPONENTS = ("longitudinal", "transverse", "vertical")
 
 #: window_flag values (bits)
@@ -121,11 +120,7 @@ def rotate_to_mean_wind(grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     mean_speed : ndarray, shape (W,)
         V_h, the mean horizontal wind speed (m s-1): modulus of the mean vector.
     """
-    ok = np.isfinite(grid[:, 0]) & np.isfinite(grid[:, 1])
-    count = ok.sum(axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mu = np.where(ok, grid[:, 0], 0.0).sum(axis=1) / count
-        mv = np.where(ok, grid[:, 1], 0.0).sum(axis=1) / count
+    mu, mv = window_mean_wind(grid)
     speed = np.hypot(mu, mv)
     safe = np.where(speed > 0, speed, 1.0)
     cos, sin = (mu / safe)[:, None], (mv / safe)[:, None]
@@ -134,6 +129,49 @@ def rotate_to_mean_wind(grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     out[:, 1] = -grid[:, 0] * sin + grid[:, 1] * cos
     out[:, 2] = grid[:, 2]
     return out, speed
+
+
+def window_mean_wind(grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean u and v (m s-1, instrument frame) of each window over its valid samples.
+
+    Parameters
+    ----------
+    grid : ndarray, shape (W, 3, N)
+        u, v, w (m s-1) per window, NaN for missing samples.
+    """
+    ok = np.isfinite(grid[:, 0]) & np.isfinite(grid[:, 1])
+    count = ok.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mu = np.where(ok, grid[:, 0], 0.0).sum(axis=1) / count
+        mv = np.where(ok, grid[:, 1], 0.0).sum(axis=1) / count
+    return mu, mv
+
+
+def geographic_wind_direction(
+    mean_u: np.ndarray, mean_v: np.ndarray, orientation_deg: float
+) -> np.ndarray:
+    """Direction the mean wind blows from, degrees clockwise from north, in [0, 360).
+
+    The instrument frame is right-handed with z up: +y lies 90 degrees anticlockwise
+    (seen from above) of +x, whose azimuth is ``orientation_deg`` (clockwise from
+    north). The wind blows towards the azimuth ``orientation_deg - atan2(v, u)``; it
+    comes from the opposite direction.
+
+    Parameters
+    ----------
+    mean_u, mean_v : ndarray
+        Mean wind components along x and y of the instrument frame (m s-1).
+    orientation_deg : float
+        Azimuth of +x (degree clockwise from north).
+
+    Returns
+    -------
+    ndarray
+        Wind direction "from" (degree); NaN where the mean wind is zero or missing.
+    """
+    toward = orientation_deg - np.degrees(np.arctan2(mean_v, mean_u))
+    calm = ~(np.hypot(mean_u, mean_v) > 0)
+    return np.where(calm, np.nan, np.mod(toward + 180.0, 360.0))
 
 
 def remove_running_mean(x: np.ndarray, width: int) -> np.ndarray:
@@ -660,6 +698,7 @@ def structure_function_types(
     min_fit_points: int = 5,
     min_valid_fraction: float = 0.9,
     curvature_tolerance: float = 0.03,
+    orientation_deg: float = 0.0,
 ) -> xr.Dataset:
     """Structure-function types and fitted parameters per window and wind component.
 
@@ -689,6 +728,12 @@ def structure_function_types(
         Windows with a smaller fraction of valid samples are skipped (window_flag 1).
     curvature_tolerance : float
         Decades of lg D below which a parabola counts as a line (:func:`decide_types`).
+    orientation_deg : float
+        Azimuth of the +x (u) axis of the instrument frame, degree clockwise from
+        north: gives ``wind_direction``, the window-mean wind direction in the
+        geographic frame (:func:`geographic_wind_direction`). The types and every
+        other variable are invariant under it (the components are taken along and
+        across the mean wind).
 
     Returns
     -------
@@ -723,6 +768,7 @@ def structure_function_types(
         "min_fit_points": min_fit_points,
         "min_valid_fraction": min_valid_fraction,
         "curvature_tolerance": curvature_tolerance,
+        "orientation_deg": orientation_deg,
     }
     batches = window_batches(sonic["time"].values, window_s, WINDOW_BATCH)
     if len(batches) > 1:
@@ -739,6 +785,7 @@ def structure_function_types(
     )
     n_win = starts.size
     rotated, speed = rotate_to_mean_wind(grid)
+    direction = geographic_wind_direction(*window_mean_wind(grid), orientation_deg)
     detrended = remove_running_mean(rotated, max(round(running_mean_s * rate), 1))
     d, pairs = structure_function_fft(detrended, n_lags)
 
@@ -789,18 +836,7 @@ def structure_function_types(
     fit_curve = _fit_curves(x_s, dec, sf_type, normalisation_lag_m)
     fit_curve = np.where(r_s <= np.where(sf_type > 0, dec.r_max, -1.0)[:, None], fit_curve, np.nan)
 
-    params = {
-        "window_s": window_s,
-        "running_mean_s": running_mean_s,
-        "max_lag_fraction": max_lag_fraction,
-        "kd_threshold": kd_threshold,
-        "normalisation_lag_m": normalisation_lag_m,
-        "precedence_tolerance": precedence_tolerance,
-        "min_fit_points": min_fit_points,
-        "min_valid_fraction": min_valid_fraction,
-        "curvature_tolerance": curvature_tolerance,
-        "sampling_rate_hz": rate,
-    }
+    params = {**kwargs, "sampling_rate_hz": rate}
     dims = ("window", "component")
     ds = xr.Dataset(
         {
@@ -828,6 +864,7 @@ def structure_function_types(
                 np.take_along_axis(r_win, jn[:, None], axis=1)[:, 0],
             ),
             "mean_horizontal_wind": (("window",), speed),
+            "wind_direction": (("window",), direction),
             "valid_fraction": (("window",), valid_fraction),
             "window_flag": (("window",), flag),
             "lag_distance": (("window", "sf_lag"), r_win),
@@ -847,7 +884,6 @@ def structure_function_types(
             "sf_lag": (("sf_lag",), j.astype(np.int32)),
         },
     )
-    ds["time"].attrs["comment"] = "start of the analysis window"
     method = (
         "1-min running mean removed, FFT structure function (eq. 2), normalised at the "
         "lag nearest r_N (eq. 3), lg-lg fits grown while k_d >= k_dL (eqs. 4-6); "
@@ -855,7 +891,7 @@ def structure_function_types(
         "r_max; r_p = end of the parabola grown from r_min, r_l = smallest start >= r_p "
         "meeting the type-3 rules"
     )
-    ds["sf_type"].attrs.update({"method": method, "references": REFERENCE + ", eqs. 2-6", **params})
+    ds["sf_type"].attrs.update({"method": method, **params})
     ds.attrs.update(
         {
             "sampling_rate_hz": rate,

@@ -22,8 +22,6 @@ import xarray as xr
 from cwproc.errors import CwprocError
 from cwproc.physics.volume_averaging import std_ratio_and_tp_share
 
-REFERENCES = "Wagner et al. (DTU), eqs. 2-13"
-
 #: qc_flag bits of the wind-record product (they combine; 0 = good)
 FLAG_TOO_FEW_PACKETS = 1
 FLAG_MISSING = 4
@@ -89,12 +87,17 @@ def predicted_std_ratio(
     return out
 
 
+def _missing_like(like: xr.DataArray) -> xr.DataArray:
+    """All-NaN values on the dims and coordinates of ``like``, without its attributes."""
+    return xr.DataArray(np.full(like.shape, np.nan), dims=like.dims, coords=like.coords)
+
+
 def _measured_ti(record: xr.Dataset) -> xr.DataArray:
     if "turbulence_intensity" in record:
         return record["turbulence_intensity"]
     if "wind_speed_std" in record:
         return record["wind_speed_std"] / record["wind_speed"].where(record["wind_speed"] > 0)
-    return xr.full_like(record["wind_speed"], np.nan)
+    return _missing_like(record["wind_speed"])
 
 
 def _flags(
@@ -169,26 +172,7 @@ def wind_record_product(
             raise CwprocError(f"wind record has no {name!r}: not a wind-record dataset")
     if record.sizes.get("time", 0) == 0 or record.sizes.get("height", 0) == 0:
         raise CwprocError("wind record is empty (no times or no heights)")
-    speed = record["wind_speed"]
-    direction = record["wind_direction"]
-    rad = np.deg2rad(direction)
-    out = xr.Dataset(coords={"time": record["time"], "height": record["height"]})
-    out["wind_speed"] = speed
-    out["wind_direction"] = direction
-    out["u"] = -speed * np.sin(rad)
-    out["v"] = -speed * np.cos(rad)
-    out["w"] = record["w"] if "w" in record else xr.full_like(speed, np.nan)
-    for name in ("wind_speed_std", "wind_speed_min", "wind_speed_max", "data_availability"):
-        if name in record:
-            out[name] = record[name]
-    if "packets" in record:
-        out["n_packets"] = record["packets"]
-    for name in ("rain_percent", "raining"):
-        if name in record:
-            out[name] = record[name]
-    for var in ("u", "v"):
-        out[var].attrs["method"] = "from the exported speed and direction (from)"
-
+    out = _exported_wind(record)
     ti = _measured_ti(record)
     out["turbulence_intensity"] = ti
     out["turbulence_intensity"].attrs["method"] = (
@@ -201,35 +185,14 @@ def wind_record_product(
         if scan_time_s is not None
         else record.attrs.get("scan_time_s", DEFAULT_SCAN_TIME_S)
     )
-    window = float(record.attrs.get("averaging_interval_s", 600.0))
-    is_cw = record.attrs.get("instrument_kind") == "cw"
-    if is_cw and window >= 60.0:
-        above_lidar = record["height"] - float(record.attrs.get("window_height_m", 0.0))
-        h2d, u2d = xr.broadcast(above_lidar, speed)
-        ratio = predicted_std_ratio(
-            h2d.transpose(*speed.dims).values,
-            u2d.transpose(*speed.dims).values,
-            scan_time_s=scan_time,
-            z_r_coefficient=z_r_coefficient,
-            window_s=window,
-        )
-        out["volume_averaging_ratio"] = (speed.dims, ratio)
-        note = (
-            f"Kaimal spectrum, Lorentzian probe Z_R = {z_r_coefficient:g} R^2, "
-            f"R = h/cos30 (h above the lidar window), {scan_time:g}-s conical scan, "
-            f"{window:g}-s statistics"
-        )
-    else:
-        out["volume_averaging_ratio"] = xr.full_like(speed, np.nan)
-        note = (
-            "not applicable: the model is for conically scanning cw lidars with "
-            "statistics over >= 1 min"
-        )
-    out["volume_averaging_ratio"].attrs.update(method=note, references=REFERENCES)
+    ratio, note = _volume_averaging_ratio(
+        record, scan_time_s=scan_time, z_r_coefficient=z_r_coefficient
+    )
+    out["volume_averaging_ratio"] = ratio
+    out["volume_averaging_ratio"].attrs["method"] = note
     out["turbulence_intensity_corrected"] = ti / out["volume_averaging_ratio"]
-    out["turbulence_intensity_corrected"].attrs.update(
-        method="turbulence_intensity / volume_averaging_ratio; " + note,
-        references=REFERENCES,
+    out["turbulence_intensity_corrected"].attrs["method"] = (
+        "turbulence_intensity / volume_averaging_ratio; " + note
     )
     out["qc_flag"] = _flags(
         record,
@@ -243,20 +206,84 @@ def wind_record_product(
         "physically impossible; w too where the record exports it); "
         f"bit 8 rain > {max_rain_percent:g} % of packets"
     )
-    keep = (
-        "instrument",
-        "instrument_kind",
-        "system_id",
-        "averaging_interval_s",
-        "time_stamp_position",
-        "utc_offset_applied_h",
-        "reference_height_m",
-        "window_height_m",
-        "scan_angle_deg",
-    )
-    out.attrs = {k: record.attrs[k] for k in keep if k in record.attrs}
+    out.attrs = {k: record.attrs[k] for k in _KEPT_ATTRS if k in record.attrs}
     out.attrs["scan_time_s"] = scan_time
     return out
+
+
+#: dataset attributes of the wind record that the product keeps
+_KEPT_ATTRS = (
+    "instrument",
+    "instrument_kind",
+    "system_id",
+    "averaging_interval_s",
+    "time_stamp_position",
+    "utc_offset_applied_h",
+    "reference_height_m",
+    "window_height_m",
+    "scan_angle_deg",
+)
+
+
+def _exported_wind(record: xr.Dataset) -> xr.Dataset:
+    """Speed, direction, w, u and v (from speed and direction) and the exported statistics."""
+    speed = record["wind_speed"]
+    rad = np.deg2rad(record["wind_direction"])
+    out = xr.Dataset(coords={"time": record["time"], "height": record["height"]})
+    out["wind_speed"] = speed
+    out["wind_direction"] = record["wind_direction"]
+    out["u"] = -speed * np.sin(rad)
+    out["v"] = -speed * np.cos(rad)
+    out["w"] = record["w"] if "w" in record else _missing_like(speed)
+    for name in ("wind_speed_std", "wind_speed_min", "wind_speed_max", "data_availability"):
+        if name in record:
+            out[name] = record[name]
+    if "packets" in record:
+        out["n_packets"] = record["packets"]
+    for name in ("rain_percent", "raining"):
+        if name in record:
+            out[name] = record[name]
+    for var in ("u", "v"):
+        out[var].attrs["method"] = "from the exported speed and direction (from)"
+    return out
+
+
+def _volume_averaging_ratio(
+    record: xr.Dataset, *, scan_time_s: float, z_r_coefficient: float
+) -> tuple[xr.DataArray, str]:
+    """Predicted sigma_lidar / sigma_cup of the record (Wagner et al. (DTU), eqs. 9-11).
+
+    Returns
+    -------
+    ratio : xarray.DataArray
+        The ratio (1) on the dims of ``wind_speed``; NaN for instruments other than
+        conically scanning cw lidars and for statistics shorter than 1 min.
+    note : str
+        How it was computed (or why not).
+    """
+    speed = record["wind_speed"]
+    window = float(record.attrs.get("averaging_interval_s", 600.0))
+    if record.attrs.get("instrument_kind") != "cw" or window < 60.0:
+        note = (
+            "not applicable: the model is for conically scanning cw lidars with "
+            "statistics over >= 1 min"
+        )
+        return _missing_like(speed), note
+    above_lidar = record["height"] - float(record.attrs.get("window_height_m", 0.0))
+    h2d, u2d = xr.broadcast(above_lidar, speed)
+    ratio = predicted_std_ratio(
+        h2d.transpose(*speed.dims).values,
+        u2d.transpose(*speed.dims).values,
+        scan_time_s=scan_time_s,
+        z_r_coefficient=z_r_coefficient,
+        window_s=window,
+    )
+    note = (
+        f"Kaimal spectrum, Lorentzian probe Z_R = {z_r_coefficient:g} R^2, "
+        f"R = h/cos30 (h above the lidar window), {scan_time_s:g}-s conical scan, "
+        f"{window:g}-s statistics"
+    )
+    return xr.DataArray(ratio, dims=speed.dims, coords=speed.coords), note
 
 
 def turbulence_parameter(wind: xr.Dataset) -> xr.DataArray:
@@ -285,8 +312,5 @@ def turbulence_parameter(wind: xr.Dataset) -> xr.DataArray:
     speed = wind["wind_speed"]
     tp = wind["residual_std"] / speed.where(speed > 0)
     tp.name = "turbulence_parameter"
-    tp.attrs = {
-        "method": "residual_std / wind_speed per rotation",
-        "references": "Wagner et al. (DTU), eq. 8",
-    }
+    tp.attrs = {"method": "residual_std / wind_speed per rotation"}
     return tp

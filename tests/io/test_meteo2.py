@@ -192,7 +192,9 @@ def test_stray_stamp_of_a_damaged_record_is_dropped():
         bad[i] = np.datetime64("2004-04-20T06:50:25", "ns")
         assert np.flatnonzero(stray_stamps(bad.astype(np.int64))).tolist() == [i]
         x = np.ones(100)
-        ds = sonic_dataset("f.dat", bad, x, x, x, x, np.zeros(100), instrument="i", frame="f")
+        ds = sonic_dataset(
+            "f.dat", bad, {"u": x, "v": x, "w": x}, x, np.zeros(100), instrument="i", frame="f"
+        )
         assert ds.sizes["time"] == 99 and ds["time"].values.min() >= t[0]
         assert any("far from both neighbours" in w for w in ds.attrs["warnings"])
     # a gap, a restart and a swapped pair are data, not stray stamps
