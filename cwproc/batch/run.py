@@ -25,6 +25,7 @@ from cwproc.batch.records import (
     unit_fingerprint,
 )
 from cwproc.batch.state import (
+    Ledger,
     cached_file_info,
     forget_vanished_files,
     load_ledger,
@@ -199,22 +200,10 @@ def run_batch(
         The input directory does not exist, or the ledger cannot be read or written.
     """
     t0 = time.perf_counter()
-    input_dir = Path(input_dir).absolute()
-    outdir = Path(outdir).absolute()
-    if not input_dir.is_dir():
-        raise CwprocError(f"{input_dir}: input directory does not exist")
-    if os.path.realpath(input_dir) == os.path.realpath(outdir):
-        raise CwprocError(
-            f"{outdir}: the output directory must not be the input directory "
-            "(products would be read back as inputs); use a subfolder or another folder"
-        )
-    try:
-        outdir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise CwprocError(f"{outdir}: cannot create: {exc.strerror or exc}") from None
+    input_dir, outdir = checked_folders(input_dir, outdir)
     state_dir = outdir / STATE_DIR
     ledger_path = state_dir / LEDGER_NAME
-    report = BatchReport()
+    report = BatchReport(pinned_format=config.instrument.format)
     with output_lock(state_dir, wait_s=wait_s) as stale:
         report.stale_lock = stale
         if stale:
@@ -222,67 +211,20 @@ def run_batch(
         for path in remove_leftover_temporaries(outdir):
             log.warning(kv_line("removed_temporary", path=path))
         ledger = load_ledger(ledger_path)
-        cfg_hash = config_hash(config)
-        toml = config.to_toml()
-
         files = discover_files(
             input_dir, patterns, exclude=[outdir], errors=report.listing_failures
         )
         for line in report.listing_failures:
             log.warning(kv_line("folder", status="failed", error=line))
         report.discovered = len(files)
-        infos: list[FileInfo] = []
-        to_classify: list[str] = []
-        settled_ns = time.time_ns() - int(min_age_s * 1e9)
-        for path in map(os.fspath, files):
-            try:
-                size, mtime_ns = _file_stat(path)
-            except OSError:
-                continue  # vanished since discovery
-            if min_age_s > 0 and mtime_ns > settled_ns:
-                report.files_too_new += 1
-                continue
-            cached = cached_file_info(ledger, path, size, mtime_ns, cfg_hash)
-            if cached is not None:
-                infos.append(cached)
-            elif file_older_than(mtime_ns, since):
-                report.files_before_since += 1
-            else:
-                to_classify.append(path)
-        last_save = time.monotonic()
-        for _path, result in run_tasks(classify, to_classify, toml, config.source, client=client):
-            info = _as_file_info(_path, result)
-            record_file(ledger, info)
-            infos.append(info)
-            if time.monotonic() - last_save > CLASSIFY_SAVE_INTERVAL_S:
-                save_ledger(ledger, ledger_path)  # a long first run keeps its progress
-                last_save = time.monotonic()
+        cfg_hash = config_hash(config)
+        infos, to_classify = _cached_or_new(files, ledger, cfg_hash, since, min_age_s, report)
+        infos += _classify_new(to_classify, classify, config, client, ledger, ledger_path)
         if forget_vanished_files(ledger) or to_classify:
             save_ledger(ledger, ledger_path)
-
-        report.unrecognised = sorted(
-            (i for i in infos if i.status == "unrecognised"), key=lambda i: i.path
-        )
-        report.other_format = sorted(
-            (i for i in infos if i.status == "other_format"), key=lambda i: i.path
-        )
-        report.pinned_format = config.instrument.format
-        report.file_failures = sorted(
-            (i for i in infos if i.status == "error"), key=lambda i: i.path
-        )
-        for info in report.file_failures:
-            log.warning(kv_line("file", status="failed", path=info.path, error=info.error))
-
+        _sort_files(infos, report)
         planned = plan_units(infos, config, outdir)
-        report.units_total = len(planned)
-        todo: list[UnitTask] = []
-        for task, start in planned:
-            if before_since(start, since):
-                report.units_before_since += 1
-            elif unit_up_to_date(ledger, task):
-                report.units_up_to_date += 1
-            else:
-                todo.append(task)
+        todo = _units_to_do(planned, ledger, since, report)
         if on_plan is not None:
             on_plan(len(todo))
         log.info(
@@ -307,6 +249,123 @@ def run_batch(
             save_ledger(ledger, ledger_path, compact=True)
     report.seconds = time.perf_counter() - t0
     return report
+
+
+def checked_folders(input_dir: str | os.PathLike, outdir: str | os.PathLike) -> tuple[Path, Path]:
+    """The input and output folders as absolute paths; the output folder created.
+
+    Raises
+    ------
+    CwprocError
+        The input folder does not exist, is the output folder, or the output folder
+        cannot be created.
+    """
+    input_dir = Path(input_dir).absolute()
+    outdir = Path(outdir).absolute()
+    if not input_dir.is_dir():
+        raise CwprocError(f"{input_dir}: input directory does not exist")
+    if os.path.realpath(input_dir) == os.path.realpath(outdir):
+        raise CwprocError(
+            f"{outdir}: the output directory must not be the input directory "
+            "(products would be read back as inputs); use a subfolder or another folder"
+        )
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CwprocError(f"{outdir}: cannot create: {exc.strerror or exc}") from None
+    return input_dir, outdir
+
+
+def _cached_or_new(
+    files: Sequence[Path],
+    ledger: Ledger,
+    cfg_hash: str,
+    since: _dt.date | None,
+    min_age_s: float,
+    report: BatchReport,
+) -> tuple[list[FileInfo], list[str]]:
+    """The ledger's classifications still valid, and the files to classify anew.
+
+    Files modified less than ``min_age_s`` ago, and files older than ``since`` that the
+    ledger does not know, are counted in ``report`` and left out.
+    """
+    infos: list[FileInfo] = []
+    to_classify: list[str] = []
+    settled_ns = time.time_ns() - int(min_age_s * 1e9)
+    for path in map(os.fspath, files):
+        try:
+            size, mtime_ns = _file_stat(path)
+        except OSError:
+            continue  # vanished since discovery
+        if min_age_s > 0 and mtime_ns > settled_ns:
+            report.files_too_new += 1
+            continue
+        cached = cached_file_info(ledger, path, size, mtime_ns, cfg_hash)
+        if cached is not None:
+            infos.append(cached)
+        elif file_older_than(mtime_ns, since):
+            report.files_before_since += 1
+        else:
+            to_classify.append(path)
+    return infos, to_classify
+
+
+def _classify_new(
+    paths: Sequence[str],
+    classify: Callable[[str, str, str], FileInfo],
+    config: Config,
+    client: Any,
+    ledger: Ledger,
+    ledger_path: Path,
+) -> list[FileInfo]:
+    """Classify ``paths`` (on ``client``), recording each in the ledger as it comes and
+    saving it at least every :data:`CLASSIFY_SAVE_INTERVAL_S` (a long first run keeps
+    its progress)."""
+    infos = []
+    last_save = time.monotonic()
+    for path, result in run_tasks(classify, paths, config.to_toml(), config.source, client=client):
+        info = _as_file_info(path, result)
+        record_file(ledger, info)
+        infos.append(info)
+        if time.monotonic() - last_save > CLASSIFY_SAVE_INTERVAL_S:
+            save_ledger(ledger, ledger_path)
+            last_save = time.monotonic()
+    return infos
+
+
+def _sort_files(infos: Sequence[FileInfo], report: BatchReport) -> None:
+    """Unrecognised files, files of other formats and file failures into ``report``."""
+    for status, name in (
+        ("unrecognised", "unrecognised"),
+        ("other_format", "other_format"),
+        ("error", "file_failures"),
+    ):
+        setattr(
+            report,
+            name,
+            sorted((i for i in infos if i.status == status), key=lambda i: i.path),
+        )
+    for info in report.file_failures:
+        log.warning(kv_line("file", status="failed", path=info.path, error=info.error))
+
+
+def _units_to_do(
+    planned: Sequence[tuple[UnitTask, str]],
+    ledger: Ledger,
+    since: _dt.date | None,
+    report: BatchReport,
+) -> list[UnitTask]:
+    """The planned units not before ``since`` and not up to date (both counted)."""
+    report.units_total = len(planned)
+    todo: list[UnitTask] = []
+    for task, start in planned:
+        if before_since(start, since):
+            report.units_before_since += 1
+        elif unit_up_to_date(ledger, task):
+            report.units_up_to_date += 1
+        else:
+            todo.append(task)
+    return todo
 
 
 def _as_file_info(path: str, result: Any) -> FileInfo:
