@@ -360,7 +360,7 @@ def stream_scan_unit(
 def corrected_chunk(
     chunk: xr.Dataset, unit, config: Config, notes: list[str], state: StreamState
 ) -> xr.Dataset:
-    """The chunk with its SNR background-corrected (:func:`cwproc.pipeline.correct_background`).
+    """The chunk with its SNR background-corrected (:func:`~.background.correct_background`).
 
     The per-chunk summary line is left out of ``notes`` and the rays counted instead, so
     the day gets one summary (:func:`background_summary`), as the whole-day run words it.

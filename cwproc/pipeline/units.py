@@ -71,7 +71,7 @@ def no_input_of_format(n_skipped: int, pinned: str) -> str:
     return (
         f"none of the inputs is a {pinned} file, the only format the configuration reads "
         f"({n_skipped} file(s) of other formats skipped); use a configuration for their "
-        "instrument, or one with [instrument] format = \"auto\""
+        'instrument, or one with [instrument] format = "auto"'
     )
 
 
