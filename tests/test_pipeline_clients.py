@@ -93,3 +93,39 @@ def test_retrieve_and_batch_agree(inputs, tmp_path, preset, status, made):
     else:
         assert r_errors == set()
         assert {f"{f}: VAD: 6 conical scan(s) -> wind (and turbulence)" for f in files} <= r_notes
+
+
+def test_run_unit_reports_products_notes_and_status(inputs):
+    """The API path (read_units -> run_unit) gives what the commands print."""
+    from cwproc.config import load_config
+    from cwproc.pipeline import EXIT_OK, read_units, run_unit
+
+    config = load_config("zephir300")
+    found = read_units(sorted(inputs.glob("*.hpl")), config)
+    assert found.failures == [] and [u.key for u in found.units] == ["streamline_999_20240601"]
+    result = run_unit(found.units[0], config, keep_screened=True)
+    assert result.ok and result.exit_status == EXIT_OK
+    assert list(result.products) == ["wind"]
+    assert any("turbulence not computed" in n and "cw lidar" in n for n in result.notes)
+    # the screened scans are those the VAD was fitted to: one wind row per conical scan
+    scans = set(result.screened["scan"].values[result.screened["scan"].values >= 0].tolist())
+    assert scans == set(result.products["wind"]["scan"].values.tolist())
+
+
+def test_run_unit_names_a_damaged_input_and_fails(inputs, tmp_path):
+    """An input whose header reads but whose data do not: left out, named, exit status 1."""
+    from cwproc.config import load_config
+    from cwproc.pipeline import EXIT_FAILED, read_units, run_unit
+
+    good = sorted(inputs.glob("*.hpl"))
+    cut = tmp_path / good[1].name
+    cut.write_bytes(good[1].read_bytes()[:-5000])  # the last rays cut in the middle
+    config = load_config("streamline")
+    found = read_units([good[0], cut], config)
+    (unit,) = found.units
+    for item in unit.inputs:  # as beyond the memory budget: read again when run
+        item.dataset = None
+    result = run_unit(unit, config)
+    assert result.exit_status == EXIT_FAILED
+    assert len(result.failures) == 1 and result.failures[0].startswith(f"{cut}:")
+    assert "wind" in result.products  # the other file still gives its products

@@ -23,7 +23,8 @@ Modules
 ``write``
     products written with provenance, all or none.
 ``retrieve``
-    :func:`retrieve_files`: read, run and write a list of files.
+    :func:`read_units` (files -> product units) and :func:`retrieve_files`: read, run
+    and write a list of files.
 """
 
 from cwproc.pipeline.chain import (
@@ -38,7 +39,7 @@ from cwproc.pipeline.chain import (
     screened_wind,
     sf_summary_tables,
 )
-from cwproc.pipeline.retrieve import RunReport, retrieve_files
+from cwproc.pipeline.retrieve import FoundUnits, RunReport, read_units, retrieve_files
 from cwproc.pipeline.run import EXIT_FAILED, EXIT_OK, UnitResult, internal_error, run_unit
 from cwproc.pipeline.units import (
     InputFile,
@@ -56,6 +57,7 @@ from cwproc.pipeline.write import product_path, write_unit_products
 __all__ = [
     "EXIT_FAILED",
     "EXIT_OK",
+    "FoundUnits",
     "InputFile",
     "ProductUnit",
     "RunReport",
@@ -75,6 +77,7 @@ __all__ = [
     "process_wind_record",
     "product_path",
     "read_input",
+    "read_units",
     "retrieve_files",
     "run_unit",
     "screened_wind",

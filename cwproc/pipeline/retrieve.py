@@ -6,6 +6,7 @@ import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import xarray as xr
 
@@ -70,36 +71,10 @@ def retrieve_files(
     report = RunReport()
     for stale in remove_stale_temporaries(outdir):
         report.notes.append(f"{stale}: removed a temporary file of an interrupted run")
-    units: dict[tuple[str, str], ProductUnit] = {}
-    accepted = set(kinds) if kinds is not None else None
-    held = 0
-    for p in paths:
-        try:
-            item = read_input(p, config, identify_only=True)
-        except CwprocError as exc:
-            report.failures.append(str(exc))
-            continue
-        except Exception as exc:  # a reader bug must not stop the other files
-            report.failures.append(f"{p}: {internal_error(exc)}")
-            continue
-        if KIND[item.format] == "background":  # not a product input (see correct_background)
-            report.notes.append(f"{p}: Stream Line background file, not a product input")
-            continue
-        if accepted is not None and KIND[item.format] not in accepted:
-            report.failures.append(
-                f"{p}: {item.format.value} data ({KIND[item.format]}) cannot be used here; "
-                f"expected {' or '.join(sorted(accepted))} data"
-            )
-            continue
-        for part in split_by_day(item):
-            kind, key = unit_key(part)
-            units.setdefault((kind, key), ProductUnit(key=key, kind=kind)).inputs.append(part)
-            held += _nbytes(part.dataset)
-            if held > RETRIEVE_MEMORY_BYTES:  # keep only what the budget allows
-                held -= _nbytes(part.dataset)
-                part.dataset = None
-    for unit_id in sorted(units):
-        unit = units.pop(unit_id)
+    found = read_units(paths, config, kinds=kinds)
+    report.failures.extend(found.failures)
+    report.notes.extend(found.notes)
+    for unit in found.units:
         result = run_unit(unit, config)
         try:
             if result.products:
@@ -125,3 +100,77 @@ RETRIEVE_MEMORY_BYTES = 512 << 20
 
 def _nbytes(ds: xr.Dataset | None) -> int:
     return 0 if ds is None else int(ds.nbytes)
+
+
+class FoundUnits(NamedTuple):
+    """The product units of a list of files, and what reading them gave."""
+
+    #: the units in a stable order (sorted by kind and key)
+    units: list[ProductUnit]
+    #: one line per input that cannot be read or used (file, line, problem)
+    failures: list[str]
+    #: inputs left out that are not failures (e.g. Stream Line background files)
+    notes: list[str]
+
+
+def read_units(
+    paths: Iterable[str | os.PathLike],
+    config: Config,
+    *,
+    kinds: Iterable[str] | None = None,
+) -> FoundUnits:
+    """Read every input on its own and group the inputs into product units.
+
+    What ``cwproc retrieve`` runs before :func:`cwproc.pipeline.run_unit`: a bad file
+    fails alone (its line in ``failures``) and never stops the others; a sonic file
+    crossing midnight feeds two days. Inputs are kept in memory up to
+    :data:`RETRIEVE_MEMORY_BYTES`; beyond it ``.hpl`` files are identified by their
+    header and every input is read again when its unit runs (same products).
+
+    Parameters
+    ----------
+    paths : iterable of path
+        Instrument files (any format cwproc reads; detected from their content unless
+        the configuration pins ``[instrument] format``).
+    config : Config
+        The configuration (reader options, pinned format).
+    kinds : iterable of str, optional
+        Accept only inputs of these kinds (``"scan"``, ``"wind_record"``, ``"sonic"``);
+        others are failures. Default: all.
+
+    Returns
+    -------
+    FoundUnits
+        ``(units, failures, notes)``.
+    """
+    found = FoundUnits([], [], [])
+    units: dict[tuple[str, str], ProductUnit] = {}
+    accepted = set(kinds) if kinds is not None else None
+    held = 0
+    for p in paths:
+        try:
+            item = read_input(p, config, identify_only=True)
+        except CwprocError as exc:
+            found.failures.append(str(exc))
+            continue
+        except Exception as exc:  # a reader bug must not stop the other files
+            found.failures.append(f"{p}: {internal_error(exc)}")
+            continue
+        if KIND[item.format] == "background":  # not a product input (see correct_background)
+            found.notes.append(f"{p}: Stream Line background file, not a product input")
+            continue
+        if accepted is not None and KIND[item.format] not in accepted:
+            found.failures.append(
+                f"{p}: {item.format.value} data ({KIND[item.format]}) cannot be used here; "
+                f"expected {' or '.join(sorted(accepted))} data"
+            )
+            continue
+        for part in split_by_day(item):
+            kind, key = unit_key(part)
+            units.setdefault((kind, key), ProductUnit(key=key, kind=kind)).inputs.append(part)
+            held += _nbytes(part.dataset)
+            if held > RETRIEVE_MEMORY_BYTES:  # keep only what the budget allows
+                held -= _nbytes(part.dataset)
+                part.dataset = None
+    found.units.extend(units[k] for k in sorted(units))
+    return found
