@@ -4,9 +4,9 @@ Writes N site-days of the shipped sample scans (simulated Stream Line VAD files,
 per day, shifted by whole days) and runs ``cwproc retrieve`` on them in a child process
 for N = 1, 8, 32 (and more with ``--days``), printing the child's peak resident memory
 (``ru_maxrss``) and the input size. ``retrieve`` keeps at most
-``pipeline.RETRIEVE_MEMORY_BYTES`` of inputs between reading and processing and reads
-the rest again unit by unit, so the peak stays flat once the inputs exceed that budget;
-``--budget-mib`` lowers it to show the flat regime on a small archive.
+``cwproc.pipeline.retrieve.RETRIEVE_MEMORY_BYTES`` of inputs between reading and
+processing and reads the rest again unit by unit, so the peak stays flat once the
+inputs exceed that budget; ``--budget-mib`` lowers it to show the flat regime on a small archive.
 
 Run::
 
@@ -27,12 +27,12 @@ import numpy as np
 CHILD = """
 import resource, sys
 from pathlib import Path
-from cwproc import pipeline
+from cwproc.pipeline import retrieve
 from cwproc.config import load_config
-pipeline.RETRIEVE_MEMORY_BYTES = int(sys.argv[3])
+retrieve.RETRIEVE_MEMORY_BYTES = int(sys.argv[3])
 files = sorted(Path(sys.argv[1]).rglob("*.hpl"))
 config = load_config("streamline")
-report = pipeline.retrieve_files(files, sys.argv[2], config)
+report = retrieve.retrieve_files(files, sys.argv[2], config)
 assert report.ok, report.failures
 print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
 """

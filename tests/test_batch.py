@@ -399,7 +399,7 @@ def test_output_inside_input_is_not_read_back(tmp_path):
 
 def test_a_reader_bug_fails_that_file_only(tmp_path, monkeypatch):
     """classify_file (the real one) turns an unexpected reader exception into a failure."""
-    import cwproc.pipeline
+    import cwproc.batch.worker
 
     good = tmp_path / "in" / "a.hpl"
     good.parent.mkdir()
@@ -408,7 +408,7 @@ def test_a_reader_bug_fails_that_file_only(tmp_path, monkeypatch):
     def broken_reader(path, config):
         raise ZeroDivisionError("division by zero")
 
-    monkeypatch.setattr(cwproc.pipeline, "read_input", broken_reader)
+    monkeypatch.setattr(cwproc.batch.worker, "read_input", broken_reader)
     report = run_batch(tmp_path / "in", tmp_path / "out", Config())
     assert [f.error for f in report.file_failures] == [
         f"{good}: internal error of the hpl reader ZeroDivisionError: division by zero"

@@ -7,16 +7,11 @@ import pytest
 import xarray as xr
 
 from cwproc.config import load_config
-from cwproc.pipeline import (
-    concat_unit,
-    correct_background,
-    group_units,
-    load_item,
-    process_scan_day,
-    process_unit,
-    read_input,
-)
+from cwproc.pipeline import group_units, process_scan_day, read_input
+from cwproc.pipeline.background import correct_background
+from cwproc.pipeline.run import unit_products
 from cwproc.pipeline.stream import stream_scan_unit
+from cwproc.pipeline.units import concat_unit, load_item
 from cwproc.sim.sample_data import StreamLineSpec, write_streamline_series
 from cwproc.sim.stare import write_stare_series
 
@@ -88,19 +83,19 @@ def test_chunk_larger_than_day_is_the_whole_run(tmp_path, config):
     )
 
 
-def test_process_unit_streams_and_falls_back_identically(tmp_path, config, monkeypatch):
-    """process_unit (retrieve and batch) gives the whole-day products, streamed or not."""
+def test_unit_products_streams_and_falls_back_identically(tmp_path, config, monkeypatch):
+    """unit_products (run_unit) gives the whole-day products, streamed or not."""
     spec = StreamLineSpec(n_scans=14, scans_per_file=1, n_gates=24, seed=11)
     write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
     whole = whole_day(tmp_path / "day", config)
     (unit,) = group_units(read_input(p, config) for p in sorted((tmp_path / "day").glob("*.hpl")))
-    assert_same_products(process_unit(unit, config, [], chunk_bytes=SMALL_CHUNK), whole)
+    assert_same_products(unit_products(unit, config, [], chunk_bytes=SMALL_CHUNK), whole)
     # a chunk choosing differently from the day: the day is processed whole
     monkeypatch.setattr("cwproc.pipeline.stream.check_day_choices", _mismatch)
     (unit,) = group_units(read_input(p, config) for p in sorted((tmp_path / "day").glob("*.hpl")))
     assert stream_scan_unit(unit, config, [], lambda i: load_item(i, config), SMALL_CHUNK) is None
     (unit,) = group_units(read_input(p, config) for p in sorted((tmp_path / "day").glob("*.hpl")))
-    assert_same_products(process_unit(unit, config, [], chunk_bytes=SMALL_CHUNK), whole)
+    assert_same_products(unit_products(unit, config, [], chunk_bytes=SMALL_CHUNK), whole)
 
 
 def _mismatch(state, config):

@@ -97,6 +97,8 @@ class Inputs:
     other_format: list[Path] = field(default_factory=list)
     #: files named on the command line of a format the configuration does not read
     mismatched: list[str] = field(default_factory=list)
+    #: one line per file of ``other_format``: the file and why it is skipped
+    skipped_notes: list[str] = field(default_factory=list)
     #: the format the configuration reads ("auto": any)
     pinned: str = "auto"
 
@@ -114,8 +116,20 @@ class Inputs:
             )
         return text
 
+    def nothing_readable(self) -> str:
+        """Why nothing can be done when every file found is of another format ('' else).
 
-def expand_inputs(inputs: tuple[str, ...], pinned: str = "auto") -> Inputs:
+        ``cwproc retrieve`` and ``cwproc batch`` fail with this line (exit status 1): a
+        configuration that reads none of the inputs is a mistake, not an empty day.
+        """
+        if self.files or self.mismatched or not self.other_format:
+            return ""
+        from cwproc.pipeline import no_input_of_format
+
+        return no_input_of_format(len(self.other_format), self.pinned)
+
+
+def expand_inputs(inputs: tuple[str, ...], config: Config) -> Inputs:
     """Files to process and files skipped.
 
     Files named on the command line are processed (an unreadable or unknown one is
@@ -124,12 +138,15 @@ def expand_inputs(inputs: tuple[str, ...], pinned: str = "auto") -> Inputs:
     cwproc's own products are skipped wherever they are (an output folder inside the
     input folder, a product named by a wildcard), so that a second run over the same
     folder reads the same inputs as the first. When the configuration reads one format
-    only (``pinned``, e.g. ``hpl`` for the Stream Line preset), files of other formats
-    are skipped in directories and reported in ``mismatched`` when named.
+    only (``[instrument] format``, e.g. ``hpl`` for the Stream Line preset), files of
+    other formats are skipped in directories (one line each in ``skipped_notes``, as
+    ``cwproc batch`` words them, :func:`cwproc.pipeline.format_mismatch`) and reported
+    in ``mismatched`` when named.
     """
     from cwproc.io import Format, detect_format, is_cwproc_product
+    from cwproc.pipeline import format_mismatch  # not at import: --help stays light
 
-    found = Inputs(pinned=pinned)
+    found = Inputs(pinned=config.instrument.format)
     for item in inputs:
         p = Path(item)
         if not p.is_dir():
@@ -137,10 +154,9 @@ def expand_inputs(inputs: tuple[str, ...], pinned: str = "auto") -> Inputs:
                 found.products.append(p)
                 continue
             fmt = _format_or_none(p)
-            if pinned != "auto" and fmt is not None and fmt.value != pinned:
-                found.mismatched.append(
-                    f"{p}: a {fmt.value} file, but the configuration reads only {pinned}"
-                )
+            mismatch = format_mismatch(p, fmt, config) if fmt is not None else ""
+            if mismatch:
+                found.mismatched.append(mismatch)
                 continue
             found.files.append(p)
             continue
@@ -153,8 +169,10 @@ def expand_inputs(inputs: tuple[str, ...], pinned: str = "auto") -> Inputs:
             if fmt is Format.SCAN_NETCDF and is_cwproc_product(q):
                 found.products.append(q)
                 continue
-            if pinned != "auto" and fmt.value != pinned:
+            mismatch = format_mismatch(q, fmt, config)
+            if mismatch:
                 found.other_format.append(q)
+                found.skipped_notes.append(f"{mismatch}: skipped")
                 continue
             found.files.append(q)
     return found
@@ -172,3 +190,58 @@ def _format_or_none(path: Path):
 def _hidden(path: Path, root: Path) -> bool:
     """A file whose name or any folder below ``root`` starts with a dot (e.g. .cwproc/)."""
     return any(part.startswith(".") for part in path.relative_to(root).parts)
+
+
+def product_command(name: str, outdir_help: str) -> Callable[[Any], Any]:
+    """The arguments and options shared by the commands that make products from files.
+
+    ``FILES...`` (files or directories), ``-o/--output`` (the product directory),
+    ``-c/--config`` and ``-q/--quiet`` (``cwproc retrieve``, ``cwproc sf-type``).
+    """
+
+    def decorate(fn: Callable[..., Any]) -> Any:
+        for option in reversed(
+            (
+                click.command(name),
+                click.argument("inputs", nargs=-1, required=True, metavar="FILES..."),
+                click.option(
+                    "-o",
+                    "--output",
+                    "outdir",
+                    required=True,
+                    type=click.Path(file_okay=False),
+                    help=outdir_help,
+                ),
+                config_option(),
+                click.option("-q", "--quiet", is_flag=True, help="Print only failures."),
+            )
+        ):
+            fn = option(fn)
+        return fn
+
+    return decorate
+
+
+def inputs_or_exit(inputs: tuple[str, ...], config: Config, quiet: bool) -> Inputs:
+    """The files to process; exits when there is none (after saying why).
+
+    A file named on the command line of a format the configuration does not read is a
+    failure line (exit status 1 at the end); files of other formats found in directories
+    are named in notes (unless ``quiet``). When not one file is left: exit 1 when every
+    file found is of another format (:meth:`Inputs.nothing_readable`, the line ``cwproc
+    batch`` gives on the same folder), else a usage error (exit 2).
+    """
+    found = expand_inputs(inputs, config)
+    for line in found.mismatched:
+        report_failure(line)
+    if not quiet:
+        for line in found.skipped_notes:
+            click.echo(f"note: {line}", err=True)
+    if not found.files:
+        nothing = found.nothing_readable()
+        if nothing:
+            fail(nothing)
+        if found.mismatched:
+            sys.exit(1)
+        raise click.UsageError(f"no input files found{found.skipped_text()}")
+    return found

@@ -29,6 +29,7 @@ from cwproc.batch import (
 )
 from cwproc.cli._common import config_option, load_config_or_fail, report_failure
 from cwproc.errors import CwprocError
+from cwproc.pipeline import EXIT_FAILED, EXIT_OK
 
 _LOG_FORMAT = "%(asctime)s %(levelname)s %(message)s"
 
@@ -109,7 +110,13 @@ def summary_lines(report: BatchReport, verbose: bool) -> list[str]:
     skipped = f" ({products} cwproc product(s), skipped)" if products else ""
     lines.append(
         f"{report.discovered} file(s): {len(report.unrecognised)} unrecognised{skipped}, "
-        f"{len(report.file_failures)} unreadable; {report.units_total} unit(s): "
+        + (
+            f"{len(report.other_format)} of other formats (the configuration reads "
+            f"{report.pinned_format} only), "
+            if report.other_format
+            else ""
+        )
+        + f"{len(report.file_failures)} unreadable; {report.units_total} unit(s): "
         f"{len(report.succeeded)} processed, {report.units_up_to_date} up to date, "
         f"{len(report.failed)} failed"
         + (f"; {report.files_too_new} file(s) too new (--min-age)" if report.files_too_new else "")
@@ -294,9 +301,8 @@ def batch(
     for line in report.failure_lines():
         report_failure(line)
     if not quiet:
-        for outcome in report.processed:
-            for line in outcome.notes:
-                click.echo(f"note: unit {outcome.key}: {line}", err=True)
+        for line in report.notes():  # worded as cwproc retrieve words them
+            click.echo(f"note: {line}", err=True)
         for line in summary_lines(report, verbose):
             click.echo(line)
-    sys.exit(0 if report.ok else 1)
+    sys.exit(EXIT_OK if report.ok else EXIT_FAILED)

@@ -94,9 +94,9 @@ def describe_scan(ds: xr.Dataset) -> list[str]:
         )
     else:
         scan_text = f"no conical scan; {in_none} ray(s) in no scan"
-    from cwproc.stages.stare import stare_mask
+    from cwproc.pipeline import count_stare_rays
 
-    n_stare = int(stare_mask(ds).sum()) if "elevation" in ds else 0
+    n_stare = count_stare_rays(ds)
     if n_stare:
         scan_text += f" ({n_stare} vertical stare ray(s): stare product)"
     az = np.asarray(ds["azimuth"].values, dtype=float)

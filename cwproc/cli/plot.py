@@ -165,14 +165,15 @@ def _check_height(height: float | None, heights) -> None:
 
 
 def _vad_figure(source: str, config: str | None, scan: int | None, height: float | None):
-    """Read one scan file, check --scan/--height against it, fit the VAD and draw it."""
+    """Read one scan file, check --scan/--height against it, run its chain and draw the VAD."""
     import numpy as np
 
     from cwproc import plots
-    from cwproc.pipeline import read_input, screened_wind
+    from cwproc.pipeline import group_units, read_input, run_unit
 
     cfg = load_config_or_fail(config)
-    scans = read_input(source, cfg).dataset
+    item = read_input(source, cfg)
+    scans = item.dataset
     if "scan" not in scans.coords and "scan" not in scans:
         raise CwprocError(f"{source}: --kind vad needs a file of conical scans (no scan index)")
     present = np.unique(scans["scan"].values)
@@ -187,5 +188,10 @@ def _vad_figure(source: str, config: str | None, scan: int | None, height: float
     if height is not None:
         el = np.radians(float(np.nanmedian(scans["elevation"].values)))
         _check_height(height, scans["range"].values * np.sin(el))
-    screened, wind = screened_wind(scans, cfg)
-    return plots.plot_vad_fit(screened, wind, scan=scan, height=height)
+    # the chain of cwproc retrieve (background correction, qc, vad), on this file alone
+    result = run_unit(group_units([item])[0], cfg, keep_screened=True)
+    if not result.ok:
+        raise CwprocError("; ".join(result.failures))
+    if result.screened is None or "wind" not in result.products:
+        raise CwprocError(f"{source}: --kind vad needs conical scans; the file holds none")
+    return plots.plot_vad_fit(result.screened, result.products["wind"], scan=scan, height=height)

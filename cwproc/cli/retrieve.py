@@ -7,25 +7,14 @@ import sys
 import click
 
 from cwproc.cli._common import (
-    config_option,
-    expand_inputs,
+    inputs_or_exit,
     load_config_or_fail,
+    product_command,
     report_failure,
 )
 
 
-@click.command("retrieve")
-@click.argument("inputs", nargs=-1, required=True, metavar="FILES...")
-@click.option(
-    "-o",
-    "--output",
-    "outdir",
-    required=True,
-    type=click.Path(file_okay=False),
-    help="Directory for the NetCDF products (created if missing).",
-)
-@config_option()
-@click.option("-q", "--quiet", is_flag=True, help="Print only failures.")
+@product_command("retrieve", "Directory for the NetCDF products (created if missing).")
 def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bool) -> None:
     """Wind profile and turbulence products from lidar or sonic FILES (or directories).
 
@@ -36,17 +25,11 @@ def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bo
     sonic logs give <name>_sf.nc. Exit status 0 when every input was processed, 1
     otherwise, with one line per failed input naming the file, the line and the problem.
     """
-    from cwproc.pipeline import retrieve_files
+    from cwproc.pipeline import EXIT_FAILED, EXIT_OK, retrieve_files  # --help stays light
 
     cfg = load_config_or_fail(config)
-    found = expand_inputs(inputs, cfg.instrument.format)
+    found = inputs_or_exit(inputs, cfg, quiet)
     files = found.files
-    for line in found.mismatched:
-        report_failure(line)
-    if not files:
-        if found.mismatched:
-            sys.exit(1)
-        raise click.UsageError(f"no input files found{found.skipped_text()}")
     report = retrieve_files(files, outdir, cfg)
     for line in report.failures:
         report_failure(line)
@@ -59,4 +42,4 @@ def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bo
             f"{len(files)} input(s), {len(report.written)} product(s) written, "
             f"{len(report.failures)} failure(s){found.skipped_text()}"
         )
-    sys.exit(0 if report.ok and not found.mismatched else 1)
+    sys.exit(EXIT_OK if report.ok and not found.mismatched else EXIT_FAILED)

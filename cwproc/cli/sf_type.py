@@ -2,53 +2,33 @@
 
 Gladkikh et al. (2014): every input is read on its own (a damaged file fails alone,
 with one line naming the file, the line and the problem), the samples are grouped by
-file format and UTC day, the stage :func:`cwproc.stages.sonic_sf.structure_function_types`
-types every 10-min window, one NetCDF product is written per day, and the summary
-tables (Table 2: type occurrence; Tables 3-5: parameter means and medians) are printed
-and written as CSV.
+file format and UTC day, the chain of :func:`cwproc.pipeline.run_unit`
+(:func:`cwproc.stages.sonic_sf.structure_function_types`) types every 10-min window,
+one NetCDF product is written per day, and the summary tables (Table 2: type
+occurrence; Tables 3-5: parameter means and medians) are printed and written as CSV.
 """
 
 from __future__ import annotations
 
 import sys
-from collections.abc import Sequence
 from pathlib import Path
 
 import click
 import pandas as pd
-import xarray as xr
 
 from cwproc.cli._common import (
-    config_option,
-    expand_inputs,
+    inputs_or_exit,
     load_config_or_fail,
+    product_command,
     report_failure,
 )
 from cwproc.io.netcdf import write_bytes_atomic
-from cwproc.pipeline import retrieve_files
-from cwproc.stages.sonic_sf import parameter_statistics, type_occurrence
+from cwproc.pipeline import EXIT_FAILED, EXIT_OK, retrieve_files, sf_summary_tables
 
 
-def summary_tables(products: Sequence[xr.Dataset]) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Table 2 and Tables 3-5 of Gladkikh et al. (2014) over all products."""
-    keep = ["sf_type", "window_flag", "r_max", "sf_mu", "sf_a1", "sf_a2"]
-    keep += ["sf_d1", "sf_d2", "sf_gamma"]
-    joined = xr.concat([p[keep] for p in products], dim="window")
-    return type_occurrence(joined), parameter_statistics(joined)
-
-
-@click.command("sf-type")
-@click.argument("inputs", nargs=-1, required=True, metavar="FILES...")
-@click.option(
-    "-o",
-    "--output",
-    "outdir",
-    required=True,
-    type=click.Path(file_okay=False),
-    help="Directory for the NetCDF products and summary CSV files (created if missing).",
+@product_command(
+    "sf-type", "Directory for the NetCDF products and summary CSV files (created if missing)."
 )
-@config_option()
-@click.option("-q", "--quiet", is_flag=True, help="Print only failures.")
 def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bool) -> None:
     """Structure-function types of sonic FILES (TOA5, TOB1, GHG, Gill, Meteo-2).
 
@@ -63,21 +43,15 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
     line per failed input naming the file, the line and the problem.
     """
     cfg = load_config_or_fail(config)
-    found = expand_inputs(inputs, cfg.instrument.format)
+    found = inputs_or_exit(inputs, cfg, quiet)
     files = found.files
-    for line in found.mismatched:
-        report_failure(line)
-    if not files:
-        if found.mismatched:
-            sys.exit(1)
-        raise click.UsageError(f"no input files found{found.skipped_text()}")
     report = retrieve_files(files, outdir, cfg, kinds={"sonic"}, keep_products=True)
     written, failures = report.written, report.failures
     products = [ds for _, name, ds in report.products if name == "sf"]
     for line in failures:
         report_failure(line)
     if products:
-        occurrence, stats = summary_tables(products)
+        occurrence, stats = sf_summary_tables(products)
         out = Path(outdir)
         tables = {
             out / "sf_type_occurrence.csv": occurrence.to_csv(float_format="%.2f"),
@@ -105,4 +79,4 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
             f"{len(files)} input(s), {len(written)} product(s) written, "
             f"{len(failures)} failure(s){found.skipped_text()}"
         )
-    sys.exit(0 if not failures and not found.mismatched else 1)
+    sys.exit(EXIT_OK if not failures and not found.mismatched else EXIT_FAILED)

@@ -20,6 +20,7 @@ products are identical either way.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -29,6 +30,20 @@ import xarray as xr
 from cwproc.config import Config
 from cwproc.errors import CwprocError, InputFileError
 from cwproc.io import FileIdentity
+from cwproc.io.scans import _source_files, concat_scans, joined_attrs, scan_indices
+from cwproc.pipeline.background import correct_background
+from cwproc.pipeline.chain import (
+    describe_scan_inputs,
+    probe_for,
+    probe_mismatch,
+    screened_wind,
+    stare_products,
+)
+from cwproc.pipeline.units import drop_input
+from cwproc.stages import epsilon, structure, vad
+from cwproc.stages.background import correction_summary
+from cwproc.stages.stare import split_stares
+from cwproc.stages.structure import INSTRUMENT_SETTINGS
 
 #: input data joined into one chunk (bytes of the read datasets): the stages need about
 #: ten times this at once (padded per-scan arrays of the robust VAD fits), so 8 MiB
@@ -133,7 +148,6 @@ def flush_blocks(
     (Smalikho (2020), eq. 1), as :func:`cwproc.stages.structure.azimuth_structure_function`
     forms them on the whole day; the last, shorter block is flushed at the end.
     """
-    from cwproc.stages import structure
 
     n_scans = config.turbulence.n_scans
     n = int(wind.sizes["time"])
@@ -167,9 +181,6 @@ def flush_blocks(
 
 def take_chunk(chunk: xr.Dataset, state: StreamState, config: Config) -> None:
     """Stares kept, conical scans screened, fitted and their complete blocks reduced."""
-    from cwproc.pipeline import screened_wind
-    from cwproc.stages.stare import split_stares
-
     stares, others = split_stares(chunk)
     if stares is not None:
         state.stares.append(stares)
@@ -197,9 +208,6 @@ def check_day_choices(state: StreamState, config: Config) -> None:
         Scan numbering, conical elevation, azimuth step or rotation, or the background
         method of a chunk differs from the whole day's.
     """
-    from cwproc.io.scans import scan_indices
-    from cwproc.stages import structure, vad
-
     time, az, el, streamed = (np.concatenate(p) for p in zip(*state.pointing, strict=True))
     whole, _ = scan_indices(time, az, el, scan_type=state.scan_type)
     if not np.array_equal(whole, streamed):
@@ -225,7 +233,6 @@ def check_day_choices(state: StreamState, config: Config) -> None:
 
 def day_attrs(first: dict, files: list[str], scan_types: list[str], state: StreamState) -> dict:
     """Attributes of the whole day's scans (those the whole-day run would carry)."""
-    from cwproc.io.scans import joined_attrs
 
     attrs = joined_attrs(first, files, scan_types)
     if state.snr_corrections:
@@ -240,9 +247,6 @@ def stream_products(
     state: StreamState, attrs: dict, config: Config, notes: list[str] | None
 ) -> dict[str, xr.Dataset]:
     """Wind, turbulence and stare products of the day from what the chunks kept."""
-    from cwproc.pipeline import probe_for, stare_products
-    from cwproc.stages import epsilon
-    from cwproc.stages.structure import INSTRUMENT_SETTINGS
 
     products: dict[str, xr.Dataset] = {}
     if state.winds:
@@ -299,12 +303,6 @@ def stream_scan_unit(
         of the whole day; None when a chunk's choices differ from the day's (see the
         module docstring) and the caller must process the day whole.
     """
-    from cwproc.io.scans import _source_files, concat_scans
-    from cwproc.pipeline import (
-        describe_scan_inputs,
-        drop_input,
-        probe_mismatch,
-    )
 
     state = StreamState(turbulence=config.turbulence.enabled)
     own: list[str] = []
@@ -362,12 +360,11 @@ def stream_scan_unit(
 def corrected_chunk(
     chunk: xr.Dataset, unit, config: Config, notes: list[str], state: StreamState
 ) -> xr.Dataset:
-    """The chunk with its SNR background-corrected (:func:`cwproc.pipeline.correct_background`).
+    """The chunk with its SNR background-corrected (:func:`~.background.correct_background`).
 
     The per-chunk summary line is left out of ``notes`` and the rays counted instead, so
     the day gets one summary (:func:`background_summary`), as the whole-day run words it.
     """
-    from cwproc.pipeline import correct_background
 
     own: list[str] = []
     out = correct_background(chunk, unit, config, own)
@@ -382,15 +379,13 @@ def corrected_chunk(
 
 def background_summary(state: StreamState) -> str:
     """One line for the day: rays whose SNR was corrected, with how many files."""
-    from cwproc.stages.background import _summary
 
     done = np.concatenate(state.corrected)
     used = sorted(state.background_files)
-    return _summary(done, used, np.where(done, 0, -1))
+    return correction_summary(done, used, np.where(done, 0, -1))
 
 
 def _single(unit, item, ds: xr.Dataset):
     """A one-input copy of ``unit`` holding ``ds`` (for per-file descriptions)."""
-    import dataclasses
 
     return dataclasses.replace(unit, inputs=[dataclasses.replace(item, dataset=ds)])

@@ -3,89 +3,25 @@
 Each ray is matched to the background file of its hour: the nearest background measured
 at or before the ray (as the Stream Line measures it at the start of each hour), no older
 than ``max_age_h``. The physics is in :mod:`cwproc.physics.background` (Manninen et al.
-(2016); Vakkari et al. (2019)); this module finds the files, matches the rays and builds
+(2016); Vakkari et al. (2019)); this module matches the rays to the background datasets
+it is given (read by :mod:`cwproc.pipeline.background`; a stage does no I/O) and builds
 the dataset. The SNR as the instrument gave it stays in ``snr_uncorrected``.
 """
 
 from __future__ import annotations
 
-import os
-from collections.abc import Iterable, Sequence
-from pathlib import Path
+from collections.abc import Sequence
 
 import numpy as np
 import xarray as xr
 
-from cwproc.errors import CwprocError
 from cwproc.physics.background import MIN_FIT_RANGE_M, corrected_snr, fit_background_shape
-
-#: file-name pattern of Stream Line background files (any prefix, e.g. a site name)
-BACKGROUND_GLOB = "*Background_*.txt"
 
 METHOD = (
     "Manninen et al. (2016) and Vakkari et al. (2019): background profile of the hour "
     "replaced by a smooth fit ({models}), then the noise floor (a line in range fitted to "
     "the signal-free gates of each ray) divided out; snr_uncorrected is the instrument's"
 )
-
-
-def find_background_files(
-    data_files: Iterable[str | os.PathLike], folder: str | os.PathLike | None = None
-) -> list[Path]:
-    """Background files beside the data files (or in ``folder`` when given), sorted."""
-    folders = {Path(folder)} if folder else {Path(p).absolute().parent for p in data_files}
-    found: set[Path] = set()
-    for f in folders:
-        found.update(p for p in f.glob(BACKGROUND_GLOB) if p.is_file())
-    return sorted(found)
-
-
-def missing_folder_note(folder: str | os.PathLike) -> str:
-    """Why the configured ``[background] folder`` gave no background file."""
-    if not Path(folder).is_dir():
-        return f"SNR not corrected: [background] folder {os.fspath(folder)} is not a folder"
-    return (
-        f"SNR not corrected: no background file ({BACKGROUND_GLOB}) in [background] folder "
-        f"{os.fspath(folder)}"
-    )
-
-
-def read_backgrounds(
-    paths: Sequence[str | os.PathLike],
-    notes: list[str] | None = None,
-    *,
-    ray_time: np.ndarray | None = None,
-    max_age_h: float | None = None,
-) -> list[xr.Dataset]:
-    """Read background files; a damaged one is named in ``notes`` and left out.
-
-    With ``ray_time``, only the files that :func:`match_rays` can give to one of these
-    rays are read (chosen by the time in their names), so a folder of a year of hourly
-    backgrounds costs one directory listing, not 8760 reads per unit.
-    """
-    from cwproc.io.halo_background import background_time, read_halo_background
-
-    selected: Sequence[str | os.PathLike] = paths
-    if ray_time is not None and len(paths):
-        named = []
-        for p in paths:
-            try:
-                named.append((background_time(p), p))
-            except CwprocError as exc:
-                if notes is not None:
-                    notes.append(f"background file not used: {exc}")
-        named.sort(key=lambda item: item[0])
-        times = np.array([t for t, _ in named], dtype="datetime64[ns]")
-        wanted = np.unique(match_rays(ray_time, times, max_age_h))
-        selected = [named[i][1] for i in wanted if i >= 0]
-    out = []
-    for p in selected:
-        try:
-            out.append(read_halo_background(p))
-        except CwprocError as exc:
-            if notes is not None:
-                notes.append(f"background file not used: {exc}")
-    return out
 
 
 def match_rays(
@@ -124,7 +60,7 @@ def correct_snr(
     scans : xarray.Dataset
         Canonical scan dataset with ``snr(ray, range)`` and ``range`` (m).
     backgrounds : sequence of xarray.Dataset
-        :func:`cwproc.io.halo_background.read_halo_background` results. A background
+        :func:`cwproc.io.halo_background.read_halo_background` datasets. A background
         with fewer gates than the scans is not used (noted); one with more is cut to the
         scans' gates (the instrument writes the background of its largest gate count).
     max_age_h : float or None
@@ -198,11 +134,11 @@ def correct_snr(
     )
     out.attrs["background_files"] = sorted(set(used))
     if notes is not None:
-        notes.append(_summary(done, used, idx))
+        notes.append(correction_summary(done, used, idx))
     return out
 
 
-def _summary(done: np.ndarray, used: list[str], idx: np.ndarray) -> str:
+def correction_summary(done: np.ndarray, used: list[str], idx: np.ndarray) -> str:
     n, n_done = done.size, int(done.sum())
     if n_done == 0:
         why = " (no readable one measured at most max_age_h before them)" if (idx < 0).all() else ""

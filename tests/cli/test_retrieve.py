@@ -248,7 +248,7 @@ def test_inputs_read_again_beyond_the_memory_budget_give_the_same_products(tmp_p
     config = load_config("streamline")
     files = sorted(folder.glob("*.hpl"))
     kept = pipeline.retrieve_files(files, tmp_path / "kept", config, keep_products=True)
-    monkeypatch.setattr(pipeline, "RETRIEVE_MEMORY_BYTES", 0)
+    monkeypatch.setattr("cwproc.pipeline.retrieve.RETRIEVE_MEMORY_BYTES", 0)
     reread = pipeline.retrieve_files(files, tmp_path / "reread", config, keep_products=True)
     assert kept.ok and reread.ok and len(kept.products) == len(reread.products) >= 3
     for (k1, n1, a), (k2, n2, b) in zip(kept.products, reread.products, strict=True):

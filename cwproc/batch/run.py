@@ -1,0 +1,408 @@
+"""Planning and running a batch: discover, classify, plan, process, record."""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import logging
+import os
+import time
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path, PurePosixPath
+from typing import Any
+
+from cwproc.batch.executors import run_tasks
+from cwproc.batch.records import (
+    LEDGER_NAME,
+    LOCK_NAME,
+    STATE_DIR,
+    BatchReport,
+    FileInfo,
+    UnitOutcome,
+    UnitTask,
+    config_hash,
+    kv_line,
+    unit_fingerprint,
+)
+from cwproc.batch.state import (
+    Ledger,
+    cached_file_info,
+    forget_vanished_files,
+    load_ledger,
+    output_lock,
+    record_file,
+    record_outcome,
+    remove_leftover_temporaries,
+    save_ledger,
+    unit_up_to_date,
+)
+from cwproc.batch.worker import _file_stat, classify_file, process_unit_task
+from cwproc.config import Config
+from cwproc.errors import CwprocError
+
+log = logging.getLogger("cwproc.batch")
+log.addHandler(logging.NullHandler())  # a library: the application decides where logs go
+
+#: while classifying many new files, save the ledger at least this often (s)
+CLASSIFY_SAVE_INTERVAL_S = 30.0
+
+
+def matches_patterns(relpath: PurePosixPath, patterns: Sequence[str]) -> bool:
+    """Whether a path relative to INPUT_DIR matches one of the glob patterns.
+
+    A pattern without ``/`` matches the file name (``*.hpl``); one with ``/`` matches
+    the end of the relative path (``2024/*/*.hpl``).
+    """
+    return any(relpath.match(p) for p in patterns)
+
+
+def discover_files(
+    input_dir: str | os.PathLike,
+    patterns: Sequence[str] = ("*",),
+    exclude: Sequence[str | os.PathLike] = (),
+    errors: list[str] | None = None,
+) -> list[Path]:
+    """Regular files under ``input_dir`` matching ``patterns``, sorted.
+
+    Hidden files and folders (name starting with ``.``) and the folders in ``exclude``
+    (e.g. the output directory when it lies inside the input directory) are skipped.
+    Symbolic links to files are followed, links to folders are not. A folder that
+    cannot be listed is reported in ``errors`` (one line each), never skipped silently.
+    """
+    root = Path(input_dir)
+    excluded = {os.path.realpath(p) for p in exclude}
+    found: list[Path] = []
+
+    def unreadable(exc: OSError) -> None:
+        if errors is not None:
+            errors.append(f"{exc.filename}: cannot list folder: {exc.strerror or exc}")
+
+    for dirpath, dirnames, filenames in os.walk(root, onerror=unreadable):
+        dirnames[:] = sorted(
+            d
+            for d in dirnames
+            if not d.startswith(".") and os.path.realpath(os.path.join(dirpath, d)) not in excluded
+        )
+        for name in filenames:
+            if name.startswith("."):
+                continue
+            path = Path(dirpath) / name
+            rel = PurePosixPath(path.relative_to(root).as_posix())
+            if matches_patterns(rel, patterns) and path.is_file():
+                found.append(path)
+    return sorted(found)
+
+
+def plan_units(
+    infos: Iterable[FileInfo], config: Config, outdir: str | os.PathLike
+) -> list[tuple[UnitTask, str]]:
+    """Group classified files into unit tasks, in a stable order.
+
+    Returns ``(task, start)`` pairs; ``start`` is the first sample time of the unit
+    (ISO 8601, "" when unknown). Inputs within a unit are sorted by path.
+    """
+    groups: dict[tuple[str, str], list[FileInfo]] = {}
+    for info in infos:
+        if info.status == "ok":
+            groups.setdefault((info.kind, info.unit), []).append(info)
+    cfg_hash = config_hash(config)
+    toml = config.to_toml()
+    out = []
+    for (kind, key), members in sorted(groups.items()):
+        members = sorted(members, key=lambda i: i.path)
+        task = UnitTask(
+            key=key,
+            kind=kind,
+            paths=tuple(i.path for i in members),
+            sha256=tuple(i.sha256 for i in members),
+            fingerprint=unit_fingerprint((i.sha256 for i in members), cfg_hash),
+            config_toml=toml,
+            config_source=config.source,
+            outdir=os.fspath(outdir),
+        )
+        starts = [i.start for i in members if i.start]
+        out.append((task, min(starts) if starts else ""))
+    return out
+
+
+def before_since(start: str, since: _dt.date | None) -> bool:
+    """Whether a unit whose data begin at ``start`` (ISO) lies before ``--since``.
+
+    Units without a time are never skipped.
+    """
+    if since is None or not start:
+        return False
+    return start[:10] < since.isoformat()
+
+
+def file_older_than(mtime_ns: int, since: _dt.date | None) -> bool:
+    """Whether a file was last modified before 00:00 UTC of ``since``.
+
+    Such a file holds only data from before that day (a file is written after the
+    data it holds), so no unit of ``since`` or later can include it.
+    """
+    if since is None:
+        return False
+    midnight = _dt.datetime.combine(since, _dt.time(), tzinfo=_dt.UTC)
+    return mtime_ns < int(midnight.timestamp()) * 1_000_000_000
+
+
+def run_batch(
+    input_dir: str | os.PathLike,
+    outdir: str | os.PathLike,
+    config: Config,
+    *,
+    patterns: Sequence[str] = ("*",),
+    since: _dt.date | None = None,
+    min_age_s: float = 0.0,
+    client: Any = None,
+    wait_s: float = 0.0,
+    classify: Callable[[str, str, str], FileInfo] = classify_file,
+    process: Callable[[UnitTask], UnitOutcome] = process_unit_task,
+    on_plan: Callable[[int], None] | None = None,
+    on_unit: Callable[[UnitOutcome], None] | None = None,
+) -> BatchReport:
+    """Process every new or changed product unit under ``input_dir`` into ``outdir``.
+
+    Parameters
+    ----------
+    input_dir, outdir : path
+        The archive (searched recursively) and the product directory.
+    config : Config
+        The configuration (its hash is part of every unit's fingerprint).
+    patterns : sequence of str
+        Glob patterns of the files to consider (see :func:`matches_patterns`).
+    since : datetime.date, optional
+        Process only units whose data begin on or after this UTC day; files modified
+        before it are not even read.
+    min_age_s : float
+        Leave files modified less than this many seconds ago (still being written by
+        the instrument) for a later run.
+    client : dask.distributed.Client, optional
+        Run classification and units on this cluster; ``None`` runs them here.
+    wait_s : float
+        How long to wait for the lock held by another run (s).
+    classify, process : callables
+        Worker-side functions (defaults: :func:`classify_file`,
+        :func:`process_unit_task`); top-level functions so that Dask can ship them.
+    on_plan, on_unit : callables, optional
+        Called with the number of units to process, and after each unit.
+
+    Returns
+    -------
+    BatchReport
+
+    Raises
+    ------
+    LockBusyError
+        Another run holds the output directory.
+    CwprocError
+        The input directory does not exist, or the ledger cannot be read or written.
+    """
+    t0 = time.perf_counter()
+    input_dir, outdir = checked_folders(input_dir, outdir)
+    state_dir = outdir / STATE_DIR
+    ledger_path = state_dir / LEDGER_NAME
+    report = BatchReport(pinned_format=config.instrument.format)
+    with output_lock(state_dir, wait_s=wait_s) as stale:
+        report.stale_lock = stale
+        if stale:
+            log.warning(kv_line("stale_lock", lock=state_dir / LOCK_NAME, previous=stale))
+        for path in remove_leftover_temporaries(outdir):
+            log.warning(kv_line("removed_temporary", path=path))
+        ledger = load_ledger(ledger_path)
+        files = discover_files(
+            input_dir, patterns, exclude=[outdir], errors=report.listing_failures
+        )
+        for line in report.listing_failures:
+            log.warning(kv_line("folder", status="failed", error=line))
+        report.discovered = len(files)
+        cfg_hash = config_hash(config)
+        infos, to_classify = _cached_or_new(files, ledger, cfg_hash, since, min_age_s, report)
+        infos += _classify_new(to_classify, classify, config, client, ledger, ledger_path)
+        if forget_vanished_files(ledger) or to_classify:
+            save_ledger(ledger, ledger_path)
+        _sort_files(infos, report)
+        planned = plan_units(infos, config, outdir)
+        todo = _units_to_do(planned, ledger, since, report)
+        if on_plan is not None:
+            on_plan(len(todo))
+        log.info(
+            kv_line(
+                "plan",
+                files=len(files),
+                classified=len(to_classify),
+                units=len(planned),
+                todo=len(todo),
+                up_to_date=report.units_up_to_date,
+            )
+        )
+        for task, result in run_tasks(process, todo, client=client):
+            outcome = _as_outcome(task, result)
+            record_outcome(ledger, task, outcome)
+            save_ledger(ledger, ledger_path)
+            report.processed.append(outcome)
+            _log_outcome(task, outcome)
+            if on_unit is not None:
+                on_unit(outcome)
+        if ledger.journal_lines:  # one snapshot per run: ledger.json complete between runs
+            save_ledger(ledger, ledger_path, compact=True)
+    report.seconds = time.perf_counter() - t0
+    return report
+
+
+def checked_folders(input_dir: str | os.PathLike, outdir: str | os.PathLike) -> tuple[Path, Path]:
+    """The input and output folders as absolute paths; the output folder created.
+
+    Raises
+    ------
+    CwprocError
+        The input folder does not exist, is the output folder, or the output folder
+        cannot be created.
+    """
+    input_dir = Path(input_dir).absolute()
+    outdir = Path(outdir).absolute()
+    if not input_dir.is_dir():
+        raise CwprocError(f"{input_dir}: input directory does not exist")
+    if os.path.realpath(input_dir) == os.path.realpath(outdir):
+        raise CwprocError(
+            f"{outdir}: the output directory must not be the input directory "
+            "(products would be read back as inputs); use a subfolder or another folder"
+        )
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CwprocError(f"{outdir}: cannot create: {exc.strerror or exc}") from None
+    return input_dir, outdir
+
+
+def _cached_or_new(
+    files: Sequence[Path],
+    ledger: Ledger,
+    cfg_hash: str,
+    since: _dt.date | None,
+    min_age_s: float,
+    report: BatchReport,
+) -> tuple[list[FileInfo], list[str]]:
+    """The ledger's classifications still valid, and the files to classify anew.
+
+    Files modified less than ``min_age_s`` ago, and files older than ``since`` that the
+    ledger does not know, are counted in ``report`` and left out.
+    """
+    infos: list[FileInfo] = []
+    to_classify: list[str] = []
+    settled_ns = time.time_ns() - int(min_age_s * 1e9)
+    for path in map(os.fspath, files):
+        try:
+            size, mtime_ns = _file_stat(path)
+        except OSError:
+            continue  # vanished since discovery
+        if min_age_s > 0 and mtime_ns > settled_ns:
+            report.files_too_new += 1
+            continue
+        cached = cached_file_info(ledger, path, size, mtime_ns, cfg_hash)
+        if cached is not None:
+            infos.append(cached)
+        elif file_older_than(mtime_ns, since):
+            report.files_before_since += 1
+        else:
+            to_classify.append(path)
+    return infos, to_classify
+
+
+def _classify_new(
+    paths: Sequence[str],
+    classify: Callable[[str, str, str], FileInfo],
+    config: Config,
+    client: Any,
+    ledger: Ledger,
+    ledger_path: Path,
+) -> list[FileInfo]:
+    """Classify ``paths`` (on ``client``), recording each in the ledger as it comes and
+    saving it at least every :data:`CLASSIFY_SAVE_INTERVAL_S` (a long first run keeps
+    its progress)."""
+    infos = []
+    last_save = time.monotonic()
+    for path, result in run_tasks(classify, paths, config.to_toml(), config.source, client=client):
+        info = _as_file_info(path, result)
+        record_file(ledger, info)
+        infos.append(info)
+        if time.monotonic() - last_save > CLASSIFY_SAVE_INTERVAL_S:
+            save_ledger(ledger, ledger_path)
+            last_save = time.monotonic()
+    return infos
+
+
+def _sort_files(infos: Sequence[FileInfo], report: BatchReport) -> None:
+    """Unrecognised files, files of other formats and file failures into ``report``."""
+    for status, name in (
+        ("unrecognised", "unrecognised"),
+        ("other_format", "other_format"),
+        ("error", "file_failures"),
+    ):
+        setattr(
+            report,
+            name,
+            sorted((i for i in infos if i.status == status), key=lambda i: i.path),
+        )
+    for info in report.file_failures:
+        log.warning(kv_line("file", status="failed", path=info.path, error=info.error))
+
+
+def _units_to_do(
+    planned: Sequence[tuple[UnitTask, str]],
+    ledger: Ledger,
+    since: _dt.date | None,
+    report: BatchReport,
+) -> list[UnitTask]:
+    """The planned units not before ``since`` and not up to date (both counted)."""
+    report.units_total = len(planned)
+    todo: list[UnitTask] = []
+    for task, start in planned:
+        if before_since(start, since):
+            report.units_before_since += 1
+        elif unit_up_to_date(ledger, task):
+            report.units_up_to_date += 1
+        else:
+            todo.append(task)
+    return todo
+
+
+def _as_file_info(path: str, result: Any) -> FileInfo:
+    if isinstance(result, FileInfo):
+        return result
+    size, mtime_ns = 0, 0
+    with contextlib.suppress(OSError):
+        size, mtime_ns = _file_stat(path)
+    return FileInfo(
+        path, size, mtime_ns, "error", error=f"{path}: could not be classified: {result!r}"
+    )
+
+
+def _as_outcome(task: UnitTask, result: Any) -> UnitOutcome:
+    if isinstance(result, UnitOutcome):
+        return result
+    return UnitOutcome(
+        key=task.key,
+        fingerprint=task.fingerprint,
+        error=f"unit {task.key}: the cluster could not run it: {type(result).__name__}: {result}",
+    )
+
+
+def _log_outcome(task: UnitTask, outcome: UnitOutcome) -> None:
+    fields: dict[str, Any] = {
+        "unit": task.key,
+        "status": "ok" if outcome.ok else "failed",
+        "inputs": len(task.paths),
+        "seconds": f"{outcome.seconds:.3f}",
+        "peak_rss_mib": f"{outcome.peak_rss_mib:.1f}",
+        "worker": f"{outcome.host}:{outcome.pid}",
+    }
+    if outcome.ok:
+        fields["products"] = ",".join(os.path.basename(p) for p in outcome.products)
+        log.info(kv_line("unit", **fields))
+    else:
+        fields["error"] = outcome.error
+        log.warning(kv_line("unit", **fields))
+        if outcome.detail:
+            log.debug(outcome.detail)

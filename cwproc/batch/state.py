@@ -1,0 +1,407 @@
+"""The state of an output directory: the ledger of what earlier runs did, and the lock."""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import fcntl
+import json
+import os
+import socket
+import time
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from cwproc.batch.records import (
+    LEDGER_NAME,
+    LEDGER_VERSION,
+    LOCK_NAME,
+    STATE_DIR,
+    FileInfo,
+    LockBusyError,
+    UnitOutcome,
+    UnitTask,
+    utc_now_iso,
+)
+from cwproc.errors import CwprocError
+from cwproc.io.netcdf import umask_mode, write_bytes_atomic
+
+
+class _Tracked(dict):
+    """A dict that remembers the keys set or removed since the last save of the ledger."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.changed: set[str] = set()
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        super().__setitem__(key, value)
+        self.changed.add(key)
+
+    def __delitem__(self, key: str) -> None:
+        super().__delitem__(key)
+        self.changed.add(key)
+
+    def pop(self, key: str, *default: Any) -> Any:
+        if key in self:
+            self.changed.add(key)
+        return super().pop(key, *default)
+
+    def update(self, *args: Any, **kwargs: Any) -> None:
+        for key, value in dict(*args, **kwargs).items():
+            self[key] = value
+
+
+#: the tables of the ledger
+_TABLES = ("files", "units", "failures")
+
+
+@dataclass
+class Ledger:
+    """What earlier runs did, kept in ``OUTPUT_DIR/.cwproc/ledger.json``.
+
+    ``files``: ``{path: FileInfo as dict}`` (classification cache, valid while size,
+    mtime and configuration are unchanged); ``units``: ``{unit key: record}`` of units
+    whose products were written (fingerprint, inputs, products, time); ``failures``:
+    ``{unit key or file path: record}`` of what failed last time and why.
+
+    On disk: a snapshot (``ledger.json``) and an append-only journal of the changes since
+    (``ledger.json.journal``, one JSON line per changed entry), so that saving after a
+    unit costs the size of the change, not of the ledger (:func:`save_ledger`).
+    """
+
+    files: dict[str, dict[str, Any]] = field(default_factory=dict)
+    units: dict[str, dict[str, Any]] = field(default_factory=dict)
+    failures: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: journal lines on disk since the snapshot
+    journal_lines: int = 0
+
+    def __post_init__(self) -> None:
+        for name in _TABLES:
+            value = getattr(self, name)
+            if not isinstance(value, _Tracked):
+                setattr(self, name, _Tracked(value))
+
+    def to_json(self) -> str:
+        doc = {
+            "version": LEDGER_VERSION,
+            "files": self.files,
+            "units": self.units,
+            "failures": self.failures,
+        }
+        return json.dumps(doc, indent=1, sort_keys=True)
+
+    def changes(self) -> list[dict[str, Any]]:
+        """The journal entries of the changes since the last save (sorted, JSON-ready)."""
+        out = []
+        for name in _TABLES:
+            table = getattr(self, name)
+            for key in sorted(table.changed):
+                entry: dict[str, Any] = {"table": name, "key": key}
+                if key in table:
+                    entry["value"] = table[key]
+                else:
+                    entry["deleted"] = True
+                out.append(entry)
+        return out
+
+    def mark_saved(self) -> None:
+        for name in _TABLES:
+            getattr(self, name).changed.clear()
+
+    def size(self) -> int:
+        return sum(len(getattr(self, name)) for name in _TABLES)
+
+
+def journal_path(path: str | os.PathLike) -> Path:
+    """The journal beside the ledger snapshot ``path``."""
+    path = Path(path)
+    return path.with_name(path.name + ".journal")
+
+
+def load_ledger(path: str | os.PathLike) -> Ledger:
+    """Read the ledger: the snapshot, then the journal's changes in order.
+
+    An empty ledger when neither exists. A last journal line cut by a kill is ignored
+    (its change was never confirmed by the save that wrote it).
+
+    Raises
+    ------
+    CwprocError
+        The ledger is not a cwproc ledger (e.g. edited by hand).
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        text = None
+    except OSError as exc:
+        raise CwprocError(f"{path}: cannot read the ledger: {exc.strerror or exc}") from None
+    ledger = Ledger()
+    if text is not None:
+        try:
+            doc = json.loads(text)
+            if doc.get("version") != LEDGER_VERSION:
+                raise ValueError(f"unknown ledger version {doc.get('version')!r}")
+            ledger = Ledger(
+                files=dict(doc["files"]), units=dict(doc["units"]), failures=dict(doc["failures"])
+            )
+        except (ValueError, KeyError, TypeError, AttributeError) as exc:
+            raise CwprocError(
+                f"{path}: not a valid cwproc ledger ({exc}); move it away to reprocess everything"
+            ) from None
+    _replay_journal(ledger, journal_path(path))
+    ledger.mark_saved()
+    return ledger
+
+
+def _replay_journal(ledger: Ledger, journal: Path) -> None:
+    try:
+        lines = journal.read_bytes().split(b"\n")
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise CwprocError(f"{journal}: cannot read the ledger: {exc.strerror or exc}") from None
+    complete = lines[:-1]  # the part after the last newline was never confirmed
+    for number, line in enumerate(complete, start=1):
+        try:
+            entry = json.loads(line)
+            table = getattr(ledger, entry["table"]) if entry["table"] in _TABLES else None
+            if table is None:
+                raise ValueError(f"unknown table {entry['table']!r}")
+            if entry.get("deleted"):
+                table.pop(entry["key"], None)
+            else:
+                table[entry["key"]] = entry["value"]
+        except (ValueError, KeyError, TypeError) as exc:
+            raise CwprocError(
+                f"{journal}:{number}: not a valid ledger journal line ({exc}); "
+                "move the ledger files away to reprocess everything"
+            ) from None
+    ledger.journal_lines = len(complete)
+
+
+def _fsync_folder(folder: Path) -> None:
+    dir_fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(dir_fd)
+    finally:
+        os.close(dir_fd)
+
+
+def save_ledger(ledger: Ledger, path: str | os.PathLike, *, compact: bool = False) -> None:
+    """Save the changes since the last save: appended to the journal, fsynced.
+
+    The cost is that of the change (a unit, a file), not of the ledger, so a first run
+    over 50,000 files does not rewrite the ledger 50,000 times. The snapshot is
+    rewritten (temporary file, fsync, rename; the journal then removed) when there is
+    none yet, when ``compact`` is asked (the end of a run) or when the journal has grown
+    longer than the ledger (amortised O(1) per change).
+
+    Raises
+    ------
+    CwprocError
+        The state folder cannot be written.
+    """
+    path = Path(path)
+    journal = journal_path(path)
+    try:
+        if compact or not path.exists() or ledger.journal_lines > max(1000, ledger.size()):
+            _write_snapshot(ledger, path)
+            journal.unlink(missing_ok=True)
+            _fsync_folder(path.parent)
+            ledger.journal_lines = 0
+        else:
+            entries = ledger.changes()
+            if entries:
+                data = "".join(json.dumps(e, sort_keys=True) + "\n" for e in entries)
+                new = not journal.exists()
+                fd = os.open(journal, os.O_WRONLY | os.O_APPEND | os.O_CREAT, umask_mode())
+                try:
+                    os.write(fd, data.encode("utf-8"))
+                    os.fsync(fd)
+                finally:
+                    os.close(fd)
+                if new:
+                    _fsync_folder(path.parent)
+                ledger.journal_lines += len(entries)
+    except OSError as exc:
+        raise CwprocError(f"{path}: cannot write the ledger: {exc.strerror or exc}") from None
+    ledger.mark_saved()
+
+
+def _write_snapshot(ledger: Ledger, path: Path) -> None:
+    """The whole ledger to ``path`` atomically (temporary file, fsync, rename)."""
+    write_bytes_atomic(path, ledger.to_json().encode("utf-8"), fsync=True)
+
+
+def cached_file_info(
+    ledger: Ledger, path: str, size: int, mtime_ns: int, cfg_hash: str
+) -> FileInfo | None:
+    """The ledger's classification of ``path`` if still valid, else ``None``.
+
+    Valid means: same size, modification time and configuration, and the file was not a
+    failure (failed files are always tried again).
+    """
+    entry = ledger.files.get(path)
+    if entry is None:
+        return None
+    try:
+        info = FileInfo(**entry)
+    except TypeError:  # written by another version of cwproc: classify again
+        return None
+    if (
+        info.size != size
+        or info.mtime_ns != mtime_ns
+        or info.config_hash != cfg_hash
+        or info.status == "error"
+    ):
+        return None
+    return info
+
+
+def record_file(ledger: Ledger, info: FileInfo) -> None:
+    """Store a classification; a file failure also goes to ``failures``."""
+    ledger.files[info.path] = asdict(info)
+    if info.status == "error":
+        previous = ledger.failures.get(info.path, {})
+        ledger.failures[info.path] = {
+            "error": info.error,
+            "attempts": int(previous.get("attempts", 0)) + 1,
+            "time": utc_now_iso(),
+        }
+    else:
+        ledger.failures.pop(info.path, None)
+
+
+def unit_up_to_date(ledger: Ledger, task: UnitTask) -> bool:
+    """Whether the ledger has this unit with the same fingerprint and all its products.
+
+    A product deleted (or moved away) by hand is made again.
+    """
+    record = ledger.units.get(task.key)
+    if record is None or record.get("fingerprint") != task.fingerprint:
+        return False
+    return all(os.path.isfile(p) for p in record.get("products", ()))
+
+
+def forget_vanished_files(ledger: Ledger) -> list[str]:
+    """Drop the classifications (and file failures) of files that no longer exist."""
+    gone = [path for path in ledger.files if not os.path.lexists(path)]
+    for path in gone:
+        del ledger.files[path]
+        ledger.failures.pop(path, None)
+    return gone
+
+
+def record_outcome(ledger: Ledger, task: UnitTask, outcome: UnitOutcome) -> None:
+    """Store the outcome of a unit: a success in ``units``, a failure in ``failures``.
+
+    A failed unit gets no ``units`` entry, so the next run processes it again.
+    """
+    if outcome.ok:
+        ledger.units[task.key] = {
+            "fingerprint": task.fingerprint,
+            "inputs": dict(zip(task.paths, task.sha256, strict=True)),
+            "products": list(outcome.products),
+            "time": utc_now_iso(),
+            "seconds": round(outcome.seconds, 3),
+        }
+        ledger.failures.pop(task.key, None)
+    else:
+        ledger.units.pop(task.key, None)
+        previous = ledger.failures.get(task.key, {})
+        ledger.failures[task.key] = {
+            "error": outcome.error,
+            "fingerprint": task.fingerprint,
+            "attempts": int(previous.get("attempts", 0)) + 1,
+            "time": utc_now_iso(),
+        }
+
+
+def remove_leftover_temporaries(outdir: str | os.PathLike) -> list[Path]:
+    """Delete temporary files a killed run left in ``outdir`` and its state folder.
+
+    Only names made by cwproc's atomic writers are touched (``.<name>.nc.<random>.tmp``
+    from :func:`cwproc.io.netcdf.write_netcdf_atomic`, ``.ledger.json.<random>.tmp``
+    from :func:`save_ledger`). Call it only while holding the lock.
+    """
+    removed = []
+    for folder in (Path(outdir), Path(outdir) / STATE_DIR):
+        for path in folder.glob(".*.tmp"):
+            if (".nc." in path.name or path.name.startswith(f".{LEDGER_NAME}.")) and path.is_file():
+                with contextlib.suppress(FileNotFoundError):
+                    path.unlink()
+                    removed.append(path)
+    return removed
+
+
+# --------------------------------------------------------------------------------------
+# the lock
+# --------------------------------------------------------------------------------------
+
+
+def lock_holder_text(pid: int, host: str, started: str) -> str:
+    """What the lock file says about its holder."""
+    return f"pid={pid} host={host} started={started}"
+
+
+@contextlib.contextmanager
+def output_lock(
+    state_dir: str | os.PathLike, wait_s: float = 0.0, poll_s: float = 0.2
+) -> Iterator[str]:
+    """Hold the exclusive lock of an output directory for the duration of the block.
+
+    The lock is an ``flock`` on ``<state_dir>/lock``; the file names the holder
+    (pid, host, start time). The kernel releases the flock of a process that dies, so
+    the lock of a killed run is taken over; its leftover holder text is yielded (empty
+    when the previous run ended cleanly).
+
+    Parameters
+    ----------
+    state_dir : path
+        ``OUTPUT_DIR/.cwproc`` (created if missing).
+    wait_s : float
+        How long to wait for another run to finish (s); 0 gives up at once.
+    poll_s : float
+        Interval between attempts while waiting (s).
+
+    Raises
+    ------
+    LockBusyError
+        Another run still holds the lock after ``wait_s``.
+    """
+    state = Path(state_dir)
+    path = state / LOCK_NAME
+    try:
+        state.mkdir(parents=True, exist_ok=True)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise CwprocError(f"{path}: cannot create the lock: {exc.strerror or exc}") from None
+    try:
+        deadline = time.monotonic() + max(wait_s, 0.0)
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except OSError as exc:
+                if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                    raise
+                if time.monotonic() >= deadline:
+                    holder = os.pread(fd, 4096, 0).decode("utf-8", "replace").strip()
+                    raise LockBusyError(path, holder, wait_s) from None
+                time.sleep(poll_s)
+        stale = os.pread(fd, 4096, 0).decode("utf-8", "replace").strip()
+        text = lock_holder_text(os.getpid(), socket.gethostname(), utc_now_iso()) + "\n"
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, text.encode("utf-8"), 0)
+        os.fsync(fd)
+        try:
+            yield stale
+        finally:
+            os.ftruncate(fd, 0)
+            fcntl.flock(fd, fcntl.LOCK_UN)
+    finally:
+        os.close(fd)

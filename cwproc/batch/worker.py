@@ -1,0 +1,239 @@
+"""Worker-side functions (the defaults of :func:`cwproc.batch.run_batch`; run in the
+driver or on Dask workers): classify one file, process one unit.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import socket
+import sys
+import time
+import traceback
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cwproc.batch.records import (
+    PRODUCT_FORMAT,
+    FileInfo,
+    UnitOutcome,
+    UnitTask,
+    parsed_config,
+)
+from cwproc.errors import CwprocError, InputFileError, ProductError
+from cwproc.io import Format, is_cwproc_product, sniff_format
+from cwproc.pipeline import (
+    format_mismatch,
+    group_units,
+    read_input,
+    run_unit,
+    unit_key,
+    write_unit_products,
+)
+
+_HEAD_BYTES = 4096
+
+
+def _first_time_iso(ds: Any) -> str:
+    if "time" not in ds.variables:
+        return ""
+    t = np.asarray(ds["time"].values)
+    if not np.issubdtype(t.dtype, np.datetime64):
+        return ""
+    t = t[~np.isnat(t)]
+    if t.size == 0:
+        return ""
+    return np.datetime_as_string(np.min(t).astype("datetime64[s]"), unit="s") + "Z"
+
+
+def _file_stat(path: str) -> tuple[int, int]:
+    st = os.stat(path)
+    return st.st_size, st.st_mtime_ns
+
+
+def classify_file(path: str, config_toml: str, config_source: str = "<batch>") -> FileInfo:
+    """Recognise, checksum and read one file; find the product unit it belongs to.
+
+    Never raises for anything the file can cause: problems come back in the record
+    (an unexpected exception of a reader too, so that one file cannot stop a run).
+
+    Parameters
+    ----------
+    path : str
+        The input file.
+    config_toml : str
+        The configuration as TOML text (:meth:`cwproc.config.Config.to_toml`).
+    config_source : str
+        Where the configuration came from (recorded in products).
+    """
+    config, chash = parsed_config(config_toml, config_source)
+    try:
+        size, mtime_ns = _file_stat(path)
+        with open(path, "rb") as fh:
+            head = fh.read(_HEAD_BYTES)
+    except OSError as exc:
+        return FileInfo(path, 0, 0, "error", error=f"{path}: cannot read: {exc.strerror or exc}")
+    base = FileInfo(path, size, mtime_ns, "unrecognised", config_hash=chash)
+    if not head:
+        return replace(base, error=f"{path}: file is empty")
+    fmt = sniff_format(head)
+    if fmt is None:
+        return replace(base, error=f"{path}:1: not a format cwproc reads")
+    if fmt is Format.SCAN_NETCDF and is_cwproc_product(path):
+        return replace(
+            base,
+            format=PRODUCT_FORMAT,
+            error=f"{path}: a cwproc product, not an instrument file: skipped",
+        )
+    if fmt is Format.HALO_BACKGROUND:
+        return replace(
+            base,
+            format=fmt.value,
+            error=f"{path}: a Stream Line background file (used for the SNR of the scans "
+            "beside it, not a product input): skipped",
+        )
+    mismatch = format_mismatch(path, fmt, config)
+    if mismatch:
+        return replace(base, status="other_format", format=fmt.value, error=mismatch)
+    try:
+        with local_dask_scheduler():
+            item = read_input(path, config)
+        kind, key = unit_key(item)
+    except CwprocError as exc:
+        return replace(base, status="error", format=fmt.value, error=str(exc))
+    except Exception as exc:  # a bug in a reader: this file fails, the run goes on
+        return replace(
+            base,
+            status="error",
+            format=fmt.value,
+            error=f"{path}: internal error of the {fmt.value} reader {type(exc).__name__}: {exc}",
+        )
+    return replace(
+        base,
+        status="ok",
+        sha256=item.sha256,
+        format=item.format.value,
+        kind=kind,
+        unit=key,
+        start=_first_time_iso(item.dataset),
+    )
+
+
+def peak_rss_mib() -> float:
+    """Peak resident memory of this process so far (MiB).
+
+    Linux ``VmHWM`` of ``/proc/self/status``, which starts afresh at ``exec`` (unlike
+    ``ru_maxrss``, which a spawned worker inherits from the process that started it);
+    ``ru_maxrss`` where ``/proc`` is missing.
+    """
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0  # kB
+    except (OSError, ValueError, IndexError):
+        pass
+    import resource
+
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return rss / 1024.0 if sys.platform != "darwin" else rss / 2**20
+
+
+def local_dask_scheduler() -> contextlib.AbstractContextManager[Any]:
+    """Within a unit, run any dask work synchronously in this process.
+
+    On a Dask worker, xarray otherwise sees the distributed scheduler and guards each
+    NetCDF variable write with a cluster-wide lock (a round trip to the scheduler per
+    variable: 5-8 times slower products); a unit is one task on one thread anyway.
+    """
+    try:
+        import dask
+    except ImportError:
+        return contextlib.nullcontext()
+    return dask.config.set(scheduler="synchronous")
+
+
+def process_unit_task(task: UnitTask) -> UnitOutcome:
+    """Read, process and write the products of one unit (worker side).
+
+    The inputs are read again and their checksums compared with the ones the unit was
+    planned with: a file that changed in between fails the unit (the next run picks up
+    the new content). Never raises for anything the data can cause; an unexpected
+    exception (a bug) comes back with its traceback in ``detail``.
+    """
+    t0 = time.perf_counter()
+    host = socket.gethostname()
+
+    def outcome(
+        products: Sequence[Path] = (),
+        error: str = "",
+        detail: str = "",
+        notes: Sequence[str] = (),
+        failures: Sequence[str] = (),
+    ) -> UnitOutcome:
+        return UnitOutcome(
+            key=task.key,
+            fingerprint=task.fingerprint,
+            products=tuple(os.fspath(p) for p in products),
+            error=error,
+            detail=detail,
+            notes=tuple(notes),
+            failures=tuple(failures),
+            seconds=time.perf_counter() - t0,
+            peak_rss_mib=peak_rss_mib(),
+            pid=os.getpid(),
+            host=host,
+        )
+
+    with local_dask_scheduler():
+        return _process_unit_task(task, outcome)
+
+
+def _process_unit_task(task: UnitTask, outcome: Callable[..., UnitOutcome]) -> UnitOutcome:
+    """Check the unit's inputs against the plan, run it (:func:`cwproc.pipeline.run_unit`,
+    as ``cwproc retrieve`` does) and write whatever products it gave."""
+    try:
+        config = parsed_config(task.config_toml, task.config_source)[0]
+        # .hpl data are read once, chunk by chunk, when the unit streams (classification
+        # already read them whole and judged them readable)
+        items = [read_input(p, config, identify_only=True) for p in task.paths]
+        for item, expected in zip(items, task.sha256, strict=True):
+            if item.sha256 != expected:
+                return outcome(
+                    error=f"{item.path}: changed while the run was going on; "
+                    f"unit {task.key} will be redone by the next run"
+                )
+        units = group_units(items)
+        if len(units) != 1 or units[0].key != task.key:
+            found = ", ".join(u.key for u in units)
+            return outcome(error=f"{unit_label(task)}: its inputs now group as {found}")
+        result = run_unit(units[0], config)
+        written = (
+            write_unit_products(units[0], result.products, task.outdir, config)
+            if result.products
+            else []
+        )
+    except (InputFileError, ProductError) as exc:
+        return outcome(error=str(exc))  # already names the file
+    except CwprocError as exc:
+        return outcome(error=f"{unit_label(task)}: {exc}")
+    except Exception as exc:
+        return outcome(
+            error=f"{unit_label(task)}: internal error {type(exc).__name__}: {exc}",
+            detail=traceback.format_exc(),
+        )
+    # a failed unit (an input readable when classified, not now) is redone by the next run
+    return outcome(
+        written, error="; ".join(result.failures), notes=result.notes, failures=result.failures
+    )
+
+
+def unit_label(task: UnitTask) -> str:
+    """How failure lines name a unit: its key and its (first) input file."""
+    more = f" and {len(task.paths) - 1} more" if len(task.paths) > 1 else ""
+    first = task.paths[0] if task.paths else "no inputs"
+    return f"unit {task.key} ({first}{more})"

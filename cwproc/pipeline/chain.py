@@ -1,0 +1,331 @@
+"""The stage chains of each kind of unit (pure: datasets in, product datasets out).
+
+scan data (Stream Line ``.hpl``, cw line-of-sight NetCDF)::
+
+    qc.screen_radial_velocity -> vad.fit_vad -> wind product
+    screened scans + wind -> structure.azimuth_structure_function
+                          -> epsilon.estimate_epsilon -> turbulence product
+    vertical stares -> stare.stare_product (+ the day's VAD wind) -> stare product
+
+wind records (ZephIR, WindCube)::
+
+    zephir.wind_record_product (qc, TI corrected for volume averaging) -> wind product
+
+sonic data::
+
+    sonic_sf.structure_function_types -> sonic SF product (+ summary tables)
+
+The configuration is unpacked here into the plain arguments of the stages.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Sequence
+from typing import Literal
+
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+from cwproc.config import Config, InstrumentConfig
+from cwproc.errors import CwprocError
+from cwproc.io.scans import is_homodyne
+from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
+from cwproc.pipeline.units import ProductUnit
+from cwproc.stages import epsilon, qc, sonic_sf, structure, vad, zephir
+from cwproc.stages.stare import StareOptions, split_stares, stare_mask, stare_product
+
+
+def probe_from_config(
+    instrument: InstrumentConfig, *, pulse_transfer: Literal["physical", "printed"] = "physical"
+) -> Probe:
+    """The probe of an instrument configuration.
+
+    Parameters
+    ----------
+    instrument : InstrumentConfig
+        ``kind == "pulsed"`` gives a ``PulsedProbe`` from ``delta_p_m`` and ``delta_r_m``;
+        ``kind == "cw"`` a ``CWProbe`` from ``beam_radius_m`` and ``wavelength_m`` when
+        the beam radius is set, else from ``z_r_coefficient``
+        (:mod:`cwproc.physics.transfer`).
+    pulse_transfer : {"physical", "printed"}
+        Form of the Gaussian term of a pulsed probe (see ``PulsedProbe``).
+
+    Raises
+    ------
+    ValueError
+        For ``kind == "sonic"`` (no probe volume) or an impossible parameter.
+    """
+    if instrument.kind == "pulsed":
+        return PulsedProbe(instrument.delta_p_m, instrument.delta_r_m, pulse_transfer)
+    if instrument.kind == "cw":
+        if instrument.beam_radius_m is not None:
+            return CWProbe(
+                instrument.z_r_coefficient, instrument.wavelength_m, instrument.beam_radius_m
+            )
+        return CWProbe(instrument.z_r_coefficient)
+    raise ValueError(f"instrument kind {instrument.kind!r} has no lidar probe volume")
+
+
+def probe_for(config: Config) -> Probe:
+    """The probe-volume description of the configured instrument (physics object).
+
+    Raises
+    ------
+    CwprocError
+        The configuration describes no lidar (``instrument.kind = "sonic"``).
+    """
+    if config.instrument.kind not in ("pulsed", "cw"):
+        raise CwprocError(
+            f"configuration {config.source}: instrument.kind = {config.instrument.kind!r} "
+            "describes no lidar probe volume; use a lidar configuration (e.g. -c streamline "
+            "or -c zephir300) for scan data"
+        )
+    return probe_from_config(config.instrument, pulse_transfer=config.turbulence.pulse_transfer)
+
+
+def probe_mismatch(scans: xr.Dataset, config: Config) -> str:
+    """Why the configured probe cannot describe these scans ('' when it can).
+
+    The A-functions and the variance correction depend on the probe volume (pulsed range
+    gate or focused cw Lorentzian, Smalikho (2020), eqs. 19-20; Banakh et al. (1999),
+    eq. 3); scans whose ``instrument_kind`` differs from ``[instrument] kind`` would get
+    an eps of the wrong instrument (a cw series read with the pulsed default config came
+    out 3-25 times too low), so no turbulence product is made for them.
+    """
+    declared = str(scans.attrs.get("instrument_kind", "")).strip().lower()
+    kind = {"streamline": "pulsed", "pulsed": "pulsed", "cw": "cw"}.get(declared)
+    if kind is None or kind == config.instrument.kind:
+        return ""
+    files = ", ".join(str(f) for f in np.atleast_1d(scans.attrs.get("source_files", []))[:3])
+    return (
+        f"the scans{' of ' + files if files else ''} come from a {kind} lidar "
+        f"(instrument_kind = {declared!r}) but configuration {config.source} describes a "
+        f"{config.instrument.kind} lidar; use a {kind} configuration "
+        f"(e.g. -c {'banakh1999' if kind == 'cw' else 'streamline'})"
+    )
+
+
+def screened_wind(scans: xr.Dataset, config: Config) -> tuple[xr.Dataset, xr.Dataset]:
+    """Screened conical scans and their VAD wind rows (stages ``qc`` and ``vad``)."""
+    homodyne = is_homodyne(scans)
+    screened = qc.screen_radial_velocity(
+        scans,
+        snr_min=config.qc.snr_min,
+        outlier_threshold=config.qc.outlier_threshold,
+        homodyne=homodyne,
+    )
+    wind = vad.fit_vad(
+        screened,
+        min_rays=config.vad.min_rays,
+        max_gap_deg=config.vad.max_gap_deg,
+        reference_direction_deg=config.vad.reference_direction_deg,
+        max_residual_std=config.vad.max_residual_std,
+        homodyne=homodyne,
+    )
+    return screened, wind
+
+
+def process_scans(
+    scans: xr.Dataset,
+    config: Config,
+    notes: list[str] | None = None,
+    kept: dict[str, xr.Dataset] | None = None,
+) -> dict[str, xr.Dataset]:
+    """Wind and turbulence products from a scan dataset (already concatenated).
+
+    A wind profile that can be fitted is always returned. When the turbulence chain
+    cannot run on these scans (e.g. azimuth steps wider than the 9 degree lag limit of
+    Smalikho (2020)), the reason is appended to ``notes`` and only the wind product is
+    returned. ``kept``, when given, receives the QC-screened scans the VAD was fitted
+    to (``kept["screened"]``).
+    """
+    screened, wind = screened_wind(scans, config)
+    if kept is not None:
+        kept["screened"] = screened
+    products = {"wind": wind}
+    if not config.turbulence.enabled or int(wind.sizes.get("time", 0)) < 1:
+        return products
+    mismatch = probe_mismatch(scans, config)
+    if mismatch:
+        if notes is not None:
+            notes.append(f"turbulence not computed: {mismatch}")
+        return products
+    try:
+        sf = structure.azimuth_structure_function(
+            screened,
+            wind,
+            n_scans=config.turbulence.n_scans,
+            max_lag_deg=config.turbulence.max_lag_deg,
+            min_lags=config.turbulence.min_lags,
+        )
+    except CwprocError as exc:
+        if notes is not None:
+            notes.append(f"turbulence not computed: {exc}")
+        return products
+    if int(sf.sizes.get("time", 0)) >= 1:
+        products["turbulence"] = epsilon.estimate_epsilon(
+            sf,
+            probe=probe_for(config),
+            lag_number=config.turbulence.lag_number,
+            model=config.turbulence.model,
+        )
+    elif notes is not None:
+        notes.append("turbulence not computed: no complete block of scans")
+    return products
+
+
+# --------------------------------------------------------------------------------------
+# one day of mixed scans (issue 13): stares -> stare product, the rest -> wind/turbulence
+# --------------------------------------------------------------------------------------
+
+
+def count_stare_rays(scans: xr.Dataset) -> int:
+    """Number of vertical stare rays (elevation >= 85 deg) of a scan dataset.
+
+    The rays :func:`process_scan_day` gives to the stare product (O'Connor et al.
+    (2010)); 0 for a dataset without elevations.
+    """
+    return int(stare_mask(scans).sum()) if "elevation" in scans else 0
+
+
+def describe_scan_inputs(unit: ProductUnit) -> list[str]:
+    """One line per scan file of a unit: what it holds and which product it feeds."""
+    lines = []
+    for item in unit.inputs:
+        ds = item.dataset
+        if ds is None:
+            continue
+        vertical = stare_mask(ds)
+        n_vertical, n_other = int(vertical.sum()), int((~vertical).sum())
+        scan = ds["scan"].values if "scan" in ds.coords else np.full(ds.sizes["ray"], -1)
+        n_conical = int(np.unique(scan[(scan >= 0) & ~vertical]).size)
+        parts = []
+        if n_vertical:
+            parts.append(f"{n_vertical} vertical stare rays -> stare product")
+        if n_conical:
+            parts.append(f"{n_conical} conical scan(s) -> wind (and turbulence)")
+        unused = n_other - int(np.sum((scan >= 0) & ~vertical))
+        if unused:
+            parts.append(f"{unused} rays neither vertical nor in a conical scan: not used")
+        kind = str(ds.attrs.get("scan_type", "")).strip() or "scan"
+        lines.append(f"{os.fspath(item.path)}: {kind}: " + "; ".join(parts or ["no rays"]))
+    return lines
+
+
+def process_scan_day(
+    scans: xr.Dataset,
+    config: Config,
+    notes: list[str] | None = None,
+    kept: dict[str, xr.Dataset] | None = None,
+) -> dict[str, xr.Dataset]:
+    """Products of the scans of one instrument-day: wind/turbulence and stare.
+
+    Vertical stares (elevation >= 85 deg) go to the stare product (w statistics and
+    eps of O'Connor et al. (2010), the wind speed from this day's VADs); the other rays
+    to :func:`process_scans` (which fills ``kept``). A day of stares only gives the
+    stare product (eps NaN, flag bit 1, and a note); a day without stares gives what it
+    gave before.
+    """
+    stares, others = split_stares(scans)
+    products: dict[str, xr.Dataset] = {}
+    if others is not None:
+        try:
+            products = process_scans(others, config, notes, kept)
+        except CwprocError as exc:
+            if stares is None:
+                raise
+            if notes is not None:
+                notes.append(f"wind not computed: {exc}")
+    elif stares is None:
+        return process_scans(scans, config, notes, kept)
+    if stares is not None and config.stare.enabled:
+        products["stare"] = stare_products(stares, products.get("wind"), config, notes)
+    return products
+
+
+def stare_products(
+    stares: xr.Dataset, wind: xr.Dataset | None, config: Config, notes: list[str] | None
+) -> xr.Dataset:
+    """The stare product of the vertical rays, with a note when no VAD gives the wind."""
+    has_wind = wind is not None and bool(np.isfinite(wind["wind_speed"].values).any())
+    if not has_wind and notes is not None:
+        notes.append(
+            "stare eps not computed: no VAD or PPI of this instrument and day gives the "
+            "horizontal wind that O'Connor et al. (2010) need; w statistics written, "
+            "epsilon_stare NaN with stare_flag bit 1 (add the day's VAD files)"
+        )
+    options = StareOptions(
+        window_s=config.stare.window_s,
+        min_samples=config.stare.min_samples,
+        variance_window_s=config.stare.variance_window_s,
+        snr_min=config.qc.snr_min,
+        outlier_threshold=config.stare.outlier_threshold,
+        prf_hz=config.stare.prf_hz,
+        max_wind_gap_s=config.stare.max_wind_gap_s,
+        delta_p_m=config.instrument.delta_p_m,
+        delta_r_m=config.instrument.delta_r_m,
+    )
+    product = stare_product(stares, wind if has_wind else None, options)
+    ray_s = float(product.attrs["ray_duration_s"])
+    if notes is not None and options.variance_window_s < 3 * ray_s:
+        notes.append(
+            f"stare: [stare] variance_window_s = {options.variance_window_s:g} s holds fewer "
+            f"than 3 rays of {ray_s:.2f} s: no variance and no eps (stare_flag bit 2); "
+            "lengthen it"
+        )
+    return product
+
+
+def process_wind_record(record: xr.Dataset, config: Config) -> dict[str, xr.Dataset]:
+    """Wind product from an instrument's own 10-min/1-s wind records (ZephIR, WindCube)."""
+    return {
+        "wind": zephir.wind_record_product(
+            record,
+            min_packets=config.zephir.min_packets,
+            max_rain_percent=config.zephir.max_rain_percent,
+            z_r_coefficient=config.instrument.z_r_coefficient,
+        )
+    }
+
+
+def process_sonic(sonic: xr.Dataset, config: Config) -> dict[str, xr.Dataset]:
+    """Structure-function-type product of a sonic dataset."""
+    return {"sf": sonic_sf.structure_function_types(sonic, **dataclasses.asdict(config.sonic))}
+
+
+#: variables of the sonic SF product that the summary tables use
+SF_SUMMARY_VARIABLES = (
+    "sf_type",
+    "window_flag",
+    "r_max",
+    "sf_mu",
+    "sf_a1",
+    "sf_a2",
+    "sf_d1",
+    "sf_d2",
+    "sf_gamma",
+)
+
+
+def sf_summary_tables(products: Sequence[xr.Dataset]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Table 2 and Tables 3-5 of Gladkikh et al. (2014) over sonic SF products.
+
+    Parameters
+    ----------
+    products : sequence of xarray.Dataset
+        ``sf`` products (:func:`process_sonic`), joined along ``window``.
+
+    Returns
+    -------
+    occurrence : pandas.DataFrame
+        Occurrence of each structure-function type per component (% of observed
+        windows), Gladkikh et al. (2014), Table 2.
+    statistics : pandas.DataFrame
+        Means and medians of the fitted parameters per type and component,
+        Gladkikh et al. (2014), Tables 3-5.
+    """
+    joined = xr.concat([p[list(SF_SUMMARY_VARIABLES)] for p in products], dim="window")
+    return sonic_sf.type_occurrence(joined), sonic_sf.parameter_statistics(joined)

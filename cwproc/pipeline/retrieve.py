@@ -1,0 +1,176 @@
+"""``retrieve_files``: read, run and write every unit of a list of files (``cwproc retrieve``)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import NamedTuple
+
+import xarray as xr
+
+from cwproc.config import Config
+from cwproc.errors import CwprocError
+from cwproc.io import KIND
+from cwproc.io.netcdf import remove_stale_temporaries
+from cwproc.pipeline.run import internal_error, run_unit
+from cwproc.pipeline.units import ProductUnit, read_input, split_by_day, unit_key, unit_label
+from cwproc.pipeline.write import write_unit_products
+
+
+@dataclass
+class RunReport:
+    """What a run did: products written and one line per failure."""
+
+    written: list[Path] = field(default_factory=list)
+    failures: list[str] = field(default_factory=list)
+    #: the products made, ``(unit key, product name, dataset)``, when asked to keep them
+    products: list[tuple[str, str, xr.Dataset]] = field(default_factory=list)
+    #: things the user should know that are not failures (e.g. turbulence not computable)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.failures
+
+    def extend(self, other: RunReport) -> None:
+        self.written.extend(other.written)
+        self.failures.extend(other.failures)
+        self.notes.extend(other.notes)
+
+
+def retrieve_files(
+    paths: Sequence[str | os.PathLike],
+    outdir: str | os.PathLike,
+    config: Config,
+    *,
+    kinds: Iterable[str] | None = None,
+    keep_products: bool = False,
+) -> RunReport:
+    """Read, process and write everything; never stops at the first bad input.
+
+    Parameters
+    ----------
+    paths : sequence of paths
+        Input files.
+    outdir : path
+        Directory of the products.
+    config : Config
+    kinds : iterable of str, optional
+        Accept only inputs of these kinds (``"scan"``, ``"wind_record"``, ``"sonic"``);
+        others are reported as failures. Default: all.
+    keep_products : bool
+        Keep the product datasets in the report (``report.products``).
+
+    Returns
+    -------
+    RunReport
+        Products written and one line per failed input or unit.
+    """
+    report = RunReport()
+    for stale in remove_stale_temporaries(outdir):
+        report.notes.append(f"{stale}: removed a temporary file of an interrupted run")
+    found = read_units(paths, config, kinds=kinds)
+    report.failures.extend(found.failures)
+    report.notes.extend(found.notes)
+    for unit in found.units:
+        result = run_unit(unit, config)
+        try:
+            if result.products:
+                report.written.extend(write_unit_products(unit, result.products, outdir, config))
+        except CwprocError as exc:
+            report.failures.append(f"{unit_label(unit)}: {exc}")
+        except Exception as exc:  # a bug in cwproc: report it, keep processing the rest
+            report.failures.append(f"{unit_label(unit)}: {internal_error(exc)}")
+        if keep_products:
+            report.products.extend((unit.key, n, ds) for n, ds in result.products.items())
+        report.failures.extend(result.failures)
+        report.notes.extend(result.notes)
+        for item in unit.inputs:  # processed: its data may go
+            item.dataset = None
+    return report
+
+
+#: input data ``retrieve`` keeps in memory between reading and processing (bytes);
+#: beyond it, inputs are read again when their unit is processed, so memory stays flat
+#: in the number of units (a unit's own data plus this budget)
+RETRIEVE_MEMORY_BYTES = 512 << 20
+
+
+def _nbytes(ds: xr.Dataset | None) -> int:
+    return 0 if ds is None else int(ds.nbytes)
+
+
+class FoundUnits(NamedTuple):
+    """The product units of a list of files, and what reading them gave."""
+
+    #: the units in a stable order (sorted by kind and key)
+    units: list[ProductUnit]
+    #: one line per input that cannot be read or used (file, line, problem)
+    failures: list[str]
+    #: inputs left out that are not failures (e.g. Stream Line background files)
+    notes: list[str]
+
+
+def read_units(
+    paths: Iterable[str | os.PathLike],
+    config: Config,
+    *,
+    kinds: Iterable[str] | None = None,
+) -> FoundUnits:
+    """Read every input on its own and group the inputs into product units.
+
+    What ``cwproc retrieve`` runs before :func:`cwproc.pipeline.run_unit`: a bad file
+    fails alone (its line in ``failures``) and never stops the others; a sonic file
+    crossing midnight feeds two days. Inputs are kept in memory up to
+    :data:`RETRIEVE_MEMORY_BYTES`; beyond it ``.hpl`` files are identified by their
+    header and every input is read again when its unit runs (same products).
+
+    Parameters
+    ----------
+    paths : iterable of path
+        Instrument files (any format cwproc reads; detected from their content unless
+        the configuration pins ``[instrument] format``).
+    config : Config
+        The configuration (reader options, pinned format).
+    kinds : iterable of str, optional
+        Accept only inputs of these kinds (``"scan"``, ``"wind_record"``, ``"sonic"``);
+        others are failures. Default: all.
+
+    Returns
+    -------
+    FoundUnits
+        ``(units, failures, notes)``.
+    """
+    found = FoundUnits([], [], [])
+    units: dict[tuple[str, str], ProductUnit] = {}
+    accepted = set(kinds) if kinds is not None else None
+    held = 0
+    for p in paths:
+        try:
+            item = read_input(p, config, identify_only=True)
+        except CwprocError as exc:
+            found.failures.append(str(exc))
+            continue
+        except Exception as exc:  # a reader bug must not stop the other files
+            found.failures.append(f"{p}: {internal_error(exc)}")
+            continue
+        if KIND[item.format] == "background":  # not a product input (see correct_background)
+            found.notes.append(f"{p}: Stream Line background file, not a product input")
+            continue
+        if accepted is not None and KIND[item.format] not in accepted:
+            found.failures.append(
+                f"{p}: {item.format.value} data ({KIND[item.format]}) cannot be used here; "
+                f"expected {' or '.join(sorted(accepted))} data"
+            )
+            continue
+        for part in split_by_day(item):
+            kind, key = unit_key(part)
+            units.setdefault((kind, key), ProductUnit(key=key, kind=kind)).inputs.append(part)
+            held += _nbytes(part.dataset)
+            if held > RETRIEVE_MEMORY_BYTES:  # keep only what the budget allows
+                held -= _nbytes(part.dataset)
+                part.dataset = None
+    found.units.extend(units[k] for k in sorted(units))
+    return found

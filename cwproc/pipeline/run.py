@@ -1,0 +1,177 @@
+"""``run_unit``: the one place that knows the order of the stages.
+
+``cwproc retrieve``, ``cwproc batch``, ``cwproc plot`` and the Python API all turn a
+product unit into products by calling :func:`run_unit`; what a unit gave (products,
+notes, failures and so the exit status) is therefore the same whichever client asked.
+"""
+
+from __future__ import annotations
+
+import os
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import xarray as xr
+
+from cwproc.config import Config
+from cwproc.errors import CwprocError
+from cwproc.pipeline.background import correct_background
+from cwproc.pipeline.chain import (
+    describe_scan_inputs,
+    process_scan_day,
+    process_sonic,
+    process_wind_record,
+)
+from cwproc.pipeline.stream import STREAM_CHUNK_BYTES, stream_scan_unit
+from cwproc.pipeline.units import ProductUnit, concat_unit, load_item, load_unit, unit_label
+
+#: exit status of a command whose every unit succeeded
+EXIT_OK = 0
+#: exit status of a command of which some input or unit failed (its products were
+#: still written when the others allowed it)
+EXIT_FAILED = 1
+
+
+@dataclass
+class UnitResult:
+    """What one product unit gave.
+
+    Attributes
+    ----------
+    key : str
+        The unit's key (:func:`cwproc.pipeline.unit_key`); products are written as
+        ``<key>_<product>.nc``.
+    kind : str
+        ``"scan"``, ``"wind_record"`` or ``"sonic"``.
+    products : dict of str to xarray.Dataset
+        ``{product name: dataset}`` (``wind``, ``turbulence``, ``stare``, ``sf``), not
+        yet written; empty when the unit failed.
+    notes : list of str
+        What the user should know that is not a failure (what each file holds, a product
+        that cannot be made and why); every line names the file(s) it is about.
+    failures : list of str
+        One line per failure (an input damaged beyond its header, a chain that could not
+        run), naming the file, the line where known, and the problem.
+    screened : xarray.Dataset or None
+        The QC-screened conical scans the VAD was fitted to, when asked for
+        (``keep_screened``); else None.
+    """
+
+    key: str
+    kind: str
+    products: dict[str, xr.Dataset] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    failures: list[str] = field(default_factory=list)
+    screened: xr.Dataset | None = None
+
+    @property
+    def ok(self) -> bool:
+        """True when nothing failed (notes are not failures)."""
+        return not self.failures
+
+    @property
+    def exit_status(self) -> int:
+        """:data:`EXIT_OK` when the unit succeeded, else :data:`EXIT_FAILED`."""
+        return EXIT_OK if self.ok else EXIT_FAILED
+
+
+def run_unit(unit: ProductUnit, config: Config, *, keep_screened: bool = False) -> UnitResult:
+    """Run the stage chain of one product unit; never raises for what its data cause.
+
+    Parameters
+    ----------
+    unit : ProductUnit
+        The inputs of one unit (:func:`cwproc.pipeline.group_units` of
+        :func:`cwproc.pipeline.read_input` items). Inputs whose data are not held are
+        read here (and their checksums compared); an input damaged beyond its header is
+        left out with a failure line.
+    config : Config
+        The configuration (a preset or a TOML file, :func:`cwproc.config.load_config`).
+    keep_screened : bool
+        Keep the QC-screened scans of a scan unit in ``UnitResult.screened`` (the day is
+        then processed whole, not chunk by chunk).
+
+    Returns
+    -------
+    UnitResult
+        Products (not written; see :func:`cwproc.pipeline.write_unit_products`), notes,
+        failures and the exit status they mean.
+
+    Notes
+    -----
+    A scan unit runs ``read -> background.correct_snr -> qc -> vad -> structure ->
+    epsilon`` (and ``stare`` for vertical rays, :func:`cwproc.pipeline.process_scan_day`),
+    chunk by chunk in bounded memory unless its chunks would choose differently from the
+    whole day; a wind-record unit runs ``zephir.wind_record_product``; a sonic unit
+    ``sonic_sf.structure_function_types``.
+    """
+    result = UnitResult(key=unit.key, kind=unit.kind)
+    notes: list[str] = []
+    names = unit_label(unit)
+    kept: dict[str, xr.Dataset] | None = {} if keep_screened else None
+    try:
+        result.products = unit_products(unit, config, notes, kept=kept)
+    except CwprocError as exc:
+        result.failures.append(f"{names}: {exc}")
+    except Exception as exc:  # a bug in cwproc: report it, the caller goes on
+        result.failures.append(f"{names}: {internal_error(exc)}")
+    result.failures.extend(unit.failures)
+    own = tuple(f"{os.fspath(i.path)}: " for i in unit.inputs)
+    result.notes = [n if n.startswith(own) else f"{names}: {n}" for n in notes]
+    if kept:
+        result.screened = kept.get("screened")
+    return result
+
+
+def unit_products(
+    unit: ProductUnit,
+    config: Config,
+    notes: list[str] | None = None,
+    *,
+    chunk_bytes: int | None = None,
+    kept: dict[str, xr.Dataset] | None = None,
+) -> dict[str, xr.Dataset]:
+    """The products of one unit, ``{product name: dataset}`` (the chain of :func:`run_unit`).
+
+    Non-fatal remarks (a product that could not be made) are appended to ``notes``.
+    A scan unit is processed chunk by chunk (:func:`cwproc.pipeline.stream.stream_scan_unit`,
+    identical products in bounded memory, ``chunk_bytes`` of input per chunk); a day
+    whose chunks would choose differently from the whole day is processed whole, and so
+    is a day whose screened scans are asked for in ``kept``.
+
+    Raises
+    ------
+    CwprocError
+        The chain cannot run on these data (the message says why).
+    """
+    if unit.kind == "scan" and kept is None:
+        products = stream_scan_unit(
+            unit,
+            config,
+            notes,
+            lambda item: load_item(item, config),
+            chunk_bytes or STREAM_CHUNK_BYTES,
+        )
+        if products is not None:
+            return products
+    load_unit(unit, config)
+    ds = concat_unit(unit)
+    if unit.kind == "scan":
+        if notes is not None:
+            notes.extend(describe_scan_inputs(unit))
+        ds = correct_background(ds, unit, config, notes)
+        return process_scan_day(ds, config, notes, kept)
+    if unit.kind == "wind_record":
+        return process_wind_record(ds, config)
+    return process_sonic(ds, config)
+
+
+def internal_error(exc: BaseException) -> str:
+    """One line for an unexpected exception: where it came from, to report as a bug."""
+    frame = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
+    where = f" at {Path(frame.filename).name}:{frame.lineno}" if frame else ""
+    return (
+        f"internal error {type(exc).__name__}{where}: {exc} "
+        "(a bug in cwproc; please report it with this line)"
+    )

@@ -1,0 +1,323 @@
+"""Inputs and product units: reading one file, grouping files into units, reading again.
+
+A *product unit* is what makes one set of products: the scan files of one instrument
+and UTC day, the sonic samples of one logger and UTC day, or one wind-record file.
+Every input is read on its own (a bad file fails alone, with one line naming the file,
+the line and the problem); :func:`unit_key` names the unit and its products.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import re
+import stat
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from cwproc.config import Config
+from cwproc.errors import CwprocError, InputFileError
+from cwproc.io import KIND, FileIdentity, Format, detect_format, get_identifier, get_reader
+from cwproc.io.netcdf import sha256_file
+from cwproc.io.scans import concat_scans
+
+
+@dataclass
+class InputFile:
+    """One input: its path, format, checksum and (once read) dataset."""
+
+    path: Path
+    format: Format
+    sha256: str
+    dataset: xr.Dataset | None = None
+    #: the UTC day this item holds when a file crossing midnight was split (sonic)
+    day: str | None = None
+    #: time of its first ray (scan files; orders the files of a streamed day)
+    start: np.datetime64 | None = None
+    #: what the header says (attributes, first time) when the data are not read yet
+    identity: FileIdentity | None = None
+
+
+@dataclass
+class ProductUnit:
+    """Inputs that make one set of products (e.g. one instrument-day of scans)."""
+
+    key: str
+    kind: str
+    inputs: list[InputFile] = field(default_factory=list)
+    #: one line per input left out when its data were read (damaged beyond its header)
+    failures: list[str] = field(default_factory=list)
+
+
+def format_mismatch(path: str | os.PathLike, fmt: Format, config: Config) -> str:
+    """Why ``config`` does not read a file of format ``fmt`` ('' when it does).
+
+    A configuration that pins ``[instrument] format`` (a preset for one instrument)
+    reads files of that format only; ``cwproc retrieve`` and ``cwproc batch`` skip the
+    others with this line, naming the file and the format.
+    """
+    pinned = config.instrument.format
+    if pinned == "auto" or fmt.value == pinned:
+        return ""
+    return f"{os.fspath(path)}: a {fmt.value} file, but the configuration reads only {pinned}"
+
+
+def no_input_of_format(n_skipped: int, pinned: str) -> str:
+    """The failure of a run whose every input is of a format the configuration does not read."""
+    return (
+        f"none of the inputs is a {pinned} file, the only format the configuration reads "
+        f"({n_skipped} file(s) of other formats skipped); use a configuration for their "
+        'instrument, or one with [instrument] format = "auto"'
+    )
+
+
+def reader_options(config: Config, fmt: Format) -> dict:
+    """Options of the reader of ``fmt`` from the ``[reader.<format>]`` config table."""
+    return dict(config.reader.get(fmt.value, {}))
+
+
+def read_input(
+    path: str | os.PathLike, config: Config, *, identify_only: bool = False
+) -> InputFile:
+    """Detect the format of one file, checksum it and read it.
+
+    With ``identify_only``, a format with a header-only identifier (``.hpl``) is not
+    read: the item gets ``identity`` (attributes and first time, enough for
+    :func:`unit_key`) and no dataset, and its data are read when its unit is processed.
+    A header the identifier cannot take is read whole (and its error reported).
+
+    Raises
+    ------
+    InputFileError
+        Whatever the reader found wrong with the file.
+    """
+    path = Path(path)
+    try:
+        mode = path.stat().st_mode
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(mode):
+        kind = "a folder" if stat.S_ISDIR(mode) else "a pipe, socket or device"
+        raise InputFileError(path, f"not a regular file ({kind}); cwproc reads files")
+    fmt = (
+        detect_format(path)
+        if config.instrument.format == "auto"
+        else Format(config.instrument.format)
+    )
+    try:
+        checksum = sha256_file(path)
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    if fmt is Format.HALO_BACKGROUND:  # read by correct_background for the scans beside it
+        return InputFile(path=path, format=fmt, sha256=checksum)
+    identify = get_identifier(fmt) if identify_only and not reader_options(config, fmt) else None
+    if identify is not None:
+        try:
+            identity = identify(path)
+        except CwprocError:
+            identity = None  # read whole below: its reader words the problem
+        if identity is not None:
+            return InputFile(
+                path=path, format=fmt, sha256=checksum, identity=identity, start=_start(identity)
+            )
+    ds = get_reader(fmt)(path, **reader_options(config, fmt))
+    return InputFile(path=path, format=fmt, sha256=checksum, dataset=ds, start=_start(ds))
+
+
+def held_or_identity(item: InputFile) -> xr.Dataset | FileIdentity | None:
+    """The dataset of an input when held, else what its header said (attributes)."""
+    return item.dataset if item.dataset is not None else item.identity
+
+
+def _times(ds: xr.Dataset | FileIdentity) -> np.ndarray:
+    """The times of a dataset or of a file's identity (empty when it has none)."""
+    if isinstance(ds, FileIdentity):
+        return ds.time
+    return ds["time"].values if "time" in ds.variables else np.array([], "datetime64[ns]")
+
+
+def _start(ds: xr.Dataset | FileIdentity) -> np.datetime64 | None:
+    """The earliest valid time of a dataset (None when it has none)."""
+    t = _times(ds)
+    t = t[~np.isnat(t)]
+    return t.min() if t.size else None
+
+
+def _day(ds: xr.Dataset | FileIdentity) -> str:
+    t = _times(ds)
+    t = t[~np.isnat(t)]
+    if t.size == 0:
+        return "nodate"
+    return np.datetime_as_string(np.min(t), unit="D").replace("-", "")
+
+
+#: characters kept in a part of a product name; anything else becomes "-"
+_NAME_CHARS = re.compile(r"[^A-Za-z0-9._+@-]+")
+#: longest part of a product name taken from a file (characters)
+NAME_PART_MAX = 40
+
+
+def name_part(text: object, default: str = "x") -> str:
+    """A safe part of a product file name built from untrusted text (a header value).
+
+    Only letters, digits and ``._+@-`` are kept (other runs become ``-``, leading dots
+    and dashes are dropped), and the part is cut to ``NAME_PART_MAX``
+    characters: a ``System ID`` of ``../../tmp/pwned``, a NUL or 300 characters can
+    neither leave the output folder nor make an invalid file name.
+    """
+    part = _NAME_CHARS.sub("-", str(text)).lstrip(".-")[:NAME_PART_MAX].rstrip(".-")
+    return part or default
+
+
+def _sonic_station(ds: xr.Dataset) -> str:
+    """The logger or instrument identity a sonic file states ('' when none)."""
+    for key in ("toa5_station", "tob1_station", "ghg_instrument", "ghg_serial_number"):
+        value = str(ds.attrs.get(key, "")).strip()
+        if value:
+            return value
+    return str(ds.attrs.get("meteo2_station", "")).strip()
+
+
+def unit_key(item: InputFile) -> tuple[str, str]:
+    """(kind, key) of the product unit an input belongs to; the key names the products.
+
+    Scan files group by instrument, system id and UTC day; sonic files by format, the
+    station the file names (TOA5/TOB1 station, GHG instrument, Meteo-2 ``# station:``;
+    else the name of its folder) and UTC day, so two loggers of one day are never
+    merged; wind records are one unit each, named after their folder and file, so
+    same-named files of two instruments are two units. Every part taken from a file is
+    made safe by :func:`name_part`, so the key is a plain file name.
+    """
+    kind = KIND[item.format]
+    ds = held_or_identity(item)
+    assert ds is not None
+    if kind == "scan":
+        system = name_part(ds.attrs.get("system_id", ""))
+        instrument = name_part(ds.attrs.get("instrument_kind", item.format.value))
+        return kind, f"{instrument}_{system}_{_day(ds)}"
+    folder = name_part(Path(item.path).absolute().parent.name, "root")
+    if kind == "sonic":
+        station = _sonic_station(ds)
+        where = name_part(station) if station else folder
+        return kind, f"{item.format.value}_{where}_{_day(ds)}"
+    return kind, f"{folder}_{name_part(Path(item.path).stem)}"
+
+
+def split_by_day(item: InputFile) -> list[InputFile]:
+    """A sonic input as one item per UTC day of its samples (other inputs unchanged).
+
+    Sonic products are made per day (Gladkikh et al. (2014) type 10-min windows, and a
+    15-min logger file holds one and a half of them), so a file that crosses midnight
+    contributes to two days.
+    """
+    ds = item.dataset
+    if KIND[item.format] != "sonic" or ds is None or ds.sizes.get("time", 0) == 0:
+        return [item]
+    days = ds["time"].values.astype("datetime64[D]")
+    unique = np.unique(days[~np.isnat(days)])
+    if unique.size <= 1:
+        return [item]
+    return [
+        dataclasses.replace(item, dataset=ds.isel(time=np.flatnonzero(days == day)), day=str(day))
+        for day in unique
+    ]
+
+
+def group_units(items: Iterable[InputFile]) -> list[ProductUnit]:
+    """Group read inputs into product units (scans and sonic data: per instrument and
+    UTC day; wind records: per file), in a stable order."""
+    units: dict[tuple[str, str], ProductUnit] = {}
+    for whole in items:
+        for item in split_by_day(whole):
+            kind, key = unit_key(item)
+            units.setdefault((kind, key), ProductUnit(key=key, kind=kind)).inputs.append(item)
+    return [units[k] for k in sorted(units)]
+
+
+#: relative spread of the sampling rates of sonic files that may be joined into one day
+SONIC_RATE_TOLERANCE = 0.01
+
+
+def concat_sonic(parts: Sequence[xr.Dataset], label: str) -> xr.Dataset:
+    """Join the sonic datasets of one instrument-day in time order.
+
+    Raises
+    ------
+    CwprocError
+        The parts have sampling rates that differ by more than 1 %.
+    """
+    rates = np.array([float(p.attrs["sampling_rate_hz"]) for p in parts])
+    if np.ptp(rates) > SONIC_RATE_TOLERANCE * np.median(rates):
+        listed = ", ".join(f"{r:g}" for r in rates)
+        raise CwprocError(f"{label}: inputs have different sampling rates ({listed} Hz)")
+    ds = parts[0] if len(parts) == 1 else xr.concat(parts, dim="time", combine_attrs="drop")
+    ds = ds.sortby("time")
+    ds.attrs = dict(parts[0].attrs)
+    ds.attrs["sampling_rate_hz"] = float(np.median(rates))
+    return ds
+
+
+def concat_unit(unit: ProductUnit) -> xr.Dataset:
+    """The datasets of a unit as one (scans and sonic days: joined in time order)."""
+    datasets = [i.dataset for i in unit.inputs if i.dataset is not None]
+    if unit.kind == "scan":
+        return concat_scans(datasets)
+    if unit.kind == "sonic":
+        return concat_sonic(datasets, unit.key)
+    if len(datasets) != 1:
+        raise CwprocError(f"unit {unit.key}: expected one input, got {len(datasets)}")
+    return datasets[0]
+
+
+def load_unit(unit: ProductUnit, config: Config) -> None:
+    """Read again the inputs of ``unit`` whose data were not kept (memory budget).
+
+    Raises
+    ------
+    CwprocError
+        An input changed or vanished since it was first read (its checksum differs).
+    """
+    for item in list(unit.inputs):
+        if item.dataset is None:
+            try:
+                item.dataset = load_item(item, config)
+            except InputFileError as exc:  # identified by its header, damaged beyond it
+                drop_input(unit, item, exc)
+
+
+def drop_input(unit: ProductUnit, item: InputFile, exc: InputFileError) -> None:
+    """Leave out of ``unit`` an input whose data cannot be read; its line in ``failures``."""
+    unit.inputs.remove(item)
+    unit.failures.append(str(exc))
+
+
+def load_item(item: InputFile, config: Config) -> xr.Dataset | None:
+    """The dataset of ``item``: the one held, else the file read again (not stored).
+
+    Raises
+    ------
+    CwprocError
+        The input changed or vanished since it was first read (its checksum differs).
+    """
+    if item.dataset is not None:
+        return item.dataset
+    again = read_input(item.path, config)
+    if again.sha256 != item.sha256:
+        raise CwprocError(f"{item.path}: changed while cwproc was running; run again")
+    ds = again.dataset
+    if item.day is not None and ds is not None:
+        days = ds["time"].values.astype("datetime64[D]")
+        ds = ds.isel(time=np.flatnonzero(days == np.datetime64(item.day, "D")))
+    return ds
+
+
+def unit_label(unit: ProductUnit) -> str:
+    """The input files of a unit, for messages (the first three and a count)."""
+    paths = list(dict.fromkeys(os.fspath(i.path) for i in unit.inputs))
+    if len(paths) <= 3:
+        return ", ".join(paths)
+    return ", ".join(paths[:3]) + f" (+{len(paths) - 3} more)"
