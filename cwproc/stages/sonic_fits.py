@@ -325,7 +325,9 @@ def type3_tail(
     return GrownFit(end=tail_end, coef=tail_coef, kd=tail_kd), tail_start
 
 
-def precedence_type(r_max: np.ndarray, flat: np.ndarray, precedence_tolerance: float) -> np.ndarray:
+def precedence_type(
+    r_max: np.ndarray, flat: np.ndarray, precedence_tolerance: float = 0.05
+) -> np.ndarray:
     """The type (1-3, 0: none) among candidates with r_max ``(S, 3)`` (NaN: rejected).
 
     The simplest type whose lg r_max is within ``precedence_tolerance`` of the largest
@@ -341,7 +343,9 @@ def precedence_type(r_max: np.ndarray, flat: np.ndarray, precedence_tolerance: f
     return sf_type.astype(np.int8)
 
 
-def fit_curves(x: np.ndarray, dec: TypeDecision, sf_type: np.ndarray, r_norm: float) -> np.ndarray:
+def fit_curves(
+    x: np.ndarray, dec: TypeDecision, sf_type: np.ndarray, r_norm: float = 1.0
+) -> np.ndarray:
     """lg D_n of the chosen model at every lag (S, K); NaN for type 0.
 
     The line (eq. 4), the parabola (eq. 5) or, for type 3, the parabola up to
