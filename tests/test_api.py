@@ -147,3 +147,16 @@ def test_read_gives_the_canonical_dataset_and_names_a_folder():
     xr.testing.assert_identical(scans, same)
     with pytest.raises(InputFileError, match="not a regular file"):
         cwproc.read(STREAMLINE)
+
+
+def test_api_page_lists_every_public_name_with_its_signature():
+    from cwproc.reference_docs import api_markdown
+
+    page = api_markdown()
+    for name in cwproc.__all__:
+        if name not in ("__version__", "stages"):
+            assert f"### `cwproc.{name}`" in page, name
+    for name in cwproc.stages.__all__:
+        assert f"### `cwproc.stages.{name}`" in page, name
+    assert "cwproc.read(path: str | os.PathLike, *, format: str = 'auto'" in page
+    assert "- `.replace(**sections: Any) -> Config`: A copy with some sections changed" in page
