@@ -135,7 +135,7 @@ def test_a_bad_input_raises_or_is_collected(tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(CwprocError, match="no input files found"):
         cwproc.retrieve(tmp_path / "empty", "streamline")
-    with pytest.raises(CwprocError, match="missing.hpl: cannot read"):
+    with pytest.raises(CwprocError, match=r"missing\.hpl: cannot read"):
         cwproc.retrieve(tmp_path / "missing.hpl", "streamline")
 
 
@@ -160,3 +160,34 @@ def test_api_page_lists_every_public_name_with_its_signature():
         assert f"### `cwproc.stages.{name}`" in page, name
     assert "cwproc.read(path: str | os.PathLike, *, format: str = 'auto'" in page
     assert "- `.replace(**sections: Any) -> Config`: A copy with some sections changed" in page
+
+
+def test_first_day_example_gives_the_products_of_the_command(tmp_path, monkeypatch):
+    """docs/examples/first_day.py runs in a fresh folder and its products, in memory
+    and written, equal those of ``cwproc retrieve sample_data/streamline -c streamline``."""
+    import runpy
+
+    from click.testing import CliRunner
+
+    from cwproc.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    namespace = runpy.run_path(str(REPO / "docs" / "examples" / "first_day.py"))
+    cli_out = tmp_path / "cli"
+    res = CliRunner().invoke(
+        main, ["retrieve", str(STREAMLINE), "-c", "streamline", "-o", str(cli_out)]
+    )
+    assert res.exit_code == 0, res.output
+    written = sorted(cli_out.glob("*.nc"))
+    assert [p.name.rpartition("_")[2] for p in written] == ["turbulence.nc", "wind.nc"]
+    example_files = tmp_path / "first_day_products"
+    for path in written:
+        name = path.stem.rpartition("_")[2]
+        with xr.open_dataset(path) as cli, xr.open_dataset(example_files / path.name) as ours:
+            assert_same_products(namespace["result"][name], cli)
+            assert_same_products(ours, cli)
+    assert (example_files / "wind_profile.png").stat().st_size > 1000
+    # the stricter configuration of the example flags more fits, on the same grid
+    strict, default = namespace["strict_wind"], namespace["wind"]
+    assert strict.sizes == default.sizes
+    assert int((strict["qc_flag"] == 0).sum()) < int((default["qc_flag"] == 0).sum())
