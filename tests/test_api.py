@@ -97,6 +97,10 @@ def test_config_built_in_python_equals_the_toml_one(streamline_result):
         instrument={"kind": "cw"}, vad={"min_rays": 8, "max_gap_deg": 90.0}
     )
     assert dataclasses.replace(replaced, source="<string>") == from_toml
+    by_section = cwproc.Config().replace(
+        instrument={"kind": "cw"}, vad=cwproc.VADConfig(min_rays=8, max_gap_deg=90.0)
+    )
+    assert dataclasses.replace(by_section, source="<string>") == from_toml
     assert cwproc.Config.preset("streamline") == cwproc.load_config("streamline")
     assert replaced.source.endswith("(modified)")
 
