@@ -406,6 +406,51 @@ class Config:
         """The configuration as TOML text (what a product records as provenance)."""
         return dump_toml(self)
 
+    @classmethod
+    def preset(cls, name: str) -> Config:
+        """The preset ``name`` (see :func:`preset_names`), as :func:`load_config` gives it."""
+        return load_config(name)
+
+    def replace(self, **sections: Any) -> Config:
+        """A copy with some sections changed, validated as a TOML file would be.
+
+        Parameters
+        ----------
+        **sections
+            Section name -> a section object (``vad=VADConfig(min_rays=8)``) or a dict of
+            the keys to change in that section (``vad={"min_rays": 8}``).
+
+        Raises
+        ------
+        ConfigError
+            Unknown section or key, wrong type or impossible value (dotted key named).
+        """
+        data = dataclasses.asdict(self)
+        for name, value in sections.items():
+            if dataclasses.is_dataclass(value):
+                value = dataclasses.asdict(value)
+            if name in data and isinstance(data[name], dict) and isinstance(value, dict):
+                data[name] = {**data[name], **value}
+            else:
+                data[name] = value
+        modified = " (modified)"
+        source = self.source if self.source.endswith(modified) else self.source + modified
+        return config_from_dict(data, source=source)
+
+    def checked(self) -> Config:
+        """This configuration validated as a TOML file would be (types, choices, ranges).
+
+        Sections built in Python check their values when made; the types and the
+        choices of ``Literal`` keys (e.g. ``instrument.kind``) are checked here, by the
+        same code that reads TOML files.
+
+        Raises
+        ------
+        ConfigError
+            The first wrong key, named with its dotted path.
+        """
+        return config_from_dict(dataclasses.asdict(self), source=self.source)
+
 
 def _positive(obj: Any, *names: str) -> None:
     for name in names:

@@ -1,9 +1,9 @@
-"""Reference pages generated from the code: product variables and configuration options.
+"""Reference pages generated from the code: variables, options, commands, Python API.
 
-``python -m cwproc.reference_docs docs/`` rewrites ``docs/variables.md`` and
-``docs/config.md``; a test checks that the committed pages equal what the code
-generates, so the documentation cannot drift from the metadata table and the
-configuration dataclasses.
+``python -m cwproc.reference_docs docs/`` rewrites ``docs/variables.md``,
+``docs/config.md``, ``docs/commands.md`` and ``docs/api.md``; a test checks that the
+committed pages equal what the code generates, so the documentation cannot drift from
+the metadata table, the configuration dataclasses, the commands and the docstrings.
 """
 
 from __future__ import annotations
@@ -11,6 +11,7 @@ from __future__ import annotations
 import ast
 import dataclasses
 import inspect
+import re
 import sys
 import typing
 from pathlib import Path
@@ -165,10 +166,137 @@ def commands_markdown() -> str:
     return "\n".join(lines + _command_sections(main, "cwproc", ctx))
 
 
+#: sections of the API page: title and the module whose public names it lists
+API_SECTIONS = (
+    ("Reading, retrieving and writing", "cwproc.api"),
+    ("Configuration", "cwproc.config"),
+    ("Errors", "cwproc.errors"),
+)
+
+
+def first_paragraph(obj: object) -> str:
+    """The first paragraph of the docstring of ``obj`` as one Markdown line.
+
+    Sphinx roles (``:func:`x```) and double back-quotes become plain code spans.
+    """
+    doc = inspect.getdoc(obj) or ""
+    text = " ".join(doc.split("\n\n")[0].split())
+    return re.sub(r":[a-z]+:`~?([^`]+)`", r"`\1`", text).replace("``", "`")
+
+
+class _Shown:
+    """An annotation written as text (``from __future__ import annotations``), shown bare."""
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+
+    def __repr__(self) -> str:
+        return self.text
+
+
+def _signature(obj: object, *, bound: bool = False) -> str:
+    """``(a: int = 1, *, b: str = 'x') -> T`` of a function or class, as written.
+
+    ``bound``: leave out the first parameter (``self`` or ``cls`` of a method). Private
+    parameters (leading ``_``) and the ``-> None`` of classes are left out.
+    """
+    sig = inspect.signature(obj)
+    params = list(sig.parameters.values())[1 if bound else 0 :]
+    shown = [
+        p.replace(annotation=_Shown(p.annotation)) if isinstance(p.annotation, str) else p
+        for p in params
+        if not p.name.startswith("_")
+    ]
+    ret = sig.return_annotation
+    if inspect.isclass(obj):
+        ret = inspect.Signature.empty
+    elif isinstance(ret, str):
+        ret = _Shown(ret)
+    return str(sig.replace(parameters=shown, return_annotation=ret))
+
+
+def _members(cls: type) -> list[tuple[str, object]]:
+    """Public methods and properties defined in ``cls`` itself (and ``__getitem__``)."""
+    out = []
+    for name, value in vars(cls).items():
+        if name.startswith("_") and name != "__getitem__":
+            continue
+        if isinstance(value, classmethod | staticmethod):
+            value = value.__func__
+        if isinstance(value, property) or inspect.isfunction(value):
+            out.append((name, value))
+    return out
+
+
+def _api_entry(qualified: str, obj: object) -> list[str]:
+    """The lines of one public name: heading, signature and first docstring paragraph."""
+    kind = "class" if inspect.isclass(obj) else "function"
+    lines = [f"### `{qualified}`", ""]
+    try:
+        lines += ["```python", f"{qualified}{_signature(obj)}", "```", ""]
+    except ValueError:  # a class without a signature of its own (an exception)
+        pass
+    lines += [first_paragraph(obj) or f"({kind})", ""]
+    if inspect.isclass(obj):
+        for name, member in _members(obj):
+            if isinstance(member, property):
+                lines.append(f"- `.{name}` (property): {first_paragraph(member)}")
+            else:
+                call = _signature(member, bound=True)
+                label = f"[{call[1:].split(')')[0]}]" if name == "__getitem__" else f".{name}{call}"
+                lines.append(f"- `{label}`: {first_paragraph(member)}")
+        if _members(obj):
+            lines.append("")
+    return lines
+
+
+def api_markdown() -> str:
+    """The Python API: every name of ``cwproc.__all__`` and ``cwproc.stages.__all__``."""
+    import cwproc
+    from cwproc import stages
+
+    lines = [
+        "# Python API",
+        "",
+        "Generated from the docstrings by `python -m cwproc.reference_docs docs/`; do not",
+        "edit by hand. `import cwproc` gives every name below (imported when first used,",
+        "so the command line stays fast); a worked example that runs on the shipped",
+        "samples is [examples/first_day.py](examples/first_day.py).",
+        "",
+        "```python",
+        "import cwproc",
+        "",
+        'result = cwproc.retrieve("sample_data/streamline", "streamline")',
+        'wind = result["wind"]  # xarray.Dataset with CF units',
+        "```",
+        "",
+    ]
+    public = [n for n in cwproc.__all__ if n not in ("__version__", "stages")]
+    for title, module in API_SECTIONS:
+        lines += [f"## {title}", ""]
+        for name in public:
+            obj = getattr(cwproc, name)
+            if getattr(obj, "__module__", None) == module:
+                lines += _api_entry(f"cwproc.{name}", obj)
+    lines += [
+        "## Stages",
+        "",
+        first_paragraph(stages),
+        "",
+        "Their keyword arguments default to the values of the presets (`streamline`,",
+        "`zephir300`, `meteo2`).",
+        "",
+    ]
+    for name in stages.__all__:
+        lines += _api_entry(f"cwproc.stages.{name}", getattr(stages, name))
+    return "\n".join(lines).rstrip("\n") + "\n"
+
+
 PAGES = {
     "variables.md": variables_markdown,
     "config.md": config_markdown,
     "commands.md": commands_markdown,
+    "api.md": api_markdown,
 }
 
 
@@ -188,4 +316,10 @@ if __name__ == "__main__":  # pragma: no cover - exercised by the docs test thro
     for page in write_pages(sys.argv[1] if len(sys.argv) > 1 else "docs"):
         print(f"wrote {page}")
 
-__all__ = ["config_markdown", "config_module", "variables_markdown", "write_pages"]
+__all__ = [
+    "api_markdown",
+    "config_markdown",
+    "config_module",
+    "variables_markdown",
+    "write_pages",
+]

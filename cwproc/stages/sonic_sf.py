@@ -37,6 +37,15 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import CwprocError
+from cwproc.stages.sonic_fits import (
+    TypeDecision,
+    fit_curves,
+    grow_polynomial_fit,
+    lag_at,
+    precedence_type,
+    running_sums,
+    type3_tail,
+)
 
 COMPONENTS = ("longitudinal", "transverse", "vertical")
 
@@ -45,10 +54,6 @@ FLAG_FEW_SAMPLES = 1
 FLAG_STRONG_WIND = 2
 FLAG_CALM = 4
 
-#: offsets (in lags) of the candidate starts r_l of the linear part of type 3 beyond r_p:
-#: every lag up to 16, then a geometric grid (see :func:`candidate_offsets`)
-_DENSE_OFFSETS = 16
-
 
 # --------------------------------------------------------------------------------------
 # windows and preprocessing
@@ -56,7 +61,12 @@ _DENSE_OFFSETS = 16
 
 
 def grid_windows(
-    time: np.ndarray, values: np.ndarray, valid: np.ndarray, *, window_s: float, rate_hz: float
+    time: np.ndarray,
+    values: np.ndarray,
+    valid: np.ndarray,
+    *,
+    window_s: float = 600.0,
+    rate_hz: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Place samples on a regular grid of ``window_s`` windows aligned to UTC multiples.
 
@@ -275,265 +285,18 @@ def structure_function_fft(x: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.
 
 
 # --------------------------------------------------------------------------------------
-# growing fits by running sums
-# --------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class GrownFit:
-    """Result of growing a polynomial fit from a start lag (arrays over series)."""
-
-    #: index of the last lag of the accepted fit; -1 when no fit
-    end: np.ndarray
-    #: polynomial coefficients (constant first), shape (S, deg + 1); NaN when no fit
-    coef: np.ndarray
-    #: determination coefficient at ``end``
-    kd: np.ndarray
-
-
-def _prefix(v: np.ndarray) -> np.ndarray:
-    """Cumulative sums along the last axis with a leading zero column (NaN counted as 0)."""
-    v = np.where(np.isfinite(v), v, 0.0)
-    return np.concatenate([np.zeros((*v.shape[:-1], 1)), np.cumsum(v, axis=-1)], axis=-1)
-
-
-def running_sums(x: np.ndarray, y: np.ndarray, deg: int) -> dict[str, np.ndarray]:
-    """Prefix sums of x^p (p <= 2 deg), x^p y (p <= deg), y and y^2 over the lags.
-
-    Parameters
-    ----------
-    x, y : ndarray, shape (S, K)
-        lg r_n and lg D_n; NaN in ``y`` marks an unusable lag.
-
-    Returns
-    -------
-    dict of ndarray, shape (S, K + 1)
-        Key ``"n"`` holds the running count of usable lags.
-    """
-    ok = np.isfinite(y) & np.isfinite(x)
-    xs = np.where(ok, x, 0.0)
-    ys = np.where(ok, y, 0.0)
-    out = {"n": _prefix(ok.astype(float)), "y": _prefix(ys), "yy": _prefix(ys * ys)}
-    for p in range(1, 2 * deg + 1):
-        out[f"x{p}"] = _prefix(xs**p)
-    for p in range(1, deg + 1):
-        out[f"x{p}y"] = _prefix(xs**p * ys)
-    return out
-
-
-def grow_polynomial_fit(
-    sums: dict[str, np.ndarray],
-    start: np.ndarray,
-    deg: int,
-    *,
-    kd_threshold: float,
-    min_points: int,
-    series: np.ndarray | None = None,
-) -> GrownFit:
-    """Grow a least-squares polynomial fit of y(x) from lag ``start`` while k_d >= k_dL.
-
-    For every end lag n >= start + min_points - 1 the fit over lags start..n is solved
-    from running sums (no refit loop) and its determination coefficient
-    k_d = 1 - SS_res/SS_tot is computed; the fit grows until the first n where
-    k_d < k_dL, Gladkikh et al. (2014), eqs. 4-6 and the text after eq. 10.
-
-    Parameters
-    ----------
-    sums : dict
-        Output of :func:`running_sums` with at least degree ``deg``.
-    start : ndarray of int, shape (S,)
-        First lag index of the fit per series.
-    deg : int
-        1 (line) or 2 (parabola).
-    kd_threshold : float
-        k_dL (dimensionless).
-    min_points : int
-        Fewest lags of a fit (the first tested end is start + min_points - 1).
-    series : ndarray of int, shape (S,), optional
-        Rows of ``sums`` to fit (default: all, in order).
-
-    Returns
-    -------
-    GrownFit
-    """
-    k1 = sums["n"].shape[1]
-    series = np.arange(sums["n"].shape[0]) if series is None else np.asarray(series)
-    n_series = series.size
-    n_lags = k1 - 1
-    start = np.asarray(start, dtype=np.int64)
-    end = np.full(n_series, -1, dtype=np.int64)
-    coef = np.full((n_series, deg + 1), np.nan)
-    kd_end = np.full(n_series, np.nan)
-    first_test = np.full(n_series, n_lags, dtype=np.int64)
-    # ends in blocks of growing width: a series leaves once its fit has failed, so the
-    # lags beyond the first failure (most of them) are never computed
-    rows = np.arange(n_series)
-    lo = min(int(start.min(initial=n_lags)) + min_points - 1, n_lags)
-    width = _FIRST_BLOCK
-    while rows.size and lo < n_lags:
-        hi = min(lo + width, n_lags)
-        block = _fit_block(sums, start[rows], series[rows], lo, hi, deg, min_points)
-        testable, kd, beta = block
-        passed = testable & (kd >= kd_threshold)
-        failed = testable & ~passed
-        has_test = testable.any(axis=1)
-        new_test = has_test & (first_test[rows] == n_lags)
-        first_test[rows[new_test]] = lo + np.argmax(testable[new_test], axis=1)
-        fails = failed.any(axis=1)
-        stop = np.where(fails, np.argmax(failed, axis=1), hi - lo)  # first failure in block
-        last = stop - 1  # last end before it, in block columns (-1: the previous block)
-        take = last >= 0
-        pos = np.flatnonzero(take & (lo + last >= first_test[rows]))
-        sel = rows[pos]
-        end[sel] = lo + last[pos]
-        coef[sel] = beta[pos, last[pos]]
-        kd_end[sel] = kd[pos, last[pos]]
-        rows = rows[~fails]
-        lo, width = hi, 2 * width
-    ok = end >= 0
-    coef[~ok] = np.nan
-    kd_end[~ok] = np.nan
-    return GrownFit(end=end, coef=coef, kd=kd_end)
-
-
-#: width (lags) of the first block of ends of :func:`grow_polynomial_fit` (then doubled)
-_FIRST_BLOCK = 48
-
-
-def _fit_block(
-    sums: dict[str, np.ndarray],
-    start: np.ndarray,
-    rows: np.ndarray,
-    lo: int,
-    hi: int,
-    deg: int,
-    min_points: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Fits of ``rows`` over lags start..n for the ends n = lo..hi-1 (eqs. 4-6).
-
-    Returns whether each end is testable (at least ``min_points`` lags and deg + 2 usable
-    ones), k_d = 1 - SS_res/SS_tot and the coefficients, shapes (R, hi - lo) and
-    (R, hi - lo, deg + 1).
-    """
-
-    def wsum(key: str) -> np.ndarray:
-        c = sums[key]
-        return c[rows, lo + 1 : hi + 1] - c[rows, start][:, None]
-
-    cnt = wsum("n")
-    sx = [cnt] + [wsum(f"x{p}") for p in range(1, 2 * deg + 1)]
-    sxy = [wsum("y")] + [wsum(f"x{p}y") for p in range(1, deg + 1)]
-    syy = wsum("yy")
-    ends = np.arange(lo, hi)[None, :]
-    testable = (ends >= start[:, None] + min_points - 1) & (cnt >= deg + 2)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        beta = solve_normal_equations(sx, sxy, testable)
-    ss_res = syy - sum(beta[..., i] * sxy[i] for i in range(deg + 1))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ss_tot = syy - sxy[0] ** 2 / cnt
-        kd = 1.0 - ss_res / ss_tot
-    return testable, kd, beta
-
-
-def solve_normal_equations(
-    sx: list[np.ndarray], sxy: list[np.ndarray], usable: np.ndarray
-) -> np.ndarray:
-    """Least-squares polynomial coefficients from moment sums, in closed form.
-
-    Degree 1 or 2 (from ``len(sxy)``); the symmetric normal matrix
-    G_ij = sum x^(i+j) is inverted by its adjugate (Cramer's rule), element-wise over
-    all series and end lags at once.
-
-    Parameters
-    ----------
-    sx : list of ndarray
-        sum x^p for p = 0..2 deg (p = 0 is the count).
-    sxy : list of ndarray
-        sum x^p y for p = 0..deg.
-    usable : ndarray of bool
-        Where a solution is wanted (elsewhere NaN).
-
-    Returns
-    -------
-    ndarray, shape (..., deg + 1)
-        Coefficients, constant first.
-    """
-    if len(sxy) == 2:
-        n, s1, s2 = sx[0], sx[1], sx[2]
-        det = n * s2 - s1 * s1
-        b1 = (n * sxy[1] - s1 * sxy[0]) / det
-        b0 = (sxy[0] - b1 * s1) / n
-        out = np.stack([b0, b1], axis=-1)
-    else:
-        a, b, c, e, f = sx[0], sx[1], sx[2], sx[3], sx[4]
-        # G = [[a, b, c], [b, c, e], [c, e, f]]
-        c00 = c * f - e * e
-        c01 = c * e - b * f
-        c02 = b * e - c * c
-        c11 = a * f - c * c
-        c12 = b * c - a * e
-        c22 = a * c - b * b
-        det = a * c00 + b * c01 + c * c02
-        y0, y1, y2 = sxy
-        out = np.stack(
-            [
-                (c00 * y0 + c01 * y1 + c02 * y2) / det,
-                (c01 * y0 + c11 * y1 + c12 * y2) / det,
-                (c02 * y0 + c12 * y1 + c22 * y2) / det,
-            ],
-            axis=-1,
-        )
-    return np.where(usable[..., None], out, np.nan)
-
-
-def candidate_offsets(n_lags: int) -> np.ndarray:
-    """Offsets (lags) of the candidate starts r_l of the linear part of a type-3 SF.
-
-    Every offset 0..15, then about 24 offsets spaced geometrically up to 0.2 K: the
-    type-3 rule Delta_B/Delta_A < 0.25 (Gladkikh et al. (2014), after eq. 6) cannot
-    hold for r_l - r_p > 0.2 (r_K - r_min).
-    """
-    top = max(int(0.2 * n_lags), 1)
-    dense = np.arange(min(_DENSE_OFFSETS, top + 1))
-    if top <= _DENSE_OFFSETS:
-        return dense
-    sparse = np.unique(np.rint(np.geomspace(_DENSE_OFFSETS, top, 24)).astype(np.int64))
-    return np.unique(np.concatenate([dense, sparse]))
-
-
-# --------------------------------------------------------------------------------------
 # type decision
 # --------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class TypeDecision:
-    """Per-series type and fit of :func:`decide_types` (arrays over series)."""
-
-    sf_type: np.ndarray
-    r_max: np.ndarray
-    kd: np.ndarray
-    line: GrownFit
-    parabola: GrownFit
-    tail: GrownFit
-    r_p: np.ndarray
-    r_l: np.ndarray
-    type3_ok: np.ndarray
-
-
-def _lag_at(r: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    safe = np.clip(idx, 0, r.shape[1] - 1)
-    return np.where(idx >= 0, r[np.arange(r.shape[0]), safe], np.nan)
 
 
 def decide_types(
     r: np.ndarray,
     y: np.ndarray,
     *,
-    r_norm: float,
-    kd_threshold: float,
-    precedence_tolerance: float,
-    min_points: int,
+    r_norm: float = 1.0,
+    kd_threshold: float = 0.99850,
+    precedence_tolerance: float = 0.05,
+    min_points: int = 5,
     curvature_tolerance: float = 0.03,
 ) -> TypeDecision:
     """Type 1, 2 or 3 (or 0) of normalised structure functions, Gladkikh et al. (2014).
@@ -543,10 +306,11 @@ def decide_types(
 
     * type 1: line y = b + mu x up to r_max1, eq. 4;
     * type 2: parabola y = a0 + a1 x + a2 x^2 up to r_max2, eq. 5;
-    * type 3: the parabola up to r_p = r_max2 (how r_p is found: rule (b) of DESIGN,
-      the paper does not say), then a line y = c + gamma x grown from the smallest
-      candidate start r_l >= r_p (:func:`candidate_offsets`) for which the type-3 rules
-      of the paper hold: Delta_B/Delta_A < 0.25 with Delta_B = r_l - r_p,
+    * type 3: the parabola up to r_p = r_max2 (the paper does not say how r_p is
+      found: here, the end of the parabola grown from r_min), then a line
+      y = c + gamma x grown from the smallest candidate start r_l >= r_p
+      (:func:`cwproc.stages.sonic_fits.type3_tail`) for which the type-3 rules of the
+      paper hold: Delta_B/Delta_A < 0.25 with Delta_B = r_l - r_p,
       Delta_A = r_max - r_l + r_p - r_min, and r_p - r_min <= r_max - r_l, eq. 6;
       otherwise the SF is type 2 with r_max = r_p.
 
@@ -580,74 +344,31 @@ def decide_types(
     -------
     TypeDecision
     """
-    n_series, n_lags = r.shape
+    n_series = r.shape[0]
     x = np.log10(r / r_norm)
     sums = running_sums(x, y, 2)
     zero = np.zeros(n_series, dtype=np.int64)
     line = grow_polynomial_fit(sums, zero, 1, kd_threshold=kd_threshold, min_points=min_points)
     para = grow_polynomial_fit(sums, zero, 2, kd_threshold=kd_threshold, min_points=min_points)
-    r_min = r[:, 0]
-    r_max1 = _lag_at(r, line.end)
-    r_p = _lag_at(r, para.end)
-
-    # type 3: line part from the smallest admissible r_l >= r_p
-    tail_end = np.full(n_series, -1)
-    tail_start = np.full(n_series, -1)
-    tail_coef = np.full((n_series, 2), np.nan)
-    tail_kd = np.full(n_series, np.nan)
-    searching = (para.end >= 0) & (para.end < n_lags - min_points)
-    for off in candidate_offsets(n_lags):
-        todo = searching & (tail_end < 0) & (para.end + off <= n_lags - min_points)
-        rows = np.flatnonzero(todo)
-        if rows.size == 0:
-            if not (searching & (tail_end < 0)).any():
-                break
-            continue
-        start = para.end[rows] + off
-        fit = grow_polynomial_fit(
-            sums, start, 1, kd_threshold=kd_threshold, min_points=min_points, series=rows
-        )
-        r_sub = r[rows]
-        r_l = r_sub[np.arange(rows.size), start]
-        r_e = _lag_at(r_sub, fit.end)
-        rp, rmin = r_p[rows], r_min[rows]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            accept = (
-                (fit.end >= 0)
-                & ((r_l - rp) / ((r_e - r_l) + (rp - rmin)) < 0.25)
-                & (rp - rmin <= r_e - r_l)
-            )
-        hit = rows[accept]
-        tail_end[hit] = fit.end[accept]
-        tail_start[hit] = start[accept]
-        tail_coef[hit] = fit.coef[accept]
-        tail_kd[hit] = fit.kd[accept]
-    type3_ok = tail_end >= 0
-    r_max3 = _lag_at(r, tail_end)
-    r_l = _lag_at(r, tail_start)
-
+    r_p = lag_at(r, para.end)
+    tail, tail_start = type3_tail(
+        r, sums, para.end, kd_threshold=kd_threshold, min_points=min_points
+    )
     # candidates, rejection r_max < r_N, precedence
-    r_max = np.stack([r_max1, r_p, r_max3], axis=1)  # (S, 3) for types 1, 2, 3
+    r_max = np.stack([lag_at(r, line.end), r_p, lag_at(r, tail.end)], axis=1)  # types 1-3
     r_max = np.where(r_max >= r_norm, r_max, np.nan)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        lg = np.log10(r_max)
-    best = np.nanmax(np.where(np.isfinite(lg), lg, -np.inf), axis=1)
-    close = np.isfinite(lg) & (lg >= best[:, None] - precedence_tolerance - 1e-12)
-    sf_type = np.where(close.any(axis=1), np.argmax(close, axis=1) + 1, 0).astype(np.int8)
     with np.errstate(invalid="ignore"):
-        span = np.log10(r_p / r_min)
+        span = np.log10(r_p / r[:, 0])
         flat = np.abs(para.coef[:, 2]) * span**2 / 8.0 < curvature_tolerance
-    sf_type = np.where((sf_type == 2) & flat & np.isfinite(r_max[:, 0]), 1, sf_type)
-    sf_type = sf_type.astype(np.int8)
+    sf_type = precedence_type(r_max, flat, precedence_tolerance)
     chosen_rmax = np.where(
         sf_type > 0, r_max[np.arange(n_series), np.clip(sf_type - 1, 0, 2)], np.nan
     )
     kd = np.select(
         [sf_type == 1, sf_type == 2, sf_type == 3],
-        [line.kd, para.kd, np.fmin(para.kd, tail_kd)],
+        [line.kd, para.kd, np.fmin(para.kd, tail.kd)],
         np.nan,
     )
-    tail = GrownFit(end=tail_end, coef=tail_coef, kd=tail_kd)
     return TypeDecision(
         sf_type=sf_type,
         r_max=chosen_rmax,
@@ -656,8 +377,8 @@ def decide_types(
         parabola=para,
         tail=tail,
         r_p=r_p,
-        r_l=r_l,
-        type3_ok=type3_ok,
+        r_l=lag_at(r, tail_start),
+        type3_ok=tail.end >= 0,
     )
 
 
@@ -673,7 +394,9 @@ D_FLOOR = 1e-10
 WINDOW_BATCH = 144
 
 
-def window_batches(time: np.ndarray, window_s: float, batch: int) -> list[np.ndarray]:
+def window_batches(
+    time: np.ndarray, window_s: float = 600.0, batch: int = WINDOW_BATCH
+) -> list[np.ndarray]:
     """Sample indices of consecutive groups of at most ``batch`` analysis windows."""
     t_ns = time.astype("datetime64[ns]").astype(np.int64)
     widx = np.floor_divide(t_ns, round(window_s * 1e9))
@@ -776,51 +499,112 @@ def structure_function_types(
         parts = [structure_function_types(sonic.isel(time=b), **kwargs) for b in batches]
         out = xr.concat(parts, dim="window", combine_attrs="override")
         return out
+    return _type_windows(sonic, kwargs, rate=rate, n_slots=n_slots, n_lags=n_lags)
+
+
+@dataclass(frozen=True)
+class _Windows:
+    """The structure functions of one batch of windows (steps 1-4 of the module doc)."""
+
+    #: window start times, shape (W,)
+    starts: np.ndarray
+    #: V_h (m s-1) and the fraction of valid samples, shape (W,)
+    speed: np.ndarray
+    valid_fraction: np.ndarray
+    #: direction of the mean wind (degree from north, "from"), shape (W,)
+    direction: np.ndarray
+    #: window_flag, shape (W,)
+    flag: np.ndarray
+    #: spatial lags r_j = j V_h / f_d (m), shape (W, K)
+    r: np.ndarray
+    #: index of the lag nearest r_N, shape (W,)
+    jn: np.ndarray
+    #: D(r_N) (m2 s-2, NaN: untyped), shape (W, 3); D / D(r_N) and N_j, shape (W, 3, K)
+    d_norm: np.ndarray
+    dn: np.ndarray
+    pairs: np.ndarray
+
+
+def _window_structure_functions(
+    sonic: xr.Dataset, params: dict[str, float], *, rate: float, n_slots: int, n_lags: int
+) -> _Windows:
+    """Grid, rotate, detrend and FFT the windows of ``sonic``; flag and normalise (eq. 3)."""
+    r_norm = params["normalisation_lag_m"]
     values = np.stack([np.asarray(sonic[c].values, dtype=float) for c in ("u", "v", "w")])
     valid = np.isfinite(values)
     if "sample_flag" in sonic:
         valid &= (np.asarray(sonic["sample_flag"].values) == 0)[None, :]
     starts, grid, counts = grid_windows(
-        sonic["time"].values, values, valid, window_s=window_s, rate_hz=rate
+        sonic["time"].values, values, valid, window_s=params["window_s"], rate_hz=rate
     )
-    n_win = starts.size
     rotated, speed = rotate_to_mean_wind(grid)
-    direction = geographic_wind_direction(*window_mean_wind(grid), orientation_deg)
-    detrended = remove_running_mean(rotated, max(round(running_mean_s * rate), 1))
+    direction = geographic_wind_direction(*window_mean_wind(grid), params["orientation_deg"])
+    detrended = remove_running_mean(rotated, max(round(params["running_mean_s"] * rate), 1))
     d, pairs = structure_function_fft(detrended, n_lags)
 
     valid_fraction = counts / n_slots
     j = np.arange(1, n_lags + 1)
     r_win = speed[:, None] * j[None, :] / rate  # (W, K)
-    r_min = r_win[:, 0]
-    flag = np.zeros(n_win, dtype=np.int8)
-    flag[valid_fraction < min_valid_fraction] |= FLAG_FEW_SAMPLES
-    flag[r_min > normalisation_lag_m] |= FLAG_STRONG_WIND
-    flag[r_win[:, -1] < normalisation_lag_m] |= FLAG_CALM
+    flag = np.zeros(starts.size, dtype=np.int8)
+    flag[valid_fraction < params["min_valid_fraction"]] |= FLAG_FEW_SAMPLES
+    flag[r_win[:, 0] > r_norm] |= FLAG_STRONG_WIND
+    flag[r_win[:, -1] < r_norm] |= FLAG_CALM
 
-    jn = np.argmin(np.abs(r_win - normalisation_lag_m), axis=1)
+    jn = np.argmin(np.abs(r_win - r_norm), axis=1)
     d_norm = np.take_along_axis(d, jn[:, None, None], axis=2)[..., 0]  # (W, 3)
     # a numerically constant component (no turbulent fluctuation) cannot be typed
     d_norm = np.where(d_norm > D_FLOOR, d_norm, np.nan)
     with np.errstate(invalid="ignore", divide="ignore"):
         dn = d / d_norm[..., None]
-        y = np.where(dn > 0, np.log10(dn), np.nan)
-    analysed = np.repeat(flag == 0, 3)
-    r_s = np.repeat(r_win, 3, axis=0)
+    return _Windows(starts, speed, valid_fraction, direction, flag, r_win, jn, d_norm, dn, pairs)
+
+
+def _type_windows(
+    sonic: xr.Dataset, params: dict[str, float], *, rate: float, n_slots: int, n_lags: int
+) -> xr.Dataset:
+    """The SF product of one batch of windows (steps 1-6 of the module doc)."""
+    r_norm = params["normalisation_lag_m"]
+    win = _window_structure_functions(sonic, params, rate=rate, n_slots=n_slots, n_lags=n_lags)
+    n_win = win.starts.size
+    with np.errstate(invalid="ignore", divide="ignore"):
+        y = np.where(win.dn > 0, np.log10(win.dn), np.nan)
+    analysed = np.repeat(win.flag == 0, 3)
+    r_s = np.repeat(win.r, 3, axis=0)
     y_s = y.reshape(n_win * 3, n_lags)
     y_s = np.where(analysed[:, None], y_s, np.nan)
     safe_r = np.where(r_s > 0, r_s, np.nan)
     dec = decide_types(
         np.where(np.isfinite(safe_r), safe_r, 1.0),
         y_s,
-        r_norm=normalisation_lag_m,
-        kd_threshold=kd_threshold,
-        precedence_tolerance=precedence_tolerance,
-        min_points=min_fit_points,
-        curvature_tolerance=curvature_tolerance,
+        r_norm=r_norm,
+        kd_threshold=params["kd_threshold"],
+        precedence_tolerance=params["precedence_tolerance"],
+        min_points=params["min_fit_points"],
+        curvature_tolerance=params["curvature_tolerance"],
     )
     sf_type = np.where(analysed, dec.sf_type, 0).astype(np.int8)
-    shape = (n_win, 3)
+    x_s = np.log10(np.where(np.isfinite(safe_r), safe_r, 1.0) / r_norm)
+    fit_curve = fit_curves(x_s, dec, sf_type, r_norm)
+    fit_curve = np.where(r_s <= np.where(sf_type > 0, dec.r_max, -1.0)[:, None], fit_curve, np.nan)
+    typed = _type_variables(dec, sf_type, analysed, win.d_norm.reshape(-1), (n_win, 3))
+    return _sf_dataset(
+        sonic,
+        win,
+        typed,
+        fit=(10.0 ** fit_curve.reshape(n_win, 3, n_lags)).astype(np.float32),
+        params={**params, "sampling_rate_hz": rate},
+    )
+
+
+def _type_variables(
+    dec: TypeDecision,
+    sf_type: np.ndarray,
+    analysed: np.ndarray,
+    d_norm: np.ndarray,
+    shape: tuple[int, int],
+) -> dict[str, np.ndarray]:
+    """The (window, component) variables of the types: coefficients of eqs. 4-6, r_max,
+    r_p, r_l, r_s, k_d and the structure constant 10^beta D(r_N) (NaN where untyped)."""
 
     def per(v: np.ndarray, t: int | None = None) -> np.ndarray:
         v = np.where(analysed if t is None else (sf_type == t), v, np.nan)
@@ -830,58 +614,66 @@ def structure_function_types(
     t3 = sf_type == 3
     r_s_transition = np.where(t3, 0.5 * (dec.r_p + dec.r_l), np.nan)
     beta = np.select([sf_type == 1, sf_type == 2, t3], [lc[:, 0], pc[:, 0], pc[:, 0]], np.nan)
-    structure_constant = 10.0**beta * d_norm.reshape(-1)
+    structure_constant = 10.0**beta * d_norm
+    return {
+        "sf_type": sf_type.reshape(shape),
+        "sf_b": per(lc[:, 0], 1),
+        "sf_mu": per(lc[:, 1], 1),
+        "sf_a0": per(pc[:, 0], 2),
+        "sf_a1": per(pc[:, 1], 2),
+        "sf_a2": per(pc[:, 2], 2),
+        "sf_d0": per(pc[:, 0], 3),
+        "sf_d1": per(pc[:, 1], 3),
+        "sf_d2": per(pc[:, 2], 3),
+        "sf_c": per(tc[:, 0], 3),
+        "sf_gamma": per(tc[:, 1], 3),
+        "r_max": per(np.where(sf_type > 0, dec.r_max, np.nan)),
+        "r_p": per(dec.r_p, 3),
+        "r_l": per(dec.r_l, 3),
+        "r_s": per(r_s_transition, 3),
+        "k_d": per(np.where(sf_type > 0, dec.kd, np.nan)),
+        "structure_constant": per(np.where(sf_type > 0, structure_constant, np.nan)),
+    }
 
-    x_s = np.log10(np.where(np.isfinite(safe_r), safe_r, 1.0) / normalisation_lag_m)
-    fit_curve = _fit_curves(x_s, dec, sf_type, normalisation_lag_m)
-    fit_curve = np.where(r_s <= np.where(sf_type > 0, dec.r_max, -1.0)[:, None], fit_curve, np.nan)
 
-    params = {**kwargs, "sampling_rate_hz": rate}
+def _sf_dataset(
+    sonic: xr.Dataset,
+    win: _Windows,
+    typed: dict[str, np.ndarray],
+    *,
+    fit: np.ndarray,
+    params: dict[str, float],
+) -> xr.Dataset:
+    """The SF product dataset of one batch of windows (see ``docs/sonic.md``)."""
     dims = ("window", "component")
+    per_lag = ("window", "component", "sf_lag")
+    ok = win.flag == 0
+    n_lags = win.r.shape[1]
     ds = xr.Dataset(
         {
-            "sf_type": (dims, sf_type.reshape(shape)),
-            "sf_b": (dims, per(lc[:, 0], 1)),
-            "sf_mu": (dims, per(lc[:, 1], 1)),
-            "sf_a0": (dims, per(pc[:, 0], 2)),
-            "sf_a1": (dims, per(pc[:, 1], 2)),
-            "sf_a2": (dims, per(pc[:, 2], 2)),
-            "sf_d0": (dims, per(pc[:, 0], 3)),
-            "sf_d1": (dims, per(pc[:, 1], 3)),
-            "sf_d2": (dims, per(pc[:, 2], 3)),
-            "sf_c": (dims, per(tc[:, 0], 3)),
-            "sf_gamma": (dims, per(tc[:, 1], 3)),
-            "r_max": (dims, per(np.where(sf_type > 0, dec.r_max, np.nan))),
-            "r_p": (dims, per(dec.r_p, 3)),
-            "r_l": (dims, per(dec.r_l, 3)),
-            "r_s": (dims, per(r_s_transition, 3)),
-            "k_d": (dims, per(np.where(sf_type > 0, dec.kd, np.nan))),
-            "structure_constant": (dims, per(np.where(sf_type > 0, structure_constant, np.nan))),
-            "sf_at_normalisation_lag": (dims, np.where(flag[:, None] == 0, d_norm, np.nan)),
-            "r_min": (("window",), r_min),
+            **{name: (dims, value) for name, value in typed.items()},
+            "sf_at_normalisation_lag": (dims, np.where(ok[:, None], win.d_norm, np.nan)),
+            "r_min": (("window",), win.r[:, 0]),
             "r_normalisation": (
                 ("window",),
-                np.take_along_axis(r_win, jn[:, None], axis=1)[:, 0],
+                np.take_along_axis(win.r, win.jn[:, None], axis=1)[:, 0],
             ),
-            "mean_horizontal_wind": (("window",), speed),
-            "wind_direction": (("window",), direction),
-            "valid_fraction": (("window",), valid_fraction),
-            "window_flag": (("window",), flag),
-            "lag_distance": (("window", "sf_lag"), r_win),
+            "mean_horizontal_wind": (("window",), win.speed),
+            "wind_direction": (("window",), win.direction),
+            "valid_fraction": (("window",), win.valid_fraction),
+            "window_flag": (("window",), win.flag),
+            "lag_distance": (("window", "sf_lag"), win.r),
             "normalised_sf": (
-                ("window", "component", "sf_lag"),
-                np.where(flag[:, None, None] == 0, dn, np.nan).astype(np.float32),
+                per_lag,
+                np.where(ok[:, None, None], win.dn, np.nan).astype(np.float32),
             ),
-            "normalised_sf_fit": (
-                ("window", "component", "sf_lag"),
-                (10.0 ** fit_curve.reshape(n_win, 3, n_lags)).astype(np.float32),
-            ),
-            "n_pairs": (("window", "component", "sf_lag"), pairs.astype(np.int32)),
+            "normalised_sf_fit": (per_lag, fit),
+            "n_pairs": (per_lag, win.pairs.astype(np.int32)),
         },
         coords={
-            "time": (("window",), starts),
+            "time": (("window",), win.starts),
             "component": (("component",), np.array(COMPONENTS)),
-            "sf_lag": (("sf_lag",), j.astype(np.int32)),
+            "sf_lag": (("sf_lag",), np.arange(1, n_lags + 1).astype(np.int32)),
         },
     )
     method = (
@@ -894,30 +686,13 @@ def structure_function_types(
     ds["sf_type"].attrs.update({"method": method, **params})
     ds.attrs.update(
         {
-            "sampling_rate_hz": rate,
+            "sampling_rate_hz": params["sampling_rate_hz"],
             "instrument": str(sonic.attrs.get("instrument", "")),
             "frame": str(sonic.attrs.get("frame", "")),
             "sonic_sf_parameters": params,
         }
     )
     return ds
-
-
-def _fit_curves(x: np.ndarray, dec: TypeDecision, sf_type: np.ndarray, r_norm: float) -> np.ndarray:
-    """lg D_n of the chosen model at every lag (S, K); NaN for type 0."""
-    lc, pc, tc = dec.line.coef, dec.parabola.coef, dec.tail.coef
-    line = lc[:, :1] + lc[:, 1:2] * x
-    para = pc[:, :1] + pc[:, 1:2] * x + pc[:, 2:3] * x * x
-    tail = tc[:, :1] + tc[:, 1:2] * x
-    with np.errstate(invalid="ignore", divide="ignore"):
-        x_split = np.log10(np.where(sf_type == 3, 0.5 * (dec.r_p + dec.r_l), np.inf) / r_norm)
-        type3 = np.where(x <= x_split[:, None], para, tail)
-    out = np.select(
-        [sf_type[:, None] == 1, sf_type[:, None] == 2, sf_type[:, None] == 3],
-        [line, para, type3],
-        np.nan,
-    )
-    return out
 
 
 # --------------------------------------------------------------------------------------

@@ -38,7 +38,11 @@ CARRIED_ATTRS = ("snr_correction", "background_files")
 
 @dataclass(frozen=True)
 class StareOptions:
-    """Settings of the stare product (the ``[stare]`` configuration section)."""
+    """Settings of the stare product (the ``[stare]`` configuration section).
+
+    The defaults are those of the ``streamline`` preset: its ``[stare]`` section,
+    ``[qc] snr_min`` and the ``[instrument]`` pulse and gate half-widths.
+    """
 
     window_s: float = 300.0
     variance_window_s: float = 30.0
@@ -65,7 +69,7 @@ def split_stares(scans: xr.Dataset) -> tuple[xr.Dataset | None, xr.Dataset | Non
     return stares, others
 
 
-def ray_duration_s(ds: xr.Dataset, prf_hz: float) -> float:
+def ray_duration_s(ds: xr.Dataset, prf_hz: float = HALO_PRF_HZ) -> float:
     """Accumulation time of one ray (s): pulses per ray / PRF, else the median ray step.
 
     Raises
@@ -84,7 +88,9 @@ def ray_duration_s(ds: xr.Dataset, prf_hz: float) -> float:
     )
 
 
-def window_index(time: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def window_index(
+    time: np.ndarray, window_s: float = 300.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Window of each ray (windows of ``window_s`` s from 00:00 UTC of the first day).
 
     Returns
@@ -107,7 +113,7 @@ def window_index(time: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndar
 
 
 def interpolate_wind(
-    wind: xr.Dataset | None, time: np.ndarray, height: np.ndarray, max_gap_s: float
+    wind: xr.Dataset | None, time: np.ndarray, height: np.ndarray, max_gap_s: float = 3600.0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Horizontal wind speed and its error at (window time, height) from VAD profiles.
 
@@ -156,7 +162,7 @@ def interpolate_wind(
     return out, err, far
 
 
-def outlier_mask(w: np.ndarray, sub: np.ndarray, n_sub: int, threshold: float) -> np.ndarray:
+def outlier_mask(w: np.ndarray, sub: np.ndarray, n_sub: int, threshold: float = 6.0) -> np.ndarray:
     """Rays whose w is an outlier within its variance window and gate.
 
     ``|w - median| > threshold x max(1.4826 MAD, MIN_SPREAD_M_S)`` over the valid rays of
@@ -230,7 +236,9 @@ def group_mean_se(
     )
 
 
-def stare_product(stares: xr.Dataset, wind: xr.Dataset | None, options: StareOptions) -> xr.Dataset:
+def stare_product(
+    stares: xr.Dataset, wind: xr.Dataset | None = None, options: StareOptions | None = None
+) -> xr.Dataset:
     """w statistics and eps per window and height from vertical stares.
 
     Parameters
@@ -240,7 +248,9 @@ def stare_product(stares: xr.Dataset, wind: xr.Dataset | None, options: StareOpt
     wind : xarray.Dataset or None
         Wind product of the VADs of the same instrument-day (``wind_speed(time,
         height)``), or ``None``: eps is NaN and flag bit 1 set.
-    options : StareOptions
+    options : StareOptions, optional
+        Windows, screening and probe; default ``StareOptions()``, the values of the
+        ``streamline`` preset.
 
     Returns
     -------
@@ -249,6 +259,7 @@ def stare_product(stares: xr.Dataset, wind: xr.Dataset | None, options: StareOpt
     """
     if stares.sizes.get("ray", 0) == 0:
         raise CwprocError("stare: no vertical rays")
+    options = StareOptions() if options is None else options
     elevation = float(np.nanmedian(stares["elevation"].values))
     height = height_from_range(stares["range"].values.astype(float), elevation)
     flag_radial = snr_flags(stares["snr"].values, options.snr_min) if "snr" in stares else 0

@@ -42,8 +42,8 @@ def predicted_std_ratio(
     height: np.ndarray,
     wind_speed: np.ndarray,
     *,
-    scan_time_s: float,
-    z_r_coefficient: float,
+    scan_time_s: float = DEFAULT_SCAN_TIME_S,
+    z_r_coefficient: float = 0.0013,
     window_s: float = 600.0,
 ) -> np.ndarray:
     """sigma_lidar / sigma_cup of Wagner et al. (DTU), eqs. 9-11, for many (h, U) pairs.
@@ -124,9 +124,9 @@ def _flags(
 def wind_record_product(
     record: xr.Dataset,
     *,
-    min_packets: int,
-    max_rain_percent: float,
-    z_r_coefficient: float,
+    min_packets: int = 24,
+    max_rain_percent: float = 50.0,
+    z_r_coefficient: float = 0.0013,
     scan_time_s: float | None = None,
     min_availability_percent: float = DEFAULT_MIN_AVAILABILITY_PERCENT,
 ) -> xr.Dataset:

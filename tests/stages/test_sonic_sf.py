@@ -11,6 +11,7 @@ from cwproc.config import load_config
 from cwproc.errors import CwprocError
 from cwproc.pipeline import process_sonic
 from cwproc.sim.sonic import SFModel, default_models, simulate_sonic_dataset
+from cwproc.stages import sonic_fits
 from cwproc.stages import sonic_sf as S
 
 
@@ -298,7 +299,7 @@ def test_grown_fit_in_blocks_equals_one_block(monkeypatch, deg):
     start = rng.integers(0, 100, n_series)
     args = {"kd_threshold": 0.999, "min_points": 5}
     blocked = S.grow_polynomial_fit(sums, start, deg, **args)
-    monkeypatch.setattr(S, "_FIRST_BLOCK", 10 * n_lags)
+    monkeypatch.setattr(sonic_fits, "_FIRST_BLOCK", 10 * n_lags)
     whole = S.grow_polynomial_fit(sums, start, deg, **args)
     assert (blocked.end >= 0).sum() > n_series // 4  # many fits grow, some stop early
     assert len(set(blocked.end[blocked.end >= 0])) > 5

@@ -1,0 +1,295 @@
+"""The Python interface of cwproc: read files, retrieve products, write them.
+
+What ``cwproc retrieve`` does, step by step in a notebook::
+
+    import cwproc
+
+    scans = cwproc.read("sample_data/streamline/VAD_999_20240601_120000.hpl")
+    config = cwproc.Config.preset("streamline").replace(vad={"min_rays": 8})
+    result = cwproc.retrieve(["sample_data/streamline"], config)
+    wind = result["wind"]                      # an xarray.Dataset with CF units
+    cwproc.write(result, "out/")               # the NetCDF files of cwproc retrieve
+
+:func:`retrieve` runs the same chain of stages as the command line
+(:mod:`cwproc.pipeline`) and returns the products instead of writing them; the stage
+functions themselves (``cwproc.stages``) take plain keyword arguments whose defaults
+are those of the instrument presets.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import xarray as xr
+
+from cwproc.config import Config, load_config
+from cwproc.errors import CwprocError, InputFileError
+from cwproc.io import KIND, FileIdentity, is_regular_file
+from cwproc.io import read as read_file
+from cwproc.pipeline import (
+    InputFile,
+    ProductUnit,
+    group_units,
+    process_unit,
+    read_input,
+    unit_label,
+    write_unit_products,
+)
+from cwproc.products.metadata import apply_metadata
+from cwproc.products.writer import add_site_coordinates
+
+__all__ = ["Retrieval", "UnitProducts", "read", "retrieve", "write"]
+
+
+def read(path: str | os.PathLike, *, format: str = "auto", **options: Any) -> xr.Dataset:
+    """One instrument file as its canonical dataset (scan, wind record or sonic).
+
+    Parameters
+    ----------
+    path : str or path
+        The file (Stream Line ``.hpl``, cwproc scan NetCDF, ZephIR or WindCube export,
+        Campbell TOA5/TOB1, LI-COR GHG, Gill or Meteo-2 log).
+    format : str
+        ``"auto"`` recognises the format from the file's content; else one of the
+        formats of ``[instrument] format`` (``"hpl"``, ``"meteo2"``, ...).
+    **options
+        Options of that format's reader, as in the ``[reader.<format>]`` table of a
+        configuration (e.g. ``delimiter=","`` for Meteo-2).
+
+    Returns
+    -------
+    xarray.Dataset
+        The canonical dataset of the file's kind (see ``docs/variables.md``).
+
+    Raises
+    ------
+    InputFileError
+        The file is missing, not a regular file, of no format cwproc reads, or damaged
+        (the message names the file, the line and the problem).
+    """
+    if not is_regular_file(path):
+        raise InputFileError(path, "not a regular file (a folder, pipe, socket or device)")
+    return read_file(path, format, **options)
+
+
+@dataclass(frozen=True)
+class UnitProducts:
+    """The products of one unit (e.g. one instrument-day of scans) and its notes."""
+
+    #: the unit's name, the start of its product file names (``<key>_wind.nc``)
+    key: str
+    #: ``"scan"``, ``"wind_record"`` or ``"sonic"``
+    kind: str
+    #: product name (``"wind"``, ``"turbulence"``, ``"stare"``, ``"sf"``) -> dataset
+    products: dict[str, xr.Dataset]
+    #: what the user should know that is not a failure (e.g. turbulence not computed)
+    notes: tuple[str, ...]
+    #: the input files of the unit
+    inputs: tuple[Path, ...]
+    _unit: ProductUnit = field(repr=False, compare=False)
+
+
+@dataclass(frozen=True)
+class Retrieval:
+    """What :func:`retrieve` made: the products of every unit, notes and failures.
+
+    ``result["wind"]`` is the wind product when exactly one unit made one;
+    ``result.units[key].products[name]`` reaches any product.
+    """
+
+    #: unit key -> its products and notes, in the order of the command line's output
+    units: dict[str, UnitProducts]
+    #: one line per input or unit that failed (file, line, problem)
+    failures: tuple[str, ...]
+    #: notes about inputs that belong to no unit (e.g. Stream Line background files)
+    notes: tuple[str, ...]
+    #: the configuration used
+    config: Config
+
+    @property
+    def ok(self) -> bool:
+        """True when no input and no unit failed."""
+        return not self.failures
+
+    def all_notes(self) -> list[str]:
+        """Every note, the run's first, then each unit's prefixed with its key."""
+        return list(self.notes) + [
+            f"{u.key}: {note}" for u in self.units.values() for note in u.notes
+        ]
+
+    def __getitem__(self, name: str) -> xr.Dataset:
+        """The product ``name`` of the one unit that made it.
+
+        Raises
+        ------
+        KeyError
+            No unit, or more than one, made a product of that name (then use
+            ``units[key].products[name]``).
+        """
+        found = [u for u in self.units.values() if name in u.products]
+        if len(found) != 1:
+            made = sorted({n for u in self.units.values() for n in u.products})
+            why = "no unit made" if not found else f"{len(found)} units made"
+            raise KeyError(
+                f"{why} a {name!r} product (products: {', '.join(made) or 'none'}; "
+                f"units: {', '.join(self.units) or 'none'}); use .units[key].products[name]"
+            )
+        return found[0].products[name]
+
+
+def _config(config: Config | str | os.PathLike | None) -> Config:
+    """A validated configuration from a :class:`Config`, a preset name, a path or None."""
+    if config is None:
+        return Config()
+    if isinstance(config, Config):
+        return config.checked()
+    return load_config(config)
+
+
+def _input_paths(files: str | os.PathLike | Iterable[str | os.PathLike]) -> list[str]:
+    if isinstance(files, str | os.PathLike):
+        return [os.fspath(files)]
+    return [os.fspath(f) for f in files]
+
+
+def run_unit(unit: ProductUnit, config: Config) -> tuple[dict[str, xr.Dataset], list[str]]:
+    """The products and notes of one unit, by the stage chain of :mod:`cwproc.pipeline`.
+
+    Raises
+    ------
+    CwprocError
+        The unit cannot give any product (its message says why).
+    """
+    notes: list[str] = []
+    products = process_unit(unit, config, notes)
+    return products, notes
+
+
+def _released(item: InputFile) -> InputFile:
+    """``item`` without its data, keeping the attributes the writer names it by."""
+    if item.dataset is None:
+        return item
+    identity = FileIdentity(attrs=dict(item.dataset.attrs), time=np.array([], "datetime64[ns]"))
+    return dataclasses.replace(item, dataset=None, identity=item.identity or identity)
+
+
+def _read_inputs(paths: list[str], config: Config) -> tuple[list[InputFile], list[str], list[str]]:
+    """``(inputs, failures, notes)``: every file found under ``paths``, identified."""
+    from cwproc.cli._common import expand_inputs
+
+    found = expand_inputs(tuple(paths), config.instrument.format)
+    failures, notes, items = list(found.mismatched), [], []
+    for path in found.files:
+        try:
+            item = read_input(path, config, identify_only=True)
+        except CwprocError as exc:
+            failures.append(str(exc))
+            continue
+        if KIND[item.format] == "background":  # used by the scans beside it
+            notes.append(f"{path}: Stream Line background file, not a product input")
+            continue
+        items.append(item)
+    if not items and not failures:
+        raise CwprocError(f"no input files found in {', '.join(paths)}{found.skipped_text()}")
+    return items, failures, notes
+
+
+def retrieve(
+    files: str | os.PathLike | Iterable[str | os.PathLike],
+    config: Config | str | os.PathLike | None = None,
+    *,
+    errors: Literal["raise", "collect"] = "raise",
+) -> Retrieval:
+    """Wind, turbulence, stare and structure-function products of instrument files.
+
+    The products ``cwproc retrieve`` writes, returned instead of written: files are
+    recognised by their content, grouped into units (the scans of one instrument and
+    UTC day; one wind-record file; the sonic data of one station and day) and each unit
+    runs the stage chain of :mod:`cwproc.pipeline`.
+
+    Parameters
+    ----------
+    files : path or iterable of paths
+        Files, or folders searched recursively (files of no known format and cwproc's
+        own products are skipped there).
+    config : Config, str or path, optional
+        A :class:`Config` (built in Python), a preset name (``"streamline"``,
+        ``"zephir300"``, ``"meteo2"``, ...) or a TOML file; ``None``: the defaults
+        (Stream Line).
+    errors : {"raise", "collect"}
+        ``"raise"``: a failed input or unit raises :class:`CwprocError` naming it;
+        ``"collect"``: failures are listed in :attr:`Retrieval.failures` and the other
+        units' products returned.
+
+    Returns
+    -------
+    Retrieval
+        The products of every unit (CF attributes attached, as they would be written),
+        with the notes of the run.
+
+    Raises
+    ------
+    ConfigError
+        The configuration is invalid (the dotted key is named).
+    CwprocError
+        No input file was found, or (with ``errors="raise"``) an input or unit failed.
+    """
+    cfg = _config(config)
+    items, failures, notes = _read_inputs(_input_paths(files), cfg)
+    units: dict[str, UnitProducts] = {}
+    for unit in group_units(items):
+        try:
+            products, unit_notes = run_unit(unit, cfg)
+        except CwprocError as exc:
+            failures.append(f"{unit_label(unit)}: {exc}")
+            continue
+        finally:
+            failures.extend(unit.failures)
+        unit.inputs[:] = [_released(i) for i in unit.inputs]
+        units[unit.key] = UnitProducts(
+            key=unit.key,
+            kind=unit.kind,
+            products={
+                name: apply_metadata(add_site_coordinates(ds, cfg.output))
+                for name, ds in products.items()
+            },
+            notes=tuple(unit_notes),
+            inputs=tuple(dict.fromkeys(i.path for i in unit.inputs)),
+            _unit=unit,
+        )
+    if failures and errors == "raise":
+        more = f" (+{len(failures) - 1} more failures)" if len(failures) > 1 else ""
+        raise CwprocError(f"{failures[0]}{more}; retrieve(..., errors='collect') lists them")
+    return Retrieval(units=units, failures=tuple(failures), notes=tuple(notes), config=cfg)
+
+
+def write(products: Retrieval, outdir: str | os.PathLike) -> list[Path]:
+    """Write the products of :func:`retrieve` as ``cwproc retrieve`` does.
+
+    Every unit's products are written together (all or none), as CF-1.10 / ACDD-1.3
+    NetCDF files ``OUTDIR/<unit key>_<product>.nc`` with the provenance of their inputs
+    and the configuration.
+
+    Parameters
+    ----------
+    products : Retrieval
+        What :func:`retrieve` returned.
+    outdir : str or path
+        Folder of the products (created if missing).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written.
+    """
+    Path(outdir).mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    for unit in products.units.values():
+        written.extend(write_unit_products(unit._unit, unit.products, outdir, products.config))
+    return written
