@@ -30,17 +30,16 @@ import xarray as xr
 
 from cwproc.config import Config, load_config
 from cwproc.errors import CwprocError, InputFileError
-from cwproc.io import KIND, FileIdentity, is_regular_file
+from cwproc.io import FileIdentity, is_regular_file
 from cwproc.io import read as read_file
 from cwproc.pipeline import (
     InputFile,
     ProductUnit,
-    group_units,
-    process_unit,
-    read_input,
-    unit_label,
+    read_units,
+    run_unit,
     write_unit_products,
 )
+from cwproc.pipeline.inputs import expand_inputs
 from cwproc.products.metadata import apply_metadata
 from cwproc.products.writer import add_site_coordinates
 
@@ -158,19 +157,6 @@ def _input_paths(files: str | os.PathLike | Iterable[str | os.PathLike]) -> list
     return [os.fspath(f) for f in files]
 
 
-def run_unit(unit: ProductUnit, config: Config) -> tuple[dict[str, xr.Dataset], list[str]]:
-    """The products and notes of one unit, by the stage chain of :mod:`cwproc.pipeline`.
-
-    Raises
-    ------
-    CwprocError
-        The unit cannot give any product (its message says why).
-    """
-    notes: list[str] = []
-    products = process_unit(unit, config, notes)
-    return products, notes
-
-
 def _released(item: InputFile) -> InputFile:
     """``item`` without its data, keeping the attributes the writer names it by."""
     if item.dataset is None:
@@ -179,25 +165,26 @@ def _released(item: InputFile) -> InputFile:
     return dataclasses.replace(item, dataset=None, identity=item.identity or identity)
 
 
-def _read_inputs(paths: list[str], config: Config) -> tuple[list[InputFile], list[str], list[str]]:
-    """``(inputs, failures, notes)``: every file found under ``paths``, identified."""
-    from cwproc.cli._common import expand_inputs
+def _find_units(paths: list[str], config: Config) -> tuple[list[ProductUnit], list[str], list[str]]:
+    """``(units, failures, notes)`` of the files named or found under ``paths``.
 
-    found = expand_inputs(tuple(paths), config.instrument.format)
-    failures, notes, items = list(found.mismatched), [], []
-    for path in found.files:
-        try:
-            item = read_input(path, config, identify_only=True)
-        except CwprocError as exc:
-            failures.append(str(exc))
-            continue
-        if KIND[item.format] == "background":  # used by the scans beside it
-            notes.append(f"{path}: Stream Line background file, not a product input")
-            continue
-        items.append(item)
-    if not items and not failures:
+    The files ``cwproc retrieve`` would take (:func:`cwproc.pipeline.expand_inputs`),
+    read and grouped as it does (:func:`cwproc.pipeline.read_units`).
+
+    Raises
+    ------
+    CwprocError
+        Nothing to process: no input file, or only files of a format the configuration
+        does not read.
+    """
+    found = expand_inputs(tuple(paths), config)
+    nothing = found.nothing_readable()
+    if nothing:
+        raise CwprocError(nothing)
+    if not found.files and not found.mismatched:
         raise CwprocError(f"no input files found in {', '.join(paths)}{found.skipped_text()}")
-    return items, failures, notes
+    read = read_units(found.files, config)
+    return read.units, [*found.mismatched, *read.failures], [*found.skipped_notes, *read.notes]
 
 
 def retrieve(
@@ -241,25 +228,23 @@ def retrieve(
         No input file was found, or (with ``errors="raise"``) an input or unit failed.
     """
     cfg = _config(config)
-    items, failures, notes = _read_inputs(_input_paths(files), cfg)
+    found, failures, notes = _find_units(_input_paths(files), cfg)
     units: dict[str, UnitProducts] = {}
-    for unit in group_units(items):
-        try:
-            products, unit_notes = run_unit(unit, cfg)
-        except CwprocError as exc:
-            failures.append(f"{unit_label(unit)}: {exc}")
-            continue
-        finally:
-            failures.extend(unit.failures)
+    for unit in found:
+        result = run_unit(unit, cfg)
+        failures.extend(result.failures)
+        notes.extend(result.notes)
         unit.inputs[:] = [_released(i) for i in unit.inputs]
+        if not result.products:
+            continue
         units[unit.key] = UnitProducts(
             key=unit.key,
             kind=unit.kind,
             products={
                 name: apply_metadata(add_site_coordinates(ds, cfg.output))
-                for name, ds in products.items()
+                for name, ds in result.products.items()
             },
-            notes=tuple(unit_notes),
+            notes=tuple(result.notes),
             inputs=tuple(dict.fromkeys(i.path for i in unit.inputs)),
             _unit=unit,
         )

@@ -158,7 +158,7 @@ def window_mean_wind(grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def geographic_wind_direction(
-    mean_u: np.ndarray, mean_v: np.ndarray, orientation_deg: float
+    mean_u: np.ndarray, mean_v: np.ndarray, orientation_deg: float = 0.0
 ) -> np.ndarray:
     """Direction the mean wind blows from, degrees clockwise from north, in [0, 360).
 
