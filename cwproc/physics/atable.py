@@ -323,6 +323,86 @@ def uniform_mode(phi_deg: float, delta_theta_deg: float, n_lags: int, swept: boo
     return np.sum((sa - sb) ** 2, axis=-1)
 
 
+def _azimuth_to_nodes(theta: np.ndarray) -> np.ndarray:
+    """``(theta, N_BINS)``: periodic linear interpolation from ``theta`` (rad) to the nodes."""
+    order = np.argsort(np.mod(theta, 2 * np.pi))
+    th_sorted = np.mod(theta, 2 * np.pi)[order]
+    eye = np.eye(theta.size)[order]
+    return np.stack(
+        [
+            np.interp(azimuth_nodes(), th_sorted, eye[:, k], period=2 * np.pi)
+            for k in range(theta.size)
+        ]
+    )
+
+
+def _geometry_terms(
+    probe: Probe, params: dict, ranges: np.ndarray, mu: np.ndarray, swept: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(same, g1, g2, unif)`` of the exact pair geometry, or neutral with small angles.
+
+    ``same``: twice the same-beam term per height
+    (:func:`cwproc.physics.two_beam.same_beam_term`); ``g1``, ``g2``: the point-probe
+    ratios of :func:`geometry_correction`; ``unif``: :func:`uniform_mode`.
+    """
+    phi, n_lags = params["phi_deg"], params["n_lags"]
+    if params.get("geometry", "two_beam") != "two_beam":
+        n_th = full_circle().size
+        return (
+            np.zeros(ranges.size),
+            np.ones(n_lags),
+            np.ones((n_lags, mu.size, n_th)),
+            np.zeros(n_lags),
+        )
+    # the same-beam term S: the exact-geometry ratio acts on the cross term A + 2 S
+    same = np.array(
+        [2.0 * two_beam.same_beam_term(two_beam.beam_quadrature(probe, rng), phi) for rng in ranges]
+    )
+    g1, g2 = geometry_correction(phi, params["delta_theta_deg"], n_lags, mu)
+    return same, g1, g2, uniform_mode(phi, params["delta_theta_deg"], n_lags, swept)
+
+
+def _sweep_ratios(
+    probe: Probe,
+    phi: float,
+    dys: np.ndarray,
+    perp_size: np.ndarray,
+    ranges: np.ndarray,
+    rho: tuple[np.ndarray, np.ndarray],
+    lags: np.ndarray,
+    mu: np.ndarray,
+) -> list:
+    """:func:`sweep_transport_ratio` per height (inertial, valid for all outer scales).
+
+    The rays of a continuous scan seen at their own times; ``rho`` is the
+    ``(low, high)`` separation range (m) of the A-curves per height.
+    """
+    rho_lo, rho_hi = rho
+    family = [
+        afunctions.panel_limits(
+            lo * SWEEP_MIN_FRACTION, hi, probe=probe, dy=float(ps) * SWEEP_MIN_FRACTION, range_m=rng
+        )
+        for lo, hi, ps, rng in zip(rho_lo, rho_hi, perp_size, ranges, strict=True)
+    ]
+    inertial_plane = afunctions.PlaneMatrix(
+        min(lim[0] for lim in family), max(lim[1] for lim in family), "inertial"
+    )
+    return [
+        sweep_transport_ratio(
+            probe,
+            phi,
+            float(dys[j]),
+            float(perp_size[j]),
+            float(ranges[j]),
+            (float(rho_lo[j]) * SWEEP_MIN_FRACTION, float(rho_hi[j])),
+            lags,
+            mu,
+            inertial_plane,
+        )
+        for j in range(dys.size)
+    ]
+
+
 def build_a_table(probe: Probe, params: dict) -> ATable:
     """Compute a table (no cache): ``A_1`` and ``A_2`` on the grid of ``params``.
 
@@ -333,29 +413,18 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
     finite outer scales, ``sigma_V^2 |S_a - S_b|^2`` (:func:`uniform_mode`) are added.
     ``A_2`` is stored as its azimuth average (``log_a2``) and, for inertial tables, its
     means over azimuth bins relative to that average (``bins_a2``), so that sectors and
-    gaps can be averaged over the azimuths present.
+    gaps can be averaged over the azimuths of the pairs present.
     """
-    phi = params["phi_deg"]
-    n_lags = params["n_lags"]
-    model = params["model"]
+    phi, n_lags, model = params["phi_deg"], params["n_lags"], params["model"]
     swept = bool(params.get("swept", True))
-    exact = params.get("geometry", "two_beam") == "two_beam"
     heights = _geometric(*params["height_range_m"], HEIGHT_RATIO)
     mu = default_mu_grid(params["mu_max"])
     if model == "inertial":
         scales = np.array([np.nan])
     else:
         scales = _geometric(*params["outer_scale_range_m"], OUTER_SCALE_RATIO)
-    dtheta = math.radians(params["delta_theta_deg"])
     lags = np.arange(1, n_lags + 1, dtype=float)
-    th = full_circle()
-    # periodic linear interpolation from the table's azimuths to the nodes
-    order = np.argsort(np.mod(th, 2 * np.pi))
-    th_sorted = np.mod(th, 2 * np.pi)[order]
-    eye = np.eye(th.size)[order]
-    to_nodes = np.stack(
-        [np.interp(azimuth_nodes(), th_sorted, eye[:, k], period=2 * np.pi) for k in range(th.size)]
-    )
+    to_nodes = _azimuth_to_nodes(full_circle())
     log_a1 = np.empty((scales.size, heights.size, n_lags))
     log_a2 = np.empty((scales.size, heights.size, n_lags, mu.size))
     bins_a2 = np.empty((scales.size, heights.size, n_lags, mu.size, N_BINS))
@@ -363,24 +432,14 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
     # the probe centre samples the circle of radius R_c cos(phi): R_c = R for a pulsed
     # gate, R/(1 + (R/z_d)^2) for a cw focus (Banakh et al. (1999), Q_s)
     radius = np.asarray(probe.centre_range(ranges), float) * math.cos(math.radians(phi))
-    dys = dtheta * radius
+    dys = math.radians(params["delta_theta_deg"]) * radius
     perp_size = np.asarray(probe.transverse_size(dys), float) if swept else np.zeros_like(dys)
-    if exact:
-        # the same-beam term S: the exact-geometry ratio acts on the cross term A + 2 S
-        same = np.array(
-            [
-                2.0 * two_beam.same_beam_term(two_beam.beam_quadrature(probe, rng), phi)
-                for rng in ranges
-            ]
-        )
-        g1, g2 = geometry_correction(phi, params["delta_theta_deg"], n_lags, mu)
-        unif = uniform_mode(phi, params["delta_theta_deg"], n_lags, swept)
-    else:
-        g1, g2, unif = np.ones(n_lags), np.ones((n_lags, mu.size, th.size)), np.zeros(n_lags)
-
-        same = np.zeros(heights.size)
+    same, g1, g2, unif = _geometry_terms(probe, params, ranges, mu, swept)
     rho_lo = 0.02 * dys
     rho_hi = n_lags * dys * (1.0 + params["mu_max"]) * 1.01
+    sweep = [1.0] * heights.size
+    if params.get("geometry", "two_beam") == "two_beam" and np.any(perp_size > 0):
+        sweep = _sweep_ratios(probe, phi, dys, perp_size, ranges, (rho_lo, rho_hi), lags, mu)
     for i, big_l in enumerate(scales):
         outer = None if model == "inertial" else float(big_l)
         sigma2 = 0.0 if outer is None else spectra.variance_per_eps23(model, outer)
@@ -394,37 +453,6 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
         plane = afunctions.PlaneMatrix(
             min(lim[0] for lim in limits), max(lim[1] for lim in limits), model, outer
         )
-        if i == 0 and exact and np.any(perp_size > 0):
-            # rays of a continuous scan seen at their own times (inertial, all outer scales)
-            family = [
-                afunctions.panel_limits(
-                    lo * SWEEP_MIN_FRACTION,
-                    hi,
-                    probe=probe,
-                    dy=float(ps) * SWEEP_MIN_FRACTION,
-                    range_m=rng,
-                )
-                for lo, hi, ps, rng in zip(rho_lo, rho_hi, perp_size, ranges, strict=True)
-            ]
-            inertial_plane = afunctions.PlaneMatrix(
-                min(lim[0] for lim in family), max(lim[1] for lim in family), "inertial"
-            )
-            sweep = [
-                sweep_transport_ratio(
-                    probe,
-                    phi,
-                    float(dys[j]),
-                    float(perp_size[j]),
-                    float(ranges[j]),
-                    (float(rho_lo[j]) * SWEEP_MIN_FRACTION, float(rho_hi[j])),
-                    lags,
-                    mu,
-                    inertial_plane,
-                )
-                for j in range(heights.size)
-            ]
-        elif i == 0:
-            sweep = [1.0] * heights.size
         for j in range(heights.size):
             dy = float(dys[j])
             curves = afunctions.a_curve_splines(
