@@ -23,9 +23,13 @@ EVALUATION_CELLS = 2048
 
 
 def evaluate_table(
-    table: Any, lags: np.ndarray, height: np.ndarray, mu: np.ndarray, outer
-) -> tuple:
-    """ATable.evaluate on broadcast, flattened arguments; returns (A1, A2) in that shape."""
+    table: Any, lags: np.ndarray, height: np.ndarray, mu: np.ndarray, outer: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(A_1, A_2)`` (m^(2/3)) of ``table`` in the broadcast shape of the arguments.
+
+    :meth:`cwproc.physics.atable_interp.ATable.evaluate` on the flattened arguments in
+    pieces of bounded memory; ``outer``: ``L_V`` (m), ``None`` for inertial tables.
+    """
     args = [lags, height, mu] + ([] if outer is None else [outer])
     b = np.broadcast_arrays(*[np.asarray(x, dtype=float) for x in args])
     shape = b[0].shape

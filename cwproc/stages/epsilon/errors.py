@@ -53,12 +53,15 @@ def standard_errors(
     return eps * r_eps, sigma2 * r_sig, scale * r_scale
 
 
-def covariance_errors(fixed: dict, d: np.ndarray, var_raw: np.ndarray, cov: np.ndarray, base: dict):
+def covariance_errors(
+    fixed: dict, d: np.ndarray, var_raw: np.ndarray, cov: np.ndarray, base: dict
+) -> tuple[np.ndarray, ...]:
     """Standard errors of eps, sigma_V^2 and L_V by the delta method (m2 s-3, m2 s-2, m).
 
-    The estimates are one function ``f(s)`` (:func:`retrieve`) of the block-mean
-    statistics ``s = (D_L(1), ..., D_L(L), variance of V'_L)``: eps and L_V fitted
-    together, so the scatter of the fitted L_V enters the error of eps through the
+    The estimates are one function ``f(s)``
+    (:func:`cwproc.stages.epsilon.outer_scale.retrieve`) of the block-mean statistics
+    ``s = (D_L(1), ..., D_L(L), variance of V'_L)``: eps and L_V fitted together, so
+    the scatter of the fitted L_V enters the error of eps through the
     A-functions. ``SE(f) = sqrt(g^T C g)``, ``C`` the covariance of ``s`` from the
     scatter over the block's scans (``statistics_covariance`` of
     :func:`cwproc.stages.structure.block_statistics`) and ``g`` the gradient of ``f`` by

@@ -28,6 +28,7 @@ METHOD1_RATIO_LIMIT = 1.1
 
 
 def _bit(condition: np.ndarray, bit: int) -> np.ndarray:
+    """``bit`` where ``condition`` holds, else 0 (int16)."""
     return np.where(condition, bit, 0).astype(np.int16)
 
 
