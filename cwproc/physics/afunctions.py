@@ -509,36 +509,16 @@ class ACurves:
         return self._eval(self.log_par, np.asarray(rho, dtype=float))
 
 
-def a_curve_splines(
-    rho_min: float,
-    rho_max: float,
-    *,
-    probe: Probe | None,
-    dy: float,
-    range_m: float | None = None,
-    model: spectra.Model = "inertial",
-    outer_scale_m: float | None = None,
-    constant: float | None = None,
-    n: int = 61,
-    plane: PlaneMatrix | None = None,
-) -> ACurves:
+def a_curve_splines(rho_min: float, rho_max: float, *, n: int = 61, **options: Any) -> ACurves:
     """``A_perp`` and ``A_par`` on ``n`` (at least 14 per decade) geometric lags, splined.
 
-    The lags span ``[rho_min, rho_max]`` (m); see :func:`a_curves` for the parameters.
+    The lags span ``[rho_min, rho_max]`` (m); ``options`` are the keyword arguments of
+    :func:`a_curves` (``probe`` and ``dy`` required).
     """
     # at least 14 lags per decade keeps the spline error near 1e-7
     n = max(n, math.ceil(14 * math.log10(rho_max / rho_min)) + 1)
     rho = np.geomspace(rho_min, rho_max, n)
-    ap, al = a_curves(
-        rho,
-        probe=probe,
-        dy=dy,
-        range_m=range_m,
-        model=model,
-        outer_scale_m=outer_scale_m,
-        constant=constant,
-        plane=plane,
-    )
+    ap, al = a_curves(rho, **options)
     return ACurves(np.log(rho), np.log(ap), np.log(al))
 
 

@@ -216,20 +216,16 @@ def exact_lag_model(
 
 
 @functools.lru_cache(maxsize=64)
-def exact_lag_model_cached(
-    probe: Any,
-    range_m: float,
-    elevation_deg: float,
-    azimuth_step_deg: float,
-    n_lags: int,
-    model: str,
-) -> ExactLagModel:
+def exact_lag_model_cached(*configuration: Any) -> ExactLagModel:
     """:func:`exact_lag_model` on :data:`EXACT_SCALES`, memoised per configuration.
+
+    ``configuration``: ``(probe, range_m, elevation_deg, azimuth_step_deg, n_lags,
+    model)``, the positional arguments of :func:`exact_lag_model` (hashable).
 
     About 0.5 s per range; a batch or a day of cw files re-uses the same few ranges. The
     arrays are read-only.
     """
-    lm = exact_lag_model(probe, range_m, elevation_deg, azimuth_step_deg, n_lags, model)
+    lm = exact_lag_model(*configuration)
     for value in (lm.scales, lm.structure, lm.passed, lm.removed):
         value.setflags(write=False)
     return lm
