@@ -32,6 +32,7 @@ from cwproc.pipeline import probe_from_config
 from cwproc.sim.cw import simulate_cw_scans
 from cwproc.sim.montecarlo import lidar_from_config
 from cwproc.stages import epsilon, qc, structure, vad
+from cwproc.stages.epsilon.cw_exact import NOISE_WINDOW_BLOCKS
 
 NAMES = ("epsilon", "epsilon_fit", "velocity_variance", "integral_scale", "noise_std")
 
@@ -46,7 +47,7 @@ def main() -> None:
     parser.add_argument(
         "--noise-window",
         type=int,
-        default=epsilon.NOISE_WINDOW_BLOCKS,
+        default=NOISE_WINDOW_BLOCKS,
         help="blocks over which the cw noise is pooled (1: each block its own)",
     )
     parser.add_argument(

@@ -13,7 +13,7 @@ directory), then the stage is run ``--repeat`` times on warm tables; the best ti
 printed. Target: under 1 s per day and configuration, error bars included (measured
 warm, same run on a shared 2-core box: 0.13 / 0.16 s inertial, 0.49 / 0.62 s von
 Karman for the 24-ray VAD / the 180-ray scan; 0.77 / 2.3-3.0 s before the outer-scale
-root search used :meth:`cwproc.physics.atable.ATable.at_cells`).
+root search used :meth:`cwproc.physics.atable_interp.ATable.at_cells`).
 
 Run::
 
@@ -31,7 +31,7 @@ import time
 import numpy as np
 import xarray as xr
 
-from cwproc.physics.atable import N_BINS
+from cwproc.physics.atable_interp import N_BINS
 from cwproc.physics.transfer import PulsedProbe
 from cwproc.stages.epsilon import estimate_epsilon
 

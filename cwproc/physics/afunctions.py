@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.polynomial import legendre
@@ -365,10 +366,29 @@ def a_curves(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(A_perp(rho), A_par(rho))`` (m^(2/3)) at the lags ``rho`` (m), in one pass.
 
-    Smalikho (2020), eqs. 16-17 (see :func:`a_perp` for the parameters). Both share the
-    inner integrals, so asking for both (and for many lags) costs little more than one.
-    ``plane``: a :class:`PlaneMatrix` of the same model to take the spectrum from (used
-    when it covers the wavenumbers needed; the result is identical either way).
+    Smalikho (2020), eqs. 16-17. Both share the inner integrals, so asking for both (and
+    for many lags) costs little more than one.
+
+    Parameters
+    ----------
+    rho : array_like
+        Lag (m), e.g. ``l * dy``.
+    probe : PulsedProbe or CWProbe or None
+        Longitudinal weighting; ``None`` for a point measurement (``H_par = 1``).
+    dy : float
+        Transverse probe size ``dy = dtheta h / tan(phi)`` (m) in ``H_perp`` (eq. 20);
+        0 for none.
+    range_m : float, optional
+        Focus distance (m), needed by a cw probe (``Z_R = c R^2``).
+    model : {"inertial", "von_karman", "exponential"}
+        Spectrum (:mod:`cwproc.physics.spectra`).
+    outer_scale_m : float, optional
+        ``L_V`` (m) of the finite-outer-scale models.
+    constant : float, optional
+        ``C`` of eq. 18 for the inertial model (default: the exact 0.065239).
+    plane : PlaneMatrix, optional
+        A :class:`PlaneMatrix` of the same model to take the spectrum from (used when it
+        covers the wavenumbers needed; the result is identical either way).
     """
     rho_arr = np.abs(np.asarray(rho, dtype=float))
     shape = rho_arr.shape
@@ -427,16 +447,7 @@ def a_curves(
     return a_perp_v.reshape(shape), a_par_v.reshape(shape)
 
 
-def a_perp(
-    r: ArrayLike,
-    *,
-    probe: Probe | None,
-    dy: float,
-    range_m: float | None = None,
-    model: spectra.Model = "inertial",
-    outer_scale_m: float | None = None,
-    constant: float | None = None,
-) -> np.ndarray:
+def a_perp(r: ArrayLike, **options: Any) -> np.ndarray:
     """Transverse A-function ``A_perp(r)`` (m^(2/3)), Smalikho (2020), eq. 16.
 
     ``A_perp(r) = 2 int int Phi(k1, k2) H_par(k1) H_perp(k2) [1 - cos(2 pi r k2)] dk1 dk2``.
@@ -445,60 +456,24 @@ def a_perp(
     ----------
     r : array_like
         Transverse lag (m), e.g. ``l * dy``.
-    probe : PulsedProbe or CWProbe or None
-        Longitudinal weighting; ``None`` for a point measurement (``H_par = 1``).
-    dy : float
-        Transverse probe size ``dy = dtheta h / tan(phi)`` (m) in ``H_perp`` (eq. 20);
-        0 for none.
-    range_m : float, optional
-        Focus distance (m), needed by a cw probe (``Z_R = c R^2``).
-    model : {"inertial", "von_karman", "exponential"}
-        Spectrum (:mod:`cwproc.physics.spectra`).
-    outer_scale_m : float, optional
-        ``L_V`` (m) of the finite-outer-scale models.
-    constant : float, optional
-        ``C`` of eq. 18 for the inertial model (default: the exact 0.065239).
+    **options
+        The keyword arguments of :func:`a_curves` (``probe`` and ``dy`` required).
 
     Returns
     -------
     numpy.ndarray
         ``A_perp`` (m^(2/3)); without filters ``(8/3) r^(2/3)`` (relative accuracy 2e-6).
     """
-    return a_curves(
-        r,
-        probe=probe,
-        dy=dy,
-        range_m=range_m,
-        model=model,
-        outer_scale_m=outer_scale_m,
-        constant=constant,
-    )[0]
+    return a_curves(r, **options)[0]
 
 
-def a_par(
-    r: ArrayLike,
-    *,
-    probe: Probe | None,
-    dy: float,
-    range_m: float | None = None,
-    model: spectra.Model = "inertial",
-    outer_scale_m: float | None = None,
-    constant: float | None = None,
-) -> np.ndarray:
+def a_par(r: ArrayLike, **options: Any) -> np.ndarray:
     """Longitudinal A-function ``A_par(r)`` (m^(2/3)), Smalikho (2020), eq. 17.
 
     ``A_par(r) = 2 int int Phi(k1, k2) H_par(k1) H_perp(k2) [1 - cos(2 pi r k1)] dk1 dk2``;
-    parameters as :func:`a_perp`. Without filters ``2 r^(2/3)``.
+    ``options`` as :func:`a_curves`. Without filters ``2 r^(2/3)``.
     """
-    return a_curves(
-        r,
-        probe=probe,
-        dy=dy,
-        range_m=range_m,
-        model=model,
-        outer_scale_m=outer_scale_m,
-        constant=constant,
-    )[1]
+    return a_curves(r, **options)[1]
 
 
 @dataclass(frozen=True)
@@ -534,36 +509,16 @@ class ACurves:
         return self._eval(self.log_par, np.asarray(rho, dtype=float))
 
 
-def a_curve_splines(
-    rho_min: float,
-    rho_max: float,
-    *,
-    probe: Probe | None,
-    dy: float,
-    range_m: float | None = None,
-    model: spectra.Model = "inertial",
-    outer_scale_m: float | None = None,
-    constant: float | None = None,
-    n: int = 61,
-    plane: PlaneMatrix | None = None,
-) -> ACurves:
+def a_curve_splines(rho_min: float, rho_max: float, *, n: int = 61, **options: Any) -> ACurves:
     """``A_perp`` and ``A_par`` on ``n`` (at least 14 per decade) geometric lags, splined.
 
-    The lags span ``[rho_min, rho_max]`` (m); see :func:`a_curves` for the parameters.
+    The lags span ``[rho_min, rho_max]`` (m); ``options`` are the keyword arguments of
+    :func:`a_curves` (``probe`` and ``dy`` required).
     """
     # at least 14 lags per decade keeps the spline error near 1e-7
     n = max(n, math.ceil(14 * math.log10(rho_max / rho_min)) + 1)
     rho = np.geomspace(rho_min, rho_max, n)
-    ap, al = a_curves(
-        rho,
-        probe=probe,
-        dy=dy,
-        range_m=range_m,
-        model=model,
-        outer_scale_m=outer_scale_m,
-        constant=constant,
-        plane=plane,
-    )
+    ap, al = a_curves(rho, **options)
     return ACurves(np.log(rho), np.log(ap), np.log(al))
 
 
@@ -639,7 +594,7 @@ def a2(
     phi_deg : float
         Elevation angle of the cone (degrees).
     probe, range_m, model, outer_scale_m, constant
-        As :func:`a_perp`.
+        As :func:`a_curves`.
     """
     lag_number, mu = np.broadcast_arrays(
         np.asarray(lag_number, dtype=float), np.asarray(mu, dtype=float)

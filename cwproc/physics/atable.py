@@ -6,7 +6,7 @@ model) they depend only on the height ``h`` (which fixes ``dy = dtheta h / tan(p
 for a cw lidar, the focus distance ``R = h / sin(phi)`` and so ``Z_R``), the lag number
 ``l``, ``mu = U / V_s`` and, for the finite-outer-scale models, ``L_V``. :func:`get_a_table`
 computes them once on a grid over these variables and caches the result on disk;
-:meth:`ATable.evaluate` interpolates.
+:meth:`cwproc.physics.atable_interp.ATable.evaluate` interpolates.
 
 Grid and interpolation. Heights: geometric, ratio 1.2; ``mu``: step 0.05 up to 2, 0.1 up
 to 4, 0.25 beyond; outer scale: geometric, ratio 1.3. ``log A`` is interpolated with
@@ -35,22 +35,18 @@ import os
 import sys
 import tempfile
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import platformdirs
-from numpy.typing import ArrayLike
 
-from cwproc.physics import afunctions, spectra
+from cwproc.physics import afunctions, spectra, two_beam
+from cwproc.physics.atable_interp import N_BINS, ATable, azimuth_nodes, lagrange4
 from cwproc.physics.spectra import MODELS, Model
 from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
 
 #: bump when the numerics or the grid change: old cache files are then ignored
 TABLE_VERSION = 5
-#: azimuth nodes of A_2 stored beside its circle average (inertial tables), equally
-#: spaced on the circle of the wind's angle from the scan direction (10 deg)
-N_BINS = 36
 #: sub-beams of a swept ray in :func:`uniform_mode`
 N_SWEEP = 8
 #: transverse sizes (in dy) of the A-curves of :func:`sweep_transport_ratio`: from this
@@ -79,233 +75,6 @@ def default_mu_grid(mu_max: float = 10.0) -> np.ndarray:
 def _geometric(lo: float, hi: float, ratio: float) -> np.ndarray:
     n = max(4, math.ceil(math.log(hi / lo) / math.log(ratio)) + 1)
     return np.geomspace(lo, hi, n)
-
-
-def _lagrange4(nodes: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Indices ``(q, 4)``, weights ``(q, 4)`` of cubic Lagrange interpolation, and validity.
-
-    Near the ends the 4-point stencil is shifted inwards; points outside ``[nodes[0],
-    nodes[-1]]`` are flagged invalid.
-    """
-    x = np.asarray(x, dtype=float).ravel()
-    n = nodes.size
-    valid = (x >= nodes[0] - 1e-12 * abs(nodes[0])) & (x <= nodes[-1] + 1e-12 * abs(nodes[-1]))
-    valid &= np.isfinite(x)
-    xc = np.clip(np.where(np.isfinite(x), x, nodes[0]), nodes[0], nodes[-1])
-    if n < 4:
-        raise ValueError("an interpolation axis needs at least 4 nodes")
-    i = np.clip(np.searchsorted(nodes, xc, side="right") - 2, 0, n - 4)
-    idx = i[:, None] + np.arange(4)[None, :]
-    xn = nodes[idx]  # (q, 4)
-    w = np.ones((x.size, 4))
-    for j in range(4):
-        for k in range(4):
-            if j != k:
-                w[:, j] *= (xc - xn[:, k]) / (xn[:, j] - xn[:, k])
-    return idx, w, valid
-
-
-@dataclass(frozen=True)
-class ATable:
-    """Tabulated ``A_1 = A_perp(l dy)`` and ``A_2(l dy; mu)`` of one configuration.
-
-    Attributes
-    ----------
-    heights_m : (nh,) heights (m) of the nodes.
-    mu : (nm,) nodes of ``mu = U / V_s``.
-    outer_scales_m : (nL,) nodes of ``L_V`` (m); ``(1,)`` NaN for the inertial model.
-    log_a1 : (nL, nh, n_lags) ``ln A_1`` (A in m^(2/3)).
-    log_a2 : (nL, nh, n_lags, nm) ``ln A_2``, the average over the full circle.
-    params : the parameters the table was built for (also its cache key).
-    bins_a2 : (1, nh, n_lags, nm, N_BINS) inertial tables: eq. 15's integrand at the
-        azimuth nodes (:func:`azimuth_nodes`) divided by the circle average;
-        ``None`` for finite-outer-scale tables (the estimator applies the inertial
-        table's sector ratio to them).
-    """
-
-    heights_m: np.ndarray
-    mu: np.ndarray
-    outer_scales_m: np.ndarray
-    log_a1: np.ndarray
-    log_a2: np.ndarray
-    params: dict = field(default_factory=dict)
-    bins_a2: np.ndarray | None = None
-
-    @property
-    def n_lags(self) -> int:
-        """Number of lags ``l = 1..n_lags`` in the table."""
-        return self.log_a1.shape[-1]
-
-    @property
-    def model(self) -> str:
-        """Spectrum model of the table."""
-        return str(self.params["model"])
-
-    def dy(self, height_m: ArrayLike) -> np.ndarray:
-        """Nominal transverse sampling ``dy = dtheta h / tan(phi)`` (m) at ``height_m`` (m).
-
-        A cw probe with a known beam radius samples a circle of a smaller radius
-        (:meth:`cwproc.physics.transfer.CWProbe.centre_range`); the table's lags use it.
-        """
-        phi = math.radians(self.params["phi_deg"])
-        return math.radians(self.params["delta_theta_deg"]) * np.asarray(height_m) / math.tan(phi)
-
-    def evaluate(
-        self,
-        lags: ArrayLike,
-        height_m: ArrayLike,
-        mu: ArrayLike,
-        outer_scale_m: ArrayLike | None = None,
-        weights: ArrayLike | None = None,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """``(A_1, A_2)`` (m^(2/3)) at lag numbers, heights, ``mu`` and outer scales.
-
-        Parameters
-        ----------
-        lags : array_like of int
-            Lag numbers ``l`` in ``1..n_lags``.
-        height_m : array_like
-            Heights (m) above the lidar.
-        mu : array_like
-            ``U / V_s`` (1).
-        outer_scale_m : array_like, optional
-            ``L_V`` (m); required for finite-outer-scale tables, ignored otherwise.
-        weights : array_like, optional
-            ``(..., N_BINS)``: the share of the pairs present in each azimuth bin
-            (:func:`azimuth_bin_weights`); ``None`` gives the full-circle average of
-            Smalikho (2020), eq. 15 (tables without bins ignore it).
-
-        All inputs broadcast. Points outside the tabulated ranges give NaN.
-        """
-        finite_l = self.model != "inertial"
-        if finite_l and outer_scale_m is None:
-            raise ValueError(f"a {self.model!r} table needs outer_scale_m")
-        lval = outer_scale_m if finite_l else np.nan
-        lags_b, h_b, mu_b, l_b = np.broadcast_arrays(
-            np.asarray(lags), np.asarray(height_m, float), np.asarray(mu, float), np.asarray(lval)
-        )
-        shape = lags_b.shape
-        lag = np.asarray(lags_b, dtype=float).ravel()
-        lag_ok = (lag >= 1) & (lag <= self.n_lags) & (lag == np.round(lag))
-        li = np.clip(np.where(np.isfinite(lag), lag, 1), 1, self.n_lags).astype(int) - 1
-        with np.errstate(divide="ignore", invalid="ignore"):
-            im, wm, vm = _lagrange4(self.mu, mu_b.ravel())
-            if finite_l:
-                il, wl, vl = _lagrange4(
-                    np.log(self.outer_scales_m), np.log(l_b.astype(float).ravel())
-                )
-            else:
-                il = np.zeros((lag.size, 1), int)
-                wl = np.ones((lag.size, 1))
-                vl = np.ones(lag.size, bool)
-        # Interpolate in height first, once per distinct height (a day of blocks shares a
-        # few hundred heights), then gather only the 4 x 4 (L_V, mu) neighbours per point.
-        h_flat = h_b.ravel()
-        h_unique, h_inverse = np.unique(h_flat, return_inverse=True)
-        h_inverse = h_inverse.ravel()
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ihu, whu, vhu = _lagrange4(np.log(self.heights_m), np.log(h_unique))
-        vh = vhu[h_inverse]
-        # (nL, n_unique, n_lag) and (nL, n_unique, n_lag, nm)
-        a1_h = np.einsum("lukj,uk->luj", self.log_a1[:, ihu, :], whu)
-        a2_h = np.einsum("lukjm,uk->lujm", self.log_a2[:, ihu, :, :], whu)
-        n_u, n_lag, n_m = h_unique.size, self.n_lags, self.mu.size
-        base = (il * n_u + h_inverse[:, None]) * n_lag + li[:, None]  # (q, a)
-        log1 = np.einsum("qa,qa->q", wl, a1_h.ravel().take(base))
-        vals2 = a2_h.ravel().take(base[:, :, None] * n_m + im[:, None, :])  # (q, a, 4)
-        log2 = np.einsum("qa,qac,qc->q", wl, vals2, wm, optimize=True)
-        if weights is not None and self.bins_a2 is not None:
-            wb = np.broadcast_to(np.asarray(weights, float), (*shape, N_BINS))
-            wb = wb.reshape(-1, N_BINS)
-            r_h = np.einsum("lukjmc,uk->lujmc", self.bins_a2[:, ihu], whu)
-            flat = r_h.reshape(-1, N_BINS)
-            idx = base[:, :, None] * n_m + im[:, None, :]  # (q, a, 4)
-            vals = flat[idx.ravel()].reshape(*idx.shape, N_BINS)  # (q, a, 4, bins)
-            ratio = np.einsum("qa,qacn,qc->qn", wl, vals, wm, optimize=True)
-            log2 = log2 + np.log(np.maximum(np.sum(ratio * wb, axis=-1), 1e-12))
-        ok1 = lag_ok & vh & vl
-        ok2 = ok1 & vm
-        out1 = np.where(ok1, np.exp(log1), np.nan).reshape(shape)
-        out2 = np.where(ok2, np.exp(log2), np.nan).reshape(shape)
-        return out1, out2
-
-    def at_cells(self, lags: ArrayLike, height_m: ArrayLike, mu: ArrayLike) -> CellTable:
-        """This table interpolated in height and ``mu`` to fixed cells, kept over ``L_V``.
-
-        For root searches in ``L_V`` (:mod:`cwproc.stages.epsilon`): the height and
-        ``mu`` weights of :meth:`evaluate` are applied once, so each later evaluation
-        at new outer scales only interpolates in ``log L_V`` (the same 4-point Lagrange
-        weights: equal to :meth:`evaluate` up to rounding).
-
-        Parameters
-        ----------
-        lags : array_like of int
-            ``(n_lag,)`` lag numbers in ``1..n_lags``.
-        height_m, mu : array_like
-            ``(cells,)`` heights (m) and ``mu = U / V_s``.
-        """
-        lag = np.asarray(lags, dtype=float).ravel()
-        h = np.asarray(height_m, dtype=float).ravel()
-        li = np.clip(np.where(np.isfinite(lag), lag, 1), 1, self.n_lags).astype(int) - 1
-        lag_ok = (lag >= 1) & (lag <= self.n_lags) & (lag == np.round(lag))
-        h_unique, h_inverse = np.unique(h, return_inverse=True)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ihu, whu, vhu = _lagrange4(np.log(self.heights_m), np.log(h_unique))
-            im, wm, vm = _lagrange4(self.mu, np.asarray(mu, dtype=float).ravel())
-        h_inverse = h_inverse.ravel()
-        a1_h = np.einsum("lukj,uk->luj", self.log_a1[:, ihu, :], whu)[:, h_inverse][..., li]
-        a2_h = np.einsum("lukjm,uk->lujm", self.log_a2[:, ihu, :, :], whu)[..., li, :]
-        # per outer-scale node: gather the (cells, n_lag, 4) mu neighbours, then weight
-        rows, cols = h_inverse[:, None, None], np.arange(li.size)[None, :, None]
-        log_a2 = np.stack(
-            [np.einsum("qjc,qc->qj", node[rows, cols, im[:, None, :]], wm) for node in a2_h],
-            axis=1,
-        )
-        valid = lag_ok[None, :] & vhu[h_inverse][:, None]
-        return CellTable(
-            np.log(self.outer_scales_m), np.moveaxis(a1_h, 0, 1), log_a2, valid, valid & vm[:, None]
-        )
-
-
-@dataclass(frozen=True)
-class CellTable:
-    """An :class:`ATable` at fixed cells and lags, a function of ``L_V`` (:meth:`ATable.at_cells`).
-
-    Attributes
-    ----------
-    log_scales : (nL,) ``ln L_V`` of the nodes (L_V in m).
-    log_a1, log_a2 : (cells, nL, n_lag) ``ln A_1``, ``ln A_2`` at the nodes.
-    valid1, valid2 : (cells, n_lag) height, lag (and for A_2, ``mu``) in range.
-    """
-
-    log_scales: np.ndarray
-    log_a1: np.ndarray
-    log_a2: np.ndarray
-    valid1: np.ndarray
-    valid2: np.ndarray
-
-    def evaluate(
-        self, outer_scale_m: ArrayLike, cells: ArrayLike | None = None, a1: bool = True
-    ) -> tuple[np.ndarray | None, np.ndarray]:
-        """``(A_1, A_2)`` (m^(2/3)), ``(n, k, n_lag)``, at outer scales ``(n, k)`` (m).
-
-        ``cells`` (``(n,)`` indices, default all) selects the rows; NaN outside the
-        tabulated ranges, as :meth:`ATable.evaluate`. ``a1=False`` skips ``A_1`` (None).
-        """
-        n_cells, n_nodes, n_lag = self.log_a2.shape
-        rows = np.arange(n_cells) if cells is None else np.asarray(cells)
-        big_l = np.asarray(outer_scale_m, dtype=float)
-        n, k = big_l.shape
-        with np.errstate(divide="ignore", invalid="ignore"):
-            il, wl, vl = _lagrange4(self.log_scales, np.log(big_l).ravel())
-        r = np.repeat(rows, k)
-        flat = r[:, None] * n_nodes + il  # (q, 4) rows of the (cells * nL, n_lag) tables
-        out = []
-        for table, valid in ((self.log_a1, self.valid1), (self.log_a2, self.valid2))[1 - a1 :]:
-            log_a = np.einsum("qa,qaj->qj", wl, table.reshape(-1, n_lag).take(flat, axis=0))
-            ok = valid.take(r, axis=0) & vl[:, None]
-            out.append(np.where(ok, np.exp(log_a), np.nan).reshape(n, k, n_lag))
-        return (out[0] if a1 else None), out[-1]
 
 
 def _probe_params(probe: Probe) -> dict:
@@ -349,7 +118,7 @@ def table_parameters(
     pulsed probe, ``"small_angle"`` for a cw probe (whose Lorentzian, longer than the
     separations, lets the beam spacing vary along the probe, which the point-probe
     correction does not describe; cw cells with finite outer scales use the exact model
-    of :class:`cwproc.stages.epsilon.ExactLagModel`).
+    of :class:`cwproc.physics.exact_lag.ExactLagModel`).
     """
     if geometry is None:
         geometry = "small_angle" if isinstance(probe, CWProbe) else "two_beam"
@@ -392,11 +161,6 @@ def table_key(params: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def azimuth_nodes() -> np.ndarray:
-    """The ``N_BINS`` node azimuths (rad) of ``bins_a2``, equally spaced on the circle."""
-    return 2.0 * np.pi * np.arange(N_BINS) / N_BINS
-
-
 def full_circle() -> np.ndarray:
     """Eq.-15 azimuths on the full circle: the half circle and its mirror ``pi - theta``.
 
@@ -406,39 +170,6 @@ def full_circle() -> np.ndarray:
     """
     th = afunctions._theta()
     return np.concatenate([th, np.pi - th])
-
-
-def _node_interpolation(theta: np.ndarray) -> np.ndarray:
-    """Periodic linear-interpolation weights ``(..., N_BINS)`` of azimuths on the nodes."""
-    step = 2.0 * np.pi / N_BINS
-    pos = np.mod(np.asarray(theta, dtype=float), 2.0 * np.pi) / step
-    i0 = np.floor(pos).astype(int) % N_BINS
-    frac = pos - np.floor(pos)
-    out = np.zeros((*pos.shape, N_BINS))
-    np.put_along_axis(out, i0[..., None], (1.0 - frac)[..., None], axis=-1)
-    np.put_along_axis(out, ((i0 + 1) % N_BINS)[..., None], frac[..., None], axis=-1)
-    return out
-
-
-def azimuth_bin_weights(
-    theta: ArrayLike, axis: int = -1, counts: ArrayLike | None = None
-) -> np.ndarray:
-    """Weights ``(..., N_BINS)`` of the azimuth nodes for the pairs at ``theta`` (rad).
-
-    ``theta`` (along ``axis``) is the angle of the mean wind from the scan's direction of
-    motion at each pair present (Smalikho (2020), eq. 15: the wind's component along the
-    scan is ``U sin th``, along the horizontal beam ``U cos th``); each pair is shared
-    linearly between the two neighbouring nodes (:func:`azimuth_nodes`). ``counts``
-    (shape of ``theta``): the number of pairs at each azimuth (default 1). NaN azimuths
-    are left out; no pair at all gives NaN weights.
-    """
-    th = np.moveaxis(np.asarray(theta, dtype=float), axis, -1)
-    n = np.ones_like(th) if counts is None else np.moveaxis(np.asarray(counts, float), axis, -1)
-    n = np.where(np.isfinite(th), n, 0.0)
-    w = _node_interpolation(np.where(n > 0, th, 0.0)) * n[..., None]
-    total = n.sum(axis=-1)[..., None]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return w.sum(axis=-2) / total
 
 
 def _per_theta_a2(
@@ -489,7 +220,7 @@ def sweep_transport_ratio(
         max(4, math.ceil(math.log(top / SWEEP_MIN_FRACTION) / math.log(SWEEP_RATIO)) + 1),
     )
     rho = lags[:, None, None] * dy * sg[None]  # (nl, nm, nth)
-    idx, w, _ = _lagrange4(np.log(sizes), np.log(np.clip(sg, sizes[0], sizes[-1])))
+    idx, w, _ = lagrange4(np.log(sizes), np.log(np.clip(sg, sizes[0], sizes[-1])))
     idx = idx.reshape(*sg.shape, 4)
     w = w.reshape(*sg.shape, 4)
     a_perp = np.zeros(rho.shape)
@@ -522,8 +253,6 @@ def _point_pair(
     component along the scan is ``U sin th``, ``U = mu`` (``V_s = 1``), ray period
     ``t0 = dtheta``. A point has no same-beam term: ``D`` is the cross term alone.
     """
-    from cwproc.physics import two_beam
-
     step = math.radians(delta_theta_deg)
     point = two_beam.beam_quadrature(None, 1.0 / math.cos(math.radians(phi_deg)))
     half = 0.5 * lags[:, None, None] * delta_theta_deg
@@ -587,13 +316,91 @@ def uniform_mode(phi_deg: float, delta_theta_deg: float, n_lags: int, swept: boo
     Times ``sigma_V^2`` it is the large-scale part of the two-beam structure function
     (:mod:`cwproc.physics.two_beam`), absent from the small-angle model.
     """
-    from cwproc.physics import two_beam
-
     lags = np.arange(1, n_lags + 1, dtype=float)
     sweep = dict(sweep_deg=delta_theta_deg, n_sweep=N_SWEEP) if swept else {}
     sa = two_beam.mean_direction(np.zeros_like(lags), phi_deg, **sweep)
     sb = two_beam.mean_direction(lags * delta_theta_deg, phi_deg, **sweep)
     return np.sum((sa - sb) ** 2, axis=-1)
+
+
+def _azimuth_to_nodes(theta: np.ndarray) -> np.ndarray:
+    """``(theta, N_BINS)``: periodic linear interpolation from ``theta`` (rad) to the nodes."""
+    order = np.argsort(np.mod(theta, 2 * np.pi))
+    th_sorted = np.mod(theta, 2 * np.pi)[order]
+    eye = np.eye(theta.size)[order]
+    return np.stack(
+        [
+            np.interp(azimuth_nodes(), th_sorted, eye[:, k], period=2 * np.pi)
+            for k in range(theta.size)
+        ]
+    )
+
+
+def _geometry_terms(
+    probe: Probe, params: dict, ranges: np.ndarray, mu: np.ndarray, swept: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(same, g1, g2, unif)`` of the exact pair geometry, or neutral with small angles.
+
+    ``same``: twice the same-beam term per height
+    (:func:`cwproc.physics.two_beam.same_beam_term`); ``g1``, ``g2``: the point-probe
+    ratios of :func:`geometry_correction`; ``unif``: :func:`uniform_mode`.
+    """
+    phi, n_lags = params["phi_deg"], params["n_lags"]
+    if params.get("geometry", "two_beam") != "two_beam":
+        n_th = full_circle().size
+        return (
+            np.zeros(ranges.size),
+            np.ones(n_lags),
+            np.ones((n_lags, mu.size, n_th)),
+            np.zeros(n_lags),
+        )
+    # the same-beam term S: the exact-geometry ratio acts on the cross term A + 2 S
+    same = np.array(
+        [2.0 * two_beam.same_beam_term(two_beam.beam_quadrature(probe, rng), phi) for rng in ranges]
+    )
+    g1, g2 = geometry_correction(phi, params["delta_theta_deg"], n_lags, mu)
+    return same, g1, g2, uniform_mode(phi, params["delta_theta_deg"], n_lags, swept)
+
+
+def _sweep_ratios(
+    probe: Probe,
+    phi: float,
+    dys: np.ndarray,
+    perp_size: np.ndarray,
+    ranges: np.ndarray,
+    rho: tuple[np.ndarray, np.ndarray],
+    lags: np.ndarray,
+    mu: np.ndarray,
+) -> list:
+    """:func:`sweep_transport_ratio` per height (inertial, valid for all outer scales).
+
+    The rays of a continuous scan seen at their own times; ``rho`` is the
+    ``(low, high)`` separation range (m) of the A-curves per height.
+    """
+    rho_lo, rho_hi = rho
+    family = [
+        afunctions.panel_limits(
+            lo * SWEEP_MIN_FRACTION, hi, probe=probe, dy=float(ps) * SWEEP_MIN_FRACTION, range_m=rng
+        )
+        for lo, hi, ps, rng in zip(rho_lo, rho_hi, perp_size, ranges, strict=True)
+    ]
+    inertial_plane = afunctions.PlaneMatrix(
+        min(lim[0] for lim in family), max(lim[1] for lim in family), "inertial"
+    )
+    return [
+        sweep_transport_ratio(
+            probe,
+            phi,
+            float(dys[j]),
+            float(perp_size[j]),
+            float(ranges[j]),
+            (float(rho_lo[j]) * SWEEP_MIN_FRACTION, float(rho_hi[j])),
+            lags,
+            mu,
+            inertial_plane,
+        )
+        for j in range(dys.size)
+    ]
 
 
 def build_a_table(probe: Probe, params: dict) -> ATable:
@@ -606,29 +413,18 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
     finite outer scales, ``sigma_V^2 |S_a - S_b|^2`` (:func:`uniform_mode`) are added.
     ``A_2`` is stored as its azimuth average (``log_a2``) and, for inertial tables, its
     means over azimuth bins relative to that average (``bins_a2``), so that sectors and
-    gaps can be averaged over the azimuths present.
+    gaps can be averaged over the azimuths of the pairs present.
     """
-    phi = params["phi_deg"]
-    n_lags = params["n_lags"]
-    model = params["model"]
+    phi, n_lags, model = params["phi_deg"], params["n_lags"], params["model"]
     swept = bool(params.get("swept", True))
-    exact = params.get("geometry", "two_beam") == "two_beam"
     heights = _geometric(*params["height_range_m"], HEIGHT_RATIO)
     mu = default_mu_grid(params["mu_max"])
     if model == "inertial":
         scales = np.array([np.nan])
     else:
         scales = _geometric(*params["outer_scale_range_m"], OUTER_SCALE_RATIO)
-    dtheta = math.radians(params["delta_theta_deg"])
     lags = np.arange(1, n_lags + 1, dtype=float)
-    th = full_circle()
-    # periodic linear interpolation from the table's azimuths to the nodes
-    order = np.argsort(np.mod(th, 2 * np.pi))
-    th_sorted = np.mod(th, 2 * np.pi)[order]
-    eye = np.eye(th.size)[order]
-    to_nodes = np.stack(
-        [np.interp(azimuth_nodes(), th_sorted, eye[:, k], period=2 * np.pi) for k in range(th.size)]
-    )
+    to_nodes = _azimuth_to_nodes(full_circle())
     log_a1 = np.empty((scales.size, heights.size, n_lags))
     log_a2 = np.empty((scales.size, heights.size, n_lags, mu.size))
     bins_a2 = np.empty((scales.size, heights.size, n_lags, mu.size, N_BINS))
@@ -636,26 +432,14 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
     # the probe centre samples the circle of radius R_c cos(phi): R_c = R for a pulsed
     # gate, R/(1 + (R/z_d)^2) for a cw focus (Banakh et al. (1999), Q_s)
     radius = np.asarray(probe.centre_range(ranges), float) * math.cos(math.radians(phi))
-    dys = dtheta * radius
+    dys = math.radians(params["delta_theta_deg"]) * radius
     perp_size = np.asarray(probe.transverse_size(dys), float) if swept else np.zeros_like(dys)
-    if exact:
-        from cwproc.physics import two_beam
-
-        # the same-beam term S: the exact-geometry ratio acts on the cross term A + 2 S
-        same = np.array(
-            [
-                2.0 * two_beam.same_beam_term(two_beam.beam_quadrature(probe, rng), phi)
-                for rng in ranges
-            ]
-        )
-        g1, g2 = geometry_correction(phi, params["delta_theta_deg"], n_lags, mu)
-        unif = uniform_mode(phi, params["delta_theta_deg"], n_lags, swept)
-    else:
-        g1, g2, unif = np.ones(n_lags), np.ones((n_lags, mu.size, th.size)), np.zeros(n_lags)
-
-        same = np.zeros(heights.size)
+    same, g1, g2, unif = _geometry_terms(probe, params, ranges, mu, swept)
     rho_lo = 0.02 * dys
     rho_hi = n_lags * dys * (1.0 + params["mu_max"]) * 1.01
+    sweep = [1.0] * heights.size
+    if params.get("geometry", "two_beam") == "two_beam" and np.any(perp_size > 0):
+        sweep = _sweep_ratios(probe, phi, dys, perp_size, ranges, (rho_lo, rho_hi), lags, mu)
     for i, big_l in enumerate(scales):
         outer = None if model == "inertial" else float(big_l)
         sigma2 = 0.0 if outer is None else spectra.variance_per_eps23(model, outer)
@@ -669,37 +453,6 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
         plane = afunctions.PlaneMatrix(
             min(lim[0] for lim in limits), max(lim[1] for lim in limits), model, outer
         )
-        if i == 0 and exact and np.any(perp_size > 0):
-            # rays of a continuous scan seen at their own times (inertial, all outer scales)
-            family = [
-                afunctions.panel_limits(
-                    lo * SWEEP_MIN_FRACTION,
-                    hi,
-                    probe=probe,
-                    dy=float(ps) * SWEEP_MIN_FRACTION,
-                    range_m=rng,
-                )
-                for lo, hi, ps, rng in zip(rho_lo, rho_hi, perp_size, ranges, strict=True)
-            ]
-            inertial_plane = afunctions.PlaneMatrix(
-                min(lim[0] for lim in family), max(lim[1] for lim in family), "inertial"
-            )
-            sweep = [
-                sweep_transport_ratio(
-                    probe,
-                    phi,
-                    float(dys[j]),
-                    float(perp_size[j]),
-                    float(ranges[j]),
-                    (float(rho_lo[j]) * SWEEP_MIN_FRACTION, float(rho_hi[j])),
-                    lags,
-                    mu,
-                    inertial_plane,
-                )
-                for j in range(heights.size)
-            ]
-        elif i == 0:
-            sweep = [1.0] * heights.size
         for j in range(heights.size):
             dy = float(dys[j])
             curves = afunctions.a_curve_splines(

@@ -301,7 +301,54 @@ def mean_direction(
     return beam_vector(az, np.asarray(elevation_deg, float)[..., None]).mean(axis=-2)
 
 
-def two_beam_structure_function(
+@dataclass(frozen=True)
+class PairGeometry:
+    """Two rays of a scan as :func:`two_beam_structure_function` sees them.
+
+    Attributes
+    ----------
+    quadrature : BeamQuadrature
+        Range weighting along each beam.
+    azimuth_a_deg, azimuth_b_deg, elevation_deg : numpy.ndarray
+        Azimuths and elevation of the rays (deg), broadcast with the time separation.
+    shift_m : numpy.ndarray
+        ``U (t_a - t_b)`` (m), ``(..., 3)``: the transport between the rays.
+    sweep_deg, n_sweep : float, int
+        Azimuth swept during one ray (deg) and its sub-beams.
+    sweep_shift_m : numpy.ndarray
+        ``U tau`` (m), ``(3,)``: the transport while one ray is accumulated.
+    """
+
+    quadrature: BeamQuadrature
+    azimuth_a_deg: np.ndarray
+    azimuth_b_deg: np.ndarray
+    elevation_deg: np.ndarray
+    shift_m: np.ndarray
+    sweep_deg: float
+    n_sweep: int
+    sweep_shift_m: np.ndarray
+
+    def cross(self, a: np.ndarray, b: np.ndarray, shift: bool, **model: Any) -> np.ndarray:
+        """:func:`cross_term` of azimuths ``a`` and ``b`` with this pair's sweep.
+
+        ``shift``: with the transport ``shift_m`` between the rays (else none);
+        ``model``: ``model`` and ``outer_scale_m``.
+        """
+        separation = {"separation_m": self.shift_m} if shift else {}
+        return cross_term(
+            a,
+            b,
+            self.elevation_deg,
+            self.quadrature,
+            sweep_deg=self.sweep_deg,
+            n_sweep=self.n_sweep,
+            sweep_shift_m=self.sweep_shift_m,
+            **separation,
+            **model,
+        )
+
+
+def pair_geometry(
     azimuth_a_deg: ArrayLike,
     azimuth_b_deg: ArrayLike,
     elevation_deg: ArrayLike,
@@ -311,19 +358,11 @@ def two_beam_structure_function(
     quadrature: BeamQuadrature | None = None,
     time_separation_s: ArrayLike = 0.0,
     mean_wind: ArrayLike | None = None,
-    model: str = "inertial",
-    epsilon: float = 1.0,
-    outer_scale_m: float | None = None,
     sweep_deg: float = 0.0,
     n_sweep: int = 1,
     ray_duration_s: float = 0.0,
-) -> np.ndarray:
-    """``<[V_D(a) - V_D(b)]^2>`` of two probe-averaged radial velocities (m2 s-2).
-
-    The exact two-beam model of the module docstring (Banakh et al. (1999), eqs. 15-16 in
-    structure-tensor form): chord separation of the probe volumes, the angle between the
-    beams, range weighting along both beams, sweep averaging across each ray and the
-    transport ``U (t_a - t_b)``.
+) -> PairGeometry:
+    """The :class:`PairGeometry` of two rays.
 
     Parameters
     ----------
@@ -342,17 +381,56 @@ def two_beam_structure_function(
         ``t_a - t_b`` (s).
     mean_wind : array_like, optional
         ``U`` (up, north, east) (m s-1), frozen-turbulence transport; ``None``: none.
+    sweep_deg, n_sweep : float, int
+        Azimuth swept during one ray (deg; 0 for step-stare) and its sub-beams.
+    ray_duration_s : float
+        Accumulation time of one swept ray (s): the wind moves the field by ``U tau``
+        while the beam sweeps (continuous scans: ``tau = T_scan / M``).
+    """
+    q = quadrature if quadrature is not None else beam_quadrature(probe, range_m)
+    az_a, az_b, el, t = np.broadcast_arrays(
+        np.asarray(azimuth_a_deg, float),
+        np.asarray(azimuth_b_deg, float),
+        np.asarray(elevation_deg, float),
+        np.asarray(time_separation_s, dtype=float),
+    )
+    wind = np.zeros(3) if mean_wind is None else np.asarray(mean_wind, dtype=float)
+    return PairGeometry(
+        q, az_a, az_b, el, wind * t[..., None], sweep_deg, n_sweep, wind * ray_duration_s
+    )
+
+
+def two_beam_structure_function(
+    azimuth_a_deg: ArrayLike,
+    azimuth_b_deg: ArrayLike,
+    elevation_deg: ArrayLike,
+    range_m: float,
+    *,
+    model: str = "inertial",
+    epsilon: float = 1.0,
+    outer_scale_m: float | None = None,
+    **pair: Any,
+) -> np.ndarray:
+    """``<[V_D(a) - V_D(b)]^2>`` of two probe-averaged radial velocities (m2 s-2).
+
+    The exact two-beam model of the module docstring (Banakh et al. (1999), eqs. 15-16 in
+    structure-tensor form): chord separation of the probe volumes, the angle between the
+    beams, range weighting along both beams, sweep averaging across each ray and the
+    transport ``U (t_a - t_b)``.
+
+    Parameters
+    ----------
+    azimuth_a_deg, azimuth_b_deg, elevation_deg, range_m
+        The rays, as :func:`pair_geometry`.
     model : {"inertial", "von_karman", "exponential"}
         Turbulence model (:mod:`cwproc.physics.spectra`).
     epsilon : float
         Dissipation rate (m2 s-3); 1 returns the pair's exact A-function (m^(2/3)).
     outer_scale_m : float, optional
         ``L_V`` (m) of the finite-outer-scale models.
-    sweep_deg, n_sweep : float, int
-        Azimuth swept during one ray (deg; 0 for step-stare) and its sub-beams.
-    ray_duration_s : float
-        Accumulation time of one swept ray (s): the wind moves the field by ``U tau``
-        while the beam sweeps (continuous scans: ``tau = T_scan / M``).
+    **pair
+        ``probe``, ``quadrature``, ``time_separation_s``, ``mean_wind``, ``sweep_deg``,
+        ``n_sweep``, ``ray_duration_s`` of :func:`pair_geometry`.
 
     Returns
     -------
@@ -360,42 +438,30 @@ def two_beam_structure_function(
         ``D`` (m2 s-2), broadcast shape of the inputs.
     """
     spectra._check_model(model, outer_scale_m)
-    q = quadrature if quadrature is not None else beam_quadrature(probe, range_m)
-    t = np.asarray(time_separation_s, dtype=float)
-    az_a, az_b, el, t = np.broadcast_arrays(
-        np.asarray(azimuth_a_deg, float),
-        np.asarray(azimuth_b_deg, float),
-        np.asarray(elevation_deg, float),
-        t,
-    )
-    wind = np.zeros(3) if mean_wind is None else np.asarray(mean_wind, dtype=float)
-    shift = wind * t[..., None]
-    sub = dict(sweep_deg=sweep_deg, n_sweep=n_sweep, sweep_shift_m=wind * ray_duration_s)
-    cross = cross_term(
-        az_a, az_b, el, q, separation_m=shift, model=model, outer_scale_m=outer_scale_m, **sub
-    )
-    out = np.asarray(cross, dtype=float)
-    moving = bool(np.any(sub["sweep_shift_m"] != 0)) and sweep_deg != 0 and n_sweep > 1
+    g = pair_geometry(azimuth_a_deg, azimuth_b_deg, elevation_deg, range_m, **pair)
+    az_a, az_b, el = g.azimuth_a_deg, g.azimuth_b_deg, g.elevation_deg
+    turbulence = dict(model=model, outer_scale_m=outer_scale_m)
+    out = np.asarray(g.cross(az_a, az_b, True, **turbulence), dtype=float)
+    moving = bool(np.any(g.sweep_shift_m != 0)) and g.sweep_deg != 0 and g.n_sweep > 1
     if moving:  # a ray seen at its own times: its same-beam term depends on the azimuth
-        args = dict(model=model, outer_scale_m=outer_scale_m, **sub)
         out = out - 0.5 * (
-            cross_term(az_a, az_a, el, q, **args) + cross_term(az_b, az_b, el, q, **args)
+            g.cross(az_a, az_a, False, **turbulence) + g.cross(az_b, az_b, False, **turbulence)
         )
     else:
         for e in np.unique(el):
             self_term = same_beam_term(
-                q,
+                g.quadrature,
                 float(e),
                 model=model,
                 outer_scale_m=outer_scale_m,
-                sweep_deg=sweep_deg,
-                n_sweep=n_sweep,
+                sweep_deg=g.sweep_deg,
+                n_sweep=g.n_sweep,
             )
             out = np.where(el == e, out - 2.0 * self_term, out)
     if model != "inertial":
         sigma2 = spectra.variance_per_eps23(model, float(outer_scale_m))
-        diff = mean_direction(az_a, el, sweep_deg, n_sweep) - mean_direction(
-            az_b, el, sweep_deg, n_sweep
+        diff = mean_direction(az_a, el, g.sweep_deg, g.n_sweep) - mean_direction(
+            az_b, el, g.sweep_deg, g.n_sweep
         )
         out = out + sigma2 * np.sum(diff * diff, axis=-1)
     return float(epsilon) ** (2.0 / 3.0) * out
@@ -407,16 +473,10 @@ def two_beam_covariance(
     elevation_deg: ArrayLike,
     range_m: float,
     *,
-    probe: Any = None,
-    quadrature: BeamQuadrature | None = None,
-    time_separation_s: ArrayLike = 0.0,
-    mean_wind: ArrayLike | None = None,
+    outer_scale_m: float,
     model: str = "von_karman",
     epsilon: float = 1.0,
-    outer_scale_m: float,
-    sweep_deg: float = 0.0,
-    n_sweep: int = 1,
-    ray_duration_s: float = 0.0,
+    **pair: Any,
 ) -> np.ndarray:
     """Covariance ``<V_D(a) V_D(b)>`` (m2 s-2) of two probe-averaged radial velocities.
 
@@ -429,22 +489,13 @@ def two_beam_covariance(
     if model == "inertial":
         raise ValueError("the inertial model has no finite covariance; use von_karman")
     spectra._check_model(model, outer_scale_m)
-    q = quadrature if quadrature is not None else beam_quadrature(probe, range_m)
-    az_a, az_b, el, t = np.broadcast_arrays(
-        np.asarray(azimuth_a_deg, float),
-        np.asarray(azimuth_b_deg, float),
-        np.asarray(elevation_deg, float),
-        np.asarray(time_separation_s, dtype=float),
-    )
-    wind = np.zeros(3) if mean_wind is None else np.asarray(mean_wind, dtype=float)
-    shift = wind * t[..., None]
-    sub = dict(sweep_deg=sweep_deg, n_sweep=n_sweep, sweep_shift_m=wind * ray_duration_s)
+    g = pair_geometry(azimuth_a_deg, azimuth_b_deg, elevation_deg, range_m, **pair)
     sigma2 = spectra.variance_per_eps23(model, float(outer_scale_m))
-    sa = mean_direction(az_a, el, sweep_deg, n_sweep)
-    sb = mean_direction(az_b, el, sweep_deg, n_sweep)
+    sa = mean_direction(g.azimuth_a_deg, g.elevation_deg, g.sweep_deg, g.n_sweep)
+    sb = mean_direction(g.azimuth_b_deg, g.elevation_deg, g.sweep_deg, g.n_sweep)
     out = sigma2 * np.sum(sa * sb, axis=-1)
     # one pair rule for all pairs, the same ray included (consistent cusps)
-    cross = cross_term(
-        az_a, az_b, el, q, separation_m=shift, model=model, outer_scale_m=outer_scale_m, **sub
+    cross = g.cross(
+        g.azimuth_a_deg, g.azimuth_b_deg, True, model=model, outer_scale_m=outer_scale_m
     )
     return float(epsilon) ** (2.0 / 3.0) * (out - 0.5 * cross)

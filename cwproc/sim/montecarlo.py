@@ -49,6 +49,7 @@ from cwproc.physics.correlation import (
     wind_vector,
 )
 from cwproc.physics.cw_probe import cw_probe_quadrature, probe_grid
+from cwproc.physics.exact_lag import fit_correlation_shape
 from cwproc.physics.spectra import epsilon_from, integral_scale_coefficient
 from cwproc.sim.cw import CWLidar, along_beam_offsets
 from cwproc.sim.turbulence import (
@@ -57,7 +58,6 @@ from cwproc.sim.turbulence import (
     scan_cholesky,
     simulate_scan_velocities,
 )
-from cwproc.stages.epsilon import fit_correlation_shape
 
 #: outer scales (m) of the fit grid; log-spaced, 6 % apart
 FIT_SCALES = np.geomspace(5.0, 5.0e4, 160)
@@ -200,7 +200,7 @@ def fit_structure_function(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares fit of D_L(l) = sigma^2 d(l; L) over a grid of outer scales.
 
-    :func:`cwproc.stages.epsilon.fit_correlation_shape` without the noise term (the
+    :func:`cwproc.physics.exact_lag.fit_correlation_shape` without the noise term (the
     study uses the exact V_D). Model: Banakh et al. (1999), eqs. 15-17 (see
     :func:`height_model`).
 

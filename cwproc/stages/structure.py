@@ -35,7 +35,7 @@ import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.io.scans import is_homodyne
-from cwproc.physics.atable import N_BINS, azimuth_bin_weights, azimuth_nodes
+from cwproc.physics.atable_interp import N_BINS, azimuth_bin_weights, azimuth_nodes
 from cwproc.physics.geometry import radial_velocity
 from cwproc.references import SMALIKHO_2020
 
@@ -175,7 +175,7 @@ def pair_azimuth_weights(
     Each pair of neighbouring rays with both values valid counts at the angle of the
     block-mean wind's direction of motion from the scan's direction of motion at the
     pair's middle, ``sign (alpha - beta)`` (Smalikho (2020), eq. 15: the wind's component
-    along the scan is ``U sin theta``); :func:`cwproc.physics.atable.azimuth_bin_weights`
+    along the scan is ``U sin theta``); :func:`cwproc.physics.atable_interp.azimuth_bin_weights`
     shares it between the nodes. The azimuth grid of a block is that of its first scan.
 
     Parameters

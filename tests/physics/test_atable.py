@@ -10,6 +10,7 @@ import pytest
 from cwproc.physics import atable
 from cwproc.physics.afunctions import a2, a_perp
 from cwproc.physics.atable import get_a_table
+from cwproc.physics.atable_interp import ATable, azimuth_bin_weights
 from cwproc.physics.transfer import CWProbe, PulsedProbe
 
 PROBE = PulsedProbe()
@@ -197,7 +198,7 @@ def test_interpolation_is_exact_for_cubics():
         return 0.01 * log_l**3 - 0.02 * log_h**2 * log_l + 0.03 * mu**3 + log_h * mu + lag
 
     ll, lh = np.log(scales), np.log(heights)
-    tab = atable.ATable(
+    tab = ATable(
         heights,
         mu_nodes,
         scales,
@@ -224,7 +225,7 @@ def test_cell_table_equals_evaluate():
     rng = np.random.default_rng(3)
     log_a1 = rng.normal(size=(scales.size, heights.size, 3))
     log_a2 = rng.normal(size=(scales.size, heights.size, 3, mu_nodes.size))
-    tab = atable.ATable(heights, mu_nodes, scales, log_a1, log_a2, {"model": "von_karman"})
+    tab = ATable(heights, mu_nodes, scales, log_a1, log_a2, {"model": "von_karman"})
     n = 300
     h = rng.uniform(5.0, 3100.0, n)  # a few outside the heights: NaN
     mu = rng.uniform(0.0, 4.5, n)  # and outside mu: NaN in A_2 only
@@ -296,7 +297,7 @@ def test_sector_average_uses_the_azimuth_bins(stare_table):
     # the exact pair where the transport shortens the separation to the probe length
     mids = np.arange(7.5, 90.0, 2.5)
     wind_to, mu = 70.0, 1.0
-    weights = atable.azimuth_bin_weights(np.radians(wind_to - mids))
+    weights = azimuth_bin_weights(np.radians(wind_to - mids))
     for lag in (1, 3):
         direct = _direct_pairs(lag, mu, mids, wind_to)
         full = float(stare_table.evaluate(lag, 300.0, mu)[1])

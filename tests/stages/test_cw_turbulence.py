@@ -27,10 +27,13 @@ import xarray as xr
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from cwproc.physics import exact_lag
+from cwproc.physics.probe_variance import passed_variance
 from cwproc.physics.spectra import epsilon_from
 from cwproc.physics.transfer import CWProbe
 from cwproc.sim.cw import CWLidar, simulate_cw_scans
 from cwproc.stages import epsilon, qc, structure, vad
+from cwproc.stages.epsilon.flags import FLAG_NOISE_PREDICTED
 
 HEIGHT = 50.0
 SIGMA2 = 1.0
@@ -96,7 +99,7 @@ def test_epsilon_from_cw_centroid_scans_within_20_percent(heterodyne, tmp_path):
     _, turb = _retrieve(ds, lidar, tmp_path)
     # three lags leave one degree of freedom for the noise intercept: it may be not
     # significant (flag 32, no prediction for a cw lidar), nothing else is flagged
-    assert int(turb["turbulence_flag"].values.ravel()[0]) & ~epsilon.FLAG_NOISE_PREDICTED == 0
+    assert int(turb["turbulence_flag"].values.ravel()[0]) & ~FLAG_NOISE_PREDICTED == 0
     for name in ("epsilon", "epsilon_method1", "epsilon_fit"):
         assert float(turb[name].values.ravel()[0]) == pytest.approx(TRUE_EPSILON, rel=0.2), name
 
@@ -132,7 +135,7 @@ def test_epsilon_from_homodyne_cw_scans_within_20_percent(heterodyne, tmp_path):
 def test_seed000_probe_exact_model_recovers_eps_variance_and_scale(tmp_path):
     """Exact eq-4 data of the seed-000 cw probe at h = 300, 500 m (L_V = 300, 333 m).
 
-    The data are the exact B_D model (``epsilon.exact_lag_model``, Banakh et al. (1999),
+    The data are the exact B_D model (``exact_lag.exact_lag_model``, Banakh et al. (1999),
     eqs. 15-17) with white noise sigma_e = 0.05 m/s and the variance of V'_L about the
     10-scan VAD fit. The probe (half width 113-275 m) passes only 44 % and 29 % of
     sigma_V^2; with the inertial averaging loss instead, sigma_V^2 came out 1.9-2.5
@@ -153,7 +156,7 @@ def test_seed000_probe_exact_model_recovers_eps_variance_and_scale(tmp_path):
     d = np.empty((2, 3))
     var_raw = np.empty(2)
     for i in range(2):
-        lm = epsilon.exact_lag_model(probe, rng_m[i], 30.0, dtheta, 3, "exponential")
+        lm = exact_lag.exact_lag_model(probe, rng_m[i], 30.0, dtheta, 3, "exponential")
         k = np.argmin(np.abs(np.log(lm.scales / big_l[i])))
         big_l[i] = lm.scales[k]  # on the grid: no interpolation error in the data
         d[i] = sigma2[i] * lm.structure[k] + 2 * noise**2
@@ -225,13 +228,13 @@ def test_exact_cw_model_agrees_with_the_spectral_a_functions(tmp_path):
     )
     for h, big_l in ((50.0, 133.0), (300.0, 300.0), (500.0, 333.0)):
         r = h / np.sin(np.deg2rad(30.0))
-        lm = epsilon.exact_lag_model(probe, r, 30.0, dtheta, 3, "exponential")
+        lm = exact_lag.exact_lag_model(probe, r, 30.0, dtheta, 3, "exponential")
         exact = np.array([np.interp(np.log(big_l), np.log(lm.scales), c) for c in lm.structure.T])
         exact *= variance_per_eps23("exponential", big_l)  # per eps^(2/3), as A_2 / 1
         _, a2 = table.evaluate(np.arange(1.0, 4.0), np.full(3, h), np.zeros(3), np.full(3, big_l))
         assert np.asarray(a2) == pytest.approx(exact, rel=0.05), h
         dy = np.deg2rad(dtheta) * probe.centre_range(r) * np.cos(np.deg2rad(30.0))
-        through = epsilon.passed_variance(probe, [dy], [r], "exponential", [big_l])[0, 0]
+        through = passed_variance(probe, [dy], [r], "exponential", [big_l])[0, 0]
         passed = lm.interpolate("passed", np.array(big_l)) * variance_per_eps23(
             "exponential", big_l
         )
@@ -255,8 +258,8 @@ def test_vad_removed_variance_equals_the_simulators_trace_of_the_hat_matrix():
     for h in (50.0, 500.0):
         rng_m = np.array([h / np.sin(np.deg2rad(30.0))])
         dy = np.deg2rad(360.0 / 140) * probe.centre_range(rng_m) * np.cos(np.deg2rad(30.0))
-        passed = epsilon.passed_variance(probe, dy, rng_m, "exponential", scales)
-        removed = epsilon.vad_removed_variance(
+        passed = passed_variance(probe, dy, rng_m, "exponential", scales)
+        removed = exact_lag.vad_removed_variance(
             probe, rng_m, 30.0, 140, "exponential", scales, passed
         )[0]
         full = np.array([variance_per_eps23("exponential", x) for x in scales])
@@ -269,7 +272,7 @@ def test_vad_removed_variance_of_uncorrelated_rays_is_three_rays_worth():
     probe = CWProbe(wavelength_m=10.6e-6, beam_radius_m=0.075)
     rng_m = np.array([100.0])
     passed = np.array([[2.0]])
-    removed = epsilon.vad_removed_variance(
+    removed = exact_lag.vad_removed_variance(
         probe, rng_m, 30.0, 24, "exponential", np.array([0.5]), passed
     )
     assert removed[0, 0] == pytest.approx(3.0 * 2.0 / 24, rel=1e-3)
@@ -284,18 +287,20 @@ def test_shape_fit_recovers_level_outer_scale_and_noise_between_grid_nodes(noise
     eqs. 15-17; Smalikho (2020), eq. 4).
     """
     probe = CWProbe(wavelength_m=10.6e-6, beam_radius_m=0.075)
-    lm = epsilon.exact_lag_model(probe, 1000.0, 30.0, 360.0 / 140, 3, "exponential")
+    lm = exact_lag.exact_lag_model(probe, 1000.0, 30.0, 360.0 / 140, 3, "exponential")
     fine = np.geomspace(250.0, 450.0, 41)  # a finer grid gives the truth
-    truth = epsilon.exact_lag_model(probe, 1000.0, 30.0, 360.0 / 140, 3, "exponential", fine)
+    truth = exact_lag.exact_lag_model(probe, 1000.0, 30.0, 360.0 / 140, 3, "exponential", fine)
     k = int(np.argmin(np.abs(np.log(fine / 333.0))))
     assert not np.any(np.isclose(lm.scales, fine[k], rtol=1e-3))  # between the nodes
     d = 1.04 * truth.structure[k] + 2 * noise**2
-    s2, big_l, nv = epsilon.fit_correlation_shape(d[None], lm.structure, lm.scales, noise=noise > 0)
+    s2, big_l, nv = exact_lag.fit_correlation_shape(
+        d[None], lm.structure, lm.scales, noise=noise > 0
+    )
     assert big_l[0] == pytest.approx(fine[k], rel=0.01)
     assert s2[0] == pytest.approx(1.04, rel=0.01)
     assert np.sqrt(nv[0]) == pytest.approx(noise, rel=0.05, abs=1e-9)
     # fewer than two valid lags: no estimate
-    s2, big_l, _ = epsilon.fit_correlation_shape(
+    s2, big_l, _ = exact_lag.fit_correlation_shape(
         d[None], lm.structure, lm.scales, np.array([[True, False, False]])
     )
     assert np.isnan(s2[0]) and np.isnan(big_l[0])
@@ -316,10 +321,10 @@ def test_exact_cw_fit_returns_eps_of_any_model_structure_function(sigma2, log_sc
     it must still come back.
     """
     probe = CWProbe(wavelength_m=10.6e-6, beam_radius_m=0.075)
-    lm = epsilon._exact_lag_model_cached(probe, 2.0 * height, 30.0, 360.0 / 140, 3, "exponential")
+    lm = exact_lag.exact_lag_model_cached(probe, 2.0 * height, 30.0, 360.0 / 140, 3, "exponential")
     shape = np.array([np.interp(log_scale, np.log(lm.scales), c) for c in lm.structure.T])
     d = sigma2 * shape + 2 * noise**2
-    s2, big_l, nv = epsilon.fit_correlation_shape(d[None], lm.structure, lm.scales, noise=True)
+    s2, big_l, nv = exact_lag.fit_correlation_shape(d[None], lm.structure, lm.scales, noise=True)
     c = 1.331
     truth = c * sigma2**1.5 / np.exp(log_scale)
     assert c * s2[0] ** 1.5 / big_l[0] == pytest.approx(truth, rel=0.03)
@@ -328,16 +333,16 @@ def test_exact_cw_fit_returns_eps_of_any_model_structure_function(sigma2, log_sc
 
 def test_running_nanmedian_skips_gaps_and_follows_the_order():
     values = np.array([1.0, np.nan, 3.0, 100.0, 5.0])
-    got = epsilon.running_nanmedian(values, np.arange(5), 3)
+    got = exact_lag.running_nanmedian(values, np.arange(5), 3)
     np.testing.assert_allclose(got, [1.0, 2.0, 51.5, 5.0, 52.5])
     perm = np.array([3, 0, 4, 1, 2])  # the same sequence, stored out of order
-    np.testing.assert_allclose(epsilon.running_nanmedian(values[perm], perm, 3), got[perm])
+    np.testing.assert_allclose(exact_lag.running_nanmedian(values[perm], perm, 3), got[perm])
 
 
 def _exact_blocks(probe, sigma2, big_l, noise, dtheta=360.0 / 140):
     """Structure-function datasets of blocks at h = 300 m from the exact model."""
     rng_m = 600.0
-    lm = epsilon.exact_lag_model(probe, rng_m, 30.0, dtheta, 3, "exponential")
+    lm = exact_lag.exact_lag_model(probe, rng_m, 30.0, dtheta, 3, "exponential")
     k = np.argmin(np.abs(np.log(lm.scales / big_l)))
     d = sigma2[:, None] * lm.structure[k][None, :] + 2 * noise[:, None] ** 2
     var = sigma2 * (lm.passed[k] - lm.removed[k] / 10) + noise**2

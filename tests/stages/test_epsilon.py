@@ -8,21 +8,21 @@ import xarray as xr
 
 from cwproc.physics import spectra
 from cwproc.physics.atable import get_a_table
+from cwproc.physics.probe_variance import averaging_loss, passed_variance
+from cwproc.physics.removed_share import (
+    mean_removed_share,
+    partial_circle,
+    sector_removed_share,
+)
+from cwproc.physics.structure_fit import eq5_epsilon, fit_structure_function
 from cwproc.physics.transfer import PulsedProbe
-from cwproc.stages.epsilon import (
+from cwproc.stages.epsilon import estimate_epsilon
+from cwproc.stages.epsilon.flags import (
     FLAG_BEYOND_INERTIAL,
     FLAG_FIT_FAILED,
     FLAG_METHOD1_INVALID,
     FLAG_PARTIAL_BLOCK,
     FLAG_TOO_FEW_PAIRS,
-    averaging_loss,
-    eq5_epsilon,
-    estimate_epsilon,
-    fit_structure_function,
-    mean_removed_share,
-    partial_circle,
-    passed_variance,
-    sector_removed_share,
 )
 
 PHI = 35.3  # deg
@@ -497,7 +497,7 @@ def test_blocks_with_too_few_pairs_are_flagged_not_estimated(sim_results):
 def test_table_height_range_covers_the_data_in_few_distinct_steps():
     """Default 10-3000 m; a gate at 8.7 m (sample data) or 5 km widens it by 1.2^4 steps."""
     from cwproc.physics.atable import HEIGHT_RATIO
-    from cwproc.stages.epsilon import table_height_range
+    from cwproc.stages.epsilon.atable_fit import table_height_range
 
     assert table_height_range(np.array([50.0, 2500.0])) == (10.0, 3000.0)
     step = HEIGHT_RATIO**4
@@ -519,7 +519,7 @@ def _two_beam_sf(mids_deg, *, dtheta, phi, height, eps, noise, speed, wind_to, t
     import math
 
     from cwproc.physics import two_beam
-    from cwproc.physics.atable import azimuth_bin_weights
+    from cwproc.physics.atable_interp import azimuth_bin_weights
 
     rng = height / math.sin(math.radians(phi))
     a = math.radians(wind_to)
@@ -621,7 +621,7 @@ def test_von_karman_coarse_scans_recover_eps_and_outer_scale(tmp_path, n_rays, t
     import math
 
     from cwproc.physics import two_beam
-    from cwproc.physics.atable import azimuth_bin_weights
+    from cwproc.physics.atable_interp import azimuth_bin_weights
 
     phi, h, eps, big_l, noise, speed = 60.0, 300.0, 5e-3, 300.0, 0.05, 10.0
     dtheta = 360.0 / n_rays
@@ -755,7 +755,7 @@ def test_sample_data_never_store_a_measured_noise_of_zero(tmp_path):
     from click.testing import CliRunner
 
     from cwproc.cli import main
-    from cwproc.stages.epsilon import FLAG_NOISE_PREDICTED
+    from cwproc.stages.epsilon.flags import FLAG_NOISE_PREDICTED
 
     sample = Path(__file__).parents[2] / "sample_data"
     res = CliRunner().invoke(
@@ -863,7 +863,7 @@ def test_exact_statistics_eps_is_unbiased_and_its_error_bar_calibrated(
 
 def _pair_node_weights(azimuth_deg: np.ndarray, wind_to_deg: float) -> np.ndarray:
     """Node weights of the lag-1 pairs of one scan, as the structure stage records them."""
-    from cwproc.physics.atable import azimuth_bin_weights
+    from cwproc.physics.atable_interp import azimuth_bin_weights
 
     az = np.asarray(azimuth_deg, float)
     step = np.diff(az)
@@ -937,8 +937,8 @@ def test_sector_scans_use_the_sector_vad_removal_in_the_variance_condition(optio
     eps, L_V and sigma_V^2 back; with the full circle's share (measured: L_V 27-30 % low,
     eps 4-5 % high) L_V is more than 10 % off.
     """
-    from cwproc.physics.atable import azimuth_bin_weights
-    from cwproc.stages.epsilon import _sector_evaluate
+    from cwproc.physics.atable_interp import azimuth_bin_weights
+    from cwproc.stages.epsilon.atable_fit import sector_evaluate as _sector_evaluate
 
     eps, noise, big_l, mu, interval = 0.003, 0.1, 300.0, 0.5, 18.0 / T_SCAN
     lags = np.arange(1, N_LAGS + 1, dtype=float)
@@ -983,7 +983,8 @@ def test_sector_scans_use_the_sector_vad_removal_in_the_variance_condition(optio
     np.testing.assert_allclose(out["velocity_variance"].values, eps ** (2 / 3) * full, rtol=0.03)
     # the same data with the full circle's share (partial circles not recognised)
     monkeypatch.setattr(
-        "cwproc.stages.epsilon.partial_circle", lambda w, step: np.zeros(w.shape[:-1], bool)
+        "cwproc.stages.epsilon.outer_scale.partial_circle",
+        lambda w, step: np.zeros(w.shape[:-1], bool),
     )
     circle_only = estimate_epsilon(
         sf, probe=PROBE, lag_number=3, model="von_karman", table_options=options

@@ -260,7 +260,7 @@ def test_coarse_scans_get_three_lags_beyond_nine_degrees():
 
 
 def test_pair_azimuth_weights_full_circle_and_sector():
-    from cwproc.physics.atable import azimuth_bin_weights
+    from cwproc.physics.atable_interp import azimuth_bin_weights
 
     ds = ramp_scans(n_scans=4, rays=72)
     sf = azimuth_structure_function(ds, true_wind(ds), n_scans=4, max_lag_deg=9.0)

@@ -1,0 +1,61 @@
+"""Propagation of a covariance through a function: the delta method.
+
+For estimates ``f(s)`` of statistics ``s`` with covariance ``C``, to first order
+``Var f = g^T C g`` with ``g`` the gradient of ``f`` at ``s`` (first-order propagation
+of errors). Here ``g`` is the secant over one standard error of each
+component (forward differences), the range the sampling error spans. Pure numpy.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+
+def delta_method_errors(
+    function: Callable[[np.ndarray], dict[str, np.ndarray]],
+    stats: np.ndarray,
+    cov: np.ndarray,
+    base: dict[str, np.ndarray],
+    keys: Sequence[str],
+) -> tuple[np.ndarray, ...]:
+    """Standard errors ``sqrt(g^T C g)`` of the outputs ``keys`` of ``function``.
+
+    Parameters
+    ----------
+    function : callable
+        ``function(stats)`` returns a dict of arrays of the shape of ``stats`` without
+        its last axis.
+    stats : numpy.ndarray
+        Statistics, components on the last axis ``(..., n)``.
+    cov : numpy.ndarray
+        Their covariance ``(..., n, n)``.
+    base : dict of numpy.ndarray
+        ``function(stats)``, already computed.
+    keys : sequence of str
+        The outputs whose standard errors are wanted.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        One standard error per key (units of that output); NaN where a gradient or the
+        covariance is not finite. A component of zero or unknown variance is stepped by
+        ``1e-3`` of its value.
+    """
+    step = np.sqrt(np.abs(np.diagonal(cov, axis1=-2, axis2=-1)))
+    step = np.where(np.isfinite(step) & (step > 0), step, 1e-3 * np.abs(stats))
+    grad = {k: np.zeros(stats.shape) for k in keys}
+    for k in range(stats.shape[-1]):
+        s_k = stats.copy()
+        s_k[..., k] += step[..., k]
+        res = function(s_k)
+        for key in keys:
+            with np.errstate(invalid="ignore"):
+                grad[key][..., k] = (res[key] - base[key]) / step[..., k]
+    out = []
+    for key in keys:
+        g = grad[key]
+        with np.errstate(invalid="ignore"):
+            out.append(np.sqrt(np.einsum("...i,...ij,...j->...", g, cov, g)))
+    return tuple(out)

@@ -1,0 +1,171 @@
+"""The A-functions of each cell from the A-tables: methods 1 and 2 of Smalikho (2020).
+
+``A_1 = A_perp`` (method 1) and ``A_2`` of Smalikho (2020), eq. 15 (method 2) of the
+probe at each block and height, interpolated from the cached tables of
+:mod:`cwproc.physics.atable` (one per elevation and azimuth step); ``A_2`` averaged over
+the azimuths of the pairs present (sectors and gaps).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from cwproc.physics.atable import HEIGHT_RATIO, get_a_table
+from cwproc.stages.epsilon.cells import Cells
+
+#: cells (block, height) whose A-functions or passed variances are evaluated at once:
+#: the evaluations hold a few kB per cell, so a day of blocks is done in pieces
+EVALUATION_CELLS = 2048
+
+
+def evaluate_table(
+    table: Any, lags: np.ndarray, height: np.ndarray, mu: np.ndarray, outer: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(A_1, A_2)`` (m^(2/3)) of ``table`` in the broadcast shape of the arguments.
+
+    :meth:`cwproc.physics.atable_interp.ATable.evaluate` on the flattened arguments in
+    pieces of bounded memory; ``outer``: ``L_V`` (m), ``None`` for inertial tables.
+    """
+    args = [lags, height, mu] + ([] if outer is None else [outer])
+    b = np.broadcast_arrays(*[np.asarray(x, dtype=float) for x in args])
+    shape = b[0].shape
+    flat = [x.ravel() for x in b]
+    a1 = np.empty(flat[0].size)
+    a2 = np.empty(flat[0].size)
+    step = EVALUATION_CELLS * 8  # values per call: bounded working memory of the table
+    for start in range(0, a1.size, step):
+        part = [x[start : start + step] for x in flat]
+        a1[start : start + step], a2[start : start + step] = table.evaluate(
+            part[0], part[1], part[2], outer_scale_m=None if outer is None else part[3]
+        )
+    return a1.reshape(shape), a2.reshape(shape)
+
+
+#: the A-table's default height range (m) and the smallest height it is widened to
+DEFAULT_HEIGHT_RANGE_M = (10.0, 3000.0)
+
+MIN_TABLE_HEIGHT_M = 1.0
+
+
+def table_height_range(
+    height_m: np.ndarray, default: tuple[float, float] = DEFAULT_HEIGHT_RANGE_M
+) -> tuple[float, float]:
+    """Height range (m) of the A-table: the default, widened to cover the data's heights.
+
+    The default range is extended downwards and upwards in steps of ``HEIGHT_RATIO^4``
+    (about x2.07, four table nodes) until it holds every finite height at or above
+    :data:`MIN_TABLE_HEIGHT_M`, so that few distinct tables (cache files) arise; each
+    step adds four height nodes, about 12 % of the default table's build time.
+
+    Parameters
+    ----------
+    height_m : numpy.ndarray
+        Heights of the product (m).
+    default : (float, float)
+        Range used when every height lies inside it.
+    """
+    h = np.asarray(height_m, dtype=float)
+    h = h[np.isfinite(h) & (h >= MIN_TABLE_HEIGHT_M)]
+    lo, hi = (float(v) for v in default)
+    if h.size == 0:
+        return lo, hi
+    step = HEIGHT_RATIO**4
+    if h.min() < lo:
+        lo = lo / step ** math.ceil(math.log(lo / h.min()) / math.log(step))
+    if h.max() > hi:
+        hi = hi * step ** math.ceil(math.log(h.max() / hi) / math.log(step))
+    return lo, hi
+
+
+def a_tables(
+    probe: Any, phi: float, dtheta: float, n_lags: int, model: str, options: dict
+) -> tuple:
+    """The inertial A-table and, for finite-outer-scale models, the model's table."""
+    inertial = get_a_table(
+        probe,
+        phi_deg=phi,
+        delta_theta_deg=dtheta,
+        n_lags=n_lags,
+        model="inertial",
+        **{k: v for k, v in options.items() if k != "outer_scale_range_m"},
+    )
+    if model == "inertial":
+        return inertial, None
+    finite = get_a_table(
+        probe, phi_deg=phi, delta_theta_deg=dtheta, n_lags=n_lags, model=model, **options
+    )
+    return inertial, finite
+
+
+def sector_evaluate(
+    table: Any, lags: np.ndarray, height: np.ndarray, mu: np.ndarray, weights: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(A_1, A_2, ratio)`` of an inertial table for blocks ``(t, h, lag)``.
+
+    ``A_2`` averaged over the azimuths of the pairs present (``weights``, NaN rows: the
+    full circle) and ``ratio`` = that over the full-circle ``A_2`` (1 where no weights):
+    the same ratio scales the finite-outer-scale ``A_2`` (whose tables carry no nodes).
+    """
+    a1, a2_full = evaluate_table(
+        table, lags[None, None, :], height[None, :, None], mu[:, :, None], None
+    )
+    known = np.all(np.isfinite(weights), axis=-1)
+    ratio = np.ones(a2_full.shape)
+    all_ti, all_hi = np.nonzero(known)
+    for start in range(0, all_ti.size, EVALUATION_CELLS):  # bounded working memory
+        ti = all_ti[start : start + EVALUATION_CELLS]
+        hi = all_hi[start : start + EVALUATION_CELLS]
+        _, part = table.evaluate(
+            np.broadcast_to(lags[None, :], (ti.size, lags.size)).ravel(),
+            np.repeat(height[hi], lags.size),
+            np.repeat(mu[ti, hi], lags.size),
+            weights=np.repeat(weights[ti, hi], lags.size, axis=0),
+        )
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio[ti, hi] = part.reshape(ti.size, lags.size) / a2_full[ti, hi]
+    return a1, a2_full * ratio, ratio
+
+
+def table_options_for(sf: xr.Dataset, table_options: dict | None) -> dict:
+    """Keyword arguments of :func:`cwproc.physics.atable.get_a_table` for ``sf``.
+
+    ``table_options`` completed with the height range of the data
+    (:func:`table_height_range`) and whether the rays are swept (``swept_rays``).
+    """
+    options = dict(table_options or {})
+    if "height_range_m" not in options:
+        options["height_range_m"] = table_height_range(sf["height"].values)
+    options.setdefault("swept", bool(int(sf.attrs.get("swept_rays", 1))))
+    return options
+
+
+def cell_a_functions(probe: Any, cells: Cells, model: str, options: dict) -> tuple:
+    """``(A_1, A_2, sector, groups)`` of every cell from the inertial A-tables.
+
+    One pair of tables per (elevation, azimuth step) (:func:`a_tables`), evaluated for
+    all blocks at once: ``A_1 = A_perp`` (method 1) and ``A_2`` of Smalikho (2020), eq.
+    15 (method 2), averaged over the azimuths of the pairs present; ``sector`` is that
+    average over the full-circle ``A_2`` (:func:`sector_evaluate`). ``groups`` maps
+    ``(phi, dtheta)`` to ``(rows, tables)``. NaN A-functions with fewer than two lags.
+    """
+    n_l = cells.n_lags
+    lags = np.arange(1, n_l + 1, dtype=float)
+    a1 = np.full(cells.d.shape, np.nan)
+    a2 = np.full(cells.d.shape, np.nan)
+    key_phi = np.round(cells.phi, 3)
+    key_dth = np.round(cells.dtheta, 4)
+    groups = {}
+    # sectors and gaps: A_2 over the azimuths present relative to the full circle
+    sector = np.ones(cells.d.shape)
+    if n_l >= 2:
+        for p, q in {(p, q) for p, q in zip(key_phi, key_dth, strict=True) if np.isfinite(p + q)}:
+            rows = (key_phi == p) & (key_dth == q)
+            groups[(p, q)] = (rows, a_tables(probe, float(p), float(q), n_l, model, options))
+            a1[rows], a2[rows], sector[rows] = sector_evaluate(
+                groups[(p, q)][1][0], lags, cells.height, cells.mu_eval[rows], cells.weights[rows]
+            )
+    return a1, a2, sector, groups

@@ -1,0 +1,115 @@
+"""Standard errors of eps, sigma_V^2 and L_V (stage ``epsilon``).
+
+From the scatter of the block's statistics over its scans: the delta method through the
+whole fit (:func:`covariance_errors`, :mod:`cwproc.physics.delta_method`) where the
+structure function carries their covariance, else the first-order form (:func:`standard_errors`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from cwproc.physics.delta_method import delta_method_errors
+from cwproc.stages.epsilon.outer_scale import retrieve
+
+
+def standard_errors(
+    sf: xr.Dataset,
+    lag_used: int,
+    d: np.ndarray,
+    eps: np.ndarray,
+    sigma2: np.ndarray,
+    corrected_variance: np.ndarray,
+    scale: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Standard errors of eps, sigma_V^2 and L_V per block from the scatter over scans.
+
+    The first-order form kept for the exact cw cells and for structure functions
+    without ``statistics_covariance``; elsewhere :func:`covariance_errors` replaces it
+    (it omits the scatter of the fitted L_V: se/sd 0.63-1.05 on exact VAD statistics).
+
+    - eps of Smalikho (2020), eq. 5, ``eps ~ (D(l) - D(1))^(3/2)``: relative error
+      ``1.5 SE(D(l) - D(1)) / (D(l) - D(1))``, ``SE`` the standard error of the block's
+      per-scan differences (``structure_function_difference_se``: the scans are the
+      independent samples);
+    - sigma_V^2: the standard error of the variance of ``V'_L`` (its per-scan scatter)
+      scaled like the variance, ``SE(var) sigma_V^2 / (var - sigma_e^2)``;
+    - ``L_V = c sigma_V^3 / eps`` (Banakh et al. (1999), eq. 19): relative errors
+      combined as independent, ``sqrt((1.5 r_sigma2)^2 + r_eps^2)``.
+
+    NaN where the structure function carries no standard errors.
+    """
+    nan = np.full(eps.shape, np.nan)
+    if "structure_function_difference_se" not in sf:
+        return nan, nan, nan
+    diff_se = sf["structure_function_difference_se"].transpose("time", "height", "lag").values
+    var_se = sf["radial_velocity_variance_se"].transpose("time", "height").values
+    with np.errstate(invalid="ignore", divide="ignore"):
+        diff = d[..., lag_used - 1] - d[..., 0]
+        r_eps = 1.5 * diff_se[..., lag_used - 1] / np.where(diff > 0, diff, np.nan)
+        r_sig = var_se / np.where(corrected_variance > 0, corrected_variance, np.nan)
+        r_scale = np.hypot(1.5 * r_sig, r_eps)
+    return eps * r_eps, sigma2 * r_sig, scale * r_scale
+
+
+def covariance_errors(
+    fixed: dict, d: np.ndarray, var_raw: np.ndarray, cov: np.ndarray, base: dict
+) -> tuple[np.ndarray, ...]:
+    """Standard errors of eps, sigma_V^2 and L_V by the delta method (m2 s-3, m2 s-2, m).
+
+    The estimates are one function ``f(s)``
+    (:func:`cwproc.stages.epsilon.outer_scale.retrieve`) of the block-mean statistics
+    ``s = (D_L(1), ..., D_L(L), variance of V'_L)``: eps and L_V fitted together, so
+    the scatter of the fitted L_V enters the error of eps through the
+    A-functions. ``SE(f) = sqrt(g^T C g)``, ``C`` the covariance of ``s`` from the
+    scatter over the block's scans (``statistics_covariance`` of
+    :func:`cwproc.stages.structure.block_statistics`) and ``g`` the gradient of ``f`` by
+    forward differences of one standard error of each component (a secant over the
+    range the sampling error spans).
+    """
+    n_l = d.shape[-1]
+    stats = np.concatenate([d, var_raw[..., None]], axis=-1)
+
+    def estimates(s: np.ndarray) -> dict[str, np.ndarray]:
+        return retrieve(fixed, s[..., :n_l], s[..., n_l], near=base["root"])
+
+    return delta_method_errors(estimates, stats, cov, base, ("efit", "sigma2", "l_v"))
+
+
+def block_errors(
+    sf: xr.Dataset,
+    lag_used: int,
+    fixed: dict,
+    d: np.ndarray,
+    var_raw: np.ndarray,
+    arrays: dict[str, np.ndarray],
+    noise: np.ndarray,
+    base: dict,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Standard errors of eps, sigma_V^2 and L_V (m2 s-3, m2 s-2, m) of the product.
+
+    :func:`covariance_errors` where ``sf`` carries ``statistics_covariance``, except
+    in the exact cw cells (``fixed["exact"]``) and where an estimate is NaN, which keep
+    :func:`standard_errors`. ``base`` is the result of
+    :func:`cwproc.stages.epsilon.outer_scale.retrieve` at the measured statistics,
+    ``noise`` the sigma_e of the product (m s-1).
+    """
+    values = (arrays["epsilon"], arrays["velocity_variance"], arrays["integral_scale"])
+    first = standard_errors(
+        sf,
+        lag_used,
+        d,
+        values[0],
+        values[1],
+        var_raw - np.nan_to_num(noise, nan=0.0) ** 2,
+        values[2],
+    )
+    if "statistics_covariance" not in sf:
+        return first
+    cov = sf["statistics_covariance"].transpose("time", "height", ...).values.astype(float)
+    delta = covariance_errors(fixed, d, var_raw, cov, base)
+    return tuple(
+        np.where(fixed["exact"] | ~np.isfinite(v), old, new)
+        for old, new, v in zip(first, delta, values, strict=True)
+    )

@@ -1,0 +1,321 @@
+"""Finite outer scale: eps and L_V fitted together (Banakh et al. (1999), eqs. 17, 19).
+
+For a finite-outer-scale model the least squares of Smalikho (2020), eq. 4 with the
+model's A-functions gives ``eps(L_V)``; the root in ``L_V`` of the variance condition
+(the variance of ``V'_L`` the model predicts equals the measured one) fixes both
+(:func:`outer_scale_root`). :func:`retrieve` is the whole fit of a cell from its
+statistics, methods 1 and 2 included, a pure function of ``(D, variance)`` that the
+delta method differentiates (:mod:`cwproc.stages.epsilon.errors`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from cwproc.physics import spectra
+from cwproc.physics.probe_variance import averaging_loss, passed_variance
+from cwproc.physics.removed_share import (
+    interp_log_scale,
+    mean_removed_share,
+    partial_circle,
+    sector_removed_share,
+)
+from cwproc.physics.structure_fit import fit_structure_function
+from cwproc.stages.epsilon.atable_fit import EVALUATION_CELLS
+from cwproc.stages.epsilon.cells import Cells
+
+#: lengths below this fraction of L_V keep the inertial A-functions (see module doc)
+INERTIAL_FRACTION = 0.02
+#: bisection steps of the outer-scale root (bracket ratio (3000/10)^(1/6) -> 0.2 %)
+_BISECTIONS = 9
+#: bisections from a bracket of a factor 2 on either side of a known root (-> 1.1 %)
+_BISECTIONS_NEAR = 6
+
+
+def finite_scale_inputs(
+    probe: Any,
+    model: str,
+    options: dict,
+    uniq: np.ndarray,
+    inverse: np.ndarray,
+    cells: Cells,
+    n_outer_scales: int,
+) -> dict:
+    """What the finite-outer-scale fit needs besides D and the variance (per cell).
+
+    The probe-passed variance per eps^(2/3) of the model on a log grid of L_V (ratio
+    <= 1.1), per distinct (dy, range) cell
+    (:func:`cwproc.physics.probe_variance.passed_variance`), less the share the block-mean
+    VAD wind removes (:func:`mean_removed_share` at the cell's ``mu``, divided by the scans
+    of the block; sectors and gaps (:func:`partial_circle` of the ``weights`` and ``dtheta``
+    of the ``cells``): :func:`sector_removed_share` with the scans' ``interval`` over
+    T_scan); the full variance per eps^(2/3) on that grid; the coarse L_V nodes.
+    """
+    n_t, n_h = cells.range_m.shape
+    scans, radius, mu_eval, weights = cells.scans, cells.radius, cells.mu_eval, cells.weights
+    lo, hi = options.get("outer_scale_range_m", (10.0, 3000.0))
+    scale_grid = np.geomspace(lo, hi, int(np.ceil(np.log(hi / lo) / np.log(1.1))) + 1)
+    cells_u = np.nonzero(uniq[:, 0] >= 0)[0]
+    passed_u = np.full((uniq.shape[0], scale_grid.size), np.nan)
+    for start in range(0, cells_u.size, EVALUATION_CELLS):  # bounded working memory
+        part = cells_u[start : start + EVALUATION_CELLS]
+        passed_u[part] = passed_variance(
+            probe, np.abs(uniq[part, 0]), np.abs(uniq[part, 1]), model, scale_grid
+        )
+    passed_cell = passed_u[inverse.ravel()].reshape(n_t, n_h, scale_grid.size)
+    full_var = np.array([spectra.variance_per_eps23(model, x) for x in scale_grid])
+    n_eff = np.where(np.isfinite(scans) & (scans >= 1), scans, 1.0)
+    phi_med = float(np.nanmedian(cells.phi))
+    share = np.empty(passed_cell.shape)
+    step = max(1, EVALUATION_CELLS // max(n_h, 1))  # blocks at once: bounded memory
+    for t0 in range(0, n_t, step):
+        rows = slice(t0, t0 + step)
+        ratio_rl = radius[rows, :, None] / scale_grid[None, None, :]
+        share[rows] = mean_removed_share(ratio_rl, phi_med, model, mu_eval[rows, :, None])
+    share /= n_eff[:, None, None]
+    ti, hi_ = np.nonzero(
+        partial_circle(weights, np.broadcast_to(cells.dtheta[:, None], (n_t, n_h)))
+    )
+    if ti.size:
+        share[ti, hi_] = sector_removed_share(
+            weights[ti, hi_],
+            radius[ti, hi_, None] / scale_grid[None, :],
+            mu_eval[ti, hi_],
+            cells.interval[ti],
+            n_eff[ti],
+            phi_med,
+            model,
+        )
+    return {
+        "nodes": np.geomspace(lo, hi, n_outer_scales),
+        "scale_grid": scale_grid,
+        "passed": passed_cell - full_var * share,
+        "full_var": full_var,
+    }
+
+
+def outer_scale_root(
+    table: Any,
+    table_rows: np.ndarray,
+    finite: dict,
+    cell_sector: np.ndarray,
+    passed: np.ndarray,
+    dc: np.ndarray,
+    vc: np.ndarray,
+    var_c: np.ndarray,
+    prior: np.ndarray,
+    start: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(root, has_root, below)`` of the variance condition in L_V for cells ``(n,)``.
+
+    The variance of V'_L the model predicts, eps^(2/3) times the probe-passed part of
+    sigma_V^2 = (eps L_V / c)^(2/3) (Banakh et al. (1999), eq. 19;
+    :func:`cwproc.physics.probe_variance.passed_variance`), must equal the measured one
+    minus sigma_e^2; eps(L_V) and sigma_e(L_V) from the least squares of Smalikho (2020),
+    eq. 4 with the model's A_2 over all valid lags. Coarse scan of ``finite["nodes"]``, then
+    bisection of the largest sign change in log L_V; ``below``: even the smallest node gives
+    too much variance (lags not inertial). ``table`` is the model's table at fixed cells
+    (:meth:`cwproc.physics.atable_interp.ATable.at_cells`), ``table_rows`` the rows of it to
+    search. With ``start`` (a root per cell, for the small changes of
+    :func:`cwproc.stages.epsilon.errors.covariance_errors`) the scan covers ``start / 2 .. 2
+    start`` and fewer bisections reach the same bracket.
+    """
+    scale_grid = finite["scale_grid"]
+
+    def residual(big_l: np.ndarray) -> np.ndarray:
+        k = big_l.shape[1]
+        _, f2 = table.evaluate(np.broadcast_to(big_l, (dc.shape[0], k)), table_rows, a1=False)
+        f2 = f2 * cell_sector[:, None, :]
+        eps_l, noise_l, _ = fit_structure_function(dc[:, None, :], f2, vc[:, None, :], prior)
+        through = interp_log_scale(scale_grid, passed, np.broadcast_to(big_l, (dc.shape[0], k)))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            model_var = np.log(eps_l ** (2 / 3) * through)
+            measured = np.log(var_c[:, None] - np.nan_to_num(noise_l, nan=0.0) ** 2)
+        return np.broadcast_to(model_var - measured, (dc.shape[0], k))
+
+    if start is None:
+        nodes = np.broadcast_to(finite["nodes"], (dc.shape[0], finite["nodes"].size))
+        steps = _BISECTIONS
+    else:
+        nodes = start[:, None] * np.array([0.5, 1.0, 2.0])
+        steps = _BISECTIONS_NEAR
+    resid = residual(nodes)
+    sign_change = (resid[:, :-1] < 0) & (resid[:, 1:] >= 0)
+    has_root = sign_change.any(axis=1)
+    last = nodes.shape[1] - 2 - np.argmax(sign_change[:, ::-1], axis=1)
+    cells = np.arange(last.size)
+    log_lo, log_hi = np.log(nodes[cells, last]), np.log(nodes[cells, last + 1])
+    r_lo = resid[np.arange(last.size), last]
+    r_hi = resid[np.arange(last.size), last + 1]
+    for _ in range(steps):  # fixed count: each step halves every bracket
+        mid = 0.5 * (log_lo + log_hi)
+        r_mid = residual(np.exp(mid)[:, None])[:, 0]
+        upper = r_mid >= 0
+        log_hi = np.where(upper, mid, log_hi)
+        r_hi = np.where(upper, r_mid, r_hi)
+        log_lo = np.where(upper, log_lo, mid)
+        r_lo = np.where(upper, r_lo, r_mid)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frac = np.clip(np.nan_to_num(r_lo / (r_lo - r_hi), nan=0.5), 0.0, 1.0)
+    root = np.exp(log_lo + frac * (log_hi - log_lo))
+    below = ~has_root & np.all(resid > 0, axis=1)
+    return root, has_root, below
+
+
+def retrieve(
+    fixed: dict, d: np.ndarray, var_raw: np.ndarray, near: np.ndarray | None = None
+) -> dict:
+    """eps (methods 1 and 2), sigma_e, sigma_V^2 and L_V of every cell from D and the variance.
+
+    The least squares of Smalikho (2020), eq. 4 over all valid lags with the cell's
+    A-functions (:func:`cwproc.physics.structure_fit.fit_structure_function`); with a
+    finite-outer-scale model, where a length exceeds :data:`INERTIAL_FRACTION` of the
+    inertial L_V, the A-functions at the root of the variance condition
+    (:func:`outer_scale_root`). A pure function of ``(d, var_raw)`` given ``fixed`` (the
+    A-functions, tables, noise prediction, ...), so that
+    :func:`cwproc.stages.epsilon.errors.covariance_errors` can differentiate it; ``near``
+    (that function's base roots, NaN where the finite-outer-scale fit was not used) fixes
+    the cells of that fit and starts its root search there.
+    """
+    a1, a2 = fixed["a1"].copy(), fixed["a2"].copy()
+    valid, prior, c_model = fixed["valid"], fixed["noise_pred"], fixed["c_model"]
+    shape = d.shape[:2]
+
+    def solve() -> tuple:
+        e1, _, _ = fit_structure_function(d, a1, valid, prior)
+        efit, noise, fitted = fit_structure_function(d, a2, valid, prior)
+        return e1, efit, noise, fitted
+
+    e1, efit, noise, fitted = solve()
+    sigma2 = var_raw - np.nan_to_num(noise, nan=0.0) ** 2 + efit ** (2 / 3) * fixed["loss"]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / efit, np.nan)
+    too_small = np.zeros(shape, dtype=bool)
+    finite_used = np.zeros(shape, dtype=bool)
+    root_cell = np.full(shape, np.nan)
+    finite = fixed["finite"]
+    if finite is not None:
+        passed_fraction = np.full(shape, np.nan)
+        need = np.isfinite(l_v) & (finite["longest"] > INERTIAL_FRACTION * l_v) & ~fixed["exact"]
+        if near is not None:
+            need = np.isfinite(near)
+        sector = fixed["sector"]
+        for key, (rows, _) in fixed["groups"].items():  # one table per configuration
+            ti, hi_ = np.nonzero(need & rows[:, None])
+            if ti.size == 0:
+                continue
+            table, rank = fixed["cell_tables"][key]
+            cells = rank[ti] * shape[1] + hi_
+            passed = finite["passed"][ti, hi_]
+            root, use, below = outer_scale_root(
+                table,
+                cells,
+                finite,
+                sector[ti, hi_],
+                passed,
+                d[ti, hi_],
+                valid[ti, hi_],
+                var_raw[ti, hi_],
+                prior[ti, hi_][:, None],
+                None if near is None else near[ti, hi_],
+            )
+            if np.any(use):
+                tu, hu = ti[use], hi_[use]
+                g1, g2 = table.evaluate(root[use][:, None], cells[use])
+                a1[tu, hu] = g1[:, 0]
+                a2[tu, hu] = g2[:, 0] * sector[tu, hu]
+                finite_used[tu, hu] = True
+                root_cell[tu, hu] = root[use]
+                scale_grid = finite["scale_grid"]
+                through = interp_log_scale(scale_grid, passed[use], root[use][:, None])[:, 0]
+                total = np.interp(np.log(root[use]), np.log(scale_grid), finite["full_var"])
+                passed_fraction[tu, hu] = through / total
+            too_small[ti[below], hi_[below]] = True
+        e1, efit, noise, fitted = solve()
+        sigma2 = np.where(
+            finite_used,
+            (var_raw - np.nan_to_num(noise, nan=0.0) ** 2) / passed_fraction,
+            var_raw - np.nan_to_num(noise, nan=0.0) ** 2 + efit ** (2 / 3) * fixed["loss"],
+        )
+        with np.errstate(invalid="ignore", divide="ignore"):
+            l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / efit, np.nan)
+    return {
+        "a1": a1,
+        "a2": a2,
+        "e1": e1,
+        "efit": efit,
+        "noise": noise,
+        "fitted": fitted,
+        "sigma2": sigma2,
+        "l_v": l_v,
+        "too_small": too_small,
+        "finite_used": finite_used,
+        "root": root_cell,
+    }
+
+
+def fit_setup(
+    probe: Any,
+    cells: Cells,
+    model: str,
+    options: dict,
+    a_functions: tuple,
+    valid: np.ndarray,
+    exact: np.ndarray,
+    noise_pred: np.ndarray,
+    n_outer_scales: int,
+) -> dict:
+    """Everything :func:`retrieve` needs besides ``D`` and the variance of ``V'_L``.
+
+    The A-functions of the cells (``a_functions`` of
+    :func:`cwproc.stages.epsilon.atable_fit.cell_a_functions`), the valid lags, the
+    predicted noise, the inertial averaging loss per distinct ``(dy, range)``
+    (:func:`cwproc.physics.probe_variance.averaging_loss`), the coefficient ``c`` of
+    ``L_V = c sigma_V^3 / eps`` (Banakh et al. (1999), eq. 19), the cw cells of the
+    exact model (``exact``) and, for finite-outer-scale models, the inputs of the
+    variance condition (:func:`finite_scale_inputs`) and the model's tables at each
+    group's cells (:meth:`cwproc.physics.atable_interp.ATable.at_cells`).
+    """
+    a1, a2, sector, groups = a_functions
+    n_t, n_h, n_l = cells.d.shape
+    dy, mu_eval = cells.dy, cells.mu_eval
+    # the loss depends on (dy, range) only: compute it once per distinct pair
+    # step-stare rays are not swept: no transverse averaging in the variance (eq. 20)
+    dy_filter = dy if options["swept"] else np.where(np.isfinite(dy), 0.0, np.nan)
+    pairs_dr = np.stack([np.round(dy_filter, 6).ravel(), np.round(cells.range_m, 6).ravel()], 1)
+    uniq, inverse = np.unique(np.nan_to_num(pairs_dr, nan=-1.0), axis=0, return_inverse=True)
+    loss_u = np.where(
+        uniq[:, 0] >= 0, averaging_loss(probe, np.abs(uniq[:, 0]), np.abs(uniq[:, 1])), np.nan
+    )
+    loss = loss_u[inverse.ravel()].reshape(dy.shape)
+    finite = None
+    if model != "inertial" and groups:
+        finite = finite_scale_inputs(probe, model, options, uniq, inverse, cells, n_outer_scales)
+        probe_len = np.asarray(probe.length_scale_m(cells.range_m), float)
+        probe_len = np.broadcast_to(probe_len, (n_t, n_h))
+        finite["longest"] = np.maximum(n_l * dy * (1 + mu_eval), probe_len)
+    lags = np.arange(1, n_l + 1, dtype=float)
+    return {
+        "a1": a1,
+        "a2": a2,
+        "sector": sector,
+        "valid": valid,
+        "noise_pred": noise_pred,
+        "loss": loss,
+        "c_model": spectra.integral_scale_coefficient(
+            "exponential" if model == "inertial" else model
+        ),
+        "groups": groups,
+        "cell_tables": {  # the model's tables at each group's cells (rows x heights)
+            key: (
+                tables[1].at_cells(lags, np.tile(cells.height, rows.sum()), mu_eval[rows].ravel()),
+                np.cumsum(rows) - 1,
+            )
+            for key, (rows, tables) in groups.items()
+            if finite is not None
+        },
+        "exact": exact,
+        "finite": finite,
+    }
