@@ -10,7 +10,8 @@ import xarray as xr
 
 from cwproc.config import load_config
 from cwproc.io import KIND, detect_format, read
-from cwproc.io.halo import read_hpl, read_hpl_files
+from cwproc.io.halo import read_hpl
+from cwproc.io.halo_files import read_hpl_files
 from cwproc.io.scan_netcdf import read_scan_netcdf, write_scan_netcdf
 from cwproc.io.schema import DATASET_VARIABLES, SCAN_VARIABLES, attach_attrs
 
