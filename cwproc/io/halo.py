@@ -63,6 +63,7 @@ from cwproc.io.halo_header import (
     split_header,
 )
 from cwproc.io.netcdf import write_bytes_atomic
+from cwproc.io.scans import scan_indices
 from cwproc.io.schema import with_canonical_attrs
 from cwproc.physics.geometry import normalise_pointing
 
@@ -210,8 +211,6 @@ def read_hpl(path: str | os.PathLike, **options: object) -> xr.Dataset:
     if gate_fields == 5:
         gates["spectral_width"] = grids[4]
     per_ray = {"pitch": rays[:, 3], "roll": rays[:, 4]} if ray_fields == 5 else {}
-    from cwproc.io.scans import scan_indices
-
     scan, scan_attrs = scan_indices(time, azimuth, elevation, scan_type=header.scan_type)
     ds = scan_dataset(
         gates,

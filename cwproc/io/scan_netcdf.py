@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from cwproc.errors import InputFileError
+from cwproc.errors import ConfigError, InputFileError
 from cwproc.io.netcdf import write_netcdf_atomic
-from cwproc.io.scans import parse_homodyne
+from cwproc.io.scans import assign_scans, parse_homodyne
 from cwproc.io.schema import with_canonical_attrs
 
 #: required variables and their dimensions
@@ -131,8 +131,6 @@ def write_scan_netcdf(ds: xr.Dataset, path: str | os.PathLike) -> Path:
     validate_scan_schema(ds, "<dataset to write>")
     out = ds
     if "scan" not in out.coords:
-        from cwproc.io.scans import assign_scans
-
         out = assign_scans(out)
     out = out.set_coords([c for c in _COORDS if c in out.variables])
     out = with_canonical_attrs(out, "scan")
@@ -171,8 +169,6 @@ def read_scan_netcdf(path: str | os.PathLike, **options: object) -> xr.Dataset:
         attribute, named in the message).
     """
     if options:
-        from cwproc.errors import ConfigError
-
         raise ConfigError(
             "[reader.scan_netcdf]", ", ".join(sorted(options)), "this reader takes no options"
         )
@@ -191,8 +187,6 @@ def read_scan_netcdf(path: str | os.PathLike, **options: object) -> xr.Dataset:
     attrs["source_files"] = _split_files(attrs.get("source_files")) or [path.name]
     ds.attrs = attrs
     if "scan" not in ds.coords:
-        from cwproc.io.scans import assign_scans
-
         ds = assign_scans(ds)
     else:
         ds["scan"] = ds["scan"].astype(np.int64)

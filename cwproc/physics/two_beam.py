@@ -59,6 +59,7 @@ from numpy.typing import ArrayLike
 from scipy import special
 
 from cwproc.physics import spectra
+from cwproc.physics.cw_probe import lorentzian_quadrature
 
 #: nodes of the pulsed pair rule: per half of the range difference u, and along v
 N_U = 40
@@ -156,8 +157,6 @@ def beam_quadrature(probe: Any, range_m: float) -> BeamQuadrature:
         one = np.array([r])
         return BeamQuadrature(one, one, np.ones(1))
     if hasattr(probe, "rayleigh_half_width"):
-        from cwproc.physics.cw_probe import lorentzian_quadrature
-
         q = lorentzian_quadrature(
             float(probe.centre_range(r)), float(probe.rayleigh_half_width(r)), CW_NODES, 1
         )
