@@ -93,6 +93,13 @@ class UnitProducts:
     inputs: tuple[Path, ...]
     _unit: ProductUnit = field(repr=False, compare=False)
 
+    def __repr__(self) -> str:
+        files = ", ".join(p.name for p in map(Path, self.inputs))
+        return (
+            f"<UnitProducts {self.key} ({self.kind}): {', '.join(self.products) or 'none'} "
+            f"from {files}>"
+        )
+
 
 @dataclass(frozen=True)
 class Retrieval:
@@ -117,10 +124,18 @@ class Retrieval:
         return not self.failures
 
     def all_notes(self) -> list[str]:
-        """Every note, the run's first, then each unit's prefixed with its key."""
-        return list(self.notes) + [
-            f"{u.key}: {note}" for u in self.units.values() for note in u.notes
-        ]
+        """Every note, the run's first, then each unit's (every note names its files)."""
+        return list(self.notes) + [note for u in self.units.values() for note in u.notes]
+
+    def __repr__(self) -> str:
+        units = "; ".join(
+            f"{key} [{', '.join(u.products) or 'no product'}]" for key, u in self.units.items()
+        )
+        return (
+            f"<Retrieval: {len(self.units)} unit(s): {units or 'none'}; "
+            f"{len(self.failures)} failure(s); {len(self.all_notes())} note(s); "
+            f"config {self.config.source}>"
+        )
 
     def __getitem__(self, name: str) -> xr.Dataset:
         """The product ``name`` of the one unit that made it.
@@ -233,9 +248,9 @@ def retrieve(
     for unit in found:
         result = run_unit(unit, cfg)
         failures.extend(result.failures)
-        notes.extend(result.notes)
         unit.inputs[:] = [_released(i) for i in unit.inputs]
         if not result.products:
+            notes.extend(result.notes)
             continue
         units[unit.key] = UnitProducts(
             key=unit.key,
