@@ -95,24 +95,37 @@ def _sci_label(value: float, _pos: int | None = None) -> str:
     return f"${mantissa:.2g}\\times10^{{{exponent}}}$"
 
 
+def _tick_labeller(ticks: np.ndarray):
+    """Plain numbers (percent, metres) where they read well, powers of ten otherwise."""
+    plain = bool(ticks.size) and ticks.min() >= 0.1 and ticks.max() < 1e5
+    return (lambda v, _pos=None: f"{v:g}") if plain else _sci_label
+
+
+def _labelled_colorbar(cbar_or_axis, ticks: np.ndarray, label) -> bool:
+    """Put ``ticks`` with their labels on a colour bar; False (nothing done) for an axis."""
+    from matplotlib.colorbar import Colorbar
+    from matplotlib.ticker import NullLocator
+
+    if not isinstance(cbar_or_axis, Colorbar):
+        return False
+    cbar_or_axis.set_ticks(ticks, labels=[label(t) for t in ticks])
+    cbar_or_axis.ax.yaxis.set_minor_locator(NullLocator())
+    return True
+
+
 def _log_ticks(cbar_or_axis, vmin: float, vmax: float) -> None:
     """Label a log axis or colour bar with at least four ticks where possible.
 
     Matplotlib labels only the powers of ten (and a few minor ticks), which leaves two
     labels on a colour bar spanning about a decade.
     """
-    from matplotlib.colorbar import Colorbar
     from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter, NullLocator
 
     if not (vmin > 0 and vmax > vmin):
         return
     ticks = _log_tick_values(vmin, vmax)
-    # plain numbers (percent, metres) where they read well, powers of ten otherwise
-    plain = bool(ticks.size) and ticks.min() >= 0.1 and ticks.max() < 1e5
-    label = (lambda v, _pos=None: f"{v:g}") if plain else _sci_label
-    if isinstance(cbar_or_axis, Colorbar):
-        cbar_or_axis.set_ticks(ticks, labels=[label(t) for t in ticks])
-        cbar_or_axis.ax.yaxis.set_minor_locator(NullLocator())
+    label = _tick_labeller(ticks)
+    if _labelled_colorbar(cbar_or_axis, ticks, label):
         return
     if cbar_or_axis.axis_name == "x":
         # labels side by side: keep those that do not touch, the rest become grid ticks
@@ -669,7 +682,6 @@ def _few_log_ticks(cbar_or_axis, vmin: float, vmax: float, max_ticks: int = 4) -
 
     The ticks of :func:`_log_tick_values` (1-2-5 or 1..9 per decade), every n-th kept.
     """
-    from matplotlib.colorbar import Colorbar
     from matplotlib.ticker import FixedLocator, FuncFormatter, NullLocator
 
     if not (vmin > 0 and vmax > vmin):
@@ -677,11 +689,8 @@ def _few_log_ticks(cbar_or_axis, vmin: float, vmax: float, max_ticks: int = 4) -
     ticks = _log_tick_values(vmin, vmax)
     if ticks.size > max_ticks:
         ticks = ticks[:: int(np.ceil(ticks.size / max_ticks))]
-    plain = bool(ticks.size) and ticks.min() >= 0.1 and ticks.max() < 1e5
-    label = (lambda v, _pos=None: f"{v:g}") if plain else _sci_label
-    if isinstance(cbar_or_axis, Colorbar):
-        cbar_or_axis.set_ticks(ticks, labels=[label(t) for t in ticks])
-        cbar_or_axis.ax.yaxis.set_minor_locator(NullLocator())
+    label = _tick_labeller(ticks)
+    if _labelled_colorbar(cbar_or_axis, ticks, label):
         return
     cbar_or_axis.set_major_locator(FixedLocator(ticks))
     cbar_or_axis.set_major_formatter(FuncFormatter(label))
