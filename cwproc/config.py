@@ -64,8 +64,6 @@ class InstrumentConfig:
     z_r_coefficient: float = 0.0013
     #: cw lidar: beam radius a0 at the telescope (m); when set, Z_R = lambda R^2/(2 pi a0^2)
     beam_radius_m: float | None = None
-    #: cw homodyne detection: only |V_r| is measured (ZephIR)
-    homodyne: bool = False
 
     def __post_init__(self) -> None:
         _positive(self, "wavelength_m", "delta_p_m", "delta_r_m", "z_r_coefficient")
@@ -549,29 +547,34 @@ def config_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Config:
     return dataclasses.replace(cfg, source=source)
 
 
-#: keys of older configurations that moved: (table, key) -> where the setting is now
+_SONIC_ORIENTATION_MOVED = (
+    "no longer read here: the sonic's orientation (azimuth of its +x axis, degrees "
+    "clockwise from north) is now [sonic] orientation_deg"
+)
+
+#: keys of older configurations that moved or went: (table, key) -> what to do instead
 MOVED_KEYS: dict[tuple[str, str], str] = {
-    ("instrument", "sonic_orientation_deg"): "[sonic] orientation_deg",
+    ("instrument", "sonic_orientation_deg"): _SONIC_ORIENTATION_MOVED,
     **{
-        ("reader." + fmt, "orientation_deg"): "[sonic] orientation_deg"
+        ("reader." + fmt, "orientation_deg"): _SONIC_ORIENTATION_MOVED
         for fmt in ("toa5", "tob1", "ghg", "meteo2", "gill")
     },
+    ("instrument", "homodyne"): (
+        "no longer read: homodyne detection (only |V_r| measured) comes from the data, "
+        "the 'homodyne' attribute of the scans (1 for ZephIR files, 0 for Halo and "
+        "WindCube files, required in a scan NetCDF); remove the key"
+    ),
 }
 
 
 def _check_moved_keys(data: dict[str, Any], source: str) -> None:
-    """A key that moved is an error naming it and its new place (never silently ignored)."""
-    for (table, key), new in MOVED_KEYS.items():
+    """A key that moved or went is an error naming it and what to do (never ignored)."""
+    for (table, key), message in MOVED_KEYS.items():
         section: Any = data
         for part in table.split("."):
             section = section.get(part, {}) if isinstance(section, dict) else {}
         if isinstance(section, dict) and key in section:
-            raise ConfigError(
-                source,
-                f"{table}.{key}",
-                f"no longer read here: the sonic's orientation (azimuth of its +x axis, "
-                f"degrees clockwise from north) is now {new}",
-            )
+            raise ConfigError(source, f"{table}.{key}", message)
 
 
 def _check_reader_tables(reader: Any, source: str) -> None:

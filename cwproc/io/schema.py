@@ -1,6 +1,6 @@
 """The canonical input datasets' variables and their CF attributes, attached on read.
 
-Every reader returns one of three canonical datasets (DESIGN.md section 2): a scan
+Every reader returns one of three canonical datasets: a scan
 dataset (Doppler lidar rays and gates), a wind-record dataset (an instrument's own wind
 averages) or a sonic dataset (anemometer samples). Their variables are declared here,
 once, as :class:`VarMeta` entries, and :func:`with_canonical_attrs` attaches the

@@ -24,10 +24,11 @@ large lags cost nothing extra. The oscillating ``sinc^2(pi l kappa) = (1 - cos(2
 kappa)) / (2 pi^2 l^2 kappa^2)`` factors of eqs. 19-20 are folded into the cosines on the
 panels beyond ``kappa = 1/l``. Power-law head and tail corrections close the integrals.
 Achieved relative accuracy: 2e-6 against the analytic ``(8/3) r^(2/3)`` and ``2 r^(2/3)``
-(no filters), 1e-5 against the reference A-tables (``reference/REFERENCE_VALUES.md``
-section 1.2), both tested. :func:`a2` averages over 128 azimuths of the half circle
-(midpoint rule of a periodic function, 1e-8 relative) using cubic log-log splines of
-``A_perp`` and ``A_par`` over the lag (61 lags; relative interpolation error 1e-7).
+(no filters), 1e-5 against A_perp and A_par of Smalikho (2020), eq. 19, computed
+independently by brute-force 2-D quadrature, both tested. :func:`a2` averages over 128
+azimuths of the half circle (midpoint rule of a periodic function, 1e-8 relative) using
+cubic log-log splines of ``A_perp`` and ``A_par`` over the lag (61 lags; relative
+interpolation error 1e-7).
 """
 
 from __future__ import annotations

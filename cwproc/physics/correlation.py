@@ -19,6 +19,7 @@ from typing import Literal
 
 import numpy as np
 
+from cwproc.physics.geometry import beam_unit_vector, wind_components
 from cwproc.physics.spectra import correlation_functions
 
 CorrelationModel = Literal["exponential", "von_karman"]
@@ -181,22 +182,28 @@ def same_beam_variance(
 def beam_vectors(azimuth_deg: np.ndarray, elevation_deg: float | np.ndarray) -> np.ndarray:
     """Unit beam vectors S(theta) = (sin phi, cos phi cos theta, cos phi sin theta).
 
-    Banakh et al. (1999), eq. 1, in (up, north, east) with theta clockwise from north.
+    Banakh et al. (1999), eq. 1, in the paper's (up, north, east) order with theta
+    clockwise from north: the components of
+    :func:`cwproc.physics.geometry.beam_unit_vector` (east, north, up), reversed.
 
     Returns
     -------
     numpy.ndarray
         Shape (M, 3).
     """
-    th = np.deg2rad(np.asarray(azimuth_deg, dtype=float))
-    ph = np.deg2rad(np.broadcast_to(np.asarray(elevation_deg, dtype=float), th.shape))
-    return np.stack([np.sin(ph), np.cos(ph) * np.cos(th), np.cos(ph) * np.sin(th)], axis=-1)
+    th = np.asarray(azimuth_deg, dtype=float)
+    ph = np.broadcast_to(np.asarray(elevation_deg, dtype=float), th.shape)
+    return np.ascontiguousarray(beam_unit_vector(th, ph)[..., ::-1])
 
 
 def wind_vector(speed: float, direction_deg: float, vertical: float = 0.0) -> np.ndarray:
-    """Mean wind (up, north, east) components (m s-1) for a wind blowing *from* direction."""
-    d = np.deg2rad(direction_deg)
-    return np.array([vertical, -speed * np.cos(d), -speed * np.sin(d)])
+    """Mean wind (up, north, east) components (m s-1) for a wind blowing *from* direction.
+
+    The (u, v) of :func:`cwproc.physics.geometry.wind_components` in the (up, north,
+    east) order of Banakh et al. (1999), eq. 1.
+    """
+    u, v = wind_components(speed, direction_deg)
+    return np.array([vertical, v, u])
 
 
 @dataclass(frozen=True)

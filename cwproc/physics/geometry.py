@@ -105,6 +105,51 @@ def radial_velocity(
     )
 
 
+def wind_components(speed: ArrayLike, direction_deg: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Eastward and northward wind of a horizontal wind blowing *from* ``direction_deg``.
+
+    ``u = -U sin(D)``, ``v = -U cos(D)`` with D the meteorological wind-from direction
+    (deg clockwise from north): a wind from 270 deg (west) has u = +U, v = 0, one from
+    180 deg (south) u = 0, v = +U. Inverse of :func:`speed_and_direction`.
+
+    Parameters
+    ----------
+    speed : array_like
+        Horizontal wind speed U (m s-1).
+    direction_deg : array_like
+        Direction the wind blows from (deg clockwise from north).
+
+    Returns
+    -------
+    (u, v) : tuple of ndarray
+        Eastward and northward components (m s-1), broadcast shape of the inputs.
+    """
+    speed = np.asarray(speed, dtype=float)
+    d = np.deg2rad(direction_deg)
+    return -speed * np.sin(d), -speed * np.cos(d)
+
+
+def speed_and_direction(u: ArrayLike, v: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Horizontal speed ``hypot(u, v)`` and wind-from direction ``atan2(-u, -v)``.
+
+    Inverse of :func:`wind_components`; the direction is in [0, 360) deg clockwise from
+    north, the direction the wind blows *from*.
+
+    Parameters
+    ----------
+    u, v : array_like
+        Eastward and northward wind (m s-1).
+
+    Returns
+    -------
+    (speed, direction_deg) : tuple of ndarray
+        Speed (m s-1) and wind-from direction (deg), broadcast shape of the inputs.
+    """
+    u = np.asarray(u)
+    v = np.asarray(v)
+    return np.hypot(u, v), np.rad2deg(np.arctan2(-u, -v)) % 360.0
+
+
 def height_from_range(range_m: ArrayLike, elevation_deg: ArrayLike) -> FloatArray:
     """Height of a gate above the instrument, ``h = R sin(phi)`` (m).
 

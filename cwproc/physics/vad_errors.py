@@ -37,6 +37,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from cwproc.physics.geometry import beam_unit_vector, height_from_range
+
 FloatArray = NDArray[np.float64]
 
 
@@ -75,6 +77,9 @@ def design_matrix(azimuth_deg: ArrayLike, phi_deg: float) -> FloatArray:
     """Rows ``(cos(phi) cos(theta), cos(phi) sin(theta), sin(phi))`` of the VAD model.
 
     The paper, section 2 (projection of the wind on the beam); Smalikho (2020), eq. 8.
+    These are the beam unit vectors of :func:`cwproc.physics.geometry.beam_unit_vector`
+    (east, north, up) with x = north and y = east, i.e. reordered to the paper's
+    ``(V_x, V_y, V_z) = (v, u, w)``.
 
     Parameters
     ----------
@@ -87,16 +92,8 @@ def design_matrix(azimuth_deg: ArrayLike, phi_deg: float) -> FloatArray:
     -------
     ndarray, shape (n, 3)
     """
-    theta = np.deg2rad(np.asarray(azimuth_deg, dtype=float))
-    phi = np.deg2rad(phi_deg)
-    return np.stack(
-        [
-            np.cos(phi) * np.cos(theta),
-            np.cos(phi) * np.sin(theta),
-            np.full_like(theta, np.sin(phi)),
-        ],
-        axis=-1,
-    )
+    east_north_up = beam_unit_vector(np.asarray(azimuth_deg, dtype=float), phi_deg)
+    return np.ascontiguousarray(east_north_up[..., [1, 0, 2]])
 
 
 def least_squares_weights(azimuth_deg: ArrayLike, phi_deg: float) -> FloatArray:
@@ -607,7 +604,7 @@ def tilt_bias_exact(
     beams = nominal @ rotation.T
     heights = range_m * beams[:, 2]
     local = np.tile(wind, (theta.size, 1))
-    local[:, 0] += dvx_dz * (heights - range_m * np.sin(np.deg2rad(phi_deg)))
+    local[:, 0] += dvx_dz * (heights - height_from_range(range_m, phi_deg))
     radial = np.sum(beams * local, axis=1)
     fitted = np.linalg.lstsq(nominal, radial, rcond=None)[0]
     return fitted - wind

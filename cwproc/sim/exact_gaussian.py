@@ -67,7 +67,8 @@ __all__ = [
     "gaussian_scans",
     "structure_functions",
 ]
-from cwproc.sim.pulsed import pulsed_range_weight, streamline_scans, wind_components
+from cwproc.physics.geometry import wind_components
+from cwproc.sim.pulsed import pulsed_range_weight, streamline_scans
 
 #: half extent of the range weighting used, in units of Delta_p beyond Delta_R/2
 _TAIL_PULSES = 3.0

@@ -33,7 +33,7 @@ import numpy as np
 import xarray as xr
 from scipy.special import erf
 
-from cwproc.physics.geometry import beam_unit_vector
+from cwproc.physics.geometry import beam_unit_vector, wind_components
 from cwproc.sim.field3d import FrozenField
 
 #: points of the range weighting beyond the rectangular window, in units of Delta_p
@@ -74,12 +74,6 @@ def range_quadrature(
     s = np.arange(-n, n + 1) * step_m
     w = pulsed_range_weight(s, delta_p_m, delta_r_m)
     return s, w / w.sum()
-
-
-def wind_components(speed_m_s: float, direction_deg: float) -> tuple[float, float]:
-    """(u, v) (m s-1) of a horizontal wind of given speed blowing *from* ``direction_deg``."""
-    d = np.deg2rad(direction_deg)
-    return float(-speed_m_s * np.sin(d)), float(-speed_m_s * np.cos(d))
 
 
 def sample_conical_scans(

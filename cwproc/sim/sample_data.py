@@ -28,10 +28,11 @@ import xarray as xr
 
 from cwproc.io.halo import write_hpl
 from cwproc.io.meteo2 import write_meteo2
+from cwproc.physics.geometry import wind_components
 from cwproc.physics.spectra import variance_from
 from cwproc.sim.field3d import grid_variance, von_karman_field
 from cwproc.sim.output import fresh_folder, write_truth
-from cwproc.sim.pulsed import sample_conical_scans, wind_components
+from cwproc.sim.pulsed import sample_conical_scans
 from cwproc.sim.sonic import simulate_sonic_dataset
 
 

@@ -15,16 +15,12 @@ import numpy as np
 import xarray as xr
 
 from cwproc.io.halo import write_hpl
+from cwproc.physics.geometry import wind_components
 from cwproc.physics.noise import bandwidth_from_resolution, velocity_noise_std
 from cwproc.sim.exact_gaussian import range_nodes, structure_functions
 from cwproc.sim.field3d import FrozenField, von_karman_field
 from cwproc.sim.output import fresh_folder, write_truth
-from cwproc.sim.pulsed import (
-    range_quadrature,
-    sample_conical_scans,
-    streamline_scans,
-    wind_components,
-)
+from cwproc.sim.pulsed import range_quadrature, sample_conical_scans, streamline_scans
 from cwproc.sim.sample_data import noise_from_snr, streamline_truth
 
 #: field points interpolated at once (memory bound)

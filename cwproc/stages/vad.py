@@ -32,7 +32,12 @@ from numpy.typing import NDArray
 
 from cwproc.errors import CwprocError
 from cwproc.io.scans import is_homodyne
-from cwproc.physics.geometry import beam_unit_vector, height_from_range, normalise_pointing
+from cwproc.physics.geometry import (
+    beam_unit_vector,
+    height_from_range,
+    normalise_pointing,
+    speed_and_direction,
+)
 from cwproc.stages.vad_fit import fit_scans
 
 #: elevations (deg) that count as conical scans; outside, w or u, v are not determined
@@ -50,7 +55,6 @@ REFERENCES = (
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
-ArrayLikeF = np.ndarray | float
 
 
 # --------------------------------------------------------------------------------------
@@ -133,11 +137,6 @@ def scan_chunks(layout: ScanLayout, n_gates: int) -> Iterator[slice]:
 # --------------------------------------------------------------------------------------
 
 
-def wind_from_direction(u: ArrayLikeF, v: ArrayLikeF) -> FloatArray:
-    """Direction the wind blows from (deg clockwise from north), ``atan2(-u, -v)``."""
-    return np.rad2deg(np.arctan2(-np.asarray(u), -np.asarray(v))) % 360.0
-
-
 def speed_direction_errors(
     u: FloatArray, v: FloatArray, covariance: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
@@ -209,7 +208,7 @@ def resolve_homodyne_ambiguity(beta: FloatArray, reference_deg: FloatArray) -> F
     -------
     ndarray, shape (S, G, 3)
     """
-    direction = wind_from_direction(beta[..., 0], beta[..., 1])
+    _, direction = speed_and_direction(beta[..., 0], beta[..., 1])
     reference = np.broadcast_to(np.asarray(reference_deg, dtype=float), beta.shape[:1])
     flip = _circular_difference(direction, reference[:, None]) > 90.0
     return np.where(flip[..., None], -beta, beta)
@@ -479,13 +478,14 @@ def _wind_dataset(
     }
     range_m = ds["range"].values.astype(float)
     height = height_from_range(range_m, phi)
+    wind_speed, wind_direction = speed_and_direction(u, v)
     out = xr.Dataset(
         {
             "u": (dims, u, fit_attrs),
             "v": (dims, v, fit_attrs),
             "w": (dims, w, fit_attrs),
-            "wind_speed": (dims, np.hypot(u, v), fit_attrs),
-            "wind_direction": (dims, wind_from_direction(u, v), fit_attrs),
+            "wind_speed": (dims, wind_speed, fit_attrs),
+            "wind_direction": (dims, wind_direction, fit_attrs),
             "u_error": (dims, np.sqrt(covariance[..., 0, 0]), error_attrs),
             "v_error": (dims, np.sqrt(covariance[..., 1, 1]), error_attrs),
             "w_error": (dims, np.sqrt(covariance[..., 2, 2]), error_attrs),

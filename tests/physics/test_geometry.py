@@ -102,3 +102,36 @@ def test_functions_broadcast() -> None:
         g.scan_circle_radius(h, [15.0, 45.0, 75.0]),
         np.array([100.0, 200.0])[:, None] * np.cos(np.deg2rad([15.0, 45.0, 75.0])),
     )
+
+
+def test_wind_components_of_cardinal_directions() -> None:
+    """A wind *from* 270 deg (west) blows east, from 180 deg (south) blows north."""
+    u, v = g.wind_components(np.array([10.0, 10.0, 10.0, 10.0]), [270.0, 180.0, 90.0, 0.0])
+    np.testing.assert_allclose(u, [10.0, 0.0, -10.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(v, [0.0, 10.0, 0.0, -10.0], atol=1e-12)
+
+
+@settings(max_examples=200, deadline=None)
+@given(speed=st.floats(1e-3, 60.0), direction=st.floats(0.0, 359.999))
+def test_speed_and_direction_inverts_wind_components(speed: float, direction: float) -> None:
+    back_speed, back_direction = g.speed_and_direction(*g.wind_components(speed, direction))
+    assert back_speed == pytest.approx(speed, rel=1e-12)
+    assert 0.0 <= back_direction < 360.0
+    gap = (back_direction - direction + 180.0) % 360.0 - 180.0
+    assert abs(gap) < 1e-9
+
+
+def test_other_component_orders_project_the_same_wind() -> None:
+    """The (v, u, w) design matrix of the VAD error theory and the (up, north, east) beams
+    of Banakh et al. (1999), eq. 1, give the radial velocity of Smalikho (2020), eq. 8."""
+    from cwproc.physics.correlation import beam_vectors, wind_vector
+    from cwproc.physics.vad_errors import design_matrix
+
+    azimuth = np.linspace(0.0, 350.0, 36)
+    u, v = g.wind_components(7.5, 212.0)
+    w = 0.4
+    expected = g.radial_velocity(u, v, w, azimuth, 35.3)
+    np.testing.assert_allclose(design_matrix(azimuth, 35.3) @ [v, u, w], expected, atol=1e-12)
+    np.testing.assert_allclose(
+        beam_vectors(azimuth, 35.3) @ wind_vector(7.5, 212.0, w), expected, atol=1e-12
+    )

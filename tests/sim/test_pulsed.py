@@ -5,15 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cwproc.physics.geometry import radial_velocity
+from cwproc.physics.geometry import radial_velocity, wind_components
 from cwproc.physics.transfer import PulsedProbe
 from cwproc.sim.field3d import FrozenField, von_karman_field
-from cwproc.sim.pulsed import (
-    pulsed_range_weight,
-    range_quadrature,
-    sample_conical_scans,
-    wind_components,
-)
+from cwproc.sim.pulsed import pulsed_range_weight, range_quadrature, sample_conical_scans
 
 DP, DR = 15.3, 18.0  # Stream Line, Smalikho (2020) after eq. 20
 

@@ -893,13 +893,14 @@ def test_sector_vad_removal_matches_exact_block_statistics():
     R'/L_V = 0.7: the scans are 0.8 R' apart, so their VAD winds correlate and the block
     removes far more than the full circle's share over N (which is 2.5 times too small).
     """
+    from cwproc.physics.geometry import wind_components
     from cwproc.sim import exact_gaussian as eg
 
     phi, height, scale, n_scans, mu = 35.0, 100.0, 200.0, 4, 1.0
     radius = height / np.tan(np.radians(phi))
     pattern = eg.conical_pattern(15, 15.0, sector_deg=90.0, continuous=False, return_s=2.0)
     t_scan = 15.0 * 4  # a full circle at the sector's rate (s)
-    u, v = eg.wind_components(mu * 2 * np.pi * radius / t_scan, 250.0)
+    u, v = wind_components(mu * 2 * np.pi * radius / t_scan, 250.0)
     cov = eg.block_covariance(
         pattern,
         n_scans,

@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 
 from cwproc.errors import CwprocError
 from cwproc.physics import vad_errors as ve
-from cwproc.physics.geometry import beam_unit_vector, radial_velocity
+from cwproc.physics.geometry import beam_unit_vector, radial_velocity, speed_and_direction
 from cwproc.products.metadata import undeclared_variables
 from cwproc.stages import vad
 from cwproc.stages.vad import fit_vad
@@ -434,7 +434,7 @@ def test_noise_free_homodyne_scans_are_recovered_exactly(
     assume(np.hypot(u, v) > 1e-3)
     ds = scan_dataset(u, v, w, n_scans=1, n_rays=n_rays, n_gates=2, elevation=elevation,
                       sigma=0.0, homodyne=True)  # fmt: skip
-    direction = float(vad.wind_from_direction(u, v))
+    direction = float(speed_and_direction(u, v)[1])
     wind = fit(ds, min_rays=3, reference_direction_deg=direction + 60.0)
     np.testing.assert_allclose(wind["u"].values, u, atol=1e-7)
     np.testing.assert_allclose(wind["v"].values, v, atol=1e-7)
@@ -501,7 +501,7 @@ def test_homodyne_weak_wind_strong_updraft(u: float, v: float, w: float) -> None
     """|w sin(phi)| > V_h cos(phi): |V_r| never changes sign round the circle."""
     ds = scan_dataset(u, v, w, n_scans=1, n_rays=50, n_gates=1, elevation=60.0, sigma=0.0,
                       homodyne=True)  # fmt: skip
-    wind = fit(ds, reference_direction_deg=float(vad.wind_from_direction(u, v)) - 45.0)
+    wind = fit(ds, reference_direction_deg=float(speed_and_direction(u, v)[1]) - 45.0)
     np.testing.assert_allclose(
         [wind["u"].item(), wind["v"].item(), wind["w"].item()], [u, v, w], atol=1e-9
     )

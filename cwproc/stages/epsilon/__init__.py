@@ -121,9 +121,10 @@ Flags (``turbulence_flag``, :mod:`cwproc.stages.epsilon.flags`, bits combine; bi
   (``n_scans < MIN_BLOCK_FRACTION * n_scans_per_block``, e.g. the 2 scans left over from
   12 scans in blocks of 10): no ``eps``. The variance of ``V'_L`` about the mean of so
   few scans lacks the scan-to-scan variance of the large eddies (the ``N``
-  dependence of the errors in Banakh et al. (1999): 33-38 % at N = 1 against 10-12 % at N =
-  10), so ``L_V`` and ``eps`` would be biased; half a block keeps the relative error within
-  about 1.5 times that of a full block (REFERENCE_VALUES.md section 3: 14-16 % at N = 5);
+  dependence of the errors in the Monte Carlo of Banakh et al. (1999), section 3, repeated
+  with the exact eq. 17 model: 33-38 % at N = 1 against 10-12 % at N = 10), so ``L_V``
+  and ``eps`` would be biased; half a block keeps the relative error within about 1.5
+  times that of a full block (14-16 % at N = 5 in the same Monte Carlo);
 - 32: the noise intercept is not determined; the predicted sigma_e is used (above).
 
 ``structure_function_model`` is the fitted ``eps_fit^(2/3) A_2(l dy) + 2 sigma_e^2``
