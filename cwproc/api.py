@@ -40,6 +40,7 @@ from cwproc.pipeline import (
     write_unit_products,
 )
 from cwproc.pipeline.inputs import expand_inputs
+from cwproc.products.catalogue import product_kind
 from cwproc.products.metadata import apply_metadata
 from cwproc.products.writer import add_site_coordinates
 
@@ -256,7 +257,9 @@ def retrieve(
             key=unit.key,
             kind=unit.kind,
             products={
-                name: apply_metadata(add_site_coordinates(ds, cfg.output))
+                name: apply_metadata(
+                    add_site_coordinates(ds, cfg.output), product=product_kind(name, unit.kind)
+                )
                 for name, ds in result.products.items()
             },
             notes=tuple(result.notes),

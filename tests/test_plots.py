@@ -150,7 +150,7 @@ def test_default_kind():
 
 
 def test_cli_plot_product_and_missing_variables(tmp_path):
-    wind = write_product(wind_product(), tmp_path / "w.nc", title="t", summary="s")
+    wind = write_product(wind_product(), tmp_path / "w.nc", product="wind", title="t", summary="s")
     res = CliRunner().invoke(main, ["plot", str(wind), "-o", str(tmp_path / "w.png")])
     assert res.exit_code == 0, res.output
     _assert_png(tmp_path / "w.png")
@@ -249,7 +249,9 @@ def test_log_colour_bar_has_enough_ticks():
     ],
 )
 def test_cli_plot_arguments_checked(tmp_path, args, message):
-    turb = write_product(turbulence_product(), tmp_path / "t.nc", title="t", summary="s")
+    turb = write_product(
+        turbulence_product(), tmp_path / "t.nc", product="turbulence", title="t", summary="s"
+    )
     res = CliRunner().invoke(main, ["plot", str(turb), "-o", str(tmp_path / "t.png"), *args])
     assert res.exit_code == 2, res.output
     assert message in res.output and len(res.output.strip().splitlines()) == 1
@@ -264,7 +266,7 @@ def test_cli_plot_arguments_checked(tmp_path, args, message):
     ],
 )
 def test_cli_plot_sonic_arguments_checked(tmp_path, args, message):
-    sf = write_product(sf_product(), tmp_path / "s.nc", title="t", summary="s")
+    sf = write_product(sf_product(), tmp_path / "s.nc", product="sf", title="t", summary="s")
     res = CliRunner().invoke(main, ["plot", str(sf), "-o", str(tmp_path / "s.png"), *args])
     assert res.exit_code == 2, res.output
     assert message in res.output and len(res.output.strip().splitlines()) == 1
@@ -411,7 +413,7 @@ def test_epsilon_profile_axis_labels_do_not_touch(lo, hi):
 
 def test_refused_picture_names_the_file(tmp_path):
     empty = write_product(
-        _all_missing(wind_product()), tmp_path / "empty.nc", title="t", summary="s"
+        _all_missing(wind_product()), tmp_path / "empty.nc", product="wind", title="t", summary="s"
     )
     res = CliRunner().invoke(main, ["plot", str(empty), "-o", str(tmp_path / "e.png")])
     assert res.exit_code == 1

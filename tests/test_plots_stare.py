@@ -113,7 +113,9 @@ def test_per_ray_panel_thins_the_rays_and_keeps_the_gaps():
 
 
 def test_cli_plots_a_stare_product_by_default_and_refuses_an_empty_one(tmp_path):
-    path = write_product(stare_product(), tmp_path / "s_stare.nc", title="t", summary="s")
+    path = write_product(
+        stare_product(), tmp_path / "s_stare.nc", product="stare", title="t", summary="s"
+    )
     res = CliRunner().invoke(main, ["plot", str(path), "-o", str(tmp_path / "s.png")])
     assert res.exit_code == 0, res.output
     import matplotlib.image as mpimg
@@ -121,7 +123,11 @@ def test_cli_plots_a_stare_product_by_default_and_refuses_an_empty_one(tmp_path)
     img = mpimg.imread(tmp_path / "s.png")
     assert img.shape[:2] == (plots.FIGSIZE[1] * plots.DPI, plots.FIGSIZE[0] * plots.DPI)
     empty = write_product(
-        all_missing(stare_product()), tmp_path / "e_stare.nc", title="t", summary="s"
+        all_missing(stare_product()),
+        tmp_path / "e_stare.nc",
+        product="stare",
+        title="t",
+        summary="s",
     )
     res = CliRunner().invoke(main, ["plot", str(empty), "-o", str(tmp_path / "e.png")])
     assert res.exit_code == 1

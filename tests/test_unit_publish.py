@@ -153,5 +153,5 @@ def test_product_writer_removes_stale_temporaries(tmp_path):
     stale.write_bytes(b"\x89HDF partial")
     old = _time.time() - STALE_TEMPORARY_S - 10
     os.utime(stale, (old, old))
-    write_product(tiny(), tmp_path / "x.nc", title="t", summary="s")
+    write_product(tiny(), tmp_path / "x.nc", product="wind", title="t", summary="s")
     assert not stale.exists()

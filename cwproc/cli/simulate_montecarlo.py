@@ -75,6 +75,7 @@ def simulate_montecarlo(
         nc = write_product(
             study,
             out / f"{STEM}.nc",
+            product="montecarlo",
             title="cwproc Monte-Carlo error study of Banakh et al. (1999)",
             summary=(
                 "Relative RMS errors of the dissipation rate, velocity variance and integral "

@@ -37,8 +37,6 @@ from cwproc.io.schema import with_canonical_attrs
 #: scan_type words that declare a conical scan (a 2-ray sweep is then accepted)
 _CONICAL_WORDS = re.compile(r"\b(VAD|PPI|conical|DBS)\b", re.IGNORECASE)
 
-SCAN_REFERENCE = "Smalikho (2020), eqs. 1-2 (one rotation of the conical scan)"
-
 
 def azimuth_steps(azimuth: np.ndarray) -> np.ndarray:
     """Signed azimuth change between consecutive rays, wrapped into [-180, 180) deg."""
@@ -190,7 +188,6 @@ def scan_indices(
         "min_step_deg": min_step_deg,
         "max_gap_s": max_gap_s,
         "min_rays": min_rays,
-        "references": SCAN_REFERENCE,
     }
     return scan, attrs
 

@@ -12,7 +12,7 @@ from cwproc.config import Config
 from cwproc.errors import CwprocError
 from cwproc.io.netcdf import discard, publish
 from cwproc.pipeline.units import ProductUnit, held_or_identity
-from cwproc.products.catalogue import describe_product
+from cwproc.products.catalogue import describe_product, product_kind
 from cwproc.products.writer import add_site_coordinates, site_attributes, write_product
 
 #: a product file name: no separator, no leading dot, nothing a shell or a filesystem
@@ -71,6 +71,7 @@ def _write_staged(
                 write_product(
                     add_site_coordinates(ds, config.output),
                     path,
+                    product=product_kind(name, unit.kind),
                     title=f"cwproc {about.title}: {unit.key}",
                     summary=about.summary,
                     inputs=list(dict.fromkeys(i.path for i in unit.inputs)),

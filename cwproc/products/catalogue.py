@@ -70,10 +70,17 @@ _WIND_RECORD = ProductDescription(
 )
 
 
+def product_kind(name: str, unit_kind: str) -> str:
+    """The product (a key of :data:`cwproc.products.metadata.PRODUCTS`) that product
+    ``name`` of a unit of kind ``unit_kind`` is: the ``"wind"`` of instrument wind
+    records is ``"wind_record"``, every other product is its name."""
+    return "wind_record" if unit_kind == "wind_record" else name
+
+
 def describe_product(name: str, unit_kind: str) -> ProductDescription:
     """The description of product ``name`` (``"wind"``, ``"turbulence"``, ``"stare"``, ``"sf"``)
     of a unit of kind ``unit_kind`` (``"wind_record"`` for instrument wind records)."""
-    if unit_kind == "wind_record":
+    if product_kind(name, unit_kind) == "wind_record":
         return _WIND_RECORD
     title, summary = _TITLES.get(name, (name, name))
     return ProductDescription(title, summary, _KEYWORDS.get(name, ""), _REFERENCES.get(name, ""))

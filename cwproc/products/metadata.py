@@ -6,9 +6,10 @@ input variables (scan, wind-record and sonic datasets) are declared in
 declared below, and :data:`PRODUCT_VARIABLES` holds what differs between products
 (the bits of ``qc_flag`` of the VAD wind and of the wind-record product, citations).
 Stages never write ``units``/``standard_name``/``long_name``/``references``/flag
-attributes: :func:`apply_metadata` (called by the NetCDF writer) replaces any such
-attribute by the declared one and keeps what records *what was done* (method,
-parameters). A test checks that every variable of every product is declared here.
+attributes (a test scans them): :func:`apply_metadata`, called with the product's name
+by the NetCDF writer and by :func:`cwproc.retrieve`, attaches the declared ones and
+keeps what records *what was done* (method, parameters). A test checks that every
+variable of every product is declared here.
 
 To add a variable: add one :class:`VarMeta` entry to ``_PRODUCT_VARIABLES`` (keep the
 table grouped by product).
@@ -21,6 +22,7 @@ from dataclasses import replace
 
 import xarray as xr
 
+from cwproc.errors import CwprocError
 from cwproc.io.schema import (
     SCAN_VARIABLES,
     SONIC_VARIABLES,
@@ -36,6 +38,7 @@ from cwproc.references import (
     VAD_ACCURACY,
     WAGNER_DTU,
 )
+from cwproc.stages.vad import REFERENCES as _VAD_REFERENCES
 
 
 def _gladkikh(long_name: str, units: str, equation: str) -> VarMeta:
@@ -479,9 +482,6 @@ VARIABLES: dict[str, VarMeta] = {
     **_PRODUCT_VARIABLES,
 }
 
-_VAD_REFERENCES = (
-    f"{SMALIKHO_2020}, eqs. 1 and 8; {BANAKH_1999}, after eq. 23; {VAD_ACCURACY}, sections 2-4"
-)
 _VAD_ERROR_REFERENCES = f"{VAD_ACCURACY}, section 4"
 
 
@@ -533,30 +533,28 @@ PRODUCT_VARIABLES: dict[str, dict[str, VarMeta]] = {
     },
 }
 
-#: a variable that only the product of that name holds (how a product is recognised)
-PRODUCT_MARKERS: dict[str, str] = {
-    "wind": "n_rays",
-    "wind_record": "volume_averaging_ratio",
-    "turbulence": "structure_function",
-    "stare": "w_ray",
-    "sf": "sf_type",
-}
+#: every product cwproc writes: the VAD wind, the wind of instrument wind records, the
+#: turbulence of conical scans, the vertical-stare statistics, the sonic structure-function
+#: types and the Monte-Carlo error study
+PRODUCTS: tuple[str, ...] = ("wind", "wind_record", "turbulence", "stare", "sf", "montecarlo")
 
 
-def product_of(ds: xr.Dataset) -> str | None:
-    """The product ``ds`` is (a key of :data:`PRODUCT_MARKERS`), or ``None``."""
-    for product, marker in PRODUCT_MARKERS.items():
-        if marker in ds.variables:
-            return product
-    return None
+def product_table(product: str) -> dict[str, VarMeta]:
+    """The declarations of ``product``: :data:`VARIABLES` with its own entries over them.
+
+    Raises
+    ------
+    CwprocError
+        ``product`` is not one of :data:`PRODUCTS`.
+    """
+    if product not in PRODUCTS:
+        raise CwprocError(
+            f"unknown product {product!r}: the metadata declares {', '.join(PRODUCTS)}"
+        )
+    return {**VARIABLES, **PRODUCT_VARIABLES.get(product, {})}
 
 
-def product_table(product: str | None) -> dict[str, VarMeta]:
-    """The declarations of ``product``: :data:`VARIABLES` with its own entries over them."""
-    return {**VARIABLES, **PRODUCT_VARIABLES.get(product or "", {})}
-
-
-def apply_metadata(ds: xr.Dataset, product: str | None = None) -> xr.Dataset:
+def apply_metadata(ds: xr.Dataset, *, product: str) -> xr.Dataset:
     """Attach the declared CF attributes to every variable and coordinate of ``ds``.
 
     The declared attributes (names, units, flags, citations; see
@@ -566,16 +564,21 @@ def apply_metadata(ds: xr.Dataset, product: str | None = None) -> xr.Dataset:
     Parameters
     ----------
     ds : xarray.Dataset
-    product : str, optional
-        The product (a key of :data:`PRODUCT_MARKERS`); default: recognised from its
-        variables (:func:`product_of`).
+    product : str
+        The product ``ds`` is, one of :data:`PRODUCTS` (the wind of a wind-record unit
+        is ``"wind_record"``: its ``qc_flag`` bits differ).
 
     Returns
     -------
     xarray.Dataset
         A shallow copy with attributes set.
+
+    Raises
+    ------
+    CwprocError
+        ``product`` is not one of :data:`PRODUCTS`.
     """
-    table = product_table(product or product_of(ds))
+    table = product_table(product)
     out = attach_attrs(ds, table)
     for name in out.variables:
         meta = table.get(str(name))

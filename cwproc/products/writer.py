@@ -236,6 +236,7 @@ def write_product(
     ds: xr.Dataset,
     path: str | os.PathLike,
     *,
+    product: str,
     title: str,
     summary: str,
     inputs: Iterable[str | os.PathLike] = (),
@@ -249,13 +250,34 @@ def write_product(
 ) -> Path:
     """Attach CF metadata and ACDD/provenance attributes, then write atomically.
 
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The product.
+    path : path
+        Where it is written.
+    product : str
+        Which product ``ds`` is, one of :data:`cwproc.products.metadata.PRODUCTS`: it
+        selects the declarations (:func:`cwproc.products.metadata.apply_metadata`).
+    title, summary, inputs, checksums, config_toml, references, keywords, extra_attrs
+        Global attributes, see :func:`global_attributes`.
+    compression_level : int
+        zlib level of the variables (0-9).
+    stage_only : bool
+        Write the staged temporary only (see Returns).
+
     Returns
     -------
     pathlib.Path
         The product path; with ``stage_only`` the staged temporary, which
         :func:`publish` renames onto the product (all products of a unit together).
+
+    Raises
+    ------
+    CwprocError
+        ``product`` is not a product the metadata declares.
     """
-    out = apply_metadata(ds)
+    out = apply_metadata(ds, product=product)
     attrs = dict(ds.attrs)
     attrs.pop("file_uuid", None)  # an input's identity is not this file's
     inputs = list(inputs)

@@ -120,13 +120,9 @@ def correct_snr(
     bg_time[done] = times[idx[done]]
     out = scans.assign(
         snr=(scans["snr"].dims, snr, scans["snr"].attrs),
-        snr_uncorrected=(
-            scans["snr"].dims,
-            snr0,
-            {"long_name": "SNR as given by the instrument", "units": "1"},
-        ),
+        snr_uncorrected=(scans["snr"].dims, snr0),
         background_time=("ray", bg_time),
-        noise_floor=("ray", floor_median, {"long_name": "median noise floor F", "units": "1"}),
+        noise_floor=("ray", floor_median),
     )
     out.attrs = dict(scans.attrs)
     out.attrs["snr_correction"] = (

@@ -177,7 +177,6 @@ def screen_radial_velocity(
             "snr_min": float(snr_min) if has_snr else "not applied (no snr in the input)",
             "outlier_threshold": float(outlier_threshold),
             "min_spread_m_s": min_spread,
-            "references": "Smalikho (2020), eq. 1",
         },
     )
     return out

@@ -358,7 +358,6 @@ def _assemble(
                 "[1 - sinc^2(k L_1/2)] sinc^2(k L_N/2) R_gate(k) dk, a_T = "
                 f"{stare.A_TRANSVERSE:.4f}"
             ),
-            "references": stare.OCONNOR_2010 + ", eqs. 1-4",
         }
     }
     data = {name: (dims, value, method.get(name, {})) for name, value in values.items()}

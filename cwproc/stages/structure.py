@@ -37,7 +37,6 @@ from cwproc.errors import CwprocError
 from cwproc.io.scans import is_homodyne
 from cwproc.physics.atable_interp import N_BINS, azimuth_bin_weights, azimuth_nodes
 from cwproc.physics.geometry import radial_velocity
-from cwproc.references import SMALIKHO_2020
 
 #: largest relative mismatch (m) between wind-product gate ranges and scan gate ranges
 _RANGE_TOLERANCE_M = 0.5
@@ -424,7 +423,6 @@ def azimuth_structure_function(
     out["structure_function"].attrs.update(
         method="azimuth structure function of V_L minus the block-mean VAD wind, pairs "
         "pooled over the block, missing rays skipped pairwise",
-        references=SMALIKHO_2020 + ", eqs. 1-2",
         n_scans_per_block=int(n_scans),
         max_lag_deg=float(max_lag_deg),
     )

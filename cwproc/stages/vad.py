@@ -38,6 +38,7 @@ from cwproc.physics.geometry import (
     normalise_pointing,
     speed_and_direction,
 )
+from cwproc.references import BANAKH_1999, SMALIKHO_2020, VAD_ACCURACY
 from cwproc.stages.vad_fit import fit_scans
 
 #: elevations (deg) that count as conical scans; outside, w or u, v are not determined
@@ -47,10 +48,9 @@ ELEVATION_TOLERANCE_DEG = 0.5
 #: budget of (scan x ray x gate) elements per chunk; bounds memory on long days
 CHUNK_ELEMENTS = 4_000_000
 
+#: the papers of the VAD fit (the ``vad_references`` attribute of the wind product)
 REFERENCES = (
-    "Smalikho (2020), eq. 1 and eq. 8; Banakh et al. (1999), after eq. 23; "
-    "VAD accuracy paper (Theoretical accuracy of wind-vector reconstruction from lidar "
-    "VAD scanning), sections 2-4"
+    f"{SMALIKHO_2020}, eqs. 1 and 8; {BANAKH_1999}, after eq. 23; {VAD_ACCURACY}, sections 2-4"
 )
 
 FloatArray = NDArray[np.float64]
@@ -471,11 +471,8 @@ def _wind_dataset(
         if homodyne
         else "least squares V_r = w sin(phi) + cos(phi)(u sin(theta) + v cos(theta))"
     )
-    fit_attrs = {"method": method, "references": REFERENCES}
-    error_attrs = {
-        "method": "square root of the diagonal of s^2 (A^T A)^-1, s^2 = SSR/(n - 3)",
-        "references": "VAD accuracy paper, section 4",
-    }
+    fit_attrs = {"method": method}
+    error_attrs = {"method": "square root of the diagonal of s^2 (A^T A)^-1, s^2 = SSR/(n - 3)"}
     range_m = ds["range"].values.astype(float)
     height = height_from_range(range_m, phi)
     wind_speed, wind_direction = speed_and_direction(u, v)
@@ -502,8 +499,6 @@ def _wind_dataset(
                 dims,
                 flag,
                 {
-                    "flag_masks": np.array([1, 2, 4], dtype=np.int8),
-                    "flag_meanings": "too_few_rays azimuth_gap_too_large bad_fit",
                     "bad_fit_definition": (
                         "fewer than 3 rays or cond(A^T A) > 1e8; no residual degree of "
                         "freedom (n = 3); residual std > "

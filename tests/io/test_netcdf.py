@@ -38,7 +38,13 @@ def test_round_trip_keeps_values_nan_and_metadata(tmp_path):
     src = tmp_path / "input.hpl"
     src.write_bytes(b"some bytes")
     path = write_product(
-        ds, tmp_path / "p.nc", title="t", summary="s", inputs=[src], config_toml="[qc]\n"
+        ds,
+        tmp_path / "p.nc",
+        product="wind",
+        title="t",
+        summary="s",
+        inputs=[src],
+        config_toml="[qc]\n",
     )
     back = read_product(path)
     np.testing.assert_array_equal(back["u"].values, ds["u"].values)  # NaN survives
@@ -61,7 +67,7 @@ def test_killed_write_leaves_nothing(tmp_path, monkeypatch):
 
     monkeypatch.setattr(xr.Dataset, "to_netcdf", boom)
     with pytest.raises(KeyboardInterrupt):
-        write_product(ds, tmp_path / "p.nc", title="t", summary="s")
+        write_product(ds, tmp_path / "p.nc", product="wind", title="t", summary="s")
     assert list(tmp_path.iterdir()) == []
 
 
@@ -69,7 +75,7 @@ def test_unwritable_directory_is_a_clear_product_error(tmp_path):
     blocker = tmp_path / "afile"
     blocker.write_text("x")
     with pytest.raises(ProductError, match="cannot write product"):
-        write_product(wind_like(), blocker / "p.nc", title="t", summary="s")
+        write_product(wind_like(), blocker / "p.nc", product="wind", title="t", summary="s")
 
 
 def test_every_declared_variable_has_units_and_long_name():
@@ -80,7 +86,7 @@ def test_every_declared_variable_has_units_and_long_name():
 
 
 def test_apply_metadata_marks_flags_and_counts():
-    out = apply_metadata(wind_like())
+    out = apply_metadata(wind_like(), product="wind")
     assert out["qc_flag"].attrs["coverage_content_type"] == "qualityInformation"
     assert out["n_rays"].attrs["standard_name"] == "number_of_observations"
     assert out["height"].attrs["coverage_content_type"] == "coordinate"
@@ -100,6 +106,7 @@ def test_product_is_cf_and_acdd_compliant(tmp_path, compliance):
     path = write_product(
         wind_like(),
         tmp_path / "wind.nc",
+        product="wind",
         title="cwproc wind",
         summary="test product",
         config_toml=cfg.to_toml(),

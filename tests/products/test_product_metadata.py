@@ -15,17 +15,25 @@ import pytest
 from click.testing import CliRunner
 
 from cwproc.cli import main
+from cwproc.errors import CwprocError
 from cwproc.io.netcdf import read_product
-from cwproc.products.metadata import PRODUCT_VARIABLES, VARIABLES, product_of, product_table
+from cwproc.products.catalogue import product_kind
+from cwproc.products.metadata import (
+    PRODUCT_VARIABLES,
+    PRODUCTS,
+    VARIABLES,
+    apply_metadata,
+    product_table,
+)
 
 SAMPLE = Path(__file__).resolve().parents[2] / "sample_data"
 
-#: (command, input folder, configuration) of every kind of sample product
+#: (command, input folder, configuration, unit kind) of every kind of sample product
 RUNS = {
-    "streamline": ("retrieve", "streamline", SAMPLE / "site.toml"),
-    "zephir": ("retrieve", "zephir", "zephir300"),
-    "windcube": ("retrieve", "windcube", "windcube"),
-    "sonic": ("sf-type", "sonic", SAMPLE / "sonic.toml"),
+    "streamline": ("retrieve", "streamline", SAMPLE / "site.toml", "scan"),
+    "zephir": ("retrieve", "zephir", "zephir300", "wind_record"),
+    "windcube": ("retrieve", "windcube", "windcube", "wind_record"),
+    "sonic": ("sf-type", "sonic", SAMPLE / "sonic.toml", "sonic"),
 }
 
 
@@ -33,7 +41,7 @@ RUNS = {
 def products(tmp_path_factory) -> dict[str, dict[str, Path]]:
     """The products of every sample folder: run -> {product file suffix: path}."""
     out: dict[str, dict[str, Path]] = {}
-    for run, (command, folder, config) in RUNS.items():
+    for run, (command, folder, config, _kind) in RUNS.items():
         target = tmp_path_factory.mktemp(run)
         args = [command, str(SAMPLE / folder), "-c", str(config), "-o", str(target)]
         res = CliRunner().invoke(main, args)
@@ -85,7 +93,7 @@ def test_every_variable_has_the_units_declared_for_its_product(products):
     for run, files in products.items():
         for name, path in files.items():
             ds = read_product(path)
-            table = product_table(product_of(ds))
+            table = product_table(product_kind(name, RUNS[run][3]))
             for var in ds.variables:
                 meta = table[str(var)]
                 if meta.units is None:  # times: the encoding's "seconds since ..."
@@ -95,7 +103,23 @@ def test_every_variable_has_the_units_declared_for_its_product(products):
                 assert ds[var].attrs.get("long_name") == meta.long_name, (run, name, var)
 
 
-def test_every_product_is_recognised_and_its_own_entries_are_declared():
-    assert set(PRODUCT_VARIABLES) <= {"wind", "wind_record", "turbulence", "stare", "sf"}
+def test_every_product_is_named_and_its_own_entries_are_declared():
+    assert set(PRODUCT_VARIABLES) <= set(PRODUCTS)
     for entries in PRODUCT_VARIABLES.values():
         assert set(entries) <= set(VARIABLES)
+
+
+def test_an_unknown_product_name_is_an_error_naming_it(products):
+    ds = read_product(products["streamline"]["wind"])
+    with pytest.raises(CwprocError, match="unknown product 'nonsense'") as err:
+        apply_metadata(ds, product="nonsense")
+    assert "wind_record" in str(err.value)  # and it lists the products there are
+
+
+def test_the_named_product_selects_the_flag_bits_whatever_the_variables(products):
+    """The same variables get the bits of the product they are said to be (no sniffing)."""
+    ds = read_product(products["streamline"]["wind"])
+    as_record = apply_metadata(ds, product="wind_record")["qc_flag"].attrs
+    as_vad = apply_metadata(ds, product="wind")["qc_flag"].attrs
+    assert as_record["flag_meanings"].split() == ["too_few_samples", "missing_value", "rain"]
+    assert as_vad["flag_meanings"].split() == ["too_few_rays", "azimuth_gap_too_large", "bad_fit"]

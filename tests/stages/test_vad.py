@@ -20,7 +20,8 @@ from hypothesis import strategies as st
 from cwproc.errors import CwprocError
 from cwproc.physics import vad_errors as ve
 from cwproc.physics.geometry import beam_unit_vector, radial_velocity, speed_and_direction
-from cwproc.products.metadata import undeclared_variables
+from cwproc.products.metadata import apply_metadata, undeclared_variables
+from cwproc.references import SMALIKHO_2020, VAD_ACCURACY
 from cwproc.stages import vad
 from cwproc.stages.vad import fit_vad
 from cwproc.stages.vad_fit import fit_homodyne
@@ -262,8 +263,12 @@ def test_product_schema() -> None:
     # time = mean time of the scan's rays: the middle of a 24 s rotation of 24 rays
     expected = T0 + np.timedelta64(11_500, "ms")
     assert wind["time"].values[0] == expected
-    assert "Smalikho (2020), eq. 1" in wind["u"].attrs["references"]
-    assert "VAD accuracy paper" in wind.attrs["vad_references"]
+    # the stage records its method; the citations of the variables come from the metadata
+    assert "least squares" in wind["u"].attrs["method"]
+    written = apply_metadata(wind, product="wind")
+    assert f"{SMALIKHO_2020}, eqs. 1 and 8" in written["u"].attrs["references"]
+    assert f"{VAD_ACCURACY}, section 4" in written["u_error"].attrs["references"]
+    assert f"{VAD_ACCURACY}, sections 2-4" in wind.attrs["vad_references"]
 
 
 def test_chunked_solution_equals_single_block(monkeypatch: pytest.MonkeyPatch) -> None:

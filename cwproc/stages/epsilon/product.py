@@ -8,7 +8,6 @@ import numpy as np
 import xarray as xr
 
 from cwproc.physics.structure_fit import NOISE_PLAUSIBLE
-from cwproc.references import BANAKH_1999, SMALIKHO_2020
 from cwproc.stages.epsilon.cells import Cells
 from cwproc.stages.epsilon.cw_exact import CW_EXACT_MU_MAX
 from cwproc.stages.epsilon.flags import METHOD1_RATIO_LIMIT
@@ -97,7 +96,6 @@ def describe(out: xr.Dataset, common: dict[str, Any], c_model: float, model: str
         f"A-functions where a length exceeds {INERTIAL_FRACTION:g} L_V; cw cells with "
         f"mu <= {CW_EXACT_MU_MAX:g}: least squares of D_L with the exact B_D of Banakh et "
         "al. (1999), eqs. 15-17, eps = c sigma_V^3 / L_V (eq. 19)",
-        references=SMALIKHO_2020 + ", eqs. 4-5, 15-20",
     )
     out["epsilon_method1"].attrs.update(
         common,
@@ -130,5 +128,4 @@ def describe(out: xr.Dataset, common: dict[str, Any], c_model: float, model: str
         correlation_model="exponential (Banakh et al. (1999), eq. 17)"
         if model in ("inertial", "exponential")
         else "von Karman",
-        references=BANAKH_1999 + ", eq. 19",
     )
