@@ -36,7 +36,7 @@ import xarray as xr
 from cwproc.errors import CwprocError
 from cwproc.io.scans import is_homodyne
 from cwproc.physics.atable_interp import N_BINS, azimuth_bin_weights, azimuth_nodes
-from cwproc.physics.geometry import radial_velocity
+from cwproc.physics.geometry import radial_velocity, speed_and_direction
 
 #: largest relative mismatch (m) between wind-product gate ranges and scan gate ranges
 _RANGE_TOLERANCE_M = 0.5
@@ -596,7 +596,7 @@ def _block_statistics_by_chunk(
     stat_names = ("sf", "pairs", "variance", "sf_se", "diff_se", "variance_se", "covariance")
     has_snr = "snr" in screened_ds
     # the mean wind's direction of motion (deg from north, clockwise) per block and height
-    wind_to = np.degrees(np.arctan2(u_b, v_b))
+    wind_to = np.mod(speed_and_direction(u_b, v_b)[1] + 180.0, 360.0)
     first_az = np.where(grid.first_of >= 0, grid.az[np.maximum(grid.first_of, 0)], np.nan)
     cell_scan = scan_pos[uniq]
     order_cells = np.argsort(cell_scan, kind="stable")
@@ -711,7 +711,7 @@ def _structure_dataset(
                 ("time", "height", "statistic", "statistic_b"),
                 stats["covariance"],
             ),
-            "wind_speed": (("time", "height"), np.hypot(u_b, v_b)),
+            "wind_speed": (("time", "height"), speed_and_direction(u_b, v_b)[0]),
             "wind_to_direction": (("time", "height"), np.mod(stats["wind_to"], 360.0)),
             "pair_azimuth_weights": (("time", "height", "azimuth_node"), stats["weights"]),
             "snr_median": (("time", "height"), stats["snr_median"]),

@@ -20,6 +20,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import CwprocError
+from cwproc.physics.geometry import wind_components
 from cwproc.physics.volume_averaging import std_ratio_and_tp_share
 
 #: qc_flag bits of the wind-record product (they combine; 0 = good)
@@ -228,12 +229,12 @@ _KEPT_ATTRS = (
 def _exported_wind(record: xr.Dataset) -> xr.Dataset:
     """Speed, direction, w, u and v (from speed and direction) and the exported statistics."""
     speed = record["wind_speed"]
-    rad = np.deg2rad(record["wind_direction"])
     out = xr.Dataset(coords={"time": record["time"], "height": record["height"]})
     out["wind_speed"] = speed
     out["wind_direction"] = record["wind_direction"]
-    out["u"] = -speed * np.sin(rad)
-    out["v"] = -speed * np.cos(rad)
+    u, v = wind_components(speed.values, record["wind_direction"].values)
+    out["u"] = (speed.dims, u)
+    out["v"] = (speed.dims, v)
     out["w"] = record["w"] if "w" in record else _missing_like(speed)
     for name in ("wind_speed_std", "wind_speed_min", "wind_speed_max", "data_availability"):
         if name in record:
