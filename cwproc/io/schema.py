@@ -239,20 +239,21 @@ def attach_attrs(ds: xr.Dataset, table: Mapping[str, VarMeta]) -> xr.Dataset:
         A shallow copy with the attributes set; variables not in ``table`` untouched.
     """
     out = ds.copy()
-    for name in list(out.variables):
+    coords = set(out.coords)
+    for name, var in out.variables.items():  # the copy's own Variable objects
         meta = table.get(str(name))
         if meta is None:
             continue
-        attrs = {k: v for k, v in out[name].attrs.items() if k not in DECLARED_ATTRS}
+        attrs = {k: v for k, v in var.attrs.items() if k not in DECLARED_ATTRS}
         attrs.update(meta.attrs())
         for key in ("flag_values", "flag_masks"):
-            if key in attrs and out[name].dtype.kind in "iu":
-                attrs[key] = np.asarray(attrs[key], dtype=out[name].dtype)
-        if out[name].dtype.kind == "M":
+            if key in attrs and var.dtype.kind in "iu":
+                attrs[key] = np.asarray(attrs[key], dtype=var.dtype)
+        if var.dtype.kind == "M":
             attrs.pop("units", None)
-        if name in out.coords:
+        if name in coords:
             attrs["coverage_content_type"] = "coordinate"
-        out[name].attrs = attrs
+        var.attrs = attrs
     return out
 
 
