@@ -111,6 +111,9 @@ class UnitOutcome:
     notes: tuple[str, ...] = ()
     #: one line per failure of the unit (``error`` joins them)
     failures: tuple[str, ...] = ()
+    #: (path, failure line) of inputs identified by their header when classified but
+    #: whose data could not be read: left out of the unit's products, file failures
+    dropped: tuple[tuple[str, str], ...] = ()
 
     @property
     def ok(self) -> bool:

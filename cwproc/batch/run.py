@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import datetime as _dt
 import logging
 import os
@@ -36,7 +37,12 @@ from cwproc.batch.state import (
     save_ledger,
     unit_up_to_date,
 )
-from cwproc.batch.worker import _file_stat, classify_file, process_unit_task
+from cwproc.batch.worker import (
+    _file_stat,
+    classify_file,
+    classify_file_whole,
+    process_unit_task,
+)
 from cwproc.config import Config
 from cwproc.errors import CwprocError
 
@@ -237,8 +243,14 @@ def run_batch(
                 up_to_date=report.units_up_to_date,
             )
         )
+        by_path = {i.path: i for i in infos}
         for task, result in run_tasks(process, todo, client=client):
             outcome = _as_outcome(task, result)
+            if outcome.dropped:
+                task, outcome = _record_dropped(task, outcome, by_path, ledger, report, cfg_hash)
+            if not task.paths:  # every input unreadable: no unit, as if classified whole
+                save_ledger(ledger, ledger_path)
+                continue
             record_outcome(ledger, task, outcome)
             save_ledger(ledger, ledger_path)
             report.processed.append(outcome)
@@ -323,13 +335,29 @@ def _classify_new(
     its progress)."""
     infos = []
     last_save = time.monotonic()
-    for path, result in run_tasks(classify, paths, config.to_toml(), config.source, client=client):
-        info = _as_file_info(path, result)
-        record_file(ledger, info)
-        infos.append(info)
-        if time.monotonic() - last_save > CLASSIFY_SAVE_INTERVAL_S:
-            save_ledger(ledger, ledger_path)
-            last_save = time.monotonic()
+    # a file that failed before is read whole (with the default classifier): one damaged
+    # beyond its header then fails here again, not in its unit, whose record stands
+    again = {
+        p
+        for p in paths
+        if classify is classify_file and ledger.files.get(p, {}).get("status") == "error"
+    }
+    batches = [
+        (classify, [p for p in paths if p not in again]),
+        (classify_file_whole, [p for p in paths if p in again]),
+    ]
+    for function, chosen in batches:
+        if not chosen:
+            continue
+        for path, result in run_tasks(
+            function, chosen, config.to_toml(), config.source, client=client
+        ):
+            info = _as_file_info(path, result)
+            record_file(ledger, info)
+            infos.append(info)
+            if time.monotonic() - last_save > CLASSIFY_SAVE_INTERVAL_S:
+                save_ledger(ledger, ledger_path)
+                last_save = time.monotonic()
     return infos
 
 
@@ -377,6 +405,44 @@ def _as_file_info(path: str, result: Any) -> FileInfo:
     return FileInfo(
         path, size, mtime_ns, "error", error=f"{path}: could not be classified: {result!r}"
     )
+
+
+def _record_dropped(
+    task: UnitTask,
+    outcome: UnitOutcome,
+    infos: dict[str, FileInfo],
+    ledger: Ledger,
+    report: BatchReport,
+    cfg_hash: str,
+) -> tuple[UnitTask, UnitOutcome]:
+    """Record the inputs a unit left out (data unreadable beyond a good header) as file
+    failures, and the unit as made from the others.
+
+    The ledger and the report then read as if classification had read those files whole
+    and found the problem: the unit's inputs and fingerprint are those of the files kept,
+    so the next run finds it up to date while the damaged files stay unchanged.
+    """
+    gone = dict(outcome.dropped)
+    for path, line in outcome.dropped:
+        info = infos.get(path)
+        if info is None:
+            continue
+        failed = dataclasses.replace(
+            info, status="error", sha256="", kind="", unit="", start="", error=line
+        )
+        record_file(ledger, failed)
+        report.file_failures.append(failed)
+        log.warning(kv_line("file", status="failed", path=path, error=line))
+    report.file_failures.sort(key=lambda i: i.path)
+    kept = [(p, h) for p, h in zip(task.paths, task.sha256, strict=True) if p not in gone]
+    fingerprint = unit_fingerprint((h for _, h in kept), cfg_hash)
+    task = dataclasses.replace(
+        task,
+        paths=tuple(p for p, _ in kept),
+        sha256=tuple(h for _, h in kept),
+        fingerprint=fingerprint,
+    )
+    return task, dataclasses.replace(outcome, fingerprint=fingerprint)
 
 
 def _as_outcome(task: UnitTask, result: Any) -> UnitOutcome:

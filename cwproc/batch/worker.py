@@ -27,6 +27,8 @@ from cwproc.batch.records import (
 from cwproc.errors import CwprocError, InputFileError, ProductError
 from cwproc.io import Format, is_cwproc_product, sniff_format
 from cwproc.pipeline import (
+    InputFile,
+    ProductUnit,
     format_mismatch,
     group_units,
     read_input,
@@ -38,10 +40,18 @@ from cwproc.pipeline import (
 _HEAD_BYTES = 4096
 
 
-def _first_time_iso(ds: Any) -> str:
-    if "time" not in ds.variables:
+def _first_time_iso(item: InputFile) -> str:
+    """The earliest valid time of an input (ISO 8601 UTC, whole seconds; '' when none).
+
+    From its data when read, else from its header (``.hpl``: the first ray's time, the
+    earliest of the file since ray times run forward).
+    """
+    if item.identity is not None:
+        t = np.asarray(item.identity.time)
+    elif item.dataset is not None and "time" in item.dataset.variables:
+        t = np.asarray(item.dataset["time"].values)
+    else:
         return ""
-    t = np.asarray(ds["time"].values)
     if not np.issubdtype(t.dtype, np.datetime64):
         return ""
     t = t[~np.isnat(t)]
@@ -55,10 +65,25 @@ def _file_stat(path: str) -> tuple[int, int]:
     return st.st_size, st.st_mtime_ns
 
 
-def classify_file(path: str, config_toml: str, config_source: str = "<batch>") -> FileInfo:
-    """Recognise, checksum and read one file; find the product unit it belongs to.
+def classify_file_whole(path: str, config_toml: str, config_source: str = "<batch>") -> FileInfo:
+    """:func:`classify_file` reading the file whole in any format (for a file that failed
+    before: a damaged ``.hpl`` body then fails at classification, as the first time)."""
+    return classify_file(path, config_toml, config_source, whole=True)
 
-    Never raises for anything the file can cause: problems come back in the record
+
+def classify_file(
+    path: str, config_toml: str, config_source: str = "<batch>", *, whole: bool = False
+) -> FileInfo:
+    """Recognise and checksum one file; find the product unit it belongs to.
+
+    A format with a header-only identifier (``.hpl``, see ``cwproc.io.IDENTIFIERS``) is
+    not parsed here: its bytes are read once, for the checksum, and its header gives the
+    unit and first time; its data are read once, when its unit is processed (an input
+    damaged beyond its header is then left out of the unit and recorded as a file
+    failure, see :func:`process_unit_task`). Formats without such an identifier (sonic
+    files, wind records, scan NetCDF) and files with reader options are read whole:
+    their unit and first time come from their data. Never raises for anything the file
+    can cause: problems come back in the record
     (an unexpected exception of a reader too, so that one file cannot stop a run).
 
     Parameters
@@ -69,6 +94,8 @@ def classify_file(path: str, config_toml: str, config_source: str = "<batch>") -
         The configuration as TOML text (:meth:`cwproc.config.Config.to_toml`).
     config_source : str
         Where the configuration came from (recorded in products).
+    whole : bool
+        Read the file whole whatever its format.
     """
     config, chash = parsed_config(config_toml, config_source)
     try:
@@ -101,7 +128,7 @@ def classify_file(path: str, config_toml: str, config_source: str = "<batch>") -
         return replace(base, status="other_format", format=fmt.value, error=mismatch)
     try:
         with local_dask_scheduler():
-            item = read_input(path, config)
+            item = read_input(path, config, identify_only=not whole)
         kind, key = unit_key(item)
     except CwprocError as exc:
         return replace(base, status="error", format=fmt.value, error=str(exc))
@@ -119,7 +146,7 @@ def classify_file(path: str, config_toml: str, config_source: str = "<batch>") -
         format=item.format.value,
         kind=kind,
         unit=key,
-        start=_first_time_iso(item.dataset),
+        start=_first_time_iso(item),
     )
 
 
@@ -174,6 +201,7 @@ def process_unit_task(task: UnitTask) -> UnitOutcome:
         detail: str = "",
         notes: Sequence[str] = (),
         failures: Sequence[str] = (),
+        dropped: Sequence[tuple[str, str]] = (),
     ) -> UnitOutcome:
         return UnitOutcome(
             key=task.key,
@@ -183,6 +211,7 @@ def process_unit_task(task: UnitTask) -> UnitOutcome:
             detail=detail,
             notes=tuple(notes),
             failures=tuple(failures),
+            dropped=tuple(dropped),
             seconds=time.perf_counter() - t0,
             peak_rss_mib=peak_rss_mib(),
             pid=os.getpid(),
@@ -199,7 +228,7 @@ def _process_unit_task(task: UnitTask, outcome: Callable[..., UnitOutcome]) -> U
     try:
         config = parsed_config(task.config_toml, task.config_source)[0]
         # .hpl data are read once, chunk by chunk, when the unit streams (classification
-        # already read them whole and judged them readable)
+        # read their headers only)
         items = [read_input(p, config, identify_only=True) for p in task.paths]
         for item, expected in zip(items, task.sha256, strict=True):
             if item.sha256 != expected:
@@ -226,10 +255,30 @@ def _process_unit_task(task: UnitTask, outcome: Callable[..., UnitOutcome]) -> U
             error=f"{unit_label(task)}: internal error {type(exc).__name__}: {exc}",
             detail=traceback.format_exc(),
         )
-    # a failed unit (an input readable when classified, not now) is redone by the next run
+    # inputs whose data could not be read are file failures (the driver records them),
+    # not failures of the unit made without them, as when classification reads them whole
+    dropped = dropped_inputs(task, units[0])
+    failures = [f for f in result.failures if f not in {line for _, line in dropped}]
     return outcome(
-        written, error="; ".join(result.failures), notes=result.notes, failures=result.failures
+        written,
+        error="; ".join(failures),
+        notes=result.notes,
+        failures=failures,
+        dropped=dropped,
     )
+
+
+def dropped_inputs(task: UnitTask, unit: ProductUnit) -> list[tuple[str, str]]:
+    """(path, failure line) of each input of ``task`` that ``unit`` left out when its
+    data could not be read (identified by its header, damaged beyond it)."""
+    kept = {os.fspath(i.path) for i in unit.inputs}
+    dropped = []
+    for path in task.paths:
+        if path in kept:
+            continue
+        lines = [f for f in unit.failures if f.startswith(f"{path}:")]
+        dropped.append((path, lines[0] if lines else f"{path}: its data could not be read"))
+    return dropped
 
 
 def unit_label(task: UnitTask) -> str:
