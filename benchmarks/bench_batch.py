@@ -14,7 +14,10 @@ Run::
 
 Printed figures: wall time and units per second of the serial run and of local process
 pools of 1 and 2 workers (``--workers``; with ``--dask`` also Dask LocalClusters of
-the same sizes), the speed-up of 2 workers over 1 and over serial (issue 15: >= 1.7), the
+the same sizes), the wall and CPU time of each first run (CPU of the ended pool
+processes included) and, for the serial run, the bytes read per input file (Linux
+``rchar``; with ``--warm-up`` free of the first run's imports), the speed-up of 2
+workers over 1 and over serial (issue 15: >= 1.7), the
 peak resident memory of each worker process (MiB, ``ru_maxrss``), and the time of a
 run that finds everything up to date. Target: speed-up >= 1.7 on 2 free cores; peak
 memory per worker < 1 GiB for a site-day of scans.
@@ -25,6 +28,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import importlib.util
+import resource
 import shutil
 import sys
 import tempfile
@@ -101,6 +105,26 @@ def timed_run(
             close_client(client)
 
 
+def bytes_read() -> int | None:
+    """Bytes this process has read so far (Linux ``rchar`` of ``/proc/self/io``: every
+    ``read`` call, page cache included), None where ``/proc`` does not say."""
+    try:
+        with open("/proc/self/io", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("rchar:"):
+                    return int(line.split()[1])
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def cpu_seconds() -> float:
+    """CPU time (user + system, s) of this process and of its ended child processes."""
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
 def unit_seconds_by_kind(report: BatchReport) -> dict[str, float]:
     """Mean processing time of a unit (s, as measured on the worker) per unit prefix."""
     times: dict[str, list[float]] = defaultdict(list)
@@ -133,6 +157,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--dask", action="store_true", help="also time Dask LocalClusters of the same sizes"
     )
+    parser.add_argument(
+        "--warm-up",
+        action="store_true",
+        help="run the archive once serially, untimed, first (imports and lazy loads "
+        "out of the figures, so the bytes read per input count the run's own reads)",
+    )
     args = parser.parse_args(argv)
 
     work = args.workdir or Path(tempfile.mkdtemp(prefix="cwproc-bench-batch-"))
@@ -145,7 +175,8 @@ def main(argv: list[str] | None = None) -> int:
     size_mib = sum(p.stat().st_size for p in archive.rglob("*") if p.is_file()) / 2**20
     print(
         f"archive: {args.days} site-days, {n_scan} .hpl + {n_sonic} sonic files, "
-        f"{size_mib:.1f} MiB (made in {time.perf_counter() - t0:.1f} s)"
+        f"{size_mib:.1f} MiB, {size_mib * 2**10 / (n_scan + n_sonic):.0f} KiB per file "
+        f"(made in {time.perf_counter() - t0:.1f} s)"
     )
     config = Config()
     if args.wind_only:
@@ -157,12 +188,24 @@ def main(argv: list[str] | None = None) -> int:
     ]
     if args.dask:
         runs += [(f"dask {w}", w, True) for w in args.workers]
+    n_files = sum(1 for p in archive.rglob("*") if p.is_file())
+    if args.warm_up:
+        run_batch(archive, work / "out_warm_up", config)
     for label, workers, dask in runs:
         out = work / f"out_{label.replace(' ', '_')}"
         shutil.rmtree(out, ignore_errors=True)
+        read0, cpu0, wall0 = bytes_read(), cpu_seconds(), time.perf_counter()
         report = timed_run(archive, out, config, workers, dask)
+        wall, cpu = time.perf_counter() - wall0, cpu_seconds() - cpu0
         times[label] = report.seconds
         print(describe(label, report))
+        print(f"{'':<10} first run, whole call: wall {wall:.2f} s, CPU {cpu:.2f} s", end="")
+        read1 = bytes_read()
+        if workers is None and read0 is not None and read1 is not None:
+            # in-process run: every byte read of inputs, ledger and products
+            per_input = (read1 - read0) / n_files / 2**10
+            print(f", read {per_input:.0f} KiB per input file", end="")
+        print()
         for line in report.failure_lines()[:3]:
             print(f"    failure: {line}")
     if 1 in args.workers and 2 in args.workers:
