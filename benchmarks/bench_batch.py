@@ -14,11 +14,12 @@ Run::
 
 Printed figures: wall time and units per second of the serial run and of local process
 pools of 1 and 2 workers (``--workers``; with ``--dask`` also Dask LocalClusters of
-the same sizes), the wall and CPU time of each first run (CPU of the ended pool
-processes included) and, for the serial run, the bytes read per input file (Linux
-``rchar``; with ``--warm-up`` free of the first run's imports), the speed-up of 2
-workers over 1 and over serial (issue 15: >= 1.7), the
-peak resident memory of each worker process (MiB, ``ru_maxrss``), and the time of a
+the same sizes), the time and bytes read per file of classifying the ``.hpl`` and the
+other files (in this process, as a first run does), the wall and CPU time of each
+first run (CPU of the ended pool processes included) and, for the serial run, the bytes
+read per input file (Linux ``rchar``; with ``--warm-up`` free of the first run's
+imports), the speed-up of 2 workers over 1 and over serial (issue 15: >= 1.7), the peak
+resident memory of each worker process (MiB, ``ru_maxrss``), and the time of a
 run that finds everything up to date. Target: speed-up >= 1.7 on 2 free cores; peak
 memory per worker < 1 GiB for a site-day of scans.
 """
@@ -38,7 +39,14 @@ from pathlib import Path
 
 import numpy as np
 
-from cwproc.batch import BatchReport, close_client, dask_client, local_pool, run_batch
+from cwproc.batch import (
+    BatchReport,
+    classify_file,
+    close_client,
+    dask_client,
+    local_pool,
+    run_batch,
+)
 from cwproc.config import Config, TurbulenceConfig
 
 
@@ -125,6 +133,22 @@ def cpu_seconds() -> float:
     return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
+def classification_figures(files: list[Path], config: Config) -> str:
+    """Wall and CPU time (s) and bytes read per file (KiB) of classifying ``files``
+    in this process, as a first run does before planning (:func:`classify_file`)."""
+    toml = config.to_toml()
+    classify_file(str(files[0]), toml)  # imports and lazy loads out of the figures
+    read0, cpu0, wall0 = bytes_read(), cpu_seconds(), time.perf_counter()
+    for path in files:
+        classify_file(str(path), toml)
+    wall, cpu = time.perf_counter() - wall0, cpu_seconds() - cpu0
+    line = f"classify {len(files)} files: wall {wall:.3f} s, CPU {cpu:.3f} s"
+    read1 = bytes_read()
+    if read0 is not None and read1 is not None:
+        line += f", read {(read1 - read0) / len(files) / 2**10:.0f} KiB per file"
+    return line
+
+
 def unit_seconds_by_kind(report: BatchReport) -> dict[str, float]:
     """Mean processing time of a unit (s, as measured on the worker) per unit prefix."""
     times: dict[str, list[float]] = defaultdict(list)
@@ -188,7 +212,12 @@ def main(argv: list[str] | None = None) -> int:
     ]
     if args.dask:
         runs += [(f"dask {w}", w, True) for w in args.workers]
-    n_files = sum(1 for p in archive.rglob("*") if p.is_file())
+    files = sorted(p for p in archive.rglob("*") if p.is_file())
+    n_files = len(files)
+    hpl = [p for p in files if p.suffix == ".hpl"]
+    for label, chosen in ((".hpl", hpl), ("other", [p for p in files if p not in hpl])):
+        if chosen:
+            print(f"{label:<10} {classification_figures(chosen, config)}")
     if args.warm_up:
         run_batch(archive, work / "out_warm_up", config)
     for label, workers, dask in runs:
