@@ -19,6 +19,7 @@ import cwproc.io.halo as halo
 import cwproc.io.halo_files as halo_files
 from cwproc.batch import STATE_DIR, FileInfo, classify_file, load_ledger, run_batch
 from cwproc.config import Config
+from cwproc.errors import InputFileError
 from cwproc.io.netcdf import read_product, sha256_file
 from cwproc.pipeline import read_input, unit_key
 
@@ -109,10 +110,13 @@ def test_hpl_damaged_beyond_its_header_is_a_file_failure_as_before(tmp_path, bod
     raw[line] = b"  12.5e 0.1"
     bad.write_bytes(b"\n".join(raw))
 
+    with pytest.raises(InputFileError) as whole_read:  # what classification said before
+        read_input(bad, Config())
+
     first = run_batch(inputs, out, Config())
     assert [f.path for f in first.file_failures] == [os.fspath(bad)]
-    (failure,) = first.failure_lines()
-    assert failure.startswith(f"{bad}:")
+    assert first.failure_lines() == [str(whole_read.value)]
+    assert str(whole_read.value).startswith(f"{bad}:{line + 1}: ")
     assert len(first.succeeded) == 1 and not first.failed
     ledger = load_ledger(out / STATE_DIR / "ledger.json")
     assert ledger.files[os.fspath(bad)]["status"] == "error"
