@@ -20,6 +20,8 @@ products are identical either way.
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -249,12 +251,17 @@ def stream_products(
     """Wind, turbulence and stare products of the day from what the chunks kept."""
 
     products: dict[str, xr.Dataset] = {}
+    any_wind = bool(state.winds)
+    # each list is released once joined: the chunks' pieces are not held by the
+    # dissipation-rate fit, whose working arrays make the day's peak memory
     if state.winds:
         wind = _join(state.winds, "time")
+        state.winds = []
         wind.attrs = {**attrs, **{k: v for k, v in wind.attrs.items() if k.startswith("vad_")}}
         products["wind"] = wind
     if state.sfs:
         sf = _join(state.sfs, "time")
+        state.sfs = []
         sf.attrs["instrument"] = str(attrs.get("instrument", ""))
         for key in INSTRUMENT_SETTINGS:  # the day's, as the whole-day run has them
             sf.attrs.pop(key, None)
@@ -266,10 +273,11 @@ def stream_products(
             lag_number=config.turbulence.lag_number,
             model=config.turbulence.model,
         )
-    elif state.turbulence and state.winds and notes is not None:
+    elif state.turbulence and any_wind and notes is not None:
         notes.append("turbulence not computed: no complete block of scans")
     if state.stares and config.stare.enabled:
         stares = _join(state.stares, "ray")
+        state.stares = []
         stares.attrs = dict(attrs)
         products["stare"] = stare_products(stares, products.get("wind"), config, notes)
     return products
@@ -345,12 +353,14 @@ def stream_scan_unit(
         types = [str(ds.attrs.get("scan_type", "")) for ds in firsts]
         state.scan_type = "; ".join(t for t in dict.fromkeys(types) if t)
         check_day_choices(state, config)
+        state.pointing = []  # 24 bytes a ray of the day: not needed any more
     except StreamMismatch:
         return None
     if not state.winds:
         return None  # no conical scan: the whole-day run words what it cannot make
     if state.corrected:
         own.append(background_summary(state))
+    release_freed_memory()
     products = stream_products(state, day_attrs(firsts[0].attrs, files, types, state), config, own)
     if notes is not None:
         notes.extend(dict.fromkeys(own))
@@ -389,3 +399,20 @@ def _single(unit, item, ds: xr.Dataset):
     """A one-input copy of ``unit`` holding ``ds`` (for per-file descriptions)."""
 
     return dataclasses.replace(unit, inputs=[dataclasses.replace(item, dataset=ds)])
+
+
+def release_freed_memory() -> None:
+    """Return the heap the chunks freed to the system (glibc ``malloc_trim``; else nothing).
+
+    The chunks' many small arrays leave freed heap that glibc keeps; the
+    dissipation-rate fit of the day then allocates its working arrays anew, and the two
+    added up made the day's peak memory (350 MiB against 321 MiB with the heap returned,
+    issue 15.3). Products are unaffected.
+    """
+    name = ctypes.util.find_library("c")
+    try:
+        trim = ctypes.CDLL(name).malloc_trim if name else None
+    except (OSError, AttributeError):  # not glibc (musl, macOS, Windows)
+        trim = None
+    if trim is not None:
+        trim(0)
