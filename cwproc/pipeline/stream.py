@@ -33,7 +33,7 @@ from cwproc.config import Config
 from cwproc.errors import CwprocError, InputFileError
 from cwproc.io import FileIdentity
 from cwproc.io.scans import _source_files, concat_scans, joined_attrs, scan_indices
-from cwproc.pipeline.background import correct_background
+from cwproc.pipeline.background import correct_background, find_background_files
 from cwproc.pipeline.chain import (
     describe_scan_inputs,
     probe_for,
@@ -75,6 +75,8 @@ class StreamState:
     #: the SNR correction method of every chunk ("None": not corrected)
     snr_corrections: set[str] = field(default_factory=set)
     background_files: set[str] = field(default_factory=set)
+    #: (inputs of the unit, the background files beside them) when last looked for
+    background_found: tuple[int, list] | None = None
     #: (wind time origin, ray time origin) of the structure function, from the first block
     origins: tuple[np.datetime64, np.datetime64] | None = None
     turbulence: bool = True
@@ -377,7 +379,12 @@ def corrected_chunk(
     """
 
     own: list[str] = []
-    out = correct_background(chunk, unit, config, own)
+    if state.background_found is None or state.background_found[0] != len(unit.inputs):
+        # the unit only loses inputs (damaged beyond their header): look again then only
+        paths = (item.path for item in unit.inputs)
+        found = find_background_files(paths, config.background.folder or None)
+        state.background_found = (len(unit.inputs), found)
+    out = correct_background(chunk, unit, config, own, files=state.background_found[1])
     state.snr_corrections.add(str(out.attrs.get("snr_correction")))
     state.background_files.update(out.attrs.get("background_files", []))
     if "background_time" in out and own:
