@@ -20,8 +20,6 @@ products are identical either way.
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -362,7 +360,6 @@ def stream_scan_unit(
         return None  # no conical scan: the whole-day run words what it cannot make
     if state.corrected:
         own.append(background_summary(state))
-    release_freed_memory()
     products = stream_products(state, day_attrs(firsts[0].attrs, files, types, state), config, own)
     if notes is not None:
         notes.extend(dict.fromkeys(own))
@@ -406,20 +403,3 @@ def _single(unit, item, ds: xr.Dataset):
     """A one-input copy of ``unit`` holding ``ds`` (for per-file descriptions)."""
 
     return dataclasses.replace(unit, inputs=[dataclasses.replace(item, dataset=ds)])
-
-
-def release_freed_memory() -> None:
-    """Return the heap the chunks freed to the system (glibc ``malloc_trim``; else nothing).
-
-    The chunks' many small arrays leave freed heap that glibc keeps; the
-    dissipation-rate fit of the day then allocates its working arrays anew, and the two
-    added up made the day's peak memory (350 MiB against 321 MiB with the heap returned,
-    issue 15.3). Products are unaffected.
-    """
-    name = ctypes.util.find_library("c")
-    try:
-        trim = ctypes.CDLL(name).malloc_trim if name else None
-    except (OSError, AttributeError):  # not glibc (musl, macOS, Windows)
-        trim = None
-    if trim is not None:
-        trim(0)
