@@ -14,7 +14,10 @@ target < 300 MiB).
 
 Run::
 
-    python benchmarks/bench_retrieve_day.py [--repeat 2] [--scans 1920]
+    python benchmarks/bench_retrieve_day.py [--repeat 2] [--scans 1920] [--day-dir DIR]
+
+``--day-dir`` keeps the day's files in ``DIR`` (written there when it holds no ``.hpl``
+file, reused as they are otherwise), so that repeated runs do not write them again.
 """
 
 from __future__ import annotations
@@ -120,15 +123,18 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=2)
     parser.add_argument("--scans", type=int, default=int(86400 / PERIOD_S))
+    parser.add_argument("--day-dir", type=Path, help="folder of the day's files (kept)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="cwproc_bench_day_") as tmp:
-        folder = Path(tmp) / "day"
-        folder.mkdir()
+        folder = args.day_dir or Path(tmp) / "day"
+        folder.mkdir(parents=True, exist_ok=True)
         t0 = time.perf_counter()
-        size = write_day(folder, args.scans)
-        print(f"day: {args.scans} scans of {RAYS} rays x {GATES} gates, one file each, "
-              f"{size / 2**20:.0f} MiB (written in {time.perf_counter() - t0:.0f} s); "
-              f"load average {os.getloadavg()[0]:.1f}")  # fmt: skip
+        held = sorted(folder.glob("*.hpl"))
+        size = sum(p.stat().st_size for p in held) if held else write_day(folder, args.scans)
+        n_files = len(held) or args.scans
+        how = "reused" if held else f"written in {time.perf_counter() - t0:.0f} s"
+        print(f"day: {n_files} scans of {RAYS} rays x {GATES} gates, one file each, "
+              f"{size / 2**20:.0f} MiB ({how}); load average {os.getloadavg()[0]:.1f}")  # fmt: skip
         reads, retrieves, peaks = [], [], []
         for k in range(args.repeat):
             reads.append(run([sys.executable, "-c", _READ, str(folder)]))

@@ -82,7 +82,11 @@ def read_backgrounds(
 
 
 def correct_background(
-    scans: xr.Dataset, unit: ProductUnit, config: Config, notes: list[str] | None = None
+    scans: xr.Dataset,
+    unit: ProductUnit,
+    config: Config,
+    notes: list[str] | None = None,
+    files: list[Path] | None = None,
 ) -> xr.Dataset:
     """Stream Line scans with the SNR corrected by the background files (stage ``background``).
 
@@ -90,14 +94,17 @@ def correct_background(
     else beside each ``.hpl`` file of the unit; each ray takes the latest one measured
     at most ``max_age_h`` before it (Manninen et al. (2016); Vakkari et al. (2019)).
     Other scans, a switched-off correction or no background file: ``scans`` unchanged.
-    A damaged background file is named in ``notes`` and the others are used.
+    A damaged background file is named in ``notes`` and the others are used. ``files``:
+    :func:`find_background_files` of the unit when the caller holds them (a streamed
+    day looks once, not once per chunk).
     """
     opts = config.background
     if not opts.enabled or "snr" not in scans:
         return scans
     if str(scans.attrs.get("instrument_kind", "")).lower() != "streamline":
         return scans
-    files = find_background_files((i.path for i in unit.inputs), opts.folder or None)
+    if files is None:
+        files = find_background_files((i.path for i in unit.inputs), opts.folder or None)
     if not files:
         if opts.folder and notes is not None:  # a configured folder: say why nothing is used
             notes.append(missing_folder_note(opts.folder))

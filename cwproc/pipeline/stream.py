@@ -31,7 +31,7 @@ from cwproc.config import Config
 from cwproc.errors import CwprocError, InputFileError
 from cwproc.io import FileIdentity
 from cwproc.io.scans import _source_files, concat_scans, joined_attrs, scan_indices
-from cwproc.pipeline.background import correct_background
+from cwproc.pipeline.background import correct_background, find_background_files
 from cwproc.pipeline.chain import (
     describe_scan_inputs,
     probe_for,
@@ -73,6 +73,8 @@ class StreamState:
     #: the SNR correction method of every chunk ("None": not corrected)
     snr_corrections: set[str] = field(default_factory=set)
     background_files: set[str] = field(default_factory=set)
+    #: (inputs of the unit, the background files beside them) when last looked for
+    background_found: tuple[int, list] | None = None
     #: (wind time origin, ray time origin) of the structure function, from the first block
     origins: tuple[np.datetime64, np.datetime64] | None = None
     turbulence: bool = True
@@ -249,12 +251,17 @@ def stream_products(
     """Wind, turbulence and stare products of the day from what the chunks kept."""
 
     products: dict[str, xr.Dataset] = {}
+    any_wind = bool(state.winds)
+    # each list is released once joined: the chunks' pieces are not held by the
+    # dissipation-rate fit, whose working arrays make the day's peak memory
     if state.winds:
         wind = _join(state.winds, "time")
+        state.winds = []
         wind.attrs = {**attrs, **{k: v for k, v in wind.attrs.items() if k.startswith("vad_")}}
         products["wind"] = wind
     if state.sfs:
         sf = _join(state.sfs, "time")
+        state.sfs = []
         sf.attrs["instrument"] = str(attrs.get("instrument", ""))
         for key in INSTRUMENT_SETTINGS:  # the day's, as the whole-day run has them
             sf.attrs.pop(key, None)
@@ -266,10 +273,11 @@ def stream_products(
             lag_number=config.turbulence.lag_number,
             model=config.turbulence.model,
         )
-    elif state.turbulence and state.winds and notes is not None:
+    elif state.turbulence and any_wind and notes is not None:
         notes.append("turbulence not computed: no complete block of scans")
     if state.stares and config.stare.enabled:
         stares = _join(state.stares, "ray")
+        state.stares = []
         stares.attrs = dict(attrs)
         products["stare"] = stare_products(stares, products.get("wind"), config, notes)
     return products
@@ -345,6 +353,7 @@ def stream_scan_unit(
         types = [str(ds.attrs.get("scan_type", "")) for ds in firsts]
         state.scan_type = "; ".join(t for t in dict.fromkeys(types) if t)
         check_day_choices(state, config)
+        state.pointing = []  # 24 bytes a ray of the day: not needed any more
     except StreamMismatch:
         return None
     if not state.winds:
@@ -367,7 +376,12 @@ def corrected_chunk(
     """
 
     own: list[str] = []
-    out = correct_background(chunk, unit, config, own)
+    if state.background_found is None or state.background_found[0] != len(unit.inputs):
+        # the unit only loses inputs (damaged beyond their header): look again then only
+        paths = (item.path for item in unit.inputs)
+        found = find_background_files(paths, config.background.folder or None)
+        state.background_found = (len(unit.inputs), found)
+    out = correct_background(chunk, unit, config, own, files=state.background_found[1])
     state.snr_corrections.add(str(out.attrs.get("snr_correction")))
     state.background_files.update(out.attrs.get("background_files", []))
     if "background_time" in out and own:

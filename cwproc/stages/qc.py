@@ -100,7 +100,8 @@ def median_along_rays(values: np.ndarray, use: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (S, G)
     """
-    ordered = np.sort(np.where(use, values, np.inf), axis=1)
+    ordered = np.where(use, values, np.inf)
+    ordered.sort(axis=1)  # in place: no second (S, R, G) array
     n = use.sum(axis=1)
     lo = np.take_along_axis(ordered, np.maximum((n - 1) // 2, 0)[:, None, :], axis=1)[:, 0]
     hi = np.take_along_axis(ordered, np.maximum(n // 2, 0)[:, None, :], axis=1)[:, 0]

@@ -26,7 +26,6 @@ times) and the block-mean horizontal wind speed U.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -153,12 +152,24 @@ def swept_rays(attrs: dict) -> bool:
 def block_median(values: np.ndarray, n_scans: int) -> np.ndarray:
     """Median over scans and azimuths (axes 0, 1) within blocks of ``n_scans``, NaN skipped."""
     out = []
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN heights give NaN
-        for start in range(0, values.shape[0], n_scans):
-            part = values[start : start + n_scans]
-            out.append(np.nanmedian(part.reshape(-1, part.shape[-1]), axis=0))
+    for start in range(0, values.shape[0], n_scans):
+        part = values[start : start + n_scans]
+        out.append(_nanmedian_columns(part.reshape(-1, part.shape[-1])))
     return np.array(out)
+
+
+def _nanmedian_columns(values: np.ndarray) -> np.ndarray:
+    """``numpy.nanmedian(values, axis=0)`` by one sort (NaN last), without a warning.
+
+    The mean of the two middle values, ``(lo + hi) / 2``, as :func:`numpy.median` forms
+    it (the same value); NaN for a column without a number.
+    """
+    ordered = np.sort(values, axis=0)
+    n = np.count_nonzero(~np.isnan(values), axis=0)
+    lo = np.take_along_axis(ordered, np.maximum((n - 1) // 2, 0)[None, :], axis=0)[0]
+    hi = np.take_along_axis(ordered, np.maximum(n // 2, 0)[None, :], axis=0)[0]
+    with np.errstate(invalid="ignore"):
+        return np.where(n > 0, (lo + hi) / 2, np.nan)
 
 
 def pair_azimuth_weights(

@@ -69,10 +69,21 @@ class BatchedFit:
     residuals: FloatArray
 
 
-def _normal_matrix(design: FloatArray, weight: FloatArray) -> FloatArray:
-    """``sum_r w_srg a_srj a_srk`` as (S, G, 3, 3) by one batched matrix product."""
+def _design_outer(design: FloatArray) -> FloatArray:
+    """``a_srj a_srk`` of every ray as (S, R, 9)."""
     s, r, _ = design.shape
-    outer = (design[:, :, :, None] * design[:, :, None, :]).reshape(s, r, 9)
+    return (design[:, :, :, None] * design[:, :, None, :]).reshape(s, r, 9)
+
+
+def _normal_matrix(
+    design: FloatArray, weight: FloatArray, outer: FloatArray | None = None
+) -> FloatArray:
+    """``sum_r w_srg a_srj a_srk`` as (S, G, 3, 3) by one batched matrix product.
+
+    ``outer`` is :func:`_design_outer` of ``design`` when the caller holds it.
+    """
+    s = design.shape[0]
+    outer = _design_outer(design) if outer is None else outer
     return np.matmul(weight.transpose(0, 2, 1), outer).reshape(s, weight.shape[2], 3, 3)
 
 
@@ -360,12 +371,16 @@ def fit_least_absolute(
     ok = start.determined
     beta = np.nan_to_num(start.beta)
     y = np.where(valid, np.abs(values) if homodyne else values, 0.0)
+    # the (S, R, G) arrays of an iteration live in three buffers (no allocation per step)
+    outer, model, weight, weighted = _design_outer(design), *(np.empty_like(y) for _ in "123")
     for _ in range(iterations):
-        model = _model(design, beta)
+        np.matmul(design, np.nan_to_num(beta).transpose(0, 2, 1), out=model)  # _model
         target = y * np.where(model >= 0, 1.0, -1.0) if homodyne else y
-        weight = valid / np.maximum(np.abs(target - model), floor)
-        ata = np.where(ok[..., None, None], _normal_matrix(design, weight), np.eye(3))
-        new = np.where(ok[..., None], _solve(inverse_3x3(ata)[0], design, weight * target), beta)
+        np.abs(np.subtract(target, model, out=weight), out=weight)
+        np.divide(valid, np.maximum(weight, floor, out=weight), out=weight)
+        ata = np.where(ok[..., None, None], _normal_matrix(design, weight, outer), np.eye(3))
+        np.multiply(weight, target, out=weighted)
+        new = np.where(ok[..., None], _solve(inverse_3x3(ata)[0], design, weighted), beta)
         change = float(np.max(np.abs(new - beta), initial=0.0))
         beta = new
         if change < tolerance:

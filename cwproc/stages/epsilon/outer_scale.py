@@ -30,6 +30,8 @@ from cwproc.stages.epsilon.cells import Cells
 INERTIAL_FRACTION = 0.02
 #: bisection steps of the outer-scale root (bracket ratio (3000/10)^(1/6) -> 0.2 %)
 _BISECTIONS = 9
+#: cells of one root search at once (each cell's search is independent of the others)
+ROOT_CELLS = 2048
 #: bisections from a bracket of a factor 2 on either side of a known root (-> 1.1 %)
 _BISECTIONS_NEAR = 6
 
@@ -91,7 +93,7 @@ def finite_scale_inputs(
     return {
         "nodes": np.geomspace(lo, hi, n_outer_scales),
         "scale_grid": scale_grid,
-        "passed": passed_cell - full_var * share,
+        "passed": np.subtract(passed_cell, np.multiply(share, full_var, out=share), out=share),
         "full_var": full_var,
     }
 
@@ -209,18 +211,22 @@ def retrieve(
             table, rank = fixed["cell_tables"][key]
             cells = rank[ti] * shape[1] + hi_
             passed = finite["passed"][ti, hi_]
-            root, use, below = outer_scale_root(
-                table,
-                cells,
-                finite,
-                sector[ti, hi_],
-                passed,
-                d[ti, hi_],
-                valid[ti, hi_],
-                var_raw[ti, hi_],
-                prior[ti, hi_][:, None],
-                None if near is None else near[ti, hi_],
-            )
+            root, use, below = np.empty(ti.size), np.empty(ti.size, bool), np.empty(ti.size, bool)
+            for lo in range(0, ti.size, ROOT_CELLS):  # bounded working memory
+                at = slice(lo, lo + ROOT_CELLS)
+                t_, h_ = ti[at], hi_[at]
+                root[at], use[at], below[at] = outer_scale_root(
+                    table,
+                    cells[at],
+                    finite,
+                    sector[t_, h_],
+                    passed[at],
+                    d[t_, h_],
+                    valid[t_, h_],
+                    var_raw[t_, h_],
+                    prior[t_, h_][:, None],
+                    None if near is None else near[t_, h_],
+                )
             if np.any(use):
                 tu, hu = ti[use], hi_[use]
                 g1, g2 = table.evaluate(root[use][:, None], cells[use])
