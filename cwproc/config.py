@@ -27,6 +27,11 @@ from pathlib import Path
 from typing import Any, Literal, get_args, get_origin
 
 from cwproc.errors import ConfigError
+from cwproc.physics.constants import (
+    STREAMLINE_DELTA_P_M,
+    STREAMLINE_DELTA_R_M,
+    ZEPHIR_Z_R_COEFFICIENT,
+)
 
 # --------------------------------------------------------------------------------------
 # sections
@@ -57,11 +62,11 @@ class InstrumentConfig:
     #: laser wavelength (m)
     wavelength_m: float = 1.5e-6
     #: pulsed lidar: Delta_p = c sigma_p / 2 (m), Smalikho (2020) eq. 19; Stream Line 15.3 m
-    delta_p_m: float = 15.3
+    delta_p_m: float = STREAMLINE_DELTA_P_M
     #: pulsed lidar: Delta_R = c T_w / 2 (m), Smalikho (2020) eq. 19; Stream Line 18 m
-    delta_r_m: float = 18.0
+    delta_r_m: float = STREAMLINE_DELTA_R_M
     #: cw lidar: Rayleigh-range coefficient c in Z_R = c R^2 (1/m); ZephIR 0.0013
-    z_r_coefficient: float = 0.0013
+    z_r_coefficient: float = ZEPHIR_Z_R_COEFFICIENT
     #: cw lidar: beam radius a0 at the telescope (m); when set, Z_R = lambda R^2/(2 pi a0^2)
     beam_radius_m: float | None = None
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import click
 
 from cwproc.physics import volume_averaging as va
+from cwproc.physics.constants import ZEPHIR_Z_R_COEFFICIENT
 
 
 def parse_heights(text: str) -> list[float]:
@@ -78,7 +79,7 @@ def ratio_table(
     "--z-r-coefficient",
     "z_r_coefficient",
     type=float,
-    default=va.ZEPHIR_Z_R_COEFFICIENT,
+    default=ZEPHIR_Z_R_COEFFICIENT,
     show_default=True,
     help="c of Z_R = c R^2 (1/m).",
 )

@@ -39,6 +39,11 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy import special
 
+from cwproc.physics.constants import (
+    STREAMLINE_DELTA_P_M,
+    STREAMLINE_DELTA_R_M,
+    ZEPHIR_Z_R_COEFFICIENT,
+)
 from cwproc.physics.cw_probe import focal_parameter, lorentzian_parameters
 
 #: speed of light (m s-1)
@@ -88,8 +93,8 @@ class PulsedProbe:
         (default); ``"printed"``: ``exp(-(dp kappa)^2)`` exactly as the extracted eq. 19.
     """
 
-    delta_p_m: float = 15.3
-    delta_r_m: float = 18.0
+    delta_p_m: float = STREAMLINE_DELTA_P_M
+    delta_r_m: float = STREAMLINE_DELTA_R_M
     gaussian: Literal["physical", "printed"] = "physical"
 
     def __post_init__(self) -> None:
@@ -168,7 +173,7 @@ class CWProbe:
         kappa)`` (Smalikho (2020), eq. 20).
     """
 
-    z_r_coefficient: float = 0.0013
+    z_r_coefficient: float = ZEPHIR_Z_R_COEFFICIENT
     wavelength_m: float | None = None
     beam_radius_m: float | None = None
     transverse_averaging: bool = False

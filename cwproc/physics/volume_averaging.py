@@ -42,10 +42,10 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from cwproc.physics.constants import ZEPHIR_Z_R_COEFFICIENT
+
 #: half-opening angle of the ZephIR scan cone, from the vertical (deg), Wagner et al. (DTU)
 CONE_HALF_ANGLE_DEG = 30.0
-#: ZephIR Rayleigh-range coefficient c in Z_R = c R² (1/m), Wagner et al. (DTU), eq. 2
-ZEPHIR_Z_R_COEFFICIENT = 0.0013
 #: line-of-sight estimates per rotation, Wagner et al. (DTU), sect. 2.2
 SAMPLES_PER_ROTATION = 50
 #: duration of one rotation (s), Wagner et al. (DTU), sect. 2.2

@@ -56,6 +56,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.physics import spectra
+from cwproc.physics.constants import STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M
 from cwproc.physics.geometry import beam_unit_vector
 
 __all__ = [
@@ -321,8 +322,8 @@ def block_covariance(
     outer_scale_m: float,
     model: str = "von_karman",
     mean_wind: Sequence[float] = (0.0, 0.0, 0.0),
-    delta_p_m: float = 15.3,
-    delta_r_m: float = 18.0,
+    delta_p_m: float = STREAMLINE_DELTA_P_M,
+    delta_r_m: float = STREAMLINE_DELTA_R_M,
     sweep_nodes: int = 6,
 ) -> np.ndarray:
     """Covariance ``B_D`` of the probe-averaged radial velocities of a block of scans.
@@ -461,8 +462,8 @@ def gaussian_scans(
     noise_std_m_s: float,
     seed: int,
     model: str = "von_karman",
-    delta_p_m: float = 15.3,
-    delta_r_m: float = 18.0,
+    delta_p_m: float = STREAMLINE_DELTA_P_M,
+    delta_r_m: float = STREAMLINE_DELTA_R_M,
     sweep_nodes: int = 6,
     snr: float = 0.05,
     start_time: str = "2024-06-01T00:00:00",

@@ -33,6 +33,7 @@ import numpy as np
 import xarray as xr
 from scipy.special import erf
 
+from cwproc.physics.constants import STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M
 from cwproc.physics.geometry import beam_unit_vector, wind_components
 from cwproc.sim.field3d import FrozenField
 
@@ -89,8 +90,8 @@ def sample_conical_scans(
     noise_std_m_s: float,
     seed: int,
     vertical_wind_m_s: float = 0.0,
-    delta_p_m: float = 15.3,
-    delta_r_m: float = 18.0,
+    delta_p_m: float = STREAMLINE_DELTA_P_M,
+    delta_r_m: float = STREAMLINE_DELTA_R_M,
     start_azimuth_deg: float = 0.0,
     clockwise: bool = True,
     start_time: str | np.datetime64 = "2024-01-01T00:00:00",

@@ -15,6 +15,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.io.halo import write_hpl
+from cwproc.physics.constants import STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M
 from cwproc.physics.geometry import wind_components
 from cwproc.physics.noise import bandwidth_from_resolution, velocity_noise_std
 from cwproc.sim.exact_gaussian import range_nodes, structure_functions
@@ -40,8 +41,8 @@ def sample_vertical_stare(
     start_offset_s: float = 0.0,
     start_time: str | np.datetime64 = "2024-01-01T00:00:00",
     sub_points: int = 4,
-    delta_p_m: float = 15.3,
-    delta_r_m: float = 18.0,
+    delta_p_m: float = STREAMLINE_DELTA_P_M,
+    delta_r_m: float = STREAMLINE_DELTA_R_M,
     snr: float = 0.05,
     pulses_per_ray: int = 20000,
 ) -> xr.Dataset:
@@ -227,8 +228,8 @@ def stare_covariance(
     wind_speed_m_s: float,
     model: str = "inertial",
     outer_scale_m: float = 1000.0,
-    delta_p_m: float = 15.3,
-    delta_r_m: float = 18.0,
+    delta_p_m: float = STREAMLINE_DELTA_P_M,
+    delta_r_m: float = STREAMLINE_DELTA_R_M,
     sub_points: int = 6,
     range_step_m: float = 3.0,
 ) -> np.ndarray:

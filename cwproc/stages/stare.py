@@ -19,6 +19,7 @@ import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.physics import noise, stare
+from cwproc.physics.constants import STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M
 from cwproc.physics.geometry import height_from_range
 from cwproc.stages.qc import snr_flags
 
@@ -51,8 +52,8 @@ class StareOptions:
     outlier_threshold: float = 6.0
     prf_hz: float = HALO_PRF_HZ
     max_wind_gap_s: float = 3600.0
-    delta_p_m: float = 15.3
-    delta_r_m: float = 18.0
+    delta_p_m: float = STREAMLINE_DELTA_P_M
+    delta_r_m: float = STREAMLINE_DELTA_R_M
 
 
 def stare_mask(ds: xr.Dataset) -> np.ndarray:

@@ -20,6 +20,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import CwprocError
+from cwproc.physics.constants import ZEPHIR_Z_R_COEFFICIENT
 from cwproc.physics.geometry import wind_components
 from cwproc.physics.volume_averaging import std_ratio_and_tp_share
 
@@ -44,7 +45,7 @@ def predicted_std_ratio(
     wind_speed: np.ndarray,
     *,
     scan_time_s: float = DEFAULT_SCAN_TIME_S,
-    z_r_coefficient: float = 0.0013,
+    z_r_coefficient: float = ZEPHIR_Z_R_COEFFICIENT,
     window_s: float = 600.0,
 ) -> np.ndarray:
     """sigma_lidar / sigma_cup of Wagner et al. (DTU), eqs. 9-11, for many (h, U) pairs.
@@ -127,7 +128,7 @@ def wind_record_product(
     *,
     min_packets: int = 24,
     max_rain_percent: float = 50.0,
-    z_r_coefficient: float = 0.0013,
+    z_r_coefficient: float = ZEPHIR_Z_R_COEFFICIENT,
     scan_time_s: float | None = None,
     min_availability_percent: float = DEFAULT_MIN_AVAILABILITY_PERCENT,
 ) -> xr.Dataset:
