@@ -4,12 +4,16 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 import numpy as np
 
 from cwproc.cli._common import fail, usage_error
 from cwproc.errors import CwprocError
+
+if TYPE_CHECKING:
+    from cwproc.sim.sample_data import StreamLineSpec
 
 #: scans written when --hours is not given
 _DEFAULT_HOURS = {"streamline": 0.2, "cw": 70.0 / 3600.0, "zephir": 60.0 / 3600.0}
@@ -162,21 +166,44 @@ def _streamline(
     from cwproc.sim.sample_data import StreamLineSpec, noise_from_snr, write_streamline_series
 
     base = StreamLineSpec()
-    n_scans = max(1, round(hours * 3600.0 / base.scan_period_s))
-    spec = dataclasses.replace(
+    spec = _streamline_spec(
+        wind,
+        direction,
+        epsilon,
+        outer_scale,
+        snr,
+        seed,
+        n_scans=max(1, round(hours * 3600.0 / base.scan_period_s)),
+        scans_per_file=10,
+        noise_std=noise_from_snr(snr),
+    )
+    return write_streamline_series(data, truth, spec)
+
+
+def _streamline_spec(
+    wind: float | None,
+    direction: float,
+    epsilon: float | None,
+    outer_scale: float | None,
+    snr: float,
+    seed: int,
+    **more: object,
+) -> StreamLineSpec:
+    """The sample Stream Line spec with the command's wind, turbulence, SNR and seed."""
+    from cwproc.sim.sample_data import StreamLineSpec
+
+    base = StreamLineSpec()
+    return dataclasses.replace(
         base,
         start="2024-01-01T00:00:00",
-        n_scans=n_scans,
-        scans_per_file=10,
         wind_speed=base.wind_speed if wind is None else wind,
         wind_direction_deg=direction,
         epsilon=base.epsilon if epsilon is None else epsilon,
         integral_scale_m=base.integral_scale_m if outer_scale is None else outer_scale,
-        noise_std=noise_from_snr(snr),
         snr=snr,
         seed=seed,
+        **more,
     )
-    return write_streamline_series(data, truth, spec)
 
 
 def _streamline_stares(
@@ -192,20 +219,9 @@ def _streamline_stares(
     snr: float,
     seed: int,
 ) -> list[Path]:
-    from cwproc.sim.sample_data import StreamLineSpec
     from cwproc.sim.stare import write_stare_series
 
-    base = StreamLineSpec()
-    spec = dataclasses.replace(
-        base,
-        start="2024-01-01T00:00:00",
-        wind_speed=base.wind_speed if wind is None else wind,
-        wind_direction_deg=direction,
-        epsilon=base.epsilon if epsilon is None else epsilon,
-        integral_scale_m=base.integral_scale_m if outer_scale is None else outer_scale,
-        snr=snr,
-        seed=seed,
-    )
+    spec = _streamline_spec(wind, direction, epsilon, outer_scale, snr, seed)
     return write_stare_series(
         data, truth, spec, scan=scan, hours=hours, vad_every_s=60.0 * vad_every_min
     )

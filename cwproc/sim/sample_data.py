@@ -30,7 +30,7 @@ from cwproc.io.halo import write_hpl
 from cwproc.io.meteo2 import write_meteo2
 from cwproc.physics.geometry import wind_components
 from cwproc.physics.spectra import variance_from
-from cwproc.sim.field3d import grid_variance, von_karman_field
+from cwproc.sim.field3d import FrozenField, grid_variance, von_karman_field
 from cwproc.sim.output import fresh_folder, write_truth
 from cwproc.sim.pulsed import sample_conical_scans
 from cwproc.sim.sonic import simulate_sonic_dataset
@@ -100,6 +100,17 @@ class StreamLineSpec:
         return (np.arange(self.n_gates) + 0.5) * self.gate_length_m
 
 
+def streamline_field(spec: StreamLineSpec) -> FrozenField:
+    """The frozen von Karman field of ``spec`` (its epsilon, L_V, grid and seed)."""
+    return von_karman_field(
+        spec.field_shape,
+        spec.field_spacing_m,
+        epsilon=spec.epsilon,
+        integral_scale_m=spec.integral_scale_m,
+        seed=spec.seed,
+    )
+
+
 def simulate_streamline(spec: StreamLineSpec) -> xr.Dataset:
     """The Stream Line VAD series of ``spec`` as one canonical scan dataset.
 
@@ -112,14 +123,7 @@ def simulate_streamline(spec: StreamLineSpec) -> xr.Dataset:
     xarray.Dataset
         Canonical scan dataset (dims ``ray``, ``range``), the truth in ``sim_*`` attrs.
     """
-
-    field = von_karman_field(
-        spec.field_shape,
-        spec.field_spacing_m,
-        epsilon=spec.epsilon,
-        integral_scale_m=spec.integral_scale_m,
-        seed=spec.seed,
-    )
+    field = streamline_field(spec)
     ds = sample_conical_scans(
         field,
         elevation_deg=spec.elevation_deg,

@@ -19,10 +19,10 @@ from cwproc.physics.constants import STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M
 from cwproc.physics.geometry import wind_components
 from cwproc.physics.noise import bandwidth_from_resolution, velocity_noise_std
 from cwproc.sim.exact_gaussian import range_nodes, structure_functions
-from cwproc.sim.field3d import FrozenField, von_karman_field
+from cwproc.sim.field3d import FrozenField
 from cwproc.sim.output import fresh_folder, write_truth
 from cwproc.sim.pulsed import range_quadrature, sample_conical_scans, streamline_scans
-from cwproc.sim.sample_data import noise_from_snr, streamline_truth
+from cwproc.sim.sample_data import noise_from_snr, streamline_field, streamline_truth
 
 #: field points interpolated at once (memory bound)
 _CHUNK_POINTS = 2_000_000
@@ -363,13 +363,7 @@ def write_stare_series(
     """
 
     folder = fresh_folder(folder, "*.hpl")
-    field = von_karman_field(
-        spec.field_shape,
-        spec.field_spacing_m,
-        epsilon=spec.epsilon,
-        integral_scale_m=spec.integral_scale_m,
-        seed=spec.seed,
-    )
+    field = streamline_field(spec)
     ray_s = pulses_per_ray / prf_hz
     stare_noise = stare_noise_std(spec.snr, round(spec.gate_length_m / 3), pulses_per_ray)
     if scan == "stare":
