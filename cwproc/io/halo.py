@@ -90,6 +90,16 @@ def read_header_and_body(path: Path) -> tuple[list[str], bytes]:
     InputFileError
         The file cannot be read, or its header is cut short (see :func:`split_header`).
     """
+    lines, body, _ = read_header_body_offset(path)
+    return lines, body
+
+
+def read_header_body_offset(path: Path) -> tuple[list[str], bytes, int]:
+    """As :func:`read_header_and_body`, and the byte offset of the body in the file.
+
+    The offset lets :func:`cwproc.io.halo_files.read_hpl_files` read the data lines a
+    second time without splitting the header again.
+    """
     try:
         with path.open("rb") as f:
             head = f.read(_HEAD_BYTES)
@@ -107,7 +117,7 @@ def read_header_and_body(path: Path) -> tuple[list[str], bytes]:
     tail = body[end:]
     if tail.lstrip(b" ") not in (b"", b"\n", b"\r\n", b"\r"):
         body = body[:end]  # blank lines after the data: drop them (copies the body)
-    return lines, body
+    return lines, body, offset
 
 
 def decimal_hours_to_time(hours: np.ndarray, start_time: np.datetime64) -> np.ndarray:

@@ -223,20 +223,6 @@ def _fields_of_row(columns: list[np.ndarray], row: int) -> int:
     return count
 
 
-def line_ends(body: bytes) -> tuple[int, bool]:
-    """Number of lines of a body without a final line end, and whether a CR stands alone.
-
-    Line ends are CRLF, LF or a lone CR (as for the tokenizer). Counted with numpy
-    (several times faster than ``bytes.count``).
-    """
-    data = np.frombuffer(body, dtype=np.uint8)
-    cr = np.flatnonzero(data == 13)
-    lf = int(np.count_nonzero(data == 10))
-    follows = cr + 1
-    crlf = int(np.count_nonzero(data[follows[follows < data.size]] == 10))
-    return lf + cr.size - crlf + 1, crlf != cr.size
-
-
 def _single_space_ok(body: bytes) -> bool:
     """Whether the single-space tokenizer applies: no TAB and no lone CR line end.
 

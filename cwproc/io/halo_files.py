@@ -1,15 +1,18 @@
 """Halo Photonics Stream Line ``.hpl`` files: many files (a day of scans) at once.
 
-:func:`read_hpl_files` reads the files' headers, joins the bodies of files with the
-same layout and parses each batch with one tokenizer call (:mod:`cwproc.io.halo_body`);
-a file whose body is off in any way is read alone by :func:`cwproc.io.halo.read_hpl`,
-which names the problem.
+:func:`read_hpl_files` reads the day in two passes. The first reads each file's header
+and counts its data lines, so that the rays of the whole record are known before any
+number is parsed; the second parses one file at a time (:mod:`cwproc.io.halo_body`)
+straight into the record's preallocated arrays. A file whose body is off in any way
+sends the whole day to :func:`cwproc.io.halo.read_hpl` file by file, which names the
+problem.
 """
 
 from __future__ import annotations
 
 import io
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -23,7 +26,7 @@ from cwproc.io.halo import (
     _bad_ray,
     _check_options,
     decimal_hours_to_time,
-    read_header_and_body,
+    read_header_body_offset,
     read_hpl,
 )
 from cwproc.io.halo_body import (
@@ -32,67 +35,98 @@ from cwproc.io.halo_body import (
     _float_column,
     _hpltok,
     _read_table,
+    _single_space_ok,
     content_end,
-    line_ends,
     structure_problem,
 )
 from cwproc.io.halo_header import HplHeader, parse_header
 from cwproc.io.scans import concat_scans, joined_attrs, time_sorted_scans
 from cwproc.physics.geometry import normalise_pointing
 
-#: bodies joined for one tokenizer call in :func:`read_hpl_files` (bytes): large enough
-#: to amortise the per-call cost, small enough to bound the tokenizer's working memory
+#: data lines joined for one call of the pandas tokenizer (bytes), used only when the
+#: compiled tokenizer is not built: large enough to amortise pandas' cost per call
 _BATCH_BYTES = 16 << 20
 
 
 @dataclass(frozen=True)
-class _Body:
-    """One file's header and data lines, as :func:`read_hpl_files` needs them."""
+class _FilePlan:
+    """What the first pass learns of a file: header, where its data lines are, how many."""
 
     path: Path
     header: HplHeader
-    #: the data lines are ``body[:end]`` (no final line end, no blank tail)
-    body: bytes
+    #: byte offset of the data lines in the file
+    offset: int
+    #: the data lines are the first ``end`` bytes from ``offset`` (no final line end)
     end: int
+    #: line feeds + 1, or CRs + 1 when there is no LF: the number of data lines when
+    #: lines end in LF, CRLF or CR alone (a file that mixes lone CR with LF parses to
+    #: another count and takes the reference path)
     n_lines: int
-    single_space: bool
 
 
-def _load_body(path: Path) -> _Body | None:
-    """Header and body of a file, or ``None`` when anything is off (no raise)."""
+def _plan_file(path: Path) -> _FilePlan | None:
+    """Header and line count of a file, or ``None`` when anything is off (no raise)."""
     try:
-        lines, body = read_header_and_body(path)
+        lines, body, offset = read_header_body_offset(path)
         header = parse_header(path, lines)
     except InputFileError:
         return None
     end = content_end(body)
     if end == 0 or body.find(b"\x00", 0, end) >= 0:
         return None
-    n_lines, lone_cr = line_ends(memoryview(body)[:end])
-    return _Body(
-        path=path,
-        header=header,
-        body=body,
-        end=end,
-        n_lines=n_lines,
-        single_space=not lone_cr and body.find(b"\t", 0, end) < 0,
+    line_ends = body.count(b"\n", 0, end) or body.count(b"\r", 0, end)
+    return _FilePlan(path, header, offset, end, line_ends + 1)
+
+
+def _same_layout(first: HplHeader, plan: _FilePlan) -> bool:
+    """Whether a file can join the first one: same gates, range grid, system, whole rays."""
+    header = plan.header
+    return (
+        header.n_gates == first.n_gates
+        and header.gate_length_m == first.gate_length_m
+        and header.range_divisor == first.range_divisor
+        and header.range_step_m == first.range_step_m
+        and header.system_id == first.system_id
+        and plan.n_lines % (first.n_gates + 1) == 0
     )
 
 
-class _JoinedBodies(io.RawIOBase):
-    """A read-only binary file over the data lines of several files joined by CRLF.
+def _plan(paths: list[Path]) -> list[_FilePlan] | None:
+    """The first pass over every file (nothing kept but the plans); ``None`` if off."""
+    plans: list[_FilePlan] = []
+    for path in paths:
+        plan = _plan_file(path)
+        if plan is None or not _same_layout((plans[0] if plans else plan).header, plan):
+            return None
+        plans.append(plan)
+    return plans
 
-    Serves the tokenizer's reads from the files' own buffers, so that a day of files
-    is never copied into one large joined buffer.
+
+def _data_lines(plan: _FilePlan) -> bytes | None:
+    """The data lines of a planned file, read again; ``None`` if the file changed."""
+    try:
+        with plan.path.open("rb") as f:
+            f.seek(plan.offset)
+            body = f.read()
+    except OSError:
+        return None
+    return body if content_end(body) == plan.end else None
+
+
+class _JoinedBodies(io.RawIOBase):
+    """A read-only binary file over several files' data lines joined by CRLF.
+
+    Serves the pandas tokenizer's reads from the files' own buffers, so that a batch
+    of files is never copied into one joined buffer.
     """
 
-    def __init__(self, bodies: list[_Body]) -> None:
+    def __init__(self, pieces: list[memoryview]) -> None:
         super().__init__()
         self._pieces: list[memoryview] = []
-        for item in bodies:
+        for piece in pieces:
             if self._pieces:
                 self._pieces.append(memoryview(b"\r\n"))
-            self._pieces.append(memoryview(item.body)[: item.end])
+            self._pieces.append(piece)
         self._index = 0
         self._offset = 0
 
@@ -114,147 +148,146 @@ class _JoinedBodies(io.RawIOBase):
         return n
 
 
-def _batch_columns(batch: list[_Body], n_gates: int) -> list[np.ndarray] | None:
-    """The 5 columns of a batch's bodies, parsed in one call; ``None`` if not whole."""
+def _groups(plans: list[_FilePlan]) -> Iterator[list[_FilePlan]]:
+    """The files parsed together: one by one with the compiled tokenizer, else batches
+    of about ``_BATCH_BYTES`` of data lines for the pandas tokenizer."""
     if _hpltok is not None:
-        tables = []
-        for item in batch:
-            values, n_lines, bad_line = _hpltok.tokenize(memoryview(item.body)[: item.end], 5)
-            if bad_line >= 0 or n_lines != item.n_lines:
-                return None
-            tables.append(np.frombuffer(values, dtype=np.float64).reshape(n_lines, 5))
-        table = tables[0] if len(tables) == 1 else np.concatenate(tables)
+        yield from ([plan] for plan in plans)
+        return
+    group: list[_FilePlan] = []
+    size = 0
+    for plan in plans:
+        if group and size + plan.end > _BATCH_BYTES:
+            yield group
+            group, size = [], 0
+        group.append(plan)
+        size += plan.end
+    if group:
+        yield group
+
+
+def _group_columns(group: list[_FilePlan], n_gates: int) -> list[np.ndarray] | None:
+    """The 5 columns of a group's data lines; ``None`` unless every ray block is whole
+    and the line counts are those of the plans."""
+    n_lines = sum(plan.n_lines for plan in group)
+    bodies = [_data_lines(plan) for plan in group]
+    if any(body is None for body in bodies):
+        return None
+    pieces = [memoryview(body)[: plan.end] for body, plan in zip(bodies, group, strict=True)]
+    if _hpltok is not None:
+        (piece,) = pieces
+        values, got, bad_line = _hpltok.tokenize(piece, 5)
+        if bad_line >= 0 or got != n_lines:
+            return None
+        table = np.frombuffer(values, dtype=np.float64).reshape(n_lines, 5)
         columns = [table[:, j] for j in range(5)]
-        return None if structure_problem(columns, n_gates) is not None else columns
-    if not all(item.single_space for item in batch):
-        return None
-    try:
-        frame = _read_table(_JoinedBodies(batch), single_space=True)
-    except (pd.errors.ParserError, ValueError, UnicodeDecodeError, pd.errors.EmptyDataError):
-        return None
-    if frame.shape[1] != _SPACE_FIELDS or len(frame) != sum(item.n_lines for item in batch):
-        return None
-    columns = [_float_column(frame[name]) for name in frame.columns]
-    if not np.isnan(columns[5]).all():
-        return None
-    columns = columns[:5]
-    if structure_problem(columns, n_gates) is not None:
-        return None
-    return columns
+    else:
+        if not all(_single_space_ok(bytes(piece)) for piece in pieces):
+            return None
+        try:
+            frame = _read_table(_JoinedBodies(pieces), single_space=True)
+        except (pd.errors.ParserError, ValueError, UnicodeDecodeError, pd.errors.EmptyDataError):
+            return None
+        if frame.shape[1] != _SPACE_FIELDS or len(frame) != n_lines:
+            return None
+        columns = [_float_column(frame[name]) for name in frame.columns]
+        if not np.isnan(columns[5]).all():
+            return None
+        columns = columns[:5]
+    return None if structure_problem(columns, n_gates) is not None else columns
 
 
-def _same_layout(first: HplHeader, item: _Body) -> bool:
-    """Whether a file can be parsed with the first one: same gates, range grid, system."""
-    header = item.header
-    return (
-        header.n_gates == first.n_gates
-        and header.gate_length_m == first.gate_length_m
-        and header.range_divisor == first.range_divisor
-        and header.range_step_m == first.range_step_m
-        and header.system_id == first.system_id
-        and item.n_lines % (first.n_gates + 1) == 0
-    )
+class _Record:
+    """The arrays of the whole record, allocated once and filled group by group.
+
+    ``gates``: ``radial_velocity``, ``snr`` (intensity - 1), ``beta`` and, with 5-field
+    gate lines, ``spectral_width``, each (ray, gate); ``per_ray``: the ray lines'
+    fields (decimal hours, azimuth, elevation and, with 5-field ray lines, pitch and
+    roll); ``time`` (datetime64[ns]). Rays are in the order of the files.
+    """
+
+    def __init__(self, n_rays: int, n_gates: int, layout: tuple[int, int]) -> None:
+        ray_fields, gate_fields = layout
+        names = ["radial_velocity", "snr", "beta"]
+        if gate_fields == 5:
+            names.append("spectral_width")
+        self.layout = layout
+        self.gates = {name: np.empty((n_rays, n_gates), dtype=np.float64) for name in names}
+        self.per_ray = [np.empty(n_rays, dtype=np.float64) for _ in range(ray_fields)]
+        self.time = np.empty(n_rays, dtype="datetime64[ns]")
+        self.filled = 0
+
+    def add(self, group: list[_FilePlan], columns: list[np.ndarray], n_gates: int) -> None:
+        """Copy a group's parsed columns into the next rays (same layout checked)."""
+        block = n_gates + 1
+        grids = [col.reshape(-1, block) for col in columns]
+        start, stop = self.filled, self.filled + grids[0].shape[0]
+        for j, name in enumerate(self.gates, start=1):
+            if name == "snr":
+                np.subtract(grids[j][:, 1:], 1.0, out=self.gates[name][start:stop])
+            else:
+                self.gates[name][start:stop] = grids[j][:, 1:]
+        for j, values in enumerate(self.per_ray):
+            values[start:stop] = grids[j][:, 0]
+        first = start
+        for plan in group:
+            last = first + plan.n_lines // block
+            self.time[first:last] = decimal_hours_to_time(
+                self.per_ray[0][first:last], plan.header.start_time
+            )
+            first = last
+        self.filled = stop
 
 
-@dataclass(frozen=True)
-class _BatchArrays:
-    """The per-ray arrays of one batch of files (rays in file order)."""
-
-    layout: tuple[int, int]  # fields of the ray lines and of the gate lines
-    variables: dict[str, np.ndarray]  # canonical names, ray first
-    time: np.ndarray
-    azimuth: np.ndarray
-    elevation: np.ndarray
-
-
-def _batch_arrays(batch: list[_Body], n_gates: int) -> _BatchArrays | None:
-    """Parse one batch and keep only its dataset arrays; ``None`` if anything is off."""
-    columns = _batch_columns(batch, n_gates)
-    if columns is None:
-        return None
-    ray_fields, gate_fields = _fields_of_row(columns, 0), _fields_of_row(columns, 1)
-    block = n_gates + 1
-    grids = [col.reshape(-1, block) for col in columns]
-    rays = np.column_stack([g[:, 0] for g in grids])
-    if _bad_ray(rays) is not None:
-        return None
-    counts = [item.n_lines // block for item in batch]
-    ends = np.cumsum(counts)
-    time = np.concatenate(
-        [
-            decimal_hours_to_time(rays[end - count : end, 0], item.header.start_time)
-            for item, count, end in zip(batch, counts, ends, strict=True)
-        ]
-    )
-    azimuth, elevation = normalise_pointing(rays[:, 1], rays[:, 2])
-    variables = {
-        "radial_velocity": np.ascontiguousarray(grids[1][:, 1:]),
-        "snr": grids[2][:, 1:] - 1.0,
-        "beta": np.ascontiguousarray(grids[3][:, 1:]),
-    }
-    if gate_fields == 5:
-        variables["spectral_width"] = np.ascontiguousarray(grids[4][:, 1:])
-    if ray_fields == 5:
-        variables["pitch"] = rays[:, 3].copy()
-        variables["roll"] = rays[:, 4].copy()
-    return _BatchArrays((ray_fields, gate_fields), variables, time, azimuth, elevation)
-
-
-def _add_batch(batch: list[_Body], n_gates: int, done: list[_BatchArrays]) -> bool:
-    """Parse a batch onto ``done``; False on damage or a layout unlike the first batch's
-    (e.g. pitch and roll in some files only)."""
-    arrays = _batch_arrays(batch, n_gates)
-    if arrays is None or (done and arrays.layout != done[0].layout):
-        return False
-    done.append(arrays)
-    return True
+def _fill(plans: list[_FilePlan]) -> _Record | None:
+    """The second pass: every group parsed into the record; ``None`` on any damage or
+    a layout unlike the first file's (e.g. pitch and roll in some files only)."""
+    n_gates = plans[0].header.n_gates
+    n_rays = sum(plan.n_lines for plan in plans) // (n_gates + 1)
+    record: _Record | None = None
+    for group in _groups(plans):
+        columns = _group_columns(group, n_gates)
+        if columns is None:
+            return None
+        layout = (_fields_of_row(columns, 0), _fields_of_row(columns, 1))
+        if record is None:
+            record = _Record(n_rays, n_gates, layout)
+        elif layout != record.layout:
+            return None
+        record.add(group, columns, n_gates)
+    return record
 
 
 def _read_together(paths: list[Path]) -> xr.Dataset | None:
     """The fast path of :func:`read_hpl_files`, or ``None`` to take the reference path.
 
-    Files are read and parsed batch by batch (about ``_BATCH_BYTES`` of data each);
-    only the dataset arrays of a batch are kept, so the peak memory is the result
-    plus one batch.
+    Memory: the record's arrays, one file's data lines and their parsed numbers, and,
+    only when rays are out of time order or times repeat, one reordered variable
+    (:func:`cwproc.io.scans.time_sorted_scans`).
     """
-    first: HplHeader | None = None
-    scan_types: list[str] = []
-    done: list[_BatchArrays] = []
-    batch: list[_Body] = []
-    size = 0
-    for path in paths:
-        item = _load_body(path)
-        if item is None:
-            return None
-        if first is None:
-            first = item.header
-        if not _same_layout(first, item):
-            return None
-        scan_types.append(item.header.scan_type)
-        if batch and size + item.end > _BATCH_BYTES:
-            if not _add_batch(batch, first.n_gates, done):
-                return None
-            batch, size = [], 0
-        batch.append(item)
-        size += item.end
-    if first is None or not _add_batch(batch, first.n_gates, done):
+    plans = _plan(paths)
+    record = _fill(plans) if plans else None
+    if record is None:
         return None
-    ray_range = ("ray", "range")
-    variables = {
-        name: (
-            ray_range if values.ndim == 2 else ("ray",),
-            np.concatenate([b.variables[name] for b in done]) if len(done) > 1 else values,
-            {},
-        )
-        for name, values in done[0].variables.items()
-    }
+    per_ray = record.per_ray
+    if _bad_ray(np.column_stack(per_ray[:3])) is not None:
+        return None
+    azimuth, elevation = normalise_pointing(per_ray[1], per_ray[2])
+    variables = {name: (("ray", "range"), values, {}) for name, values in record.gates.items()}
+    if len(per_ray) == 5:
+        variables["pitch"] = (("ray",), per_ray[3], {})
+        variables["roll"] = (("ray",), per_ray[4], {})
+    first = plans[0].header
+    scan_types = [plan.header.scan_type for plan in plans]
     attrs = joined_attrs(_attrs(paths[0], first), [path.name for path in paths], scan_types)
+    time = record.time
+    del record, per_ray  # the record's arrays now live in ``variables`` alone
     return time_sorted_scans(
         variables,
         fixed={},
-        time=np.concatenate([b.time for b in done]),
-        azimuth=np.concatenate([b.azimuth for b in done]),
-        elevation=np.concatenate([b.elevation for b in done]),
+        time=time,
+        azimuth=azimuth,
+        elevation=elevation,
         ranges=first.gate_ranges(),
         attrs=attrs,
         coord_attrs={},
@@ -267,13 +300,16 @@ def read_hpl_files(paths: list[str | os.PathLike], **options: object) -> xr.Data
     The result is exactly ``concat_scans([read_hpl(p) for p in paths])`` (rays sorted
     by time, repeated times dropped, ``scan`` assigned over the whole record), built
     without one dataset per file. When every file has the same gates, range grid,
-    system id and field layout, the files are read in batches of about 16 MB of data,
-    each batch parsed by one tokenizer call (served from the files' buffers, no joined
-    copy) and checked as a whole, and only its dataset arrays are kept (the peak
-    memory is about that of the reference path). Anything else (different layouts,
-    any damage) takes the reference path file by file, which raises the exact error
-    of the first bad file. Measured on a synthetic day of 720 files
-    (``benchmarks/bench_read_hpl.py``): 2-3 times faster than the reference path.
+    system id and field layout, a first pass reads the headers and counts the data
+    lines (``Number of gates`` + 1 per ray), the record's arrays are allocated once,
+    and a second pass parses each file (the compiled tokenizer; without it, batches of
+    about 16 MB through the pandas tokenizer) and copies its numbers into place. The
+    peak memory is the arrays of the record plus one file's data and, only when the
+    files' rays are out of time order or times repeat, one reordered variable
+    (measured on a synthetic day of 720 files, ``benchmarks/bench_read_hpl.py``:
+    about 1.1 times the dataset above the imports). Anything else (different layouts,
+    any damage, lone CR and LF line ends in one file) takes the reference path file by file, which
+    raises the exact error of the first bad file.
 
     Parameters
     ----------

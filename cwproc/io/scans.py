@@ -454,7 +454,10 @@ def time_sorted_scans(
     ----------
     arrays : dict
         ``name -> (dims, values, attrs)`` of the variables on ``ray`` (rays of all
-        inputs one after the other).
+        inputs one after the other). Emptied: each entry is taken out before the next
+        one is reordered, so when the rays are out of order (or times repeat) the
+        memory above the result is one variable's reordered copy, not all of them
+        (none when they are in order: the arrays are then used as they are).
     fixed : dict of xarray.Variable
         Variables without a ``ray`` dimension, kept as they are.
     time, azimuth, elevation : ndarray
@@ -486,8 +489,10 @@ def time_sorted_scans(
         return values if identity else np.take(values, order, axis=axis)
 
     data_vars = {}
-    for name, (dims, values, var_attrs) in arrays.items():
+    for name in list(arrays):
+        dims, values, var_attrs = arrays.pop(name)
         data_vars[name] = xr.Variable(dims, pick(values, dims.index("ray")), var_attrs)
+        del values  # the caller's copy is gone too: freed before the next variable
     data_vars.update(fixed)
     coords = {
         "time": xr.Variable("ray", pick(time), coord_attrs.get("time")),
