@@ -258,15 +258,35 @@ def _fill(plans: list[_FilePlan]) -> _Record | None:
     return record
 
 
+def _placement(plans: list[_FilePlan]) -> tuple[list[_FilePlan], np.ndarray | None]:
+    """The files in order of their header's start time, and the position of each of
+    their rays in the given order (``None`` when the given order is kept).
+
+    Files given in any order (a directory listing) then fill the record in time order,
+    so that it needs no reordering unless the files overlap in time.
+    """
+    index = sorted(range(len(plans)), key=lambda i: plans[i].header.start_time)
+    if index == list(range(len(plans))):
+        return plans, None
+    block = plans[0].header.n_gates + 1
+    rays = [plan.n_lines // block for plan in plans]
+    starts = np.concatenate([[0], np.cumsum(rays)])
+    origin = np.concatenate([np.arange(starts[i], starts[i] + rays[i]) for i in index])
+    return [plans[i] for i in index], origin
+
+
 def _read_together(paths: list[Path]) -> xr.Dataset | None:
     """The fast path of :func:`read_hpl_files`, or ``None`` to take the reference path.
 
     Memory: the record's arrays, one file's data lines and their parsed numbers, and,
-    only when rays are out of time order or times repeat, one reordered variable
-    (:func:`cwproc.io.scans.time_sorted_scans`).
+    only when files overlap in time (rays out of time order or times repeated), one
+    reordered variable (:func:`cwproc.io.scans.time_sorted_scans`).
     """
     plans = _plan(paths)
-    record = _fill(plans) if plans else None
+    if not plans:
+        return None
+    placed, origin = _placement(plans)
+    record = _fill(placed)
     if record is None:
         return None
     per_ray = record.per_ray
@@ -291,6 +311,7 @@ def _read_together(paths: list[Path]) -> xr.Dataset | None:
         ranges=first.gate_ranges(),
         attrs=attrs,
         coord_attrs={},
+        origin=origin,
     )
 
 
@@ -302,10 +323,11 @@ def read_hpl_files(paths: list[str | os.PathLike], **options: object) -> xr.Data
     without one dataset per file. When every file has the same gates, range grid,
     system id and field layout, a first pass reads the headers and counts the data
     lines (``Number of gates`` + 1 per ray), the record's arrays are allocated once,
-    and a second pass parses each file (the compiled tokenizer; without it, batches of
-    about 16 MB through the pandas tokenizer) and copies its numbers into place. The
-    peak memory is the arrays of the record plus one file's data and, only when the
-    files' rays are out of time order or times repeat, one reordered variable
+    and a second pass parses each file in order of its header's start time (the
+    compiled tokenizer; without it, batches of about 16 MB through the pandas
+    tokenizer) and copies its numbers into place. The peak memory is the arrays of the
+    record plus one file's data and, only when files overlap in time (rays out of time
+    order or times repeated), one reordered variable
     (measured on a synthetic day of 720 files, ``benchmarks/bench_read_hpl.py``:
     about 1.1 times the dataset above the imports). Anything else (different layouts,
     any damage, lone CR and LF line ends in one file) takes the reference path file by file, which

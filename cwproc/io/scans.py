@@ -446,6 +446,7 @@ def time_sorted_scans(
     ranges: np.ndarray,
     attrs: dict[str, object],
     coord_attrs: dict[str, dict],
+    origin: np.ndarray | None = None,
     **assign_options: float,
 ) -> xr.Dataset:
     """One scan dataset from concatenated per-ray arrays: sorted, deduplicated, scans set.
@@ -468,6 +469,11 @@ def time_sorted_scans(
         Dataset attributes.
     coord_attrs : dict
         Attributes of the coordinates ``time``, ``azimuth``, ``elevation``, ``range``.
+    origin : ndarray of int, optional
+        Position of each ray in the inputs' order, when the arrays hold the rays in
+        another order (e.g. files placed by start time): rays of equal time are taken
+        in this order, so the result is that of the inputs' order. Default: the arrays'
+        order.
     **assign_options
         Passed to :func:`assign_scans`.
 
@@ -477,7 +483,7 @@ def time_sorted_scans(
         Rays sorted by time (stable), rays with a time already seen dropped (the first
         occurrence is kept), ``scan`` assigned over the whole record.
     """
-    order = np.argsort(time, kind="stable")
+    order = np.argsort(time, kind="stable") if origin is None else np.lexsort((origin, time))
     sorted_time = time[order]
     keep = np.ones(order.size, dtype=bool)
     keep[1:] = sorted_time[1:] != sorted_time[:-1]

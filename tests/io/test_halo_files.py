@@ -132,7 +132,8 @@ def test_pandas_batches_equal_the_compiled_tokenizer(
 def test_overlapping_files_keep_the_first_ray_of_a_repeated_time(tmp_path: Path) -> None:
     """Out-of-order rays inside the record and repeated times with other data."""
     t0 = np.datetime64("2024-06-01T12:00:00", "ns")
-    starts = [0, 30, 2, 0]  # s: the 2nd and 3rd interleave with the 1st; the 4th repeats it
+    # s: the 2nd and 3rd overlap the 1st, the 4th starts first and repeats 11 of its times
+    starts = [5, 30, 2, 0]
     paths = [
         write_hpl(vad(t0 + np.timedelta64(s, "s"), seed=k), tmp_path / f"{k}.hpl")
         for k, s in enumerate(starts)
@@ -140,8 +141,8 @@ def test_overlapping_files_keep_the_first_ray_of_a_repeated_time(tmp_path: Path)
     ds = read_hpl_files(paths)
     assert halo_files._read_together(paths) is not None  # the fast path ran
     assert_same(ds, reference(paths))
-    # 12 rays from 0 s every 5 s, the same from 30 s (6 new) and from 2 s (12 new)
-    assert ds.sizes["ray"] == 12 + 6 + 12
+    # 12 rays from 5 s every 5 s; from 30 s 5 new, from 2 s 12 new, from 0 s 1 new
+    assert ds.sizes["ray"] == 12 + 5 + 12 + 1
     assert (np.diff(ds["time"].values) > np.timedelta64(0, "ns")).all()
     first = read_hpl(paths[0])  # the repeated times keep the first file's rays
     at_first = np.isin(ds["time"].values, first["time"].values)
@@ -182,9 +183,11 @@ def test_file_grown_between_the_passes_takes_the_reference_path(
     assert halo_files._read_together(day) is None
 
 
-def test_peak_memory_is_about_the_arrays(tmp_path: Path) -> None:
+@pytest.mark.parametrize("order", ["sorted", "reversed"])
+def test_peak_memory_is_about_the_arrays(tmp_path: Path, order: str) -> None:
     """Python and numpy allocations (tracemalloc) while reading a day: the record's arrays,
-    one file's data and small change, not a second copy of the arrays."""
+    one file's data and small change, not a second copy of the arrays (files given in
+    reverse fill the record in time order: nothing to reorder)."""
     if halo_files._hpltok is None:
         pytest.skip("the bound holds for the compiled tokenizer (pandas parses batches)")
     t0 = np.datetime64("2024-06-01T00:00:00", "ns")
@@ -196,6 +199,8 @@ def test_peak_memory_is_about_the_arrays(tmp_path: Path) -> None:
         ds = ds.assign_coords(range=(np.arange(n_gates) + 0.5) * 30.0)
         paths.append(write_hpl(ds, tmp_path / f"{k:02d}.hpl"))
     read_hpl_files(paths[:1])  # imports and caches outside the measurement
+    if order == "reversed":
+        paths = paths[::-1]
     tracemalloc.start()
     try:
         ds = read_hpl_files(paths)
