@@ -47,14 +47,14 @@ def body_reads(monkeypatch) -> Counter:
     """Counts of each path whose header and data lines were read (the .hpl body parse of
     both ``read_hpl`` and the day streamer)."""
     counts: Counter = Counter()
-    original = halo.read_header_and_body
+    original = halo.read_header_body_offset
 
     def counting(path):
         counts[os.fspath(path)] += 1
         return original(path)
 
-    monkeypatch.setattr(halo, "read_header_and_body", counting)
-    monkeypatch.setattr(halo_files, "read_header_and_body", counting)
+    monkeypatch.setattr(halo, "read_header_body_offset", counting)
+    monkeypatch.setattr(halo_files, "read_header_body_offset", counting)
     return counts
 
 

@@ -11,7 +11,8 @@ whole body with one call of the compiled or the pandas C tokenizer, checks the b
 structure with array operations, and only when a check fails walks the offending ray
 block line by line to name the first bad line (:mod:`cwproc.io.halo_body`).
 :func:`cwproc.io.halo_files.read_hpl_files` reads many files (a day of scans) into one
-dataset with one tokenizer call per batch of files. :func:`write_hpl` writes a
+dataset: their data lines are counted first, then each file is parsed straight into the
+arrays of the whole record. :func:`write_hpl` writes a
 canonical scan dataset back in the instrument's layout (used by the simulator and the
 benchmarks).
 

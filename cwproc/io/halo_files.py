@@ -218,7 +218,7 @@ class _Record:
         self.filled = 0
 
     def add(self, group: list[_FilePlan], columns: list[np.ndarray], n_gates: int) -> None:
-        """Copy a group's parsed columns into the next rays (same layout checked)."""
+        """Copy a group's parsed columns into the next rays (its layout is the record's)."""
         block = n_gates + 1
         grids = [col.reshape(-1, block) for col in columns]
         start, stop = self.filled, self.filled + grids[0].shape[0]
