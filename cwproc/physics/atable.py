@@ -108,7 +108,9 @@ def table_parameters(
     """The validated parameter dictionary of a table (its cache key is a hash of it).
 
     ``swept``: each ray is accumulated while the beam sweeps its azimuth step (continuous
-    scan, ``H_perp`` of Smalikho (2020), eq. 20), ``False`` for step-stare rays.
+    scan: the rays seen at their own times, :mod:`cwproc.physics.atable_swept`; with
+    ``geometry="small_angle"`` ``H_perp`` of Smalikho (2020), eq. 20), ``False`` for
+    step-stare rays.
     ``geometry``: ``"two_beam"`` (exact pair geometry, :func:`geometry_correction`) or
     ``"small_angle"`` (Smalikho (2020), eq. 15 alone); ``None``: ``"two_beam"`` for a
     pulsed probe, ``"small_angle"`` for a cw probe (whose Lorentzian, longer than the
@@ -214,10 +216,8 @@ def geometry_correction(
     The pair of rays ``l`` steps apart (:func:`cwproc.physics.two_beam.cross_term`: chord
     separation, angle between the beams, transport ``U t`` with ``U = mu V_s``) against
     Smalikho (2020), eq. 15 for the same point probe (``A_perp = (8/3) rho^(2/3)``,
-    ``A_par = 2 rho^(2/3)``), both without the sweep: the sweep of a continuous scan is
-    in the probe's A-functions (``H_perp`` of Smalikho (2020), eq. 20, over the length
-    the ray averages in the moving field, :func:`sweep_transport_ratio`). For a point
-    probe and the inertial model
+    ``A_par = 2 rho^(2/3)``), both without the sweep (step-stare rays; swept rays of
+    continuous scans: :func:`_swept_pairs`). For a point probe and the inertial model
     both scale as ``R'^(2/3)``, so the ratio is computed once on the circle ``R' = 1``
     (``V_s = 1``, ray period ``dtheta``). The probe's eq.-15 A-functions plus the
     same-beam term, times this ratio, minus the same-beam term, give the exact geometry
@@ -397,9 +397,12 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
     evaluated for all lags, ``mu`` and azimuths at once. With ``geometry="two_beam"`` it is
     multiplied by the point-probe ratio of :func:`geometry_correction` and, for
     finite outer scales, ``sigma_V^2 |S_a - S_b|^2`` (:func:`uniform_mode`) are added.
-    ``A_2`` is stored as its azimuth average (``log_a2``) and, for inertial tables, its
-    means over azimuth bins relative to that average (``bins_a2``), so that sectors and
-    gaps can be averaged over the azimuths of the pairs present.
+    Swept rays of continuous scans (``swept`` and a probe with a transverse size) take
+    the sweep kernel over step-stare pairs at fractional lags instead
+    (:func:`_swept_pairs`, :mod:`cwproc.physics.atable_swept`). ``A_2`` is stored as its
+    azimuth average (``log_a2``) and, for inertial tables, its means over azimuth bins
+    relative to that average (``bins_a2``), so that sectors and gaps can be averaged over
+    the azimuths of the pairs present.
     """
     phi, n_lags, model = params["phi_deg"], params["n_lags"], params["model"]
     swept = bool(params.get("swept", True))
