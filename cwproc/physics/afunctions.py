@@ -491,28 +491,26 @@ def a_plane(
         model=model,
         outer_scale_m=outer_scale_m,
     )
-    p = _panels(k_lo, k_hi)
-    phi = spectra.plane_spectrum(p.kappa[:, None], p.kappa[None, :], model, outer_scale_m)
+    shared = PlaneMatrix(k_lo, k_hi, model, outer_scale_m)
+    p, phi = shared.panels, shared.matrix
     fac_par, len_par = _longitudinal_factor(probe, p, range_m)
     perps, which = np.unique(st, return_inverse=True)
-    a_perp_v, _ = a_curves(
-        perps, probe=probe, dy=0.0, range_m=range_m, model=model, outer_scale_m=outer_scale_m
+    options = dict(probe=probe, dy=0.0, range_m=range_m, model=model, outer_scale_m=outer_scale_m)
+    a_perp_v = np.concatenate(
+        [a_curves(perps[i : i + 64], plane=shared, **options)[0] for i in range(0, perps.size, 64)]
     )
     along = np.flatnonzero(perps == 0)
-    cross = phi @ _cos_weights(p, perps).T + phi[:, [0]] * p.lo  # (n, perps)
+    # C(k1) per transverse length, in chunks (the cosine weights are (lengths, nodes))
+    cross = np.concatenate(
+        [phi @ _cos_weights(p, perps[i : i + 64]).T for i in range(0, perps.size, 64)], axis=1
+    )
+    cross = cross + phi[:, [0]] * p.lo  # (n, perps)
     for j in range(perps.size):
         sel = np.flatnonzero((which == j) & (s1 > 0))
         if sel.size == 0:
             continue
         if along.size and j == along[0]:  # no transverse part: eq. 17 itself
-            out[sel] = a_curves(
-                s1[sel],
-                probe=probe,
-                dy=0.0,
-                range_m=range_m,
-                model=model,
-                outer_scale_m=outer_scale_m,
-            )[1]
+            out[sel] = a_curves(s1[sel], plane=shared, **options)[1]
             continue
         out[sel] = _structure_integral(p, 2.0 * cross[:, j] * fac_par, len_par, s1[sel], None)
     out = out + a_perp_v[which]
