@@ -23,6 +23,10 @@ Run (about 10-20 min on 2 cores; the 180-ray covariances take most of it)::
 
     python benchmarks/bench_epsilon_accuracy.py
     python benchmarks/bench_epsilon_accuracy.py --quick    # 24/72 rays, mu 0 and 1
+    python benchmarks/bench_epsilon_accuracy.py --case "72 rays" --mu 1 --model von_karman
+
+``--case`` and ``--mu`` select cases of the full list; every case keeps the seed it has
+in the full run (``--seed`` plus its index), so a selected case repeats its row.
 """
 
 from __future__ import annotations
@@ -145,10 +149,15 @@ def main() -> None:
     parser.add_argument("--blocks", type=int, default=100, help="blocks per case (100)")
     parser.add_argument("--quick", action="store_true", help="a few cases only")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--case", action="append", help="cases whose label contains this")
+    parser.add_argument("--mu", type=float, action="append", help="only these mu")
+    parser.add_argument("--model", action="append", help="only these retrieval models")
     args = parser.parse_args()
     base = load_config("streamline")
     truth_var = float(spectra.variance_from(EPS, L_V, "von_karman"))
     models = [base.turbulence.model] + (["inertial"] if base.turbulence.model != "inertial" else [])
+    if args.model:
+        models = [m for m in models if m in args.model]
     print(
         f"truth: eps = {EPS:g} m2 s-3, L_V = {L_V:g} m (von Karman), sigma_V^2 = "
         f"{truth_var:.3f} m2 s-2, sigma_e = {NOISE} m/s; h = {HEIGHT:g} m, phi = {PHI} deg, "
@@ -160,6 +169,10 @@ def main() -> None:
     print(header)
     for i, case in enumerate(cases(args.quick)):
         pattern, mu = case["pattern"], case["mu"]
+        if args.case and not any(c in case["label"] for c in args.case):
+            continue
+        if args.mu and not any(abs(mu - m) < 1e-9 for m in args.mu):
+            continue
         speed = mu * scan_speed(pattern)
         t0 = time.perf_counter()
         scans = eg.gaussian_scans(

@@ -40,19 +40,15 @@ from pathlib import Path
 import numpy as np
 import platformdirs
 
-from cwproc.physics import afunctions, spectra, two_beam
-from cwproc.physics.atable_interp import N_BINS, ATable, azimuth_nodes, lagrange4
+from cwproc.physics import afunctions, atable_swept, spectra, two_beam
+from cwproc.physics.atable_interp import N_BINS, ATable, azimuth_nodes
 from cwproc.physics.spectra import MODELS, Model
 from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
 
 #: bump when the numerics or the grid change: old cache files are then ignored
-TABLE_VERSION = 5
+TABLE_VERSION = 6
 #: sub-beams of a swept ray in :func:`uniform_mode`
 N_SWEEP = 8
-#: transverse sizes (in dy) of the A-curves of :func:`sweep_transport_ratio`: from this
-#: fraction up to 1 + mu_max, geometric with this ratio
-SWEEP_MIN_FRACTION = 0.05
-SWEEP_RATIO = 1.4
 #: geometry models of a table
 GEOMETRIES = ("two_beam", "small_angle")
 #: geometric ratio of the height nodes
@@ -112,7 +108,9 @@ def table_parameters(
     """The validated parameter dictionary of a table (its cache key is a hash of it).
 
     ``swept``: each ray is accumulated while the beam sweeps its azimuth step (continuous
-    scan, ``H_perp`` of Smalikho (2020), eq. 20), ``False`` for step-stare rays.
+    scan: the rays seen at their own times, :mod:`cwproc.physics.atable_swept`; with
+    ``geometry="small_angle"`` ``H_perp`` of Smalikho (2020), eq. 20), ``False`` for
+    step-stare rays.
     ``geometry``: ``"two_beam"`` (exact pair geometry, :func:`geometry_correction`) or
     ``"small_angle"`` (Smalikho (2020), eq. 15 alone); ``None``: ``"two_beam"`` for a
     pulsed probe, ``"small_angle"`` for a cw probe (whose Lorentzian, longer than the
@@ -182,68 +180,6 @@ def _per_theta_a2(
     return np.concatenate([half, half], axis=-1)  # eq. 15 is even in cos(theta)
 
 
-def sweep_transport_ratio(
-    probe: Probe,
-    phi_deg: float,
-    dy: float,
-    perp_size: float,
-    range_m: float,
-    rho_range: tuple[float, float],
-    lags: np.ndarray,
-    mu: np.ndarray,
-    plane: afunctions.PlaneMatrix | None = None,
-) -> np.ndarray:
-    """Ratio of the swept-ray A_2 integrand seen at the rays' own times to eq. 15's.
-
-    A continuous scan accumulates each ray while the beam sweeps ``dy``; in the frozen
-    field (transport ``U = mu V_s``) the ray averages along ``dy (e_scan - mu e_wind)``,
-    a segment of length ``dy sqrt(g)`` along the separation of the pair, not across the
-    beam over ``dy`` as eq. 15 (Smalikho (2020), with ``H_perp(dy)`` of eq. 20) keeps it.
-    The integrand of eq. 15 is recomputed with ``H_perp(dy sqrt(g))`` (inertial model,
-    A-curves on a geometric family of transverse sizes ``c dy``, 4-point Lagrange in
-    ``log c``) and divided by eq. 15's. At ``mu = 0`` it is 1. Against the exact
-    two-beam model (:func:`cwproc.physics.two_beam.two_beam_structure_function` with
-    ``ray_duration_s``) it removes most of eq. 15's excess at ``l = 1`` (up to 27 % at
-    ``mu = 1.5``; 1-3 % left for 1-5 deg steps).
-
-    Returns
-    -------
-    numpy.ndarray
-        ``(lags, mu, theta)`` on :func:`full_circle`.
-    """
-    mu = np.asarray(mu, float)
-    sg, wp, wl = afunctions.transport_weights(mu, phi_deg)  # (nm, nth) half circle
-    top = float(max(np.max(sg), 1.0)) * 1.01
-    sizes = np.geomspace(
-        SWEEP_MIN_FRACTION,
-        top,
-        max(4, math.ceil(math.log(top / SWEEP_MIN_FRACTION) / math.log(SWEEP_RATIO)) + 1),
-    )
-    rho = lags[:, None, None] * dy * sg[None]  # (nl, nm, nth)
-    idx, w, _ = lagrange4(np.log(sizes), np.log(np.clip(sg, sizes[0], sizes[-1])))
-    idx = idx.reshape(*sg.shape, 4)
-    w = w.reshape(*sg.shape, 4)
-    a_perp = np.zeros(rho.shape)
-    a_par = np.zeros(rho.shape)
-    for k, c in enumerate(sizes):
-        use = idx == k  # (nm, nth, 4)
-        if not use.any():
-            continue
-        weight = np.sum(np.where(use, w, 0.0), axis=-1)  # (nm, nth)
-        curves = afunctions.a_curve_splines(
-            *rho_range, probe=probe, dy=float(c * perp_size), range_m=range_m, plane=plane
-        )
-        a_perp += weight[None] * curves.perp(rho)
-        a_par += weight[None] * curves.par(rho)
-    physical = wp[None] * a_perp + wl[None] * a_par
-    fixed = afunctions.a_curve_splines(
-        *rho_range, probe=probe, dy=float(perp_size), range_m=range_m, plane=plane
-    )
-    eq15 = wp[None] * fixed.perp(rho) + wl[None] * fixed.par(rho)
-    ratio = physical / eq15
-    return np.concatenate([ratio, ratio], axis=-1)  # both even in cos(theta)
-
-
 def _point_pair(
     phi_deg: float, delta_theta_deg: float, lags: np.ndarray, mu: np.ndarray, theta: np.ndarray
 ) -> np.ndarray:
@@ -280,10 +216,8 @@ def geometry_correction(
     The pair of rays ``l`` steps apart (:func:`cwproc.physics.two_beam.cross_term`: chord
     separation, angle between the beams, transport ``U t`` with ``U = mu V_s``) against
     Smalikho (2020), eq. 15 for the same point probe (``A_perp = (8/3) rho^(2/3)``,
-    ``A_par = 2 rho^(2/3)``), both without the sweep: the sweep of a continuous scan is
-    in the probe's A-functions (``H_perp`` of Smalikho (2020), eq. 20, over the length
-    the ray averages in the moving field, :func:`sweep_transport_ratio`). For a point
-    probe and the inertial model
+    ``A_par = 2 rho^(2/3)``), both without the sweep (step-stare rays; swept rays of
+    continuous scans: :func:`_swept_pairs`). For a point probe and the inertial model
     both scale as ``R'^(2/3)``, so the ratio is computed once on the circle ``R' = 1``
     (``V_s = 1``, ray period ``dtheta``). The probe's eq.-15 A-functions plus the
     same-beam term, times this ratio, minus the same-beam term, give the exact geometry
@@ -362,45 +296,97 @@ def _geometry_terms(
     return same, g1, g2, uniform_mode(phi, params["delta_theta_deg"], n_lags, swept)
 
 
-def _sweep_ratios(
+def _swept_pairs(
     probe: Probe,
-    phi: float,
-    dys: np.ndarray,
-    perp_size: np.ndarray,
+    params: dict,
     ranges: np.ndarray,
-    rho: tuple[np.ndarray, np.ndarray],
-    lags: np.ndarray,
+    dys: np.ndarray,
     mu: np.ndarray,
-) -> list:
-    """:func:`sweep_transport_ratio` per height (inertial, valid for all outer scales).
+    same: np.ndarray,
+) -> list[np.ndarray]:
+    """Per height the inertial A_2 integrand of swept rays seen at their own times.
 
-    The rays of a continuous scan seen at their own times; ``rho`` is the
-    ``(low, high)`` separation range (m) of the A-curves per height.
+    :func:`cwproc.physics.atable_swept.swept_a2` on :func:`full_circle`,
+    ``(lags, mu, theta)``; ``same`` is twice the same-beam term per height. A pulsed
+    probe weights the same lengths at every range, so one plane A-function serves all
+    heights; other probes get one per height.
     """
+    phi, step = params["phi_deg"], params["delta_theta_deg"]
+    lags = np.arange(1, params["n_lags"] + 1, dtype=float)
+    theta = full_circle()
+    kernel = atable_swept.sweep_kernel(lags)
+    top = (lags[-1] + 1.0) * (2.0 + float(np.max(mu))) * 1.05
+    span = (1e-3 * float(np.min(dys)), top * float(np.max(dys)))
+    plane = None
+    if isinstance(probe, PulsedProbe):
+        plane = atable_swept.plane_curves(probe, float(ranges[0]), *span)
+    out = []
+    for rng, dy, s2 in zip(ranges, dys, same, strict=True):
+        offsets = atable_swept.offset_rule(probe, float(rng))
+        ratio = atable_swept.geometry_ratio(phi, step, kernel[0], mu, theta, offsets)
+        here = plane or atable_swept.plane_curves(probe, float(rng), 1e-3 * dy, top * dy)
+        out.append(
+            atable_swept.swept_a2(
+                here,
+                ratio,
+                kernel,
+                phi_deg=phi,
+                delta_theta_deg=step,
+                dy=float(dy),
+                offsets=offsets,
+                same=float(s2),
+                mu=mu,
+                theta=theta,
+            )
+        )
+    return out
+
+
+def _inertial_curves(
+    probe: Probe, rho: tuple[np.ndarray, np.ndarray], perp_size: np.ndarray, ranges: np.ndarray
+) -> list:
+    """Inertial :class:`cwproc.physics.afunctions.ACurves` per height (as the table's)."""
     rho_lo, rho_hi = rho
-    family = [
-        afunctions.panel_limits(
-            lo * SWEEP_MIN_FRACTION, hi, probe=probe, dy=float(ps) * SWEEP_MIN_FRACTION, range_m=rng
+    limits = [
+        afunctions.panel_limits(lo, hi, probe=probe, dy=float(ps), range_m=rng)
+        for lo, hi, ps, rng in zip(rho_lo, rho_hi, perp_size, ranges, strict=True)
+    ]
+    plane = afunctions.PlaneMatrix(min(lim[0] for lim in limits), max(lim[1] for lim in limits))
+    return [
+        afunctions.a_curve_splines(
+            float(lo), float(hi), probe=probe, dy=float(ps), range_m=float(rng), plane=plane
         )
         for lo, hi, ps, rng in zip(rho_lo, rho_hi, perp_size, ranges, strict=True)
     ]
-    inertial_plane = afunctions.PlaneMatrix(
-        min(lim[0] for lim in family), max(lim[1] for lim in family), "inertial"
-    )
-    return [
-        sweep_transport_ratio(
-            probe,
-            phi,
-            float(dys[j]),
-            float(perp_size[j]),
-            float(ranges[j]),
-            (float(rho_lo[j]) * SWEEP_MIN_FRACTION, float(rho_hi[j])),
-            lags,
-            mu,
-            inertial_plane,
-        )
-        for j in range(dys.size)
-    ]
+
+
+def _height_cell(
+    curves: afunctions.ACurves,
+    swept: tuple[afunctions.ACurves | None, np.ndarray | None],
+    geometry: tuple[float, np.ndarray, np.ndarray],
+    lag_m: np.ndarray,
+    mu: np.ndarray,
+    phi: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``A_1`` ``(lags,)`` and the ``A_2`` integrand ``(lags, mu, theta)`` of one height.
+
+    Step-stare (``swept = (None, None)``): eq. 15 of ``curves`` with the point-probe ratios
+    ``g1``, ``g2`` on the cross term, ``(A + 2S) g - 2S`` (``geometry = (2S, g1, g2)``).
+    Swept rays: the inertial integrand of :func:`_swept_pairs`; a finite outer scale
+    multiplies it by eq. 15's ratio to the inertial curves of the same probe
+    (``swept[0]``), the outer scale acting on the large separations the sweep leaves
+    alone. ``A_1`` is then the swept ``A_2`` at ``mu = 0`` (azimuth mean).
+    """
+    s2, g1, g2 = geometry
+    inert, pairs = swept
+    if pairs is None:
+        a1 = (curves.perp(lag_m) + s2) * g1 - s2
+        return a1, (_per_theta_a2(curves, lag_m, mu, phi) + s2) * g2 - s2
+    a1 = pairs[:, 0, :].mean(axis=-1)
+    if inert is None:
+        return a1, pairs
+    factor = _per_theta_a2(curves, lag_m, mu, phi) / _per_theta_a2(inert, lag_m, mu, phi)
+    return a1 * curves.perp(lag_m) / inert.perp(lag_m), pairs * factor
 
 
 def build_a_table(probe: Probe, params: dict) -> ATable:
@@ -411,9 +397,12 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
     evaluated for all lags, ``mu`` and azimuths at once. With ``geometry="two_beam"`` it is
     multiplied by the point-probe ratio of :func:`geometry_correction` and, for
     finite outer scales, ``sigma_V^2 |S_a - S_b|^2`` (:func:`uniform_mode`) are added.
-    ``A_2`` is stored as its azimuth average (``log_a2``) and, for inertial tables, its
-    means over azimuth bins relative to that average (``bins_a2``), so that sectors and
-    gaps can be averaged over the azimuths of the pairs present.
+    Swept rays of continuous scans (``swept`` and a probe with a transverse size) take
+    the sweep kernel over step-stare pairs at fractional lags instead
+    (:func:`_swept_pairs`, :mod:`cwproc.physics.atable_swept`). ``A_2`` is stored as its
+    azimuth average (``log_a2``) and, for inertial tables, its means over azimuth bins
+    relative to that average (``bins_a2``), so that sectors and gaps can be averaged over
+    the azimuths of the pairs present.
     """
     phi, n_lags, model = params["phi_deg"], params["n_lags"], params["model"]
     swept = bool(params.get("swept", True))
@@ -437,9 +426,12 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
     same, g1, g2, unif = _geometry_terms(probe, params, ranges, mu, swept)
     rho_lo = 0.02 * dys
     rho_hi = n_lags * dys * (1.0 + params["mu_max"]) * 1.01
-    sweep = [1.0] * heights.size
+    swept_pairs: list = [None] * heights.size
+    inertial: list = [None] * heights.size
     if params.get("geometry", "two_beam") == "two_beam" and np.any(perp_size > 0):
-        sweep = _sweep_ratios(probe, phi, dys, perp_size, ranges, (rho_lo, rho_hi), lags, mu)
+        swept_pairs = _swept_pairs(probe, params, ranges, dys, mu, same)
+        if model != "inertial":
+            inertial = _inertial_curves(probe, (rho_lo, rho_hi), perp_size, ranges)
     for i, big_l in enumerate(scales):
         outer = None if model == "inertial" else float(big_l)
         sigma2 = 0.0 if outer is None else spectra.variance_per_eps23(model, outer)
@@ -454,7 +446,6 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
             min(lim[0] for lim in limits), max(lim[1] for lim in limits), model, outer
         )
         for j in range(heights.size):
-            dy = float(dys[j])
             curves = afunctions.a_curve_splines(
                 float(rho_lo[j]),
                 float(rho_hi[j]),
@@ -465,10 +456,15 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
                 outer_scale_m=outer,
                 plane=plane,
             )
-            s2 = same[j]
-            a1 = (curves.perp(lags * dy) + s2) * g1 - s2 + sigma2 * unif
-            per_theta = _per_theta_a2(curves, lags * dy, mu, phi) * sweep[j]
-            per_theta = (per_theta + s2) * g2 - s2
+            a1, per_theta = _height_cell(
+                curves,
+                (inertial[j], swept_pairs[j]),
+                (same[j], g1, g2),
+                lags * float(dys[j]),
+                mu,
+                phi,
+            )
+            a1 = a1 + sigma2 * unif
             per_theta = per_theta + sigma2 * unif[:, None, None]
             c0 = per_theta.mean(axis=-1)
             log_a1[i, j] = np.log(a1)
