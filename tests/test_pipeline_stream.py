@@ -137,3 +137,45 @@ def test_header_identity_groups_like_the_full_read(tmp_path, config):
         assert unit_key(light) == unit_key(full)
         assert light.start == full.start
         assert light.sha256 == full.sha256
+
+
+def test_each_input_is_checksummed_once(tmp_path, config, monkeypatch):
+    """Grouping takes the checksum; the unit reads an unchanged file without a second one,
+    and the products record the same checksum (provenance)."""
+    import cwproc.pipeline.units as units
+    from cwproc.io.netcdf import sha256_file
+
+    spec = StreamLineSpec(n_scans=12, scans_per_file=1, n_gates=24, seed=17)
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    paths = sorted((tmp_path / "day").glob("*.hpl"))
+    calls: list[str] = []
+
+    def counted(path):
+        calls.append(str(path))
+        return sha256_file(path)
+
+    monkeypatch.setattr(units, "sha256_file", counted)
+    items = [read_input(p, config, identify_only=True) for p in paths]
+    (unit,) = group_units(items)
+    streamed = unit_products(unit, config, [], chunk_bytes=SMALL_CHUNK)
+    assert sorted(calls) == sorted(str(p) for p in paths)  # once each
+    assert [i.sha256 for i in unit.inputs] == [sha256_file(p) for p in paths]
+    assert_same_products(streamed, whole_day(tmp_path / "day", config))
+
+
+def test_input_rewritten_after_grouping_is_caught(tmp_path, config):
+    """A file written again after its checksum: compared again, a change fails the read."""
+    import os
+
+    from cwproc.errors import CwprocError
+
+    spec = StreamLineSpec(n_scans=2, scans_per_file=1, n_gates=24, seed=19)
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    first, second = sorted((tmp_path / "day").glob("*.hpl"))
+    items = [read_input(p, config, identify_only=True) for p in (first, second)]
+    os.utime(first, ns=(0, 10**18))  # touched, content the same: read as it is
+    assert load_item(items[0], config)["radial_velocity"].shape[1] == 24
+    text = second.read_bytes()
+    second.write_bytes(text.replace(b"0.", b"1.", 1))  # same size, other content
+    with pytest.raises(CwprocError, match="changed while cwproc was running"):
+        load_item(items[1], config)
