@@ -20,8 +20,10 @@ products are identical either way.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -267,12 +269,13 @@ def stream_products(
             sf.attrs.pop(key, None)
             if key in attrs:
                 sf.attrs[key] = attrs[key]
-        products["turbulence"] = epsilon.estimate_epsilon(
-            sf,
-            probe=probe_for(config),
-            lag_number=config.turbulence.lag_number,
-            model=config.turbulence.model,
-        )
+        with heap_returned():
+            products["turbulence"] = epsilon.estimate_epsilon(
+                sf,
+                probe=probe_for(config),
+                lag_number=config.turbulence.lag_number,
+                model=config.turbulence.model,
+            )
     elif state.turbulence and any_wind and notes is not None:
         notes.append("turbulence not computed: no complete block of scans")
     if state.stares and config.stare.enabled:
@@ -281,6 +284,47 @@ def stream_products(
         stares.attrs = dict(attrs)
         products["stare"] = stare_products(stares, products.get("wind"), config, notes)
     return products
+
+
+#: glibc ``mallopt`` parameter of the size from which ``malloc`` maps memory apart
+_M_MMAP_THRESHOLD = -3
+#: while the dissipation rate is fitted: arrays from 128 KiB are mapped apart (returned
+#: to the system when freed); after it, glibc's largest dynamic threshold (64-bit)
+_EPSILON_MMAP_BYTES, _AFTER_MMAP_BYTES = 128 << 10, 32 << 20
+
+
+@contextlib.contextmanager
+def heap_returned() -> Iterator[None]:
+    """Run a step with the chunks' freed heap returned to the system (glibc only).
+
+    After the chunks, tens of MiB of freed heap stay resident, and the dissipation
+    rate's working arrays (A-table evaluations, the delta-method errors: about 85 MiB
+    for a day) are laid out in and beside them, which set the day's peak memory. The
+    free heap is given back (``malloc_trim``) and the step's arrays mapped apart (a
+    fixed ``M_MMAP_THRESHOLD``), so the peak is what is in use. The values computed
+    are the same; with another C library this does nothing.
+    """
+    libc = _glibc()
+    if libc is None:
+        yield
+        return
+    libc.malloc_trim(0)
+    libc.mallopt(_M_MMAP_THRESHOLD, _EPSILON_MMAP_BYTES)
+    try:
+        yield
+    finally:
+        libc.mallopt(_M_MMAP_THRESHOLD, _AFTER_MMAP_BYTES)
+
+
+def _glibc() -> ctypes.CDLL | None:
+    """The GNU C library when this process runs on it (with ``malloc_trim``), else None."""
+    try:
+        libc = ctypes.CDLL(None)  # the symbols of the process, its C library's among them
+    except OSError:
+        return None
+    if not hasattr(libc, "malloc_trim") or not hasattr(libc, "mallopt"):
+        return None
+    return libc
 
 
 def stream_scan_unit(
@@ -344,6 +388,7 @@ def stream_scan_unit(
                     state.turbulence = False
                     own.append(f"turbulence not computed: {mismatch}")
             take_chunk(chunk, state, config)
+            del chunk  # released before the next chunk is read (and before epsilon)
         if not seen:  # every input damaged beyond its header: each has its failure line
             return {} if not unit.inputs else None
         if state.carry is not None:
