@@ -23,6 +23,8 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import dataclasses
+import os
+import threading
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
@@ -110,6 +112,96 @@ def chunks_of(items: list, load: Callable, max_bytes: int):
             chunk, size = [], 0
     if chunk:
         yield chunk
+
+
+#: environment variable that turns the reading ahead of :class:`ReadAhead` off ("0")
+READ_AHEAD_VARIABLE = "CWPROC_READ_AHEAD"
+
+
+def read_ahead_enabled(read_ahead: bool | None = None) -> bool:
+    """Whether a streamed day reads its files in a second thread: ``read_ahead`` when
+    given, else true unless the environment variable ``CWPROC_READ_AHEAD`` is ``0``
+    (or ``false``, ``no``, ``off``)."""
+    if read_ahead is not None:
+        return bool(read_ahead)
+    value = os.environ.get(READ_AHEAD_VARIABLE, "1").strip().lower()
+    return value not in ("0", "false", "no", "off")
+
+
+class ReadAhead:
+    """The inputs of a day read in a second thread, in order, while chunks are processed.
+
+    ``read(item)`` runs in the thread for each item in turn, at most ``max_bytes`` of
+    datasets ahead of what :meth:`load` has handed out (and always the next one);
+    :meth:`load` hands out the results in the same order and raises an item's error
+    (e.g. :class:`~cwproc.errors.InputFileError` naming the file and line) where the
+    serial read would have raised it, so that everything else (dropped inputs, notes)
+    happens in the caller's thread, in the serial order. The parser (the compiled
+    tokenizer) and file reads release the GIL, so reading the next files overlaps the
+    numerical work of the current chunk. :meth:`close` stops the thread (after the file
+    it is reading) and waits for it.
+    """
+
+    def __init__(self, items: list, read: Callable, max_bytes: int) -> None:
+        self._items = list(items)
+        self._read = read
+        self._max = max(int(max_bytes), 1)
+        self._done: dict[int, tuple[object, BaseException | None, int]] = {}
+        self._cond = threading.Condition()
+        self._ahead = 0  # bytes read, not handed out
+        self._next = 0  # index of the next item to hand out
+        self._stop = False
+        self._finished = False
+        self._thread = threading.Thread(target=self._run, name="cwproc-read-ahead", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            for k, item in enumerate(self._items):
+                with self._cond:
+                    while not self._stop and k > self._next and self._ahead >= self._max:
+                        self._cond.wait()
+                    if self._stop:
+                        return
+                try:
+                    value, error = self._read(item), None
+                except BaseException as exc:  # handed to the caller with its item
+                    value, error = None, exc
+                size = int(value.nbytes) if isinstance(value, xr.Dataset) else 0
+                with self._cond:
+                    self._done[k] = (value, error, size)
+                    self._ahead += size
+                    self._cond.notify_all()
+        finally:
+            with self._cond:
+                self._finished = True
+                self._cond.notify_all()
+
+    def load(self, item) -> xr.Dataset | None:
+        """The dataset of ``item`` (the next input in order), or its error raised."""
+        with self._cond:
+            k = self._next
+            if k >= len(self._items) or self._items[k] is not item:
+                raise ValueError("ReadAhead.load: inputs must be taken in their order")
+            while k not in self._done:
+                if self._finished:
+                    raise RuntimeError("the reading thread stopped before the input was read")
+                self._cond.wait()
+            value, error, size = self._done.pop(k)
+            self._ahead -= size
+            self._next += 1
+            self._cond.notify_all()
+        if error is not None:
+            raise error
+        return value  # type: ignore[return-value]
+
+    def close(self) -> None:
+        """Stop reading ahead and wait for the thread (it ends after its current file)."""
+        with self._cond:
+            self._stop = True
+            self._cond.notify_all()
+        self._thread.join()
+        self._done.clear()
 
 
 def number_scans(chunk: xr.Dataset, state: StreamState) -> xr.Dataset:
@@ -333,6 +425,7 @@ def stream_scan_unit(
     notes: list[str] | None,
     load: Callable,
     chunk_bytes: int = STREAM_CHUNK_BYTES,
+    read_ahead: bool | None = None,
 ) -> dict[str, xr.Dataset] | None:
     """Products of a scan unit processed chunk by chunk; None when it must run whole.
 
@@ -347,6 +440,10 @@ def stream_scan_unit(
         ``load(item) -> xarray.Dataset`` reading an input whose data are not held.
     chunk_bytes : int
         Input data joined into one chunk (bytes).
+    read_ahead : bool, optional
+        Read the next files in a second thread (:class:`ReadAhead`, at most one chunk
+        ahead) while a chunk is processed; None: unless ``CWPROC_READ_AHEAD=0``
+        (:func:`read_ahead_enabled`). The products are the same either way.
 
     Returns
     -------
@@ -361,9 +458,15 @@ def stream_scan_unit(
     seen: dict[int, xr.Dataset] = {}
     position = {id(item): k for k, item in enumerate(unit.inputs)}
 
+    def read(item) -> xr.Dataset | None:
+        return item.dataset if item.dataset is not None else load(item)
+
+    ordered = time_ordered(list(unit.inputs), lambda item: item.start)
+    ahead = ReadAhead(ordered, read, chunk_bytes) if read_ahead_enabled(read_ahead) else None
+
     def take(item) -> xr.Dataset | None:
         try:
-            ds = item.dataset if item.dataset is not None else load(item)
+            ds = ahead.load(item) if ahead is not None else read(item)
         except InputFileError as exc:  # identified by its header, damaged beyond it
             drop_input(unit, item, exc)
             return None
@@ -374,7 +477,6 @@ def stream_scan_unit(
             seen[position[id(item)]] = xr.Dataset(attrs=ds.attrs)
         return ds
 
-    ordered = time_ordered(list(unit.inputs), lambda item: item.start)
     try:
         for parts in chunks_of(ordered, take, chunk_bytes):
             chunk = concat_scans(parts)
@@ -401,6 +503,9 @@ def stream_scan_unit(
         state.pointing = []  # 24 bytes a ray of the day: not needed any more
     except StreamMismatch:
         return None
+    finally:
+        if ahead is not None:
+            ahead.close()
     if not state.winds:
         return None  # no conical scan: the whole-day run words what it cannot make
     if state.corrected:
