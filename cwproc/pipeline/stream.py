@@ -455,7 +455,7 @@ def stream_scan_unit(
 
     state = StreamState(turbulence=config.turbulence.enabled)
     own: list[str] = []
-    seen: dict[int, xr.Dataset] = {}
+    seen: dict[int, FileIdentity] = {}
     position = {id(item): k for k, item in enumerate(unit.inputs)}
 
     def read(item) -> xr.Dataset | None:
@@ -472,9 +472,10 @@ def stream_scan_unit(
             return None
         item.dataset = None  # the chunk holds it now; released with the chunk
         if ds is not None:
-            item.identity = FileIdentity(dict(ds.attrs), ds["time"].values[:1])  # for products
+            # for products; its attributes are the file's (source files, scan type) below
+            item.identity = FileIdentity(dict(ds.attrs), ds.variables["time"].values[:1])
             own.extend(describe_scan_inputs(_single(unit, item, ds)))
-            seen[position[id(item)]] = xr.Dataset(attrs=ds.attrs)
+            seen[position[id(item)]] = item.identity
         return ds
 
     try:
