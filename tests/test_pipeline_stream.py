@@ -246,3 +246,31 @@ def test_read_ahead_hands_out_errors_in_order_and_stops(monkeypatch):
     assert not read_ahead_enabled() and read_ahead_enabled(True)
     monkeypatch.delenv("CWPROC_READ_AHEAD")
     assert read_ahead_enabled()
+
+
+def test_epsilon_by_groups_of_blocks_is_the_whole_fit(tmp_path, config, monkeypatch):
+    """The dissipation-rate fit taken a few blocks at a time (bounded memory) gives the
+    product of all blocks at once, attributes and counts of cells included; a cw probe
+    (noise pooled over neighbouring blocks) is fitted whole."""
+    import cwproc.stages.epsilon as epsilon
+    from cwproc.physics.transfer import CWProbe
+
+    spec = StreamLineSpec(n_scans=35, scans_per_file=1, n_gates=40, seed=3)
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    fits = []
+    fit = epsilon.estimate_epsilon
+    monkeypatch.setattr(
+        epsilon, "estimate_epsilon", lambda sf, **kw: fits.append(sf) or fit(sf, **kw)
+    )
+    monkeypatch.setattr(epsilon, "EPSILON_CELLS", 10**9)
+    whole = whole_day(tmp_path / "day", config)["turbulence"]
+    monkeypatch.setattr(epsilon, "EPSILON_CELLS", 40)  # 40 heights: one block a group
+    assert len(epsilon.block_groups(fits[0], epsilon.PRESET_PROBE)) == 4
+    assert epsilon.block_groups(fits[0], CWProbe(0.0013)) == [slice(0, 4)]
+    grouped = whole_day(tmp_path / "day", config)["turbulence"]
+    xr.testing.assert_identical(grouped, whole)
+    assert list(grouped.variables) == list(whole.variables)
+    for name in whole.variables:
+        assert grouped[name].attrs == whole[name].attrs, name
+        assert grouped[name].dtype == whole[name].dtype, name
+    assert whole["integral_scale"].attrs["finite_outer_scale_cells"] > 0
