@@ -10,14 +10,14 @@ scans, one ``.hpl`` file per scan as the Stream Line writes them) is
 
 and the script prints both times (wall and CPU, best of ``--repeat``), their ratio
 (target <= 1.5) and the peak resident memory of the retrieve process (``VmHWM``;
-target < 300 MiB). ``retrieve`` reads the next files in a second thread of the same
-process (``cwproc.pipeline.stream.ReadAhead``), so that peak is the whole run's;
-``--serial`` also runs it with ``CWPROC_READ_AHEAD=0`` (files read one by one between
-the chunks), side by side.
+target < 300 MiB). ``--read-ahead`` also runs it with ``CWPROC_READ_AHEAD=1`` (the
+next files read in a second thread of the same process,
+``cwproc.pipeline.stream.ReadAhead``; its peak is the whole run's), side by side.
 
 Run::
 
-    python benchmarks/bench_retrieve_day.py [--repeat 2] [--scans 1920] [--day-dir DIR] [--serial]
+    python benchmarks/bench_retrieve_day.py [--repeat 2] [--scans 1920] [--day-dir DIR]
+        [--read-ahead]
 
 ``--day-dir`` keeps the day's files in ``DIR`` (written there when it holds no ``.hpl``
 file, reused as they are otherwise), so that repeated runs do not write them again.
@@ -130,7 +130,7 @@ def main() -> None:
     parser.add_argument("--scans", type=int, default=int(86400 / PERIOD_S))
     parser.add_argument("--day-dir", type=Path, help="folder of the day's files (kept)")
     parser.add_argument(
-        "--serial", action="store_true", help="also retrieve with CWPROC_READ_AHEAD=0"
+        "--read-ahead", action="store_true", help="also retrieve with CWPROC_READ_AHEAD=1"
     )
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="cwproc_bench_day_") as tmp:
@@ -144,8 +144,8 @@ def main() -> None:
         print(f"day: {n_files} scans of {RAYS} rays x {GATES} gates, one file each, "
               f"{size / 2**20:.0f} MiB ({how}); load average {os.getloadavg()[0]:.1f}")  # fmt: skip
         variants = {"": None}
-        if args.serial:
-            variants["serial (CWPROC_READ_AHEAD=0) "] = {**os.environ, "CWPROC_READ_AHEAD": "0"}
+        if args.read_ahead:
+            variants["CWPROC_READ_AHEAD=1 "] = {**os.environ, "CWPROC_READ_AHEAD": "1"}
         reads: list[tuple[float, float, str]] = []
         retrieves: dict[str, list[tuple[float, float, str]]] = {k: [] for k in variants}
         peaks: dict[str, list[float]] = {k: [] for k in variants}

@@ -211,7 +211,7 @@ def test_read_ahead_gives_the_serial_products_and_failures(tmp_path, config):
 
 def test_read_ahead_hands_out_errors_in_order_and_stops(monkeypatch):
     """ReadAhead: results in order, at most max_bytes ahead, an error raised at its item,
-    the thread stopped by close() (no hang), and CWPROC_READ_AHEAD=0 turns it off."""
+    the thread stopped by close() (no hang); CWPROC_READ_AHEAD=1 turns it on."""
     import threading
 
     from cwproc.pipeline.stream import ReadAhead, read_ahead_enabled
@@ -242,10 +242,12 @@ def test_read_ahead_hands_out_errors_in_order_and_stops(monkeypatch):
         ahead.load(items[5])
     ahead.close()
     assert not ahead._thread.is_alive()
+    monkeypatch.setenv("CWPROC_READ_AHEAD", "1")
+    assert read_ahead_enabled() and not read_ahead_enabled(False)
     monkeypatch.setenv("CWPROC_READ_AHEAD", "0")
-    assert not read_ahead_enabled() and read_ahead_enabled(True)
+    assert not read_ahead_enabled()
     monkeypatch.delenv("CWPROC_READ_AHEAD")
-    assert read_ahead_enabled()
+    assert not read_ahead_enabled()
 
 
 def test_epsilon_by_groups_of_blocks_is_the_whole_fit(tmp_path, config, monkeypatch):

@@ -114,18 +114,25 @@ def chunks_of(items: list, load: Callable, max_bytes: int):
         yield chunk
 
 
-#: environment variable that turns the reading ahead of :class:`ReadAhead` off ("0")
+#: environment variable that turns the reading ahead of :class:`ReadAhead` on ("1") or
+#: off ("0", the default)
 READ_AHEAD_VARIABLE = "CWPROC_READ_AHEAD"
 
 
 def read_ahead_enabled(read_ahead: bool | None = None) -> bool:
     """Whether a streamed day reads its files in a second thread: ``read_ahead`` when
-    given, else true unless the environment variable ``CWPROC_READ_AHEAD`` is ``0``
-    (or ``false``, ``no``, ``off``)."""
+    given, else whether the environment variable ``CWPROC_READ_AHEAD`` is ``1`` (or
+    ``true``, ``yes``, ``on``).
+
+    Off by default: on 2 cores the two threads contend for the interpreter lock (the
+    reader builds datasets, the stages run many small array operations), which cost
+    about 3 s of CPU per day of 1920 scans and gained at most 1.6 s of wall time when
+    the second core was free, 2-3 s lost when it was not (``docs/DEVELOPING.md``).
+    """
     if read_ahead is not None:
         return bool(read_ahead)
-    value = os.environ.get(READ_AHEAD_VARIABLE, "1").strip().lower()
-    return value not in ("0", "false", "no", "off")
+    value = os.environ.get(READ_AHEAD_VARIABLE, "0").strip().lower()
+    return value in ("1", "true", "yes", "on")
 
 
 class ReadAhead:
@@ -442,7 +449,7 @@ def stream_scan_unit(
         Input data joined into one chunk (bytes).
     read_ahead : bool, optional
         Read the next files in a second thread (:class:`ReadAhead`, at most one chunk
-        ahead) while a chunk is processed; None: unless ``CWPROC_READ_AHEAD=0``
+        ahead) while a chunk is processed; None: when ``CWPROC_READ_AHEAD=1``
         (:func:`read_ahead_enabled`). The products are the same either way.
 
     Returns
