@@ -269,6 +269,9 @@ def test_epsilon_by_groups_of_blocks_is_the_whole_fit(tmp_path, config, monkeypa
     monkeypatch.setattr(epsilon, "EPSILON_CELLS", 40)  # 40 heights: one block a group
     assert len(epsilon.block_groups(fits[0], epsilon.PRESET_PROBE)) == 4
     assert epsilon.block_groups(fits[0], CWProbe(0.0013)) == [slice(0, 4)]
+    asked = fits[0].copy(deep=True)
+    del asked["structure_function"].attrs["n_scans_per_block"]  # then each group's own
+    assert epsilon.block_groups(asked, epsilon.PRESET_PROBE) == [slice(0, 4)]
     grouped = whole_day(tmp_path / "day", config)["turbulence"]
     xr.testing.assert_identical(grouped, whole)
     assert list(grouped.variables) == list(whole.variables)

@@ -254,14 +254,17 @@ def block_groups(sf: xr.Dataset, probe: Probe) -> list[slice]:
     evaluates once per distinct (dy, range) cell and the median elevation of the
     blocks; the groups give the same when every block has the same elevation, azimuth
     step, ``dy`` and range at each height (the same distinct cells, in the same order),
-    and no cell pools over blocks: a cw probe (whose exact fit pools the noise over
-    neighbouring blocks, ``noise_window_blocks``) is estimated whole.
+    the ranges and the scans per block are given (``range``, ``n_scans_per_block``: not
+    taken from the group's blocks), and no cell pools over blocks: a cw probe (whose
+    exact fit pools the noise over neighbouring blocks, ``noise_window_blocks``) is
+    estimated whole.
     """
     n_t, n_h = sf.sizes["time"], sf.sizes["height"]
     step = max(1, EPSILON_CELLS // max(n_h, 1))
     whole = [slice(0, n_t)]
-    if n_t <= step or is_cw_probe(probe):
-        return whole
+    given = "range" in sf.coords and "n_scans_per_block" in sf["structure_function"].attrs
+    if n_t <= step or is_cw_probe(probe) or not given:
+        return whole  # else the ranges and the scans a block asks for come from its group
     cells = cell_inputs(sf, probe)
     if not (np.all(np.isfinite(cells.phi)) and np.all(np.isfinite(cells.dtheta))):
         return whole
