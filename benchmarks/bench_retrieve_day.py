@@ -10,11 +10,14 @@ scans, one ``.hpl`` file per scan as the Stream Line writes them) is
 
 and the script prints both times (wall and CPU, best of ``--repeat``), their ratio
 (target <= 1.5) and the peak resident memory of the retrieve process (``VmHWM``;
-target < 300 MiB).
+target < 300 MiB). ``--read-ahead`` also runs it with ``CWPROC_READ_AHEAD=1`` (the
+next files read in a second thread of the same process,
+``cwproc.pipeline.stream.ReadAhead``; its peak is the whole run's), side by side.
 
 Run::
 
     python benchmarks/bench_retrieve_day.py [--repeat 2] [--scans 1920] [--day-dir DIR]
+        [--read-ahead]
 
 ``--day-dir`` keeps the day's files in ``DIR`` (written there when it holds no ``.hpl``
 file, reused as they are otherwise), so that repeated runs do not write them again.
@@ -107,10 +110,12 @@ def write_day(folder: Path, n_scans: int) -> int:
     return total
 
 
-def run(cmd: list[str]) -> tuple[float, float, str]:
+def run(cmd: list[str], env: dict | None = None) -> tuple[float, float, str]:
     """Wall time, CPU time (user + system, s) and stderr of one child process."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env
+    )
     err = proc.stderr.read() if proc.stderr else ""
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
@@ -124,6 +129,9 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=2)
     parser.add_argument("--scans", type=int, default=int(86400 / PERIOD_S))
     parser.add_argument("--day-dir", type=Path, help="folder of the day's files (kept)")
+    parser.add_argument(
+        "--read-ahead", action="store_true", help="also retrieve with CWPROC_READ_AHEAD=1"
+    )
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="cwproc_bench_day_") as tmp:
         folder = args.day_dir or Path(tmp) / "day"
@@ -135,21 +143,30 @@ def main() -> None:
         how = "reused" if held else f"written in {time.perf_counter() - t0:.0f} s"
         print(f"day: {n_files} scans of {RAYS} rays x {GATES} gates, one file each, "
               f"{size / 2**20:.0f} MiB ({how}); load average {os.getloadavg()[0]:.1f}")  # fmt: skip
-        reads, retrieves, peaks = [], [], []
+        variants = {"": None}
+        if args.read_ahead:
+            variants["CWPROC_READ_AHEAD=1 "] = {**os.environ, "CWPROC_READ_AHEAD": "1"}
+        reads: list[tuple[float, float, str]] = []
+        retrieves: dict[str, list[tuple[float, float, str]]] = {k: [] for k in variants}
+        peaks: dict[str, list[float]] = {k: [] for k in variants}
         for k in range(args.repeat):
             reads.append(run([sys.executable, "-c", _READ, str(folder)]))
-            out = Path(tmp) / f"out{k}"
-            cmd = [sys.executable, "-c", _RETRIEVE, "retrieve", str(folder), "-o", str(out)]
-            wall, cpu, err = run([*cmd, "-q", "-c", "streamline"])
-            retrieves.append((wall, cpu, err))
-            peaks += [float(x.split()[1]) for x in err.splitlines() if x.startswith("PEAK_MIB")]
+            for name, env in variants.items():
+                out = Path(tmp) / f"out{k}{len(name)}"
+                cmd = [sys.executable, "-c", _RETRIEVE, "retrieve", str(folder), "-o", str(out)]
+                wall, cpu, err = run([*cmd, "-q", "-c", "streamline"], env)
+                retrieves[name].append((wall, cpu, err))
+                peaks[name] += [
+                    float(x.split()[1]) for x in err.splitlines() if x.startswith("PEAK_MIB")
+                ]
         rw, rc = min(r[0] for r in reads), min(r[1] for r in reads)
-        tw, tc = min(r[0] for r in retrieves), min(r[1] for r in retrieves)
         print(f"  read_hpl of every file (process) {rw:7.2f} s wall, {rc:7.2f} s CPU")
-        print(f"  cwproc retrieve (process)        {tw:7.2f} s wall, {tc:7.2f} s CPU")
-        print(f"  ratio retrieve / read            {tw / rw:7.2f} wall, {tc / rc:7.2f} CPU "
-              "(target <= 1.5)")  # fmt: skip
-        print(f"  retrieve peak RSS                {max(peaks):7.0f} MiB (target < 300)")
+        for name in variants:
+            tw, tc = min(r[0] for r in retrieves[name]), min(r[1] for r in retrieves[name])
+            print(f"  cwproc retrieve {name}(process) {tw:7.2f} s wall, {tc:7.2f} s CPU")
+            print(f"  ratio retrieve / read            {tw / rw:7.2f} wall, {tc / rc:7.2f} CPU "
+                  "(target <= 1.5)")  # fmt: skip
+            print(f"  retrieve peak RSS                {max(peaks[name]):7.0f} MiB (target < 300)")
 
 
 if __name__ == "__main__":

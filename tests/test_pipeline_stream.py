@@ -137,3 +137,145 @@ def test_header_identity_groups_like_the_full_read(tmp_path, config):
         assert unit_key(light) == unit_key(full)
         assert light.start == full.start
         assert light.sha256 == full.sha256
+
+
+def test_each_input_is_checksummed_once(tmp_path, config, monkeypatch):
+    """Grouping takes the checksum; the unit reads an unchanged file without a second one,
+    and the products record the same checksum (provenance)."""
+    import cwproc.pipeline.units as units
+    from cwproc.io.netcdf import sha256_file
+
+    spec = StreamLineSpec(n_scans=12, scans_per_file=1, n_gates=24, seed=17)
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    paths = sorted((tmp_path / "day").glob("*.hpl"))
+    calls: list[str] = []
+
+    def counted(path):
+        calls.append(str(path))
+        return sha256_file(path)
+
+    monkeypatch.setattr(units, "sha256_file", counted)
+    items = [read_input(p, config, identify_only=True) for p in paths]
+    (unit,) = group_units(items)
+    streamed = unit_products(unit, config, [], chunk_bytes=SMALL_CHUNK)
+    assert sorted(calls) == sorted(str(p) for p in paths)  # once each
+    assert [i.sha256 for i in unit.inputs] == [sha256_file(p) for p in paths]
+    assert_same_products(streamed, whole_day(tmp_path / "day", config))
+
+
+def test_input_rewritten_after_grouping_is_caught(tmp_path, config):
+    """A file written again after its checksum: compared again, a change fails the read."""
+    import os
+
+    from cwproc.errors import CwprocError
+
+    spec = StreamLineSpec(n_scans=2, scans_per_file=1, n_gates=24, seed=19)
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    first, second = sorted((tmp_path / "day").glob("*.hpl"))
+    items = [read_input(p, config, identify_only=True) for p in (first, second)]
+    os.utime(first, ns=(0, 10**18))  # touched, content the same: read as it is
+    assert load_item(items[0], config)["radial_velocity"].shape[1] == 24
+    text = second.read_bytes()
+    second.write_bytes(text.replace(b"0.", b"1.", 1))  # same size, other content
+    with pytest.raises(CwprocError, match="changed while cwproc was running"):
+        load_item(items[1], config)
+
+
+def test_read_ahead_gives_the_serial_products_and_failures(tmp_path, config):
+    """Files read in a second thread: the same products, notes and failure lines as one
+    by one; a file damaged beyond its header is left out, named with its line."""
+    from cwproc.pipeline.run import run_unit
+
+    spec = StreamLineSpec(n_scans=25, scans_per_file=1, n_gates=40, seed=23)
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    paths = sorted((tmp_path / "day").glob("*.hpl"))
+    text = paths[7].read_bytes()
+    paths[7].write_bytes(text[: len(text) - 300])  # the last ray cut short
+    results = {}
+    for ahead in (False, True):
+        items = [read_input(p, config, identify_only=True) for p in paths]
+        (unit,) = group_units(items)
+        notes: list[str] = []
+        products = stream_scan_unit(
+            unit, config, notes, lambda i: load_item(i, config), SMALL_CHUNK, read_ahead=ahead
+        )
+        results[ahead] = (products, notes, list(unit.failures))
+    (products, notes, failures), (products_a, notes_a, failures_a) = results.values()
+    assert_same_products(products_a, products)
+    assert notes_a == notes and failures_a == failures
+    assert len(failures) == 1 and failures[0].startswith(f"{paths[7]}:") and "line" in failures[0]
+    assert products["wind"].sizes["time"] == 24
+    (unit,) = group_units(read_input(p, config, identify_only=True) for p in paths)
+    assert run_unit(unit, config).failures == failures
+
+
+def test_read_ahead_hands_out_errors_in_order_and_stops(monkeypatch):
+    """ReadAhead: results in order, at most max_bytes ahead, an error raised at its item,
+    the thread stopped by close() (no hang); CWPROC_READ_AHEAD=1 turns it on."""
+    import threading
+
+    from cwproc.pipeline.stream import ReadAhead, read_ahead_enabled
+
+    items = [object() for _ in range(6)]
+    read_so_far: list[int] = []
+    gate = threading.Event()
+
+    def read(item):
+        k = items.index(item)
+        read_so_far.append(k)
+        if k == 3:
+            raise RuntimeError("bad file 3")
+        return xr.Dataset({"v": ("x", np.zeros(100))})  # 800 bytes
+
+    ahead = ReadAhead(items, read, max_bytes=1600)
+    for _ in range(500):  # until the reader has read two (at most 5 s)
+        if len(read_so_far) >= 2:
+            break
+        gate.wait(0.01)
+    gate.wait(0.2)
+    assert read_so_far == [0, 1]  # two datasets of 800 bytes: the budget is full
+    for k in range(3):
+        assert ahead.load(items[k])["v"].size == 100
+    with pytest.raises(RuntimeError, match="bad file 3"):
+        ahead.load(items[3])
+    with pytest.raises(ValueError, match="in their order"):
+        ahead.load(items[5])
+    ahead.close()
+    assert not ahead._thread.is_alive()
+    monkeypatch.setenv("CWPROC_READ_AHEAD", "1")
+    assert read_ahead_enabled() and not read_ahead_enabled(False)
+    monkeypatch.setenv("CWPROC_READ_AHEAD", "0")
+    assert not read_ahead_enabled()
+    monkeypatch.delenv("CWPROC_READ_AHEAD")
+    assert not read_ahead_enabled()
+
+
+def test_epsilon_by_groups_of_blocks_is_the_whole_fit(tmp_path, config, monkeypatch):
+    """The dissipation-rate fit taken a few blocks at a time (bounded memory) gives the
+    product of all blocks at once, attributes and counts of cells included; a cw probe
+    (noise pooled over neighbouring blocks) is fitted whole."""
+    import cwproc.stages.epsilon as epsilon
+    from cwproc.physics.transfer import CWProbe
+
+    spec = StreamLineSpec(n_scans=35, scans_per_file=1, n_gates=40, seed=3)
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    fits = []
+    fit = epsilon.estimate_epsilon
+    monkeypatch.setattr(
+        epsilon, "estimate_epsilon", lambda sf, **kw: fits.append(sf) or fit(sf, **kw)
+    )
+    monkeypatch.setattr(epsilon, "EPSILON_CELLS", 10**9)
+    whole = whole_day(tmp_path / "day", config)["turbulence"]
+    monkeypatch.setattr(epsilon, "EPSILON_CELLS", 40)  # 40 heights: one block a group
+    assert len(epsilon.block_groups(fits[0], epsilon.PRESET_PROBE)) == 4
+    assert epsilon.block_groups(fits[0], CWProbe(0.0013)) == [slice(0, 4)]
+    asked = fits[0].copy(deep=True)
+    del asked["structure_function"].attrs["n_scans_per_block"]  # then each group's own
+    assert epsilon.block_groups(asked, epsilon.PRESET_PROBE) == [slice(0, 4)]
+    grouped = whole_day(tmp_path / "day", config)["turbulence"]
+    xr.testing.assert_identical(grouped, whole)
+    assert list(grouped.variables) == list(whole.variables)
+    for name in whole.variables:
+        assert grouped[name].attrs == whole[name].attrs, name
+        assert grouped[name].dtype == whole[name].dtype, name
+    assert whole["integral_scale"].attrs["finite_outer_scale_cells"] > 0

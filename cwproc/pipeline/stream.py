@@ -20,8 +20,12 @@ products are identical either way.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import dataclasses
-from collections.abc import Callable
+import os
+import threading
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -108,6 +112,103 @@ def chunks_of(items: list, load: Callable, max_bytes: int):
             chunk, size = [], 0
     if chunk:
         yield chunk
+
+
+#: environment variable that turns the reading ahead of :class:`ReadAhead` on ("1") or
+#: off ("0", the default)
+READ_AHEAD_VARIABLE = "CWPROC_READ_AHEAD"
+
+
+def read_ahead_enabled(read_ahead: bool | None = None) -> bool:
+    """Whether a streamed day reads its files in a second thread: ``read_ahead`` when
+    given, else whether the environment variable ``CWPROC_READ_AHEAD`` is ``1`` (or
+    ``true``, ``yes``, ``on``).
+
+    Off by default: on 2 cores the two threads contend for the interpreter lock (the
+    reader builds datasets, the stages run many small array operations), which cost
+    about 3 s of CPU per day of 1920 scans and gained at most 1.6 s of wall time when
+    the second core was free, 2-3 s lost when it was not (``docs/DEVELOPING.md``).
+    """
+    if read_ahead is not None:
+        return bool(read_ahead)
+    value = os.environ.get(READ_AHEAD_VARIABLE, "0").strip().lower()
+    return value in ("1", "true", "yes", "on")
+
+
+class ReadAhead:
+    """The inputs of a day read in a second thread, in order, while chunks are processed.
+
+    ``read(item)`` runs in the thread for each item in turn, at most ``max_bytes`` of
+    datasets ahead of what :meth:`load` has handed out (and always the next one);
+    :meth:`load` hands out the results in the same order and raises an item's error
+    (e.g. :class:`~cwproc.errors.InputFileError` naming the file and line) where the
+    serial read would have raised it, so that everything else (dropped inputs, notes)
+    happens in the caller's thread, in the serial order. The parser (the compiled
+    tokenizer) and file reads release the GIL, so reading the next files overlaps the
+    numerical work of the current chunk. :meth:`close` stops the thread (after the file
+    it is reading) and waits for it.
+    """
+
+    def __init__(self, items: list, read: Callable, max_bytes: int) -> None:
+        self._items = list(items)
+        self._read = read
+        self._max = max(int(max_bytes), 1)
+        self._done: dict[int, tuple[object, BaseException | None, int]] = {}
+        self._cond = threading.Condition()
+        self._ahead = 0  # bytes read, not handed out
+        self._next = 0  # index of the next item to hand out
+        self._stop = False
+        self._finished = False
+        self._thread = threading.Thread(target=self._run, name="cwproc-read-ahead", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            for k, item in enumerate(self._items):
+                with self._cond:
+                    while not self._stop and k > self._next and self._ahead >= self._max:
+                        self._cond.wait()
+                    if self._stop:
+                        return
+                try:
+                    value, error = self._read(item), None
+                except BaseException as exc:  # handed to the caller with its item
+                    value, error = None, exc
+                size = int(value.nbytes) if isinstance(value, xr.Dataset) else 0
+                with self._cond:
+                    self._done[k] = (value, error, size)
+                    self._ahead += size
+                    self._cond.notify_all()
+        finally:
+            with self._cond:
+                self._finished = True
+                self._cond.notify_all()
+
+    def load(self, item) -> xr.Dataset | None:
+        """The dataset of ``item`` (the next input in order), or its error raised."""
+        with self._cond:
+            k = self._next
+            if k >= len(self._items) or self._items[k] is not item:
+                raise ValueError("ReadAhead.load: inputs must be taken in their order")
+            while k not in self._done:
+                if self._finished:
+                    raise RuntimeError("the reading thread stopped before the input was read")
+                self._cond.wait()
+            value, error, size = self._done.pop(k)
+            self._ahead -= size
+            self._next += 1
+            self._cond.notify_all()
+        if error is not None:
+            raise error
+        return value  # type: ignore[return-value]
+
+    def close(self) -> None:
+        """Stop reading ahead and wait for the thread (it ends after its current file)."""
+        with self._cond:
+            self._stop = True
+            self._cond.notify_all()
+        self._thread.join()
+        self._done.clear()
 
 
 def number_scans(chunk: xr.Dataset, state: StreamState) -> xr.Dataset:
@@ -267,12 +368,13 @@ def stream_products(
             sf.attrs.pop(key, None)
             if key in attrs:
                 sf.attrs[key] = attrs[key]
-        products["turbulence"] = epsilon.estimate_epsilon(
-            sf,
-            probe=probe_for(config),
-            lag_number=config.turbulence.lag_number,
-            model=config.turbulence.model,
-        )
+        with heap_returned():
+            products["turbulence"] = epsilon.estimate_epsilon(
+                sf,
+                probe=probe_for(config),
+                lag_number=config.turbulence.lag_number,
+                model=config.turbulence.model,
+            )
     elif state.turbulence and any_wind and notes is not None:
         notes.append("turbulence not computed: no complete block of scans")
     if state.stares and config.stare.enabled:
@@ -283,12 +385,54 @@ def stream_products(
     return products
 
 
+#: glibc ``mallopt`` parameter of the size from which ``malloc`` maps memory apart
+_M_MMAP_THRESHOLD = -3
+#: while the dissipation rate is fitted: arrays from 128 KiB are mapped apart (returned
+#: to the system when freed); after it, glibc's largest dynamic threshold (64-bit)
+_EPSILON_MMAP_BYTES, _AFTER_MMAP_BYTES = 128 << 10, 32 << 20
+
+
+@contextlib.contextmanager
+def heap_returned() -> Iterator[None]:
+    """Run a step with the chunks' freed heap returned to the system (glibc only).
+
+    After the chunks, tens of MiB of freed heap stay resident, and the dissipation
+    rate's working arrays (A-table evaluations, the delta-method errors: about 85 MiB
+    for a day) are laid out in and beside them, which set the day's peak memory. The
+    free heap is given back (``malloc_trim``) and the step's arrays mapped apart (a
+    fixed ``M_MMAP_THRESHOLD``), so the peak is what is in use. The values computed
+    are the same; with another C library this does nothing.
+    """
+    libc = _glibc()
+    if libc is None:
+        yield
+        return
+    libc.malloc_trim(0)
+    libc.mallopt(_M_MMAP_THRESHOLD, _EPSILON_MMAP_BYTES)
+    try:
+        yield
+    finally:
+        libc.mallopt(_M_MMAP_THRESHOLD, _AFTER_MMAP_BYTES)
+
+
+def _glibc() -> ctypes.CDLL | None:
+    """The GNU C library when this process runs on it (with ``malloc_trim``), else None."""
+    try:
+        libc = ctypes.CDLL(None)  # the symbols of the process, its C library's among them
+    except OSError:
+        return None
+    if not hasattr(libc, "malloc_trim") or not hasattr(libc, "mallopt"):
+        return None
+    return libc
+
+
 def stream_scan_unit(
     unit,
     config: Config,
     notes: list[str] | None,
     load: Callable,
     chunk_bytes: int = STREAM_CHUNK_BYTES,
+    read_ahead: bool | None = None,
 ) -> dict[str, xr.Dataset] | None:
     """Products of a scan unit processed chunk by chunk; None when it must run whole.
 
@@ -303,6 +447,10 @@ def stream_scan_unit(
         ``load(item) -> xarray.Dataset`` reading an input whose data are not held.
     chunk_bytes : int
         Input data joined into one chunk (bytes).
+    read_ahead : bool, optional
+        Read the next files in a second thread (:class:`ReadAhead`, at most one chunk
+        ahead) while a chunk is processed; None: when ``CWPROC_READ_AHEAD=1``
+        (:func:`read_ahead_enabled`). The products are the same either way.
 
     Returns
     -------
@@ -314,23 +462,29 @@ def stream_scan_unit(
 
     state = StreamState(turbulence=config.turbulence.enabled)
     own: list[str] = []
-    seen: dict[int, xr.Dataset] = {}
+    seen: dict[int, FileIdentity] = {}
     position = {id(item): k for k, item in enumerate(unit.inputs)}
+
+    def read(item) -> xr.Dataset | None:
+        return item.dataset if item.dataset is not None else load(item)
+
+    ordered = time_ordered(list(unit.inputs), lambda item: item.start)
+    ahead = ReadAhead(ordered, read, chunk_bytes) if read_ahead_enabled(read_ahead) else None
 
     def take(item) -> xr.Dataset | None:
         try:
-            ds = item.dataset if item.dataset is not None else load(item)
+            ds = ahead.load(item) if ahead is not None else read(item)
         except InputFileError as exc:  # identified by its header, damaged beyond it
             drop_input(unit, item, exc)
             return None
         item.dataset = None  # the chunk holds it now; released with the chunk
         if ds is not None:
-            item.identity = FileIdentity(dict(ds.attrs), ds["time"].values[:1])  # for products
+            # for products; its attributes are the file's (source files, scan type) below
+            item.identity = FileIdentity(dict(ds.attrs), ds.variables["time"].values[:1])
             own.extend(describe_scan_inputs(_single(unit, item, ds)))
-            seen[position[id(item)]] = xr.Dataset(attrs=ds.attrs)
+            seen[position[id(item)]] = item.identity
         return ds
 
-    ordered = time_ordered(list(unit.inputs), lambda item: item.start)
     try:
         for parts in chunks_of(ordered, take, chunk_bytes):
             chunk = concat_scans(parts)
@@ -344,6 +498,7 @@ def stream_scan_unit(
                     state.turbulence = False
                     own.append(f"turbulence not computed: {mismatch}")
             take_chunk(chunk, state, config)
+            del chunk  # released before the next chunk is read (and before epsilon)
         if not seen:  # every input damaged beyond its header: each has its failure line
             return {} if not unit.inputs else None
         if state.carry is not None:
@@ -356,6 +511,9 @@ def stream_scan_unit(
         state.pointing = []  # 24 bytes a ray of the day: not needed any more
     except StreamMismatch:
         return None
+    finally:
+        if ahead is not None:
+            ahead.close()
     if not state.winds:
         return None  # no conical scan: the whole-day run words what it cannot make
     if state.corrected:

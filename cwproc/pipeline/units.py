@@ -40,6 +40,8 @@ class InputFile:
     start: np.datetime64 | None = None
     #: what the header says (attributes, first time) when the data are not read yet
     identity: FileIdentity | None = None
+    #: the file's :func:`file_signature` when ``sha256`` was computed (None: unknown)
+    signature: tuple[int, ...] | None = None
 
 
 @dataclass
@@ -109,11 +111,12 @@ def read_input(
         else Format(config.instrument.format)
     )
     try:
+        signature = file_signature(path)
         checksum = sha256_file(path)
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
     if fmt is Format.HALO_BACKGROUND:  # read by correct_background for the scans beside it
-        return InputFile(path=path, format=fmt, sha256=checksum)
+        return InputFile(path=path, format=fmt, sha256=checksum, signature=signature)
     identify = get_identifier(fmt) if identify_only and not reader_options(config, fmt) else None
     if identify is not None:
         try:
@@ -122,10 +125,33 @@ def read_input(
             identity = None  # read whole below: its reader words the problem
         if identity is not None:
             return InputFile(
-                path=path, format=fmt, sha256=checksum, identity=identity, start=_start(identity)
+                path=path,
+                format=fmt,
+                sha256=checksum,
+                identity=identity,
+                start=_start(identity),
+                signature=signature,
             )
     ds = get_reader(fmt)(path, **reader_options(config, fmt))
-    return InputFile(path=path, format=fmt, sha256=checksum, dataset=ds, start=_start(ds))
+    return InputFile(
+        path=path, format=fmt, sha256=checksum, dataset=ds, start=_start(ds), signature=signature
+    )
+
+
+def file_signature(path: str | os.PathLike) -> tuple[int, ...]:
+    """Device, inode, size and modification and change times (ns) of a file.
+
+    A file whose signature is the one it had when its checksum was taken has not been
+    written since (any write moves the change time, which no user call can set back),
+    so it is read again without a second checksum.
+
+    Raises
+    ------
+    OSError
+        The file cannot be found or examined.
+    """
+    st = os.stat(path)
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
 
 
 def held_or_identity(item: InputFile) -> xr.Dataset | FileIdentity | None:
@@ -298,6 +324,10 @@ def drop_input(unit: ProductUnit, item: InputFile, exc: InputFileError) -> None:
 def load_item(item: InputFile, config: Config) -> xr.Dataset | None:
     """The dataset of ``item``: the one held, else the file read again (not stored).
 
+    The file is checksummed once per run: read again unchanged (its
+    :func:`file_signature` is the one taken with the checksum) it is only parsed;
+    otherwise its checksum is taken again and compared.
+
     Raises
     ------
     CwprocError
@@ -305,14 +335,40 @@ def load_item(item: InputFile, config: Config) -> xr.Dataset | None:
     """
     if item.dataset is not None:
         return item.dataset
-    again = read_input(item.path, config)
-    if again.sha256 != item.sha256:
-        raise CwprocError(f"{item.path}: changed while cwproc was running; run again")
-    ds = again.dataset
+    ds = unchanged_read(item, config)
+    if ds is None:
+        again = read_input(item.path, config)
+        if again.sha256 != item.sha256:
+            raise CwprocError(f"{item.path}: changed while cwproc was running; run again")
+        ds = again.dataset
     if item.day is not None and ds is not None:
         days = ds["time"].values.astype("datetime64[D]")
         ds = ds.isel(time=np.flatnonzero(days == np.datetime64(item.day, "D")))
     return ds
+
+
+def unchanged_read(item: InputFile, config: Config) -> xr.Dataset | None:
+    """The dataset of ``item`` read from its file when the file is unchanged since its
+    checksum was taken (same :func:`file_signature` before and after the read); None
+    when it may have changed (the caller compares checksums).
+
+    Raises
+    ------
+    InputFileError
+        Whatever the reader found wrong with the file.
+    """
+    if item.signature is None:
+        return None
+    try:
+        if file_signature(item.path) != item.signature:
+            return None
+    except OSError:
+        return None  # vanished: read_input words it
+    ds = get_reader(item.format)(item.path, **reader_options(config, item.format))
+    try:
+        return ds if file_signature(item.path) == item.signature else None
+    except OSError:
+        return None
 
 
 def unit_label(unit: ProductUnit) -> str:

@@ -228,7 +228,10 @@ def outlier_flags(
         flagged = robust_outliers(residuals, base, threshold, min_spread)
         for _ in range(OUTLIER_PASSES):
             fit = fit_scans(values, design, base & ~flagged, homodyne=homodyne)
-            flagged = robust_outliers(fit.residuals, base, threshold, min_spread)
+            again = robust_outliers(fit.residuals, base, threshold, min_spread)
+            if np.array_equal(again, flagged):
+                break  # the next pass would fit the same rays and flag the same again
+            flagged = again
         index = sub.index[sub.present]
         outlier[index] = flagged[sub.present]
     return outlier

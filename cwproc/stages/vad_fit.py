@@ -373,11 +373,12 @@ def fit_least_absolute(
     y = np.where(valid, np.abs(values) if homodyne else values, 0.0)
     # the (S, R, G) arrays of an iteration live in three buffers (no allocation per step)
     outer, model, weight, weighted = _design_outer(design), *(np.empty_like(y) for _ in "123")
+    used = valid.astype(float)  # 1/0: the weights' numerators, converted once
     for _ in range(iterations):
         np.matmul(design, np.nan_to_num(beta).transpose(0, 2, 1), out=model)  # _model
         target = y * np.where(model >= 0, 1.0, -1.0) if homodyne else y
         np.abs(np.subtract(target, model, out=weight), out=weight)
-        np.divide(valid, np.maximum(weight, floor, out=weight), out=weight)
+        np.divide(used, np.maximum(weight, floor, out=weight), out=weight)
         ata = np.where(ok[..., None, None], _normal_matrix(design, weight, outer), np.eye(3))
         np.multiply(weight, target, out=weighted)
         new = np.where(ok[..., None], _solve(inverse_3x3(ata)[0], design, weighted), beta)
