@@ -279,3 +279,47 @@ def test_epsilon_by_groups_of_blocks_is_the_whole_fit(tmp_path, config, monkeypa
         assert grouped[name].attrs == whole[name].attrs, name
         assert grouped[name].dtype == whole[name].dtype, name
     assert whole["integral_scale"].attrs["finite_outer_scale_cells"] > 0
+
+
+def test_chunks_read_at_once_give_the_file_by_file_products(tmp_path, config, monkeypatch):
+    """Chunks parsed into one dataset each: the products, notes, provenance and failure
+    lines of the files read one by one, a damaged file left out alone with its line."""
+    from cwproc.io import halo_files
+    from cwproc.pipeline import stream
+
+    spec = StreamLineSpec(n_scans=25, scans_per_file=1, n_gates=40, seed=29)
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    paths = sorted((tmp_path / "day").glob("*.hpl"))
+    text = paths[11].read_bytes()
+    paths[11].write_bytes(text[: len(text) - 300])  # the last ray cut short
+    at_once = []
+    real_run = halo_files.read_hpl_run
+
+    def counted(plans):
+        got = real_run(plans)
+        at_once.append(got is not None)
+        return got
+
+    monkeypatch.setattr("cwproc.pipeline.stream_read.read_hpl_run", counted)
+    results = []
+    for possible in (True, False):
+        monkeypatch.setattr(stream, "chunk_reading_possible", lambda unit, cfg, p=possible: p)
+        (unit,) = group_units(read_input(p, config, identify_only=True) for p in paths)
+        notes: list[str] = []
+        products = stream_scan_unit(
+            unit, config, notes, lambda i: load_item(i, config), SMALL_CHUNK
+        )
+        identities = [(i.identity.attrs, i.identity.time) for i in unit.inputs]
+        results.append((products, notes, list(unit.failures), identities))
+    (products, notes, failures, ids), (products_1, notes_1, failures_1, ids_1) = results
+    # the chunk with the damaged file alone is read file by file
+    assert at_once.count(False) == 1 and at_once.count(True) == len(at_once) - 1 >= 3
+    assert_same_products(products, products_1)
+    assert notes == notes_1 and failures == failures_1
+    assert len(failures) == 1 and failures[0].startswith(f"{paths[11]}:") and "line" in failures[0]
+    assert len(ids) == len(ids_1) == 24
+    for (attrs, time), (attrs_1, time_1) in zip(ids, ids_1, strict=True):
+        assert attrs == attrs_1
+        np.testing.assert_array_equal(time, time_1)
+    assert products["wind"].attrs["source_files"] == products_1["wind"].attrs["source_files"]
+    assert products["wind"].sizes["time"] == 24

@@ -21,6 +21,7 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import InputFileError
+from cwproc.io import FileIdentity
 from cwproc.io.halo import (
     _attrs,
     _bad_ray,
@@ -40,7 +41,7 @@ from cwproc.io.halo_body import (
     structure_problem,
 )
 from cwproc.io.halo_header import HplHeader, parse_header
-from cwproc.io.scans import concat_scans, joined_attrs, time_sorted_scans
+from cwproc.io.scans import concat_scans, joined_attrs, scan_indices, time_sorted_scans
 from cwproc.physics.geometry import normalise_pointing
 
 #: data lines joined for one call of the pandas tokenizer (bytes), used only when the
@@ -285,6 +286,11 @@ def _read_together(paths: list[Path]) -> xr.Dataset | None:
     plans = _plan(paths)
     if not plans:
         return None
+    return _read_plans(plans, paths)
+
+
+def _read_plans(plans: list[_FilePlan], paths: list[Path]) -> xr.Dataset | None:
+    """The record of planned files (the second pass of :func:`_read_together`)."""
     placed, origin = _placement(plans)
     record = _fill(placed)
     if record is None:
@@ -357,3 +363,78 @@ def read_hpl_files(paths: list[str | os.PathLike], **options: object) -> xr.Data
         if together is not None:
             return together
     return concat_scans([read_hpl(path) for path in paths])
+
+
+def plan_hpl_file(path: str | os.PathLike) -> _FilePlan | None:
+    """A file's header and data line count (the first pass of :func:`read_hpl_files`),
+    or ``None`` when anything is off (its error is :func:`read_hpl`'s to name)."""
+    return _plan_file(Path(path))
+
+
+def planned_bytes(plan: _FilePlan) -> int:
+    """Bytes of the dataset :func:`read_hpl` makes of a planned file (``nbytes``).
+
+    Gate variables (``Number of gates`` float64 values a ray each: 3, or 4 with the
+    spectral width) and per-ray ones (time, azimuth, elevation, scan and, with 5-field
+    ray lines, pitch and roll; 8 bytes each), from the fields of the first ray and gate
+    lines, plus the range grid.
+    """
+    with plan.path.open("rb") as f:
+        f.seek(plan.offset)
+        head = f.read(4096)
+    lines = head.lstrip(b"\r\n").splitlines()
+    ray_fields = len(lines[0].split()) if lines else 3
+    gate_fields = len(lines[1].split()) if len(lines) > 1 else 4
+    n_gates = plan.header.n_gates
+    n_rays = plan.n_lines // (n_gates + 1)
+    per_ray = 4 + (2 if ray_fields == 5 else 0)
+    return 8 * (n_rays * (n_gates * (gate_fields - 1) + per_ray) + n_gates)
+
+
+@dataclass(frozen=True)
+class HplFilePart:
+    """One file of :func:`read_hpl_run`: what :func:`read_hpl` would say of it alone."""
+
+    #: the file's attributes and first ray time (those of its :func:`read_hpl` dataset)
+    identity: FileIdentity
+    #: its rays: ``start:stop`` of the joined dataset
+    start: int
+    stop: int
+    #: scan index of each of its rays, numbered within the file as :func:`read_hpl` does
+    scan: np.ndarray
+
+
+def read_hpl_run(plans: list[_FilePlan]) -> tuple[xr.Dataset, list[HplFilePart]] | None:
+    """Planned files that follow each other in time, read into one dataset at once.
+
+    The dataset is :func:`read_hpl_files` of the files (``concat_scans`` of their
+    :func:`read_hpl` datasets); each file's rays are a contiguous run of it, in the
+    given order, and its :class:`HplFilePart` holds what its own dataset would have
+    said (attributes, first time, scan numbering). ``None`` (read them one by one)
+    on any damage, layouts that differ, or rays that do not run strictly forward in
+    time through the files in the given order.
+    """
+    if not plans or not all(_same_layout(plans[0].header, plan) for plan in plans):
+        return None
+    starts = [plan.header.start_time for plan in plans]
+    if starts != sorted(starts):
+        return None
+    ds = _read_plans(plans, [plan.path for plan in plans])
+    if ds is None:
+        return None
+    block = plans[0].header.n_gates + 1
+    bounds = np.concatenate([[0], np.cumsum([plan.n_lines // block for plan in plans])])
+    time = ds.variables["time"].values
+    if time.size != bounds[-1] or not bool(np.all(time[1:] > time[:-1])):
+        return None
+    azimuth = ds.variables["azimuth"].values
+    elevation = ds.variables["elevation"].values
+    parts = []
+    for plan, a, b in zip(plans, bounds[:-1], bounds[1:], strict=True):
+        a, b = int(a), int(b)
+        scan, _ = scan_indices(
+            time[a:b], azimuth[a:b], elevation[a:b], scan_type=plan.header.scan_type
+        )
+        identity = FileIdentity(_attrs(plan.path, plan.header), time[a : a + 1].copy())
+        parts.append(HplFilePart(identity, a, b, scan))
+    return ds, parts

@@ -198,21 +198,28 @@ def describe_scan_inputs(unit: ProductUnit) -> list[str]:
         ds = item.dataset
         if ds is None:
             continue
-        vertical = stare_mask(ds)
-        n_vertical, n_other = int(vertical.sum()), int((~vertical).sum())
         scan = ds["scan"].values if "scan" in ds.coords else np.full(ds.sizes["ray"], -1)
-        n_conical = int(np.unique(scan[(scan >= 0) & ~vertical]).size)
-        parts = []
-        if n_vertical:
-            parts.append(f"{n_vertical} vertical stare rays -> stare product")
-        if n_conical:
-            parts.append(f"{n_conical} conical scan(s) -> wind (and turbulence)")
-        unused = n_other - int(np.sum((scan >= 0) & ~vertical))
-        if unused:
-            parts.append(f"{unused} rays neither vertical nor in a conical scan: not used")
-        kind = str(ds.attrs.get("scan_type", "")).strip() or "scan"
-        lines.append(f"{os.fspath(item.path)}: {kind}: " + "; ".join(parts or ["no rays"]))
+        lines.append(describe_scan_file(item.path, ds.attrs, stare_mask(ds), scan))
     return lines
+
+
+def describe_scan_file(
+    path: str | os.PathLike, attrs: dict, vertical: np.ndarray, scan: np.ndarray
+) -> str:
+    """The line of :func:`describe_scan_inputs` for one file, from its attributes, which
+    of its rays are vertical stares and its scan index per ray (numbered in the file)."""
+    n_vertical, n_other = int(vertical.sum()), int((~vertical).sum())
+    n_conical = int(np.unique(scan[(scan >= 0) & ~vertical]).size)
+    parts = []
+    if n_vertical:
+        parts.append(f"{n_vertical} vertical stare rays -> stare product")
+    if n_conical:
+        parts.append(f"{n_conical} conical scan(s) -> wind (and turbulence)")
+    unused = n_other - int(np.sum((scan >= 0) & ~vertical))
+    if unused:
+        parts.append(f"{unused} rays neither vertical nor in a conical scan: not used")
+    kind = str(attrs.get("scan_type", "")).strip() or "scan"
+    return f"{os.fspath(path)}: {kind}: " + "; ".join(parts or ["no rays"])
 
 
 def process_scan_day(

@@ -37,16 +37,18 @@ from cwproc.io import FileIdentity
 from cwproc.io.scans import _source_files, concat_scans, joined_attrs, scan_indices
 from cwproc.pipeline.background import correct_background, find_background_files
 from cwproc.pipeline.chain import (
+    describe_scan_file,
     describe_scan_inputs,
     probe_for,
     probe_mismatch,
     screened_wind,
     stare_products,
 )
+from cwproc.pipeline.stream_read import chunk_reading_possible, planned_chunks, read_planned_chunk
 from cwproc.pipeline.units import drop_input
 from cwproc.stages import epsilon, structure, vad
 from cwproc.stages.background import correction_summary
-from cwproc.stages.stare import split_stares
+from cwproc.stages.stare import split_stares, stare_mask
 from cwproc.stages.structure import INSTRUMENT_SETTINGS
 
 #: input data joined into one chunk (bytes of the read datasets): the stages need about
@@ -209,6 +211,35 @@ class ReadAhead:
             self._cond.notify_all()
         self._thread.join()
         self._done.clear()
+
+
+def planned_chunk_datasets(
+    ordered: list, take: Callable, took: Callable, chunk_bytes: int
+) -> Iterator[xr.Dataset | None]:
+    """The chunks of ``.hpl`` files read a chunk at a time (:mod:`.stream_read`).
+
+    ``took(item, identity, lines)`` is called for each file of a chunk read at once
+    (its identity and the line :func:`~.chain.describe_scan_inputs` gives it); a chunk
+    that cannot be read at once is read file by file with ``take(item)``, as
+    :func:`chunks_of` does. None: a chunk whose every file was left out.
+    """
+    for planned in planned_chunks(ordered, chunk_bytes):
+        yield _planned_chunk(planned, take, took)
+
+
+def _planned_chunk(planned: list[tuple], take: Callable, took: Callable) -> xr.Dataset | None:
+    got = read_planned_chunk(planned)
+    if got is None:
+        parts = [ds for item, _ in planned if (ds := take(item)) is not None]
+        return concat_scans(parts) if parts else None
+    chunk, files = got
+    vertical = stare_mask(chunk)
+    for (item, _), part in zip(planned, files, strict=True):
+        line = describe_scan_file(
+            item.path, part.identity.attrs, vertical[part.start : part.stop], part.scan
+        )
+        took(item, part.identity, [line])
+    return chunk
 
 
 def number_scans(chunk: xr.Dataset, state: StreamState) -> xr.Dataset:
@@ -471,24 +502,33 @@ def stream_scan_unit(
     ordered = time_ordered(list(unit.inputs), lambda item: item.start)
     ahead = ReadAhead(ordered, read, chunk_bytes) if read_ahead_enabled(read_ahead) else None
 
+    def took(item, identity: FileIdentity, lines: list[str]) -> None:
+        item.dataset = None  # the chunk holds it now; released with the chunk
+        # for products; its attributes are the file's (source files, scan type) below
+        item.identity = identity
+        own.extend(lines)
+        seen[position[id(item)]] = identity
+
     def take(item) -> xr.Dataset | None:
         try:
             ds = ahead.load(item) if ahead is not None else read(item)
         except InputFileError as exc:  # identified by its header, damaged beyond it
             drop_input(unit, item, exc)
             return None
-        item.dataset = None  # the chunk holds it now; released with the chunk
+        item.dataset = None
         if ds is not None:
-            # for products; its attributes are the file's (source files, scan type) below
-            item.identity = FileIdentity(dict(ds.attrs), ds.variables["time"].values[:1])
-            own.extend(describe_scan_inputs(_single(unit, item, ds)))
-            seen[position[id(item)]] = item.identity
+            identity = FileIdentity(dict(ds.attrs), ds.variables["time"].values[:1])
+            took(item, identity, describe_scan_inputs(_single(unit, item, ds)))
         return ds
 
+    if ahead is None and chunk_reading_possible(unit, config):
+        chunks = planned_chunk_datasets(ordered, take, took, chunk_bytes)
+    else:
+        chunks = (concat_scans(parts) for parts in chunks_of(ordered, take, chunk_bytes))
     try:
-        for parts in chunks_of(ordered, take, chunk_bytes):
-            chunk = concat_scans(parts)
-            del parts
+        for chunk in chunks:
+            if chunk is None:
+                continue  # every file of the chunk damaged beyond its header
             chunk = corrected_chunk(chunk, unit, config, own, state)
             state.scan_type = str(chunk.attrs.get("scan_type", ""))
             chunk = number_scans(chunk, state)
