@@ -315,7 +315,9 @@ def flush_blocks(
 
 def take_chunk(chunk: xr.Dataset, state: StreamState, config: Config) -> None:
     """Stares kept, conical scans screened, fitted and their complete blocks reduced."""
-    stares, others = split_stares(chunk)
+    # a chunk without stares is taken as it is (split_stares would copy every ray)
+    vertical = stare_mask(chunk)
+    stares, others = split_stares(chunk) if vertical.any() or not vertical.size else (None, chunk)
     if stares is not None:
         state.stares.append(stares)
     if others is None:
