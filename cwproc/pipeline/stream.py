@@ -1,8 +1,9 @@
 """A day of scans processed chunk by chunk in bounded memory (issue 15.3).
 
 The files of a scan unit are taken in time order and joined into chunks of about
-``STREAM_CHUNK_BYTES``; each chunk is background-corrected, split into stares and
-conical scans, screened and VAD-fitted (all per ray or per scan). The structure
+``STREAM_CHUNK_BYTES`` (``.hpl`` files parsed straight into the chunk's arrays,
+:mod:`cwproc.pipeline.stream_read`); each chunk is background-corrected, split into
+stares and conical scans, screened and VAD-fitted (all per ray or per scan). The structure
 function (Smalikho (2020), eqs. 1-2) is computed for the complete blocks of N scans
 held so far; the scans of an incomplete last block are carried, screened, into the next
 chunk, so every block is the one the whole-day run forms. Only the per-scan wind rows,
