@@ -46,7 +46,7 @@ from cwproc.physics.spectra import MODELS, Model
 from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
 
 #: bump when the numerics or the grid change: old cache files are then ignored
-TABLE_VERSION = 6
+TABLE_VERSION = 7
 #: sub-beams of a swept ray in :func:`uniform_mode`
 N_SWEEP = 8
 #: geometry models of a table
@@ -216,9 +216,10 @@ def geometry_correction(
     The pair of rays ``l`` steps apart (:func:`cwproc.physics.two_beam.cross_term`: chord
     separation, angle between the beams, transport ``U t`` with ``U = mu V_s``) against
     Smalikho (2020), eq. 15 for the same point probe (``A_perp = (8/3) rho^(2/3)``,
-    ``A_par = 2 rho^(2/3)``), both without the sweep (step-stare rays; swept rays of
-    continuous scans: :func:`_swept_pairs`). For a point probe and the inertial model
-    both scale as ``R'^(2/3)``, so the ratio is computed once on the circle ``R' = 1``
+    ``A_par = 2 rho^(2/3)``), both without the sweep; the tables of pulsed probes take
+    the plane A-function of the pairs instead (:func:`_swept_pairs`). For a point probe
+    and the inertial model both scale as ``R'^(2/3)``, so the ratio is computed once on
+    the circle ``R' = 1``
     (``V_s = 1``, ray period ``dtheta``). The probe's eq.-15 A-functions plus the
     same-beam term, times this ratio, minus the same-beam term, give the exact geometry
     up to the interplay of probe length and beam angle (within 0.6 % of
@@ -304,17 +305,23 @@ def _swept_pairs(
     mu: np.ndarray,
     same: np.ndarray,
 ) -> list[np.ndarray]:
-    """Per height the inertial A_2 integrand of swept rays seen at their own times.
+    """Per height the inertial A_2 integrand of the pairs of rays (plane A-function).
 
     :func:`cwproc.physics.atable_swept.swept_a2` on :func:`full_circle`,
-    ``(lags, mu, theta)``; ``same`` is twice the same-beam term per height. A pulsed
-    probe weights the same lengths at every range, so one plane A-function serves all
+    ``(lags, mu, theta)``; ``same`` is twice the same-beam term per height. Swept rays
+    of continuous scans (``params["swept"]``) take the sweep kernel over fractional lags
+    (:func:`cwproc.physics.atable_swept.sweep_kernel`); step-stare rays the pairs at the
+    lags themselves (:func:`cwproc.physics.atable_swept.stare_kernel`). A pulsed probe
+    weights the same lengths at every range, so one plane A-function serves all
     heights; other probes get one per height.
     """
     phi, step = params["phi_deg"], params["delta_theta_deg"]
     lags = np.arange(1, params["n_lags"] + 1, dtype=float)
     theta = full_circle()
-    kernel = atable_swept.sweep_kernel(lags)
+    if params.get("swept", True):
+        kernel = atable_swept.sweep_kernel(lags)
+    else:
+        kernel = atable_swept.stare_kernel(lags)
     top = (lags[-1] + 1.0) * (2.0 + float(np.max(mu))) * 1.05
     span = (1e-3 * float(np.min(dys)), top * float(np.max(dys)))
     plane = None
@@ -370,9 +377,10 @@ def _height_cell(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``A_1`` ``(lags,)`` and the ``A_2`` integrand ``(lags, mu, theta)`` of one height.
 
-    Step-stare (``swept = (None, None)``): eq. 15 of ``curves`` with the point-probe ratios
-    ``g1``, ``g2`` on the cross term, ``(A + 2S) g - 2S`` (``geometry = (2S, g1, g2)``).
-    Swept rays: the inertial integrand of :func:`_swept_pairs`; a finite outer scale
+    Without pairs (``swept = (None, None)``: cw probes, small-angle geometry): eq. 15 of
+    ``curves`` with the point-probe ratios ``g1``, ``g2`` on the cross term, ``(A + 2S) g -
+    2S`` (``geometry = (2S, g1, g2)``). Pulsed rays (swept or step-stare): the inertial
+    integrand of :func:`_swept_pairs`; a finite outer scale
     multiplies it by eq. 15's ratio to the inertial curves of the same probe
     (``swept[0]``), the outer scale acting on the large separations the sweep leaves
     alone. ``A_1`` is then the swept ``A_2`` at ``mu = 0`` (azimuth mean).
@@ -397,12 +405,13 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
     evaluated for all lags, ``mu`` and azimuths at once. With ``geometry="two_beam"`` it is
     multiplied by the point-probe ratio of :func:`geometry_correction` and, for
     finite outer scales, ``sigma_V^2 |S_a - S_b|^2`` (:func:`uniform_mode`) are added.
-    Swept rays of continuous scans (``swept`` and a probe with a transverse size) take
-    the sweep kernel over step-stare pairs at fractional lags instead
-    (:func:`_swept_pairs`, :mod:`cwproc.physics.atable_swept`). ``A_2`` is stored as its
-    azimuth average (``log_a2``) and, for inertial tables, its means over azimuth bins
-    relative to that average (``bins_a2``), so that sectors and gaps can be averaged over
-    the azimuths of the pairs present.
+    Pulsed probes (and swept rays of any probe with a transverse size) take the pairs
+    of :mod:`cwproc.physics.atable_swept` with the plane A-function instead
+    (:func:`_swept_pairs`): swept rays of continuous scans the sweep kernel over
+    step-stare pairs at fractional lags, step-stare rays the pairs at the lags. ``A_2``
+    is stored as its azimuth average (``log_a2``) and, for inertial tables, its means
+    over azimuth bins relative to that average (``bins_a2``), so that sectors and gaps
+    can be averaged over the azimuths of the pairs present.
     """
     phi, n_lags, model = params["phi_deg"], params["n_lags"], params["model"]
     swept = bool(params.get("swept", True))
@@ -428,7 +437,10 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
     rho_hi = n_lags * dys * (1.0 + params["mu_max"]) * 1.01
     swept_pairs: list = [None] * heights.size
     inertial: list = [None] * heights.size
-    if params.get("geometry", "two_beam") == "two_beam" and np.any(perp_size > 0):
+    # pulsed step-stare rays take the plane A-function too (Stream Line gate: eq. 15's
+    # mix was 1.9 % low on the circle at lag 1, mu = 1, and down to 0.82 per azimuth)
+    plane_pairs = np.any(perp_size > 0) or isinstance(probe, PulsedProbe)
+    if params.get("geometry", "two_beam") == "two_beam" and plane_pairs:
         swept_pairs = _swept_pairs(probe, params, ranges, dys, mu, same)
         if model != "inertial":
             inertial = _inertial_curves(probe, (rho_lo, rho_hi), perp_size, ranges)
