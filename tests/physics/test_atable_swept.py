@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from cwproc.physics import afunctions, atable, atable_swept, two_beam
-from cwproc.physics.atable_interp import azimuth_nodes
+from cwproc.physics.atable_interp import azimuth_bin_weights, azimuth_nodes
 from cwproc.physics.transfer import PulsedProbe
 
 PROBE = PulsedProbe()
@@ -166,6 +166,30 @@ def test_step_stare_table_matches_exact_pairs_on_the_circle_and_per_node(step):
             assert np.all(per_node < 1.05 * exact)
 
 
+def test_step_stare_von_karman_table_matches_exact_pairs():
+    # the outer scale adds eq. 15's difference of the von Karman and inertial curves
+    # times the point-probe ratio: circle mean within 0.6 % (measured 0.36 % at lag 3,
+    # mu = 3; eq. 15's ratio as a factor was 1.4 % high there, growing with the lag)
+    params = atable.table_parameters(
+        PROBE,
+        phi_deg=PHI,
+        delta_theta_deg=15.0,
+        n_lags=3,
+        model="von_karman",
+        height_range_m=(70.0, 140.0),
+        mu_max=3.0,
+        outer_scale_range_m=(150.0, 260.0),
+        swept=False,
+    )
+    table = atable.build_a_table(PROBE, params)
+    nodes = azimuth_nodes()[::2]
+    for mu in (0.0, 1.0, 3.0):
+        for lag in (1, 3):
+            exact = _exact_stare(15.0, lag, mu, nodes, model="von_karman", outer_scale_m=200.0)
+            value = float(table.evaluate(lag, HEIGHT, mu, 200.0)[1])
+            assert value == pytest.approx(exact.mean(), rel=6e-3), (mu, lag)
+
+
 @pytest.mark.slow
 def test_swept_von_karman_table_matches_exact_pairs():
     # the finite outer scale multiplies the inertial swept integrand by eq. 15's ratio:
@@ -187,3 +211,39 @@ def test_swept_von_karman_table_matches_exact_pairs():
             exact = _exact(5.0, lag, mu, nodes, model="von_karman", outer_scale_m=200.0)
             value = float(table.evaluate(lag, HEIGHT, mu, 200.0)[1])
             assert value == pytest.approx(exact.mean(), rel=2e-2), (mu, lag)
+
+
+@pytest.mark.slow
+def test_von_karman_sector_uses_its_own_azimuth_ratio():
+    # a 90 deg sector of a 72-ray step-stare scan at h = 100 m, L_V = 200 m: the finite
+    # table's circle mean times the inertial per-node ratio and the outer scale's own
+    # (scale_ratio, stored at the middle height 138 m and read at L_V h_ref / h) against
+    # the exact von Karman sector mean: within 1.5 % at lags 1-4 (measured 0.998-0.995 at
+    # mu 0.5, 0.997-0.986 at mu 1); the inertial ratio alone reads 0.979-0.931 and
+    # 0.959-0.872, falling with the lag
+    common = dict(
+        phi_deg=PHI, delta_theta_deg=5.0, n_lags=4, height_range_m=(40.0, 400.0), mu_max=3.0
+    )
+    common["swept"] = False
+    inert = atable.build_a_table(PROBE, atable.table_parameters(PROBE, **common))
+    finite = atable.build_a_table(
+        PROBE,
+        atable.table_parameters(
+            PROBE, model="von_karman", outer_scale_range_m=(60.0, 1500.0), **common
+        ),
+    )
+    theta = np.radians(np.arange(2.5, 90.0, 5.0))
+    weights = azimuth_bin_weights(theta)
+    for mu in (0.5, 1.0):
+        old, new = [], []
+        for lag in (1, 2, 3, 4):
+            exact = _exact_stare(5.0, lag, mu, theta, model="von_karman", outer_scale_m=200.0)
+            circle = float(finite.evaluate(lag, HEIGHT, mu, 200.0)[1])
+            inert_circle = float(inert.evaluate(lag, HEIGHT, mu)[1])
+            ratio = float(inert.evaluate(lag, HEIGHT, mu, weights=weights)[1]) / inert_circle
+            q = finite.scale_ratio(lag, HEIGHT, mu, 200.0)
+            own = float(inert.evaluate(lag, HEIGHT, mu, weights=weights * q)[1]) / inert_circle
+            old.append(circle * ratio / exact.mean())
+            new.append(circle * own / exact.mean())
+        np.testing.assert_allclose(new, 1.0, atol=1.5e-2, err_msg=f"mu {mu}")
+        assert abs(old[-1] - 1.0) > 2.0 * abs(new[-1] - 1.0)

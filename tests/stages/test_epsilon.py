@@ -991,3 +991,45 @@ def test_sector_scans_use_the_sector_vad_removal_in_the_variance_condition(optio
         sf, probe=PROBE, lag_number=3, model="von_karman", table_options=options
     )
     assert np.all(np.abs(circle_only["integral_scale"].values / big_l - 1) > 0.1)
+
+
+def test_outer_scale_sector_factor_of_a_full_circle_and_a_sector():
+    # the finite table's own per-node ratio (scale_ratio) relative to the inertial one:
+    # 1 for a full circle at the table's reference height (both ratios average to 1
+    # there), above 1 for a 90 deg sector at mu = 1 where the outer scale cuts D most
+    # along the wind (the inertial ratio alone was 4-13 % low on the exact sector,
+    # tests/physics/test_atable_swept.py)
+    from cwproc.physics import atable
+    from cwproc.physics.atable_interp import N_BINS, azimuth_bin_weights
+    from cwproc.stages.epsilon.atable_fit import outer_scale_sector_factor
+
+    common = dict(
+        phi_deg=35.0,
+        delta_theta_deg=5.0,
+        n_lags=3,
+        height_range_m=(70.0, 140.0),
+        mu_max=3.0,
+        swept=False,
+    )
+    inert = atable.build_a_table(PROBE, atable.table_parameters(PROBE, **common))
+    finite = atable.build_a_table(
+        PROBE,
+        atable.table_parameters(
+            PROBE, model="von_karman", outer_scale_range_m=(150.0, 260.0), **common
+        ),
+    )
+    h = np.full(3, finite.scale_height_m)
+    mu = np.array([1.0, 1.0, 1.0])
+    weights = np.stack(
+        [
+            np.full(N_BINS, 1.0 / N_BINS),
+            azimuth_bin_weights(np.radians(np.arange(2.5, 90.0, 5.0))),
+            np.full(N_BINS, np.nan),
+        ]
+    )
+    lags = np.arange(1.0, 4.0)
+    factor = outer_scale_sector_factor((inert, finite), lags, h, mu, weights)
+    assert factor.shape == (3, finite.outer_scales_m.size, 3)
+    np.testing.assert_allclose(factor[0], 1.0, atol=1e-3)
+    assert np.all(factor[1] > 1.01) and np.all(np.diff(factor[1], axis=-1) > 0)
+    np.testing.assert_array_equal(factor[2], 1.0)  # unknown weights: the full circle

@@ -130,6 +130,38 @@ def sector_evaluate(
     return a1, a2_full * ratio, ratio
 
 
+def outer_scale_sector_factor(
+    tables: tuple, lags: np.ndarray, height: np.ndarray, mu: np.ndarray, weights: np.ndarray
+) -> np.ndarray:
+    """``(cells, nL, n_lag)``: the sector ratio of ``A_2`` with an outer scale over the inertial.
+
+    At each outer-scale node of the finite table (``tables = (inertial, finite)``), the
+    average of ``A_2`` over the azimuths of the pairs present (``weights``, ``(cells,
+    N_BINS)``) relative to its circle mean is the inertial table's per-node ratio times
+    :meth:`cwproc.physics.atable_interp.ATable.scale_ratio`; this is that over the
+    inertial sector ratio of :func:`sector_evaluate` (1 for unknown weights and tables
+    without ``scale_bins``). ``height`` (m) and ``mu`` per cell.
+    """
+    inertial, finite = tables
+    scales = finite.outer_scales_m
+    out = np.ones((height.size, scales.size, lags.size))
+    if finite.scale_bins is None:
+        return out
+    known = np.nonzero(np.all(np.isfinite(weights), axis=-1))[0]
+    for start in range(0, known.size, EVALUATION_CELLS):  # bounded working memory
+        c = known[start : start + EVALUATION_CELLS]
+        lag_f = np.broadcast_to(lags[None, :], (c.size, lags.size)).ravel()
+        h_f, mu_f = np.repeat(height[c], lags.size), np.repeat(mu[c], lags.size)
+        w_f = np.repeat(weights[c], lags.size, axis=0)
+        _, base = inertial.evaluate(lag_f, h_f, mu_f, weights=w_f)
+        for k, big_l in enumerate(scales):
+            q = finite.scale_ratio(lag_f, h_f, mu_f, big_l)
+            _, part = inertial.evaluate(lag_f, h_f, mu_f, weights=w_f * q)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                out[c, k] = (part / base).reshape(c.size, lags.size)
+    return np.where(np.isfinite(out) & (out > 0), out, 1.0)
+
+
 def table_options_for(sf: xr.Dataset, table_options: dict | None) -> dict:
     """Keyword arguments of :func:`cwproc.physics.atable.get_a_table` for ``sf``.
 

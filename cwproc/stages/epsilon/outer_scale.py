@@ -10,6 +10,7 @@ delta method differentiates (:mod:`cwproc.stages.epsilon.errors`).
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
@@ -23,7 +24,7 @@ from cwproc.physics.removed_share import (
     sector_removed_share,
 )
 from cwproc.physics.structure_fit import fit_structure_function
-from cwproc.stages.epsilon.atable_fit import EVALUATION_CELLS
+from cwproc.stages.epsilon.atable_fit import EVALUATION_CELLS, outer_scale_sector_factor
 from cwproc.stages.epsilon.cells import Cells
 
 #: lengths below this fraction of L_V keep the inertial A-functions (see module doc)
@@ -315,13 +316,25 @@ def fit_setup(
         ),
         "groups": groups,
         "cell_tables": {  # the model's tables at each group's cells (rows x heights)
-            key: (
-                tables[1].at_cells(lags, np.tile(cells.height, rows.sum()), mu_eval[rows].ravel()),
-                np.cumsum(rows) - 1,
-            )
+            key: (_sector_cell_table(tables, lags, cells, rows), np.cumsum(rows) - 1)
             for key, (rows, tables) in groups.items()
             if finite is not None
         },
         "exact": exact,
         "finite": finite,
     }
+
+
+def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.ndarray) -> Any:
+    """The finite table at the cells ``rows x heights`` with its own sector ratio.
+
+    :meth:`cwproc.physics.atable_interp.ATable.at_cells` of ``tables[1]``, its ``A_2`` at
+    every outer-scale node multiplied by :func:`outer_scale_sector_factor` (the sector
+    ratio of the outer scale over the inertial one that :func:`retrieve` applies).
+    """
+    height = np.tile(cells.height, rows.sum())
+    mu = cells.mu_eval[rows].ravel()
+    table = tables[1].at_cells(lags, height, mu)
+    weights = cells.weights[rows].reshape(-1, cells.weights.shape[-1])
+    factor = outer_scale_sector_factor(tables, lags, height, mu, weights)
+    return dataclasses.replace(table, log_a2=table.log_a2 + np.log(factor))
