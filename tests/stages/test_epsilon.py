@@ -995,7 +995,7 @@ def test_sector_scans_use_the_sector_vad_removal_in_the_variance_condition(optio
 
 def test_outer_scale_sector_factor_of_a_full_circle_and_a_sector():
     # the finite table's own per-node ratio (scale_ratio) relative to the inertial one:
-    # 1 for a full circle at the table's reference height (both ratios average to 1
+    # 1 for a full circle (the per-node ratio is normalised to a circle mean of 1
     # there), above 1 for a 90 deg sector at mu = 1 where the outer scale cuts D most
     # along the wind (the inertial ratio alone was 4-13 % low on the exact sector,
     # tests/physics/test_atable_swept.py)
@@ -1030,7 +1030,7 @@ def test_outer_scale_sector_factor_of_a_full_circle_and_a_sector():
     lags = np.arange(1.0, 4.0)
     factor = outer_scale_sector_factor((inert, finite), lags, h, mu, weights)
     assert factor.shape == (3, finite.outer_scales_m.size, 3)
-    np.testing.assert_allclose(factor[0], 1.0, atol=1e-3)
+    np.testing.assert_allclose(factor[0], 1.0, atol=1e-4)
     assert np.all(factor[1] > 1.01) and np.all(np.diff(factor[1], axis=-1) > 0)
     np.testing.assert_array_equal(factor[2], 1.0)  # unknown weights: the full circle
 

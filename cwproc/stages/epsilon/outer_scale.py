@@ -330,21 +330,23 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
     """The finite table at the cells ``rows x heights`` with its own sector ratio.
 
     :meth:`cwproc.physics.atable_interp.ATable.at_cells` of ``tables[1]``, its ``A_2`` at
-    every outer-scale node multiplied by :func:`outer_scale_sector_factor` (the sector
-    ratio of the outer scale over the inertial one that :func:`retrieve` applies); for
-    sectors and gaps (:func:`partial_circle`) less the share of ``D(l)`` the block-mean
+    every outer-scale node, for sectors and gaps (:func:`partial_circle`), multiplied by
+    :func:`outer_scale_sector_factor` (the sector ratio of the outer scale over the
+    inertial one that :func:`retrieve` applies) and less the share of ``D(l)`` the block-mean
     VAD wind takes (:func:`sector_removed_d` times ``sigma_V^2 / eps^(2/3)`` of the node).
     """
     height = np.tile(cells.height, rows.sum())
     mu = cells.mu_eval[rows].ravel()
     table = tables[1].at_cells(lags, height, mu)
     weights = cells.weights[rows].reshape(-1, cells.weights.shape[-1])
-    factor = outer_scale_sector_factor(tables, lags, height, mu, weights)
-    log_a2 = table.log_a2 + np.log(factor)
     n_h = cells.height.size
     dtheta = np.repeat(cells.dtheta[rows], n_h)
     part = np.nonzero(partial_circle(weights, dtheta))[0]
+    log_a2 = table.log_a2.copy()
     if part.size:
+        # the outer scale's own sector ratio (full circles: 1 by construction)
+        factor = outer_scale_sector_factor(tables, lags, height[part], mu[part], weights[part])
+        log_a2[part] += np.log(factor)
         # sectors and gaps: the block-mean VAD fit also takes part of D(l)
         scans = np.repeat(cells.scans[rows], n_h)[part]
         nodes = tables[1].outer_scales_m
