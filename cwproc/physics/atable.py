@@ -46,7 +46,7 @@ from cwproc.physics.spectra import MODELS, Model
 from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
 
 #: bump when the numerics or the grid change: old cache files are then ignored
-TABLE_VERSION = 8
+TABLE_VERSION = 9
 #: sub-beams of a swept ray in :func:`uniform_mode`
 N_SWEEP = 8
 #: geometry models of a table
@@ -398,8 +398,30 @@ def _height_cell(
     a1 = pairs[:, 0, :].mean(axis=-1)
     if inert is None:
         return a1, pairs
-    extra = _per_theta_a2(curves, lag_m, mu, phi) - _per_theta_a2(inert, lag_m, mu, phi)
-    return a1 + (curves.perp(lag_m) - inert.perp(lag_m)) * g1, pairs + extra * g2
+    model15 = _per_theta_a2(curves, lag_m, mu, phi)
+    inert15 = _per_theta_a2(inert, lag_m, mu, phi)
+    a1_out = _outer_scale_blend(
+        a1, curves.perp(lag_m) - inert.perp(lag_m), g1, curves.perp(lag_m) / inert.perp(lag_m)
+    )
+    return a1_out, _outer_scale_blend(pairs, model15 - inert15, g2, model15 / inert15)
+
+
+def _outer_scale_blend(
+    inertial: np.ndarray, difference: np.ndarray, ratio: np.ndarray, factor: np.ndarray
+) -> np.ndarray:
+    """The inertial pair A with an outer scale: eq. 15's difference, or its ratio where large.
+
+    ``inertial + difference * ratio`` (``ratio`` the point-probe ratio) where that is at
+    least 0.8 of ``inertial * factor`` (eq. 15's ratio of the model to the inertial
+    curves), ``inertial * factor`` below 0.5 of it (separations far beyond ``L_V``, where
+    the difference would exceed the pair's own A), linear in between: positive and
+    continuous.
+    """
+    added = inertial + difference * ratio
+    scaled = inertial * factor
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = np.clip((added / scaled - 0.5) / 0.3, 0.0, 1.0)
+    return scaled + share * (added - scaled)
 
 
 def build_a_table(probe: Probe, params: dict) -> ATable:

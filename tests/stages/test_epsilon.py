@@ -12,6 +12,7 @@ from cwproc.physics.probe_variance import averaging_loss, passed_variance
 from cwproc.physics.removed_share import (
     mean_removed_share,
     partial_circle,
+    sector_removed_d,
     sector_removed_share,
 )
 from cwproc.physics.structure_fit import eq5_epsilon, fit_structure_function
@@ -933,13 +934,13 @@ def test_sector_vad_removal_matches_exact_block_statistics():
 def test_sector_scans_use_the_sector_vad_removal_in_the_variance_condition(options, monkeypatch):
     """A 90 deg sector scan (scans 18 s apart, T_scan 60 s), von Karman L_V = 300 m.
 
-    Data consistent with the sector's A_2 and with the share of sigma_V^2 its block-mean
-    VAD wind removes (:func:`sector_removed_share`, 3-4 times the full circle's here) give
+    Data consistent with the sector's A_2 (its own von Karman per-node ratio, less the
+    share of D(l) the block-mean VAD wind takes) and with the share of sigma_V^2 it
+    removes (:func:`sector_removed_share`, 3-4 times the full circle's here) give
     eps, L_V and sigma_V^2 back; with the full circle's share (measured: L_V 27-30 % low,
     eps 4-5 % high) L_V is more than 10 % off.
     """
     from cwproc.physics.atable_interp import azimuth_bin_weights
-    from cwproc.stages.epsilon.atable_fit import sector_evaluate as _sector_evaluate
 
     eps, noise, big_l, mu, interval = 0.003, 0.1, 300.0, 0.5, 18.0 / T_SCAN
     lags = np.arange(1, N_LAGS + 1, dtype=float)
@@ -957,9 +958,28 @@ def test_sector_scans_use_the_sector_vad_removal_in_the_variance_condition(optio
     table = get_a_table(
         PROBE, phi_deg=PHI, delta_theta_deg=DTHETA, n_lags=N_LAGS, model="von_karman", **options
     )
-    _, _, ratio = _sector_evaluate(inertial, lags, HEIGHTS, mu_c, weights)
-    d = (model_d(table, eps, 0.0, mu_c, outer=big_l)) * ratio + 2 * noise**2
     radius = HEIGHTS / np.tan(np.deg2rad(PHI))
+    # the sector's own von Karman ratio and the VAD removal in D(l) (as the stage models)
+    own = np.empty((HEIGHTS.size, lags.size))
+    for k, height in enumerate(HEIGHTS):
+        q = table.scale_ratio(lags, height, mu, big_l)
+        part = inertial.evaluate(lags, height, mu, weights=weights[0, k] * q)[1]
+        circle_q = inertial.evaluate(lags, height, mu, weights=q / q.shape[-1])[1]
+        own[k] = part / circle_q  # the per-node ratio normalised to the circle
+    removed_d = sector_removed_d(
+        weights[0],
+        np.full(HEIGHTS.size, np.deg2rad(DTHETA)),
+        N_LAGS,
+        (radius / big_l)[:, None],
+        np.full(HEIGHTS.size, mu),
+        np.full(HEIGHTS.size, interval),
+        np.full(HEIGHTS.size, 10.0),
+        PHI,
+        "von_karman",
+    )[:, 0]
+    full_var = spectra.variance_per_eps23("von_karman", big_l)
+    d = model_d(table, eps, 0.0, mu_c, outer=big_l) * own[None] + 2 * noise**2
+    d = d - eps ** (2 / 3) * full_var * removed_d[None]
     dy = np.deg2rad(DTHETA) * radius
     share = sector_removed_share(
         weights[0],
