@@ -17,6 +17,7 @@ Run::
 
     python benchmarks/bench_atable.py                 # inertial tables, phi 60 and 75
     python benchmarks/bench_atable.py --finite        # + von Karman tables (slower build)
+    python benchmarks/bench_atable.py --stare --phi 35 --finite   # step-stare VAD tables
 
 Printed figures: build time (s), load time (ms), evaluation time (ms), table size (MiB)
 and the peak resident memory of the run. Target: evaluation well under 1 s (measured
@@ -38,9 +39,12 @@ from cwproc.physics.atable import get_a_table
 from cwproc.pipeline import probe_from_config
 
 
-def time_one(probe, phi: float, dtheta: float, lags: int, model: str, cache: str) -> None:
+def time_one(
+    probe, phi: float, dtheta: float, lags: int, model: str, cache: str, swept: bool = True
+) -> None:
     """Build, load and evaluate one table; print the figures."""
     kwargs = {"phi_deg": phi, "delta_theta_deg": dtheta, "n_lags": lags, "model": model}
+    kwargs["swept"] = swept
     t0 = time.perf_counter()
     table = get_a_table(probe, cache_dir=cache, **kwargs)
     t_build = time.perf_counter() - t0
@@ -71,6 +75,7 @@ def main() -> None:
     parser.add_argument("--rays", type=int, default=24, help="rays per 360 deg scan")
     parser.add_argument("--lags", type=int, default=3)
     parser.add_argument("--finite", action="store_true", help="also von Karman tables")
+    parser.add_argument("--stare", action="store_true", help="step-stare rays (swept=False)")
     args = parser.parse_args()
     cfg = load_config("streamline")
     probe = probe_from_config(cfg.instrument, pulse_transfer=cfg.turbulence.pulse_transfer)
@@ -82,7 +87,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="cwproc-bench-atable-") as cache:
         for model in models:
             for phi in args.phi:
-                time_one(probe, phi, dtheta, args.lags, model, cache)
+                time_one(probe, phi, dtheta, args.lags, model, cache, not args.stare)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak resident memory {peak:.0f} MiB")
 

@@ -62,7 +62,10 @@ class ATable:
     bins_a2 : (1, nh, n_lags, nm, N_BINS) inertial tables: eq. 15's integrand at the
         azimuth nodes (:func:`azimuth_nodes`) divided by the circle average;
         ``None`` for finite-outer-scale tables (the estimator applies the inertial
-        table's sector ratio to them).
+        table's sector ratio to them, times :meth:`scale_ratio`).
+    scale_bins : (nL, n_lags, nm, N_BINS) finite-outer-scale tables of pulsed probes:
+        their per-node ratio (as ``bins_a2``) over that of the inertial model at the
+        height :attr:`scale_height_m`; ``None`` otherwise.
     """
 
     heights_m: np.ndarray
@@ -72,6 +75,47 @@ class ATable:
     log_a2: np.ndarray
     params: dict = field(default_factory=dict)
     bins_a2: np.ndarray | None = None
+    scale_bins: np.ndarray | None = None
+
+    @property
+    def scale_height_m(self) -> float:
+        """The height (m) of ``scale_bins``: the middle height node."""
+        return float(self.heights_m[self.heights_m.size // 2])
+
+    def scale_ratio(
+        self, lags: ArrayLike, height_m: ArrayLike, mu: ArrayLike, outer_scale_m: ArrayLike
+    ) -> np.ndarray:
+        """``(..., N_BINS)``: the per-node A_2 ratio of the outer scale over the inertial one.
+
+        The finite-outer-scale A_2 at azimuth node ``n`` over its circle mean is the
+        inertial table's (``bins_a2``) times this factor. The outer scale acts through
+        the separations over ``L_V``, and the separations scale with the height (``dy =
+        dtheta h / tan(phi)``), so ``scale_bins`` at :attr:`scale_height_m` is read at
+        ``L_V h_ref / h`` (linear in ``log L_V``, clamped to the nodes; cubic in ``mu``).
+        1 for tables without ``scale_bins``.
+        """
+        lags_b, h_b, mu_b, l_b = np.broadcast_arrays(
+            np.asarray(lags, float),
+            np.asarray(height_m, float),
+            np.asarray(mu, float),
+            np.asarray(outer_scale_m, float),
+        )
+        shape = lags_b.shape
+        if self.scale_bins is None:
+            return np.ones((*shape, N_BINS))
+        li = np.clip(np.nan_to_num(lags_b.ravel(), nan=1.0), 1, self.n_lags).astype(int) - 1
+        im, wm, _ = lagrange4(self.mu, np.clip(np.nan_to_num(mu_b.ravel()), 0.0, self.mu[-1]))
+        nodes = np.log(self.outer_scales_m)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            x = np.log(l_b.ravel() * self.scale_height_m / h_b.ravel())
+        x = np.clip(np.nan_to_num(x, nan=nodes[0]), nodes[0], nodes[-1])
+        k = np.clip(np.searchsorted(nodes, x, side="right") - 1, 0, nodes.size - 2)
+        frac = (x - nodes[k]) / (nodes[k + 1] - nodes[k])
+        out = np.zeros((lags_b.size, N_BINS))
+        for step, wl in ((0, 1.0 - frac), (1, frac)):
+            vals = self.scale_bins[(k + step)[:, None], li[:, None], im]  # (q, 4, N_BINS)
+            out += wl[:, None] * np.einsum("qcn,qc->qn", vals, wm)
+        return out.reshape(*shape, N_BINS)
 
     @property
     def n_lags(self) -> int:

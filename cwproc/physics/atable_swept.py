@@ -131,6 +131,17 @@ def sweep_kernel(lags: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return x, (tri - own) * w[None, :]
 
 
+def stare_kernel(lags: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes and weights of step-stare rays: the lags themselves, ``D = D0(l)``.
+
+    A step-stare ray is seen with the beam at rest, so the pair ``l`` steps apart is
+    the pair at the whole lag ``l`` (no sweep average, Smalikho (2020), eq. 15 with
+    ``H_perp = 1``): the identity in the form of :func:`sweep_kernel`.
+    """
+    lags = np.asarray(lags, dtype=float)
+    return lags.copy(), np.eye(lags.size)
+
+
 def offset_rule(probe: Any, range_m: float) -> tuple[np.ndarray, np.ndarray]:
     """Nodes ``v / R`` and weights of the mean range offset ``v`` of a pair of probe points.
 

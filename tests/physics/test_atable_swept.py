@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from cwproc.physics import afunctions, atable, atable_swept, two_beam
-from cwproc.physics.atable_interp import azimuth_nodes
+from cwproc.physics.atable_interp import azimuth_bin_weights, azimuth_nodes
 from cwproc.physics.transfer import PulsedProbe
 
 PROBE = PulsedProbe()
@@ -119,6 +119,77 @@ def test_swept_table_matches_exact_pairs_on_the_circle_and_per_node(step):
             np.testing.assert_allclose(per_node[big], exact[big], rtol=1e-2, err_msg=f"{mu} {lag}")
 
 
+def _exact_stare(step: float, lag: int, mu: float, theta: np.ndarray, **model) -> np.ndarray:
+    """Exact step-stare pairs ``lag`` steps apart (no sweep), wind at ``theta`` to the scan."""
+    wind = mu * math.radians(step) * RADIUS * np.array([0.0, 1.0, 0.0])  # ray period 1 s
+    mids = -np.degrees(theta)
+    return two_beam.two_beam_structure_function(
+        mids - 0.5 * lag * step,
+        mids + 0.5 * lag * step,
+        PHI,
+        RANGE,
+        quadrature=two_beam.beam_quadrature(PROBE, RANGE),
+        time_separation_s=-float(lag),
+        mean_wind=wind,
+        **model,
+    )
+
+
+@pytest.mark.parametrize("step", [10.0, 15.0])
+def test_step_stare_table_matches_exact_pairs_on_the_circle_and_per_node(step):
+    # 36- and 24-ray step-stare VADs: the pairs at the lags themselves with the plane
+    # A-function (no sweep kernel). Eq. 15's mix of A_perp and A_par of the whole gate
+    # was 1.9 % low on the circle at lag 1, mu = 1 (15 deg) and down to 0.86 / 0.82 per
+    # node (15 / 10 deg); now circle within 0.5 % (measured 0.16 %), per node within
+    # 1 % where D is at least a quarter of its circle mean (measured 0.7 %; up to 3.8 %
+    # high at the two nodes where the wind cancels the scan, D ~ 2 % of its mean)
+    params = atable.table_parameters(
+        PROBE,
+        phi_deg=PHI,
+        delta_theta_deg=step,
+        n_lags=3,
+        height_range_m=(70.0, 140.0),
+        mu_max=3.0,
+        swept=False,
+    )
+    table = atable.build_a_table(PROBE, params)
+    nodes = azimuth_nodes()[::2]
+    eye = np.eye(azimuth_nodes().size)[::2]
+    for mu in (0.0, 0.5, 1.0, 3.0):
+        for lag in (1, 3):
+            exact = _exact_stare(step, lag, mu, nodes)
+            mean = float(table.evaluate(lag, HEIGHT, mu)[1])
+            assert mean == pytest.approx(exact.mean(), rel=5e-3), (mu, lag)
+            per_node = np.array([float(table.evaluate(lag, HEIGHT, mu, weights=w)[1]) for w in eye])
+            big = exact > 0.25 * exact.mean()
+            np.testing.assert_allclose(per_node[big], exact[big], rtol=1e-2, err_msg=f"{mu} {lag}")
+            assert np.all(per_node < 1.05 * exact)
+
+
+def test_step_stare_von_karman_table_matches_exact_pairs():
+    # the outer scale adds eq. 15's difference of the von Karman and inertial curves
+    # times the point-probe ratio: circle mean within 0.6 % (measured 0.36 % at lag 3,
+    # mu = 3; eq. 15's ratio as a factor was 1.4 % high there, growing with the lag)
+    params = atable.table_parameters(
+        PROBE,
+        phi_deg=PHI,
+        delta_theta_deg=15.0,
+        n_lags=3,
+        model="von_karman",
+        height_range_m=(70.0, 140.0),
+        mu_max=3.0,
+        outer_scale_range_m=(150.0, 260.0),
+        swept=False,
+    )
+    table = atable.build_a_table(PROBE, params)
+    nodes = azimuth_nodes()[::2]
+    for mu in (0.0, 1.0, 3.0):
+        for lag in (1, 3):
+            exact = _exact_stare(15.0, lag, mu, nodes, model="von_karman", outer_scale_m=200.0)
+            value = float(table.evaluate(lag, HEIGHT, mu, 200.0)[1])
+            assert value == pytest.approx(exact.mean(), rel=6e-3), (mu, lag)
+
+
 @pytest.mark.slow
 def test_swept_von_karman_table_matches_exact_pairs():
     # the finite outer scale multiplies the inertial swept integrand by eq. 15's ratio:
@@ -140,3 +211,39 @@ def test_swept_von_karman_table_matches_exact_pairs():
             exact = _exact(5.0, lag, mu, nodes, model="von_karman", outer_scale_m=200.0)
             value = float(table.evaluate(lag, HEIGHT, mu, 200.0)[1])
             assert value == pytest.approx(exact.mean(), rel=2e-2), (mu, lag)
+
+
+@pytest.mark.slow
+def test_von_karman_sector_uses_its_own_azimuth_ratio():
+    # a 90 deg sector of a 72-ray step-stare scan at h = 100 m, L_V = 200 m: the finite
+    # table's circle mean times the inertial per-node ratio and the outer scale's own
+    # (scale_ratio, stored at the middle height 138 m and read at L_V h_ref / h) against
+    # the exact von Karman sector mean: within 1.5 % at lags 1-4 (measured 0.998-0.995 at
+    # mu 0.5, 0.997-0.986 at mu 1); the inertial ratio alone reads 0.979-0.931 and
+    # 0.959-0.872, falling with the lag
+    common = dict(
+        phi_deg=PHI, delta_theta_deg=5.0, n_lags=4, height_range_m=(40.0, 400.0), mu_max=3.0
+    )
+    common["swept"] = False
+    inert = atable.build_a_table(PROBE, atable.table_parameters(PROBE, **common))
+    finite = atable.build_a_table(
+        PROBE,
+        atable.table_parameters(
+            PROBE, model="von_karman", outer_scale_range_m=(60.0, 1500.0), **common
+        ),
+    )
+    theta = np.radians(np.arange(2.5, 90.0, 5.0))
+    weights = azimuth_bin_weights(theta)
+    for mu in (0.5, 1.0):
+        old, new = [], []
+        for lag in (1, 2, 3, 4):
+            exact = _exact_stare(5.0, lag, mu, theta, model="von_karman", outer_scale_m=200.0)
+            circle = float(finite.evaluate(lag, HEIGHT, mu, 200.0)[1])
+            inert_circle = float(inert.evaluate(lag, HEIGHT, mu)[1])
+            ratio = float(inert.evaluate(lag, HEIGHT, mu, weights=weights)[1]) / inert_circle
+            q = finite.scale_ratio(lag, HEIGHT, mu, 200.0)
+            own = float(inert.evaluate(lag, HEIGHT, mu, weights=weights * q)[1]) / inert_circle
+            old.append(circle * ratio / exact.mean())
+            new.append(circle * own / exact.mean())
+        np.testing.assert_allclose(new, 1.0, atol=1.5e-2, err_msg=f"mu {mu}")
+        assert abs(old[-1] - 1.0) > 2.0 * abs(new[-1] - 1.0)

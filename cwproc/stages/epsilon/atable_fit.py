@@ -15,6 +15,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.physics.atable import HEIGHT_RATIO, get_a_table
+from cwproc.physics.atable_interp import N_BINS
 from cwproc.stages.epsilon.cells import Cells
 
 #: cells (block, height) whose A-functions or passed variances are evaluated at once:
@@ -128,6 +129,41 @@ def sector_evaluate(
         with np.errstate(invalid="ignore", divide="ignore"):
             ratio[ti, hi] = part.reshape(ti.size, lags.size) / a2_full[ti, hi]
     return a1, a2_full * ratio, ratio
+
+
+def outer_scale_sector_factor(
+    tables: tuple, lags: np.ndarray, height: np.ndarray, mu: np.ndarray, weights: np.ndarray
+) -> np.ndarray:
+    """``(cells, nL, n_lag)``: the sector ratio of ``A_2`` with an outer scale over the inertial.
+
+    At each outer-scale node of the finite table (``tables = (inertial, finite)``), the
+    average of ``A_2`` over the azimuths of the pairs present (``weights``, ``(cells,
+    N_BINS)``) relative to its circle mean is the inertial table's per-node ratio times
+    :meth:`cwproc.physics.atable_interp.ATable.scale_ratio`, normalised to a circle mean
+    of 1 (away from the reference height the product alone is not); this is that over
+    the inertial sector ratio of :func:`sector_evaluate` (1 for unknown weights and
+    tables without ``scale_bins``). ``height`` (m) and ``mu`` per cell.
+    """
+    inertial, finite = tables
+    scales = finite.outer_scales_m
+    out = np.ones((height.size, scales.size, lags.size))
+    if finite.scale_bins is None:
+        return out
+    known = np.nonzero(np.all(np.isfinite(weights), axis=-1))[0]
+    for start in range(0, known.size, EVALUATION_CELLS):  # bounded working memory
+        c = known[start : start + EVALUATION_CELLS]
+        lag_f = np.broadcast_to(lags[None, :], (c.size, lags.size)).ravel()
+        h_f, mu_f = np.repeat(height[c], lags.size), np.repeat(mu[c], lags.size)
+        w_f = np.repeat(weights[c], lags.size, axis=0)
+        _, full = inertial.evaluate(lag_f, h_f, mu_f)
+        _, base = inertial.evaluate(lag_f, h_f, mu_f, weights=w_f)
+        for k, big_l in enumerate(scales):
+            q = finite.scale_ratio(lag_f, h_f, mu_f, big_l)
+            _, part = inertial.evaluate(lag_f, h_f, mu_f, weights=w_f * q)
+            _, circle = inertial.evaluate(lag_f, h_f, mu_f, weights=q / N_BINS)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                out[c, k] = (part * full / (base * circle)).reshape(c.size, lags.size)
+    return np.where(np.isfinite(out) & (out > 0), out, 1.0)
 
 
 def table_options_for(sf: xr.Dataset, table_options: dict | None) -> dict:

@@ -10,6 +10,7 @@ delta method differentiates (:mod:`cwproc.stages.epsilon.errors`).
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
@@ -20,10 +21,11 @@ from cwproc.physics.removed_share import (
     interp_log_scale,
     mean_removed_share,
     partial_circle,
+    sector_removed_d,
     sector_removed_share,
 )
 from cwproc.physics.structure_fit import fit_structure_function
-from cwproc.stages.epsilon.atable_fit import EVALUATION_CELLS
+from cwproc.stages.epsilon.atable_fit import EVALUATION_CELLS, outer_scale_sector_factor
 from cwproc.stages.epsilon.cells import Cells
 
 #: lengths below this fraction of L_V keep the inertial A-functions (see module doc)
@@ -315,13 +317,51 @@ def fit_setup(
         ),
         "groups": groups,
         "cell_tables": {  # the model's tables at each group's cells (rows x heights)
-            key: (
-                tables[1].at_cells(lags, np.tile(cells.height, rows.sum()), mu_eval[rows].ravel()),
-                np.cumsum(rows) - 1,
-            )
+            key: (_sector_cell_table(tables, lags, cells, rows), np.cumsum(rows) - 1)
             for key, (rows, tables) in groups.items()
             if finite is not None
         },
         "exact": exact,
         "finite": finite,
     }
+
+
+def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.ndarray) -> Any:
+    """The finite table at the cells ``rows x heights`` with its own sector ratio.
+
+    :meth:`cwproc.physics.atable_interp.ATable.at_cells` of ``tables[1]``, its ``A_2`` at
+    every outer-scale node, for sectors and gaps (:func:`partial_circle`), multiplied by
+    :func:`outer_scale_sector_factor` (the sector ratio of the outer scale over the
+    inertial one that :func:`retrieve` applies) and less the share of ``D(l)`` the block-mean
+    VAD wind takes (:func:`sector_removed_d` times ``sigma_V^2 / eps^(2/3)`` of the node).
+    """
+    height = np.tile(cells.height, rows.sum())
+    mu = cells.mu_eval[rows].ravel()
+    table = tables[1].at_cells(lags, height, mu)
+    weights = cells.weights[rows].reshape(-1, cells.weights.shape[-1])
+    n_h = cells.height.size
+    dtheta = np.repeat(cells.dtheta[rows], n_h)
+    part = np.nonzero(partial_circle(weights, dtheta))[0]
+    log_a2 = table.log_a2.copy()
+    if part.size:
+        # the outer scale's own sector ratio (full circles: 1 by construction)
+        factor = outer_scale_sector_factor(tables, lags, height[part], mu[part], weights[part])
+        log_a2[part] += np.log(factor)
+        # sectors and gaps: the block-mean VAD fit also takes part of D(l)
+        scans = np.repeat(cells.scans[rows], n_h)[part]
+        nodes = tables[1].outer_scales_m
+        removed = sector_removed_d(
+            weights[part],
+            np.radians(dtheta[part]),
+            lags.size,
+            cells.radius[rows].ravel()[part, None] / nodes[None, :],
+            mu[part],
+            np.repeat(cells.interval[rows], n_h)[part],
+            np.where(np.isfinite(scans) & (scans >= 1), scans, 1.0),
+            float(np.nanmedian(cells.phi)),
+            tables[1].model,
+        )
+        full = np.array([spectra.variance_per_eps23(tables[1].model, x) for x in nodes])
+        a2 = np.exp(log_a2[part]) - removed * full[None, :, None]
+        log_a2[part] = np.log(np.maximum(a2, 1e-3 * np.exp(log_a2[part])))
+    return dataclasses.replace(table, log_a2=log_a2)
