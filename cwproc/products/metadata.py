@@ -260,8 +260,8 @@ _PRODUCT_VARIABLES: dict[str, VarMeta] = {
         "direction the block-mean wind blows towards", "degree", "wind_to_direction"
     ),
     "pair_azimuth_weights": VarMeta(
-        "share of the lag-1 ray pairs at each azimuth node of the wind's angle from the "
-        "scan direction (sectors and gaps)",
+        "share of the ray pairs of each lag at each azimuth node of the wind's angle from "
+        "the scan direction (sectors, gaps and the positions a scan's pairs leave out)",
         "1",
         coverage_content_type="auxiliaryInformation",
     ),

@@ -179,14 +179,21 @@ def pair_azimuth_weights(
     dtheta_deg: float,
     sign: float,
     wind_to_deg: np.ndarray,
+    n_lags: int = 1,
 ) -> np.ndarray:
-    """Weights of the azimuth nodes of the A-table for the lag-1 pairs present.
+    """Weights of the azimuth nodes of the A-table for the pairs of each lag present.
 
-    Each pair of neighbouring rays with both values valid counts at the angle of the
+    Each pair of rays ``l`` steps apart with both values valid counts at the angle of the
     block-mean wind's direction of motion from the scan's direction of motion at the
     pair's middle, ``sign (alpha - beta)`` (Smalikho (2020), eq. 15: the wind's component
     along the scan is ``U sin theta``); :func:`cwproc.physics.atable_interp.azimuth_bin_weights`
     shares it between the nodes. The azimuth grid of a block is that of its first scan.
+    The weights are kept per lag: pairs do not wrap from a scan's last ray to its first,
+    so a full circle lacks ``l`` of its ``M`` pair positions at lag ``l``, and where the
+    wind makes ``D`` vary strongly with azimuth (``mu`` near 1) the missing positions
+    move the mean of ``D(l)`` by several per cent (24-ray VAD, ``mu = 1``, wind fixed to
+    the scan start: +3, +5, +7 % at lags 1-3 against the circle mean; exact covariance
+    of :mod:`cwproc.sim.exact_gaussian`).
 
     Parameters
     ----------
@@ -204,15 +211,21 @@ def pair_azimuth_weights(
     Returns
     -------
     numpy.ndarray
-        ``(block, height, N_BINS)``; NaN where a block and height has no pair.
+        ``(block, height, n_lags, N_BINS)``; NaN where a block, height and lag has no pair.
     """
     starts = np.arange(0, vprime.shape[0], n_scans)
-    ok = np.isfinite(vprime[:, 1:, :] - vprime[:, :-1, :])
-    count = _block_sum(ok.astype(float), starts)  # (block, m, height)
-    m_mid = np.arange(vprime.shape[1] - 1) + 0.5
-    beta = first_azimuth_deg[:, None] + sign * dtheta_deg * m_mid[None, :]  # (block, m)
-    theta = np.radians(sign * (wind_to_deg[:, None, :] - beta[:, :, None]))
-    return azimuth_bin_weights(theta, axis=1, counts=count)
+    n_blocks, n_h = starts.size, vprime.shape[2]
+    out = np.full((n_blocks, n_h, n_lags, N_BINS), np.nan)
+    finite = np.isfinite(vprime)
+    for li in range(min(n_lags, vprime.shape[1] - 1)):
+        lag = li + 1
+        ok = finite[:, lag:, :] & finite[:, :-lag, :]
+        count = _block_sum(ok.astype(float), starts)  # (block, m, height)
+        m_mid = np.arange(vprime.shape[1] - lag) + 0.5 * lag
+        beta = first_azimuth_deg[:, None] + sign * dtheta_deg * m_mid[None, :]  # (block, m)
+        theta = np.radians(sign * (wind_to_deg[:, None, :] - beta[:, :, None]))
+        out[:, :, li] = azimuth_bin_weights(theta, axis=1, counts=count)
+    return out
 
 
 def _block_sum(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
@@ -601,7 +614,7 @@ def _block_statistics_by_chunk(
         "diff_se": np.empty((n_blocks, n_h, n_lags)),
         "variance_se": np.empty((n_blocks, n_h)),
         "covariance": np.empty((n_blocks, n_h, n_lags + 1, n_lags + 1)),
-        "weights": np.full((n_blocks, n_h, N_BINS), np.nan),
+        "weights": np.full((n_blocks, n_h, n_lags, N_BINS), np.nan),
         "snr_median": np.full((n_blocks, n_h), np.nan),
     }
     stat_names = ("sf", "pairs", "variance", "sf_se", "diff_se", "variance_se", "covariance")
@@ -638,6 +651,7 @@ def _block_statistics_by_chunk(
             grid.dtheta,
             grid.sign,
             wind_to[b0:b1],
+            n_lags,
         )
         if has_snr:
             snr = np.full_like(vprime, np.nan)
@@ -724,7 +738,10 @@ def _structure_dataset(
             ),
             "wind_speed": (("time", "height"), speed_and_direction(u_b, v_b)[0]),
             "wind_to_direction": (("time", "height"), np.mod(stats["wind_to"], 360.0)),
-            "pair_azimuth_weights": (("time", "height", "azimuth_node"), stats["weights"]),
+            "pair_azimuth_weights": (
+                ("time", "height", "lag", "azimuth_node"),
+                stats["weights"],
+            ),
             "snr_median": (("time", "height"), stats["snr_median"]),
             "azimuth_step": ("time", np.full(n_blocks, grid.dtheta)),
             "scan_period": ("time", times["scan_period"]),

@@ -515,7 +515,9 @@ def _two_beam_sf(mids_deg, *, dtheta, phi, height, eps, noise, speed, wind_to, t
     """A block's D_L from the exact two-beam model for the pairs centred on ``mids_deg``.
 
     Step-stare rays (no sweep), clockwise scan, Stream Line probe; ``wind_to`` the
-    direction the wind blows towards (deg). Returns the structure-function dataset.
+    direction the wind blows towards (deg). ``mids_deg``: one array for every lag, or a
+    list of one array per lag (the pairs of each lag), whose weights are then per lag.
+    Returns the structure-function dataset.
     """
     import math
 
@@ -527,12 +529,14 @@ def _two_beam_sf(mids_deg, *, dtheta, phi, height, eps, noise, speed, wind_to, t
     wind = speed * np.array([0.0, math.cos(a), math.sin(a)])
     q = two_beam.beam_quadrature(PROBE, rng)
     lags = np.arange(1, 4)
+    per_lag = isinstance(mids_deg, list)
+    mids = mids_deg if per_lag else [mids_deg] * lags.size
     d = np.array(
         [
             np.mean(
                 two_beam.two_beam_structure_function(
-                    mids_deg - 0.5 * lag * dtheta,
-                    mids_deg + 0.5 * lag * dtheta,
+                    mids[lag - 1] - 0.5 * lag * dtheta,
+                    mids[lag - 1] + 0.5 * lag * dtheta,
                     phi,
                     rng,
                     quadrature=q,
@@ -545,7 +549,10 @@ def _two_beam_sf(mids_deg, *, dtheta, phi, height, eps, noise, speed, wind_to, t
         ]
     )
     d = d + 2 * noise**2
-    weights = azimuth_bin_weights(np.radians(wind_to - mids_deg))
+    weights = np.stack([azimuth_bin_weights(np.radians(wind_to - m)) for m in mids])
+    dims = ("time", "height", "lag", "azimuth_node")
+    if not per_lag:
+        weights, dims = weights[0], ("time", "height", "azimuth_node")
     n_rays = round(360 / dtheta)
     return xr.Dataset(
         {
@@ -554,7 +561,7 @@ def _two_beam_sf(mids_deg, *, dtheta, phi, height, eps, noise, speed, wind_to, t
             "radial_velocity_variance": (("time", "height"), [[4.0]]),
             "wind_speed": (("time", "height"), [[speed]]),
             "wind_to_direction": (("time", "height"), [[wind_to]]),
-            "pair_azimuth_weights": (("time", "height", "azimuth_node"), weights[None, None]),
+            "pair_azimuth_weights": (dims, weights[None, None]),
             "azimuth_step": ("time", [dtheta]),
             "scan_period": ("time", [n_rays * t_ray]),
             "n_scans": ("time", [10]),
@@ -609,6 +616,29 @@ def test_step_stare_24_rays_sector_and_gap_give_epsilon(tmp_path, label, mids, s
             table_options=options,
         )
         assert abs(float(circle["epsilon"].values[0, 0]) / 0.01 - 1) > 0.04
+
+
+@pytest.mark.parametrize("wind_to", [70.0, 250.0])
+def test_full_circle_pairs_that_do_not_wrap_are_weighted_per_lag(tmp_path, wind_to):
+    """24-ray step-stare VAD whose pairs do not wrap from the last ray to the first.
+
+    Lag ``l`` lacks ``l`` pair positions, always at the scan's start; at ``mu`` 1 (15
+    m/s) the wind makes D vary strongly with azimuth, so the mean over the pairs present
+    is not the circle mean. With the weights of each lag's pairs eps is within 1 %
+    (measured 0.999-1.001 for winds towards 0-340 deg at 10 and 15 m/s); the lag-1
+    weights for every lag give 0.89 (250 deg) and 1.07 (70 deg), the circle mean 0.87
+    and 1.12.
+    """
+    mids = [7.5 * lag + 15.0 * np.arange(24 - lag) for lag in (1, 2, 3)]
+    common = dict(dtheta=15.0, phi=60.0, height=300.0, eps=0.01, noise=0.1, t_ray=3.0)
+    sf = _two_beam_sf(mids, speed=15.0, wind_to=wind_to, **common)
+    options = {"cache_dir": str(tmp_path), "height_range_m": (150.0, 600.0)}
+    kwargs = dict(probe=PROBE, lag_number=3, model="inertial", table_options=options)
+    out = estimate_epsilon(sf, **kwargs)
+    assert float(out["epsilon"].values[0, 0]) == pytest.approx(0.01, rel=0.01)
+    lag1 = sf.assign(pair_azimuth_weights=sf["pair_azimuth_weights"].isel(lag=0, drop=True))
+    old = estimate_epsilon(lag1, **kwargs)
+    assert abs(float(old["epsilon"].values[0, 0]) / 0.01 - 1) > 0.05
 
 
 @pytest.mark.slow

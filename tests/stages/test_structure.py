@@ -264,16 +264,26 @@ def test_pair_azimuth_weights_full_circle_and_sector():
 
     ds = ramp_scans(n_scans=4, rays=72)
     sf = azimuth_structure_function(ds, true_wind(ds), n_scans=4, max_lag_deg=9.0)
-    w = sf["pair_azimuth_weights"].values[0, 0]
+    assert sf["pair_azimuth_weights"].dims == ("time", "height", "lag", "azimuth_node")
+    w = sf["pair_azimuth_weights"].values[0, 0, 0]
     assert w.sum() == pytest.approx(1.0)
     # a full circle spreads the pairs evenly over the nodes (71 pairs of 72 rays)
     np.testing.assert_allclose(w, 1 / w.size, atol=0.3 / w.size)  # no wrap-around pair
+    # lag l: 72 - l pairs centred l/2 steps on from the first ray
+    wind_to = float(sf["wind_to_direction"].values[0, 0])
+    az0 = float(ds["azimuth"].values[0])
+    sign = 1.0 if (ds["azimuth"].values[1] - az0) % 360.0 < 180.0 else -1.0
+    for lag in (2, 3):
+        mids = az0 + sign * 5.0 * (np.arange(72 - lag) + 0.5 * lag)
+        expected = azimuth_bin_weights(np.radians(sign * (wind_to - mids)))
+        got = sf["pair_azimuth_weights"].values[0, 0, lag - 1]
+        np.testing.assert_allclose(got, expected, atol=1e-9)
     # a 90 deg sector: only the rays from 100 deg down to 10 deg (anticlockwise)
     az = ds["azimuth"].values
     keep = ((100.0 - az) % 360.0) <= 90.0
     sector = ds.isel(ray=np.flatnonzero(keep))
     sf_s = azimuth_structure_function(sector, true_wind(ds), n_scans=4, max_lag_deg=9.0)
-    ws = sf_s["pair_azimuth_weights"].values[0, 0]
+    ws = sf_s["pair_azimuth_weights"].values[0, 0, 0]
     wind_to = float(sf_s["wind_to_direction"].values[0, 0])
     mids = 100.0 - 5.0 * (np.arange(18) + 0.5)
     expected = azimuth_bin_weights(np.radians(-(wind_to - mids)))

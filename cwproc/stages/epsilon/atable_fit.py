@@ -107,14 +107,17 @@ def sector_evaluate(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(A_1, A_2, ratio)`` of an inertial table for blocks ``(t, h, lag)``.
 
-    ``A_2`` averaged over the azimuths of the pairs present (``weights``, NaN rows: the
-    full circle) and ``ratio`` = that over the full-circle ``A_2`` (1 where no weights):
-    the same ratio scales the finite-outer-scale ``A_2`` (whose tables carry no nodes).
+    ``A_2`` averaged over the azimuths of the pairs present (``weights``, ``(t, h, N_BINS)``
+    or per lag ``(t, h, lag, N_BINS)``; NaN rows: the full circle) and ``ratio`` = that
+    over the full-circle ``A_2`` (1 where no weights): the same ratio scales the
+    finite-outer-scale ``A_2`` (whose tables carry no nodes).
     """
     a1, a2_full = evaluate_table(
         table, lags[None, None, :], height[None, :, None], mu[:, :, None], None
     )
-    known = np.all(np.isfinite(weights), axis=-1)
+    if weights.ndim == 3:
+        weights = np.broadcast_to(weights[:, :, None, :], (*weights.shape[:2], lags.size, N_BINS))
+    known = np.all(np.isfinite(weights), axis=(-2, -1))
     ratio = np.ones(a2_full.shape)
     all_ti, all_hi = np.nonzero(known)
     for start in range(0, all_ti.size, EVALUATION_CELLS):  # bounded working memory
@@ -124,7 +127,7 @@ def sector_evaluate(
             np.broadcast_to(lags[None, :], (ti.size, lags.size)).ravel(),
             np.repeat(height[hi], lags.size),
             np.repeat(mu[ti, hi], lags.size),
-            weights=np.repeat(weights[ti, hi], lags.size, axis=0),
+            weights=weights[ti, hi].reshape(-1, N_BINS),
         )
         with np.errstate(invalid="ignore", divide="ignore"):
             ratio[ti, hi] = part.reshape(ti.size, lags.size) / a2_full[ti, hi]
@@ -138,7 +141,8 @@ def outer_scale_sector_factor(
 
     At each outer-scale node of the finite table (``tables = (inertial, finite)``), the
     average of ``A_2`` over the azimuths of the pairs present (``weights``, ``(cells,
-    N_BINS)``) relative to its circle mean is the inertial table's per-node ratio times
+    N_BINS)``, or per lag ``(cells, n_lag, N_BINS)``) relative to its circle mean is the
+    inertial table's per-node ratio times
     :meth:`cwproc.physics.atable_interp.ATable.scale_ratio`, normalised to a circle mean
     of 1 (away from the reference height the product alone is not); this is that over
     the inertial sector ratio of :func:`sector_evaluate` (1 for unknown weights and
@@ -149,12 +153,14 @@ def outer_scale_sector_factor(
     out = np.ones((height.size, scales.size, lags.size))
     if finite.scale_bins is None:
         return out
-    known = np.nonzero(np.all(np.isfinite(weights), axis=-1))[0]
+    if weights.ndim == 2:
+        weights = np.broadcast_to(weights[:, None, :], (weights.shape[0], lags.size, N_BINS))
+    known = np.nonzero(np.all(np.isfinite(weights), axis=(-2, -1)))[0]
     for start in range(0, known.size, EVALUATION_CELLS):  # bounded working memory
         c = known[start : start + EVALUATION_CELLS]
         lag_f = np.broadcast_to(lags[None, :], (c.size, lags.size)).ravel()
         h_f, mu_f = np.repeat(height[c], lags.size), np.repeat(mu[c], lags.size)
-        w_f = np.repeat(weights[c], lags.size, axis=0)
+        w_f = weights[c].reshape(-1, N_BINS)
         _, full = inertial.evaluate(lag_f, h_f, mu_f)
         _, base = inertial.evaluate(lag_f, h_f, mu_f, weights=w_f)
         for k, big_l in enumerate(scales):
@@ -202,6 +208,10 @@ def cell_a_functions(probe: Any, cells: Cells, model: str, options: dict) -> tup
             rows = (key_phi == p) & (key_dth == q)
             groups[(p, q)] = (rows, a_tables(probe, float(p), float(q), n_l, model, options))
             a1[rows], a2[rows], sector[rows] = sector_evaluate(
-                groups[(p, q)][1][0], lags, cells.height, cells.mu_eval[rows], cells.weights[rows]
+                groups[(p, q)][1][0],
+                lags,
+                cells.height,
+                cells.mu_eval[rows],
+                cells.lag_weights[rows],
             )
     return a1, a2, sector, groups

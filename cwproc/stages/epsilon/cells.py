@@ -36,7 +36,10 @@ class Cells:
     mu_eval : ``mu`` with NaN as 0 (for evaluations).
     scans : (time,) scans per block; ``requested`` the scans per block asked for.
     interval : (time,) time between scan starts over ``T_scan`` (1: consecutive circles).
-    weights : (time, height, N_BINS) azimuth-node weights of the pairs, NaN if unknown.
+    weights : (time, height, N_BINS) azimuth-node weights of the lag-1 pairs (the rays
+        of the scan: sectors and gaps), NaN if unknown.
+    lag_weights : (time, height, lag, N_BINS) the same for the pairs of each lag (their
+        mean of ``A_2``), NaN if unknown.
     """
 
     d: np.ndarray
@@ -56,6 +59,7 @@ class Cells:
     requested: float
     interval: np.ndarray
     weights: np.ndarray
+    lag_weights: np.ndarray
 
     @property
     def n_lags(self) -> int:
@@ -75,6 +79,7 @@ def cell_inputs(sf: xr.Dataset, probe: Any) -> Cells:
     """
     d = sf["structure_function"].transpose("time", "height", "lag").values.astype(float)
     n_t, n_h, _ = d.shape
+    lag_weights = pair_weights(sf)
     height = sf["height"].values.astype(float)
     phi = sf["elevation"].values.astype(float)
     dtheta = sf["azimuth_step"].values.astype(float)
@@ -116,19 +121,25 @@ def cell_inputs(sf: xr.Dataset, probe: Any) -> Cells:
         scans=scans,
         requested=requested,
         interval=interval,
-        weights=pair_weights(sf),
+        weights=lag_weights[:, :, 0, :],
+        lag_weights=lag_weights,
     )
 
 
 def pair_weights(sf: xr.Dataset) -> np.ndarray:
-    """``(time, height, node)`` azimuth-node weights of the pairs present, NaN if unknown.
+    """``(time, height, lag, node)`` azimuth-node weights of the pairs present, NaN if unknown.
 
-    From ``pair_azimuth_weights`` of :func:`cwproc.stages.structure.azimuth_structure_function`;
-    NaN (the full circle is used) for a structure function without it.
+    From ``pair_azimuth_weights`` of :func:`cwproc.stages.structure.azimuth_structure_function`
+    (per lag); weights without a ``lag`` dimension (lag-1 pairs) serve every lag; NaN (the
+    full circle is used) for a structure function without them.
     """
-    if "pair_azimuth_weights" in sf:
-        return sf["pair_azimuth_weights"].transpose("time", "height", ...).values.astype(float)
-    return np.full((sf.sizes["time"], sf.sizes["height"], N_BINS), np.nan)
+    n_l = sf.sizes["lag"]
+    if "pair_azimuth_weights" not in sf:
+        return np.full((sf.sizes["time"], sf.sizes["height"], n_l, N_BINS), np.nan)
+    weights = sf["pair_azimuth_weights"]
+    if "lag" not in weights.dims:
+        weights = weights.expand_dims(lag=sf["lag"].values)
+    return weights.transpose("time", "height", "lag", ...).values.astype(float)
 
 
 def predicted_noise(sf: xr.Dataset, probe: Any) -> np.ndarray:

@@ -343,10 +343,11 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
     dtheta = np.repeat(cells.dtheta[rows], n_h)
     part = np.nonzero(partial_circle(weights, dtheta))[0]
     log_a2 = table.log_a2.copy()
+    # the outer scale's own ratio over the azimuths of each lag's pairs (uniform weights:
+    # 1 by construction; a full circle's pairs do not wrap, so lag l lacks l positions)
+    lag_weights = cells.lag_weights[rows].reshape(-1, *cells.lag_weights.shape[-2:])
+    log_a2 += np.log(outer_scale_sector_factor(tables, lags, height, mu, lag_weights))
     if part.size:
-        # the outer scale's own sector ratio (full circles: 1 by construction)
-        factor = outer_scale_sector_factor(tables, lags, height[part], mu[part], weights[part])
-        log_a2[part] += np.log(factor)
         # sectors and gaps: the block-mean VAD fit also takes part of D(l)
         scans = np.repeat(cells.scans[rows], n_h)[part]
         nodes = tables[1].outer_scales_m
