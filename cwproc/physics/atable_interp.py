@@ -203,17 +203,48 @@ class ATable:
         if weights is not None and self.bins_a2 is not None:
             wb = np.broadcast_to(np.asarray(weights, float), (*shape, N_BINS))
             wb = wb.reshape(-1, N_BINS)
-            r_h = np.einsum("lukjmc,uk->lujmc", self.bins_a2[:, ihu], whu)
-            flat = r_h.reshape(-1, N_BINS)
-            idx = base[:, :, None] * n_m + im[:, None, :]  # (q, a, 4)
-            vals = flat[idx.ravel()].reshape(*idx.shape, N_BINS)  # (q, a, 4, bins)
-            ratio = np.einsum("qa,qacn,qc->qn", wl, vals, wm, optimize=True)
+            ratio = self._node_ratio((ihu, whu), base, (im, wm), wl)
             log2 = log2 + np.log(np.maximum(np.sum(ratio * wb, axis=-1), 1e-12))
         ok1 = lag_ok & vh & vl
         ok2 = ok1 & vm
         out1 = np.where(ok1, np.exp(log1), np.nan).reshape(shape)
         out2 = np.where(ok2, np.exp(log2), np.nan).reshape(shape)
         return out1, out2
+
+    def _node_ratio(self, height: tuple, base: np.ndarray, mu: tuple, wl: np.ndarray) -> np.ndarray:
+        """``(q, N_BINS)`` ``bins_a2`` interpolated: height stencil ``(ihu, whu)`` of the
+        distinct heights, ``base`` ``(q, a)`` flat (outer scale, height, lag) rows, ``mu``
+        stencil ``(im, wm)`` and outer-scale weights ``wl`` (as :meth:`evaluate`)."""
+        ihu, whu = height
+        im, wm = mu
+        r_h = np.einsum("lukjmc,uk->lujmc", self.bins_a2[:, ihu], whu)
+        flat = r_h.reshape(-1, N_BINS)
+        idx = base[:, :, None] * self.mu.size + im[:, None, :]  # (q, a, 4)
+        vals = flat[idx.ravel()].reshape(*idx.shape, N_BINS)  # (q, a, 4, bins)
+        return np.einsum("qa,qacn,qc->qn", wl, vals, wm, optimize=True)
+
+    def node_ratio(self, lags: ArrayLike, height_m: ArrayLike, mu: ArrayLike) -> np.ndarray:
+        """``(..., N_BINS)``: ``A_2`` at each azimuth node over its circle mean (inertial).
+
+        The factor :meth:`evaluate` applies for ``weights`` (``A_2(weights) = A_2 *
+        sum(node_ratio * weights)``), for callers that weight the same cells many times.
+        Inputs broadcast; 1 for tables without bins.
+        """
+        lags_b, h_b, mu_b = np.broadcast_arrays(
+            np.asarray(lags, float), np.asarray(height_m, float), np.asarray(mu, float)
+        )
+        shape = lags_b.shape
+        if self.bins_a2 is None:
+            return np.ones((*shape, N_BINS))
+        lag = lags_b.ravel()
+        li = np.clip(np.nan_to_num(lag, nan=1.0), 1, self.n_lags).astype(int) - 1
+        h_unique, h_inverse = np.unique(h_b.ravel(), return_inverse=True)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ihu, whu, _ = lagrange4(np.log(self.heights_m), np.log(h_unique))
+            im, wm, _ = lagrange4(self.mu, mu_b.ravel())
+        base = (h_inverse.ravel() * self.n_lags + li)[:, None]  # one (nan) outer-scale node
+        ratio = self._node_ratio((ihu, whu), base, (im, wm), np.ones((lag.size, 1)))
+        return ratio.reshape(*shape, N_BINS)
 
     def at_cells(self, lags: ArrayLike, height_m: ArrayLike, mu: ArrayLike) -> CellTable:
         """This table interpolated in height and ``mu`` to fixed cells, kept over ``L_V``.

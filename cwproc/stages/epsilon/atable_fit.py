@@ -161,14 +161,16 @@ def outer_scale_sector_factor(
         lag_f = np.broadcast_to(lags[None, :], (c.size, lags.size)).ravel()
         h_f, mu_f = np.repeat(height[c], lags.size), np.repeat(mu[c], lags.size)
         w_f = weights[c].reshape(-1, N_BINS)
-        _, full = inertial.evaluate(lag_f, h_f, mu_f)
-        _, base = inertial.evaluate(lag_f, h_f, mu_f, weights=w_f)
+        # A_2(w) / A_2(circle) = sum(r w): the inertial node ratio r once, then per node
+        # of L_V the outer scale's factor q on it
+        ratio = inertial.node_ratio(lag_f, h_f, mu_f)
+        base = np.sum(ratio * w_f, axis=-1)
         for k, big_l in enumerate(scales):
-            q = finite.scale_ratio(lag_f, h_f, mu_f, big_l)
-            _, part = inertial.evaluate(lag_f, h_f, mu_f, weights=w_f * q)
-            _, circle = inertial.evaluate(lag_f, h_f, mu_f, weights=q / N_BINS)
+            rq = ratio * finite.scale_ratio(lag_f, h_f, mu_f, big_l)
+            part = np.sum(rq * w_f, axis=-1)
+            circle = np.sum(rq, axis=-1) / N_BINS
             with np.errstate(invalid="ignore", divide="ignore"):
-                out[c, k] = (part * full / (base * circle)).reshape(c.size, lags.size)
+                out[c, k] = (part / (base * circle)).reshape(c.size, lags.size)
     return np.where(np.isfinite(out) & (out > 0), out, 1.0)
 
 
