@@ -24,6 +24,7 @@ from cwproc.physics.removed_share import (
     partial_circle,
     sector_removed_d,
     sector_removed_share,
+    transport_mu,
 )
 from cwproc.physics.structure_fit import fit_structure_function
 from cwproc.stages.epsilon.atable_fit import EVALUATION_CELLS, outer_scale_sector_factor
@@ -373,11 +374,14 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
         )
     circle = np.nonzero(~partial & np.isfinite(dtheta) & (dtheta > 0))[0]
     if circle.size:
+        # the field's transport between the scans: the measured mu less its turbulent bias
+        var, v_s = cells.var_raw[rows].ravel()[circle], cells.v_s[rows].ravel()[circle]
+        mu_t = transport_mu(mu[circle], ratio[circle], var, v_s, scans[circle], phi, model)
         removed[circle] = circle_removed_d(
             np.radians(dtheta[circle]),
             lags.size,
             ratio[circle],
-            mu[circle],
+            mu_t,
             interval[circle],
             scans[circle],
             phi,
