@@ -475,8 +475,9 @@ def transport_mu(
     by twice that. ``mu_t = sqrt(max(mu^2 - 2 S var / (N cos^2 phi V_s^2), 0))``, ``var``
     the variance of V'_L standing for sigma_V^2. On exact 24-ray statistics of a field at
     rest (``R'/L_V`` 0.71) the measured ``mu`` was 0.006-0.038 (5-95 %), the bias
-    ``sqrt(2 S var/N)/(V_s cos phi)`` 0.024: without the correction the frozen transport
-    between the scans made them nearly the same field, and eps 7 % high.
+    ``sqrt(2 S var/N)/(V_s cos phi)`` 0.027 (exact: 0.025): without the correction the
+    frozen transport between the scans made them nearly the same field, and eps 4-7 % high
+    (36 and 24 rays).
 
     Parameters
     ----------
