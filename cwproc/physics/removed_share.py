@@ -549,23 +549,26 @@ def circle_removed_d(
     return out
 
 
-def _sector_rays(weights: np.ndarray, step_rad: float) -> np.ndarray:
-    """Scan angles (rad, from the scan's first node) of the rays of a sector scan.
+def _sector_rays(weights: np.ndarray, step_rad: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``(rays, centre, start)`` per cell: the rays of a sector scan from its node weights.
 
     The pairs' node weights spread each lag-1 pair over two nodes ``Delta`` apart
     (variance ``Delta^2 / 6`` on average); a uniform sector of width ``W`` adds ``W^2 /
-    12``: ``W`` and the centre from the weighted mean and variance of the phase, then
-    rays ``step_rad`` apart over ``W + step_rad``. The centre is rounded to 0.01 rad
-    (0.6 deg), so that the sectors of a day fall into few configurations.
+    12``: ``W`` and the centre (scan angle from the first node ``start``, rad) from the
+    weighted mean and variance of the phase, then ``rays`` rays ``step_rad`` apart over
+    ``W + step_rad``. The centre is rounded to 0.01 rad (0.6 deg), so that the sectors of
+    a day fall into few configurations.
     """
     occupied = weights > 1e-12
-    phase = _scan_start_phase(occupied[None])[0]
-    w = np.where(occupied, weights, 0.0) / weights[occupied].sum()
-    centre = round(float(np.sum(w * phase)), 2)
-    spread = float(np.sum(w * (phase - centre) ** 2)) - (2.0 * np.pi / N_BINS) ** 2 / 6.0
-    width = math.sqrt(12.0 * max(spread, 0.0))
-    n_rays = max(round(width / step_rad) + 1, 2)
-    return centre + step_rad * (np.arange(n_rays) - 0.5 * (n_rays - 1))
+    start = np.argmax(np.where(occupied, _empty_runs(occupied), -1), axis=-1)
+    phase = _scan_start_phase(occupied)
+    w = np.where(occupied, weights, 0.0)
+    w = w / w.sum(-1, keepdims=True)
+    centre = np.round(np.sum(w * phase, -1), 2)
+    spread = np.sum(w * (phase - centre[:, None]) ** 2, -1) - (2.0 * np.pi / N_BINS) ** 2 / 6.0
+    width = np.sqrt(12.0 * np.maximum(spread, 0.0))
+    rays = np.maximum(np.rint(width / step_rad) + 1, 2)
+    return rays, centre, start
 
 
 def sector_removed_d(
@@ -611,22 +614,25 @@ def sector_removed_d(
     """
     th = azimuth_nodes()
     out = np.zeros((*ratio.shape, n_lags))
-    keys = np.full((weights.shape[0], 6), np.nan)
-    for c in range(weights.shape[0]):
-        w = np.nan_to_num(weights[c])
-        phase = _sector_rays(w, float(step_rad[c]))
-        start = int(np.argmax(np.where(w > 1e-12, _empty_runs((w > 1e-12)[None])[0], -1)))
-        centre = 0.5 * (phase[0] + phase[-1])
-        keys[c] = (phase.size, centre, float(step_rad[c]), start, n_scans[c], interval[c])
-    keys[:, 2] = np.round(keys[:, 2], 5)
-    keys[:, 4:] = np.stack([np.rint(keys[:, 4]), np.round(keys[:, 5], 2)], -1)
-    for (rays, centre, step, start, scans, inter), at in _configurations(keys):
-        if rays > MAX_SECTOR_RAYS or scans < 1:
+    rays, centre, start = _sector_rays(np.nan_to_num(weights), np.asarray(step_rad, float))
+    keys = np.stack(
+        [
+            rays,
+            centre,
+            np.round(step_rad, 5),
+            start,
+            np.rint(n_scans),
+            np.round(interval, 2),
+        ],
+        -1,
+    )
+    for (n_rays, mid, step, first, scans, inter), at in _configurations(keys):
+        if n_rays > MAX_SECTOR_RAYS or scans < 1:
             continue  # a gappy circle: the fit's harmonics vary little over a pair
-        phase = centre + step * (np.arange(int(rays)) - 0.5 * (rays - 1))
+        phase = mid + step * (np.arange(int(n_rays)) - 0.5 * (n_rays - 1))
         grid = _removed_d_grid(
             tuple(phase.tolist()),
-            (float(-th[int(start)]),),
+            (float(-th[int(first)]),),
             n_lags,
             int(scans),
             float(inter),

@@ -18,6 +18,7 @@ import numpy as np
 from cwproc.physics import spectra
 from cwproc.physics.probe_variance import averaging_loss, passed_variance
 from cwproc.physics.removed_share import (
+    MAX_SECTOR_RAYS,
     circle_removed_d,
     interp_log_scale,
     mean_removed_share,
@@ -372,7 +373,9 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
             phi,
             model,
         )
-    circle = np.nonzero(~partial & np.isfinite(dtheta) & (dtheta > 0))[0]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        few = np.rint(360.0 / dtheta) <= MAX_SECTOR_RAYS  # longer circles: no removal in D
+    circle = np.nonzero(~partial & np.isfinite(dtheta) & (dtheta > 0) & few)[0]
     if circle.size:
         # the field's transport between the scans: the measured mu less its turbulent bias
         var, v_s = cells.var_raw[rows].ravel()[circle], cells.v_s[rows].ravel()[circle]
