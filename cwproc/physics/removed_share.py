@@ -406,7 +406,7 @@ def _removed_d_grid(
     beta = np.asarray(offsets)[:, None] + ph[None, :]
     design = np.stack([np.ones(ph.size), np.cos(ph), np.sin(ph)], -1)  # H: rotation-invariant
     hat = design @ np.linalg.pinv(design.T @ design) @ design.T
-    return np.stack(
+    grid = np.stack(
         [
             _lag_shares(
                 hat,
@@ -425,6 +425,8 @@ def _removed_d_grid(
             for mu in REMOVED_D_MU
         ]
     )
+    grid.flags.writeable = False  # shared by every caller through the cache
+    return grid
 
 
 def _grid_at(grid: np.ndarray, mu: np.ndarray, ratio: np.ndarray) -> np.ndarray:
