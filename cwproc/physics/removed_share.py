@@ -252,47 +252,325 @@ def sector_removed_share(
     return out
 
 
+#: nodes of the correlation table per node step of :data:`REMOVED_D_X` (in ``ln r``)
+_CURVE_PER_X = 16
+
+
+@functools.lru_cache(maxsize=4)
+def _correlation_nodes(model: str) -> tuple[float, float, np.ndarray, np.ndarray]:
+    """``(ln r_0, d ln r, G, dG)``: ``g`` and ``f - g`` of ``model`` at ``r x`` for the
+    ``x`` of :data:`REMOVED_D_X` on a grid of ``r`` (units of ``R'``, 1e-6 to 1e4) uniform
+    in ``ln r``.
+
+    ``G`` is ``(r node, 2, x)`` and ``dG`` its step to the next ``r`` node (float32): the
+    step is that of :data:`REMOVED_D_X` over :data:`_CURVE_PER_X`, so that the ``x``
+    nodes of a separation share one row of the table.
+    """
+    step = math.log(REMOVED_D_X[1] / REMOVED_D_X[0]) / _CURVE_PER_X
+    lo = math.log(1e-6)
+    n = math.ceil((math.log(1e4) - lo) / step) + 2
+    lr = lo + step * np.arange(n)[:, None] + np.log(REMOVED_D_X)[None, :]
+    f, g = spectra.correlation_functions(np.exp(lr), model, 1.0)
+    table = np.stack([g, f - g], 1)  # (r, 2, x)
+    return lo, step, table.astype(np.float32), np.diff(table, axis=0).astype(np.float32)
+
+
 def _point_correlation(
-    p: np.ndarray, q: np.ndarray, sp: np.ndarray, sq: np.ndarray, tables: tuple
+    p: np.ndarray, q: np.ndarray, sp: np.ndarray, sq: np.ndarray, model: str
 ) -> np.ndarray:
     """``(..., x)``: correlation of point beams ``sp`` at ``p`` and ``sq`` at ``q`` (R' units).
 
-    Banakh et al. (1999), eqs. 15-16 with the isotropic tensor (``tables`` of
-    :func:`_correlation_curve`) at ``r/L_V = |p - q| x`` for each ``x`` of
-    :data:`_SECTOR_X`.
+    ``g(r) s_p.s_q + [f(r) - g(r)] (s_p.e)(s_q.e)``, ``e`` along ``p - q``: Banakh et al.
+    (1999), eqs. 15-16 with the isotropic tensor of ``model`` at ``r/L_V = |p - q| x`` for
+    each ``x`` of :data:`REMOVED_D_X` (linear in ``ln r`` between the nodes of
+    :func:`_correlation_nodes`; float32).
     """
-    log_r, f_c, g_c = tables
+    lo, step, table, slope = _correlation_nodes(model)
     r_vec = p - q
     r = np.linalg.norm(r_vec, axis=-1)
     unit = r_vec / np.where(r > 0, r, 1.0)[..., None]
     proj = np.sum(unit * sp, -1) * np.sum(unit * sq, -1)
     dot = np.sum(sp * sq, -1)
-    lr = np.log(np.maximum(r[..., None] * _SECTOR_X, 1e-5))
-    f, g = np.interp(lr, log_r, f_c), np.interp(lr, log_r, g_c)
-    return g * dot[..., None] + (f - g) * proj[..., None]
+    with np.errstate(divide="ignore"):
+        pos = np.clip(np.nan_to_num((np.log(r) - lo) / step, neginf=0.0), 0.0, slope.shape[0] - 1)
+    i0 = np.floor(pos).astype(int)
+    frac = (pos - i0).astype(np.float32)[..., None]
+    weights = np.stack(np.broadcast_arrays(dot, proj), -1).astype(np.float32)  # (..., 2)
+    b = np.einsum("...k,...kx->...x", weights, table[i0] + frac[..., None] * slope[i0])
+    return np.where((r < 1e-6)[..., None], dot[..., None], b)  # the same point: s_p.s_q
 
 
-#: rays per scan beyond which :func:`sector_removed_d` leaves D(l) alone (its cost grows
-#: as the square: 40 ms per cell at 46 rays, 0.5 s at 150; gaps of long continuous scans)
+#: rays per scan beyond which :func:`sector_removed_d` and :func:`circle_removed_d` leave
+#: D(l) alone (the cost of a configuration grows as the square of the rays)
 MAX_SECTOR_RAYS = 60
 
+#: nodes of mu = U/V_s of the removal in D(l) (:func:`_removed_d_grid`; linear
+#: interpolation): dense below 1, where the scans of a block decorrelate (their VAD winds
+#: are ``2 pi mu R' T_int/T_scan`` apart)
+REMOVED_D_MU = np.array([0.0, 0.05, 0.1, 0.2, 0.3, 0.45, 0.6, 0.8, 1.0, 1.4, 2.0, 3.0, 5.0, 10.0])
 
-def _sector_rays(weights: np.ndarray, step_rad: float) -> np.ndarray:
-    """Scan angles (rad, from the scan's first node) of the rays of a sector scan.
+#: nodes of x = R'/L_V of the removal in D(l) (log-log interpolation: within 4 % of the
+#: direct value between the nodes, 11-15 % with the 9 nodes of :data:`_SECTOR_X`)
+REMOVED_D_X = np.geomspace(1e-2, 1e2, 17)
+
+#: wind directions (from the scan's first ray) averaged in :func:`circle_removed_d`
+CIRCLE_DIRECTIONS = 8
+
+
+def _block_correlation(
+    beta: np.ndarray,
+    phase: np.ndarray,
+    mu: float,
+    n_scans: int,
+    interval: float,
+    phi_deg: float,
+    model: str,
+    frozen_at_rest: bool,
+) -> np.ndarray:
+    """``(i, j, x)``: block-mean correlation of ray ``i`` of a scan and ray ``j`` of the block.
+
+    ``sum_m (N - |m|)/N^2 b_ij(m)``, ``b_ij(m)`` the correlation (over ``sigma_V^2``) of
+    point beam ``i`` of scan ``n`` and ``j`` of scan ``n + m`` (Banakh et al. (1999), eqs.
+    15-16), each seen at its own time in the field the wind (towards ``+x``) carries:
+    ``mu R'`` per radian scanned and ``2 pi mu R' T_int/T_scan`` per scan (Smalikho (2020),
+    eq. 3). ``beta`` ``(d, i)``: ray azimuths (rad) from the wind-to direction for ``d``
+    wind directions (averaged); ``phase`` ``(i,)``: scan angle (rad) from the first ray.
+    ``b_ij(-m) = b_ji(m)`` (stationarity): only ``m >= 0`` are evaluated. At ``mu = 0``
+    the scans are the same field (``frozen_at_rest``) or independent (the no-transport
+    limit of Smalikho (2020), where the field renews between scans).
+    """
+    ph = math.radians(phi_deg)
+    wind = np.array([1.0, 0.0, 0.0])
+    pos = np.stack([np.cos(beta), np.sin(beta), np.zeros(beta.shape)], -1)
+    pos = pos - (mu * phase)[None, :, None] * wind  # (d, i, 3), R' units
+    beam = np.stack(
+        [
+            math.cos(ph) * np.cos(beta),
+            math.cos(ph) * np.sin(beta),
+            np.full(beta.shape, math.sin(ph)),
+        ],
+        -1,
+    )
+    m = np.arange(n_scans if mu > 0 else 1)
+    shift = (mu * 2.0 * np.pi * interval * m)[:, None, None, None] * wind  # (m, 1, 1, 3)
+    b = _point_correlation(
+        pos[:, None, :, None] - shift,
+        pos[:, None, None, :],
+        beam[:, None, :, None],
+        beam[:, None, None, :],
+        model,
+    ).mean(axis=0)  # (m, i, j, x): ray i of scan n + m against ray j of scan n
+    if mu == 0:
+        return b[0] if frozen_at_rest else b[0] / n_scans
+    later = np.einsum("m,mijx->ijx", (n_scans - m[1:]) / n_scans**2, b[1:])
+    return b[0] / n_scans + later + np.swapaxes(later, 0, 1)
+
+
+def _lag_shares(hat: np.ndarray, rho: np.ndarray, n_lags: int) -> np.ndarray:
+    """``(x, n_lags)``: ``(2 C - Q)/sigma_V^2`` averaged over the pairs ``l`` rays apart.
+
+    ``C = E[(V_a - V_b)(P_a - P_b)]``, ``Q = E[(P_a - P_b)^2]`` with ``P = H <V>_N`` the
+    block-mean VAD wind at the rays (``hat`` the projection of one scan, ``rho`` of
+    :func:`_block_correlation`); pairs within a scan, not wrapping round.
+    """
+    out = np.zeros((rho.shape[-1], n_lags))
+    for li in range(min(n_lags, hat.shape[0] - 1)):
+        a = np.arange(hat.shape[0] - li - 1)
+        b = a + li + 1
+        u = hat[a] - hat[b]  # (pairs, j): P_a - P_b per V_j
+        cross = np.einsum("pj,pjx->px", u, rho[a] - rho[b])
+        quad = np.einsum("pj,pk,jkx->px", u, u, rho)
+        out[:, li] = np.mean(2.0 * cross - quad, axis=0)
+    return out
+
+
+@functools.lru_cache(maxsize=256)
+def _removed_d_grid(
+    phase: tuple[float, ...],
+    offsets: tuple[float, ...],
+    n_lags: int,
+    n_scans: int,
+    interval: float,
+    phi_deg: float,
+    model: str,
+    frozen_at_rest: bool,
+) -> np.ndarray:
+    """``(mu, x, n_lags)``: the removal in D(l) of one configuration on the nodes.
+
+    :data:`REMOVED_D_MU` x :data:`REMOVED_D_X`; rays at scan angles ``phase`` (rad from the
+    first ray), whose azimuth from the wind-to direction is each of ``offsets`` (averaged:
+    one for a sector, :data:`CIRCLE_DIRECTIONS` for a circle); ``frozen_at_rest`` as
+    :func:`_block_correlation`. Cached per configuration.
+    """
+    ph = np.asarray(phase)
+    beta = np.asarray(offsets)[:, None] + ph[None, :]
+    design = np.stack([np.ones(ph.size), np.cos(ph), np.sin(ph)], -1)  # H: rotation-invariant
+    hat = design @ np.linalg.pinv(design.T @ design) @ design.T
+    grid = np.stack(
+        [
+            _lag_shares(
+                hat,
+                _block_correlation(
+                    beta[: 1 if mu == 0 else None],
+                    ph,
+                    mu,
+                    n_scans,
+                    interval,
+                    phi_deg,
+                    model,
+                    frozen_at_rest,
+                ),
+                n_lags,
+            )
+            for mu in REMOVED_D_MU
+        ]
+    )
+    grid.flags.writeable = False  # shared by every caller through the cache
+    return grid
+
+
+def _grid_at(grid: np.ndarray, mu: np.ndarray, ratio: np.ndarray) -> np.ndarray:
+    """``(cells, k, n_lags)``: ``grid`` (mu, x, lag) at ``mu`` and ``ratio`` ``(cells, k)``.
+
+    ``mu`` ``(cells,)`` or ``(cells, k)``; linear in ``mu`` (clipped to the nodes), log-log
+    in ``R'/L_V`` (clipped; linear in ``log(R'/L_V)`` where a node is not positive).
+    """
+    m = np.clip(np.nan_to_num(np.asarray(mu, float), nan=0.0), 0.0, REMOVED_D_MU[-1])
+    m = np.broadcast_to(m if m.ndim == ratio.ndim else m[:, None], ratio.shape)
+    j = np.clip(np.searchsorted(REMOVED_D_MU, m, side="right") - 1, 0, REMOVED_D_MU.size - 2)
+    w = ((m - REMOVED_D_MU[j]) / (REMOVED_D_MU[j + 1] - REMOVED_D_MU[j]))[..., None]
+    lx = np.log(REMOVED_D_X)
+    pos = (np.log(np.clip(ratio, REMOVED_D_X[0], REMOVED_D_X[-1])) - lx[0]) / (lx[1] - lx[0])
+    i0 = np.clip(np.floor(pos).astype(int), 0, lx.size - 2)  # (cells, k)
+    frac = (pos - i0)[..., None]
+    lo = (1.0 - w) * grid[j, i0] + w * grid[j + 1, i0]  # (cells, k, lag)
+    hi = (1.0 - w) * grid[j, i0 + 1] + w * grid[j + 1, i0 + 1]
+    positive = (lo > 0) & (hi > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        log_log = np.exp((1.0 - frac) * np.log(lo) + frac * np.log(hi))
+    return np.where(positive, log_log, (1.0 - frac) * lo + frac * hi)
+
+
+def _configurations(keys: np.ndarray) -> list[tuple[tuple, np.ndarray]]:
+    """Distinct rows of ``keys (cells, n)`` with the cells of each."""
+    uniq, inverse = np.unique(keys, axis=0, return_inverse=True)
+    return [
+        (tuple(uniq[u].tolist()), np.nonzero(inverse.ravel() == u)[0]) for u in range(len(uniq))
+    ]
+
+
+def transport_mu(
+    mu: np.ndarray,
+    ratio: np.ndarray,
+    variance: np.ndarray,
+    v_s: np.ndarray,
+    n_scans: np.ndarray,
+    phi_deg: float,
+    model: str,
+) -> np.ndarray:
+    """``(cells, k)``: ``U/V_s`` of the field's transport, the measured ``mu`` less its bias.
+
+    The block-mean VAD wind of turbulence at rest is not zero: the fit of one full circle
+    takes the share ``S`` of sigma_V^2 (:func:`mean_removed_share` at ``mu = 0``), nearly
+    all of it in the horizontal wind, so each horizontal component of the mean of N
+    independent scans scatters with ``S sigma_V^2 / (N cos^2 phi)`` and ``|U|^2`` is biased
+    by twice that. ``mu_t = sqrt(max(mu^2 - 2 S var / (N cos^2 phi V_s^2), 0))``, ``var``
+    the variance of V'_L standing for sigma_V^2. On exact 24-ray statistics of a field at
+    rest (``R'/L_V`` 0.71) the measured ``mu`` was 0.006-0.038 (5-95 %), the bias
+    ``sqrt(2 S var/N)/(V_s cos phi)`` 0.027 (exact: 0.025): without the correction the
+    frozen transport between the scans made them nearly the same field, and eps 4-7 % high
+    (36 and 24 rays).
+
+    Parameters
+    ----------
+    mu : numpy.ndarray
+        ``(cells,)`` measured ``U/V_s``.
+    ratio : numpy.ndarray
+        ``(cells, k)`` values of ``R'/L_V``.
+    variance, v_s, n_scans : numpy.ndarray
+        ``(cells,)`` variance of V'_L (m2 s-2), ``V_s`` (m s-1), scans per block.
+    """
+    share = mean_removed_share(ratio, phi_deg, model, 0.0)
+    cos2 = math.cos(math.radians(phi_deg)) ** 2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        bias = 2.0 * share * (variance / (n_scans * cos2 * v_s**2))[:, None]
+    mu_t = np.sqrt(np.maximum(np.asarray(mu, float)[:, None] ** 2 - np.nan_to_num(bias), 0.0))
+    return np.nan_to_num(mu_t, nan=0.0)
+
+
+def circle_removed_d(
+    step_rad: np.ndarray,
+    n_lags: int,
+    ratio: np.ndarray,
+    mu: np.ndarray,
+    interval: np.ndarray,
+    n_scans: np.ndarray,
+    phi_deg: float,
+    model: str,
+) -> np.ndarray:
+    """``(cells, k, n_lags)``: share of sigma_V^2 the block-mean VAD wind takes from ``D(l)``
+    of full-circle scans (``M = 2 pi / dtheta`` rays, e.g. 24- and 36-ray VADs).
+
+    ``(2 C - Q)/sigma_V^2`` of :func:`sector_removed_d` for the rays of a circle (pairs
+    within a scan, not wrapping from the last ray to the first), each at its own time,
+    scans ``T_int`` apart; averaged over :data:`CIRCLE_DIRECTIONS` wind directions from
+    the scan's first ray (the structure function holds no azimuth of a scan's start, and
+    at 24 rays, ``mu`` 1, the removal varies by a few percent of itself over them).
+    Tabulated once per ``(M, N, T_int/T_scan, phi, model)`` on :data:`REMOVED_D_MU` x
+    :data:`REMOVED_D_X` and interpolated (:func:`_removed_d_grid`). Against the exact
+    covariance of a 24-ray step-stare VAD (10 scans back to back, ``R'/L_V`` 0.71, ``mu``
+    0) the block-mean fit removes 0.25/0.98/2.1 % of sigma_V^2 from D at lags 1-3.
+    Scans of more than :data:`MAX_SECTOR_RAYS` rays give 0.
+
+    Parameters
+    ----------
+    step_rad : numpy.ndarray
+        ``(cells,)`` azimuth step ``dtheta`` (rad).
+    n_lags : int
+        Lags ``l = 1..n_lags``.
+    ratio : numpy.ndarray
+        ``(cells, k)`` values of ``R'/L_V``.
+    mu : numpy.ndarray
+        ``(cells,)`` or ``(cells, k)``: ``U/V_s`` of the transport (:func:`transport_mu`);
+        at 0 the scans are independent, the no-transport limit of Smalikho (2020).
+    interval, n_scans : numpy.ndarray
+        ``(cells,)`` as :func:`sector_removed_share`.
+    """
+    out = np.zeros((*ratio.shape, n_lags))
+    n_rays = np.rint(2.0 * np.pi / np.asarray(step_rad, float))
+    keys = np.stack([n_rays, np.rint(n_scans), np.round(interval, 2)], -1)
+    offsets = tuple(2.0 * np.pi * np.arange(CIRCLE_DIRECTIONS) / CIRCLE_DIRECTIONS)
+    for (rays, scans, inter), at in _configurations(keys):
+        if not (2 <= rays <= MAX_SECTOR_RAYS) or scans < 1:
+            continue
+        phase = tuple(2.0 * np.pi * np.arange(int(rays)) / rays)
+        grid = _removed_d_grid(
+            phase, offsets, n_lags, int(scans), float(inter), round(float(phi_deg), 2), model, False
+        )
+        out[at] = _grid_at(grid, mu[at], ratio[at])
+    return out
+
+
+def _sector_rays(weights: np.ndarray, step_rad: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``(rays, centre, start)`` per cell: the rays of a sector scan from its node weights.
 
     The pairs' node weights spread each lag-1 pair over two nodes ``Delta`` apart
     (variance ``Delta^2 / 6`` on average); a uniform sector of width ``W`` adds ``W^2 /
-    12``: ``W`` and the centre from the weighted mean and variance of the phase, then
-    rays ``step_rad`` apart over ``W + step_rad``.
+    12``: ``W`` and the centre (scan angle from the first node ``start``, rad) from the
+    weighted mean and variance of the phase, then ``rays`` rays ``step_rad`` apart over
+    ``W + step_rad``. The centre is rounded to 0.01 rad (0.6 deg), so that the sectors of
+    a day fall into few configurations.
     """
     occupied = weights > 1e-12
-    phase = _scan_start_phase(occupied[None])[0]
-    w = np.where(occupied, weights, 0.0) / weights[occupied].sum()
-    centre = float(np.sum(w * phase))
-    spread = float(np.sum(w * (phase - centre) ** 2)) - (2.0 * np.pi / N_BINS) ** 2 / 6.0
-    width = math.sqrt(12.0 * max(spread, 0.0))
-    n_rays = max(round(width / step_rad) + 1, 2)
-    return centre + step_rad * (np.arange(n_rays) - 0.5 * (n_rays - 1))
+    start = np.argmax(np.where(occupied, _empty_runs(occupied), -1), axis=-1)
+    phase = _scan_start_phase(occupied)
+    w = np.where(occupied, weights, 0.0)
+    w = w / w.sum(-1, keepdims=True)
+    centre = np.round(np.sum(w * phase, -1), 2)
+    spread = np.sum(w * (phase - centre[:, None]) ** 2, -1) - (2.0 * np.pi / N_BINS) ** 2 / 6.0
+    width = np.sqrt(12.0 * np.maximum(spread, 0.0))
+    rays = np.maximum(np.rint(width / step_rad) + 1, 2)
+    return rays, centre, start
 
 
 def sector_removed_d(
@@ -317,8 +595,11 @@ def sector_removed_d(
     own share in the fitted wind is the larger part); point beams, seen at their own
     times in the field the wind carries, ``m U T_int`` further on between scans
     (Banakh et al. (1999), eqs. 15-16; Smalikho (2020), eq. 3; as
-    :func:`sector_removed_share`). Scans of more than :data:`MAX_SECTOR_RAYS` rays
-    give 0 (180-ray circle with a 60 deg gap: about 1 % of D at lag 4).
+    :func:`sector_removed_share`); the wind direction from the cell's node weights.
+    Tabulated once per configuration (rays, first node, scans, ``T_int/T_scan``) on
+    :data:`REMOVED_D_MU` x :data:`REMOVED_D_X` and interpolated (:func:`_removed_d_grid`).
+    Scans of more than :data:`MAX_SECTOR_RAYS` rays give 0 (180-ray circle with a 60 deg
+    gap: about 1 % of D at lag 4).
 
     Parameters
     ----------
@@ -333,50 +614,33 @@ def sector_removed_d(
     mu, interval, n_scans : numpy.ndarray
         ``(cells,)`` as :func:`sector_removed_share`.
     """
-    tables = _correlation_curve(model)
-    ph = math.radians(phi_deg)
-    wind = np.array([1.0, 0.0, 0.0])
     th = azimuth_nodes()
     out = np.zeros((*ratio.shape, n_lags))
-    for c in range(weights.shape[0]):
-        w = np.nan_to_num(weights[c])
-        phase = _sector_rays(w, float(step_rad[c]))
-        start = int(np.argmax(np.where(w > 1e-12, _empty_runs((w > 1e-12)[None])[0], -1)))
-        if phase.size > MAX_SECTOR_RAYS:
+    rays, centre, start = _sector_rays(np.nan_to_num(weights), np.asarray(step_rad, float))
+    keys = np.stack(
+        [
+            rays,
+            centre,
+            np.round(step_rad, 5),
+            start,
+            np.rint(n_scans),
+            np.round(interval, 2),
+        ],
+        -1,
+    )
+    for (n_rays, mid, step, first, scans, inter), at in _configurations(keys):
+        if n_rays > MAX_SECTOR_RAYS or scans < 1:
             continue  # a gappy circle: the fit's harmonics vary little over a pair
-        beta = -th[start] + phase
-        design = np.stack([np.ones(beta.size), np.cos(beta), np.sin(beta)], -1)
-        hat = design @ np.linalg.pinv(design.T @ design) @ design.T  # (i, j)
-        n = float(n_scans[c])
-        m = np.arange(-int(n) + 1, int(n))
-        mult = (n - np.abs(m)) / n**2
-        shift = (mu[c] * 2.0 * np.pi * interval[c]) * m
-        pos = np.stack([np.cos(beta), np.sin(beta), np.zeros(beta.size)], -1)
-        pos = pos - (mu[c] * phase)[:, None] * wind
-        beam = np.stack(
-            [
-                math.cos(ph) * np.cos(beta),
-                math.cos(ph) * np.sin(beta),
-                np.full(beta.size, math.sin(ph)),
-            ],
-            -1,
+        phase = mid + step * (np.arange(int(n_rays)) - 0.5 * (n_rays - 1))
+        grid = _removed_d_grid(
+            tuple(phase.tolist()),
+            (float(-th[int(first)]),),
+            n_lags,
+            int(scans),
+            float(inter),
+            round(float(phi_deg), 2),
+            model,
+            True,
         )
-        later = pos[None] - shift[:, None, None] * wind  # (m, j, 3): scan n + m
-        # block-mean correlation of ray i (scan n) and ray j (scan n + m): (i, j, x)
-        rho = np.einsum(
-            "m,mijx->ijx",
-            mult,
-            _point_correlation(
-                pos[None, :, None], later[:, None], beam[:, None], beam[None], tables
-            ),
-        )
-        for li in range(min(n_lags, beta.size - 1)):
-            lag = li + 1
-            a, b = np.arange(beta.size - lag), np.arange(lag, beta.size)
-            u = hat[a] - hat[b]  # (pairs, j): P_a - P_b per V_j
-            cross = np.einsum("pj,pjx->px", u, rho[a] - rho[b])
-            quad = np.einsum("pj,pk,jkx->px", u, u, rho)
-            share = np.mean(2.0 * cross - quad, axis=0)
-            query = np.clip(ratio[c], _SECTOR_X[0], _SECTOR_X[-1])
-            out[c, :, li] = np.interp(np.log(query), np.log(_SECTOR_X), share)
+        out[at] = _grid_at(grid, mu[at], ratio[at])
     return out

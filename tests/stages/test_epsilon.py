@@ -10,6 +10,7 @@ from cwproc.physics import spectra
 from cwproc.physics.atable import get_a_table
 from cwproc.physics.probe_variance import averaging_loss, passed_variance
 from cwproc.physics.removed_share import (
+    circle_removed_d,
     mean_removed_share,
     partial_circle,
     sector_removed_d,
@@ -682,10 +683,25 @@ def test_von_karman_coarse_scans_recover_eps_and_outer_scale(tmp_path, n_rays, t
         ]
     )
     b0 = float(two_beam.two_beam_covariance(0.0, 0.0, phi, rng, **sweep, **vk))
-    # the block mean of 10 independent scans removes share / 10 of sigma_V^2
-    share = mean_removed_share(
-        np.array([h / math.tan(math.radians(phi)) / big_l]), phi, "von_karman"
+    # the block-mean VAD wind of 10 back-to-back scans also takes part of D(l) (up to 60
+    # rays per scan, as the stage models it: circle_removed_d)
+    radius = h / math.tan(math.radians(phi))
+    d = (
+        d
+        - spectra.variance_from(eps, big_l, "von_karman")
+        * circle_removed_d(
+            np.radians([dtheta]),
+            3,
+            np.array([[radius / big_l]]),
+            np.array([speed * n_rays * t_ray / (2 * math.pi * radius)]),
+            np.ones(1),
+            np.array([10.0]),
+            phi,
+            "von_karman",
+        )[0, 0]
     )
+    # the block mean of 10 independent scans removes share / 10 of sigma_V^2
+    share = mean_removed_share(np.array([radius / big_l]), phi, "von_karman")
     b0 = b0 - float(share[0]) * spectra.variance_from(eps, big_l, "von_karman") / 10
     sf = xr.Dataset(
         {

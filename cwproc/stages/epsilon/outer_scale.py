@@ -18,11 +18,14 @@ import numpy as np
 from cwproc.physics import spectra
 from cwproc.physics.probe_variance import averaging_loss, passed_variance
 from cwproc.physics.removed_share import (
+    MAX_SECTOR_RAYS,
+    circle_removed_d,
     interp_log_scale,
     mean_removed_share,
     partial_circle,
     sector_removed_d,
     sector_removed_share,
+    transport_mu,
 )
 from cwproc.physics.structure_fit import fit_structure_function
 from cwproc.stages.epsilon.atable_fit import EVALUATION_CELLS, outer_scale_sector_factor
@@ -335,8 +338,10 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
     :meth:`cwproc.physics.atable_interp.ATable.at_cells` of ``tables[1]``, its ``A_2`` at
     every outer-scale node, for sectors and gaps (:func:`partial_circle`), multiplied by
     :func:`outer_scale_sector_factor` (the sector ratio of the outer scale over the
-    inertial one that :func:`retrieve` applies) and less the share of ``D(l)`` the block-mean
-    VAD wind takes (:func:`sector_removed_d` times ``sigma_V^2 / eps^(2/3)`` of the node).
+    inertial one that :func:`retrieve` applies); less the share of ``D(l)`` the block-mean
+    VAD wind takes times ``sigma_V^2 / eps^(2/3)`` of the node: :func:`sector_removed_d`
+    for sectors and gaps, :func:`circle_removed_d` for full circles (both up to
+    ``MAX_SECTOR_RAYS`` rays per scan).
     """
     height = np.tile(cells.height, rows.sum())
     mu = cells.mu_eval[rows].ravel()
@@ -344,35 +349,58 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
     weights = cells.weights[rows].reshape(-1, cells.weights.shape[-1])
     n_h = cells.height.size
     dtheta = np.repeat(cells.dtheta[rows], n_h)
-    part = np.nonzero(partial_circle(weights, dtheta))[0]
+    partial = partial_circle(weights, dtheta)
+    part = np.nonzero(partial)[0]
     log_a2 = table.log_a2.copy()
     # the outer scale's own ratio over the azimuths of each lag's pairs (uniform weights:
     # 1 by construction). Partial circles, and full circles of coarse scans, whose pairs
     # do not wrap (lag l lacks l of M positions); dense full circles (M > 60: at most 5 %
     # of the positions, at lags where the outer scale barely changes the node ratio) keep
     # the inertial ratio alone, which saves most of the stage's time on a day of them
-    coarse = np.nonzero(partial_circle(weights, dtheta) | (dtheta >= COARSE_STEP_DEG))[0]
+    coarse = np.nonzero(partial | (dtheta >= COARSE_STEP_DEG))[0]
     if coarse.size:
         lag_weights = cells.lag_weights[rows].reshape(-1, *cells.lag_weights.shape[-2:])
         log_a2[coarse] += np.log(
             outer_scale_sector_factor(tables, lags, height[coarse], mu[coarse], lag_weights[coarse])
         )
+    # the block-mean VAD fit also takes part of D(l)
+    scans = np.repeat(cells.scans[rows], n_h)
+    scans = np.where(np.isfinite(scans) & (scans >= 1), scans, 1.0)
+    interval = np.repeat(cells.interval[rows], n_h)
+    nodes = tables[1].outer_scales_m
+    ratio = cells.radius[rows].ravel()[:, None] / nodes[None, :]
+    phi, model = float(np.nanmedian(cells.phi)), tables[1].model
+    removed = np.zeros(log_a2.shape)
     if part.size:
-        # sectors and gaps: the block-mean VAD fit also takes part of D(l)
-        scans = np.repeat(cells.scans[rows], n_h)[part]
-        nodes = tables[1].outer_scales_m
-        removed = sector_removed_d(
+        removed[part] = sector_removed_d(
             weights[part],
             np.radians(dtheta[part]),
             lags.size,
-            cells.radius[rows].ravel()[part, None] / nodes[None, :],
+            ratio[part],
             mu[part],
-            np.repeat(cells.interval[rows], n_h)[part],
-            np.where(np.isfinite(scans) & (scans >= 1), scans, 1.0),
-            float(np.nanmedian(cells.phi)),
-            tables[1].model,
+            interval[part],
+            scans[part],
+            phi,
+            model,
         )
-        full = np.array([spectra.variance_per_eps23(tables[1].model, x) for x in nodes])
-        a2 = np.exp(log_a2[part]) - removed * full[None, :, None]
-        log_a2[part] = np.log(np.maximum(a2, 1e-3 * np.exp(log_a2[part])))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        few = np.rint(360.0 / dtheta) <= MAX_SECTOR_RAYS  # longer circles: no removal in D
+    circle = np.nonzero(~partial & np.isfinite(dtheta) & (dtheta > 0) & few)[0]
+    if circle.size:
+        # the field's transport between the scans: the measured mu less its turbulent bias
+        var, v_s = cells.var_raw[rows].ravel()[circle], cells.v_s[rows].ravel()[circle]
+        mu_t = transport_mu(mu[circle], ratio[circle], var, v_s, scans[circle], phi, model)
+        removed[circle] = circle_removed_d(
+            np.radians(dtheta[circle]),
+            lags.size,
+            ratio[circle],
+            mu_t,
+            interval[circle],
+            scans[circle],
+            phi,
+            model,
+        )
+    full = np.array([spectra.variance_per_eps23(model, x) for x in nodes])
+    a2 = np.exp(log_a2) - removed * full[None, :, None]
+    log_a2 = np.log(np.maximum(a2, 1e-3 * np.exp(log_a2)))
     return dataclasses.replace(table, log_a2=log_a2)

@@ -1,0 +1,118 @@
+"""The block-mean VAD removal in D(l) of full circles against exact block statistics.
+
+The exact covariance of the probe-averaged radial velocities of a block of scans
+(:func:`cwproc.sim.exact_gaussian.block_covariance`, Banakh et al. (1999), eqs. 15-16
+with transport) gives the expected D(l) of the velocities and of the residuals of the
+block-mean VAD fit (Smalikho (2020), eqs. 1-2); their difference is what
+:func:`cwproc.physics.removed_share.circle_removed_d` models.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cwproc.physics import spectra
+from cwproc.physics.geometry import beam_unit_vector, wind_components
+from cwproc.physics.removed_share import circle_removed_d, mean_removed_share, transport_mu
+from cwproc.sim import exact_gaussian as eg
+
+PHI, HEIGHT, EPS, SCALE, N_SCANS = 35.0, 100.0, 0.01, 200.0, 10
+RADIUS = HEIGHT / np.tan(np.radians(PHI))
+RANGE = HEIGHT / np.sin(np.radians(PHI))
+PATTERN = eg.conical_pattern(24, 48.0, continuous=False)  # 15 deg step-stare VAD, 2 s per ray
+V_S = 2 * np.pi * RADIUS / 48.0  # Smalikho (2020), eq. 3
+
+
+def block_statistics(mu: float) -> dict:
+    """Exact covariance of a block, the block-mean VAD projection and the pairs per lag."""
+    u, v = wind_components(mu * V_S, 250.0)
+    cov = eg.block_covariance(
+        PATTERN,
+        N_SCANS,
+        elevation_deg=PHI,
+        range_m=RANGE,
+        epsilon=EPS,
+        outer_scale_m=SCALE,
+        mean_wind=(u, v, 0.0),
+    )
+    beams = beam_unit_vector(np.asarray(PATTERN.azimuth_deg), PHI)
+    mean_fit = np.tile(np.linalg.pinv(beams), (1, N_SCANS)) / N_SCANS  # (3, N M)
+    keep = np.eye(cov.shape[0]) - np.tile(beams, (N_SCANS, 1)) @ mean_fit
+    return {"cov": cov, "res": keep @ cov @ keep.T, "mean_fit": mean_fit}
+
+
+def removed_d(stats: dict, n_lags: int) -> np.ndarray:
+    """Expected D(l) of the velocities less that of the residuals, over sigma_V^2."""
+    m = PATTERN.n_rays
+    out = []
+    for lag in range(1, n_lags + 1):
+        a = np.concatenate([s * m + np.arange(m - lag) for s in range(N_SCANS)])
+        b = a + lag
+        d = [c[a, a] + c[b, b] - 2 * c[a, b] for c in (stats["cov"], stats["res"])]
+        out.append(np.mean(d[0] - d[1]))
+    return np.array(out) / spectra.variance_from(EPS, SCALE, "von_karman")
+
+
+def model(mu: float, n_scans: int = N_SCANS) -> np.ndarray:
+    return circle_removed_d(
+        np.radians([15.0]),
+        4,
+        np.array([[RADIUS / SCALE]]),
+        np.array([mu]),
+        np.array([1.0]),
+        np.array([float(n_scans)]),
+        PHI,
+        "von_karman",
+    )[0, 0]
+
+
+@pytest.mark.parametrize(
+    ("mu", "rtol"),
+    # measured: model / exact 1.015 at mu 0, 1.03 at 0.3, 1.05-1.06 at 1 (point beams:
+    # their self-covariance exceeds the probe-averaged one)
+    [(0.0, 0.03), (0.3, 0.06), (1.0, 0.1)],
+)
+def test_circle_removal_in_d_matches_exact_block_statistics(mu, rtol):
+    exact = removed_d(block_statistics(mu), 4)
+    got = model(mu)
+    np.testing.assert_allclose(got, exact, rtol=rtol)
+    assert np.all(np.diff(exact) > 0) and np.all(np.diff(got) > 0)
+    if mu == 0.3:
+        # scans 2 pi mu R' = 270 m apart still share their large eddies: the block-mean
+        # fit takes 1.8 times what N independent scans would leave it
+        independent = (
+            circle_removed_d(
+                np.radians([15.0]),
+                4,
+                np.array([[RADIUS / SCALE]]),
+                np.array([mu]),
+                np.array([1.0]),
+                np.array([1.0]),
+                PHI,
+                "von_karman",
+            )[0, 0]
+            / N_SCANS
+        )
+        assert np.all(exact > 1.5 * independent)
+
+
+def test_transport_mu_removes_the_turbulent_bias_of_the_measured_wind():
+    # a field at rest: the block-mean VAD wind's expected |U|^2 from the exact covariance
+    stats = block_statistics(0.0)
+    wind_cov = stats["mean_fit"] @ stats["cov"] @ stats["mean_fit"].T
+    speed2 = wind_cov[0, 0] + wind_cov[1, 1]  # E|U|^2 of the horizontal mean wind
+    variance = np.trace(stats["res"]) / stats["res"].shape[0]  # variance of V'_L
+    ratio = np.array([[RADIUS / SCALE]])
+    args = (ratio, np.array([variance]), np.array([V_S]), np.array([float(N_SCANS)]))
+    bias2 = np.array([4.0]) ** 2 - transport_mu(np.array([4.0]), *args, PHI, "von_karman")[0] ** 2
+    # measured: the model's bias 1.15 times the exact E|U|^2 (point beams, w neglected)
+    assert bias2[0] == pytest.approx(speed2 / V_S**2, rel=0.25)
+    # so the typical measured mu of a field at rest is transported by nothing
+    mu_rest = np.sqrt(speed2) / V_S
+    assert transport_mu(np.array([0.8 * mu_rest]), *args, PHI, "von_karman")[0, 0] == 0.0
+    # and a real wind keeps its mu to 0.1 %
+    assert transport_mu(np.array([1.0]), *args, PHI, "von_karman")[0, 0] == pytest.approx(
+        1.0, rel=1e-3
+    )
+    assert mean_removed_share(ratio, PHI, "von_karman", 0.0)[0, 0] > 0.3
