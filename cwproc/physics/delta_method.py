@@ -2,8 +2,11 @@
 
 For estimates ``f(s)`` of statistics ``s`` with covariance ``C``, to first order
 ``Var f = g^T C g`` with ``g`` the gradient of ``f`` at ``s`` (first-order propagation
-of errors). Here ``g`` is the secant over one standard error of each
-component (forward differences), the range the sampling error spans. Pure numpy.
+of errors). Here ``g`` is the central secant over one standard error either side of
+each component, the range the sampling error spans: the retrieval of eps is convex in
+the statistics (through the outer-scale root), and the forward secant overstated the
+error (se/sd of eps 1.01-1.26 on exact 24-ray VAD statistics at mu 0-3, 400 blocks;
+central: 0.90-1.13). Pure numpy.
 """
 
 from __future__ import annotations
@@ -32,7 +35,8 @@ def delta_method_errors(
     cov : numpy.ndarray
         Their covariance ``(..., n, n)``.
     base : dict of numpy.ndarray
-        ``function(stats)``, already computed.
+        ``function(stats)``, already computed (the central secant does not use it; kept
+        so that callers pass what they have).
     keys : sequence of str
         The outputs whose standard errors are wanted.
 
@@ -47,12 +51,13 @@ def delta_method_errors(
     step = np.where(np.isfinite(step) & (step > 0), step, 1e-3 * np.abs(stats))
     grad = {k: np.zeros(stats.shape) for k in keys}
     for k in range(stats.shape[-1]):
-        s_k = stats.copy()
-        s_k[..., k] += step[..., k]
-        res = function(s_k)
+        s_plus, s_minus = stats.copy(), stats.copy()
+        s_plus[..., k] += step[..., k]
+        s_minus[..., k] -= step[..., k]
+        res_plus, res_minus = function(s_plus), function(s_minus)
         for key in keys:
             with np.errstate(invalid="ignore"):
-                grad[key][..., k] = (res[key] - base[key]) / step[..., k]
+                grad[key][..., k] = (res_plus[key] - res_minus[key]) / (2.0 * step[..., k])
     out = []
     for key in keys:
         g = grad[key]

@@ -786,7 +786,7 @@ def test_standard_errors_are_the_propagated_scan_scatter(tmp_path):
     np.testing.assert_allclose(
         out_v["integral_scale_standard_error"].values,
         1.5 * out_v["integral_scale"].values * 0.02 / out_v["velocity_variance"].values,
-        rtol=0.01,  # a secant over one standard error of the variance: +0.5 %
+        rtol=0.01,  # a central secant over one standard error of the variance
     )
 
 
