@@ -27,6 +27,7 @@ import dataclasses
 import os
 import threading
 from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -215,21 +216,66 @@ class ReadAhead:
 
 
 def planned_chunk_datasets(
-    ordered: list, take: Callable, took: Callable, chunk_bytes: int
+    ordered: list, take: Callable, took: Callable, chunk_bytes: int, ahead: bool = False
 ) -> Iterator[xr.Dataset | None]:
     """The chunks of ``.hpl`` files read a chunk at a time (:mod:`.stream_read`).
 
     ``took(item, identity, lines)`` is called for each file of a chunk read at once
     (its identity and the line :func:`~.chain.describe_scan_inputs` gives it); a chunk
     that cannot be read at once is read file by file with ``take(item)``, as
-    :func:`chunks_of` does. None: a chunk whose every file was left out.
+    :func:`chunks_of` does. None: a chunk whose every file was left out. With
+    ``ahead``, the next chunk is planned and parsed in a second thread
+    (:class:`ChunkAhead`) while the caller processes the one handed out; ``took`` and
+    ``take`` still run in the caller's thread, in order.
     """
-    for planned in planned_chunks(ordered, chunk_bytes):
-        yield _planned_chunk(planned, take, took)
+    plans = planned_chunks(ordered, chunk_bytes)
+    if not ahead:
+        for planned in plans:
+            yield _planned_chunk(planned, read_planned_chunk(planned), take, took)
+        return
+    reader = ChunkAhead(plans)
+    try:
+        while (next_chunk := reader.next()) is not None:
+            yield _planned_chunk(*next_chunk, take, took)
+    finally:
+        reader.close()
 
 
-def _planned_chunk(planned: list[tuple], take: Callable, took: Callable) -> xr.Dataset | None:
-    got = read_planned_chunk(planned)
+class ChunkAhead:
+    """The planned chunks of a day parsed one chunk ahead in a second thread.
+
+    :meth:`next` returns ``(planned, read)`` of the next chunk (``read`` as
+    :func:`~.stream_read.read_planned_chunk` gives it), waiting for the thread if it is
+    not ready, and starts the planning and parsing of the chunk after it; an error of
+    the thread is raised there. So while a chunk is processed, at most one more is
+    held. The compiled tokenizer and the file reads release the GIL, so the parsing
+    runs on the second core beside the numerical work of the stages.
+    """
+
+    def __init__(self, plans: Iterator[list[tuple]]) -> None:
+        self._plans = plans
+        self._pool = ThreadPoolExecutor(1, thread_name_prefix="cwproc-chunk-ahead")
+        self._pending = self._pool.submit(self._read_next)
+
+    def _read_next(self) -> tuple[list[tuple], tuple | None] | None:
+        planned = next(self._plans, None)
+        return None if planned is None else (planned, read_planned_chunk(planned))
+
+    def next(self) -> tuple[list[tuple], tuple | None] | None:
+        """The next planned chunk and its reading; None after the last."""
+        got = self._pending.result()
+        if got is not None:
+            self._pending = self._pool.submit(self._read_next)
+        return got
+
+    def close(self) -> None:
+        """Wait for the chunk being read (it is dropped) and stop the thread."""
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _planned_chunk(
+    planned: list[tuple], got: tuple | None, take: Callable, took: Callable
+) -> xr.Dataset | None:
     if got is None:
         parts = [ds for item, _ in planned if (ds := take(item)) is not None]
         return concat_scans(parts) if parts else None
@@ -503,7 +549,9 @@ def stream_scan_unit(
         return item.dataset if item.dataset is not None else load(item)
 
     ordered = time_ordered(list(unit.inputs), lambda item: item.start)
-    ahead = ReadAhead(ordered, read, chunk_bytes) if read_ahead_enabled(read_ahead) else None
+    by_chunk = chunk_reading_possible(unit, config)
+    reading_ahead = read_ahead_enabled(read_ahead)
+    ahead = ReadAhead(ordered, read, chunk_bytes) if reading_ahead and not by_chunk else None
 
     def took(item, identity: FileIdentity, lines: list[str]) -> None:
         item.dataset = None  # the chunk holds it now; released with the chunk
@@ -524,8 +572,8 @@ def stream_scan_unit(
             took(item, identity, describe_scan_inputs(_single(unit, item, ds)))
         return ds
 
-    if ahead is None and chunk_reading_possible(unit, config):
-        chunks = planned_chunk_datasets(ordered, take, took, chunk_bytes)
+    if by_chunk:
+        chunks = planned_chunk_datasets(ordered, take, took, chunk_bytes, reading_ahead)
     else:
         chunks = (concat_scans(parts) for parts in chunks_of(ordered, take, chunk_bytes))
     try:
@@ -555,6 +603,7 @@ def stream_scan_unit(
     except StreamMismatch:
         return None
     finally:
+        chunks.close()  # stops the reading thread of a chunk reader
         if ahead is not None:
             ahead.close()
     if not state.winds:
