@@ -34,7 +34,7 @@ import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.io.scans import is_homodyne
-from cwproc.physics.atable_interp import N_BINS, azimuth_bin_weights, azimuth_nodes
+from cwproc.physics.atable_interp import N_BINS, azimuth_nodes
 from cwproc.physics.geometry import radial_velocity, speed_and_direction
 
 #: largest relative mismatch (m) between wind-product gate ranges and scan gate ranges
@@ -224,8 +224,41 @@ def pair_azimuth_weights(
         m_mid = np.arange(vprime.shape[1] - lag) + 0.5 * lag
         beta = first_azimuth_deg[:, None] + sign * dtheta_deg * m_mid[None, :]  # (block, m)
         theta = np.radians(sign * (wind_to_deg[:, None, :] - beta[:, :, None]))
-        out[:, :, li] = azimuth_bin_weights(theta, axis=1, counts=count)
+        out[:, :, li] = pair_node_weights(theta, count)
     return out
+
+
+def pair_node_weights(theta: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """:func:`cwproc.physics.atable_interp.azimuth_bin_weights` (``axis=1``) by sums per node.
+
+    Each pair at ``theta`` is shared linearly between its two neighbouring nodes; the
+    shares are summed with :func:`numpy.bincount`, pair by pair in the same order,
+    instead of over a ``(block, height, m, N_BINS)`` array zero but for two nodes.
+
+    Parameters
+    ----------
+    theta, counts : numpy.ndarray
+        ``(block, m, height)`` angle of the mean wind from the scan's direction of
+        motion at each pair position (rad; NaN: none) and pairs there.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(block, height, N_BINS)``; NaN where a block and height has no pair.
+    """
+    n_b, _, n_h = theta.shape
+    n = np.where(np.isfinite(theta), counts, 0.0)
+    pos = np.mod(np.where(n > 0, theta, 0.0), 2.0 * np.pi) / (2.0 * np.pi / N_BINS)
+    floor = np.floor(pos)
+    i0 = floor.astype(np.int64) % N_BINS
+    frac = pos - floor
+    cell = (np.arange(n_b)[:, None, None] * n_h + np.arange(n_h)[None, None, :]) * N_BINS
+    nodes = np.stack([cell + i0, cell + (i0 + 1) % N_BINS], axis=-1)
+    shares = np.stack([(1.0 - frac) * n, frac * n], axis=-1)
+    sums = np.bincount(nodes.ravel(), shares.ravel(), minlength=n_b * n_h * N_BINS)
+    total = n.sum(axis=1)[..., None]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return sums.reshape(n_b, n_h, N_BINS) / total
 
 
 def _block_sum(values: np.ndarray, starts: np.ndarray) -> np.ndarray:

@@ -315,3 +315,21 @@ def test_statistics_covariance_is_the_scatter_of_the_scan_means():
         expected = np.cov(per_scan, rowvar=False) / len(per_scan)
         np.testing.assert_allclose(cov[b, h], expected, rtol=1e-10)
     assert np.all(np.isnan(cov[2]))
+
+
+def test_pair_node_weights_are_the_dense_azimuth_bin_weights():
+    """The node weights summed per node equal azimuth_bin_weights to the bit, with NaN
+    azimuths, positions without pairs and a height without any pair (NaN)."""
+    from cwproc.physics.atable_interp import azimuth_bin_weights
+    from cwproc.stages.structure import pair_node_weights
+
+    rng = np.random.default_rng(5)
+    theta = rng.uniform(-10.0, 10.0, (3, 179, 40))
+    theta[0, 5, 3] = np.nan
+    theta[1, :, 7] = np.nan
+    counts = rng.integers(0, 11, theta.shape).astype(float)
+    counts[2, :, 9] = 0.0
+    got = pair_node_weights(theta, counts)
+    assert np.array_equal(got, azimuth_bin_weights(theta, axis=1, counts=counts), equal_nan=True)
+    assert np.isnan(got[1, 7]).all() and np.isnan(got[2, 9]).all()
+    assert np.allclose(np.nansum(got, axis=-1)[~np.isnan(got[..., 0])], 1.0)
