@@ -328,7 +328,7 @@ def test_chunks_read_at_once_give_the_file_by_file_products(tmp_path, config, mo
 def test_heap_kept_sets_and_restores_the_glibc_thresholds(monkeypatch):
     """heap_kept: the chunks run with 32 MiB mmap and 256 MiB trim thresholds; the default
     trim threshold is restored and the free heap returned on exit, also after an error;
-    without glibc it does nothing."""
+    heap_returned trims first and keeps 64 MiB; without glibc both do nothing."""
     import cwproc.pipeline.stream as stream
 
     calls: list[tuple] = []
@@ -347,7 +347,11 @@ def test_heap_kept_sets_and_restores_the_glibc_thresholds(monkeypatch):
         assert calls == [("mallopt", -3, 32 << 20), ("mallopt", -1, 256 << 20)]
         raise RuntimeError("a chunk failed")
     assert calls[2:] == [("mallopt", -1, 128 << 10), ("trim", 0)]
+    calls.clear()
+    with stream.heap_returned():  # the dissipation rate: heap returned, 64 MiB kept
+        assert calls == [("trim", 0), ("mallopt", -3, 32 << 20), ("mallopt", -1, 64 << 20)]
+    assert calls[3:] == [("mallopt", -1, 128 << 10), ("mallopt", -3, 32 << 20), ("trim", 0)]
     monkeypatch.setattr(stream, "_glibc", lambda: None)
-    with stream.heap_kept():
+    with stream.heap_kept(), stream.heap_returned():
         pass
-    assert len(calls) == 4
+    assert len(calls) == 6
