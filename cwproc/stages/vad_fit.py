@@ -210,6 +210,19 @@ def _finish(
     )
 
 
+def linear_residuals(velocity: FloatArray, design: FloatArray, valid: BoolArray) -> FloatArray:
+    """The residuals of :func:`fit_linear` alone (data minus model, m s-1; (S, R, G)).
+
+    The same fit, without the standard errors and covariances the outlier screening does
+    not use; the model of an undetermined (scan, gate) is 0.
+    """
+    design = np.nan_to_num(design)
+    weight = valid.astype(float)
+    inverse, _ = _safe_inverse(_normal_matrix(design, weight), weight.sum(axis=1))
+    beta = _solve(np.nan_to_num(inverse), design, np.where(valid, velocity, 0.0))
+    return velocity - _model(design, beta)
+
+
 def fit_linear(velocity: FloatArray, design: FloatArray, valid: BoolArray) -> BatchedFit:
     """Least-squares VAD fit of every (scan, gate) at once (Smalikho (2020), eq. 1).
 
