@@ -4,8 +4,10 @@ The model of each ray is ``V_r = A beta``, ``A`` the beam unit vector
 (:func:`cwproc.physics.geometry.beam_unit_vector`) and ``beta = (u, v, w)``
 (Smalikho (2020), eq. 1 and eq. 8). Rays are laid out as ``(scan, ray in scan, gate)``
 arrays padded with masked entries; the 3x3 normal equations are summed with masked
-batched matrix products and solved by batched adjugate inverses. Standard errors come
-from the residual variance and ``(A^T A)^-1``.
+batched matrix products and solved by batched adjugate inverses (the iterations of the
+L1 fit of the outlier screening sum only the 6 distinct entries of the symmetric matrix
+and solve by the cofactors, Cramer's rule). Standard errors come from the residual
+variance and ``(A^T A)^-1``.
 
 Homodyne cw lidars (ZephIR) measure only ``|V_r|``: the model becomes ``|A beta|``,
 fitted by Gauss-Newton. Because ``d|A beta|/d beta = sign(A beta) A``,
