@@ -333,3 +333,25 @@ def test_pair_node_weights_are_the_dense_azimuth_bin_weights():
     assert np.array_equal(got, azimuth_bin_weights(theta, axis=1, counts=counts), equal_nan=True)
     assert np.isnan(got[1, 7]).all() and np.isnan(got[2, 9]).all()
     assert np.allclose(np.nansum(got, axis=-1)[~np.isnan(got[..., 0])], 1.0)
+
+
+def test_block_median_is_numpy_nanmedian():
+    """The block SNR median (partitions of the columns by their count of values) equals
+    numpy.nanmedian over scans and azimuths to the bit: odd and even counts, a column
+    with one value, one without any (NaN), a short last block."""
+    import warnings
+
+    from cwproc.stages.structure import block_median
+
+    rng = np.random.default_rng(11)
+    values = rng.lognormal(size=(25, 18, 7))
+    values[rng.random(values.shape) < 0.3] = np.nan
+    values[:, :, 2] = np.nan
+    values[:10, :, 3] = np.nan
+    values[3, 4, 3] = 0.5
+    got = block_median(values, 10)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        expected = [np.nanmedian(values[k : k + 10].reshape(-1, 7), axis=0) for k in (0, 10, 20)]
+    assert np.array_equal(got, np.array(expected), equal_nan=True)
+    assert np.isnan(got[:, 2]).all() and got[0, 3] == 0.5
