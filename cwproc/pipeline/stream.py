@@ -126,12 +126,14 @@ READ_AHEAD_VARIABLE = "CWPROC_READ_AHEAD"
 def read_ahead_enabled(read_ahead: bool | None = None) -> bool:
     """Whether a streamed day reads its files in a second thread: ``read_ahead`` when
     given, else whether the environment variable ``CWPROC_READ_AHEAD`` is ``1`` (or
-    ``true``, ``yes``, ``on``).
+    ``true``, ``yes``, ``on``). Chunks read at once are then parsed a chunk ahead
+    (:class:`ChunkAhead`), others file by file (:class:`ReadAhead`).
 
-    Off by default: on 2 cores the two threads contend for the interpreter lock (the
-    reader builds datasets, the stages run many small array operations), which cost
-    about 3 s of CPU per day of 1920 scans and gained at most 1.6 s of wall time when
-    the second core was free, 2-3 s lost when it was not (``docs/DEVELOPING.md``).
+    Off by default: it pays only when the second core is free. On the shared 2-core
+    machine, with other jobs on it (load 1.8-2.6), a day of 1920 scans took the same
+    time with it (24.96 against 24.64 s) for 6 MiB more peak; the file-by-file reading
+    ahead had gained at most 1.6 s on a free core and lost 2-3 s on a busy one
+    (``docs/DEVELOPING.md``).
     """
     if read_ahead is not None:
         return bool(read_ahead)
@@ -569,9 +571,10 @@ def stream_scan_unit(
     chunk_bytes : int
         Input data joined into one chunk (bytes).
     read_ahead : bool, optional
-        Read the next files in a second thread (:class:`ReadAhead`, at most one chunk
-        ahead) while a chunk is processed; None: when ``CWPROC_READ_AHEAD=1``
-        (:func:`read_ahead_enabled`). The products are the same either way.
+        Read the next files in a second thread (:class:`ChunkAhead` for chunks read at
+        once, else :class:`ReadAhead`; at most one chunk ahead) while a chunk is
+        processed; None: when ``CWPROC_READ_AHEAD=1`` (:func:`read_ahead_enabled`). The
+        products are the same either way.
 
     Returns
     -------
