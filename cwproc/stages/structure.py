@@ -466,7 +466,8 @@ def azimuth_structure_function(
         not match, or the azimuth step exceeds ``max_lag_deg``.
     """
     _check_inputs(screened_ds, wind, n_scans)
-    wind = wind.sortby("time")
+    if not np.all(np.diff(wind["time"].values) >= np.timedelta64(0)):  # else a copy
+        wind = wind.sortby("time")
     grid = ray_grid(screened_ds, wind["scan"].values.astype(np.int64), max_lag_deg, min_lags)
     gates = _match_gates(screened_ds["range"].values.astype(float), wind["range"].values)
     homodyne = is_homodyne(screened_ds) if homodyne is None else bool(homodyne)
