@@ -159,21 +159,18 @@ def block_median(values: np.ndarray, n_scans: int) -> np.ndarray:
 
 
 def _nanmedian_columns(values: np.ndarray) -> np.ndarray:
-    """``numpy.nanmedian(values, axis=0)`` (the same value, ``(lo + hi) / 2``), no warning.
+    """``numpy.nanmedian(values, axis=0)`` by one sort (NaN last), without a warning.
 
-    Columns with the same number of values (a block's SNR columns have a few distinct
-    counts) are partitioned together at their two middle positions, NaN as +inf; NaN
-    for a column without a number.
+    The mean of the two middle values, ``(lo + hi) / 2``, as :func:`numpy.median` forms
+    it (the same value); NaN for a column without a number. (Partitions of the columns
+    with equal counts were no faster: numpy's vectorised sort of 1800 values is.)
     """
+    ordered = np.sort(values, axis=0)
     n = np.count_nonzero(~np.isnan(values), axis=0)
-    columns = np.where(np.isnan(values), np.inf, values).T
-    out = np.full(values.shape[1], np.nan)
-    for count in np.unique(n[n > 0]):
-        same = np.flatnonzero(n == count)
-        lo, hi = (count - 1) // 2, count // 2
-        middle = np.partition(columns[same], (lo, hi), axis=-1)
-        out[same] = (middle[:, lo] + middle[:, hi]) / 2
-    return out
+    lo = np.take_along_axis(ordered, np.maximum((n - 1) // 2, 0)[None, :], axis=0)[0]
+    hi = np.take_along_axis(ordered, np.maximum(n // 2, 0)[None, :], axis=0)[0]
+    with np.errstate(invalid="ignore"):
+        return np.where(n > 0, (lo + hi) / 2, np.nan)
 
 
 def pair_azimuth_weights(
