@@ -103,19 +103,74 @@ class ATable:
         shape = lags_b.shape
         if self.scale_bins is None:
             return np.ones((*shape, N_BINS))
-        li = np.clip(np.nan_to_num(lags_b.ravel(), nan=1.0), 1, self.n_lags).astype(int) - 1
-        im, wm, _ = lagrange4(self.mu, np.clip(np.nan_to_num(mu_b.ravel()), 0.0, self.mu[-1]))
+        s_mu = self._scale_mu(lags_b.ravel(), mu_b.ravel())
+        out = self._interp_scale(s_mu, h_b.ravel(), l_b.reshape(-1, 1))
+        return out[:, 0].reshape(*shape, N_BINS)
+
+    def scale_ratio_sums(
+        self,
+        lags: ArrayLike,
+        height_m: ArrayLike,
+        mu: ArrayLike,
+        outer_scales_m: ArrayLike,
+        vectors: np.ndarray,
+    ) -> np.ndarray:
+        """``(q, nS, m)``: ``sum_n scale_ratio[q, s, n] vectors[q, j, n]`` at ``nS`` outer scales.
+
+        The contractions of :meth:`scale_ratio` of ``q`` points (``lags``, ``height_m``,
+        ``mu`` broadcast to ``(q,)``) with ``m`` node vectors each (``vectors``, ``(q, m,
+        N_BINS)``), at every outer scale, without forming the ``(q, nS, N_BINS)`` ratios:
+        the contraction is done at the table's nodes of ``L_V`` and then interpolated
+        (both are linear).
+        """
+        lags_b, h_b, mu_b = (
+            a.ravel()
+            for a in np.broadcast_arrays(
+                np.asarray(lags, float), np.asarray(height_m, float), np.asarray(mu, float)
+            )
+        )
+        vectors = np.asarray(vectors, float)
+        scales = np.asarray(outer_scales_m, float).ravel()
+        if self.scale_bins is None:
+            total = vectors.sum(axis=-1)
+            return np.broadcast_to(total[:, None, :], (lags_b.size, scales.size, total.shape[-1]))
+        li = np.clip(np.nan_to_num(lags_b, nan=1.0), 1, self.n_lags).astype(int) - 1
+        im, wm, _ = lagrange4(self.mu, np.clip(np.nan_to_num(mu_b), 0.0, self.mu[-1]))
+        # points sharing a lag and a mu stencil (a few hundred groups for any number of
+        # points) contract one (nK * 4, N) block of the table as a matrix product
+        key = li * self.mu.size + im[:, 0]
+        order = np.argsort(key, kind="stable")
+        bounds = np.flatnonzero(np.diff(key[order])) + 1
+        n_k, n_v = self.outer_scales_m.size, vectors.shape[1]
+        at_nodes = np.empty((n_k, lags_b.size, n_v))
+        for group in np.split(order, bounds):
+            block = self.scale_bins[:, li[group[0]], im[group[0]]].reshape(-1, N_BINS)
+            prod = vectors[group].reshape(-1, N_BINS) @ block.T  # (g * m, nK * 4)
+            prod = prod.reshape(group.size, n_v, n_k, 4)
+            at_nodes[:, group] = np.einsum("gjkc,gc->kgj", prod, wm[group])
+        big_l = np.broadcast_to(scales[None, :], (lags_b.size, scales.size))
+        return self._interp_scale(at_nodes, h_b, big_l)
+
+    def _scale_mu(self, lags: np.ndarray, mu: np.ndarray) -> np.ndarray:
+        """``(nK, q, N)``: ``scale_bins`` at the points' lags and ``mu`` (cubic), every node."""
+        li = np.clip(np.nan_to_num(lags, nan=1.0), 1, self.n_lags).astype(int) - 1
+        im, wm, _ = lagrange4(self.mu, np.clip(np.nan_to_num(mu), 0.0, self.mu[-1]))
+        return np.einsum("kqcn,qc->kqn", self.scale_bins[:, li[:, None], im], wm)
+
+    def _interp_scale(
+        self, at_nodes: np.ndarray, height_m: np.ndarray, outer_scale_m: np.ndarray
+    ) -> np.ndarray:
+        """``(q, nS, ...)``: ``at_nodes`` ``(nK, q, ...)`` read at ``L_V h_ref / h`` (linear in
+        ``log L_V``, clamped to the nodes) for the ``(q, nS)`` outer scales."""
         nodes = np.log(self.outer_scales_m)
         with np.errstate(invalid="ignore", divide="ignore"):
-            x = np.log(l_b.ravel() * self.scale_height_m / h_b.ravel())
+            x = np.log(outer_scale_m * self.scale_height_m / height_m[:, None])
         x = np.clip(np.nan_to_num(x, nan=nodes[0]), nodes[0], nodes[-1])
         k = np.clip(np.searchsorted(nodes, x, side="right") - 1, 0, nodes.size - 2)
         frac = (x - nodes[k]) / (nodes[k + 1] - nodes[k])
-        out = np.zeros((lags_b.size, N_BINS))
-        for step, wl in ((0, 1.0 - frac), (1, frac)):
-            vals = self.scale_bins[(k + step)[:, None], li[:, None], im]  # (q, 4, N_BINS)
-            out += wl[:, None] * np.einsum("qcn,qc->qn", vals, wm)
-        return out.reshape(*shape, N_BINS)
+        frac = frac.reshape(*frac.shape, *([1] * (at_nodes.ndim - 2)))
+        rows = np.arange(at_nodes.shape[1])[:, None]
+        return (1.0 - frac) * at_nodes[k, rows] + frac * at_nodes[k + 1, rows]
 
     @property
     def n_lags(self) -> int:
@@ -203,17 +258,48 @@ class ATable:
         if weights is not None and self.bins_a2 is not None:
             wb = np.broadcast_to(np.asarray(weights, float), (*shape, N_BINS))
             wb = wb.reshape(-1, N_BINS)
-            r_h = np.einsum("lukjmc,uk->lujmc", self.bins_a2[:, ihu], whu)
-            flat = r_h.reshape(-1, N_BINS)
-            idx = base[:, :, None] * n_m + im[:, None, :]  # (q, a, 4)
-            vals = flat[idx.ravel()].reshape(*idx.shape, N_BINS)  # (q, a, 4, bins)
-            ratio = np.einsum("qa,qacn,qc->qn", wl, vals, wm, optimize=True)
+            ratio = self._node_ratio((ihu, whu), base, (im, wm), wl)
             log2 = log2 + np.log(np.maximum(np.sum(ratio * wb, axis=-1), 1e-12))
         ok1 = lag_ok & vh & vl
         ok2 = ok1 & vm
         out1 = np.where(ok1, np.exp(log1), np.nan).reshape(shape)
         out2 = np.where(ok2, np.exp(log2), np.nan).reshape(shape)
         return out1, out2
+
+    def _node_ratio(self, height: tuple, base: np.ndarray, mu: tuple, wl: np.ndarray) -> np.ndarray:
+        """``(q, N_BINS)`` ``bins_a2`` interpolated: height stencil ``(ihu, whu)`` of the
+        distinct heights, ``base`` ``(q, a)`` flat (outer scale, height, lag) rows, ``mu``
+        stencil ``(im, wm)`` and outer-scale weights ``wl`` (as :meth:`evaluate`)."""
+        ihu, whu = height
+        im, wm = mu
+        r_h = np.einsum("lukjmc,uk->lujmc", self.bins_a2[:, ihu], whu)
+        flat = r_h.reshape(-1, N_BINS)
+        idx = base[:, :, None] * self.mu.size + im[:, None, :]  # (q, a, 4)
+        vals = flat[idx.ravel()].reshape(*idx.shape, N_BINS)  # (q, a, 4, bins)
+        return np.einsum("qa,qacn,qc->qn", wl, vals, wm, optimize=True)
+
+    def node_ratio(self, lags: ArrayLike, height_m: ArrayLike, mu: ArrayLike) -> np.ndarray:
+        """``(..., N_BINS)``: ``A_2`` at each azimuth node over its circle mean (inertial).
+
+        The factor :meth:`evaluate` applies for ``weights`` (``A_2(weights) = A_2 *
+        sum(node_ratio * weights)``), for callers that weight the same cells many times.
+        Inputs broadcast; 1 for tables without bins.
+        """
+        lags_b, h_b, mu_b = np.broadcast_arrays(
+            np.asarray(lags, float), np.asarray(height_m, float), np.asarray(mu, float)
+        )
+        shape = lags_b.shape
+        if self.bins_a2 is None:
+            return np.ones((*shape, N_BINS))
+        lag = lags_b.ravel()
+        li = np.clip(np.nan_to_num(lag, nan=1.0), 1, self.n_lags).astype(int) - 1
+        h_unique, h_inverse = np.unique(h_b.ravel(), return_inverse=True)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ihu, whu, _ = lagrange4(np.log(self.heights_m), np.log(h_unique))
+            im, wm, _ = lagrange4(self.mu, mu_b.ravel())
+        base = (h_inverse.ravel() * self.n_lags + li)[:, None]  # one (nan) outer-scale node
+        ratio = self._node_ratio((ihu, whu), base, (im, wm), np.ones((lag.size, 1)))
+        return ratio.reshape(*shape, N_BINS)
 
     def at_cells(self, lags: ArrayLike, height_m: ArrayLike, mu: ArrayLike) -> CellTable:
         """This table interpolated in height and ``mu`` to fixed cells, kept over ``L_V``.

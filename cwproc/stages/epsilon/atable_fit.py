@@ -134,6 +134,11 @@ def sector_evaluate(
     return a1, a2_full * ratio, ratio
 
 
+#: (point, outer-scale node) pairs of :func:`outer_scale_sector_factor` held at once
+#: (the per-node ratios of a chunk: 36 nodes x 8 bytes x 4 mu neighbours each)
+SCALE_POINTS = 32768
+
+
 def outer_scale_sector_factor(
     tables: tuple, lags: np.ndarray, height: np.ndarray, mu: np.ndarray, weights: np.ndarray
 ) -> np.ndarray:
@@ -156,19 +161,28 @@ def outer_scale_sector_factor(
     if weights.ndim == 2:
         weights = np.broadcast_to(weights[:, None, :], (weights.shape[0], lags.size, N_BINS))
     known = np.nonzero(np.all(np.isfinite(weights), axis=(-2, -1)))[0]
-    for start in range(0, known.size, EVALUATION_CELLS):  # bounded working memory
-        c = known[start : start + EVALUATION_CELLS]
-        lag_f = np.broadcast_to(lags[None, :], (c.size, lags.size)).ravel()
-        h_f, mu_f = np.repeat(height[c], lags.size), np.repeat(mu[c], lags.size)
-        w_f = weights[c].reshape(-1, N_BINS)
-        _, full = inertial.evaluate(lag_f, h_f, mu_f)
-        _, base = inertial.evaluate(lag_f, h_f, mu_f, weights=w_f)
-        for k, big_l in enumerate(scales):
-            q = finite.scale_ratio(lag_f, h_f, mu_f, big_l)
-            _, part = inertial.evaluate(lag_f, h_f, mu_f, weights=w_f * q)
-            _, circle = inertial.evaluate(lag_f, h_f, mu_f, weights=q / N_BINS)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                out[c, k] = (part * full / (base * circle)).reshape(c.size, lags.size)
+    lag_k = np.broadcast_to(lags[None, :], (known.size, lags.size)).ravel()
+    h_k, mu_k = np.repeat(height[known], lags.size), np.repeat(mu[known], lags.size)
+    w_k = weights[known].reshape(-1, N_BINS)
+    # A_2(w) / A_2(circle) = sum(r w): the inertial node ratio r (once), and per node of
+    # L_V the outer scale's factor on it
+    ratio = inertial.node_ratio(lag_k, h_k, mu_k)
+    base = np.sum(ratio * w_k, axis=-1)
+    chunk = max(1, SCALE_POINTS // scales.size)  # points at once: bounded working memory
+    factor = np.empty((lag_k.size, scales.size))
+    by_stencil = np.lexsort((mu_k, lag_k))  # chunks of few (lag, mu stencil) groups
+    for start in range(0, lag_k.size, chunk):
+        q = by_stencil[start : start + chunk]
+        sums = finite.scale_ratio_sums(
+            lag_k[q],
+            h_k[q],
+            mu_k[q],
+            scales,
+            np.stack([ratio[q] * w_k[q], ratio[q] / N_BINS], axis=1),
+        )
+        with np.errstate(invalid="ignore", divide="ignore"):
+            factor[q] = sums[..., 0] / (base[q, None] * sums[..., 1])
+    out[known] = np.moveaxis(factor.reshape(known.size, lags.size, scales.size), 1, 2)
     return np.where(np.isfinite(out) & (out > 0), out, 1.0)
 
 

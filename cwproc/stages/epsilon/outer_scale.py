@@ -34,6 +34,9 @@ INERTIAL_FRACTION = 0.02
 _BISECTIONS = 9
 #: cells of one root search at once (each cell's search is independent of the others)
 ROOT_CELLS = 2048
+#: azimuth step (deg) from which full circles (at most 60 rays) get the outer scale's own
+#: node ratio over the pairs present (:func:`_sector_cell_table`)
+COARSE_STEP_DEG = 6.0
 #: bisections from a bracket of a factor 2 on either side of a known root (-> 1.1 %)
 _BISECTIONS_NEAR = 6
 
@@ -344,9 +347,16 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
     part = np.nonzero(partial_circle(weights, dtheta))[0]
     log_a2 = table.log_a2.copy()
     # the outer scale's own ratio over the azimuths of each lag's pairs (uniform weights:
-    # 1 by construction; a full circle's pairs do not wrap, so lag l lacks l positions)
-    lag_weights = cells.lag_weights[rows].reshape(-1, *cells.lag_weights.shape[-2:])
-    log_a2 += np.log(outer_scale_sector_factor(tables, lags, height, mu, lag_weights))
+    # 1 by construction). Partial circles, and full circles of coarse scans, whose pairs
+    # do not wrap (lag l lacks l of M positions); dense full circles (M > 60: at most 5 %
+    # of the positions, at lags where the outer scale barely changes the node ratio) keep
+    # the inertial ratio alone, which saves most of the stage's time on a day of them
+    coarse = np.nonzero(partial_circle(weights, dtheta) | (dtheta >= COARSE_STEP_DEG))[0]
+    if coarse.size:
+        lag_weights = cells.lag_weights[rows].reshape(-1, *cells.lag_weights.shape[-2:])
+        log_a2[coarse] += np.log(
+            outer_scale_sector_factor(tables, lags, height[coarse], mu[coarse], lag_weights[coarse])
+        )
     if part.size:
         # sectors and gaps: the block-mean VAD fit also takes part of D(l)
         scans = np.repeat(cells.scans[rows], n_h)[part]
