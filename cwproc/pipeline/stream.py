@@ -475,39 +475,34 @@ _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
 _CHUNK_MMAP_BYTES, _CHUNK_TRIM_BYTES = 32 << 20, 256 << 20
 #: glibc's default trim threshold, set back after the chunks
 _DEFAULT_TRIM_BYTES = 128 << 10
-#: while the dissipation rate is fitted: at most this much free heap is kept (arrays up
-#: to ``_CHUNK_MMAP_BYTES`` come from the heap); after it, glibc's largest dynamic mmap
-#: threshold (64-bit)
-_EPSILON_TRIM_BYTES, _AFTER_MMAP_BYTES = 64 << 20, 32 << 20
+#: while the dissipation rate is fitted: arrays from 128 KiB are mapped apart (returned
+#: to the system when freed); after it, glibc's largest dynamic threshold (64-bit)
+_EPSILON_MMAP_BYTES, _AFTER_MMAP_BYTES = 128 << 10, 32 << 20
 
 
 @contextlib.contextmanager
 def heap_returned() -> Iterator[None]:
-    """Run a step with the chunks' freed heap returned to the system first (glibc only).
+    """Run a step with the chunks' freed heap returned to the system (glibc only).
 
     After the chunks, tens of MiB of freed heap stay resident, and the dissipation
-    rate's working arrays (A-table evaluations, the delta-method errors) would be laid
-    out in and beside them, which set the day's peak memory: the free heap is given
-    back (``malloc_trim``) before the step. During it, arrays up to 32 MiB come from
-    the heap and at most 64 MiB of free heap is kept (``M_TRIM_THRESHOLD``): the step
-    makes and drops thousands of temporaries of 0.1-30 MiB, and mapping each apart (as
-    a 128 KiB ``M_MMAP_THRESHOLD`` did) faulted 3.7 million pages in and out for a day
-    of 1920 scans (10 s of system time, against 0.4 s now, for 5 MiB more peak). The
-    values computed are the same; with another C library this does nothing.
+    rate's working arrays (A-table evaluations, the delta-method errors: about 85 MiB
+    for a day) are laid out in and beside them, which set the day's peak memory. The
+    free heap is given back (``malloc_trim``) and the step's arrays mapped apart (a
+    fixed ``M_MMAP_THRESHOLD``), so the peak is what is in use (keeping 64 MiB of free
+    heap instead saved 0.3 s of page faults for a day of 1920 scans but added 15 MiB to
+    the peak). The values computed are the same; with another C library this does
+    nothing.
     """
     libc = _glibc()
     if libc is None:
         yield
         return
     libc.malloc_trim(0)
-    libc.mallopt(_M_MMAP_THRESHOLD, _CHUNK_MMAP_BYTES)
-    libc.mallopt(_M_TRIM_THRESHOLD, _EPSILON_TRIM_BYTES)
+    libc.mallopt(_M_MMAP_THRESHOLD, _EPSILON_MMAP_BYTES)
     try:
         yield
     finally:
-        libc.mallopt(_M_TRIM_THRESHOLD, _DEFAULT_TRIM_BYTES)
         libc.mallopt(_M_MMAP_THRESHOLD, _AFTER_MMAP_BYTES)
-        libc.malloc_trim(0)
 
 
 @contextlib.contextmanager
