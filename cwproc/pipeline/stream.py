@@ -129,11 +129,10 @@ def read_ahead_enabled(read_ahead: bool | None = None) -> bool:
     ``true``, ``yes``, ``on``). Chunks read at once are then parsed a chunk ahead
     (:class:`ChunkAhead`), others file by file (:class:`ReadAhead`).
 
-    Off by default: it pays only when the second core is free. On the shared 2-core
-    machine, with other jobs on it (load 1.8-2.6), a day of 1920 scans took the same
-    time with it (24.96 against 24.64 s) for 6 MiB more peak; the file-by-file reading
-    ahead had gained at most 1.6 s on a free core and lost 2-3 s on a busy one
-    (``docs/DEVELOPING.md``).
+    Off by default: it pays only when the second core is free, and costs memory. On
+    the shared 2-core machine a day of 1920 scans took 1.1-2.0 s less with it (of 19-23
+    s) when the other jobs left part of a core, the same time when they held both
+    (24.96 against 24.64 s), and 6-9 MiB more peak (``docs/DEVELOPING.md``).
     """
     if read_ahead is not None:
         return bool(read_ahead)
