@@ -11,13 +11,17 @@ scans, one ``.hpl`` file per scan as the Stream Line writes them) is
 and the script prints both times (wall and CPU, best of ``--repeat``), their ratio
 (target <= 1.5) and the peak resident memory of the retrieve process (``VmHWM``;
 target < 300 MiB). ``--read-ahead`` also runs it with ``CWPROC_READ_AHEAD=1`` (the
-next files read in a second thread of the same process,
-``cwproc.pipeline.stream.ReadAhead``; its peak is the whole run's), side by side.
+next chunk parsed in a second thread of the same process,
+``cwproc.pipeline.stream.ChunkAhead``; its peak is the whole run's), side by side.
+``--baseline CHECKOUT`` also runs the retrieve of another checkout of cwproc (e.g. main's,
+imported through ``PYTHONPATH``, with this interpreter), each repeat right after this
+one, and prints this checkout's times and peak as ratios to it: the machine is shared,
+so only figures of one run, back to back, compare.
 
 Run::
 
     python benchmarks/bench_retrieve_day.py [--repeat 2] [--scans 1920] [--day-dir DIR]
-        [--read-ahead]
+        [--read-ahead] [--baseline CHECKOUT]
 
 ``--day-dir`` keeps the day's files in ``DIR`` (written there when it holds no ``.hpl``
 file, reused as they are otherwise), so that repeated runs do not write them again.
@@ -113,8 +117,15 @@ def write_day(folder: Path, n_scans: int) -> int:
 def run(cmd: list[str], env: dict | None = None) -> tuple[float, float, str]:
     """Wall time, CPU time (user + system, s) and stderr of one child process."""
     t0 = time.perf_counter()
+    # run outside any checkout, so that ``python -c`` imports cwproc from ``PYTHONPATH``
+    # (``--baseline``) or the installed one, never from the current directory
     proc = subprocess.Popen(
-        cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env
+        cmd,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        cwd=tempfile.gettempdir(),
     )
     err = proc.stderr.read() if proc.stderr else ""
     _, status, usage = os.wait4(proc.pid, 0)
@@ -132,9 +143,12 @@ def main() -> None:
     parser.add_argument(
         "--read-ahead", action="store_true", help="also retrieve with CWPROC_READ_AHEAD=1"
     )
+    parser.add_argument(
+        "--baseline", type=Path, help="another cwproc checkout to compare with (its root)"
+    )
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="cwproc_bench_day_") as tmp:
-        folder = args.day_dir or Path(tmp) / "day"
+        folder = (args.day_dir or Path(tmp) / "day").resolve()
         folder.mkdir(parents=True, exist_ok=True)
         t0 = time.perf_counter()
         held = sorted(folder.glob("*.hpl"))
@@ -143,14 +157,19 @@ def main() -> None:
         how = "reused" if held else f"written in {time.perf_counter() - t0:.0f} s"
         print(f"day: {n_files} scans of {RAYS} rays x {GATES} gates, one file each, "
               f"{size / 2**20:.0f} MiB ({how}); load average {os.getloadavg()[0]:.1f}")  # fmt: skip
-        variants = {"": None}
+        # this checkout's cwproc, whatever the interpreter has installed
+        this = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+        variants: dict[str, dict | None] = {"": this}
         if args.read_ahead:
-            variants["CWPROC_READ_AHEAD=1 "] = {**os.environ, "CWPROC_READ_AHEAD": "1"}
+            variants["CWPROC_READ_AHEAD=1 "] = {**this, "CWPROC_READ_AHEAD": "1"}
+        if args.baseline:
+            baseline = str(args.baseline.resolve())
+            variants[f"of {baseline} "] = {**os.environ, "PYTHONPATH": baseline}
         reads: list[tuple[float, float, str]] = []
         retrieves: dict[str, list[tuple[float, float, str]]] = {k: [] for k in variants}
         peaks: dict[str, list[float]] = {k: [] for k in variants}
         for k in range(args.repeat):
-            reads.append(run([sys.executable, "-c", _READ, str(folder)]))
+            reads.append(run([sys.executable, "-c", _READ, str(folder)], this))
             for name, env in variants.items():
                 out = Path(tmp) / f"out{k}{len(name)}"
                 cmd = [sys.executable, "-c", _RETRIEVE, "retrieve", str(folder), "-o", str(out)]
@@ -167,6 +186,19 @@ def main() -> None:
             print(f"  ratio retrieve / read            {tw / rw:7.2f} wall, {tc / rc:7.2f} CPU "
                   "(target <= 1.5)")  # fmt: skip
             print(f"  retrieve peak RSS                {max(peaks[name]):7.0f} MiB (target < 300)")
+        if args.baseline:
+            report_baseline(retrieves, peaks)
+
+
+def report_baseline(retrieves: dict[str, list], peaks: dict[str, list[float]]) -> None:
+    """This checkout's retrieve against the baseline's, repeat by repeat (ratios)."""
+    this, base = retrieves[""], retrieves[next(k for k in retrieves if k.startswith("of "))]
+    walls = [a[0] / b[0] for a, b in zip(this, base, strict=True)]
+    cpus = [a[1] / b[1] for a, b in zip(this, base, strict=True)]
+    print(f"  this / baseline, each repeat      wall {', '.join(f'{x:.2f}' for x in walls)}; "
+          f"CPU {', '.join(f'{x:.2f}' for x in cpus)}")  # fmt: skip
+    base_peak = max(peaks[next(k for k in peaks if k.startswith("of "))])
+    print(f"  peak RSS this / baseline          {max(peaks['']):.0f} / {base_peak:.0f} MiB")
 
 
 if __name__ == "__main__":

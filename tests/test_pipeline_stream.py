@@ -323,3 +323,36 @@ def test_chunks_read_at_once_give_the_file_by_file_products(tmp_path, config, mo
         np.testing.assert_array_equal(time, time_1)
     assert products["wind"].attrs["source_files"] == products_1["wind"].attrs["source_files"]
     assert products["wind"].sizes["time"] == 24
+
+
+def test_heap_kept_sets_and_restores_the_glibc_thresholds(monkeypatch):
+    """heap_kept: the chunks run with 32 MiB mmap and 256 MiB trim thresholds; the default
+    trim threshold is restored and the free heap returned on exit, also after an error;
+    heap_returned trims first and maps arrays from 128 KiB apart; without glibc both do
+    nothing."""
+    import cwproc.pipeline.stream as stream
+
+    calls: list[tuple] = []
+
+    class FakeLibc:
+        def mallopt(self, param, value):
+            calls.append(("mallopt", param, value))
+            return 1
+
+        def malloc_trim(self, pad):
+            calls.append(("trim", pad))
+            return 1
+
+    monkeypatch.setattr(stream, "_glibc", lambda: FakeLibc())
+    with pytest.raises(RuntimeError), stream.heap_kept():
+        assert calls == [("mallopt", -3, 32 << 20), ("mallopt", -1, 256 << 20)]
+        raise RuntimeError("a chunk failed")
+    assert calls[2:] == [("mallopt", -1, 128 << 10), ("trim", 0)]
+    calls.clear()
+    with stream.heap_returned():  # the dissipation rate: heap returned, arrays apart
+        assert calls == [("trim", 0), ("mallopt", -3, 128 << 10)]
+    assert calls[2:] == [("mallopt", -3, 32 << 20)]
+    monkeypatch.setattr(stream, "_glibc", lambda: None)
+    with stream.heap_kept(), stream.heap_returned():
+        pass
+    assert len(calls) == 3

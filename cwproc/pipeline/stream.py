@@ -27,6 +27,7 @@ import dataclasses
 import os
 import threading
 from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -125,12 +126,13 @@ READ_AHEAD_VARIABLE = "CWPROC_READ_AHEAD"
 def read_ahead_enabled(read_ahead: bool | None = None) -> bool:
     """Whether a streamed day reads its files in a second thread: ``read_ahead`` when
     given, else whether the environment variable ``CWPROC_READ_AHEAD`` is ``1`` (or
-    ``true``, ``yes``, ``on``).
+    ``true``, ``yes``, ``on``). Chunks read at once are then parsed a chunk ahead
+    (:class:`ChunkAhead`), others file by file (:class:`ReadAhead`).
 
-    Off by default: on 2 cores the two threads contend for the interpreter lock (the
-    reader builds datasets, the stages run many small array operations), which cost
-    about 3 s of CPU per day of 1920 scans and gained at most 1.6 s of wall time when
-    the second core was free, 2-3 s lost when it was not (``docs/DEVELOPING.md``).
+    Off by default: it pays only when the second core is free, and costs memory. On
+    the shared 2-core machine a day of 1920 scans took 1.1-2.0 s less with it (of 19-23
+    s) when the other jobs left part of a core, the same time when they held both
+    (24.96 against 24.64 s), and 6-9 MiB more peak (``docs/DEVELOPING.md``).
     """
     if read_ahead is not None:
         return bool(read_ahead)
@@ -215,21 +217,66 @@ class ReadAhead:
 
 
 def planned_chunk_datasets(
-    ordered: list, take: Callable, took: Callable, chunk_bytes: int
+    ordered: list, take: Callable, took: Callable, chunk_bytes: int, ahead: bool = False
 ) -> Iterator[xr.Dataset | None]:
     """The chunks of ``.hpl`` files read a chunk at a time (:mod:`.stream_read`).
 
     ``took(item, identity, lines)`` is called for each file of a chunk read at once
     (its identity and the line :func:`~.chain.describe_scan_inputs` gives it); a chunk
     that cannot be read at once is read file by file with ``take(item)``, as
-    :func:`chunks_of` does. None: a chunk whose every file was left out.
+    :func:`chunks_of` does. None: a chunk whose every file was left out. With
+    ``ahead``, the next chunk is planned and parsed in a second thread
+    (:class:`ChunkAhead`) while the caller processes the one handed out; ``took`` and
+    ``take`` still run in the caller's thread, in order.
     """
-    for planned in planned_chunks(ordered, chunk_bytes):
-        yield _planned_chunk(planned, take, took)
+    plans = planned_chunks(ordered, chunk_bytes)
+    if not ahead:
+        for planned in plans:
+            yield _planned_chunk(planned, read_planned_chunk(planned), take, took)
+        return
+    reader = ChunkAhead(plans)
+    try:
+        while (next_chunk := reader.next()) is not None:
+            yield _planned_chunk(*next_chunk, take, took)
+    finally:
+        reader.close()
 
 
-def _planned_chunk(planned: list[tuple], take: Callable, took: Callable) -> xr.Dataset | None:
-    got = read_planned_chunk(planned)
+class ChunkAhead:
+    """The planned chunks of a day parsed one chunk ahead in a second thread.
+
+    :meth:`next` returns ``(planned, read)`` of the next chunk (``read`` as
+    :func:`~.stream_read.read_planned_chunk` gives it), waiting for the thread if it is
+    not ready, and starts the planning and parsing of the chunk after it; an error of
+    the thread is raised there. So while a chunk is processed, at most one more is
+    held. The compiled tokenizer and the file reads release the GIL, so the parsing
+    runs on the second core beside the numerical work of the stages.
+    """
+
+    def __init__(self, plans: Iterator[list[tuple]]) -> None:
+        self._plans = plans
+        self._pool = ThreadPoolExecutor(1, thread_name_prefix="cwproc-chunk-ahead")
+        self._pending = self._pool.submit(self._read_next)
+
+    def _read_next(self) -> tuple[list[tuple], tuple | None] | None:
+        planned = next(self._plans, None)
+        return None if planned is None else (planned, read_planned_chunk(planned))
+
+    def next(self) -> tuple[list[tuple], tuple | None] | None:
+        """The next planned chunk and its reading; None after the last."""
+        got = self._pending.result()
+        if got is not None:
+            self._pending = self._pool.submit(self._read_next)
+        return got
+
+    def close(self) -> None:
+        """Wait for the chunk being read (it is dropped) and stop the thread."""
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _planned_chunk(
+    planned: list[tuple], got: tuple | None, take: Callable, took: Callable
+) -> xr.Dataset | None:
     if got is None:
         parts = [ds for item, _ in planned if (ds := take(item)) is not None]
         return concat_scans(parts) if parts else None
@@ -419,8 +466,14 @@ def stream_products(
     return products
 
 
-#: glibc ``mallopt`` parameter of the size from which ``malloc`` maps memory apart
-_M_MMAP_THRESHOLD = -3
+#: glibc ``mallopt`` parameters: free memory at the top of the heap above which ``free``
+#: returns it to the system; size from which ``malloc`` maps memory apart
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+#: while the chunks are processed: arrays up to glibc's largest threshold (64-bit) come
+#: from the heap, and up to this much free heap is kept for the next chunk's arrays
+_CHUNK_MMAP_BYTES, _CHUNK_TRIM_BYTES = 32 << 20, 256 << 20
+#: glibc's default trim threshold, set back after the chunks
+_DEFAULT_TRIM_BYTES = 128 << 10
 #: while the dissipation rate is fitted: arrays from 128 KiB are mapped apart (returned
 #: to the system when freed); after it, glibc's largest dynamic threshold (64-bit)
 _EPSILON_MMAP_BYTES, _AFTER_MMAP_BYTES = 128 << 10, 32 << 20
@@ -434,8 +487,10 @@ def heap_returned() -> Iterator[None]:
     rate's working arrays (A-table evaluations, the delta-method errors: about 85 MiB
     for a day) are laid out in and beside them, which set the day's peak memory. The
     free heap is given back (``malloc_trim``) and the step's arrays mapped apart (a
-    fixed ``M_MMAP_THRESHOLD``), so the peak is what is in use. The values computed
-    are the same; with another C library this does nothing.
+    fixed ``M_MMAP_THRESHOLD``), so the peak is what is in use (keeping 64 MiB of free
+    heap instead saved 0.3 s of page faults for a day of 1920 scans but added 15 MiB to
+    the peak). The values computed are the same; with another C library this does
+    nothing.
     """
     libc = _glibc()
     if libc is None:
@@ -447,6 +502,34 @@ def heap_returned() -> Iterator[None]:
         yield
     finally:
         libc.mallopt(_M_MMAP_THRESHOLD, _AFTER_MMAP_BYTES)
+
+
+@contextlib.contextmanager
+def heap_kept() -> Iterator[None]:
+    """Process the chunks with their freed arrays kept in the heap (glibc only).
+
+    Each chunk's stages make and drop hundreds of arrays of a few MiB (the padded
+    (scan, ray, gate) arrays of the fits, the structure function's); by default glibc
+    maps such arrays apart or returns the freed heap top to the system, so every one
+    is faulted in page by page and zeroed by the kernel again (about a third of the
+    stages' time, and more when the cores are shared). Here arrays up to 32 MiB come
+    from the heap and up to 256 MiB of free heap is kept, so the next array reuses pages
+    already resident; the peak memory is that of the largest chunk's arrays in use, as
+    before. Afterwards the free heap is given back (``malloc_trim``) and the default
+    trim threshold restored. The values computed are the same; with another C library
+    this does nothing.
+    """
+    libc = _glibc()
+    if libc is None:
+        yield
+        return
+    libc.mallopt(_M_MMAP_THRESHOLD, _CHUNK_MMAP_BYTES)
+    libc.mallopt(_M_TRIM_THRESHOLD, _CHUNK_TRIM_BYTES)
+    try:
+        yield
+    finally:
+        libc.mallopt(_M_TRIM_THRESHOLD, _DEFAULT_TRIM_BYTES)
+        libc.malloc_trim(0)
 
 
 def _glibc() -> ctypes.CDLL | None:
@@ -482,9 +565,10 @@ def stream_scan_unit(
     chunk_bytes : int
         Input data joined into one chunk (bytes).
     read_ahead : bool, optional
-        Read the next files in a second thread (:class:`ReadAhead`, at most one chunk
-        ahead) while a chunk is processed; None: when ``CWPROC_READ_AHEAD=1``
-        (:func:`read_ahead_enabled`). The products are the same either way.
+        Read the next files in a second thread (:class:`ChunkAhead` for chunks read at
+        once, else :class:`ReadAhead`; at most one chunk ahead) while a chunk is
+        processed; None: when ``CWPROC_READ_AHEAD=1`` (:func:`read_ahead_enabled`). The
+        products are the same either way.
 
     Returns
     -------
@@ -503,7 +587,9 @@ def stream_scan_unit(
         return item.dataset if item.dataset is not None else load(item)
 
     ordered = time_ordered(list(unit.inputs), lambda item: item.start)
-    ahead = ReadAhead(ordered, read, chunk_bytes) if read_ahead_enabled(read_ahead) else None
+    by_chunk = chunk_reading_possible(unit, config)
+    reading_ahead = read_ahead_enabled(read_ahead)
+    ahead = ReadAhead(ordered, read, chunk_bytes) if reading_ahead and not by_chunk else None
 
     def took(item, identity: FileIdentity, lines: list[str]) -> None:
         item.dataset = None  # the chunk holds it now; released with the chunk
@@ -524,24 +610,25 @@ def stream_scan_unit(
             took(item, identity, describe_scan_inputs(_single(unit, item, ds)))
         return ds
 
-    if ahead is None and chunk_reading_possible(unit, config):
-        chunks = planned_chunk_datasets(ordered, take, took, chunk_bytes)
+    if by_chunk:
+        chunks = planned_chunk_datasets(ordered, take, took, chunk_bytes, reading_ahead)
     else:
         chunks = (concat_scans(parts) for parts in chunks_of(ordered, take, chunk_bytes))
     try:
-        for chunk in chunks:
-            if chunk is None:
-                continue  # every file of the chunk damaged beyond its header
-            chunk = corrected_chunk(chunk, unit, config, own, state)
-            state.scan_type = str(chunk.attrs.get("scan_type", ""))
-            chunk = number_scans(chunk, state)
-            if state.turbulence and not state.winds and not state.stares:
-                mismatch = probe_mismatch(chunk, config)
-                if mismatch:
-                    state.turbulence = False
-                    own.append(f"turbulence not computed: {mismatch}")
-            take_chunk(chunk, state, config)
-            del chunk  # released before the next chunk is read (and before epsilon)
+        with heap_kept():  # the chunks' arrays reuse the freed heap
+            for chunk in chunks:
+                if chunk is None:
+                    continue  # every file of the chunk damaged beyond its header
+                chunk = corrected_chunk(chunk, unit, config, own, state)
+                state.scan_type = str(chunk.attrs.get("scan_type", ""))
+                chunk = number_scans(chunk, state)
+                if state.turbulence and not state.winds and not state.stares:
+                    mismatch = probe_mismatch(chunk, config)
+                    if mismatch:
+                        state.turbulence = False
+                        own.append(f"turbulence not computed: {mismatch}")
+                take_chunk(chunk, state, config)
+                del chunk  # released before the next chunk is read (and before epsilon)
         if not seen:  # every input damaged beyond its header: each has its failure line
             return {} if not unit.inputs else None
         if state.carry is not None:
@@ -555,6 +642,7 @@ def stream_scan_unit(
     except StreamMismatch:
         return None
     finally:
+        chunks.close()  # stops the reading thread of a chunk reader
         if ahead is not None:
             ahead.close()
     if not state.winds:

@@ -38,7 +38,7 @@ from cwproc.errors import CwprocError
 from cwproc.io.scans import is_homodyne
 from cwproc.physics.geometry import beam_unit_vector
 from cwproc.stages.vad import pointing, scan_chunks, scan_layout
-from cwproc.stages.vad_fit import fit_least_absolute, fit_scans
+from cwproc.stages.vad_fit import fit_least_absolute, fit_scans, linear_residuals
 
 FLAG_LOW_SNR = 1
 FLAG_OUTLIER = 2
@@ -80,21 +80,38 @@ def robust_outliers(
     -------
     ndarray of bool, shape (S, R, G)
     """
-    enough = valid.sum(axis=1) >= MIN_RAYS_FOR_OUTLIERS
-    use = valid & enough[:, None, :]
-    centre = median_along_rays(residuals, use)
+    return _outliers(residuals, *tested_entries(valid), threshold, min_spread)
+
+
+def tested_entries(valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The entries the outlier test takes (``valid`` in groups of at least
+    ``MIN_RAYS_FOR_OUTLIERS``) and their number per group: (S, R, G), (S, G)."""
+    n = valid.sum(axis=1)
+    enough = n >= MIN_RAYS_FOR_OUTLIERS
+    return valid & enough[:, None, :], np.where(enough, n, 0)
+
+
+def _outliers(
+    residuals: np.ndarray, use: np.ndarray, n: np.ndarray, threshold: float, min_spread: float
+) -> np.ndarray:
+    """:func:`robust_outliers` of the entries ``use`` (``n`` of them per group)."""
+    centre = median_along_rays(residuals, use, n)
     deviation = np.abs(residuals - centre[:, None, :])
-    spread = np.maximum(MAD_TO_STD * median_along_rays(deviation, use), min_spread)
+    spread = np.maximum(MAD_TO_STD * median_along_rays(deviation, use, n), min_spread)
     return use & (deviation > threshold * spread[:, None, :])
 
 
-def median_along_rays(values: np.ndarray, use: np.ndarray) -> np.ndarray:
+def median_along_rays(
+    values: np.ndarray, use: np.ndarray, n: np.ndarray | None = None
+) -> np.ndarray:
     """Median over axis 1 of the entries where ``use`` is true (NaN for empty groups).
 
     Parameters
     ----------
     values : ndarray, shape (S, R, G)
     use : ndarray of bool, shape (S, R, G)
+    n : ndarray of int, shape (S, G), optional
+        ``use.sum(axis=1)`` when the caller holds it.
 
     Returns
     -------
@@ -102,7 +119,7 @@ def median_along_rays(values: np.ndarray, use: np.ndarray) -> np.ndarray:
     """
     ordered = np.where(use, values, np.inf)
     ordered.sort(axis=1)  # in place: no second (S, R, G) array
-    n = use.sum(axis=1)
+    n = use.sum(axis=1) if n is None else n
     lo = np.take_along_axis(ordered, np.maximum((n - 1) // 2, 0)[:, None, :], axis=1)[:, 0]
     hi = np.take_along_axis(ordered, np.maximum(n // 2, 0)[:, None, :], axis=1)[:, 0]
     with np.errstate(invalid="ignore"):
@@ -225,10 +242,14 @@ def outlier_flags(
         values = sub.take(velocity)
         design = beam_unit_vector(sub.take(azimuth), sub.take(elevation))
         _, residuals = fit_least_absolute(values, design, base, homodyne=homodyne)
-        flagged = robust_outliers(residuals, base, threshold, min_spread)
+        use, n = tested_entries(base)  # the same in every pass
+        flagged = _outliers(residuals, use, n, threshold, min_spread)
         for _ in range(OUTLIER_PASSES):
-            fit = fit_scans(values, design, base & ~flagged, homodyne=homodyne)
-            again = robust_outliers(fit.residuals, base, threshold, min_spread)
+            if homodyne:
+                residuals = fit_scans(values, design, base & ~flagged, homodyne=True).residuals
+            else:
+                residuals = linear_residuals(values, design, base & ~flagged)
+            again = _outliers(residuals, use, n, threshold, min_spread)
             if np.array_equal(again, flagged):
                 break  # the next pass would fit the same rays and flag the same again
             flagged = again

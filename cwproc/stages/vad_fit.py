@@ -4,8 +4,10 @@ The model of each ray is ``V_r = A beta``, ``A`` the beam unit vector
 (:func:`cwproc.physics.geometry.beam_unit_vector`) and ``beta = (u, v, w)``
 (Smalikho (2020), eq. 1 and eq. 8). Rays are laid out as ``(scan, ray in scan, gate)``
 arrays padded with masked entries; the 3x3 normal equations are summed with masked
-batched matrix products and solved by batched adjugate inverses. Standard errors come
-from the residual variance and ``(A^T A)^-1``.
+batched matrix products and solved by batched adjugate inverses (the iterations of the
+L1 fit of the outlier screening sum only the 6 distinct entries of the symmetric matrix
+and solve by the cofactors, Cramer's rule). Standard errors come from the residual
+variance and ``(A^T A)^-1``.
 
 Homodyne cw lidars (ZephIR) measure only ``|V_r|``: the model becomes ``|A beta|``,
 fitted by Gauss-Newton. Because ``d|A beta|/d beta = sign(A beta) A``,
@@ -87,6 +89,53 @@ def _normal_matrix(
     return np.matmul(weight.transpose(0, 2, 1), outer).reshape(s, weight.shape[2], 3, 3)
 
 
+#: (j, k) of the distinct entries ``a b c e f i`` of a symmetric 3x3 matrix
+#: ``[[a, b, c], [b, e, f], [c, f, i]]``
+_SYM_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+
+
+def _design_pairs(design: FloatArray) -> FloatArray:
+    """``a_srj a_srk`` of every ray for the 6 distinct (j, k) of :data:`_SYM_PAIRS`: (S, R, 6)."""
+    return np.stack([design[..., j] * design[..., k] for j, k in _SYM_PAIRS], axis=-1)
+
+
+def _normal_equations(
+    design: FloatArray, weight: FloatArray, weighted_y: FloatArray, pairs: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The distinct entries of ``sum_r w a_j a_k`` (S, G, 6) and ``sum_r w y a_j`` (S, G, 3).
+
+    Two batched matrix products over the rays (``pairs``: :func:`_design_pairs`).
+    """
+    m = np.matmul(weight.transpose(0, 2, 1), pairs)
+    return m, np.matmul(weighted_y.transpose(0, 2, 1), design)
+
+
+def _cofactors(m: FloatArray) -> tuple[FloatArray, ...]:
+    """Cofactors ``c00 c01 c02 c11 c12 c22`` and determinant of the symmetric matrices
+    whose distinct entries ``a b c e f i`` are ``m[..., :6]``."""
+    a, b, c, e, f, i = (m[..., k] for k in range(6))
+    c00, c01, c02 = e * i - f * f, c * f - b * i, b * f - c * e
+    c11, c12, c22 = a * i - c * c, b * c - a * f, a * e - b * b
+    return c00, c01, c02, c11, c12, c22, a * c00 + b * c01 + c * c02
+
+
+def _cramer(m: FloatArray, rhs: FloatArray) -> FloatArray:
+    """Solve the symmetric 3x3 systems ``M x = rhs`` (``m``: :func:`_normal_equations`)
+    by the cofactors (Cramer's rule): (..., 3); singular systems give non-finite values."""
+    c00, c01, c02, c11, c12, c22, det = _cofactors(m)
+    r0, r1, r2 = rhs[..., 0], rhs[..., 1], rhs[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_det = 1.0 / det
+        return np.stack(
+            [
+                (c00 * r0 + c01 * r1 + c02 * r2) * inv_det,
+                (c01 * r0 + c11 * r1 + c12 * r2) * inv_det,
+                (c02 * r0 + c12 * r1 + c22 * r2) * inv_det,
+            ],
+            axis=-1,
+        )
+
+
 def inverse_3x3(m: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Batched inverse of 3x3 matrices by the adjugate, and the determinants.
 
@@ -161,6 +210,19 @@ def _finish(
         converged=converged,
         residuals=residuals,
     )
+
+
+def linear_residuals(velocity: FloatArray, design: FloatArray, valid: BoolArray) -> FloatArray:
+    """The residuals of :func:`fit_linear` alone (data minus model, m s-1; (S, R, G)).
+
+    The same fit, without the standard errors and covariances the outlier screening does
+    not use; the model of an undetermined (scan, gate) is 0.
+    """
+    design = np.nan_to_num(design)
+    weight = valid.astype(float)
+    inverse, _ = _safe_inverse(_normal_matrix(design, weight), weight.sum(axis=1))
+    beta = _solve(np.nan_to_num(inverse), design, np.where(valid, velocity, 0.0))
+    return velocity - _model(design, beta)
 
 
 def fit_linear(velocity: FloatArray, design: FloatArray, valid: BoolArray) -> BatchedFit:
@@ -372,16 +434,17 @@ def fit_least_absolute(
     beta = np.nan_to_num(start.beta)
     y = np.where(valid, np.abs(values) if homodyne else values, 0.0)
     # the (S, R, G) arrays of an iteration live in three buffers (no allocation per step)
-    outer, model, weight, weighted = _design_outer(design), *(np.empty_like(y) for _ in "123")
+    pairs, model, weight, weighted = _design_pairs(design), *(np.empty_like(y) for _ in "123")
     used = valid.astype(float)  # 1/0: the weights' numerators, converted once
+    keep = ~ok[..., None]
     for _ in range(iterations):
         np.matmul(design, np.nan_to_num(beta).transpose(0, 2, 1), out=model)  # _model
         target = y * np.where(model >= 0, 1.0, -1.0) if homodyne else y
         np.abs(np.subtract(target, model, out=weight), out=weight)
         np.divide(used, np.maximum(weight, floor, out=weight), out=weight)
-        ata = np.where(ok[..., None, None], _normal_matrix(design, weight, outer), np.eye(3))
         np.multiply(weight, target, out=weighted)
-        new = np.where(ok[..., None], _solve(inverse_3x3(ata)[0], design, weighted), beta)
+        new = _cramer(*_normal_equations(design, weight, weighted, pairs))
+        np.copyto(new, beta, where=keep)  # undetermined problems keep their start
         change = float(np.max(np.abs(new - beta), initial=0.0))
         beta = new
         if change < tolerance:

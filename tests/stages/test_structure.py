@@ -315,3 +315,43 @@ def test_statistics_covariance_is_the_scatter_of_the_scan_means():
         expected = np.cov(per_scan, rowvar=False) / len(per_scan)
         np.testing.assert_allclose(cov[b, h], expected, rtol=1e-10)
     assert np.all(np.isnan(cov[2]))
+
+
+def test_pair_node_weights_are_the_dense_azimuth_bin_weights():
+    """The node weights summed per node equal azimuth_bin_weights to the bit, with NaN
+    azimuths, positions without pairs and a height without any pair (NaN)."""
+    from cwproc.physics.atable_interp import azimuth_bin_weights
+    from cwproc.stages.structure import pair_node_weights
+
+    rng = np.random.default_rng(5)
+    theta = rng.uniform(-10.0, 10.0, (3, 179, 40))
+    theta[0, 5, 3] = np.nan
+    theta[1, :, 7] = np.nan
+    counts = rng.integers(0, 11, theta.shape).astype(float)
+    counts[2, :, 9] = 0.0
+    got = pair_node_weights(theta, counts)
+    assert np.array_equal(got, azimuth_bin_weights(theta, axis=1, counts=counts), equal_nan=True)
+    assert np.isnan(got[1, 7]).all() and np.isnan(got[2, 9]).all()
+    assert np.allclose(np.nansum(got, axis=-1)[~np.isnan(got[..., 0])], 1.0)
+
+
+def test_block_median_is_numpy_nanmedian():
+    """The block SNR median (one sort, NaN last) equals numpy.nanmedian over scans and
+    azimuths to the bit: odd and even counts, a column with one value, one without any
+    (NaN), a short last block."""
+    import warnings
+
+    from cwproc.stages.structure import block_median
+
+    rng = np.random.default_rng(11)
+    values = rng.lognormal(size=(25, 18, 7))
+    values[rng.random(values.shape) < 0.3] = np.nan
+    values[:, :, 2] = np.nan
+    values[:10, :, 3] = np.nan
+    values[3, 4, 3] = 0.5
+    got = block_median(values, 10)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        expected = [np.nanmedian(values[k : k + 10].reshape(-1, 7), axis=0) for k in (0, 10, 20)]
+    assert np.array_equal(got, np.array(expected), equal_nan=True)
+    assert np.isnan(got[:, 2]).all() and got[0, 3] == 0.5
