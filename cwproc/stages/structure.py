@@ -212,11 +212,12 @@ def pair_azimuth_weights(
     Returns
     -------
     numpy.ndarray
-        ``(block, height, n_lags, N_BINS)``; NaN where a block, height and lag has no pair.
+        ``(block, height, n_lags, N_BINS)`` (float32: shares, a quarter of the memory of
+        the day's statistics otherwise); NaN where a block, height and lag has no pair.
     """
     starts = np.arange(0, vprime.shape[0], n_scans)
     n_blocks, n_h = starts.size, vprime.shape[2]
-    out = np.full((n_blocks, n_h, n_lags, N_BINS), np.nan)
+    out = np.full((n_blocks, n_h, n_lags, N_BINS), np.nan, dtype=np.float32)
     finite = np.isfinite(vprime)
     for li in range(min(n_lags, vprime.shape[1] - 1)):
         lag = li + 1
@@ -649,7 +650,7 @@ def _block_statistics_by_chunk(
         "diff_se": np.empty((n_blocks, n_h, n_lags)),
         "variance_se": np.empty((n_blocks, n_h)),
         "covariance": np.empty((n_blocks, n_h, n_lags + 1, n_lags + 1)),
-        "weights": np.full((n_blocks, n_h, n_lags, N_BINS), np.nan),
+        "weights": np.full((n_blocks, n_h, n_lags, N_BINS), np.nan, dtype=np.float32),
         "snr_median": np.full((n_blocks, n_h), np.nan),
     }
     stat_names = ("sf", "pairs", "variance", "sf_se", "diff_se", "variance_se", "covariance")

@@ -166,7 +166,10 @@ def outer_scale_sector_factor(
     w_k = weights[known].reshape(-1, N_BINS)
     # A_2(w) / A_2(circle) = sum(r w): the inertial node ratio r (once), and per node of
     # L_V the outer scale's factor on it
-    ratio = inertial.node_ratio(lag_k, h_k, mu_k)
+    ratio = np.empty(w_k.shape)
+    for start in range(0, lag_k.size, SCALE_POINTS // 4):  # bounded working memory
+        q = slice(start, start + SCALE_POINTS // 4)
+        ratio[q] = inertial.node_ratio(lag_k[q], h_k[q], mu_k[q])
     base = np.sum(ratio * w_k, axis=-1)
     chunk = max(1, SCALE_POINTS // scales.size)  # points at once: bounded working memory
     factor = np.empty((lag_k.size, scales.size))

@@ -139,7 +139,7 @@ def pair_weights(sf: xr.Dataset) -> np.ndarray:
     weights = sf["pair_azimuth_weights"]
     if "lag" not in weights.dims:
         weights = weights.expand_dims(lag=sf["lag"].values)
-    return weights.transpose("time", "height", "lag", ...).values.astype(float)
+    return np.asarray(weights.transpose("time", "height", "lag", ...).values)
 
 
 def predicted_noise(sf: xr.Dataset, probe: Any) -> np.ndarray:
