@@ -891,9 +891,9 @@ def test_exact_statistics_eps_is_unbiased_and_its_error_bar_calibrated(
 ):
     """Mean eps_hat/eps within 5 % plus two standard errors of the mean; se/sd in 0.8-1.2.
 
-    Measured (docs/physics-epsilon.md, 10 scans per block): 24-ray VAD mu 1: 1.051 +-
-    0.042, se/sd 0.93 (100 blocks); 72-ray continuous mu 0.5: 1.003 +- 0.011, se/sd
-    1.23; here the 72-ray case runs with 5 scans per block to keep the generator fast.
+    Measured (docs/physics-epsilon.md, 10 scans per block): 24-ray VAD mu 1: 0.962 +-
+    0.015, se/sd 0.93 (400 blocks); 72-ray continuous mu 0.5: 0.969 +- 0.011, se/sd
+    1.19; here the 72-ray case runs with 5 scans per block to keep the generator fast.
     A 180-ray block covariance takes minutes to build, so that case is measured by
     ``benchmarks/bench_epsilon_accuracy.py`` only.
     """
