@@ -65,8 +65,8 @@ def covariance_errors(
     A-functions. ``SE(f) = sqrt(g^T C g)``, ``C`` the covariance of ``s`` from the
     scatter over the block's scans (``statistics_covariance`` of
     :func:`cwproc.stages.structure.block_statistics`) and ``g`` the gradient of ``f`` by
-    central differences of a tenth of a standard error either side of each component
-    (:data:`cwproc.physics.delta_method.STEP_FRACTION`).
+    central differences of three tenths of a standard error either side of each
+    component (:data:`cwproc.physics.delta_method.STEP_FRACTION`).
     """
     n_l = d.shape[-1]
     stats = np.concatenate([d, var_raw[..., None]], axis=-1)
