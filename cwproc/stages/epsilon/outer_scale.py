@@ -35,8 +35,10 @@ from cwproc.stages.epsilon.cells import Cells
 INERTIAL_FRACTION = 0.02
 #: bisection steps of the outer-scale root (bracket ratio (3000/10)^(1/6) -> 0.2 %)
 _BISECTIONS = 9
-#: cells of one root search at once (each cell's search is independent of the others)
-ROOT_CELLS = 2048
+#: cells of one root search at once (each cell's search is independent of the others;
+#: 16384 rather than 2048: a day's 180-ray cells in one pass, 13 % less time for the error
+#: bars' retrievals, the same retrieve-day peak (283 MiB; the stream runs 40 blocks at once))
+ROOT_CELLS = 16384
 #: azimuth step (deg) from which full circles (at most 60 rays) get the outer scale's own
 #: node ratio over the pairs present (:func:`_sector_cell_table`)
 COARSE_STEP_DEG = 6.0
