@@ -977,6 +977,39 @@ def test_sector_vad_removal_matches_exact_block_statistics():
     assert exact > 2.0 * circle
 
 
+def test_node_ratio_and_scale_ratio_sums_equal_the_per_point_forms(options):
+    """The batched forms of the sector factor against :meth:`ATable.evaluate` with weights
+    and :meth:`ATable.scale_ratio` point by point (the same interpolation, to round-off)."""
+    from cwproc.physics.atable_interp import N_BINS
+
+    common = dict(phi_deg=PHI, delta_theta_deg=DTHETA, n_lags=N_LAGS)
+    inertial = get_a_table(
+        PROBE,
+        model="inertial",
+        **common,
+        **{k: v for k, v in options.items() if k != "outer_scale_range_m"},
+    )
+    table = get_a_table(PROBE, model="von_karman", **common, **options)
+    rng = np.random.default_rng(3)
+    n = 200
+    lags = rng.integers(1, N_LAGS + 1, n).astype(float)
+    height = rng.choice(HEIGHTS, n)
+    mu = rng.uniform(0.0, 2.5, n)
+    weights = rng.uniform(0.0, 1.0, (n, N_BINS))
+    weights /= weights.sum(-1, keepdims=True)
+    ratio = inertial.node_ratio(lags, height, mu)
+    _, full = inertial.evaluate(lags, height, mu)
+    _, part = inertial.evaluate(lags, height, mu, weights=weights)
+    np.testing.assert_allclose(full * np.sum(ratio * weights, -1), part, rtol=1e-12)
+    scales = table.outer_scales_m[::5]
+    vectors = np.stack([ratio * weights, ratio], axis=1)
+    sums = table.scale_ratio_sums(lags, height, mu, scales, vectors)
+    for k, big_l in enumerate(scales):
+        q = table.scale_ratio(lags, height, mu, big_l)
+        expected = np.einsum("qn,qjn->qj", q, vectors)
+        np.testing.assert_allclose(sums[:, k], expected, rtol=1e-12)
+
+
 def test_sector_scans_use_the_sector_vad_removal_in_the_variance_condition(options, monkeypatch):
     """A 90 deg sector scan (scans 18 s apart, T_scan 60 s), von Karman L_V = 300 m.
 
