@@ -932,13 +932,13 @@ def test_partial_circle_tells_sectors_and_gaps_from_regular_scans():
         assert bool(partial_circle(w, np.array([step]))[0]) is expected, label
 
 
-def test_sector_vad_removal_matches_exact_block_statistics():
-    """The share of sigma_V^2 the block-mean VAD wind takes from V'_L, against the exact
-    covariance of the rays of a block (:func:`cwproc.sim.exact_gaussian.block_covariance`).
+def _exact_sector_block() -> dict:
+    """Exact covariance of a block of a 90 deg step-stare sector and its VAD removal.
 
-    A 90 deg step-stare sector (15 rays, 1 s each, 2 s back), 4 scans per block, mu = 1,
-    R'/L_V = 0.7: the scans are 0.8 R' apart, so their VAD winds correlate and the block
-    removes far more than the full circle's share over N (which is 2.5 times too small).
+    15 rays of 1 s over 90 deg, 2 s back, 4 scans per block, mu = 1 (T_scan of a full
+    circle at the sector's rate: 60 s), h = 100 m, phi = 35 deg, von Karman L_V = 200 m,
+    eps = 0.01 (:func:`cwproc.sim.exact_gaussian.block_covariance`); ``keep`` is ``I`` less
+    the block-mean VAD fit (the mean of the scans' least-squares winds).
     """
     from cwproc.physics.geometry import wind_components
     from cwproc.sim import exact_gaussian as eg
@@ -961,7 +961,32 @@ def test_sector_vad_removal_matches_exact_block_statistics():
     design = np.stack([np.ones(az.size), np.cos(az), np.sin(az)], -1)
     hat = design @ np.linalg.solve(design.T @ design, design.T)
     keep = np.eye(n_scans * az.size) - np.kron(np.full((n_scans, n_scans), 1 / n_scans), hat)
-    sigma2 = spectra.variance_from(0.01, scale, "von_karman")
+    return {
+        "cov": cov,
+        "keep": keep,
+        "sigma2": spectra.variance_from(0.01, scale, "von_karman"),
+        "pattern": pattern,
+        "radius": radius,
+        "scale": scale,
+        "mu": mu,
+        "phi": phi,
+        "n_scans": n_scans,
+        "t_scan": t_scan,
+    }
+
+
+def test_sector_vad_removal_matches_exact_block_statistics():
+    """The share of sigma_V^2 the block-mean VAD wind takes from V'_L, against the exact
+    covariance of the rays of a block (:func:`cwproc.sim.exact_gaussian.block_covariance`).
+
+    A 90 deg step-stare sector (15 rays, 1 s each, 2 s back), 4 scans per block, mu = 1,
+    R'/L_V = 0.7: the scans are 0.8 R' apart, so their VAD winds correlate and the block
+    removes far more than the full circle's share over N (which is 2.5 times too small).
+    """
+    block = _exact_sector_block()
+    cov, keep, sigma2 = block["cov"], block["keep"], block["sigma2"]
+    pattern, radius, scale, mu = block["pattern"], block["radius"], block["scale"], block["mu"]
+    phi, n_scans, t_scan = block["phi"], block["n_scans"], block["t_scan"]
     exact = (np.trace(cov) - np.trace(keep @ cov @ keep.T)) / cov.shape[0] / sigma2
     model = sector_removed_share(
         _pair_node_weights(pattern.azimuth_deg, 250.0),
@@ -1140,30 +1165,14 @@ def test_sector_vad_removal_in_d_matches_exact_block_statistics():
     residual pairs less that of the velocities, lags 1-4 (3-15 % of D). Measured: model
     0.0058/0.026/0.062/0.108 of sigma_V^2, exact 0.0050/0.023/0.053/0.095 (point beams,
     13-16 % high, 0.5-2 % of D)."""
-    from cwproc.physics.geometry import wind_components
     from cwproc.physics.removed_share import sector_removed_d
-    from cwproc.sim import exact_gaussian as eg
 
-    phi, height, scale, n_scans, mu = 35.0, 100.0, 200.0, 4, 1.0
-    radius = height / np.tan(np.radians(phi))
-    pattern = eg.conical_pattern(15, 15.0, sector_deg=90.0, continuous=False, return_s=2.0)
-    t_scan = 15.0 * 4
-    u, v = wind_components(mu * 2 * np.pi * radius / t_scan, 250.0)
-    cov = eg.block_covariance(
-        pattern,
-        n_scans,
-        elevation_deg=phi,
-        range_m=height / np.sin(np.radians(phi)),
-        epsilon=0.01,
-        outer_scale_m=scale,
-        mean_wind=(u, v, 0.0),
-    )
+    block = _exact_sector_block()
+    cov, keep, sigma2 = block["cov"], block["keep"], block["sigma2"]
+    pattern, radius, scale, mu = block["pattern"], block["radius"], block["scale"], block["mu"]
+    phi, n_scans, t_scan = block["phi"], block["n_scans"], block["t_scan"]
     az = np.radians(np.asarray(pattern.azimuth_deg))
-    design = np.stack([np.ones(az.size), np.cos(az), np.sin(az)], -1)
-    hat = design @ np.linalg.solve(design.T @ design, design.T)
-    keep = np.eye(n_scans * az.size) - np.kron(np.full((n_scans, n_scans), 1 / n_scans), hat)
     res = keep @ cov @ keep.T
-    sigma2 = spectra.variance_from(0.01, scale, "von_karman")
     lags = np.arange(1, 5)
     exact, d_vel = [], []
     for lag in lags:
