@@ -106,6 +106,41 @@ def velocity_noise_std(
     return np.where(good, sigma, np.nan)
 
 
+#: the SNR of a simulated return whose noise is at or below the speckle floor (the
+#: prediction there is within 0.5 % of the floor for a Stream Line)
+SNR_STRONG = 1.0e3
+
+
+def snr_for_noise_std(
+    sigma_e: float,
+    points_per_gate: float,
+    pulses_per_ray: float,
+    bandwidth_m_s: float = DEFAULT_BANDWIDTH_M_S,
+    spectral_width_m_s: float = SPECTRAL_WIDTH_M_S,
+) -> float:
+    """The SNR (linear) at which :func:`velocity_noise_std` predicts ``sigma_e`` (m s-1).
+
+    Pearson et al. (2009), eq. 3 is ``sigma_e = K / SNR + F`` with
+    ``K = 2 pi^(1/4) Delta v / sqrt(a M n)``, ``a = B / (sqrt(2 pi) Delta v)`` and the
+    speckle floor ``F = K a / (2 pi)``, so ``SNR = K / (sigma_e - F)``; a virtual lidar
+    writes it beside velocities with noise ``sigma_e``, so that its SNR and its noise
+    agree as a real lidar's do. :data:`SNR_STRONG` where ``sigma_e`` is at or below the
+    floor.
+    """
+    for name, value in (
+        ("points_per_gate", points_per_gate),
+        ("pulses_per_ray", pulses_per_ray),
+        ("bandwidth_m_s", bandwidth_m_s),
+        ("spectral_width_m_s", spectral_width_m_s),
+    ):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+    a = bandwidth_m_s / (math.sqrt(2.0 * math.pi) * spectral_width_m_s)
+    k = 2.0 * math.pi**0.25 * spectral_width_m_s / math.sqrt(a * points_per_gate * pulses_per_ray)
+    excess = float(sigma_e) - k * a / (2.0 * math.pi)
+    return k / excess if excess > k / SNR_STRONG else SNR_STRONG
+
+
 def speckle_floor(
     points_per_gate: float,
     pulses_per_ray: float,

@@ -465,7 +465,7 @@ def gaussian_scans(
     delta_p_m: float = STREAMLINE_DELTA_P_M,
     delta_r_m: float = STREAMLINE_DELTA_R_M,
     sweep_nodes: int = 6,
-    snr: float = 0.05,
+    snr: float | None = None,
     start_time: str = "2024-06-01T00:00:00",
     block_gap_s: float = 60.0,
 ) -> xr.Dataset:

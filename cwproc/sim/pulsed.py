@@ -33,6 +33,7 @@ import numpy as np
 import xarray as xr
 from scipy.special import erf
 
+from cwproc.physics import noise
 from cwproc.physics.constants import STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M
 from cwproc.physics.geometry import beam_unit_vector, wind_components
 from cwproc.sim.field3d import FrozenField
@@ -98,7 +99,7 @@ def sample_conical_scans(
     sweep_points: int = 4,
     sweep_advection: bool = True,
     range_step_m: float | None = None,
-    snr: float = 0.05,
+    snr: float | None = None,
     lidar_position_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
 ) -> xr.Dataset:
     """Conical scans of a pulsed lidar through a frozen field advected by the mean wind.
@@ -138,8 +139,10 @@ def sample_conical_scans(
         the arc ``dy`` only), the model of Smalikho (2020), eq. 15.
     range_step_m : float, optional
         Spacing of the nodes of the range weighting (m); the field spacing by default.
-    snr : float
-        Linear SNR written to the dataset (constant).
+    snr : float, optional
+        Linear SNR written to the dataset (constant); by default the SNR at which the
+        Stream Line's settings predict ``noise_std_m_s``
+        (:func:`cwproc.physics.noise.snr_for_noise_std`), as for a real lidar.
     lidar_position_m : tuple of float
         (x, y, z) of the lidar in the field (m).
 
@@ -264,7 +267,7 @@ def streamline_scans(
     elevation_deg: float,
     ranges_m: np.ndarray,
     scan: np.ndarray,
-    snr: float,
+    snr: float | None,
     delta_p_m: float,
     delta_r_m: float,
     truth: dict[str, object],
@@ -276,8 +279,23 @@ def streamline_scans(
     velocity resolution, the range weighting's Delta_p and Delta_R) plus the simulation
     truth ``truth`` (``sim_*`` attributes); ``stepped``: a step-stare VAD (the beam still
     during each ray), named as the Halo names it (``Scan type: VAD - stepped``).
+    ``snr`` None: the SNR at which these settings predict the noise of the truth
+    (``sim_noise_std``; Pearson et al. (2009), eq. 3,
+    :func:`cwproc.physics.noise.snr_for_noise_std`).
     """
     n_rays = velocity.shape[0]
+    settings = {
+        "points_per_gate": max(1, round(delta_r_m / 3.0)),
+        "pulses_per_ray": 10000,
+        "velocity_resolution_m_s": 0.0382,
+    }
+    if snr is None:
+        snr = noise.snr_for_noise_std(
+            float(truth["sim_noise_std"]),
+            settings["points_per_gate"],
+            settings["pulses_per_ray"],
+            noise.bandwidth_from_resolution(settings["velocity_resolution_m_s"]),
+        )
     return xr.Dataset(
         {
             "radial_velocity": (("ray", "range"), velocity),
@@ -298,10 +316,8 @@ def streamline_scans(
             "scan_type": "VAD - stepped" if stepped else "VAD",
             "gate_length_m": float(delta_r_m),
             "homodyne": 0,
-            "points_per_gate": max(1, round(delta_r_m / 3.0)),
-            "pulses_per_ray": 10000,
+            **settings,
             "focus_range_m": 65535.0,
-            "velocity_resolution_m_s": 0.0382,
             "delta_p_m": float(delta_p_m),
             "delta_r_m": float(delta_r_m),
             **truth,

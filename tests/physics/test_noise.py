@@ -51,3 +51,20 @@ def test_bandwidth_from_resolution():
     assert noise.bandwidth_from_resolution(0.0382) == pytest.approx(39.1168)
     assert noise.bandwidth_from_resolution(None) == noise.DEFAULT_BANDWIDTH_M_S
     assert noise.bandwidth_from_resolution(float("nan")) == noise.DEFAULT_BANDWIDTH_M_S
+
+
+@pytest.mark.parametrize("sigma_e", [0.02, 0.05, 0.1, 0.3, 1.0])
+def test_snr_for_noise_std_inverts_the_prediction(sigma_e):
+    """The SNR a virtual lidar writes gives back its noise through Pearson et al. eq. 3."""
+    bandwidth = noise.bandwidth_from_resolution(0.0382)
+    snr = noise.snr_for_noise_std(sigma_e, 6, 10000, bandwidth)
+    assert noise.velocity_noise_std(snr, 6, 10000, bandwidth) == pytest.approx(sigma_e, rel=1e-12)
+
+
+def test_snr_for_noise_at_or_below_the_floor_is_a_strong_return():
+    bandwidth = noise.bandwidth_from_resolution(0.0382)
+    floor = float(noise.velocity_noise_std(1e12, 6, 10000, bandwidth))
+    for sigma_e in (0.0, floor, 0.5 * floor):
+        assert noise.snr_for_noise_std(sigma_e, 6, 10000, bandwidth) == noise.SNR_STRONG
+    with pytest.raises(ValueError, match="pulses_per_ray"):
+        noise.snr_for_noise_std(0.1, 6, 0, bandwidth)
