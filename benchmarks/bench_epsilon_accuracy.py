@@ -8,7 +8,9 @@ case runs the user's chain (``pipeline.process_scans`` with the ``streamline`` p
 on ``--blocks`` independent blocks of ``n_scans`` scans and prints, per retrieval model,
 
 - ``eps``: mean of eps_hat/eps +- its standard error, and the rms of eps_hat/eps - 1;
-- ``sig_e``: mean of noise_std/sigma_e (the fitted noise where it is determined);
+- ``sig_e``: mean of noise_std/sigma_e (the fitted noise where it is determined, the
+  predicted one elsewhere); ``fit``: share of the blocks whose sigma_e is fitted
+  (``turbulence_flag`` without bit 32), ``sig_fit``: mean of noise_std/sigma_e over those;
 - ``var``, ``L_V``: mean of sigma_V^2_hat/sigma_V^2 and L_V_hat/L_V;
 - ``se/sd``: mean reported standard error of eps over the scatter of eps_hat (when the
   product has ``epsilon_standard_error``); ``var_se``, ``L_se``: the same for sigma_V^2
@@ -37,12 +39,12 @@ import time
 import warnings
 
 import numpy as np
-from scipy import optimize
 
 from cwproc.config import load_config
-from cwproc.physics import noise, spectra
+from cwproc.physics import spectra
 from cwproc.pipeline import process_scans
 from cwproc.sim import exact_gaussian as eg
+from cwproc.stages.epsilon.flags import FLAG_NOISE_PREDICTED
 
 PHI = 35.0
 HEIGHT = 100.0
@@ -87,23 +89,6 @@ def cases(quick: bool) -> list[dict]:
     return out
 
 
-def snr_for_noise(sigma_e: float, attrs: dict) -> float:
-    """The SNR at which the predicted noise (Pearson et al. (2009), eq. 3) is ``sigma_e``.
-
-    So that the noise the scans carry and the one the instrument settings predict agree,
-    as they do for a real lidar whose noise the formula describes.
-    """
-    bandwidth = noise.bandwidth_from_resolution(attrs["velocity_resolution_m_s"])
-
-    def excess(log_snr: float) -> float:
-        predicted = noise.velocity_noise_std(
-            10.0**log_snr, attrs["points_per_gate"], attrs["pulses_per_ray"], bandwidth
-        )
-        return float(predicted) - sigma_e
-
-    return 10.0 ** optimize.brentq(excess, -4.0, 2.0)
-
-
 def scan_speed(pattern: eg.ScanPattern) -> float:
     """V_s = 2 pi R' / T (m s-1) of the full-circle rate of the pattern (Smalikho (2020), eq. 3)."""
     radius = HEIGHT / np.tan(np.deg2rad(PHI))
@@ -131,6 +116,10 @@ def summarise(turb, truth_var: float) -> dict[str, float]:
             v = turb[name].values[:, 0][good] / truth
             v = v[np.isfinite(v)]
             row[key] = v.mean() if v.size else np.nan
+    fitted = (turb["turbulence_flag"].values[:, 0][good].astype(int) & FLAG_NOISE_PREDICTED) == 0
+    row["fit"] = fitted.mean()
+    if fitted.any():
+        row["sig_fit"] = np.mean(turb["noise_std"].values[:, 0][good][fitted] / NOISE)
     if "epsilon_standard_error" in turb:
         se = turb["epsilon_standard_error"].values[:, 0][good] / EPS
         row["se/sd"] = np.nanmean(se) / e.std(ddof=1)
@@ -165,7 +154,7 @@ def main() -> None:
     )
     header = f"{'case':22s} {'mu':>4s} {'model':>10s} {'eps':>15s} {'rms':>6s}"
     header += f" {'sig_e':>6s} {'var':>6s} {'L_V':>6s} {'se/sd':>6s} {'var_se':>6s}"
-    header += f" {'L_se':>6s} {'ok':>5s} {'s':>5s}"
+    header += f" {'L_se':>6s} {'fit':>5s} {'sig_fit':>7s} {'ok':>5s} {'s':>5s}"
     print(header)
     for i, case in enumerate(cases(args.quick)):
         pattern, mu = case["pattern"], case["mu"]
@@ -188,7 +177,6 @@ def main() -> None:
             noise_std_m_s=NOISE,
             seed=args.seed + i,
         )
-        scans["snr"][:] = snr_for_noise(NOISE, scans.attrs)
         for model in models:
             config = dataclasses.replace(
                 base,
@@ -211,6 +199,7 @@ def main() -> None:
                 f"{case['label']:22s} {mu:4.1f} {model:>10s} {eps:>15s} {fmt('eps_rms')}"
                 f" {fmt('sig_e')} {fmt('var')} {fmt('L_V')} {fmt('se/sd')}"
                 f" {fmt('var se/sd')} {fmt('L_V se/sd')}"
+                f" {row.get('fit', np.nan):5.2f} {row.get('sig_fit', np.nan):7.3f}"
                 f" {row['ok']:5.2f} {seconds:5.1f}" + (f"  ({notes[0][:60]})" if notes else ""),
                 flush=True,
             )

@@ -25,7 +25,8 @@ MIN_NOISE_LAGS = 3
 NOISE_DETECTABLE = 0.05
 
 
-#: a fitted sigma_e further than this factor from the predicted one is not kept (flag 32)
+#: without the covariance of D: a fitted sigma_e further than this factor from the
+#: predicted one is not kept on its precision alone (flag 32)
 NOISE_PLAUSIBLE = 2.0
 
 
@@ -58,23 +59,81 @@ def _lag_sum(x: np.ndarray) -> np.ndarray:
     return functools.reduce(np.add, np.moveaxis(x, -1, 0), np.zeros(x.shape[:-1]))
 
 
+#: with the covariance of D over the lags, the fitted noise is kept where the standard
+#: error of its intercept is at most this share of the predicted ``2 sigma_pred^2``
+#: (sigma_e to about 25 %); a rule on the precision alone: judged by its value (above
+#: twice its error), the blocks whose intercept rose by chance kept it and those that fell
+#: took the prediction, and the kept sigma_e read 11-31 % high on exact statistics
+NOISE_PRECISION = 0.5
+
+
+#: ... or where the intercept differs from the predicted ``2 sigma_pred^2`` by more than
+#: this many standard errors (a wrong prediction does not overrule a measured noise);
+#: only the upward side exists where the error exceeds a quarter of ``2 sigma_pred^2``
+#: (the intercept must be positive), so the kept blocks rise where the prediction is
+#: right: at 3 errors the kept sigma_e^2 read +5 % when the error was 0.6 of it, at 4 +1 %
+NOISE_CONTRADICTS = 4.0
+
+
+def intercept_standard_error(a: np.ndarray, w: np.ndarray, d_cov: np.ndarray) -> np.ndarray:
+    """Standard error of the least-squares intercept from the covariance of D (m2 s-2).
+
+    The intercept is linear in D, ``b = sum_i c_i D_i`` with
+    ``c_i = (sum x^2 - x_i sum x) / (n sum x^2 - (sum x)^2)`` (``x = A``, valid lags),
+    so ``SE(b) = sqrt(c^T C c)`` for the covariance ``C`` of the block-mean D over its
+    scans. The residual form ``s sqrt(sum x^2 / det)`` assumes lags with independent
+    errors; the D of neighbouring lags share their rays, and on exact 180-ray statistics
+    it was 2.3 times below the scatter of the intercept, where this one matched it
+    (ratio 1.00).
+
+    Parameters
+    ----------
+    a : numpy.ndarray
+        A-function at the lags (last axis).
+    w : numpy.ndarray of bool
+        Lags in the fit.
+    d_cov : numpy.ndarray
+        Covariance of D (m4 s-4), shape of ``a`` plus one more lag axis.
+    """
+    x = np.where(w, a, 0.0)
+    n = _lag_sum(w.astype(float))
+    sx, sxx = _lag_sum(x), _lag_sum(x * x)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        c = np.where(w, (sxx[..., None] - sx[..., None] * x) / (n * sxx - sx**2)[..., None], 0.0)
+    both = w[..., :, None] & w[..., None, :]
+    var = np.einsum("...i,...ij,...j->...", c, np.where(both, d_cov, 0.0), c)
+    return np.sqrt(np.where(var >= 0, var, np.nan))
+
+
 def fit_structure_function(
     d: np.ndarray,
     a: np.ndarray,
     valid: np.ndarray,
     noise_prior: np.ndarray | None = None,
+    d_cov: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Least squares of ``D = eps^(2/3) A + 2 sigma_e^2`` over the lags (last axis).
 
     Smalikho (2020), eq. 4. The intercept ``2 sigma_e^2`` is *determined* where at least
-    :data:`MIN_NOISE_LAGS` lags are valid, it exceeds twice its standard error
-    (``s sqrt(sum x^2 / (n sum x^2 - (sum x)^2))``, ``s^2`` the residual variance with
-    ``n - 2`` degrees of freedom), and the predicted ``2 sigma_pred^2`` is at least
-    :data:`NOISE_DETECTABLE` of the smallest ``D`` (a noise far below ``D`` at the first
-    lag is not measurable: the intercept then measures the sampling error of ``D`` and
-    the model's shape; on exact 24-ray VAD statistics it came out 6-8 times the true
-    sigma_e, and eps 22 % low). Elsewhere (insignificant, negative, or too few lags)
-    the slope is refitted with the intercept fixed at ``2 sigma_pred^2`` from
+    :data:`MIN_NOISE_LAGS` lags are valid, it is positive, the predicted
+    ``2 sigma_pred^2`` is at least :data:`NOISE_DETECTABLE` of the smallest ``D`` (a
+    noise far below ``D`` at the first lag is not measurable: the intercept then
+    measures the sampling error of ``D`` and the model's shape; on exact 24-ray VAD
+    statistics it came out 6-8 times the true sigma_e, and eps 22 % low), and it is
+    measured well enough:
+
+    - with the covariance of D (``d_cov``) and a prediction: the intercept's standard
+      error (:func:`intercept_standard_error`) is at most :data:`NOISE_PRECISION` of
+      ``2 sigma_pred^2`` -- a rule on the precision, not on the value, so the kept
+      noise is unbiased -- or the intercept differs from ``2 sigma_pred^2`` by more than
+      :data:`NOISE_CONTRADICTS` standard errors (a prediction from a wrong SNR or wrong
+      settings does not overrule the noise the data measure);
+    - otherwise: the intercept exceeds twice its standard error (``d_cov``'s, or the
+      residual form ``s sqrt(sum x^2 / (n sum x^2 - (sum x)^2))``, ``s^2`` the residual
+      variance with ``n - 2`` degrees of freedom), or, with a prediction, that error is
+      below half of ``2 sigma_pred^2`` and sigma_e within :data:`NOISE_PLAUSIBLE` of it.
+
+    Elsewhere the slope is refitted with the intercept fixed at ``2 sigma_pred^2`` from
     ``noise_prior`` (the noise predicted from the SNR, :mod:`cwproc.physics.noise`), or
     at 0 without a prediction; ``sigma_e`` is then the prediction, or NaN -- never a
     measured 0.
@@ -89,6 +148,9 @@ def fit_structure_function(
         Lags to use.
     noise_prior : numpy.ndarray, optional
         Predicted sigma_e (m s-1), shape of ``d`` without the last axis.
+    d_cov : numpy.ndarray, optional
+        Covariance of the block-mean D over the lags (m4 s-4), shape of ``d`` plus one
+        more lag axis (broadcastable); NaN cells fall back to the residual form.
 
     Returns
     -------
@@ -110,18 +172,25 @@ def fit_structure_function(
         s2 = _lag_sum(resid**2) / (n - 2)
         se_intercept = np.sqrt(s2 * sxx / det)
     prior = np.full(slope.shape, np.nan) if noise_prior is None else np.asarray(noise_prior)
-    # an intercept above twice its standard error is kept; where there is a prediction,
-    # so is one the fit measures precisely (standard error below half the predicted
-    # 2 sigma_pred^2) within a factor NOISE_PLAUSIBLE of it: judged on the fitted value
-    # alone, the blocks whose intercept fell low by chance took the prediction and those
-    # that rose kept theirs, and the "fitted" noise read 14-37 % high (180-ray scans)
+    has_prior = np.isfinite(prior)
+    se_cov = np.full(slope.shape, np.nan)
+    if d_cov is not None:
+        se_cov = intercept_standard_error(a, w, np.broadcast_to(d_cov, (*w.shape, w.shape[-1])))
+    by_cov = np.isfinite(se_cov)
+    se = np.where(by_cov, se_cov, se_intercept)
     with np.errstate(invalid="ignore", divide="ignore"):
         pred2 = 2.0 * np.nan_to_num(prior) ** 2
-        plausible = np.abs(np.log(np.maximum(intercept, 1e-300) / pred2)) <= 2.0 * math.log(
+        near_factor = np.abs(np.log(np.maximum(intercept, 1e-300) / pred2)) <= 2.0 * math.log(
             NOISE_PLAUSIBLE
         )
-        precise = np.isfinite(prior) & (2.0 * se_intercept < pred2) & plausible
-        significant = (intercept > 2.0 * se_intercept) | precise
+        # the residual form's "precise": an error it underestimates (lags share rays),
+        # hence also the value's significance; the covariance's: precision alone
+        precise = has_prior & (2.0 * se < pred2) & near_factor
+        significant = (intercept > 2.0 * se) | precise
+        # ... or a fit that contradicts the prediction (NOISE_CONTRADICTS errors)
+        contradicts = np.abs(intercept - pred2) > NOISE_CONTRADICTS * se
+        measured = has_prior & ((se <= NOISE_PRECISION * pred2) | contradicts)
+    significant = np.where(by_cov & has_prior, measured, significant)
     determined = (n >= MIN_NOISE_LAGS) & (intercept > 0) & significant
     # a noise term far below the smallest structure function cannot be told from the
     # sampling error of D and the model's shape: the fitted intercept then measures
@@ -130,9 +199,9 @@ def fit_structure_function(
         smallest = functools.reduce(
             np.minimum, np.moveaxis(np.where(w, d, np.inf), -1, 0), np.full(n.shape, np.inf)
         )
-        detectable = ~np.isfinite(prior) | (2.0 * prior**2 >= NOISE_DETECTABLE * smallest)
+        detectable = ~has_prior | (2.0 * prior**2 >= NOISE_DETECTABLE * smallest)
     determined = determined & detectable
-    fixed = np.where(np.isfinite(prior), 2.0 * np.nan_to_num(prior) ** 2, 0.0)
+    fixed = np.where(has_prior, 2.0 * np.nan_to_num(prior) ** 2, 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
         fixed_slope = (sxy - fixed * sx) / sxx
     slope = np.where(determined, slope, fixed_slope)

@@ -33,12 +33,14 @@ Estimates, per block of scans and height, all vectorised:
   tail moved the mean by +8 %; ``epsilon_ratio`` is ``epsilon_method1 / epsilon`` (the
   observed counterpart of eq. 21);
 - ``noise_std``: the intercept of that fit. Where it is not determined (fewer than
-  three lags, negative, a standard error above half the predicted ``2 sigma_pred^2``,
-  further than a factor ``NOISE_PLAUSIBLE`` from the prediction, or below
-  ``NOISE_DETECTABLE``, :mod:`cwproc.physics.structure_fit`) it is fixed at ``2 sigma_pred^2`` of
-  ``noise_std_predicted`` (:func:`cwproc.stages.epsilon.cells.predicted_noise`, Pearson et
-  al. (2009), eq. 3; without a prediction: twice its standard error decides) and flag 32 is
-  set: ``noise_std`` is then the prediction, or NaN without one, never a measured 0;
+  three lags, negative, a standard error -- from the covariance of ``D_L`` over the
+  block's scans -- above ``NOISE_PRECISION`` of the predicted ``2 sigma_pred^2`` unless
+  the fit contradicts the prediction by ``NOISE_CONTRADICTS`` standard errors, or a prediction below
+  ``NOISE_DETECTABLE``, :mod:`cwproc.physics.structure_fit`) it is fixed at
+  ``2 sigma_pred^2`` of ``noise_std_predicted``
+  (:func:`cwproc.stages.epsilon.cells.predicted_noise`, Pearson et al. (2009), eq. 3;
+  without a prediction: twice its standard error decides) and flag 32 is set:
+  ``noise_std`` is then the prediction, or NaN without one, never a measured 0;
 - ``edr = eps^(1/3)``; standard errors of eps, sigma_V^2 and L_V by the delta method
   through the whole fit (:func:`cwproc.stages.epsilon.errors.covariance_errors`, the
   covariance of ``D_L`` and the variance over the block's scans);
@@ -145,7 +147,7 @@ from cwproc.physics.exact_lag import is_cw_probe
 from cwproc.physics.spectra import Model
 from cwproc.physics.transfer import Probe, PulsedProbe
 from cwproc.stages.epsilon.atable_fit import cell_a_functions, table_options_for
-from cwproc.stages.epsilon.cells import cell_inputs, predicted_noise
+from cwproc.stages.epsilon.cells import cell_inputs, predicted_noise, statistics_covariance
 from cwproc.stages.epsilon.cw_exact import NOISE_WINDOW_BLOCKS, apply_exact_cells, exact_cells
 from cwproc.stages.epsilon.errors import block_errors
 from cwproc.stages.epsilon.flags import turbulence_flags
@@ -314,6 +316,8 @@ def _block_group(
     fixed = fit_setup(
         probe, cells, model, options, a_functions, valid, exact, noise_pred, n_outer_scales
     )
+    cov = statistics_covariance(sf)
+    fixed["d_cov"] = None if cov is None else cov[..., :-1, :-1]
     res = retrieve(fixed, cells.d, cells.var_raw)
     est = {**res, "sf_model_exact": np.full(cells.d.shape, np.nan)}
     if np.any(exact):
@@ -323,7 +327,7 @@ def _block_group(
     flag, bad, few_fit = turbulence_flags(cells, valid, lag_used, est, model)
     arrays = product_arrays(est, bad, few_fit, exact)
     eps_se, sigma2_se, scale_se = block_errors(
-        sf, lag_used, fixed, cells.d, cells.var_raw, arrays, est["noise"], res
+        sf, lag_used, fixed, cells.d, cells.var_raw, arrays, est["noise"], res, cov
     )
     out = turbulence_dataset(
         sf,

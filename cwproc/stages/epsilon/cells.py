@@ -157,3 +157,15 @@ def predicted_noise(sf: xr.Dataset, probe: Any) -> np.ndarray:
     bandwidth = noise.bandwidth_from_resolution(sf.attrs.get("velocity_resolution_m_s"))
     snr = sf["snr_median"].transpose("time", "height").values.astype(float)
     return noise.velocity_noise_std(snr, float(points), float(pulses), bandwidth)
+
+
+def statistics_covariance(sf: xr.Dataset) -> np.ndarray | None:
+    """``(time, height, lag + 1, lag + 1)`` covariance of the block-mean ``D_L`` and variance.
+
+    ``statistics_covariance`` of :func:`cwproc.stages.structure.block_statistics`
+    (m4 s-4; from the scatter over the block's scans), as float64; None when the
+    structure function does not carry it.
+    """
+    if "statistics_covariance" not in sf:
+        return None
+    return sf["statistics_covariance"].transpose("time", "height", ...).values.astype(float)

@@ -86,10 +86,12 @@ def block_errors(
     arrays: dict[str, np.ndarray],
     noise: np.ndarray,
     base: dict,
+    cov: np.ndarray | None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Standard errors of eps, sigma_V^2 and L_V (m2 s-3, m2 s-2, m) of the product.
 
-    :func:`covariance_errors` where ``sf`` carries ``statistics_covariance``, except
+    :func:`covariance_errors` where ``sf`` carries ``statistics_covariance`` (``cov``,
+    :func:`cwproc.stages.epsilon.cells.statistics_covariance`), except
     in the exact cw cells (``fixed["exact"]``) and where an estimate is NaN, which keep
     :func:`standard_errors`. ``base`` is the result of
     :func:`cwproc.stages.epsilon.outer_scale.retrieve` at the measured statistics,
@@ -105,9 +107,8 @@ def block_errors(
         var_raw - np.nan_to_num(noise, nan=0.0) ** 2,
         values[2],
     )
-    if "statistics_covariance" not in sf:
+    if cov is None:
         return first
-    cov = sf["statistics_covariance"].transpose("time", "height", ...).values.astype(float)
     delta = covariance_errors(fixed, d, var_raw, cov, base)
     return tuple(
         np.where(fixed["exact"] | ~np.isfinite(v), old, new)

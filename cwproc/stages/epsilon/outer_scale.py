@@ -119,6 +119,7 @@ def outer_scale_root(
     var_c: np.ndarray,
     prior: np.ndarray,
     start: np.ndarray | None = None,
+    d_cov: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(root, has_root, below)`` of the variance condition in L_V for cells ``(n,)``.
 
@@ -132,7 +133,8 @@ def outer_scale_root(
     (:meth:`cwproc.physics.atable_interp.ATable.at_cells`), ``table_rows`` the rows of it to
     search. With ``start`` (a root per cell, for the small changes of
     :func:`cwproc.stages.epsilon.errors.covariance_errors`) the scan covers ``start / 2 .. 2
-    start`` and fewer bisections reach the same bracket.
+    start`` and fewer bisections reach the same bracket. ``d_cov``: the covariance of D
+    of the cells (``(n, lag, lag)``) that decides whether sigma_e is fitted.
     """
     scale_grid = finite["scale_grid"]
 
@@ -140,7 +142,9 @@ def outer_scale_root(
         k = big_l.shape[1]
         _, f2 = table.evaluate(np.broadcast_to(big_l, (dc.shape[0], k)), table_rows, a1=False)
         f2 = f2 * cell_sector[:, None, :]
-        eps_l, noise_l, _ = fit_structure_function(dc[:, None, :], f2, vc[:, None, :], prior)
+        eps_l, noise_l, _ = fit_structure_function(
+            dc[:, None, :], f2, vc[:, None, :], prior, None if d_cov is None else d_cov[:, None]
+        )
         through = interp_log_scale(scale_grid, passed, np.broadcast_to(big_l, (dc.shape[0], k)))
         with np.errstate(invalid="ignore", divide="ignore"):
             model_var = np.log(eps_l ** (2 / 3) * through)
@@ -193,11 +197,12 @@ def retrieve(
     """
     a1, a2 = fixed["a1"].copy(), fixed["a2"].copy()
     valid, prior, c_model = fixed["valid"], fixed["noise_pred"], fixed["c_model"]
+    d_cov = fixed.get("d_cov")
     shape = d.shape[:2]
 
     def solve() -> tuple:
-        e1, _, _ = fit_structure_function(d, a1, valid, prior)
-        efit, noise, fitted = fit_structure_function(d, a2, valid, prior)
+        e1, _, _ = fit_structure_function(d, a1, valid, prior, d_cov)
+        efit, noise, fitted = fit_structure_function(d, a2, valid, prior, d_cov)
         return e1, efit, noise, fitted
 
     e1, efit, noise, fitted = solve()
@@ -236,6 +241,7 @@ def retrieve(
                     var_raw[t_, h_],
                     prior[t_, h_][:, None],
                     None if near is None else near[t_, h_],
+                    None if d_cov is None else d_cov[t_, h_],
                 )
             if np.any(use):
                 tu, hu = ti[use], hi_[use]
