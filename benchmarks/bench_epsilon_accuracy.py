@@ -26,6 +26,7 @@ Run (about 10-20 min on 2 cores; the 180-ray covariances take most of it)::
     python benchmarks/bench_epsilon_accuracy.py
     python benchmarks/bench_epsilon_accuracy.py --quick    # 24/72 rays, mu 0 and 1
     python benchmarks/bench_epsilon_accuracy.py --case "72 rays" --mu 1 --model von_karman
+    python benchmarks/bench_epsilon_accuracy.py --case "180 rays cont" --noise 0.3  # fitted
 
 ``--case`` and ``--mu`` select cases of the full list; every case keeps the seed it has
 in the full run (``--seed`` plus its index), so a selected case repeats its row.
@@ -96,7 +97,7 @@ def scan_speed(pattern: eg.ScanPattern) -> float:
     return np.deg2rad(degrees_per_s) * radius
 
 
-def summarise(turb, truth_var: float) -> dict[str, float]:
+def summarise(turb, truth_var: float, noise: float = NOISE) -> dict[str, float]:
     """Ratios to the truth over the blocks of one product."""
     eps = turb["epsilon"].values[:, 0] / EPS
     good = np.isfinite(eps)
@@ -108,7 +109,7 @@ def summarise(turb, truth_var: float) -> dict[str, float]:
     row["eps_se"] = e.std(ddof=1) / np.sqrt(e.size)
     row["eps_rms"] = np.sqrt(np.mean((e - 1) ** 2))
     for name, key, truth in (
-        ("noise_std", "sig_e", NOISE),
+        ("noise_std", "sig_e", noise),
         ("velocity_variance", "var", truth_var),
         ("integral_scale", "L_V", L_V),
     ):
@@ -119,7 +120,7 @@ def summarise(turb, truth_var: float) -> dict[str, float]:
     fitted = (turb["turbulence_flag"].values[:, 0][good].astype(int) & FLAG_NOISE_PREDICTED) == 0
     row["fit"] = fitted.mean()
     if fitted.any():
-        row["sig_fit"] = np.mean(turb["noise_std"].values[:, 0][good][fitted] / NOISE)
+        row["sig_fit"] = np.mean(turb["noise_std"].values[:, 0][good][fitted] / noise)
     if "epsilon_standard_error" in turb:
         se = turb["epsilon_standard_error"].values[:, 0][good] / EPS
         row["se/sd"] = np.nanmean(se) / e.std(ddof=1)
@@ -141,6 +142,9 @@ def main() -> None:
     parser.add_argument("--case", action="append", help="cases whose label contains this")
     parser.add_argument("--mu", type=float, action="append", help="only these mu")
     parser.add_argument("--model", action="append", help="only these retrieval models")
+    parser.add_argument(
+        "--noise", type=float, default=NOISE, help=f"sigma_e of the scans, m/s ({NOISE})"
+    )
     args = parser.parse_args()
     base = load_config("streamline")
     truth_var = float(spectra.variance_from(EPS, L_V, "von_karman"))
@@ -149,7 +153,7 @@ def main() -> None:
         models = [m for m in models if m in args.model]
     print(
         f"truth: eps = {EPS:g} m2 s-3, L_V = {L_V:g} m (von Karman), sigma_V^2 = "
-        f"{truth_var:.3f} m2 s-2, sigma_e = {NOISE} m/s; h = {HEIGHT:g} m, phi = {PHI} deg, "
+        f"{truth_var:.3f} m2 s-2, sigma_e = {args.noise} m/s; h = {HEIGHT:g} m, phi = {PHI} deg, "
         f"{N_SCANS} scans per block, {args.blocks} blocks per case"
     )
     header = f"{'case':22s} {'mu':>4s} {'model':>10s} {'eps':>15s} {'rms':>6s}"
@@ -174,7 +178,7 @@ def main() -> None:
             outer_scale_m=L_V,
             wind_speed_m_s=speed,
             wind_direction_deg=250.0,
-            noise_std_m_s=NOISE,
+            noise_std_m_s=args.noise,
             seed=args.seed + i,
         )
         for model in models:
@@ -189,7 +193,9 @@ def main() -> None:
             seconds = time.perf_counter() - t0
             t0 = time.perf_counter()
             turb = products.get("turbulence")
-            row = summarise(turb, truth_var) if turb is not None else {"ok": 0.0, "n": 0}
+            row = (
+                summarise(turb, truth_var, args.noise) if turb is not None else {"ok": 0.0, "n": 0}
+            )
 
             def fmt(key: str, row: dict = row) -> str:
                 return f"{row[key]:6.3f}" if key in row else f"{'-':>6s}"
