@@ -126,8 +126,9 @@ def fit_structure_function(
       :data:`NOISE_PLAUSIBLE` -- a rule on the precision, not on the value, so the kept
       noise is unbiased but for that floor (1.5 errors or more below the prediction) --
       or the intercept exceeds ``2 sigma_pred^2`` by more than :data:`NOISE_CONTRADICTS`
-      standard errors (a prediction from a wrong SNR or wrong settings does not overrule
-      the noise the data measure);
+      standard errors, or the prediction leaves no turbulence (the slope with the
+      intercept fixed at ``2 sigma_pred^2`` is not positive): a prediction from a wrong
+      SNR or wrong settings does not overrule the noise the data measure;
     - otherwise: the intercept exceeds twice its standard error (``d_cov``'s, or the
       residual form ``s sqrt(sum x^2 / (n sum x^2 - (sum x)^2))``, ``s^2`` the residual
       variance with ``n - 2`` degrees of freedom), or, with a prediction, that error is
@@ -178,6 +179,9 @@ def fit_structure_function(
         se_cov = intercept_standard_error(a, w, np.broadcast_to(d_cov, (*w.shape, w.shape[-1])))
     by_cov = np.isfinite(se_cov)
     se = np.where(by_cov, se_cov, se_intercept)
+    fixed = np.where(has_prior, 2.0 * np.nan_to_num(prior) ** 2, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fixed_slope = (sxy - fixed * sx) / sxx
     with np.errstate(invalid="ignore", divide="ignore"):
         pred2 = 2.0 * np.nan_to_num(prior) ** 2
         near_factor = np.abs(np.log(np.maximum(intercept, 1e-300) / pred2)) <= 2.0 * math.log(
@@ -195,7 +199,10 @@ def fit_structure_function(
         floor = pred2 / NOISE_PLAUSIBLE**2
         precise_cov = (se <= NOISE_PRECISION * pred2) & (intercept >= floor)
         contradicts = intercept - pred2 > NOISE_CONTRADICTS * se
-        measured = has_prior & (precise_cov | contradicts)
+        # ... or a prediction the data cannot hold: with its intercept no turbulence is
+        # left (slope <= 0), so the data measure less noise than predicted
+        untenable = ~(fixed_slope > 0)
+        measured = has_prior & (precise_cov | contradicts | untenable)
     significant = np.where(by_cov & has_prior, measured, significant)
     determined = (n >= MIN_NOISE_LAGS) & (intercept > 0) & significant
     # a noise term far below the smallest structure function cannot be told from the
@@ -207,9 +214,6 @@ def fit_structure_function(
         )
         detectable = ~has_prior | (2.0 * prior**2 >= NOISE_DETECTABLE * smallest)
     determined = determined & detectable
-    fixed = np.where(has_prior, 2.0 * np.nan_to_num(prior) ** 2, 0.0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        fixed_slope = (sxy - fixed * sx) / sxx
     slope = np.where(determined, slope, fixed_slope)
     intercept = np.where(determined, intercept, fixed)
     ok = (n >= 2) & (slope > 0) & np.isfinite(slope)

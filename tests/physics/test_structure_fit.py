@@ -96,6 +96,7 @@ def test_a_wrong_prediction_does_not_overrule_a_measured_noise():
     assert fitted.mean() > 0.95
     assert np.median(noise[fitted]) == pytest.approx(sigma_e, rel=0.05)
     assert np.median(eps) == pytest.approx(EPS, rel=0.1)
+    assert np.median(noise[fitted]) == pytest.approx(sigma_e, rel=0.3)
 
 
 def test_an_imprecise_fit_is_rarely_kept():
@@ -123,3 +124,17 @@ def test_a_noise_the_data_cannot_measure_is_the_prediction_flagged():
     )
     assert fitted.mean() < 0.05  # only fits that contradict the prediction by 3 s.e.
     assert np.all(noise[~fitted & np.isfinite(noise)] == sigma_e)
+
+
+def test_a_prediction_that_leaves_no_turbulence_gives_way_to_the_fit():
+    """Noise 0.05 m/s, an SNR that predicts 0.45: fixed there, eps^(2/3) would be < 0."""
+    sigma_e = 0.05
+    d, d_cov = blocks(sigma_e, lag_covariance(1e-3), 400, seed=11)
+    prior = np.full(d.shape[0], 0.45)  # 2 sigma_pred^2 = 0.405: above D(1), D(2), D(3)
+    eps, noise, fitted = fit_structure_function(
+        d, np.broadcast_to(A, d.shape), np.ones(d.shape, bool), prior, d_cov
+    )
+    assert np.all((d - 2 * 0.45**2) @ A < 0)  # the slope with that intercept
+    assert fitted[np.isfinite(eps)].all() and np.isfinite(eps).mean() > 0.95
+    assert np.median(eps) == pytest.approx(EPS, rel=0.1)
+    assert np.median(noise[fitted]) == pytest.approx(sigma_e, rel=0.3)
