@@ -58,18 +58,63 @@ def _shorten(text: str, limit: int) -> str:
     return cut + "..."
 
 
+def keep_dask_out() -> bool:
+    """Make ``import dask`` fail in this process, if neither dask nor xarray is imported yet.
+
+    When dask is installed, xarray imports ``dask.array`` the first time it builds a
+    variable (to test whether the data are a dask array) and ``dask.distributed`` on
+    every ``to_netcdf`` (to ask which scheduler runs), about 0.5 s of imports for a
+    command that never makes a dask array. With ``sys.modules["dask"] = None`` the
+    import system raises ``ModuleNotFoundError`` and ``importlib.util.find_spec``
+    returns None: xarray then runs as in an install without dask (the same products).
+    xarray records whether dask is available when it is imported (and caches its
+    answer), so the sentinel is set only before xarray's import, else never.
+
+    Returns
+    -------
+    bool
+        True when the sentinel was set, False when dask or xarray was already imported.
+    """
+    if "dask" in sys.modules or "xarray" in sys.modules:
+        return False
+    sys.modules["dask"] = None  # type: ignore[assignment]
+    return True
+
+
+def command_name(argv: list[str]) -> str | None:
+    """The command of a ``cwproc`` command line (its first word that is not an option).
+
+    The top-level options (``-h/--help``, ``-V/--version``) take no value, so the first
+    word not starting with ``-`` names the command; None for ``cwproc --help``.
+    """
+    return next((word for word in argv if not word.startswith("-")), None)
+
+
 class CwprocGroup(LazyGroup):
     """The top-level group: every usage error is one line on stderr with exit status 2.
 
     click prints a usage block, a hint and the error on four lines; cwproc prints
     ``error: cwproc plot: --time-index ... (see cwproc plot --help)``.
+
+    When the group runs as the program (``args`` read from ``sys.argv``: the ``cwproc``
+    script, ``python -m cwproc``), a command not in ``dask_commands`` runs with dask
+    kept out of the process (:func:`keep_dask_out`); called with explicit arguments (a
+    test, a notebook) the process is left as it is.
     """
 
-    def main(self, *args: Any, standalone_mode: bool = True, **kwargs: Any) -> Any:
+    def __init__(self, *args: Any, dask_commands: frozenset[str], **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.dask_commands = dask_commands
+
+    def main(
+        self, args: list[str] | None = None, *rest: Any, standalone_mode: bool = True, **kwargs: Any
+    ) -> Any:
+        if args is None and command_name(sys.argv[1:]) not in self.dask_commands:
+            keep_dask_out()
         if not standalone_mode:
-            return super().main(*args, standalone_mode=False, **kwargs)
+            return super().main(args, *rest, standalone_mode=False, **kwargs)
         try:
-            rv = super().main(*args, standalone_mode=False, **kwargs)
+            rv = super().main(args, *rest, standalone_mode=False, **kwargs)
         except click.UsageError as exc:
             where = exc.ctx.command_path if exc.ctx is not None else "cwproc"
             message = " ".join(exc.format_message().split())
