@@ -57,23 +57,30 @@ def test_usage_errors_are_one_line_exit_2():
     assert "--no-such-option" in lines[0] and lines[0].endswith("(see main retrieve --help)")
 
 
-#: run the command line as the program does (``main()`` reads ``sys.argv``), then report
-#: the exit status and whether dask was kept out (the ``None`` sentinel) or imported
+#: run the command line as the program does (``main()`` reads ``sys.argv``); at its exit
+#: (``exit_now``, or ``sys.exit`` for batch) print the status and whether dask was kept
+#: out (the ``None`` sentinel) or imported
 _AS_PROGRAM = (
     "import sys\n"
+    "import cwproc.cli._group as group\n"
+    "def report(code):\n"
+    "    kept_out = 'dask' in sys.modules and sys.modules['dask'] is None\n"
+    "    imported = 'dask.array' in sys.modules, 'distributed' in sys.modules\n"
+    "    print(code, kept_out, *imported)\n"
+    "    sys.stdout.flush()\n"
+    "    group.os._exit(0)\n"
+    "group.exit_now = report\n"
     "from cwproc.cli import main\n"
     "try:\n"
     "    main()\n"
     "except SystemExit as exc:\n"
-    "    status = exc.code\n"
-    "kept_out = 'dask' in sys.modules and sys.modules['dask'] is None\n"
-    "print(status, kept_out, 'dask.array' in sys.modules, 'distributed' in sys.modules)\n"
+    "    report(exc.code)\n"
 )
 
 
 def _as_program(*argv: str) -> list[str]:
     out = subprocess.run(
-        [sys.executable, "-c", _AS_PROGRAM, *argv], capture_output=True, text=True, check=True
+        [sys.executable, "-c", _AS_PROGRAM, *argv], capture_output=True, text=True
     ).stdout
     return out.splitlines()[-1].split()
 
@@ -116,3 +123,18 @@ def test_explicit_arguments_leave_the_process_alone():
 )
 def test_command_name_is_the_first_word_not_an_option(argv, name):
     assert command_name(argv) == name
+
+
+def test_program_exit_keeps_output_and_status(tmp_path):
+    """``cwproc`` ends without the interpreter's teardown: both streams are complete and
+    the status is the command's (1: one of two inputs failed)."""
+    toa5 = SAMPLES / "sonic" / "TOA5_999.ts_data_2024_06_01_1200.dat"
+    missing = tmp_path / "missing.dat"
+    res = subprocess.run(
+        [sys.executable, "-m", "cwproc", "sf-type", str(toa5), str(missing), "-o", str(tmp_path)],
+        capture_output=True,
+        text=True,
+    )
+    assert res.returncode == 1
+    assert res.stdout.splitlines()[-1] == "2 input(s), 1 product(s) written, 1 failure(s)"
+    assert res.stderr.splitlines() == [f"error: {missing}: cannot read: No such file or directory"]
