@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
+from cwproc import __version__
 from cwproc.cli import COMMANDS, main
 from cwproc.cli import simulate as simulate_group
 from cwproc.cli import theory as theory_group
@@ -139,3 +140,20 @@ def test_program_exit_keeps_output_and_status(tmp_path):
     assert res.returncode == 1
     assert res.stdout.splitlines()[-1] == "2 input(s), 1 product(s) written, 1 failure(s)"
     assert res.stderr.splitlines() == [f"error: {missing}: cannot read: No such file or directory"]
+
+
+def test_program_exit_runs_the_atexit_functions():
+    """Ending without the teardown still runs what ``atexit`` promises (after the output)."""
+    code = (
+        "import atexit, sys\n"
+        "atexit.register(lambda: print('exit function ran'))\n"
+        "sys.argv = ['cwproc', '--version']\n"
+        "from cwproc.cli import main\n"
+        "main()\n"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert res.returncode == 0
+    assert res.stdout.splitlines() == [
+        f"cwproc, version {__version__}",
+        "exit function ran",
+    ]
