@@ -38,7 +38,7 @@ def test_help_and_version_import_no_heavy_module():
         "from cwproc.cli import main\n"
         "for args in (['--help'], ['--version'], ['theory', '--help'], ['plot', '--help'],\n"
         "             ['retrieve', '--help'], ['sf-type', '--help'],\n"
-        "             ['batch', '--help']):\n"
+        "             ['batch', '--help'], ['info', '--help']):\n"
         "    assert CliRunner().invoke(main, args).exit_code == 0\n"
         "heavy = [m for m in ('numpy', 'xarray', 'pandas', 'scipy', 'netCDF4') "
         "if m in sys.modules]\n"
