@@ -10,6 +10,8 @@ has the optional dask installed, and a plain ``pip install cwproc``):
    writing the product and the tables);
 3. their ratio, of wall times and of CPU times (user + system; the steadier figure on a
    shared machine), each the best of ``--repeat`` alternated runs (target: <= 2);
+   every process runs outside the checkout, so that each interpreter runs its own
+   ``cwproc`` (an interpreter whose ``cwproc`` is another commit compares commits);
 4. with ``--days N``: ``cwproc batch`` over N days (one file per day, the path a user
    runs for a month) serially, on a pool of one and of two workers, and the speed-up of
    two workers (target >= 1.8 on two free cores).
@@ -71,9 +73,20 @@ def write_toa5_day(path: Path, day: int, seed: int = 0) -> None:
 
 
 def run(cmd: list[str], env: dict | None = None) -> tuple[float, float]:
-    """Wall time and CPU time (user + system, s) of one process."""
+    """Wall time and CPU time (user + system, s) of one process.
+
+    The process runs in the system's temporary folder: ``python -m cwproc`` started in a
+    checkout would import that checkout's ``cwproc`` (the current folder comes first on
+    ``sys.path``), not the one installed for the interpreter being timed.
+    """
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(
+        cmd,
+        env=env,
+        cwd=tempfile.gettempdir(),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
     proc.returncode = os.waitstatus_to_exitcode(status)
@@ -154,7 +167,10 @@ def main() -> None:
         print(f"  pandas.read_csv in-process {read_inproc:.2f} s")
         for python in args.python:
             has_dask = (
-                subprocess.run([python, "-c", "import dask"], capture_output=True).returncode == 0
+                subprocess.run(
+                    [python, "-c", "import dask"], capture_output=True, cwd=tempfile.gettempdir()
+                ).returncode
+                == 0
             )
             f = compare_one_day(path, tmp_path / "out", python, args.repeat)
             print(f"  {python} ({'with' if has_dask else 'without'} dask installed)")

@@ -40,10 +40,14 @@ COMMANDS = {
     ),
 }
 
+#: the commands that may use dask (``batch --scheduler``); the others run without it
+DASK_COMMANDS = frozenset({"batch"})
+
 
 @click.group(
     cls=CwprocGroup,
     lazy=COMMANDS,
+    dask_commands=DASK_COMMANDS,
     context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
 )
 @click.version_option(__version__, "-V", "--version", prog_name="cwproc")

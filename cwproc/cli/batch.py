@@ -11,25 +11,15 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
-from cwproc.batch import (
-    EXIT_LOCKED,
-    PRODUCT_FORMAT,
-    BatchReport,
-    DaskNotInstalledError,
-    LockBusyError,
-    UnitOutcome,
-    close_client,
-    dask_client,
-    local_pool,
-    run_batch,
-)
 from cwproc.cli._common import config_option, load_config_or_fail, report_failure
 from cwproc.errors import CwprocError
-from cwproc.pipeline import EXIT_FAILED, EXIT_OK
+
+if TYPE_CHECKING:  # imported when the command runs: batch --help stays light
+    from cwproc.batch import BatchReport, UnitOutcome
 
 _LOG_FORMAT = "%(asctime)s %(levelname)s %(message)s"
 
@@ -103,6 +93,8 @@ def _terminate(signum: int, _frame: Any) -> None:
 
 def summary_lines(report: BatchReport, verbose: bool) -> list[str]:
     """The human summary printed at the end of a run."""
+    from cwproc.batch import PRODUCT_FORMAT
+
     lines = []
     if verbose:
         lines += [f"unrecognised: {info.error or info.path}" for info in report.unrecognised]
@@ -252,6 +244,17 @@ def batch(
     Exit status: 0 all done, 1 some input or unit failed, 2 usage error,
     75 another run holds the lock.
     """
+    from cwproc.batch import (
+        EXIT_LOCKED,
+        DaskNotInstalledError,
+        LockBusyError,
+        close_client,
+        dask_client,
+        local_pool,
+        run_batch,
+    )
+    from cwproc.pipeline import EXIT_FAILED, EXIT_OK
+
     if workers is not None and scheduler:
         raise click.UsageError("give --workers or --scheduler, not both")
     if quiet and verbose:

@@ -14,7 +14,6 @@ import sys
 from pathlib import Path
 
 import click
-import pandas as pd
 
 from cwproc.cli._common import (
     inputs_or_exit,
@@ -22,8 +21,6 @@ from cwproc.cli._common import (
     product_command,
     report_failure,
 )
-from cwproc.io.netcdf import write_bytes_atomic
-from cwproc.pipeline import EXIT_FAILED, EXIT_OK, retrieve_files, sf_summary_tables
 
 
 @product_command(
@@ -42,6 +39,11 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
     both tables. Exit status 0 when every input was processed, 1 otherwise, with one
     line per failed input naming the file, the line and the problem.
     """
+    import pandas as pd  # here, not at import: --help stays light
+
+    from cwproc.io.netcdf import write_bytes_atomic
+    from cwproc.pipeline import EXIT_FAILED, EXIT_OK, retrieve_files, sf_summary_tables
+
     cfg = load_config_or_fail(config)
     found = inputs_or_exit(inputs, cfg, quiet)
     files = found.files

@@ -204,20 +204,28 @@ def remove_running_mean(x: np.ndarray, width: int) -> np.ndarray:
     finite = np.isfinite(x)
     complete = bool(finite.all())
     filled = x if complete else np.where(finite, x, 0.0)
-    zero = np.zeros((*x.shape[:-1], 1))
-    csum = np.concatenate([zero, np.cumsum(filled, axis=-1)], axis=-1)
     n = x.shape[-1]
+    csum = np.zeros((*x.shape[:-1], n + 1))
+    np.cumsum(filled, axis=-1, out=csum[..., 1:])
     idx = np.arange(n)
     lo = np.clip(idx - width // 2, 0, n)
     hi = np.clip(idx - width // 2 + width, 0, n)
     if complete:  # the counts are the window lengths (the same numbers, not summed)
         cnt = (hi - lo).astype(float)
     else:
-        ccnt = np.concatenate([zero, np.cumsum(finite, axis=-1)], axis=-1)
+        ccnt = np.zeros((*x.shape[:-1], n + 1))
+        np.cumsum(finite, axis=-1, out=ccnt[..., 1:])
         cnt = ccnt[..., hi] - ccnt[..., lo]
+    # in place (a day of windows is ~20 MB per temporary): mean = (csum_hi - csum_lo) / cnt
+    mean = csum[..., hi]
+    mean -= csum[..., lo]
     with np.errstate(invalid="ignore", divide="ignore"):
-        mean = (csum[..., hi] - csum[..., lo]) / cnt
-    return x - mean if complete else np.where(finite, x - mean, np.nan)
+        mean /= cnt
+    if complete:
+        return np.subtract(x, mean, out=mean)
+    np.subtract(x, mean, out=mean)
+    mean[~finite] = np.nan
+    return mean
 
 
 def next_fast_len(n: int) -> int:
@@ -260,27 +268,36 @@ def structure_function_fft(x: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.
         N_j, the number of pairs.
     """
     n = x.shape[-1]
-    m = np.isfinite(x).astype(float)
-    a = np.where(m > 0, x, 0.0)
-    s = a * a
-    nfft = next_fast_len(n + max_lag + 1)
+    finite = np.isfinite(x)
     # no sample missing: one transform of the mask serves every series (same values)
-    complete = bool(m.all())
+    complete = bool(finite.all())
+    m = finite.astype(float)
+    a = x if complete else np.where(finite, x, 0.0)
+    nfft = next_fast_len(n + max_lag + 1)
     fm = np.fft.rfft(m[(0,) * (m.ndim - 1)] if complete else m, nfft, axis=-1)
-    fa, fs = (np.fft.rfft(v, nfft, axis=-1) for v in (a, s))
+    fa = np.fft.rfft(a, nfft, axis=-1)
+    fs = np.fft.rfft(a * a, nfft, axis=-1)
+    del m, a
 
     def corr(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-        # sum_i p_i q_{i+j} for j = 1..max_lag
-        return np.fft.irfft(np.conj(p) * q, nfft, axis=-1)[..., 1 : max_lag + 1]
+        # sum_i p_i q_{i+j} for j = 1..max_lag (the lags copied out of the transform)
+        product = np.conj(p)
+        product = np.multiply(product, q, out=product if product.shape == q.shape else None)
+        return np.fft.irfft(product, nfft, axis=-1)[..., 1 : max_lag + 1].copy()
 
     pairs = np.rint(corr(fm, fm))
     if complete:
         pairs = np.broadcast_to(pairs, (*x.shape[:-1], max_lag))
-    squares = corr(fm, fs) + corr(fs, fm)
+    squares = corr(fm, fs)
+    squares += corr(fs, fm)
+    del fs
     cross = corr(fa, fa)
+    del fa
+    cross *= 2.0
+    squares -= cross
     with np.errstate(invalid="ignore", divide="ignore"):
-        d = (squares - 2.0 * cross) / pairs
-    d = np.where(pairs > 0, np.maximum(d, 0.0), np.nan)
+        squares /= pairs
+    d = np.where(pairs > 0, np.maximum(squares, 0.0), np.nan)
     return d, pairs
 
 

@@ -10,7 +10,7 @@ import xarray as xr
 from click.testing import CliRunner
 
 from cwproc.cli import main
-from cwproc.cli.info import azimuth_coverage, describe_scan, elevation_summary
+from cwproc.cli.describe import azimuth_coverage, describe_scan, elevation_summary
 from cwproc.io.halo import read_hpl, write_hpl
 from cwproc.io.scans import assign_scans
 

@@ -5,12 +5,18 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
+from click.testing import CliRunner
 
+from cwproc import __version__
 from cwproc.cli import COMMANDS, main
 from cwproc.cli import simulate as simulate_group
 from cwproc.cli import theory as theory_group
+from cwproc.cli._group import command_name
+
+SAMPLES = Path(__file__).resolve().parents[2] / "sample_data"
 
 
 @pytest.mark.parametrize(
@@ -31,7 +37,8 @@ def test_help_and_version_import_no_heavy_module():
         "from click.testing import CliRunner\n"
         "from cwproc.cli import main\n"
         "for args in (['--help'], ['--version'], ['theory', '--help'], ['plot', '--help'],\n"
-        "             ['retrieve', '--help']):\n"
+        "             ['retrieve', '--help'], ['sf-type', '--help'],\n"
+        "             ['batch', '--help'], ['info', '--help']):\n"
         "    assert CliRunner().invoke(main, args).exit_code == 0\n"
         "heavy = [m for m in ('numpy', 'xarray', 'pandas', 'scipy', 'netCDF4') "
         "if m in sys.modules]\n"
@@ -44,11 +51,109 @@ def test_help_and_version_import_no_heavy_module():
 
 
 def test_usage_errors_are_one_line_exit_2():
-    from click.testing import CliRunner
-
     res = CliRunner().invoke(main, ["retrieve", "--no-such-option"])
     assert res.exit_code == 2
     lines = res.output.strip().splitlines()
     assert len(lines) == 1
     assert lines[0].startswith("error: main retrieve: No such option")
     assert "--no-such-option" in lines[0] and lines[0].endswith("(see main retrieve --help)")
+
+
+#: run the command line as the program does (``main()`` reads ``sys.argv``); at its exit
+#: (``exit_now``, or ``sys.exit`` for batch) print the status and whether dask was kept
+#: out (the ``None`` sentinel) or imported
+_AS_PROGRAM = (
+    "import sys\n"
+    "import cwproc.cli._group as group\n"
+    "def report(code):\n"
+    "    kept_out = 'dask' in sys.modules and sys.modules['dask'] is None\n"
+    "    imported = 'dask.array' in sys.modules, 'distributed' in sys.modules\n"
+    "    print(code, kept_out, *imported)\n"
+    "    sys.stdout.flush()\n"
+    "    group.os._exit(0)\n"
+    "group.exit_now = report\n"
+    "from cwproc.cli import main\n"
+    "try:\n"
+    "    main()\n"
+    "except SystemExit as exc:\n"
+    "    report(exc.code)\n"
+)
+
+
+def _as_program(*argv: str) -> list[str]:
+    out = subprocess.run(
+        [sys.executable, "-c", _AS_PROGRAM, *argv], capture_output=True, text=True
+    ).stdout
+    return out.splitlines()[-1].split()
+
+
+def test_sf_type_runs_without_importing_dask(tmp_path):
+    """With dask installed, ``cwproc sf-type`` imports neither dask.array nor distributed
+    (xarray would, about 0.5 s of a 3-s run) and writes its product."""
+    pytest.importorskip("dask")
+    toa5 = SAMPLES / "sonic" / "TOA5_999.ts_data_2024_06_01_1200.dat"
+    out = tmp_path / "out"
+    assert _as_program("sf-type", str(toa5), "-o", str(out), "-q") == [
+        "0",
+        "True",
+        "False",
+        "False",
+    ]
+    assert len(list(out.glob("*_sf.nc"))) == 1
+
+
+def test_batch_keeps_dask_importable():
+    """``cwproc batch`` (``--scheduler`` runs on a Dask cluster) leaves dask importable."""
+    pytest.importorskip("dask")
+    assert _as_program("batch", "--help") == ["0", "False", "False", "False"]
+
+
+def test_explicit_arguments_leave_the_process_alone():
+    """A test or a notebook calling ``main([...])`` keeps its own import state."""
+    res = CliRunner().invoke(main, ["sf-type", "--help"])
+    assert res.exit_code == 0
+    assert sys.modules.get("dask", "absent") is not None
+
+
+@pytest.mark.parametrize(
+    ("argv", "name"),
+    [
+        (["sf-type", "a.dat", "-o", "out"], "sf-type"),
+        (["-V"], None),
+        (["--help", "batch"], "batch"),
+    ],
+)
+def test_command_name_is_the_first_word_not_an_option(argv, name):
+    assert command_name(argv) == name
+
+
+def test_program_exit_keeps_output_and_status(tmp_path):
+    """``cwproc`` ends without the interpreter's teardown: both streams are complete and
+    the status is the command's (1: one of two inputs failed)."""
+    toa5 = SAMPLES / "sonic" / "TOA5_999.ts_data_2024_06_01_1200.dat"
+    missing = tmp_path / "missing.dat"
+    res = subprocess.run(
+        [sys.executable, "-m", "cwproc", "sf-type", str(toa5), str(missing), "-o", str(tmp_path)],
+        capture_output=True,
+        text=True,
+    )
+    assert res.returncode == 1
+    assert res.stdout.splitlines()[-1] == "2 input(s), 1 product(s) written, 1 failure(s)"
+    assert res.stderr.splitlines() == [f"error: {missing}: cannot read: No such file or directory"]
+
+
+def test_program_exit_runs_the_atexit_functions():
+    """Ending without the teardown still runs what ``atexit`` promises (after the output)."""
+    code = (
+        "import atexit, sys\n"
+        "atexit.register(lambda: print('exit function ran'))\n"
+        "sys.argv = ['cwproc', '--version']\n"
+        "from cwproc.cli import main\n"
+        "main()\n"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert res.returncode == 0
+    assert res.stdout.splitlines() == [
+        f"cwproc, version {__version__}",
+        "exit function ran",
+    ]
