@@ -140,9 +140,8 @@ def sample_conical_scans(
     range_step_m : float, optional
         Spacing of the nodes of the range weighting (m); the field spacing by default.
     snr : float, optional
-        Linear SNR written to the dataset (constant); by default the SNR at which the
-        Stream Line's settings predict ``noise_std_m_s``
-        (:func:`cwproc.physics.noise.snr_for_noise_std`), as for a real lidar.
+        Linear SNR written to the dataset (constant); by default the one at which the
+        settings predict ``noise_std_m_s`` (:func:`cwproc.physics.noise.snr_for_noise_std`).
     lidar_position_m : tuple of float
         (x, y, z) of the lidar in the field (m).
 
