@@ -183,8 +183,9 @@ _PRODUCT_VARIABLES: dict[str, VarMeta] = {
             "bit 4 mu beyond method 1 validity (epsilon_method1 is kept); bit 8 fit failed; "
             "bit 16 partial block (fewer than half the requested scans per block); bit 32 "
             "the fitted noise intercept is not determined (its standard error above half "
-            "the predicted 2 sigma_e^2 and the fit consistent with the prediction, or "
-            "negative): noise_std is the prediction from the SNR, used in the fit"
+            "the predicted 2 sigma_e^2 or sigma_e below half the predicted one, and the fit "
+            "not above the prediction by 4 standard errors; or negative): noise_std is the "
+            "prediction from the SNR, used in the fit"
         ),
     ),
     # ------------------------------------------- turbulence product: issue-12 additions

@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from cwproc.physics.structure_fit import NOISE_CONTRADICTS, NOISE_PRECISION
+from cwproc.physics.structure_fit import NOISE_CONTRADICTS, NOISE_PLAUSIBLE, NOISE_PRECISION
 from cwproc.stages.epsilon.cells import Cells
 from cwproc.stages.epsilon.cw_exact import CW_EXACT_MU_MAX
 from cwproc.stages.epsilon.flags import METHOD1_RATIO_LIMIT
@@ -114,10 +114,11 @@ def describe(out: xr.Dataset, common: dict[str, Any], c_model: float, model: str
     out["noise_std"].attrs.update(
         method="intercept 2 sigma_e^2 of the least-squares fit, Smalikho (2020), eq. 4, "
         "where its standard error (from the covariance of D over the block's scans) is at "
-        f"most {NOISE_PRECISION:g} of the predicted 2 sigma_pred^2 or it differs from that "
-        f"by more than {NOISE_CONTRADICTS:g} standard errors (without a prediction: where "
-        "it exceeds twice its standard error); elsewhere (flag 32) the prediction "
-        "noise_std_predicted, used "
+        f"most {NOISE_PRECISION:g} of the predicted 2 sigma_pred^2 and sigma_e at least "
+        f"1/{NOISE_PLAUSIBLE:g} of the predicted one, where it exceeds 2 sigma_pred^2 by "
+        f"more than {NOISE_CONTRADICTS:g} standard errors, or where the prediction leaves "
+        "no turbulence (without a prediction: where it exceeds twice its standard error); "
+        "elsewhere (flag 32) the prediction noise_std_predicted, used "
         "in the fit; NaN when neither exists"
     )
     out["velocity_variance"].attrs.update(
