@@ -91,15 +91,29 @@ def intercept_standard_error(a: np.ndarray, w: np.ndarray, d_cov: np.ndarray) ->
     w : numpy.ndarray of bool
         Lags in the fit.
     d_cov : numpy.ndarray
-        Covariance of D (m4 s-4), shape of ``a`` plus one more lag axis.
+        Covariance of D (m4 s-4), shape of ``a`` plus one more lag axis (broadcastable).
     """
     x = np.where(w, a, 0.0)
-    n = _lag_sum(w.astype(float))
     sx, sxx = _lag_sum(x), _lag_sum(x * x)
     with np.errstate(invalid="ignore", divide="ignore"):
-        c = np.where(w, (sxx[..., None] - sx[..., None] * x) / (n * sxx - sx**2)[..., None], 0.0)
-    both = w[..., :, None] & w[..., None, :]
-    var = np.einsum("...i,...ij,...j->...", c, np.where(both, d_cov, 0.0), c)
+        det = _lag_sum(w.astype(float)) * sxx - sx**2
+    return _intercept_se(x, w, sx, sxx, det, d_cov)
+
+
+def _intercept_se(
+    x: np.ndarray,
+    w: np.ndarray,
+    sx: np.ndarray,
+    sxx: np.ndarray,
+    det: np.ndarray,
+    d_cov: np.ndarray,
+) -> np.ndarray:
+    """:func:`intercept_standard_error` from the sums of the fit (``x`` zero off ``w``)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        c = np.where(w, (sxx[..., None] - sx[..., None] * x) / det[..., None], 0.0)
+    # C c by a batched product (C broadcast over the leading axes, not copied); the
+    # lags outside the fit have c = 0 (a covariance is all finite or all NaN per cell)
+    var = _lag_sum(c * np.matmul(d_cov, c[..., None])[..., 0])
     return np.sqrt(np.where(var >= 0, var, np.nan))
 
 
@@ -176,7 +190,7 @@ def fit_structure_function(
     has_prior = np.isfinite(prior)
     se_cov = np.full(slope.shape, np.nan)
     if d_cov is not None:
-        se_cov = intercept_standard_error(a, w, np.broadcast_to(d_cov, (*w.shape, w.shape[-1])))
+        se_cov = _intercept_se(x, w, sx, sxx, det, d_cov)
     by_cov = np.isfinite(se_cov)
     se = np.where(by_cov, se_cov, se_intercept)
     fixed = np.where(has_prior, 2.0 * np.nan_to_num(prior) ** 2, 0.0)
