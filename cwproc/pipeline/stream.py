@@ -11,6 +11,13 @@ the per-block structure statistics and the (vertical) stare rays are kept; the
 dissipation rate (which may pool noise over neighbouring blocks) and the stare product
 are computed once over the day.
 
+Three threads share the work (unless ``CWPROC_READ_AHEAD=0``): one plans and parses the
+next chunk, one screens and VAD-fits the current chunk's conical scans, and the
+caller's thread does everything that changes the day's state (background correction,
+scan numbering, the structure function of the blocks) in chunk order. The compiled
+tokenizer, the file reads and numpy's whole-array operations release the GIL, so the
+threads run on both cores when they are free.
+
 The whole-day run is the definition: the choices it makes over the whole day (scan
 numbering, the most common conical elevation, the azimuth step and rotation, the
 background method) are recomputed at the end from the per-ray pointing kept on the way
@@ -507,10 +514,12 @@ def stream_scan_unit(
     chunk_bytes : int
         Input data joined into one chunk (bytes).
     read_ahead : bool, optional
-        Read the next files in a second thread (:class:`ChunkAhead` for chunks read at
-        once, else :class:`ReadAhead`; at most one chunk ahead) while a chunk is
-        processed; None: when ``CWPROC_READ_AHEAD=1`` (:func:`read_ahead_enabled`). The
-        products are the same either way.
+        Use the worker threads: the next files read in a second thread
+        (:class:`ChunkAhead` for chunks read at once, else :class:`ReadAhead`; at most
+        one chunk ahead) and each chunk screened and VAD-fitted in a third
+        (:class:`ChunkScreening`) while the caller's thread reduces the chunk before it;
+        None: unless ``CWPROC_READ_AHEAD=0`` (:func:`read_ahead_enabled`). The products,
+        notes and failures are the same either way.
 
     Returns
     -------

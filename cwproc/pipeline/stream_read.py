@@ -6,10 +6,14 @@ joined afterwards; what each file's own dataset would have said (attributes, fir
 time, scans) comes with it, for provenance and the per-file notes. A chunk with any
 damaged, changed or held file is read file by file as before, so that a damaged file
 is left out alone, named with its line, and a changed one is caught by its checksum.
+
+The reading runs ahead of the processing in a thread of its own (:class:`ChunkAhead`,
+:class:`ReadAhead`), on by default (:func:`read_ahead_enabled`).
 """
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import threading
 from collections.abc import Callable, Iterator
@@ -92,8 +96,10 @@ READ_AHEAD_VARIABLE = THREADS_VARIABLE
 
 def read_ahead_enabled(read_ahead: bool | None = None) -> bool:
     """Whether a streamed day uses its worker threads: ``read_ahead`` when given, else
-    unless the environment variable ``CWPROC_READ_AHEAD`` is ``0`` (or ``false``, ``no``,
-    ``off``).
+    the environment variable ``CWPROC_READ_AHEAD`` when set (``0``, ``false``, ``no``,
+    ``off``: not; anything else: yes), else unless this process is a child of a
+    process pool (``cwproc batch --workers N``, a Dask worker), whose processes already
+    take the cores.
 
     On by default: the next chunk is parsed in a second thread (:class:`ChunkAhead`;
     chunks not read at once, file by file: :class:`ReadAhead`) and each chunk's
@@ -104,8 +110,10 @@ def read_ahead_enabled(read_ahead: bool | None = None) -> bool:
     """
     if read_ahead is not None:
         return bool(read_ahead)
-    value = os.environ.get(THREADS_VARIABLE, "1").strip().lower()
-    return value not in ("0", "false", "no", "off")
+    value = os.environ.get(THREADS_VARIABLE)
+    if value is None:
+        return multiprocessing.parent_process() is None
+    return value.strip().lower() not in ("0", "false", "no", "off")
 
 
 class ReadAhead:
