@@ -571,20 +571,7 @@ def stream_scan_unit(
             for chunk in chunks:
                 if chunk is None:
                     continue  # every file of the chunk damaged beyond its header
-                try:
-                    chunk = corrected_chunk(chunk, unit, config, own, state)
-                    state.scan_type = str(chunk.attrs.get("scan_type", ""))
-                    chunk = number_scans(chunk, state)
-                except Exception:
-                    screening.finish()  # the previous chunk's error first, as serially
-                    raise
-                first = not (state.winds or state.stares or screening.pending)
-                if state.turbulence and first:
-                    mismatch = probe_mismatch(chunk, config)
-                    if mismatch:
-                        state.turbulence = False
-                        own.append(f"turbulence not computed: {mismatch}")
-                others = split_chunk(chunk, state)
+                others = conical_part(chunk, unit, config, own, state, screening)
                 del chunk  # released before the next chunk is read (and before epsilon)
                 if others is not None:
                     screening.take(others)  # screened while the previous one is reduced
@@ -615,6 +602,35 @@ def stream_scan_unit(
     if notes is not None:
         notes.extend(dict.fromkeys(own))
     return products
+
+
+def conical_part(
+    chunk: xr.Dataset,
+    unit,
+    config: Config,
+    notes: list[str],
+    state: StreamState,
+    screening: ChunkScreening,
+) -> xr.Dataset | None:
+    """A chunk corrected, its scans numbered after the earlier chunks' and its stares
+    kept (in chunk order): its conical part, to be screened (None: none).
+
+    An error here is raised after that of the chunk being screened (as in the serial
+    run, where the earlier chunk fails first).
+    """
+    try:
+        chunk = corrected_chunk(chunk, unit, config, notes, state)
+        state.scan_type = str(chunk.attrs.get("scan_type", ""))
+        chunk = number_scans(chunk, state)
+    except Exception:
+        screening.finish()  # the previous chunk's error first, as serially
+        raise
+    if state.turbulence and not (state.winds or state.stares or screening.pending):
+        mismatch = probe_mismatch(chunk, config)  # the first chunk of the day's data
+        if mismatch:
+            state.turbulence = False
+            notes.append(f"turbulence not computed: {mismatch}")
+    return split_chunk(chunk, state)
 
 
 def corrected_chunk(
