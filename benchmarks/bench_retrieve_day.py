@@ -16,8 +16,9 @@ beside the reduction of the one before; ``cwproc.pipeline.stream``), side by sid
 ``--baseline CHECKOUT`` also runs the retrieve of another checkout of cwproc (e.g.
 main's, imported through ``PYTHONPATH``, with this interpreter), each repeat right
 after this one, prints this checkout's times and peak as ratios to it (the machine is
-shared, so only figures of one run, back to back, compare) and compares the products of every variant with the baseline's, variable by
-variable and bit for bit (attributes that name the run, such as its date, aside).
+shared, so only figures of one run, back to back, compare) and compares the products
+of every variant with the baseline's, variable by variable and bit for bit (attributes
+that name the run, such as its date, aside).
 
 Run::
 
