@@ -10,9 +10,10 @@ scans, one ``.hpl`` file per scan as the Stream Line writes them) is
 
 and the script prints both times (wall and CPU, best of ``--repeat``), their ratio
 (target <= 1.5) and the peak resident memory of the retrieve process (``VmHWM``, all
-its threads; target < 300 MiB). ``--read-ahead`` also runs it with its worker threads
-(``CWPROC_READ_AHEAD=1``: the next chunk parsed, each chunk screened and VAD-fitted
-beside the reduction of the one before; ``cwproc.pipeline.stream``), side by side.
+its threads; target < 300 MiB). The retrieve runs with its worker threads (the next
+chunk parsed, each chunk screened and VAD-fitted beside the reduction of the one
+before; ``cwproc.pipeline.stream``); ``--serial`` also runs it in one thread
+(``CWPROC_READ_AHEAD=0``), side by side.
 ``--baseline CHECKOUT`` also runs the retrieve of another checkout of cwproc (e.g.
 main's, imported through ``PYTHONPATH``, with this interpreter), each repeat right
 after this one, prints this checkout's times and peak as ratios to it (the machine is
@@ -23,7 +24,7 @@ that name the run, such as its date, aside).
 Run::
 
     python benchmarks/bench_retrieve_day.py [--repeat 2] [--scans 1920] [--day-dir DIR]
-        [--read-ahead] [--baseline CHECKOUT]
+        [--serial] [--baseline CHECKOUT]
 
 ``--day-dir`` keeps the day's files in ``DIR`` (written there when it holds no ``.hpl``
 file, reused as they are otherwise), so that repeated runs do not write them again.
@@ -144,7 +145,7 @@ def main() -> None:
     parser.add_argument("--scans", type=int, default=int(86400 / PERIOD_S))
     parser.add_argument("--day-dir", type=Path, help="folder of the day's files (kept)")
     parser.add_argument(
-        "--read-ahead", action="store_true", help="also retrieve with CWPROC_READ_AHEAD=1"
+        "--serial", action="store_true", help="also retrieve in one thread (CWPROC_READ_AHEAD=0)"
     )
     parser.add_argument(
         "--baseline", type=Path, help="another cwproc checkout to compare with (its root)"
@@ -163,8 +164,8 @@ def main() -> None:
         # this checkout's cwproc, whatever the interpreter has installed
         this = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
         variants: dict[str, dict | None] = {"": this}
-        if args.read_ahead:
-            variants["CWPROC_READ_AHEAD=1 "] = {**this, "CWPROC_READ_AHEAD": "1"}
+        if args.serial:
+            variants["CWPROC_READ_AHEAD=0 "] = {**this, "CWPROC_READ_AHEAD": "0"}
         if args.baseline:
             baseline = str(args.baseline.resolve())
             variants[f"of {baseline} "] = {**os.environ, "PYTHONPATH": baseline}

@@ -211,7 +211,8 @@ def test_read_ahead_gives_the_serial_products_and_failures(tmp_path, config):
 
 def test_read_ahead_hands_out_errors_in_order_and_stops(monkeypatch):
     """ReadAhead: results in order, at most max_bytes ahead, an error raised at its item,
-    the thread stopped by close() (no hang); CWPROC_READ_AHEAD=1 turns it on."""
+    the thread stopped by close() (no hang); on by default (not in a pool's process),
+    CWPROC_READ_AHEAD=0 turns it off."""
     import threading
 
     from cwproc.pipeline.stream import ReadAhead, read_ahead_enabled
@@ -247,7 +248,14 @@ def test_read_ahead_hands_out_errors_in_order_and_stops(monkeypatch):
     monkeypatch.setenv("CWPROC_READ_AHEAD", "0")
     assert not read_ahead_enabled()
     monkeypatch.delenv("CWPROC_READ_AHEAD")
+    assert read_ahead_enabled()
+    from cwproc.pipeline import stream_read
+
+    # in a process of a pool (batch --workers N) the pool's processes take the cores
+    monkeypatch.setattr(stream_read.multiprocessing, "parent_process", lambda: object())
     assert not read_ahead_enabled()
+    monkeypatch.setenv("CWPROC_READ_AHEAD", "1")
+    assert read_ahead_enabled()
 
 
 def test_epsilon_by_groups_of_blocks_is_the_whole_fit(tmp_path, config, monkeypatch):

@@ -11,7 +11,7 @@ the per-block structure statistics and the (vertical) stare rays are kept; the
 dissipation rate (which may pool noise over neighbouring blocks) and the stare product
 are computed once over the day.
 
-With ``CWPROC_READ_AHEAD=1`` three threads share the work: one plans and parses the
+Three threads share the work (unless ``CWPROC_READ_AHEAD=0``): one plans and parses the
 next chunk, one screens and VAD-fits the current chunk's conical scans, and the
 caller's thread does everything that changes the day's state (background correction,
 scan numbering, the structure function of the blocks) in chunk order. The compiled
@@ -518,7 +518,7 @@ def stream_scan_unit(
         (:class:`ChunkAhead` for chunks read at once, else :class:`ReadAhead`; at most
         one chunk ahead) and each chunk screened and VAD-fitted in a third
         (:class:`ChunkScreening`) while the caller's thread reduces the chunk before it;
-        None: when ``CWPROC_READ_AHEAD=1`` (:func:`read_ahead_enabled`). The products,
+        None: unless ``CWPROC_READ_AHEAD=0`` (:func:`read_ahead_enabled`). The products,
         notes and failures are the same either way.
 
     Returns

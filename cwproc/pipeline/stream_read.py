@@ -7,12 +7,13 @@ time, scans) comes with it, for provenance and the per-file notes. A chunk with 
 damaged, changed or held file is read file by file as before, so that a damaged file
 is left out alone, named with its line, and a changed one is caught by its checksum.
 
-With ``CWPROC_READ_AHEAD=1`` (:func:`read_ahead_enabled`) the reading runs ahead of the
-processing in a thread of its own (:class:`ChunkAhead`, :class:`ReadAhead`).
+The reading runs ahead of the processing in a thread of its own (:class:`ChunkAhead`,
+:class:`ReadAhead`) unless ``CWPROC_READ_AHEAD=0`` (:func:`read_ahead_enabled`).
 """
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import threading
 from collections.abc import Callable, Iterator
@@ -86,29 +87,33 @@ def read_planned_chunk(chunk: list[tuple]) -> tuple[xr.Dataset, list[HplFilePart
     return got
 
 
-#: environment variable that turns the worker threads of a streamed day on ("1", also
-#: ``true``, ``yes``, ``on``); off by default (``docs/DEVELOPING.md``, Performance)
+#: environment variable that turns the worker threads of a streamed day off ("0", also
+#: ``false``, ``no``, ``off``) or on (anything else) whatever the default
 READ_AHEAD_VARIABLE = "CWPROC_READ_AHEAD"
 
 
 def read_ahead_enabled(read_ahead: bool | None = None) -> bool:
     """Whether a streamed day uses its worker threads: ``read_ahead`` when given, else
-    whether the environment variable ``CWPROC_READ_AHEAD`` is ``1`` (or ``true``,
-    ``yes``, ``on``).
+    the environment variable ``CWPROC_READ_AHEAD`` when set (``0``, ``false``, ``no``,
+    ``off``: not; anything else: yes), else unless this process is a child of a
+    process pool (``cwproc batch --workers N``, a Dask worker), whose processes already
+    take the cores.
 
     With them, the next chunk is parsed in a second thread (:class:`ChunkAhead`; chunks
     not read at once, file by file: :class:`ReadAhead`) and each chunk's outlier
     screening and VAD fit run in a third one while the caller's thread reduces the
     previous chunk to its structure function
     (:func:`cwproc.pipeline.stream.stream_scan_unit`); the products, notes and failures
-    are those of the serial run. Off by default: on the shared 2-core machine, whose
-    second core other jobs held, every threaded run took as long as the serial one or
-    up to 12 % longer, for 5-12 % more CPU (``docs/DEVELOPING.md``, Performance).
+    are those of the serial run. On the shared 2-core machine a day of 1920 scans took
+    0.84 of the serial time with part of the second core free, and up to 1.12 times it
+    when other jobs held both cores (``docs/DEVELOPING.md``, Performance).
     """
     if read_ahead is not None:
         return bool(read_ahead)
-    value = os.environ.get(READ_AHEAD_VARIABLE, "0").strip().lower()
-    return value in ("1", "true", "yes", "on")
+    value = os.environ.get(READ_AHEAD_VARIABLE)
+    if value is None:
+        return multiprocessing.parent_process() is None
+    return value.strip().lower() not in ("0", "false", "no", "off")
 
 
 class ReadAhead:
