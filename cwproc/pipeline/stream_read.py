@@ -105,8 +105,8 @@ def read_ahead_enabled(read_ahead: bool | None = None) -> bool:
     previous chunk to its structure function
     (:func:`cwproc.pipeline.stream.stream_scan_unit`); the products, notes and failures
     are those of the serial run. On the shared 2-core machine a day of 1920 scans took
-    0.84 of the serial time with part of the second core free, and up to 1.12 times it
-    when other jobs held both cores (``docs/DEVELOPING.md``, Performance).
+    0.74-0.84 of the serial time with part of the second core free, and up to 1.16
+    times it when other jobs held both cores (``docs/DEVELOPING.md``, Performance).
     """
     if read_ahead is not None:
         return bool(read_ahead)
