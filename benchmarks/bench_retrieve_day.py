@@ -9,19 +9,22 @@ scans, one ``.hpl`` file per scan as the Stream Line writes them) is
    and turbulence products of the day);
 
 and the script prints both times (wall and CPU, best of ``--repeat``), their ratio
-(target <= 1.5) and the peak resident memory of the retrieve process (``VmHWM``;
-target < 300 MiB). ``--read-ahead`` also runs it with ``CWPROC_READ_AHEAD=1`` (the
-next chunk parsed in a second thread of the same process,
-``cwproc.pipeline.stream.ChunkAhead``; its peak is the whole run's), side by side.
-``--baseline CHECKOUT`` also runs the retrieve of another checkout of cwproc (e.g. main's,
-imported through ``PYTHONPATH``, with this interpreter), each repeat right after this
-one, and prints this checkout's times and peak as ratios to it: the machine is shared,
-so only figures of one run, back to back, compare.
+(target <= 1.5) and the peak resident memory of the retrieve process (``VmHWM``, all
+its threads; target < 300 MiB). The retrieve runs with its worker threads (the next
+chunk parsed, each chunk screened and VAD-fitted beside the reduction of the one
+before; ``cwproc.pipeline.stream``); ``--serial`` also runs it in one thread
+(``CWPROC_READ_AHEAD=0``), side by side.
+``--baseline CHECKOUT`` also runs the retrieve of another checkout of cwproc (e.g.
+main's, imported through ``PYTHONPATH``, with this interpreter), each repeat right
+after this one, prints this checkout's times and peak as ratios to it (the machine is
+shared, so only figures of one run, back to back, compare) and compares the products
+of every variant with the baseline's, variable by variable and bit for bit (attributes
+that name the run, such as its date, aside).
 
 Run::
 
     python benchmarks/bench_retrieve_day.py [--repeat 2] [--scans 1920] [--day-dir DIR]
-        [--read-ahead] [--baseline CHECKOUT]
+        [--serial] [--baseline CHECKOUT]
 
 ``--day-dir`` keeps the day's files in ``DIR`` (written there when it holds no ``.hpl``
 file, reused as they are otherwise), so that repeated runs do not write them again.
@@ -37,6 +40,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import netCDF4
 import numpy as np
 import xarray as xr
 
@@ -141,7 +145,7 @@ def main() -> None:
     parser.add_argument("--scans", type=int, default=int(86400 / PERIOD_S))
     parser.add_argument("--day-dir", type=Path, help="folder of the day's files (kept)")
     parser.add_argument(
-        "--read-ahead", action="store_true", help="also retrieve with CWPROC_READ_AHEAD=1"
+        "--serial", action="store_true", help="also retrieve in one thread (CWPROC_READ_AHEAD=0)"
     )
     parser.add_argument(
         "--baseline", type=Path, help="another cwproc checkout to compare with (its root)"
@@ -160,8 +164,8 @@ def main() -> None:
         # this checkout's cwproc, whatever the interpreter has installed
         this = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
         variants: dict[str, dict | None] = {"": this}
-        if args.read_ahead:
-            variants["CWPROC_READ_AHEAD=1 "] = {**this, "CWPROC_READ_AHEAD": "1"}
+        if args.serial:
+            variants["CWPROC_READ_AHEAD=0 "] = {**this, "CWPROC_READ_AHEAD": "0"}
         if args.baseline:
             baseline = str(args.baseline.resolve())
             variants[f"of {baseline} "] = {**os.environ, "PYTHONPATH": baseline}
@@ -170,8 +174,8 @@ def main() -> None:
         peaks: dict[str, list[float]] = {k: [] for k in variants}
         for k in range(args.repeat):
             reads.append(run([sys.executable, "-c", _READ, str(folder)], this))
-            for name, env in variants.items():
-                out = Path(tmp) / f"out{k}{len(name)}"
+            for v, (name, env) in enumerate(variants.items()):
+                out = Path(tmp) / f"out{k}_{v}"
                 cmd = [sys.executable, "-c", _RETRIEVE, "retrieve", str(folder), "-o", str(out)]
                 wall, cpu, err = run([*cmd, "-q", "-c", "streamline"], env)
                 retrieves[name].append((wall, cpu, err))
@@ -188,6 +192,10 @@ def main() -> None:
             print(f"  retrieve peak RSS                {max(peaks[name]):7.0f} MiB (target < 300)")
         if args.baseline:
             report_baseline(retrieves, peaks)
+            out = [Path(tmp) / f"out{args.repeat - 1}_{v}" for v in range(len(variants))]
+            for v, name in enumerate(list(variants)[:-1]):  # the baseline is the last
+                same = same_products(out[v], out[-1])
+                print(f"  products {name or 'of this checkout '}vs baseline    {same}")
 
 
 def report_baseline(retrieves: dict[str, list], peaks: dict[str, list[float]]) -> None:
@@ -199,6 +207,26 @@ def report_baseline(retrieves: dict[str, list], peaks: dict[str, list[float]]) -
           f"CPU {', '.join(f'{x:.2f}' for x in cpus)}")  # fmt: skip
     base_peak = max(peaks[next(k for k in peaks if k.startswith("of "))])
     print(f"  peak RSS this / baseline          {max(peaks['']):.0f} / {base_peak:.0f} MiB")
+
+
+def same_products(ours: Path, theirs: Path) -> str:
+    """'identical' when both folders hold the same product files whose variables are
+    equal bit for bit (NaN where NaN), else which file and variable differ."""
+    names = sorted(p.name for p in ours.glob("*.nc"))
+    if not names or names != sorted(p.name for p in theirs.glob("*.nc")):
+        return f"DIFFERENT files: {names} against {sorted(p.name for p in theirs.glob('*.nc'))}"
+    for name in names:
+        with netCDF4.Dataset(ours / name) as a, netCDF4.Dataset(theirs / name) as b:
+            a.set_auto_mask(False)
+            b.set_auto_mask(False)
+            if sorted(a.variables) != sorted(b.variables):
+                return f"DIFFERENT variables in {name}"
+            for var in a.variables:
+                x, y = a[var][...], b[var][...]
+                nan = x.dtype.kind == "f" and y.dtype.kind == "f"
+                if x.shape != y.shape or not np.array_equal(x, y, equal_nan=nan):
+                    return f"DIFFERENT: {name} {var}"
+    return f"identical ({len(names)} files, every variable bit for bit)"
 
 
 if __name__ == "__main__":

@@ -211,7 +211,8 @@ def test_read_ahead_gives_the_serial_products_and_failures(tmp_path, config):
 
 def test_read_ahead_hands_out_errors_in_order_and_stops(monkeypatch):
     """ReadAhead: results in order, at most max_bytes ahead, an error raised at its item,
-    the thread stopped by close() (no hang); CWPROC_READ_AHEAD=1 turns it on."""
+    the thread stopped by close() (no hang); on by default (not in a pool's process),
+    CWPROC_READ_AHEAD=0 turns it off."""
     import threading
 
     from cwproc.pipeline.stream import ReadAhead, read_ahead_enabled
@@ -247,7 +248,14 @@ def test_read_ahead_hands_out_errors_in_order_and_stops(monkeypatch):
     monkeypatch.setenv("CWPROC_READ_AHEAD", "0")
     assert not read_ahead_enabled()
     monkeypatch.delenv("CWPROC_READ_AHEAD")
+    assert read_ahead_enabled()
+    from cwproc.pipeline import stream_read
+
+    # in a process of a pool (batch --workers N) the pool's processes take the cores
+    monkeypatch.setattr(stream_read.multiprocessing, "parent_process", lambda: object())
     assert not read_ahead_enabled()
+    monkeypatch.setenv("CWPROC_READ_AHEAD", "1")
+    assert read_ahead_enabled()
 
 
 def test_epsilon_by_groups_of_blocks_is_the_whole_fit(tmp_path, config, monkeypatch):
@@ -356,3 +364,82 @@ def test_heap_kept_sets_and_restores_the_glibc_thresholds(monkeypatch):
     with stream.heap_kept(), stream.heap_returned():
         pass
     assert len(calls) == 3
+
+
+@pytest.mark.parametrize("threaded", [False, True])
+def test_chunk_screening_reduces_in_order_and_raises_where_serial(monkeypatch, threaded):
+    """ChunkScreening: each chunk screened (in a worker thread when threaded), reduced in
+    chunk order in the caller's thread; a chunk whose screening fails raises its error
+    before any later chunk is reduced, and close() leaves no thread behind."""
+    import threading
+
+    from cwproc.pipeline import stream
+
+    screened_in: list[str] = []
+    reduced: list[tuple[int, str]] = []
+
+    def screen(others, config):
+        screened_in.append(threading.current_thread().name)
+        if others == 2:
+            raise stream.StreamMismatch("wind of a chunk: chunk 2")
+        return others, f"wind {others}"
+
+    def reduce(screened, wind, state, config):
+        assert wind == f"wind {screened}"
+        reduced.append((screened, threading.current_thread().name))
+
+    monkeypatch.setattr(stream, "screen_chunk", screen)
+    monkeypatch.setattr(stream, "reduce_chunk", reduce)
+    screening = stream.ChunkScreening(None, None, threaded)
+    with pytest.raises(stream.StreamMismatch, match="chunk 2"):
+        for k in range(5):
+            screening.take(k)
+            assert screening.pending == threaded
+        screening.finish()
+    screening.close()
+    caller = threading.current_thread().name
+    assert reduced == [(0, caller), (1, caller)]
+    assert all((name != caller) == threaded for name in screened_in)
+    # chunk 3 was handed in (threaded) but is never reduced: screened or cancelled
+    assert len(screened_in) in ((3, 4) if threaded else (3,))
+    assert not [t for t in threading.enumerate() if t.name.startswith("cwproc-screen")]
+
+
+def test_read_inputs_keeps_the_order_and_hands_errors_in_place(monkeypatch):
+    """read_inputs: items in the order of the paths whatever order the threads finish
+    in, a file's error in its place, at most 2 * threads inputs read ahead."""
+    import threading
+    import time
+
+    from cwproc.errors import InputFileError
+    from cwproc.pipeline import retrieve
+
+    lock = threading.Lock()
+    started: list[str] = []
+    taken = 0
+    ahead: list[int] = []
+
+    def fake_read(path, config, *, identify_only):
+        with lock:
+            started.append(path)
+            ahead.append(len(started) - taken)
+        time.sleep(0.002 * (len(path) % 3))  # later ones may finish first
+        if path == "f7":
+            raise InputFileError(path, "line 3: not a number")
+        if path == "f9":
+            raise KeyError("a reader bug")
+        return f"item {path}"
+
+    monkeypatch.setattr(retrieve, "read_input", fake_read)
+    paths = [f"f{k}" for k in range(20)]
+    got = []
+    for path, item in retrieve.read_inputs(paths, None, threads=2):
+        got.append((path, item))
+        taken += 1
+    assert [p for p, _ in got] == paths
+    assert isinstance(got[7][1], InputFileError) and "line 3" in str(got[7][1])
+    assert isinstance(got[9][1], KeyError)
+    assert [item for p, item in got if p not in ("f7", "f9")] == [
+        f"item {p}" for p in paths if p not in ("f7", "f9")
+    ]
+    assert max(ahead) <= 2 * 2 + 1

@@ -10,6 +10,12 @@
  * Fields are separated by runs of spaces and TABs. bad_line is the 0-based index of
  * the first line with more than n_fields fields (-1 if none); parsing stops there.
  *
+ * tokenize_lines(body, n_fields, n_lines) is the same for a body whose lines the caller
+ * has counted (the plan of a .hpl file): the counting pass is skipped. It returns
+ * n_lines lines when the body has exactly that many, else a count that differs from
+ * n_lines (n_lines + 1 for more lines), with values then incomplete: the caller takes
+ * the file's reference path. Both release the GIL while they count and parse.
+ *
  * Numbers: [+-]digits[.digits][(e|E)[+-]digits]. With at most 19 significant digits
  * and a decimal exponent within +-22 the value is m * 10^e or m / 10^-e computed in
  * double precision from an exact integer m < 2^53 and an exact power of ten, which is
@@ -112,44 +118,18 @@ static int parse_number(const char *p, const char *end, double *out)
     }
 }
 
-static PyObject *tokenize(PyObject *self, PyObject *args)
+/* Parse the lines of [data, end) into values (n_lines rows of n_fields): returns the
+   number of lines parsed; *bad_line is set to the first line with too many fields. Stops
+   after n_lines lines or at the end of the data, whichever comes first. No Python API
+   (runs without the GIL). */
+static Py_ssize_t parse_lines(const char *data, const char *end, double *values,
+                              Py_ssize_t n_lines, int n_fields, Py_ssize_t *bad_line)
 {
-    Py_buffer view;
-    int n_fields;
-    if (!PyArg_ParseTuple(args, "y*i", &view, &n_fields)) return NULL;
-    if (n_fields < 1 || n_fields > 64) {
-        PyBuffer_Release(&view);
-        PyErr_SetString(PyExc_ValueError, "n_fields must be in 1..64");
-        return NULL;
-    }
-    const char *data = (const char *)view.buf;
-    const char *end = data + view.len;
-
-    /* count lines: LF, CRLF or lone CR end a line; a final unterminated line counts */
-    Py_ssize_t n_lines = 0;
-    for (const char *p = data; p < end; p++) {
-        if (*p == '\n') {
-            n_lines++;
-        } else if (*p == '\r') {
-            n_lines++;
-            if (p + 1 < end && p[1] == '\n') p++;
-        }
-    }
-    if (view.len > 0 && end[-1] != '\n' && end[-1] != '\r') n_lines++;
-
-    PyObject *out = PyByteArray_FromStringAndSize(
-        NULL, (Py_ssize_t)(n_lines * n_fields * (Py_ssize_t)sizeof(double)));
-    if (out == NULL) {
-        PyBuffer_Release(&view);
-        return NULL;
-    }
-    double *values = (double *)PyByteArray_AS_STRING(out);
     const double nan = Py_NAN, inf = Py_HUGE_VAL;
-    Py_ssize_t line = 0, bad_line = -1;
+    Py_ssize_t line = 0;
     const char *p = data;
-
-    Py_BEGIN_ALLOW_THREADS
-    while (line < n_lines) {
+    *bad_line = -1;
+    while (line < n_lines && p < end) {
         double *row = values + line * n_fields;
         int field = 0;
         for (int k = 0; k < n_fields; k++) row[k] = nan;
@@ -159,28 +139,92 @@ static PyObject *tokenize(PyObject *self, PyObject *args)
             const char *token = p;
             while (p < end && *p != ' ' && *p != '\t' && *p != '\n' && *p != '\r') p++;
             if (field >= n_fields) {
-                bad_line = line;
-                break;
+                *bad_line = line;
+                return line;
             }
             double value;
             row[field++] = parse_number(token, p, &value) == 0 ? value : inf;
         }
-        if (bad_line >= 0) break;
         if (p < end) {
             if (*p == '\r' && p + 1 < end && p[1] == '\n') p++;
             p++;
         }
         line++;
     }
+    /* more lines than n_lines: report one more (the caller compares the count) */
+    return (line == n_lines && p < end) ? n_lines + 1 : line;
+}
+
+/* Lines of [data, end): LF, CRLF or lone CR end a line; a final unterminated line
+   counts. No Python API. */
+static Py_ssize_t count_lines(const char *data, const char *end)
+{
+    Py_ssize_t n_lines = 0;
+    for (const char *p = data; p < end; p++) {
+        if (*p == '\n') {
+            n_lines++;
+        } else if (*p == '\r') {
+            n_lines++;
+            if (p + 1 < end && p[1] == '\n') p++;
+        }
+    }
+    if (end > data && end[-1] != '\n' && end[-1] != '\r') n_lines++;
+    return n_lines;
+}
+
+static PyObject *tokenize_impl(PyObject *args, int known)
+{
+    Py_buffer view;
+    int n_fields;
+    Py_ssize_t n_lines = 0;
+    if (known) {
+        if (!PyArg_ParseTuple(args, "y*in", &view, &n_fields, &n_lines)) return NULL;
+    } else if (!PyArg_ParseTuple(args, "y*i", &view, &n_fields)) {
+        return NULL;
+    }
+    if (n_fields < 1 || n_fields > 64 || n_lines < 0) {
+        PyBuffer_Release(&view);
+        PyErr_SetString(PyExc_ValueError, "n_fields must be in 1..64 and n_lines >= 0");
+        return NULL;
+    }
+    const char *data = (const char *)view.buf;
+    const char *end = data + view.len;
+
+    if (!known) {
+        Py_BEGIN_ALLOW_THREADS
+        n_lines = count_lines(data, end);
+        Py_END_ALLOW_THREADS
+    }
+    PyObject *out = PyByteArray_FromStringAndSize(
+        NULL, (Py_ssize_t)(n_lines * n_fields * (Py_ssize_t)sizeof(double)));
+    if (out == NULL) {
+        PyBuffer_Release(&view);
+        return NULL;
+    }
+    double *values = (double *)PyByteArray_AS_STRING(out);
+    Py_ssize_t got, bad_line;
+
+    Py_BEGIN_ALLOW_THREADS
+    got = parse_lines(data, end, values, n_lines, n_fields, &bad_line);
     Py_END_ALLOW_THREADS
 
     PyBuffer_Release(&view);
-    return Py_BuildValue("(Nnn)", out, bad_line >= 0 ? bad_line : n_lines, bad_line);
+    return Py_BuildValue("(Nnn)", out, bad_line >= 0 ? bad_line : got, bad_line);
+}
+
+static PyObject *tokenize(PyObject *self, PyObject *args) { return tokenize_impl(args, 0); }
+
+static PyObject *tokenize_lines(PyObject *self, PyObject *args)
+{
+    return tokenize_impl(args, 1);
 }
 
 static PyMethodDef methods[] = {
     {"tokenize", tokenize, METH_VARARGS,
      "tokenize(body, n_fields) -> (values bytearray of doubles, n_lines, bad_line)"},
+    {"tokenize_lines", tokenize_lines, METH_VARARGS,
+     "tokenize_lines(body, n_fields, n_lines) -> as tokenize, for a body of n_lines lines "
+     "(any other count is returned as n_lines + 1 or fewer; values then incomplete)"},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_hpltok",

@@ -184,7 +184,10 @@ def _group_columns(group: list[_FilePlan], n_gates: int) -> list[np.ndarray] | N
     pieces = [memoryview(body)[: plan.end] for body, plan in zip(bodies, group, strict=True)]
     if _hpltok is not None:
         (piece,) = pieces
-        values, got, bad_line = _hpltok.tokenize(piece, 5)
+        if hasattr(_hpltok, "tokenize_lines"):  # the plan counted the lines: not again
+            values, got, bad_line = _hpltok.tokenize_lines(piece, 5, n_lines)
+        else:  # an extension built before tokenize_lines
+            values, got, bad_line = _hpltok.tokenize(piece, 5)
         if bad_line >= 0 or got != n_lines:
             return None
         table = np.frombuffer(values, dtype=np.float64).reshape(n_lines, 5)

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Sequence
+from collections import deque
+from collections.abc import Iterable, Iterator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
@@ -15,7 +17,14 @@ from cwproc.errors import CwprocError
 from cwproc.io import KIND
 from cwproc.io.netcdf import remove_stale_temporaries
 from cwproc.pipeline.run import internal_error, run_unit
-from cwproc.pipeline.units import ProductUnit, read_input, split_by_day, unit_key, unit_label
+from cwproc.pipeline.units import (
+    InputFile,
+    ProductUnit,
+    read_input,
+    split_by_day,
+    unit_key,
+    unit_label,
+)
 from cwproc.pipeline.write import write_unit_products
 
 
@@ -147,14 +156,12 @@ def read_units(
     units: dict[tuple[str, str], ProductUnit] = {}
     accepted = set(kinds) if kinds is not None else None
     held = 0
-    for p in paths:
-        try:
-            item = read_input(p, config, identify_only=True)
-        except CwprocError as exc:
-            found.failures.append(str(exc))
+    for p, item in read_inputs(paths, config):
+        if isinstance(item, CwprocError):
+            found.failures.append(str(item))
             continue
-        except Exception as exc:  # a reader bug must not stop the other files
-            found.failures.append(f"{p}: {internal_error(exc)}")
+        if isinstance(item, Exception):  # a reader bug must not stop the other files
+            found.failures.append(f"{p}: {internal_error(item)}")
             continue
         if KIND[item.format] == "background":  # not a product input (see correct_background)
             found.notes.append(f"{p}: Stream Line background file, not a product input")
@@ -174,3 +181,44 @@ def read_units(
                 part.dataset = None
     found.units.extend(units[k] for k in sorted(units))
     return found
+
+
+#: inputs identified at once by :func:`read_inputs` (their checksums are computed in
+#: parallel; each holds at most one file's data, or its dataset when not a ``.hpl``)
+READ_INPUT_THREADS = 2
+
+
+def read_inputs(
+    paths: Iterable[str | os.PathLike], config: Config, threads: int = READ_INPUT_THREADS
+) -> Iterator[tuple[str | os.PathLike, InputFile | Exception]]:
+    """``(path, read_input(path, identify_only=True))`` of each input, in order; the
+    exception a file raised in place of its item.
+
+    The inputs are read by ``threads`` threads, at most ``2 * threads`` ahead of the
+    caller: the checksum (``hashlib`` releases the GIL) and the file reads of one
+    input run beside those of the next, on the second core when it is free. The items
+    and errors are those of reading the files one by one.
+    """
+    pending: deque[tuple[str | os.PathLike, Future]] = deque()
+    with ThreadPoolExecutor(max(int(threads), 1), "cwproc-identify") as pool:
+        try:
+            for p in paths:
+                pending.append((p, pool.submit(_read_one, p, config)))
+                if len(pending) > 2 * threads:
+                    yield _result(*pending.popleft())
+            while pending:
+                yield _result(*pending.popleft())
+        finally:
+            for _, future in pending:
+                future.cancel()
+
+
+def _read_one(path: str | os.PathLike, config: Config) -> InputFile | Exception:
+    try:
+        return read_input(path, config, identify_only=True)
+    except Exception as exc:  # handed to the caller with its path
+        return exc
+
+
+def _result(path: str | os.PathLike, future: Future) -> tuple[str | os.PathLike, object]:
+    return path, future.result()

@@ -11,6 +11,13 @@ the per-block structure statistics and the (vertical) stare rays are kept; the
 dissipation rate (which may pool noise over neighbouring blocks) and the stare product
 are computed once over the day.
 
+Three threads share the work (unless ``CWPROC_READ_AHEAD=0``): one plans and parses the
+next chunk, one screens and VAD-fits the current chunk's conical scans, and the
+caller's thread does everything that changes the day's state (background correction,
+scan numbering, the structure function of the blocks) in chunk order. The compiled
+tokenizer, the file reads and numpy's whole-array operations release the GIL, so the
+threads run on both cores when they are free.
+
 The whole-day run is the definition: the choices it makes over the whole day (scan
 numbering, the most common conical elevation, the azimuth step and rotation, the
 background method) are recomputed at the end from the per-ray pointing kept on the way
@@ -24,10 +31,8 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import dataclasses
-import os
-import threading
 from collections.abc import Callable, Iterator
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -46,7 +51,14 @@ from cwproc.pipeline.chain import (
     screened_wind,
     stare_products,
 )
-from cwproc.pipeline.stream_read import chunk_reading_possible, planned_chunks, read_planned_chunk
+from cwproc.pipeline.stream_read import (
+    ChunkAhead,
+    ReadAhead,
+    chunk_reading_possible,
+    planned_chunks,
+    read_ahead_enabled,
+    read_planned_chunk,
+)
 from cwproc.pipeline.units import drop_input
 from cwproc.stages import epsilon, structure, vad
 from cwproc.stages.background import correction_summary
@@ -118,104 +130,6 @@ def chunks_of(items: list, load: Callable, max_bytes: int):
         yield chunk
 
 
-#: environment variable that turns the reading ahead of :class:`ReadAhead` on ("1") or
-#: off ("0", the default)
-READ_AHEAD_VARIABLE = "CWPROC_READ_AHEAD"
-
-
-def read_ahead_enabled(read_ahead: bool | None = None) -> bool:
-    """Whether a streamed day reads its files in a second thread: ``read_ahead`` when
-    given, else whether the environment variable ``CWPROC_READ_AHEAD`` is ``1`` (or
-    ``true``, ``yes``, ``on``). Chunks read at once are then parsed a chunk ahead
-    (:class:`ChunkAhead`), others file by file (:class:`ReadAhead`).
-
-    Off by default: it pays only when the second core is free, and costs memory. On
-    the shared 2-core machine a day of 1920 scans took 1.1-2.0 s less with it (of 19-23
-    s) when the other jobs left part of a core, the same time when they held both
-    (24.96 against 24.64 s), and 6-9 MiB more peak (``docs/DEVELOPING.md``).
-    """
-    if read_ahead is not None:
-        return bool(read_ahead)
-    value = os.environ.get(READ_AHEAD_VARIABLE, "0").strip().lower()
-    return value in ("1", "true", "yes", "on")
-
-
-class ReadAhead:
-    """The inputs of a day read in a second thread, in order, while chunks are processed.
-
-    ``read(item)`` runs in the thread for each item in turn, at most ``max_bytes`` of
-    datasets ahead of what :meth:`load` has handed out (and always the next one);
-    :meth:`load` hands out the results in the same order and raises an item's error
-    (e.g. :class:`~cwproc.errors.InputFileError` naming the file and line) where the
-    serial read would have raised it, so that everything else (dropped inputs, notes)
-    happens in the caller's thread, in the serial order. The parser (the compiled
-    tokenizer) and file reads release the GIL, so reading the next files overlaps the
-    numerical work of the current chunk. :meth:`close` stops the thread (after the file
-    it is reading) and waits for it.
-    """
-
-    def __init__(self, items: list, read: Callable, max_bytes: int) -> None:
-        self._items = list(items)
-        self._read = read
-        self._max = max(int(max_bytes), 1)
-        self._done: dict[int, tuple[object, BaseException | None, int]] = {}
-        self._cond = threading.Condition()
-        self._ahead = 0  # bytes read, not handed out
-        self._next = 0  # index of the next item to hand out
-        self._stop = False
-        self._finished = False
-        self._thread = threading.Thread(target=self._run, name="cwproc-read-ahead", daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        try:
-            for k, item in enumerate(self._items):
-                with self._cond:
-                    while not self._stop and k > self._next and self._ahead >= self._max:
-                        self._cond.wait()
-                    if self._stop:
-                        return
-                try:
-                    value, error = self._read(item), None
-                except BaseException as exc:  # handed to the caller with its item
-                    value, error = None, exc
-                size = int(value.nbytes) if isinstance(value, xr.Dataset) else 0
-                with self._cond:
-                    self._done[k] = (value, error, size)
-                    self._ahead += size
-                    self._cond.notify_all()
-        finally:
-            with self._cond:
-                self._finished = True
-                self._cond.notify_all()
-
-    def load(self, item) -> xr.Dataset | None:
-        """The dataset of ``item`` (the next input in order), or its error raised."""
-        with self._cond:
-            k = self._next
-            if k >= len(self._items) or self._items[k] is not item:
-                raise ValueError("ReadAhead.load: inputs must be taken in their order")
-            while k not in self._done:
-                if self._finished:
-                    raise RuntimeError("the reading thread stopped before the input was read")
-                self._cond.wait()
-            value, error, size = self._done.pop(k)
-            self._ahead -= size
-            self._next += 1
-            self._cond.notify_all()
-        if error is not None:
-            raise error
-        return value  # type: ignore[return-value]
-
-    def close(self) -> None:
-        """Stop reading ahead and wait for the thread (it ends after its current file)."""
-        with self._cond:
-            self._stop = True
-            self._cond.notify_all()
-        self._thread.join()
-        self._done.clear()
-
-
 def planned_chunk_datasets(
     ordered: list, take: Callable, took: Callable, chunk_bytes: int, ahead: bool = False
 ) -> Iterator[xr.Dataset | None]:
@@ -240,38 +154,6 @@ def planned_chunk_datasets(
             yield _planned_chunk(*next_chunk, take, took)
     finally:
         reader.close()
-
-
-class ChunkAhead:
-    """The planned chunks of a day parsed one chunk ahead in a second thread.
-
-    :meth:`next` returns ``(planned, read)`` of the next chunk (``read`` as
-    :func:`~.stream_read.read_planned_chunk` gives it), waiting for the thread if it is
-    not ready, and starts the planning and parsing of the chunk after it; an error of
-    the thread is raised there. So while a chunk is processed, at most one more is
-    held. The compiled tokenizer and the file reads release the GIL, so the parsing
-    runs on the second core beside the numerical work of the stages.
-    """
-
-    def __init__(self, plans: Iterator[list[tuple]]) -> None:
-        self._plans = plans
-        self._pool = ThreadPoolExecutor(1, thread_name_prefix="cwproc-chunk-ahead")
-        self._pending = self._pool.submit(self._read_next)
-
-    def _read_next(self) -> tuple[list[tuple], tuple | None] | None:
-        planned = next(self._plans, None)
-        return None if planned is None else (planned, read_planned_chunk(planned))
-
-    def next(self) -> tuple[list[tuple], tuple | None] | None:
-        """The next planned chunk and its reading; None after the last."""
-        got = self._pending.result()
-        if got is not None:
-            self._pending = self._pool.submit(self._read_next)
-        return got
-
-    def close(self) -> None:
-        """Wait for the chunk being read (it is dropped) and stop the thread."""
-        self._pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _planned_chunk(
@@ -363,17 +245,40 @@ def flush_blocks(
 
 def take_chunk(chunk: xr.Dataset, state: StreamState, config: Config) -> None:
     """Stares kept, conical scans screened, fitted and their complete blocks reduced."""
+    others = split_chunk(chunk, state)
+    if others is not None:
+        reduce_chunk(*screen_chunk(others, config), state, config)
+
+
+def split_chunk(chunk: xr.Dataset, state: StreamState) -> xr.Dataset | None:
+    """The stares of a chunk kept in ``state``; its other rays returned (None: none)."""
     # a chunk without stares is taken as it is (split_stares would copy every ray)
     vertical = stare_mask(chunk)
     stares, others = split_stares(chunk) if vertical.any() or not vertical.size else (None, chunk)
     if stares is not None:
         state.stares.append(stares)
-    if others is None:
-        return
+    return others
+
+
+def screen_chunk(others: xr.Dataset, config: Config) -> tuple[xr.Dataset, xr.Dataset]:
+    """Screened conical scans of a chunk and their wind rows (no state: may run in a
+    worker thread).
+
+    Raises
+    ------
+    StreamMismatch
+        The screening or the VAD fit cannot run on the chunk alone.
+    """
     try:
-        screened, wind = screened_wind(others, config)
+        return screened_wind(others, config)
     except CwprocError as exc:
         raise StreamMismatch(f"wind of a chunk: {exc}") from None
+
+
+def reduce_chunk(
+    screened: xr.Dataset, wind: xr.Dataset, state: StreamState, config: Config
+) -> None:
+    """A chunk's wind rows kept and its complete blocks reduced (in chunk order)."""
     state.winds.append(wind)
     state.choices.add((wind.attrs["vad_elevation_deg"], wind.attrs["vad_scans_other_elevation"]))
     if state.turbulence:
@@ -381,6 +286,50 @@ def take_chunk(chunk: xr.Dataset, state: StreamState, config: Config) -> None:
             screened = _join([state.carry[0], screened], "ray")
             wind = _join([state.carry[1], wind], "time")
         flush_blocks(screened, wind, state, config, final=False)
+
+
+class ChunkScreening:
+    """The screening and VAD fit of each chunk (:func:`screen_chunk`), in a worker
+    thread when ``threaded``, while the caller reduces the chunk before it.
+
+    :meth:`take` hands a chunk's conical scans to the worker and then reduces the
+    previous chunk (:func:`reduce_chunk`, in the caller's thread, so the state changes
+    in chunk order); :meth:`finish` reduces the last one. At most one chunk is being
+    screened; its error (a :class:`StreamMismatch`, or a bug) is raised where the
+    serial run raises it, before anything of a later chunk is reduced.
+    """
+
+    def __init__(self, state: StreamState, config: Config, threaded: bool) -> None:
+        self._state, self._config = state, config
+        self._pool = ThreadPoolExecutor(1, "cwproc-screen") if threaded else None
+        self._pending: Future | tuple | None = None
+
+    @property
+    def pending(self) -> bool:
+        """Whether a chunk with conical scans is handed in but not reduced yet."""
+        return self._pending is not None
+
+    def take(self, others: xr.Dataset) -> None:
+        """Screen ``others`` (a chunk's conical scans) and reduce the previous chunk."""
+        if self._pool is None:
+            reduce_chunk(*screen_chunk(others, self._config), self._state, self._config)
+            return
+        previous = self._pending
+        self._pending = self._pool.submit(screen_chunk, others, self._config)
+        if previous is not None:
+            reduce_chunk(*previous.result(), self._state, self._config)
+
+    def finish(self) -> None:
+        """Reduce the last chunk handed in (its error raised here)."""
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            reduce_chunk(*pending.result(), self._state, self._config)
+
+    def close(self) -> None:
+        """Wait for the chunk being screened (dropped) and stop the thread."""
+        self._pending = None
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
 
 
 def check_day_choices(state: StreamState, config: Config) -> None:
@@ -565,10 +514,12 @@ def stream_scan_unit(
     chunk_bytes : int
         Input data joined into one chunk (bytes).
     read_ahead : bool, optional
-        Read the next files in a second thread (:class:`ChunkAhead` for chunks read at
-        once, else :class:`ReadAhead`; at most one chunk ahead) while a chunk is
-        processed; None: when ``CWPROC_READ_AHEAD=1`` (:func:`read_ahead_enabled`). The
-        products are the same either way.
+        Use the worker threads: the next files read in a second thread
+        (:class:`ChunkAhead` for chunks read at once, else :class:`ReadAhead`; at most
+        one chunk ahead) and each chunk screened and VAD-fitted in a third
+        (:class:`ChunkScreening`) while the caller's thread reduces the chunk before it;
+        None: unless ``CWPROC_READ_AHEAD=0`` (:func:`read_ahead_enabled`). The products,
+        notes and failures are the same either way.
 
     Returns
     -------
@@ -614,21 +565,18 @@ def stream_scan_unit(
         chunks = planned_chunk_datasets(ordered, take, took, chunk_bytes, reading_ahead)
     else:
         chunks = (concat_scans(parts) for parts in chunks_of(ordered, take, chunk_bytes))
+    screening = ChunkScreening(state, config, reading_ahead)
     try:
         with heap_kept():  # the chunks' arrays reuse the freed heap
             for chunk in chunks:
                 if chunk is None:
                     continue  # every file of the chunk damaged beyond its header
-                chunk = corrected_chunk(chunk, unit, config, own, state)
-                state.scan_type = str(chunk.attrs.get("scan_type", ""))
-                chunk = number_scans(chunk, state)
-                if state.turbulence and not state.winds and not state.stares:
-                    mismatch = probe_mismatch(chunk, config)
-                    if mismatch:
-                        state.turbulence = False
-                        own.append(f"turbulence not computed: {mismatch}")
-                take_chunk(chunk, state, config)
+                others = conical_part(chunk, unit, config, own, state, screening)
                 del chunk  # released before the next chunk is read (and before epsilon)
+                if others is not None:
+                    screening.take(others)  # screened while the previous one is reduced
+                del others
+            screening.finish()
         if not seen:  # every input damaged beyond its header: each has its failure line
             return {} if not unit.inputs else None
         if state.carry is not None:
@@ -642,6 +590,7 @@ def stream_scan_unit(
     except StreamMismatch:
         return None
     finally:
+        screening.close()
         chunks.close()  # stops the reading thread of a chunk reader
         if ahead is not None:
             ahead.close()
@@ -653,6 +602,35 @@ def stream_scan_unit(
     if notes is not None:
         notes.extend(dict.fromkeys(own))
     return products
+
+
+def conical_part(
+    chunk: xr.Dataset,
+    unit,
+    config: Config,
+    notes: list[str],
+    state: StreamState,
+    screening: ChunkScreening,
+) -> xr.Dataset | None:
+    """A chunk corrected, its scans numbered after the earlier chunks' and its stares
+    kept (in chunk order): its conical part, to be screened (None: none).
+
+    An error here is raised after that of the chunk being screened (as in the serial
+    run, where the earlier chunk fails first).
+    """
+    try:
+        chunk = corrected_chunk(chunk, unit, config, notes, state)
+        state.scan_type = str(chunk.attrs.get("scan_type", ""))
+        chunk = number_scans(chunk, state)
+    except Exception:
+        screening.finish()  # the previous chunk's error first, as serially
+        raise
+    if state.turbulence and not (state.winds or state.stares or screening.pending):
+        mismatch = probe_mismatch(chunk, config)  # the first chunk of the day's data
+        if mismatch:
+            state.turbulence = False
+            notes.append(f"turbulence not computed: {mismatch}")
+    return split_chunk(chunk, state)
 
 
 def corrected_chunk(

@@ -225,6 +225,19 @@ def linear_residuals(velocity: FloatArray, design: FloatArray, valid: BoolArray)
     return velocity - _model(design, beta)
 
 
+def _linear_start(
+    velocity: FloatArray, design: FloatArray, valid: BoolArray
+) -> tuple[BoolArray, FloatArray]:
+    """``determined`` and ``nan_to_num(beta)`` of :func:`fit_linear`, the same values,
+    without its residuals, residual variance and covariances."""
+    design = np.nan_to_num(design)
+    weight = valid.astype(float)
+    y = np.where(valid, velocity, 0.0)
+    inverse, determined = _safe_inverse(_normal_matrix(design, weight), weight.sum(axis=1))
+    beta = _solve(np.nan_to_num(inverse), design, y)
+    return determined, np.nan_to_num(np.where(determined[..., None], beta, np.nan))
+
+
 def fit_linear(velocity: FloatArray, design: FloatArray, valid: BoolArray) -> BatchedFit:
     """Least-squares VAD fit of every (scan, gate) at once (Smalikho (2020), eq. 1).
 
@@ -428,10 +441,12 @@ def fit_least_absolute(
         The L1 coefficients (m s-1; NaN where not determined) and data minus model
         (homodyne: ``|V_r| - |A beta|``) (m s-1).
     """
-    start = fit_scans(values, design, valid, homodyne=homodyne)
+    if homodyne:
+        start = fit_homodyne(values, design, valid)
+        ok, beta = start.determined, np.nan_to_num(start.beta)
+    else:
+        ok, beta = _linear_start(values, design, valid)
     design = np.nan_to_num(design)
-    ok = start.determined
-    beta = np.nan_to_num(start.beta)
     y = np.where(valid, np.abs(values) if homodyne else values, 0.0)
     # the (S, R, G) arrays of an iteration live in three buffers (no allocation per step)
     pairs, model, weight, weighted = _design_pairs(design), *(np.empty_like(y) for _ in "123")

@@ -91,6 +91,27 @@ def test_round_trip_of_formatted_floats(tokens: list[str]) -> None:
     np.testing.assert_array_equal(c_table(body)[0, : len(tokens)], [float(t) for t in tokens])
 
 
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(st.lists(st.sampled_from(list("0123456789+-.eE \t\n\rx")), max_size=80))
+def test_tokenize_lines_of_a_known_count_is_tokenize(chars: list[str]) -> None:
+    """tokenize_lines with the body's true line count gives tokenize's result; with any
+    other count, a count that differs from it (or the bad line), never its value."""
+    body = "".join(chars).encode()
+    n_true = len(reference(body, 64))
+    values, got, bad = _hpltok.tokenize(body, 5)
+    for n in range(n_true + 3):
+        values_n, got_n, bad_n = _hpltok.tokenize_lines(body, 5, n)
+        if n == n_true:
+            assert (got_n, bad_n) == (got, bad)
+            rows = 5 * (bad if bad >= 0 else got)
+            np.testing.assert_array_equal(
+                np.frombuffer(values_n, dtype=np.float64)[:rows],
+                np.frombuffer(values, dtype=np.float64)[:rows],
+            )
+        else:
+            assert bad_n >= 0 or got_n != n
+
+
 def test_too_many_fields_names_the_line() -> None:
     assert _hpltok.tokenize(b"1 2 3\n1 2 3 4 5 6\n", 5)[1:] == (1, 1)
 
