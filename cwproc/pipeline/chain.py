@@ -23,7 +23,7 @@ from __future__ import annotations
 import dataclasses
 import os
 from collections.abc import Sequence
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 import pandas as pd
@@ -31,11 +31,14 @@ import xarray as xr
 
 from cwproc.config import Config, InstrumentConfig
 from cwproc.errors import CwprocError
-from cwproc.io.scans import is_homodyne
-from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
 from cwproc.pipeline.units import ProductUnit
-from cwproc.stages import epsilon, qc, sonic_sf, structure, vad, zephir
-from cwproc.stages.stare import StareOptions, split_stares, stare_mask, stare_product
+
+if TYPE_CHECKING:
+    from cwproc.physics.transfer import Probe
+
+# The stages are imported by the functions that run them: a command imports the chain
+# of its own kind of data only (the lidar chain's scipy.integrate, optimize and special
+# took 0.55 s of each sf-type run, a quarter of its time).
 
 
 def probe_from_config(
@@ -58,6 +61,8 @@ def probe_from_config(
     ValueError
         For ``kind == "sonic"`` (no probe volume) or an impossible parameter.
     """
+    from cwproc.physics.transfer import CWProbe, PulsedProbe
+
     if instrument.kind == "pulsed":
         return PulsedProbe(instrument.delta_p_m, instrument.delta_r_m, pulse_transfer)
     if instrument.kind == "cw":
@@ -110,6 +115,9 @@ def probe_mismatch(scans: xr.Dataset, config: Config) -> str:
 
 def screened_wind(scans: xr.Dataset, config: Config) -> tuple[xr.Dataset, xr.Dataset]:
     """Screened conical scans and their VAD wind rows (stages ``qc`` and ``vad``)."""
+    from cwproc.io.scans import is_homodyne
+    from cwproc.stages import qc, vad
+
     homodyne = is_homodyne(scans)
     screened = qc.screen_radial_velocity(
         scans,
@@ -142,6 +150,8 @@ def process_scans(
     returned. ``kept``, when given, receives the QC-screened scans the VAD was fitted
     to (``kept["screened"]``).
     """
+    from cwproc.stages import epsilon, structure
+
     screened, wind = screened_wind(scans, config)
     if kept is not None:
         kept["screened"] = screened
@@ -188,11 +198,15 @@ def count_stare_rays(scans: xr.Dataset) -> int:
     The rays :func:`process_scan_day` gives to the stare product (O'Connor et al.
     (2010)); 0 for a dataset without elevations.
     """
+    from cwproc.stages.stare import stare_mask
+
     return int(stare_mask(scans).sum()) if "elevation" in scans else 0
 
 
 def describe_scan_inputs(unit: ProductUnit) -> list[str]:
     """One line per scan file of a unit: what it holds and which product it feeds."""
+    from cwproc.stages.stare import stare_mask
+
     lines = []
     for item in unit.inputs:
         ds = item.dataset
@@ -236,6 +250,8 @@ def process_scan_day(
     stare product (eps NaN, flag bit 1, and a note); a day without stares gives what it
     gave before.
     """
+    from cwproc.stages.stare import split_stares
+
     stares, others = split_stares(scans)
     products: dict[str, xr.Dataset] = {}
     if others is not None:
@@ -257,6 +273,8 @@ def stare_products(
     stares: xr.Dataset, wind: xr.Dataset | None, config: Config, notes: list[str] | None
 ) -> xr.Dataset:
     """The stare product of the vertical rays, with a note when no VAD gives the wind."""
+    from cwproc.stages.stare import StareOptions, stare_product
+
     has_wind = wind is not None and bool(np.isfinite(wind["wind_speed"].values).any())
     if not has_wind and notes is not None:
         notes.append(
@@ -288,6 +306,8 @@ def stare_products(
 
 def process_wind_record(record: xr.Dataset, config: Config) -> dict[str, xr.Dataset]:
     """Wind product from an instrument's own 10-min/1-s wind records (ZephIR, WindCube)."""
+    from cwproc.stages import zephir
+
     return {
         "wind": zephir.wind_record_product(
             record,
@@ -300,6 +320,8 @@ def process_wind_record(record: xr.Dataset, config: Config) -> dict[str, xr.Data
 
 def process_sonic(sonic: xr.Dataset, config: Config) -> dict[str, xr.Dataset]:
     """Structure-function-type product of a sonic dataset."""
+    from cwproc.stages import sonic_sf
+
     return {"sf": sonic_sf.structure_function_types(sonic, **dataclasses.asdict(config.sonic))}
 
 
@@ -334,5 +356,7 @@ def sf_summary_tables(products: Sequence[xr.Dataset]) -> tuple[pd.DataFrame, pd.
         Means and medians of the fitted parameters per type and component,
         Gladkikh et al. (2014), Tables 3-5.
     """
+    from cwproc.stages import sonic_sf
+
     joined = xr.concat([p[list(SF_SUMMARY_VARIABLES)] for p in products], dim="window")
     return sonic_sf.type_occurrence(joined), sonic_sf.parameter_statistics(joined)

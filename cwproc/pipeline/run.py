@@ -16,14 +16,12 @@ import xarray as xr
 
 from cwproc.config import Config
 from cwproc.errors import CwprocError
-from cwproc.pipeline.background import correct_background
 from cwproc.pipeline.chain import (
     describe_scan_inputs,
     process_scan_day,
     process_sonic,
     process_wind_record,
 )
-from cwproc.pipeline.stream import STREAM_CHUNK_BYTES, stream_scan_unit
 from cwproc.pipeline.units import ProductUnit, concat_unit, load_item, load_unit, unit_label
 
 #: exit status of a command whose every unit succeeded
@@ -145,6 +143,10 @@ def unit_products(
     CwprocError
         The chain cannot run on these data (the message says why).
     """
+    if unit.kind == "scan":
+        # the lidar stream, here: a sonic or wind-record command does not import it
+        from cwproc.pipeline.background import correct_background
+        from cwproc.pipeline.stream import STREAM_CHUNK_BYTES, stream_scan_unit
     if unit.kind == "scan" and kept is None:
         products = stream_scan_unit(
             unit,
