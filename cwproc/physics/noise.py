@@ -58,6 +58,20 @@ def bandwidth_from_resolution(
     return float(bins) * float(resolution_m_s)
 
 
+def _check_settings(
+    points_per_gate: float, pulses_per_ray: float, bandwidth_m_s: float, width_m_s: float
+) -> None:
+    """Raise ``ValueError`` naming the first instrument setting that is not finite and > 0."""
+    for name, value in (
+        ("points_per_gate", points_per_gate),
+        ("pulses_per_ray", pulses_per_ray),
+        ("bandwidth_m_s", bandwidth_m_s),
+        ("spectral_width_m_s", width_m_s),
+    ):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+
+
 def velocity_noise_std(
     snr: ArrayLike,
     points_per_gate: float,
@@ -83,14 +97,7 @@ def velocity_noise_std(
     spectral_width_m_s : float
         ``Delta v`` (m s-1) of the signal.
     """
-    for name, value in (
-        ("points_per_gate", points_per_gate),
-        ("pulses_per_ray", pulses_per_ray),
-        ("bandwidth_m_s", bandwidth_m_s),
-        ("spectral_width_m_s", spectral_width_m_s),
-    ):
-        if not (math.isfinite(value) and value > 0):
-            raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+    _check_settings(points_per_gate, pulses_per_ray, bandwidth_m_s, spectral_width_m_s)
     s = np.asarray(snr, dtype=float)
     good = np.isfinite(s) & (s > 0)
     s = np.where(good, s, 1.0)
@@ -127,14 +134,7 @@ def snr_for_noise_std(
     agree as a real lidar's do. :data:`SNR_STRONG` where ``sigma_e`` is at or below the
     floor.
     """
-    for name, value in (
-        ("points_per_gate", points_per_gate),
-        ("pulses_per_ray", pulses_per_ray),
-        ("bandwidth_m_s", bandwidth_m_s),
-        ("spectral_width_m_s", spectral_width_m_s),
-    ):
-        if not (math.isfinite(value) and value > 0):
-            raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+    _check_settings(points_per_gate, pulses_per_ray, bandwidth_m_s, spectral_width_m_s)
     a = bandwidth_m_s / (math.sqrt(2.0 * math.pi) * spectral_width_m_s)
     k = 2.0 * math.pi**0.25 * spectral_width_m_s / math.sqrt(a * points_per_gate * pulses_per_ray)
     excess = float(sigma_e) - k * a / (2.0 * math.pi)
