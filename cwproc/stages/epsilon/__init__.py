@@ -32,12 +32,14 @@ Estimates, per block of scans and height, all vectorised:
   and 1) scattered 68 % per block against 34 % for the least squares, and its heavy
   tail moved the mean by +8 %; ``epsilon_ratio`` is ``epsilon_method1 / epsilon`` (the
   observed counterpart of eq. 21);
-- ``noise_std``: the intercept of that fit. Where it is not determined (fewer than
-  three lags, negative, a standard error -- from the covariance of ``D_L`` over the
-  block's scans -- above ``NOISE_PRECISION`` of the predicted ``2 sigma_pred^2`` unless
-  the fit contradicts the prediction by ``NOISE_CONTRADICTS`` standard errors, or a prediction below
-  ``NOISE_DETECTABLE``, :mod:`cwproc.physics.structure_fit`) it is fixed at
-  ``2 sigma_pred^2`` of ``noise_std_predicted``
+- ``noise_std``: the intercept of that fit, kept where its standard error (from the
+  covariance of ``D_L`` over the block's scans) is at most ``NOISE_PRECISION`` of the
+  predicted ``2 sigma_pred^2`` and it is at least the prediction over
+  ``NOISE_PLAUSIBLE`` squared, where it exceeds the prediction by ``NOISE_CONTRADICTS``
+  standard errors, or where the prediction leaves no turbulence
+  (:func:`cwproc.physics.structure_fit.fit_structure_function`; never with fewer than
+  three lags, a negative value or a prediction below ``NOISE_DETECTABLE``). Elsewhere it
+  is fixed at ``2 sigma_pred^2`` of ``noise_std_predicted``
   (:func:`cwproc.stages.epsilon.cells.predicted_noise`, Pearson et al. (2009), eq. 3;
   without a prediction: twice its standard error decides) and flag 32 is set:
   ``noise_std`` is then the prediction, or NaN without one, never a measured 0;
@@ -313,11 +315,10 @@ def _block_group(
     noise_pred = predicted_noise(sf, probe)
     exact = exact_cells(probe, cells, model)
     a_functions = cell_a_functions(probe, cells, model, options)
-    fixed = fit_setup(
-        probe, cells, model, options, a_functions, valid, exact, noise_pred, n_outer_scales
-    )
     cov = statistics_covariance(sf)
-    fixed["d_cov"] = None if cov is None else cov[..., :-1, :-1]
+    fixed = fit_setup(
+        probe, cells, model, options, a_functions, valid, exact, noise_pred, n_outer_scales, cov
+    )
     res = retrieve(fixed, cells.d, cells.var_raw)
     est = {**res, "sf_model_exact": np.full(cells.d.shape, np.nan)}
     if np.any(exact):

@@ -197,7 +197,7 @@ def retrieve(
     """
     a1, a2 = fixed["a1"].copy(), fixed["a2"].copy()
     valid, prior, c_model = fixed["valid"], fixed["noise_pred"], fixed["c_model"]
-    d_cov = fixed.get("d_cov")
+    d_cov = fixed["d_cov"]
     shape = d.shape[:2]
 
     def solve() -> tuple:
@@ -288,6 +288,7 @@ def fit_setup(
     exact: np.ndarray,
     noise_pred: np.ndarray,
     n_outer_scales: int,
+    cov: np.ndarray | None = None,
 ) -> dict:
     """Everything :func:`retrieve` needs besides ``D`` and the variance of ``V'_L``.
 
@@ -298,7 +299,10 @@ def fit_setup(
     ``L_V = c sigma_V^3 / eps`` (Banakh et al. (1999), eq. 19), the cw cells of the
     exact model (``exact``) and, for finite-outer-scale models, the inputs of the
     variance condition (:func:`finite_scale_inputs`) and the model's tables at each
-    group's cells (:meth:`cwproc.physics.atable_interp.ATable.at_cells`).
+    group's cells (:meth:`cwproc.physics.atable_interp.ATable.at_cells`). ``cov``: the
+    covariance of the block means of ``(D_L(1..L), variance)``
+    (:func:`cwproc.stages.epsilon.cells.statistics_covariance`); its ``D_L`` block decides
+    where the noise is fitted (:func:`cwproc.physics.structure_fit.fit_structure_function`).
     """
     a1, a2, sector, groups = a_functions
     n_t, n_h, n_l = cells.d.shape
@@ -325,6 +329,7 @@ def fit_setup(
         "sector": sector,
         "valid": valid,
         "noise_pred": noise_pred,
+        "d_cov": None if cov is None else cov[..., :-1, :-1],
         "loss": loss,
         "c_model": spectra.integral_scale_coefficient(
             "exponential" if model == "inertial" else model
