@@ -44,3 +44,7 @@ VAD_ACCURACY = (
     "Theoretical accuracy of wind-vector reconstruction from lidar VAD scanning "
     "(in Russian; authors and year not given in the available text)"
 )
+
+EFRON_STEIN_1981 = (
+    "Efron, B. and Stein, C. (1981), The jackknife estimate of variance, Ann. Statist. 9, 586-596"
+)

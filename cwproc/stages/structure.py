@@ -35,7 +35,8 @@ import xarray as xr
 from cwproc.errors import CwprocError
 from cwproc.io.scans import is_homodyne
 from cwproc.physics.atable_interp import N_BINS, azimuth_nodes
-from cwproc.physics.geometry import radial_velocity, speed_and_direction
+from cwproc.physics.geometry import beam_unit_vector, radial_velocity, speed_and_direction
+from cwproc.stages.block_stats import WindRefit, _block_sum, block_statistics
 
 #: largest relative mismatch (m) between wind-product gate ranges and scan gate ranges
 _RANGE_TOLERANCE_M = 0.5
@@ -263,11 +264,6 @@ def pair_node_weights(theta: np.ndarray, counts: np.ndarray) -> np.ndarray:
         return sums.reshape(n_b, n_h, N_BINS) / total
 
 
-def _block_sum(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """Sum over consecutive scans (axis 0) within blocks starting at ``starts``."""
-    return np.add.reduceat(values, starts, axis=0)
-
-
 def _match_gates(scan_range: np.ndarray, wind_range: np.ndarray) -> np.ndarray:
     idx = np.clip(np.searchsorted(scan_range, wind_range), 1, max(scan_range.size - 1, 1))
     idx = (
@@ -285,107 +281,6 @@ def _match_gates(scan_range: np.ndarray, wind_range: np.ndarray) -> np.ndarray:
             "azimuth structure function"
         )
     return idx
-
-
-def _scan_spread(per_scan: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """Standard error of the block mean from the scatter of per-scan values (axis 0).
-
-    ``std(ddof=1) / sqrt(n)`` over the scans of each block with a finite value; NaN with
-    fewer than two.
-    """
-    ok = np.isfinite(per_scan)
-    n = _block_sum(ok.astype(float), starts)
-    s1 = _block_sum(np.where(ok, per_scan, 0.0), starts)
-    s2 = _block_sum(np.where(ok, per_scan**2, 0.0), starts)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        var = (s2 - s1**2 / n) / (n - 1)
-        return np.where(n > 1, np.sqrt(np.maximum(var, 0.0) / n), np.nan)
-
-
-def _scan_covariance(per_scan: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """Covariance of the block means of a statistics vector from its per-scan scatter.
-
-    ``per_scan`` is ``(scan, height, k)``; the scans of a block where all ``k`` values
-    are finite are the samples, ``cov(ddof=1) / n``; NaN with fewer than two.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``(block, height, k, k)``.
-    """
-    ok = np.all(np.isfinite(per_scan), axis=-1)
-    x = np.where(ok[..., None], per_scan, 0.0)
-    n = _block_sum(ok.astype(float), starts)[..., None, None]
-    s1 = _block_sum(x, starts)
-    s2 = _block_sum(x[..., :, None] * x[..., None, :], starts)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cov = (s2 - s1[..., :, None] * s1[..., None, :] / n) / (n - 1) / n
-    return np.where(n > 1, cov, np.nan)
-
-
-def block_statistics(vprime: np.ndarray, n_scans: int, n_lags: int) -> tuple[np.ndarray, ...]:
-    """D_L, pair counts and variance of V'_L per block of ``n_scans`` consecutive scans.
-
-    Smalikho (2020), eq. 2, with all valid pairs of a block pooled (missing values,
-    NaN, are skipped pairwise). The scans of a block are the independent samples of the
-    standard errors: per-scan ``D_L(l)``, ``D_L(l) - D_L(1)`` and variance, their
-    standard deviation over the block's scans divided by the root of their number
-    (scans a rotation apart decorrelate when ``U T_scan`` exceeds the integral scale;
-    otherwise the errors are underestimated).
-
-    Parameters
-    ----------
-    vprime : numpy.ndarray
-        ``(scan, m, height)`` deviations V'_L (m s-1) on the azimuth grid of each scan.
-    n_scans : int
-        Scans per block (the last block may be shorter).
-    n_lags : int
-        Lags l = 1..n_lags.
-
-    Returns
-    -------
-    (sf, pairs, variance, sf_se, diff_se, variance_se, covariance) : tuple of numpy.ndarray
-        ``(block, height, lag)`` D_L (m2 s-2), pair counts, standard errors of D_L and of
-        ``D_L(l) - D_L(1)`` (m2 s-2); ``(block, height)`` variance of V'_L (m2 s-2, ddof
-        1) and its standard error; ``(block, height, lag + 1, lag + 1)`` covariance of
-        the block means of ``(D_L(1), ..., D_L(L), variance)`` (m4 s-4) from their
-        per-scan scatter (the errors of estimates that combine them, e.g. eps and L_V
-        fitted together, follow by the delta method).
-    """
-    starts = np.arange(0, vprime.shape[0], n_scans)
-    n_h = vprime.shape[2]
-    sf = np.empty((starts.size, n_h, n_lags))
-    pairs = np.empty((starts.size, n_h, n_lags), dtype=np.int64)
-    sf_se = np.empty_like(sf)
-    diff_se = np.empty_like(sf)
-    first = None
-    per_stats = np.empty((vprime.shape[0], n_h, n_lags + 1))
-    for lag in range(1, n_lags + 1):  # each lag vectorised
-        d2 = (vprime[:, lag:, :] - vprime[:, :-lag, :]) ** 2
-        ok = np.isfinite(d2)
-        per_total = np.where(ok, d2, 0.0).sum(axis=1)
-        per_count = ok.sum(axis=1)
-        total = _block_sum(per_total, starts)
-        count = _block_sum(per_count, starts)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            sf[:, :, lag - 1] = np.where(count > 0, total / count, np.nan)
-            per_scan = np.where(per_count > 0, per_total / per_count, np.nan)
-        pairs[:, :, lag - 1] = count
-        per_stats[:, :, lag - 1] = per_scan
-        first = per_scan if first is None else first
-        sf_se[:, :, lag - 1] = _scan_spread(per_scan, starts)
-        diff_se[:, :, lag - 1] = _scan_spread(per_scan - first, starts)
-    ok = np.isfinite(vprime)
-    n_val = _block_sum(ok.sum(axis=1), starts).astype(float)
-    s1 = _block_sum(np.where(ok, vprime, 0.0).sum(axis=1), starts)
-    s2 = _block_sum(np.where(ok, vprime**2, 0.0).sum(axis=1), starts)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        variance = np.where(n_val > 1, (s2 - s1**2 / n_val) / (n_val - 1), np.nan)
-        per_n = ok.sum(axis=1).astype(float)
-        per_var = np.where(per_n > 1, (np.nansum(vprime**2, axis=1)) / per_n, np.nan)
-    per_stats[:, :, n_lags] = per_var
-    covariance = _scan_covariance(per_stats, starts)
-    return sf, pairs, variance, sf_se, diff_se, _scan_spread(per_var, starts), covariance
 
 
 def lag_count(dtheta_deg: float, max_lag_deg: float, min_lags: int = MIN_LAGS) -> int:
@@ -471,12 +366,12 @@ def azimuth_structure_function(
     homodyne = is_homodyne(screened_ds) if homodyne is None else bool(homodyne)
     starts = np.arange(0, grid.n_time, n_scans)
     # block-mean wind vector <V>_N per block and height (Smalikho (2020), eq. 1)
-    mean_wind = tuple(
-        _block_mean(wind[name].transpose("time", "height").values.astype(float), starts)
-        for name in ("u", "v", "w")
+    scan_wind = np.stack(
+        [wind[name].transpose("time", "height").values.astype(float) for name in "uvw"], -1
     )
+    mean_wind = tuple(_block_mean(scan_wind[..., i], starts) for i in range(3))
     stats = _block_statistics_by_chunk(
-        screened_ds, grid, gates, mean_wind, n_scans=n_scans, homodyne=homodyne
+        screened_ds, grid, gates, mean_wind, scan_wind, n_scans=n_scans, homodyne=homodyne
     )
     times = _block_times(wind, grid, n_scans, time_origins)
     out = _structure_dataset(wind, grid, mean_wind, stats, times)
@@ -627,11 +522,17 @@ def _block_statistics_by_chunk(
     grid: RayGrid,
     gates: np.ndarray,
     mean_wind: tuple[np.ndarray, np.ndarray, np.ndarray],
+    scan_wind: np.ndarray,
     *,
     n_scans: int,
     homodyne: bool,
 ) -> dict[str, np.ndarray]:
     """V'_L block by block in memory-bounded chunks of blocks, each fully vectorised.
+
+    ``scan_wind`` (scan, height, 3) are the scans' VAD winds, whose block means
+    ``mean_wind`` are removed: the covariance of the statistics is the jackknife over
+    the scans with that removal redone (:func:`cwproc.stages.block_stats.WindRefit`;
+    homodyne data, whose signs follow the wind, keep the scatter of the scans).
 
     Returns the arrays of :func:`block_statistics` for all blocks (keys ``sf``,
     ``pairs``, ``variance``, ``sf_se``, ``diff_se``, ``variance_se``, ``covariance``),
@@ -678,7 +579,16 @@ def _block_statistics_by_chunk(
             vr = homodyne_radial_velocity(vr, model, b - b0)
         vprime = np.full((t1_ - t0_, n_az, n_h), np.nan)
         vprime[scan_pos[cells] - t0_, m[cells]] = vr - model
-        for name, value in zip(stat_names, block_statistics(vprime, n_scans, n_lags), strict=True):
+        refit = None
+        if not homodyne:
+            beams = np.full((t1_ - t0_, n_az, 3), np.nan)
+            beams[scan_pos[cells] - t0_, m[cells]] = beam_unit_vector(
+                grid.az[cells], grid.el[cells]
+            )
+            block_winds = np.stack([u_b[b0:b1], v_b[b0:b1], w_b[b0:b1]], -1)
+            refit = WindRefit(beams, scan_wind[t0_:t1_], block_winds)
+        stats = block_statistics(vprime, n_scans, n_lags, refit)
+        for name, value in zip(stat_names, stats, strict=True):
             out[name][b0:b1] = value
         out["weights"][b0:b1] = pair_azimuth_weights(
             vprime,

@@ -1,0 +1,221 @@
+"""Block statistics of V'_L: D_L, the variance and their covariance over the scans.
+
+Smalikho (2020), eq. 2, per block of consecutive scans (:func:`block_statistics`), with
+the standard errors and the covariance of the block means (:func:`jackknife_covariance`)
+that the error bars of eps, sigma_V^2 and L_V take (delta method, stage ``epsilon``).
+
+Reference: Efron, B. and Stein, C. (1981), The jackknife estimate of variance, Ann.
+Statist. 9, 586-596 (``cwproc.references.EFRON_STEIN_1981``): the jackknife variance is
+conservative in expectation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class WindRefit:
+    """What the block-mean VAD fit of Smalikho (2020), eq. 1 is made of, per scan.
+
+    Attributes
+    ----------
+    beams : (scan, m, 3) unit vectors of the rays on the azimuth grid (NaN: no ray).
+    winds : (scan, height, 3) the scan's VAD wind (u, v, w; m s-1; NaN: none).
+    block_winds : (block, height, 3) the block-mean wind removed from V_L (m s-1).
+    """
+
+    beams: np.ndarray
+    winds: np.ndarray
+    block_winds: np.ndarray
+
+
+def _block_sum(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Sum over consecutive scans (axis 0) within blocks starting at ``starts``."""
+    return np.add.reduceat(values, starts, axis=0)
+
+
+def _scan_spread(per_scan: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Standard error of the block mean from the scatter of per-scan values (axis 0).
+
+    ``std(ddof=1) / sqrt(n)`` over the scans of each block with a finite value; NaN with
+    fewer than two.
+    """
+    ok = np.isfinite(per_scan)
+    n = _block_sum(ok.astype(float), starts)
+    s1 = _block_sum(np.where(ok, per_scan, 0.0), starts)
+    s2 = _block_sum(np.where(ok, per_scan**2, 0.0), starts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        var = (s2 - s1**2 / n) / (n - 1)
+        return np.where(n > 1, np.sqrt(np.maximum(var, 0.0) / n), np.nan)
+
+
+def _scan_covariance(per_scan: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Covariance of the block means of a statistics vector from its per-scan scatter.
+
+    ``per_scan`` is ``(scan, height, k)``; the scans of a block where all ``k`` values
+    are finite are the samples, ``cov(ddof=1) / n``; NaN with fewer than two.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(block, height, k, k)``.
+    """
+    ok = np.all(np.isfinite(per_scan), axis=-1)
+    x = np.where(ok[..., None], per_scan, 0.0)
+    n = _block_sum(ok.astype(float), starts)[..., None, None]
+    s1 = _block_sum(x, starts)
+    s2 = _block_sum(x[..., :, None] * x[..., None, :], starts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cov = (s2 - s1[..., :, None] * s1[..., None, :] / n) / (n - 1) / n
+    return np.where(n > 1, cov, np.nan)
+
+
+def block_statistics(
+    vprime: np.ndarray, n_scans: int, n_lags: int, refit: WindRefit | None = None
+) -> tuple[np.ndarray, ...]:
+    """D_L, pair counts and variance of V'_L per block of ``n_scans`` consecutive scans.
+
+    Smalikho (2020), eq. 2, with all valid pairs of a block pooled (missing values,
+    NaN, are skipped pairwise). The scans of a block are the independent samples of the
+    standard errors: per-scan ``D_L(l)``, ``D_L(l) - D_L(1)`` and variance, their
+    standard deviation over the block's scans divided by the root of their number
+    (scans a rotation apart decorrelate when ``U T_scan`` exceeds the integral scale;
+    otherwise the errors are underestimated).
+
+    Parameters
+    ----------
+    vprime : numpy.ndarray
+        ``(scan, m, height)`` deviations V'_L (m s-1) on the azimuth grid of each scan.
+    n_scans : int
+        Scans per block (the last block may be shorter).
+    n_lags : int
+        Lags l = 1..n_lags.
+    refit : WindRefit, optional
+        The beams and per-scan winds of the block-mean VAD fit: the covariance is then
+        the jackknife over the scans with that fit redone without each scan
+        (:func:`jackknife_covariance`), else the scatter of the per-scan values.
+
+    Returns
+    -------
+    (sf, pairs, variance, sf_se, diff_se, variance_se, covariance) : tuple of numpy.ndarray
+        ``(block, height, lag)`` D_L (m2 s-2), pair counts, standard errors of D_L and of
+        ``D_L(l) - D_L(1)`` (m2 s-2); ``(block, height)`` variance of V'_L (m2 s-2, ddof
+        1) and its standard error; ``(block, height, lag + 1, lag + 1)`` covariance of
+        the block means of ``(D_L(1), ..., D_L(L), variance)`` (m4 s-4) from their
+        per-scan scatter (the errors of estimates that combine them, e.g. eps and L_V
+        fitted together, follow by the delta method).
+    """
+    starts = np.arange(0, vprime.shape[0], n_scans)
+    n_h = vprime.shape[2]
+    sf = np.empty((starts.size, n_h, n_lags))
+    pairs = np.empty((starts.size, n_h, n_lags), dtype=np.int64)
+    sf_se = np.empty_like(sf)
+    diff_se = np.empty_like(sf)
+    first = None
+    per_stats = np.empty((vprime.shape[0], n_h, n_lags + 1))
+    for lag in range(1, n_lags + 1):  # each lag vectorised
+        d2 = (vprime[:, lag:, :] - vprime[:, :-lag, :]) ** 2
+        ok = np.isfinite(d2)
+        per_total = np.where(ok, d2, 0.0).sum(axis=1)
+        per_count = ok.sum(axis=1)
+        total = _block_sum(per_total, starts)
+        count = _block_sum(per_count, starts)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            sf[:, :, lag - 1] = np.where(count > 0, total / count, np.nan)
+            per_scan = np.where(per_count > 0, per_total / per_count, np.nan)
+        pairs[:, :, lag - 1] = count
+        per_stats[:, :, lag - 1] = per_scan
+        first = per_scan if first is None else first
+        sf_se[:, :, lag - 1] = _scan_spread(per_scan, starts)
+        diff_se[:, :, lag - 1] = _scan_spread(per_scan - first, starts)
+    ok = np.isfinite(vprime)
+    n_val = _block_sum(ok.sum(axis=1), starts).astype(float)
+    s1 = _block_sum(np.where(ok, vprime, 0.0).sum(axis=1), starts)
+    s2 = _block_sum(np.where(ok, vprime**2, 0.0).sum(axis=1), starts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        variance = np.where(n_val > 1, (s2 - s1**2 / n_val) / (n_val - 1), np.nan)
+        per_n = ok.sum(axis=1).astype(float)
+        per_var = np.where(per_n > 1, (np.nansum(vprime**2, axis=1)) / per_n, np.nan)
+    per_stats[:, :, n_lags] = per_var
+    if refit is None:
+        covariance = _scan_covariance(per_stats, starts)
+    else:
+        covariance = jackknife_covariance(per_stats, starts, wind_refit_terms(vprime, refit))
+    return sf, pairs, variance, sf_se, diff_se, _scan_spread(per_var, starts), covariance
+
+
+def wind_refit_terms(vprime: np.ndarray, refit: WindRefit) -> dict[str, np.ndarray]:
+    """Per-scan sums that give the variance of V'_L of a block without one of its scans.
+
+    Without scan ``k`` the block-mean wind of ``N`` scans moves by
+    ``delta_k = (w_k - <w>) / (N - 1)`` and every other scan's ``V'_L`` by ``S delta_k``
+    (``S`` the beam), so its mean square by ``2 delta_k g_s + delta_k^T M_s delta_k``
+    with ``g_s`` the scan's mean of ``V'_L S`` and ``M_s`` its mean of ``S S^T`` over the
+    valid rays. Returns ``g`` (scan, height, 3), ``m`` (scan, height, 3, 3) and
+    ``delta`` (scan, height, 3; 0 where the scan has no wind).
+    """
+    ok = np.isfinite(vprime) & np.all(np.isfinite(refit.beams), axis=-1)[..., None]
+    beams = np.nan_to_num(refit.beams)
+    v0 = np.where(ok, vprime, 0.0)
+    okf = ok.astype(float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        count = okf.sum(axis=1)[..., None]  # (scan, height, 1)
+        g = np.einsum("tah,tai->thi", v0, beams) / count
+        m = np.einsum("tah,tai,taj->thij", okf, beams, beams) / count[..., None]
+    n_t = vprime.shape[0]
+    n_scans = int(np.ceil(n_t / refit.block_winds.shape[0]))
+    block = np.arange(n_t) // n_scans
+    has_wind = np.all(np.isfinite(refit.winds), axis=-1)
+    n_w = np.add.reduceat(has_wind.astype(float), np.arange(0, n_t, n_scans), axis=0)[block]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        delta = (refit.winds - refit.block_winds[block]) / (n_w - 1.0)[..., None]
+    delta = np.where(has_wind[..., None] & (n_w > 1)[..., None], delta, 0.0)
+    return {"g": np.nan_to_num(g), "m": np.nan_to_num(m), "delta": delta}
+
+
+def jackknife_covariance(
+    per_scan: np.ndarray, starts: np.ndarray, terms: dict[str, np.ndarray]
+) -> np.ndarray:
+    """Jackknife covariance of the block means of ``(D_L(1..L), variance)`` over the scans.
+
+    Leave-one-out block means ``theta_k`` over the other valid scans (those with every
+    statistic finite), the variance's with the block-mean wind refitted without scan
+    ``k`` (:func:`wind_refit_terms`); ``(N - 1)/N sum_k (theta_k - theta)(theta_k -
+    theta)^T``. For the D_L, which the wind leaves alone, this is the per-scan scatter's
+    ``cov / N`` exactly; the variance's gains what the block-mean fit takes from all
+    scans at once (exact 180-ray statistics, 100 blocks: se/sd of sigma_V^2 0.84-0.98 ->
+    0.90-1.06; Gaussian per-scan winds: 0.87 -> 1.07 in variance, conservative as
+    Efron and Stein (1981) show). NaN with fewer than two scans.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(block, height, k, k)`` (m4 s-4).
+    """
+    ok = np.all(np.isfinite(per_scan), axis=-1)
+    okf = ok.astype(float)
+    x = np.where(ok[..., None], per_scan, 0.0)
+    n = _block_sum(okf, starts)  # (block, height)
+    sizes = np.diff(np.append(starts, per_scan.shape[0]))
+    block = np.repeat(np.arange(starts.size), sizes)
+    n_k = n[block]
+    g = terms["g"] * okf[..., None]
+    m = terms["m"] * okf[..., None, None]
+    g_rest = _block_sum(g, starts)[block] - g
+    m_rest = _block_sum(m, starts)[block] - m
+    delta = terms["delta"]
+    shift = 2.0 * np.einsum("thi,thi->th", delta, g_rest) + np.einsum(
+        "thi,thij,thj->th", delta, m_rest, delta
+    )
+    with np.errstate(invalid="ignore", divide="ignore"):
+        theta = (_block_sum(x, starts)[block] - x) / (n_k - 1.0)[..., None]
+        theta[..., -1] += shift / (n_k - 1.0)
+        theta = np.where(ok[..., None], theta, 0.0)
+        mean = _block_sum(theta, starts) / n[..., None]
+        dev = np.where(ok[..., None], theta - mean[block], 0.0)
+        cov = _block_sum(dev[..., :, None] * dev[..., None, :], starts)
+        cov *= ((n - 1.0) / n)[..., None, None]
+    return np.where((n > 1)[..., None, None], cov, np.nan)
