@@ -161,10 +161,11 @@ def wind_refit_terms(vprime: np.ndarray, refit: WindRefit) -> dict[str, np.ndarr
     beams = np.nan_to_num(refit.beams)
     v0 = np.where(ok, vprime, 0.0)
     okf = ok.astype(float)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    outer = (beams[..., :, None] * beams[..., None, :]).reshape(*beams.shape[:2], 9)
+    with np.errstate(invalid="ignore", divide="ignore"):  # batched products over the rays
         count = okf.sum(axis=1)[..., None]  # (scan, height, 1)
-        g = np.einsum("tah,tai->thi", v0, beams) / count
-        m = np.einsum("tah,tai,taj->thij", okf, beams, beams) / count[..., None]
+        g = np.matmul(v0.transpose(0, 2, 1), beams) / count
+        m = (np.matmul(okf.transpose(0, 2, 1), outer) / count).reshape(*g.shape, 3)
     n_t = vprime.shape[0]
     n_scans = int(np.ceil(n_t / refit.block_winds.shape[0]))
     block = np.arange(n_t) // n_scans
