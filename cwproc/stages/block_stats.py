@@ -143,11 +143,12 @@ def block_statistics(
     if refit is None:
         covariance = _scan_covariance(per_stats, starts)
     else:
-        covariance = jackknife_covariance(per_stats, starts, wind_refit_terms(vprime, refit))
+        terms = wind_refit_terms(vprime, refit, n_scans)
+        covariance = jackknife_covariance(per_stats, starts, terms)
     return sf, pairs, variance, sf_se, diff_se, _scan_spread(per_var, starts), covariance
 
 
-def wind_refit_terms(vprime: np.ndarray, refit: WindRefit) -> dict[str, np.ndarray]:
+def wind_refit_terms(vprime: np.ndarray, refit: WindRefit, n_scans: int) -> dict[str, np.ndarray]:
     """Per-scan sums that give the variance of V'_L of a block without one of its scans.
 
     Without scan ``k`` the block-mean wind of ``N`` scans moves by
@@ -155,19 +156,25 @@ def wind_refit_terms(vprime: np.ndarray, refit: WindRefit) -> dict[str, np.ndarr
     (``S`` the beam), so its mean square by ``2 delta_k g_s + delta_k^T M_s delta_k``
     with ``g_s`` the scan's mean of ``V'_L S`` and ``M_s`` its mean of ``S S^T`` over the
     valid rays. Returns ``g`` (scan, height, 3), ``m`` (scan, height, 3, 3) and
-    ``delta`` (scan, height, 3; 0 where the scan has no wind).
+    ``delta`` (scan, height, 3; 0 where the scan has no wind). Sums over the rays as
+    the statistics take them (not a BLAS product), so that a day processed in chunks
+    gives the same bits as the whole day.
     """
     ok = np.isfinite(vprime) & np.all(np.isfinite(refit.beams), axis=-1)[..., None]
     beams = np.nan_to_num(refit.beams)
     v0 = np.where(ok, vprime, 0.0)
     okf = ok.astype(float)
-    outer = (beams[..., :, None] * beams[..., None, :]).reshape(*beams.shape[:2], 9)
-    with np.errstate(invalid="ignore", divide="ignore"):  # batched products over the rays
-        count = okf.sum(axis=1)[..., None]  # (scan, height, 1)
-        g = np.matmul(v0.transpose(0, 2, 1), beams) / count
-        m = (np.matmul(okf.transpose(0, 2, 1), outer) / count).reshape(*g.shape, 3)
-    n_t = vprime.shape[0]
-    n_scans = int(np.ceil(n_t / refit.block_winds.shape[0]))
+    n_t, n_h = vprime.shape[0], vprime.shape[2]
+    g = np.empty((n_t, n_h, 3))
+    m = np.empty((n_t, n_h, 3, 3))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        count = okf.sum(axis=1)
+        for i in range(3):
+            g[..., i] = (v0 * beams[..., i, None]).sum(axis=1) / count
+            for j in range(i, 3):
+                m[..., i, j] = (okf * (beams[..., i] * beams[..., j])[..., None]).sum(axis=1)
+                m[..., i, j] /= count
+                m[..., j, i] = m[..., i, j]
     block = np.arange(n_t) // n_scans
     has_wind = np.all(np.isfinite(refit.winds), axis=-1)
     n_w = np.add.reduceat(has_wind.astype(float), np.arange(0, n_t, n_scans), axis=0)[block]
@@ -208,9 +215,11 @@ def jackknife_covariance(
     g_rest = _block_sum(g, starts)[block] - g
     m_rest = _block_sum(m, starts)[block] - m
     delta = terms["delta"]
-    shift = 2.0 * np.einsum("thi,thi->th", delta, g_rest) + np.einsum(
-        "thi,thij,thj->th", delta, m_rest, delta
-    )
+    shift = np.zeros(n_k.shape)
+    for i in range(3):  # 2 delta . g + delta^T M delta, term by term (the same bits in chunks)
+        shift += 2.0 * delta[..., i] * g_rest[..., i]
+        for j in range(3):
+            shift += delta[..., i] * m_rest[..., i, j] * delta[..., j]
     with np.errstate(invalid="ignore", divide="ignore"):
         theta = (_block_sum(x, starts)[block] - x) / (n_k - 1.0)[..., None]
         theta[..., -1] += shift / (n_k - 1.0)
