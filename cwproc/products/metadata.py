@@ -253,8 +253,8 @@ _PRODUCT_VARIABLES: dict[str, VarMeta] = {
         coverage_content_type="qualityInformation",
     ),
     "statistics_covariance": VarMeta(
-        "covariance of the block means of (D_L(1), ..., D_L(L), variance of V'_L) from "
-        "the scatter over scans",
+        "covariance of the block means of (D_L(1), ..., D_L(L), variance of V'_L): "
+        "jackknife over the scans, the block-mean VAD wind refitted without each",
         "m4 s-4",
         coverage_content_type="qualityInformation",
     ),

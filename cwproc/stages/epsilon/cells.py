@@ -162,8 +162,8 @@ def predicted_noise(sf: xr.Dataset, probe: Any) -> np.ndarray:
 def statistics_covariance(sf: xr.Dataset) -> np.ndarray | None:
     """``(time, height, lag + 1, lag + 1)`` covariance of the block-mean ``D_L`` and variance.
 
-    ``statistics_covariance`` of :func:`cwproc.stages.structure.block_statistics`
-    (m4 s-4; from the scatter over the block's scans), as float64; None when the
+    ``statistics_covariance`` of :func:`cwproc.stages.block_stats.block_statistics`
+    (m4 s-4; the jackknife over the block's scans), as float64; None when the
     structure function does not carry it.
     """
     if "statistics_covariance" not in sf:

@@ -63,8 +63,8 @@ def covariance_errors(
     ``s = (D_L(1), ..., D_L(L), variance of V'_L)``: eps and L_V fitted together, so
     the scatter of the fitted L_V enters the error of eps through the
     A-functions. ``SE(f) = sqrt(g^T C g)``, ``C`` the covariance of ``s`` from the
-    scatter over the block's scans (``statistics_covariance`` of
-    :func:`cwproc.stages.structure.block_statistics`) and ``g`` the gradient of ``f`` by
+    jackknife over the block's scans (``statistics_covariance`` of
+    :func:`cwproc.stages.block_stats.block_statistics`) and ``g`` the gradient of ``f`` by
     central differences of three tenths of a standard error either side of each
     component (:data:`cwproc.physics.delta_method.STEP_FRACTION`).
     """
