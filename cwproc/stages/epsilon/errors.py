@@ -72,7 +72,7 @@ def covariance_errors(
     stats = np.concatenate([d, var_raw[..., None]], axis=-1)
 
     def estimates(s: np.ndarray) -> dict[str, np.ndarray]:
-        return retrieve(fixed, s[..., :n_l], s[..., n_l], near=base["root"])
+        return retrieve(fixed, s[..., :n_l], s[..., n_l], base["root"], False, base["root_slope"])
 
     return delta_method_errors(estimates, stats, cov, base, ("efit", "sigma2", "l_v"))
 

@@ -11,6 +11,8 @@ delta method differentiates (:mod:`cwproc.stages.epsilon.errors`).
 from __future__ import annotations
 
 import dataclasses
+import functools
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -30,6 +32,7 @@ from cwproc.physics.removed_share import (
 from cwproc.physics.structure_fit import fit_structure_function
 from cwproc.stages.epsilon.atable_fit import EVALUATION_CELLS, outer_scale_sector_factor
 from cwproc.stages.epsilon.cells import Cells
+from cwproc.stages.epsilon.root_search import Residual, bracket_root, replayed_root
 
 #: lengths below this fraction of L_V keep the inertial A-functions (see module doc)
 INERTIAL_FRACTION = 0.02
@@ -42,8 +45,11 @@ ROOT_CELLS = 16384
 #: azimuth step (deg) from which full circles (at most 60 rays) get the outer scale's own
 #: node ratio over the pairs present (:func:`_sector_cell_table`)
 COARSE_STEP_DEG = 6.0
-#: bisections from a bracket of a factor 2 on either side of a known root (-> 1.1 %)
+#: bisections from a bracket of a factor NEAR_FACTOR on either side of a known root
+#: (-> 1.1 %)
 _BISECTIONS_NEAR = 6
+#: the bracket around a known root spans this factor either side of it
+NEAR_FACTOR = 2.0
 
 
 def finite_scale_inputs(
@@ -108,7 +114,7 @@ def finite_scale_inputs(
     }
 
 
-def outer_scale_root(
+def variance_residual(
     table: Any,
     table_rows: np.ndarray,
     finite: dict,
@@ -118,70 +124,102 @@ def outer_scale_root(
     vc: np.ndarray,
     var_c: np.ndarray,
     prior: np.ndarray,
-    start: np.ndarray | None = None,
     d_cov: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(root, has_root, below)`` of the variance condition in L_V for cells ``(n,)``.
+) -> Residual:
+    """The variance condition of cells ``(n,)``, a function of ``L_V`` ``(n, k)`` (m).
 
     The variance of V'_L the model predicts, eps^(2/3) times the probe-passed part of
     sigma_V^2 = (eps L_V / c)^(2/3) (Banakh et al. (1999), eq. 19;
     :func:`cwproc.physics.probe_variance.passed_variance`), must equal the measured one
     minus sigma_e^2; eps(L_V) and sigma_e(L_V) from the least squares of Smalikho (2020),
-    eq. 4 with the model's A_2 over all valid lags. Coarse scan of ``finite["nodes"]``, then
-    bisection of the largest sign change in log L_V; ``below``: even the smallest node gives
-    too much variance (lags not inertial). ``table`` is the model's table at fixed cells
-    (:meth:`cwproc.physics.atable_interp.ATable.at_cells`), ``table_rows`` the rows of it to
-    search. With ``start`` (a root per cell, for the small changes of
-    :func:`cwproc.stages.epsilon.errors.covariance_errors`) the scan covers ``start / 2 .. 2
-    start`` and fewer bisections reach the same bracket. ``d_cov``: the covariance of D
-    of the cells (``(n, lag, lag)``) that decides whether sigma_e is fitted.
+    eq. 4 with the model's A_2 over all valid lags. The residual is the log of their
+    ratio, rising through 0 at the root. ``table`` is the model's table at fixed cells
+    (:meth:`cwproc.physics.atable_interp.ATable.at_cells`), ``table_rows`` the cells'
+    rows of it; ``d_cov`` the covariance of D of the cells (``(n, lag, lag)``) that
+    decides whether sigma_e is fitted.
     """
     scale_grid = finite["scale_grid"]
+    cov = None if d_cov is None else d_cov[:, None]
 
     def residual(big_l: np.ndarray) -> np.ndarray:
         k = big_l.shape[1]
         _, f2 = table.evaluate(np.broadcast_to(big_l, (dc.shape[0], k)), table_rows, a1=False)
         f2 = f2 * cell_sector[:, None, :]
-        eps_l, noise_l, _ = fit_structure_function(
-            dc[:, None, :], f2, vc[:, None, :], prior, None if d_cov is None else d_cov[:, None]
-        )
+        eps_l, noise_l, _ = fit_structure_function(dc[:, None, :], f2, vc[:, None, :], prior, cov)
         through = interp_log_scale(scale_grid, passed, np.broadcast_to(big_l, (dc.shape[0], k)))
         with np.errstate(invalid="ignore", divide="ignore"):
             model_var = np.log(eps_l ** (2 / 3) * through)
             measured = np.log(var_c[:, None] - np.nan_to_num(noise_l, nan=0.0) ** 2)
         return np.broadcast_to(model_var - measured, (dc.shape[0], k))
 
-    if start is None:
-        nodes = np.broadcast_to(finite["nodes"], (dc.shape[0], finite["nodes"].size))
-        steps = _BISECTIONS
+    return residual
+
+
+def _cells_residual(
+    index: np.ndarray, cells: tuple, table: Any, finite: dict, statistics: tuple
+) -> Residual:
+    """:func:`variance_residual` of the cells ``index`` of ``cells``.
+
+    ``cells``: time and height indices, table rows and passed variances of the cells;
+    ``statistics``: the ``(time, height, ...)`` arrays sector factor, D, valid lags,
+    variance, noise prediction and covariance of D (or None) of :func:`retrieve`.
+    """
+    ti, hi_, rows, passed = (c[index] for c in cells)
+    sector, d, valid, var_raw, prior, d_cov = statistics
+    return variance_residual(
+        table,
+        rows,
+        finite,
+        sector[ti, hi_],
+        passed,
+        d[ti, hi_],
+        valid[ti, hi_],
+        var_raw[ti, hi_],
+        prior[ti, hi_][:, None],
+        None if d_cov is None else d_cov[ti, hi_],
+    )
+
+
+def outer_scale_root(
+    residual_of: Callable[[np.ndarray], Residual],
+    n: int,
+    nodes: np.ndarray,
+    near: np.ndarray | None = None,
+    near_slope: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(root, has_root, below, slope)`` of the variance condition in L_V (m) of ``n`` cells.
+
+    ``residual_of(index)`` is :func:`variance_residual` of the cells ``index``. Coarse
+    scan of ``nodes`` (``(k,)``, m), then :data:`_BISECTIONS` bisections of the largest
+    sign change in log L_V (:func:`cwproc.stages.epsilon.root_search.bracket_root`);
+    ``below``: even the smallest node gives too much variance (lags not inertial);
+    ``slope``: the residual's slope by log L_V at the root. With ``near`` (a root per
+    cell, for the small changes of :func:`cwproc.stages.epsilon.errors.covariance_errors`)
+    the scan covers ``near / 2 .. 2 near`` and :data:`_BISECTIONS_NEAR` bisections reach
+    the same bracket, replayed from a secant step where ``near_slope`` (the slope at
+    ``near``) is given (:func:`cwproc.stages.epsilon.root_search.replayed_root`, the same
+    roots from three evaluations for seven); ``slope`` is then NaN.
+    """
+    residual = residual_of(np.arange(n))
+    if near is None:
+        return bracket_root(residual, np.broadcast_to(nodes, (n, nodes.size)), _BISECTIONS)
+    if near_slope is None:
+        brackets = near[:, None] * np.array([1.0 / NEAR_FACTOR, 1.0, NEAR_FACTOR])
+        root, has_root, below, _ = bracket_root(residual, brackets, _BISECTIONS_NEAR)
     else:
-        nodes = start[:, None] * np.array([0.5, 1.0, 2.0])
-        steps = _BISECTIONS_NEAR
-    resid = residual(nodes)
-    sign_change = (resid[:, :-1] < 0) & (resid[:, 1:] >= 0)
-    has_root = sign_change.any(axis=1)
-    last = nodes.shape[1] - 2 - np.argmax(sign_change[:, ::-1], axis=1)
-    cells = np.arange(last.size)
-    log_lo, log_hi = np.log(nodes[cells, last]), np.log(nodes[cells, last + 1])
-    r_lo = resid[np.arange(last.size), last]
-    r_hi = resid[np.arange(last.size), last + 1]
-    for _ in range(steps):  # fixed count: each step halves every bracket
-        mid = 0.5 * (log_lo + log_hi)
-        r_mid = residual(np.exp(mid)[:, None])[:, 0]
-        upper = r_mid >= 0
-        log_hi = np.where(upper, mid, log_hi)
-        r_hi = np.where(upper, r_mid, r_hi)
-        log_lo = np.where(upper, log_lo, mid)
-        r_lo = np.where(upper, r_lo, r_mid)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        frac = np.clip(np.nan_to_num(r_lo / (r_lo - r_hi), nan=0.5), 0.0, 1.0)
-    root = np.exp(log_lo + frac * (log_hi - log_lo))
-    below = ~has_root & np.all(resid > 0, axis=1)
-    return root, has_root, below
+        root, has_root, below = replayed_root(
+            residual_of, near, near_slope, NEAR_FACTOR, _BISECTIONS_NEAR
+        )
+    return root, has_root, below, np.full(n, np.nan)
 
 
 def retrieve(
-    fixed: dict, d: np.ndarray, var_raw: np.ndarray, near: np.ndarray | None = None
+    fixed: dict,
+    d: np.ndarray,
+    var_raw: np.ndarray,
+    near: np.ndarray | None = None,
+    method1: bool = True,
+    near_slope: np.ndarray | None = None,
 ) -> dict:
     """eps (methods 1 and 2), sigma_e, sigma_V^2 and L_V of every cell from D and the variance.
 
@@ -193,7 +231,9 @@ def retrieve(
     A-functions, tables, noise prediction, ...), so that
     :func:`cwproc.stages.epsilon.errors.covariance_errors` can differentiate it; ``near``
     (that function's base roots, NaN where the finite-outer-scale fit was not used) fixes
-    the cells of that fit and starts its root search there.
+    the cells of that fit and starts its root search there, from their slopes
+    ``near_slope`` (the base's ``root_slope``) where given. ``method1=False`` leaves eps
+    of method 1 (``e1``) NaN (the delta method does not use it).
     """
     a1, a2 = fixed["a1"].copy(), fixed["a2"].copy()
     valid, prior, c_model = fixed["valid"], fixed["noise_pred"], fixed["c_model"]
@@ -201,22 +241,27 @@ def retrieve(
     shape = d.shape[:2]
 
     def solve() -> tuple:
-        e1, _, _ = fit_structure_function(d, a1, valid, prior, d_cov)
+        e1 = np.full(shape, np.nan)
+        if method1:
+            e1, _, _ = fit_structure_function(d, a1, valid, prior, d_cov)
         efit, noise, fitted = fit_structure_function(d, a2, valid, prior, d_cov)
         return e1, efit, noise, fitted
 
-    e1, efit, noise, fitted = solve()
-    sigma2 = var_raw - np.nan_to_num(noise, nan=0.0) ** 2 + efit ** (2 / 3) * fixed["loss"]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / efit, np.nan)
     too_small = np.zeros(shape, dtype=bool)
     finite_used = np.zeros(shape, dtype=bool)
-    root_cell = np.full(shape, np.nan)
+    root_cell, slope = np.full(shape, np.nan), np.full(shape, np.nan)
     finite = fixed["finite"]
+    if finite is None or near is None:  # with both, every fit is redone below
+        e1, efit, noise, fitted = solve()
+        sigma2 = var_raw - np.nan_to_num(noise, nan=0.0) ** 2 + efit ** (2 / 3) * fixed["loss"]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / efit, np.nan)
     if finite is not None:
         passed_fraction = np.full(shape, np.nan)
-        need = np.isfinite(l_v) & (finite["longest"] > INERTIAL_FRACTION * l_v) & ~fixed["exact"]
-        if near is not None:
+        if near is None:
+            need = np.isfinite(l_v) & (finite["longest"] > INERTIAL_FRACTION * l_v)
+            need &= ~fixed["exact"]
+        else:
             need = np.isfinite(near)
         sector = fixed["sector"]
         for key, (rows, _) in fixed["groups"].items():  # one table per configuration
@@ -230,18 +275,19 @@ def retrieve(
             for lo in range(0, ti.size, ROOT_CELLS):  # bounded working memory
                 at = slice(lo, lo + ROOT_CELLS)
                 t_, h_ = ti[at], hi_[at]
-                root[at], use[at], below[at] = outer_scale_root(
-                    table,
-                    cells[at],
-                    finite,
-                    sector[t_, h_],
-                    passed[at],
-                    d[t_, h_],
-                    valid[t_, h_],
-                    var_raw[t_, h_],
-                    prior[t_, h_][:, None],
+                residual_of = functools.partial(
+                    _cells_residual,
+                    cells=(t_, h_, cells[at], passed[at]),
+                    table=table,
+                    finite=finite,
+                    statistics=(sector, d, valid, var_raw, prior, d_cov),
+                )
+                root[at], use[at], below[at], slope[t_, h_] = outer_scale_root(
+                    residual_of,
+                    t_.size,
+                    finite["nodes"],
                     None if near is None else near[t_, h_],
-                    None if d_cov is None else d_cov[t_, h_],
+                    None if near_slope is None else near_slope[t_, h_],
                 )
             if np.any(use):
                 tu, hu = ti[use], hi_[use]
@@ -275,6 +321,7 @@ def retrieve(
         "too_small": too_small,
         "finite_used": finite_used,
         "root": root_cell,
+        "root_slope": slope,
     }
 
 
