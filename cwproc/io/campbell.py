@@ -362,7 +362,10 @@ def _plain_stamps(body: np.ndarray, n_fields: int) -> np.ndarray | None:
 
     Plain: every line ends with LF (or every one with CRLF), no other control character
     and no non-ASCII byte, ``n_fields - 1`` commas on every line, and a stamp decoded by
-    :func:`toa5_stamps`.
+    :func:`toa5_stamps`. The commas are counted line by line without a search: there
+    are ``n_fields - 1`` per line in all, and the k-th run of ``n_fields - 1`` commas
+    lies between the end of line k - 1 and the end of line k (then every line holds
+    exactly its own run).
     """
     newlines = np.flatnonzero(body == 10)
     if newlines.size == 0 or newlines[-1] != body.size - 1:
@@ -374,10 +377,13 @@ def _plain_stamps(body: np.ndarray, n_fields: int) -> np.ndarray | None:
     if body.max() > 126 or np.count_nonzero(body < 32) != newlines.size + crlf:
         return None
     commas = np.flatnonzero(body == 44)
-    per_line = np.diff(np.searchsorted(commas, newlines), prepend=0)
-    if np.any(per_line != n_fields - 1):
+    if n_fields < 2 or commas.size != newlines.size * (n_fields - 1):
         return None
-    return toa5_stamps(line_starts(body, newlines, STAMP_WIDTH))
+    runs = commas.reshape(newlines.size, n_fields - 1)
+    if np.any(runs[:, -1] > newlines) or np.any(runs[1:, 0] < newlines[:-1]):
+        return None
+    starts = np.concatenate([[0], newlines[:-1] + 1])
+    return toa5_stamps(line_starts(body, newlines, STAMP_WIDTH), runs[:, 0] - starts)
 
 
 def line_starts(body: np.ndarray, newlines: np.ndarray, width: int) -> np.ndarray:
@@ -423,13 +429,15 @@ def days_from_civil(year: np.ndarray, month: np.ndarray, day: np.ndarray) -> np.
     return era * 146097 + doe - 719468
 
 
-def toa5_stamps(windows: np.ndarray) -> np.ndarray | None:
+def toa5_stamps(windows: np.ndarray, ends: np.ndarray) -> np.ndarray | None:
     """Decode quoted TOA5 stamps ``"yyyy-mm-dd HH:MM:SS[.f]",`` from the line starts.
 
     Parameters
     ----------
     windows : ndarray of uint8, shape (n, STAMP_WIDTH)
         The first bytes of every data line.
+    ends : ndarray of int, shape (n,)
+        Offset of the first comma of every line in it (the end of the stamp field).
 
     Returns
     -------
@@ -440,6 +448,7 @@ def toa5_stamps(windows: np.ndarray) -> np.ndarray | None:
     """
     w = np.ascontiguousarray(windows)
     n = w.shape[0]
+    ends = np.asarray(ends, dtype=np.int64)
     # "yyyy-mm-dd HH:MM" (bytes 0-16) changes once a minute: decoded once per run
     words = w.view(np.uint64)
     new = np.ones(n, dtype=bool)
@@ -452,21 +461,49 @@ def toa5_stamps(windows: np.ndarray) -> np.ndarray | None:
     tens, units = w[:, 18] - np.uint8(48), w[:, 19] - np.uint8(48)
     if np.any(w[:, 17] != ord(":")) or np.any((tens > 5) | (units > 9)):
         return None
+    # the stamp closes at ends - 1: byte 20 (whole seconds) or 22-30 ('.' and 1-9 digits)
+    if np.any((ends < 21) | (ends == 22) | (ends > 31)):
+        return None
+    dotted = ends > 21
+    if np.any(w[:, 20] != np.where(dotted, np.uint8(ord(".")), np.uint8(ord('"')))):
+        return None
+    if np.any(np.take(w.reshape(-1), np.arange(n) * w.shape[1] + ends - 1) != ord('"')):
+        return None
     frac = w[:, 21:30] - np.uint8(48)
-    digit = np.concatenate([frac <= 9, np.zeros((n, 1), bool)], axis=1)
-    n_frac = digit.argmin(axis=1)
-    dotted = w[:, 20] == ord(".")
-    if np.any(~dotted & (w[:, 20] != ord('"'))) or np.any(dotted & (n_frac == 0)):
+    kept = np.take(_FRACTION_DIGITS, np.where(dotted, ends - 22, 0), axis=0)
+    if np.any(kept & (frac > 9)):
         return None
-    close = np.where(dotted, 21 + n_frac, 20)
-    rows = np.arange(n)
-    if np.any(w[rows, close] != ord('"')) or np.any(w[rows, close + 1] != ord(",")):
-        return None
-    kept = np.where(np.arange(9) < np.where(dotted, n_frac, 0)[:, None], frac, np.uint8(0))
-    nanos = _number(kept + np.uint8(48), 0, 9)
+    frac *= kept  # digits past the stamp's last are zeros
+    nanos = eight_digits(frac[:, :8]) * 10 + frac[:, 8]
     nanos += (tens.astype(np.int64) * 10 + units) * 1_000_000_000
     nanos += np.repeat(minutes, np.diff(np.append(first, n)))
     return nanos.astype("datetime64[ns]")
+
+
+#: row k: which of the nine fractional-second digits a stamp with k of them has
+_FRACTION_DIGITS = np.arange(9) < np.arange(10)[:, None]
+
+
+def eight_digits(digits: np.ndarray) -> np.ndarray:
+    """The numbers written by rows of eight decimal digits (values 0-9, most significant
+    first), each row read as one 64-bit word (little-endian: the first digit in the low
+    byte) and reduced in place: pairs, then the four pairs into one number, with three
+    multiplications per row (exact: every intermediate stays below 2**64).
+
+    Parameters
+    ----------
+    digits : ndarray of uint8, shape (n, 8)
+
+    Returns
+    -------
+    ndarray of int64, shape (n,)
+    """
+    v = np.ascontiguousarray(digits, dtype=np.uint8).view("<u8")[:, 0]
+    v = v * np.uint64(10) + (v >> np.uint64(8))  # byte 2i: the pair 10 d_2i + d_2i+1
+    low = v & np.uint64(0x000000FF000000FF)  # pairs 0 and 2
+    high = (v >> np.uint64(16)) & np.uint64(0x000000FF000000FF)  # pairs 1 and 3
+    v = low * np.uint64(100 + (1_000_000 << 32)) + high * np.uint64(1 + (10_000 << 32))
+    return (v >> np.uint64(32)).astype(np.int64)
 
 
 def _minute_ns(w: np.ndarray) -> np.ndarray | None:

@@ -372,3 +372,28 @@ def test_fast_toa5_reader_leaves_odd_lines_to_the_checking_reader(tmp_path, toa5
     path = _write(tmp_path, lines)
     assert campbell.toa5_fast(path, path.read_bytes(), campbell.DEFAULT_COLUMNS) is None
     assert campbell.toa5_fast(path, b"".join(toa5_lines[:30]), campbell.DEFAULT_COLUMNS)
+
+
+def test_fast_toa5_reader_counts_the_commas_line_by_line(tmp_path, toa5_lines):
+    """A field moved from one line to the next keeps the file's number of commas, and
+    pandas' parse of the used fields takes both lines (the last field, unused here, is
+    left empty on one; the extra field of the other is ignored): the fast reader still
+    finds them, and the checking reader names line 10."""
+    lines = list(toa5_lines[:30])
+    lines[9] = lines[9].rsplit(b",", 1)[0] + b"\r\n"  # no diag_csat
+    lines[10] = lines[10].replace(b",", b",0,", 1)  # one field more
+    path = _write(tmp_path, lines)
+    cols = {**campbell.DEFAULT_COLUMNS, "diagnostic": "press"}
+    assert campbell.toa5_fast(path, path.read_bytes(), cols) is None
+    with pytest.raises(InputFileError) as err:
+        read_toa5(path, columns={"diagnostic": "press"})
+    assert err.value.line == 10
+
+
+def test_eight_digits_is_the_decimal_number():
+    rng = np.random.default_rng(1)
+    digits = rng.integers(0, 10, size=(10_000, 8)).astype(np.uint8)
+    digits[0], digits[1] = 9, 0
+    expected = digits.astype(np.int64) @ 10 ** np.arange(7, -1, -1)
+    np.testing.assert_array_equal(campbell.eight_digits(digits), expected)
+    assert campbell.eight_digits(digits[:2]).tolist() == [99_999_999, 0]
