@@ -397,3 +397,20 @@ def test_eight_digits_is_the_decimal_number():
     expected = digits.astype(np.int64) @ 10 ** np.arange(7, -1, -1)
     np.testing.assert_array_equal(campbell.eight_digits(digits), expected)
     assert campbell.eight_digits(digits[:2]).tolist() == [99_999_999, 0]
+
+
+@pytest.mark.parametrize("block", [7, 64, 1000])
+def test_fast_toa5_reader_is_the_same_in_any_blocks(tmp_path, monkeypatch, toa5_lines, block):
+    """The body scanned in blocks of any size (CRLF split across two blocks, runs of
+    commas across several) gives the checking reader's result, and still refuses a
+    line with a bare CR or a field too many."""
+    monkeypatch.setattr(campbell, "SCAN_BYTES", block)
+    crlf = _write(tmp_path, toa5_lines[:120], "crlf.dat")
+    lf = _write(tmp_path, [line.replace(b"\r\n", b"\n") for line in toa5_lines[:120]], "lf.dat")
+    for path in (crlf, lf):
+        _assert_same(*_checked_and_fast(path))
+    for old, new in ((b"\r\n", b"\r"), (b",", b",,")):
+        lines = list(toa5_lines[:120])
+        lines[60] = lines[60].replace(old, new, 1)
+        raw = b"".join(lines)
+        assert campbell.toa5_fast(crlf, raw, campbell.DEFAULT_COLUMNS) is None
