@@ -409,6 +409,8 @@ D_FLOOR = 1e-10
 
 #: windows typed together (memory bound: one day of 10-min windows at a time)
 WINDOW_BATCH = 144
+#: windows detrended and transformed together (:func:`_window_structure_functions`)
+FFT_WINDOWS = 16
 
 
 def window_batches(
@@ -554,10 +556,19 @@ def _window_structure_functions(
     starts, grid, counts = grid_windows(
         sonic["time"].values, values, valid, window_s=params["window_s"], rate_hz=rate
     )
-    rotated, speed = rotate_to_mean_wind(grid)
+    del values, valid
     direction = geographic_wind_direction(*window_mean_wind(grid), params["orientation_deg"])
-    detrended = remove_running_mean(rotated, max(round(params["running_mean_s"] * rate), 1))
-    d, pairs = structure_function_fft(detrended, n_lags)
+    width = max(round(params["running_mean_s"] * rate), 1)
+    speed = np.empty(starts.size)
+    d = np.empty((starts.size, 3, n_lags))
+    pairs = np.empty((starts.size, 3, n_lags))
+    # a few windows at a time: every step works window by window (its own rotation, mean
+    # and transforms, the same numbers in any grouping), and the temporaries of a group
+    # (transforms of 2 x 7,200 points per series) stay small and are reused
+    for lo in range(0, starts.size, FFT_WINDOWS):
+        part = slice(lo, lo + FFT_WINDOWS)
+        rotated, speed[part] = rotate_to_mean_wind(grid[part])
+        d[part], pairs[part] = structure_function_fft(remove_running_mean(rotated, width), n_lags)
 
     valid_fraction = counts / n_slots
     j = np.arange(1, n_lags + 1)

@@ -349,3 +349,24 @@ def test_running_mean_and_grid_shortcuts_equal_the_general_paths():
     for a, b in zip(ordered, shuffled, strict=True):
         np.testing.assert_array_equal(a, b)
     assert ordered[1].shape == (5, 3, 600)
+
+
+def test_windows_transformed_in_any_groups_give_identical_results(sims, monkeypatch):
+    """Windows detrended and transformed one by one, a few or all at once (groups that
+    mix complete windows with windows missing samples) give the same product, bit for
+    bit: every step works window by window."""
+    ds, _ = sims[2]
+    ds = ds.copy(deep=True)
+    u = ds["u"].values.copy()
+    u[2 * 6420 : 4 * 6420 : 97] = np.nan  # windows 2 and 3 miss 1 % of their samples
+    ds["u"] = ("time", u)
+    keep = np.ones(ds.sizes["time"], bool)
+    keep[5 * 6420 + 300 : 5 * 6420 + 700] = False  # a gap in window 5
+    ds = ds.isel(time=keep)
+    products = []
+    for group in (1, 3, 24):
+        monkeypatch.setattr(S, "FFT_WINDOWS", group)
+        products.append(S.structure_function_types(ds))
+    assert (products[0]["valid_fraction"].values < 1).sum() == 3
+    for other in products[1:]:
+        xr.testing.assert_identical(other, products[0])
