@@ -130,6 +130,28 @@ def keep_freed_arrays() -> bool:
     )
 
 
+def one_blas_thread() -> bool:
+    """Have OpenBLAS start with one thread, unless numpy is imported or a count is set.
+
+    numpy's wheels bring OpenBLAS, which starts a thread per core when numpy is
+    imported; the threads spin while they wait for work before they sleep. A command
+    without linear algebra (``sf-type``: transforms and element-wise work, no matrix
+    product) pays that spin, about 0.1 s of CPU time on two cores, and gains nothing.
+    ``OPENBLAS_NUM_THREADS=1`` is set in the environment, read by OpenBLAS when numpy
+    loads it; a value the user set is kept.
+
+    Returns
+    -------
+    bool
+        True when the variable was set, False when numpy was already imported or the
+        variable already set.
+    """
+    if "numpy" in sys.modules or "OPENBLAS_NUM_THREADS" in os.environ:
+        return False
+    os.environ["OPENBLAS_NUM_THREADS"] = "1"
+    return True
+
+
 def command_name(argv: list[str]) -> str | None:
     """The command of a ``cwproc`` command line (its first word that is not an option).
 
@@ -148,21 +170,22 @@ class CwprocGroup(LazyGroup):
     When the group runs as the program (``args`` read from ``sys.argv``: the ``cwproc``
     script, ``python -m cwproc``), a command not in ``dask_commands`` runs with dask
     kept out of the process (:func:`keep_dask_out`) and the process ends without the
-    interpreter's teardown (:func:`exit_now`); a command in ``heap_commands`` also runs
-    with freed arrays kept for reuse (:func:`keep_freed_arrays`). Called with explicit
-    arguments (a test, a notebook) the process is left as it is.
+    interpreter's teardown (:func:`exit_now`); a command in ``array_commands`` also runs
+    with freed arrays kept for reuse (:func:`keep_freed_arrays`) and OpenBLAS on one
+    thread (:func:`one_blas_thread`). Called with explicit arguments (a test, a
+    notebook) the process is left as it is.
     """
 
     def __init__(
         self,
         *args: Any,
         dask_commands: frozenset[str],
-        heap_commands: frozenset[str] = frozenset(),
+        array_commands: frozenset[str] = frozenset(),
         **kwargs: Any,
     ) -> None:
         super().__init__(*args, **kwargs)
         self.dask_commands = dask_commands
-        self.heap_commands = heap_commands
+        self.array_commands = array_commands
 
     def main(
         self, args: list[str] | None = None, *rest: Any, standalone_mode: bool = True, **kwargs: Any
@@ -171,8 +194,9 @@ class CwprocGroup(LazyGroup):
         program = args is None and name not in self.dask_commands
         if program:
             keep_dask_out()
-            if name in self.heap_commands:
+            if name in self.array_commands:
                 keep_freed_arrays()
+                one_blas_thread()
         if not standalone_mode:
             return super().main(args, *rest, standalone_mode=False, **kwargs)
         if not program:

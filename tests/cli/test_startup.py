@@ -197,23 +197,36 @@ def test_freed_arrays_are_reused_without_new_pages():
     assert faults[1] < 2 * pages_per_round
 
 
-def test_sf_type_program_keeps_freed_arrays_only_there():
-    """The program runs ``sf-type`` with freed arrays kept for reuse; other commands and
-    explicit calls leave the allocator alone."""
-    from cwproc.cli import HEAP_COMMANDS
+def test_sf_type_program_keeps_freed_arrays_and_one_blas_thread_only_there():
+    """The program runs ``sf-type`` with freed arrays kept for reuse and OpenBLAS on one
+    thread (a count the user set is kept); other commands and explicit calls leave the
+    allocator and the environment alone."""
+    import os
 
-    assert HEAP_COMMANDS == frozenset({"sf-type"})
+    from cwproc.cli import ARRAY_COMMANDS
+
+    assert ARRAY_COMMANDS == frozenset({"sf-type"})
     code = (
-        "import sys\n"
+        "import os, sys\n"
         "import cwproc.cli._group as group\n"
         "calls = []\n"
         "group.keep_freed_arrays = lambda: calls.append(1) or True\n"
-        "group.exit_now = lambda code: print(len(calls))\n"
+        "group.exit_now = lambda code: print(len(calls), os.environ.get('OPENBLAS_NUM_THREADS'))\n"
         "from cwproc.cli import main\n"
         "main()\n"
     )
-    for argv, expected in ((["sf-type", "--help"], "1"), (["info", "--help"], "0")):
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    cases = [
+        (["sf-type", "--help"], env, "1 1"),
+        (["info", "--help"], env, "0 None"),
+        (["sf-type", "--help"], {**env, "OPENBLAS_NUM_THREADS": "2"}, "1 2"),
+    ]
+    for argv, environment, expected in cases:
         out = subprocess.run(
-            [sys.executable, "-c", code, *argv], capture_output=True, text=True, check=True
+            [sys.executable, "-c", code, *argv],
+            capture_output=True,
+            text=True,
+            check=True,
+            env=environment,
         ).stdout
         assert out.splitlines()[-1] == expected, argv
