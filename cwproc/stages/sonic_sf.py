@@ -92,21 +92,28 @@ def grid_windows(
     counts : ndarray of int, shape (W,)
         Number of grid slots holding a valid sample of every component.
     """
-    t_ns = time.astype("datetime64[ns]").astype(np.int64)
+    t_ns = time.astype("datetime64[ns]", copy=False).view(np.int64)
     win_ns = round(window_s * 1e9)
     n_slots = int(np.floor(window_s * rate_hz + 1e-9))
     widx = np.floor_divide(t_ns, win_ns)
-    if widx.size and np.all(widx[1:] >= widx[:-1]):  # time order (a reader's output)
+    if widx.size and not np.any(widx[1:] < widx[:-1]):  # time order (a reader's output)
         first = np.flatnonzero(np.concatenate([[True], widx[1:] != widx[:-1]]))
-        uniq, inverse = widx[first], np.cumsum(np.concatenate([[False], widx[1:] != widx[:-1]]))
+        uniq = widx[first]
+        inverse = np.repeat(np.arange(first.size), np.diff(np.append(first, widx.size)))
     else:
         uniq, inverse = np.unique(widx, return_inverse=True)
     slot = np.rint((t_ns - widx * win_ns) * 1e-9 * rate_hz).astype(np.int64)
     inside = slot < n_slots
     grid = np.full((uniq.size, 3, n_slots), np.nan)
+    # flat index of (window, u, slot) in the grid; component c is n_slots further on
+    place = inverse * (3 * n_slots) + slot
+    flat = grid.reshape(-1)
     for c in range(3):
         keep = inside & valid[c]
-        grid[inverse[keep], c, slot[keep]] = values[c, keep]
+        if keep.all():
+            flat[place + c * n_slots] = values[c]
+        else:
+            flat[place[keep] + c * n_slots] = values[c, keep]
     counts = np.all(np.isfinite(grid), axis=1).sum(axis=1)
     starts = (uniq * win_ns).astype("datetime64[ns]")
     return starts, grid, counts

@@ -349,6 +349,13 @@ def test_running_mean_and_grid_shortcuts_equal_the_general_paths():
     for a, b in zip(ordered, shuffled, strict=True):
         np.testing.assert_array_equal(a, b)
     assert ordered[1].shape == (5, 3, 600)
+    # every sample valid: sample i in slot i mod 600 of window i // 600
+    _, grid, counts = S.grid_windows(
+        time, values, np.ones((3, 3000), bool), window_s=60.0, rate_hz=10.0
+    )
+    np.testing.assert_array_equal(grid, values.reshape(3, 5, 600).transpose(1, 0, 2))
+    np.testing.assert_array_equal(counts, [600] * 5)
+    np.testing.assert_array_equal(ordered[1][~np.isnan(ordered[1])].size, valid.sum())
 
 
 def test_windows_transformed_in_any_groups_give_identical_results(sims, monkeypatch):
