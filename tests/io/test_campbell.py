@@ -402,15 +402,22 @@ def test_eight_digits_is_the_decimal_number():
 @pytest.mark.parametrize("block", [7, 64, 1000])
 def test_fast_toa5_reader_is_the_same_in_any_blocks(tmp_path, monkeypatch, toa5_lines, block):
     """The body scanned in blocks of any size (CRLF split across two blocks, runs of
-    commas across several) gives the checking reader's result, and still refuses a
-    line with a bare CR or a field too many."""
+    commas and stamps across several), from the bytes or read from the open file, gives
+    the checking reader's result, and still refuses a bare CR or a field too many."""
     monkeypatch.setattr(campbell, "SCAN_BYTES", block)
     crlf = _write(tmp_path, toa5_lines[:120], "crlf.dat")
     lf = _write(tmp_path, [line.replace(b"\r\n", b"\n") for line in toa5_lines[:120]], "lf.dat")
     for path in (crlf, lf):
         _assert_same(*_checked_and_fast(path))
+        with open(path, "rb") as fh:
+            _assert_same(_checked_and_fast(path)[0], campbell.toa5_fast(path, fh, DEFAULT))
     for old, new in ((b"\r\n", b"\r"), (b",", b",,")):
         lines = list(toa5_lines[:120])
         lines[60] = lines[60].replace(old, new, 1)
-        raw = b"".join(lines)
-        assert campbell.toa5_fast(crlf, raw, campbell.DEFAULT_COLUMNS) is None
+        path = _write(tmp_path, lines, "odd.dat")
+        assert campbell.toa5_fast(path, path.read_bytes(), DEFAULT) is None
+        with open(path, "rb") as fh:
+            assert campbell.toa5_fast(path, fh, DEFAULT) is None
+
+
+DEFAULT = campbell.DEFAULT_COLUMNS
