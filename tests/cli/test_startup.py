@@ -160,18 +160,24 @@ def test_program_exit_runs_the_atexit_functions():
     ]
 
 
-#: page faults of allocating and freeing six 8-MB arrays ten times, with the allocator
-#: as it is (argument 0) or after ``keep_freed_arrays`` (argument 1)
+#: page faults of allocating and freeing six 8-MB arrays ten times, in turn in a new
+#: thread (as the reading threads) and in the main thread, with the allocator as it is
+#: (argument 0) or after ``keep_freed_arrays`` (argument 1)
 _FAULTS = (
-    "import resource, sys\n"
+    "import resource, sys, threading\n"
     "import numpy as np\n"
     "from cwproc.cli._group import keep_freed_arrays\n"
     "if sys.argv[1] == '1':\n"
     "    assert keep_freed_arrays()\n"
+    "def arrays():\n"
+    "    held = [np.ones(1 << 20) for _ in range(6)]\n"
+    "    del held\n"
     "before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt\n"
-    "for _ in range(10):\n"
-    "    arrays = [np.ones(1 << 20) for _ in range(6)]\n"
-    "    del arrays\n"
+    "for _ in range(5):\n"
+    "    thread = threading.Thread(target=arrays)\n"
+    "    thread.start()\n"
+    "    thread.join()\n"
+    "    arrays()\n"
     "print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before)\n"
 )
 
@@ -185,9 +191,11 @@ def _huge_pages_always() -> bool:
 @pytest.mark.skipif(platform.libc_ver()[0] != "glibc", reason="glibc's mallopt")
 @pytest.mark.skipif(_huge_pages_always(), reason="page faults counted in huge pages")
 def test_freed_arrays_are_reused_without_new_pages():
-    """After ``keep_freed_arrays`` the memory of freed arrays serves the next ones: ten
-    rounds of six 8-MB arrays touch fresh pages about once (12,300 pages of 4 KiB),
-    against every round (about 123,000) with glibc's default, which unmaps them."""
+    """After ``keep_freed_arrays`` the memory of freed arrays serves the next ones, in
+    any thread: ten rounds of six 8-MB arrays, in turn in a new thread and in the main
+    thread, touch fresh pages about once (12,300 pages of 4 KiB), against every round
+    (about 117,000) with glibc's default, which unmaps them (and about twice with a
+    heap per thread)."""
     import os
 
     env = {**os.environ, "NUMPY_MADVISE_HUGEPAGE": "0"}  # count 4-KiB pages, not 2-MiB
@@ -201,7 +209,7 @@ def test_freed_arrays_are_reused_without_new_pages():
     faults = [int(run.stdout) for run in runs]
     pages_per_round = 6 * (8 << 20) // 4096
     assert faults[0] > 5 * pages_per_round
-    assert faults[1] < 2 * pages_per_round
+    assert faults[1] < 1.5 * pages_per_round
 
 
 def test_sf_type_program_keeps_freed_arrays_and_one_blas_thread_only_there():
