@@ -12,7 +12,8 @@ has the optional dask installed, and a plain ``pip install cwproc``):
    shared machine), each the best of ``--repeat`` alternated runs (target: <= 2), and
    the ratio to the read run with OpenBLAS on one thread, as ``sf-type`` runs;
    every process runs outside the checkout, so that each interpreter runs its own
-   ``cwproc`` (an interpreter whose ``cwproc`` is another commit compares commits);
+   ``cwproc`` (an interpreter whose ``cwproc`` is another commit compares commits),
+   byte-compiled first as an install is (:func:`byte_compile`);
 4. with ``--days N``: ``cwproc batch`` over N days (one file per day, the path a user
    runs for a month) serially, on a pool of one and of two workers, and the speed-up of
    two workers (target >= 1.8 on two free cores).
@@ -102,6 +103,24 @@ def best(times: list[tuple[float, float]]) -> tuple[float, float]:
     return min(t[0] for t in times), min(t[1] for t in times)
 
 
+def byte_compile(python: str) -> None:
+    """Byte-compile the ``cwproc`` of ``python``, as an install does.
+
+    pandas, xarray and the rest come with their ``.pyc`` files; a source checkout
+    installed in editable mode has none until a run writes them, and none is ever
+    written where ``PYTHONDONTWRITEBYTECODE`` is set: each timed ``sf-type`` would then
+    compile cwproc's modules from source (~40 ms), which no installed copy does.
+    """
+    where = subprocess.run(
+        [python, "-c", "import cwproc, os; print(os.path.dirname(cwproc.__file__))"],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=tempfile.gettempdir(),
+    ).stdout.strip()
+    subprocess.run([python, "-m", "compileall", "-q", where], check=True)
+
+
 def compare_one_day(path: Path, out: Path, python: str, repeat: int) -> dict[str, float]:
     """Bare ``pandas.read_csv`` and ``cwproc sf-type`` of one file, alternated ``repeat``
     times (the machine is shared: each figure is the best of its runs).
@@ -187,6 +206,7 @@ def main() -> None:
                 ).returncode
                 == 0
             )
+            byte_compile(python)
             f = compare_one_day(path, tmp_path / "out", python, args.repeat)
             print(f"  {python} ({'with' if has_dask else 'without'} dask installed)")
             print(f"    pandas.read_csv process  {f['read wall']:6.2f} s wall, "
