@@ -105,15 +105,13 @@ def grid_windows(
     slot = np.rint((t_ns - widx * win_ns) * 1e-9 * rate_hz).astype(np.int64)
     inside = slot < n_slots
     grid = np.full((uniq.size, 3, n_slots), np.nan)
-    # flat index of (window, u, slot) in the grid; component c is n_slots further on
-    place = inverse * (3 * n_slots) + slot
-    flat = grid.reshape(-1)
+    place = inverse * (3 * n_slots) + slot  # flat index of (window, u, slot); v, w follow
     for c in range(3):
         keep = inside & valid[c]
         if keep.all():
-            flat[place + c * n_slots] = values[c]
+            grid.reshape(-1)[place + c * n_slots] = values[c]
         else:
-            flat[place[keep] + c * n_slots] = values[c, keep]
+            grid.reshape(-1)[place[keep] + c * n_slots] = values[c, keep]
     counts = np.all(np.isfinite(grid), axis=1).sum(axis=1)
     starts = (uniq * win_ns).astype("datetime64[ns]")
     return starts, grid, counts
@@ -523,8 +521,7 @@ def structure_function_types(
     if len(batches) > 1:
         # bounded memory: at most WINDOW_BATCH windows (a day) of grids and FFTs at once
         parts = [structure_function_types(sonic.isel(time=b), **kwargs) for b in batches]
-        out = xr.concat(parts, dim="window", combine_attrs="override")
-        return out
+        return xr.concat(parts, dim="window", combine_attrs="override")
     return _type_windows(sonic, kwargs, rate=rate, n_slots=n_slots, n_lags=n_lags)
 
 
@@ -566,17 +563,13 @@ def _window_structure_functions(
     del values, valid
     direction = geographic_wind_direction(*window_mean_wind(grid), params["orientation_deg"])
     width = max(round(params["running_mean_s"] * rate), 1)
-    speed = np.empty(starts.size)
-    d = np.empty((starts.size, 3, n_lags))
-    pairs = np.empty((starts.size, 3, n_lags))
-    # a few windows at a time: every step works window by window (its own rotation, mean
-    # and transforms, the same numbers in any grouping), and the temporaries of a group
-    # (transforms of 2 x 7,200 points per series) stay small and are reused
+    shape = (starts.size, 3, n_lags)
+    speed, d, pairs = np.empty(starts.size), np.empty(shape), np.empty(shape)
+    # FFT_WINDOWS windows at a time, each on its own (any grouping): small temporaries
     for lo in range(0, starts.size, FFT_WINDOWS):
         part = slice(lo, lo + FFT_WINDOWS)
         rotated, speed[part] = rotate_to_mean_wind(grid[part])
         d[part], pairs[part] = structure_function_fft(remove_running_mean(rotated, width), n_lags)
-
     valid_fraction = counts / n_slots
     j = np.arange(1, n_lags + 1)
     r_win = speed[:, None] * j[None, :] / rate  # (W, K)
