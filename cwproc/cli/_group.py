@@ -99,9 +99,8 @@ def keep_freed_arrays() -> bool:
     glibc maps large blocks (numpy arrays of a few MB: a column of a day of 10.7 Hz
     samples is 7.4 MB) on their own and unmaps them when freed, and gives the free top
     of its heap back beyond a few MB; the next array then costs fresh pages, which the
-    kernel zeroes on first touch. A day of
-    ``sf-type`` allocates its temporaries many times over: about 0.4 s of system time,
-    as much as the whole parse of the file. With blocks of up to
+    kernel zeroes on first touch. A day of ``sf-type`` allocates its temporaries many
+    times over: about 0.4 s of system time of a 2-s run. With blocks of up to
     :data:`HEAP_BLOCK_BYTES` taken from the heap and up to :data:`HEAP_KEEP_BYTES` of
     free heap kept (``mallopt`` M_MMAP_THRESHOLD and M_TRIM_THRESHOLD, the settings
     of the ``MALLOC_MMAP_THRESHOLD_`` and ``MALLOC_TRIM_THRESHOLD_`` variables), the
@@ -113,8 +112,8 @@ def keep_freed_arrays() -> bool:
     Returns
     -------
     bool
-        True when both settings were taken (glibc), False elsewhere (macOS, Windows,
-        musl: the allocator is left as it is).
+        True when the three settings were taken (glibc), False elsewhere (macOS,
+        Windows, musl: the allocator is left as it is).
     """
     if not sys.platform.startswith("linux"):
         return False
