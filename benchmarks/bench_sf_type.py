@@ -9,9 +9,11 @@ has the optional dask installed, and a plain ``pip install cwproc``):
 2. ``cwproc sf-type FILE -o OUT`` as a whole process (start-up, imports, read, typing,
    writing the product and the tables);
 3. their ratio, of wall times and of CPU times (user + system; the steadier figure on a
-   shared machine), each the best of ``--repeat`` alternated runs (target: <= 2);
+   shared machine), each the best of ``--repeat`` alternated runs (target: <= 2), and
+   the ratio to the read run with OpenBLAS on one thread, as ``sf-type`` runs;
    every process runs outside the checkout, so that each interpreter runs its own
-   ``cwproc`` (an interpreter whose ``cwproc`` is another commit compares commits);
+   ``cwproc`` (an interpreter whose ``cwproc`` is another commit compares commits),
+   byte-compiled first as an install is (:func:`byte_compile`);
 4. with ``--days N``: ``cwproc batch`` over N days (one file per day, the path a user
    runs for a month) serially, on a pool of one and of two workers, and the speed-up of
    two workers (target >= 1.8 on two free cores).
@@ -101,16 +103,48 @@ def best(times: list[tuple[float, float]]) -> tuple[float, float]:
     return min(t[0] for t in times), min(t[1] for t in times)
 
 
+def byte_compile(python: str) -> None:
+    """Byte-compile the ``cwproc`` of ``python``, as an install does.
+
+    pandas, xarray and the rest come with their ``.pyc`` files; a source checkout
+    installed in editable mode has none until a run writes them, and none is ever
+    written where ``PYTHONDONTWRITEBYTECODE`` is set: each timed ``sf-type`` would then
+    compile cwproc's modules from source (~40 ms), which no installed copy does.
+    """
+    where = subprocess.run(
+        [python, "-c", "import cwproc, os; print(os.path.dirname(cwproc.__file__))"],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=tempfile.gettempdir(),
+    ).stdout.strip()
+    subprocess.run([python, "-m", "compileall", "-q", where], check=True)
+
+
 def compare_one_day(path: Path, out: Path, python: str, repeat: int) -> dict[str, float]:
     """Bare ``pandas.read_csv`` and ``cwproc sf-type`` of one file, alternated ``repeat``
-    times (the machine is shared: each figure is the best of its runs)."""
+    times (the machine is shared: each figure is the best of its runs).
+
+    ``sf-type`` starts OpenBLAS with one thread (its idle threads spin for ~0.1 s of
+    CPU); the read is also timed with ``OPENBLAS_NUM_THREADS=1``, so that the ratio
+    is shown without that gain as well.
+    """
     code = f"import pandas; pandas.read_csv({str(path)!r}, skiprows=[0, 2, 3])"
-    reads, types = [], []
+    one_thread = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    reads, reads_1, types = [], [], []
     for _ in range(repeat):
         reads.append(run([python, "-c", code]))
+        reads_1.append(run([python, "-c", code], env=one_thread))
         types.append(run([python, "-m", "cwproc", "sf-type", str(path), "-o", str(out), "-q"]))
-    (rw, rc), (sw, sc) = best(reads), best(types)
-    return {"read wall": rw, "read cpu": rc, "sf wall": sw, "sf cpu": sc}
+    (rw, rc), (r1w, r1c), (sw, sc) = best(reads), best(reads_1), best(types)
+    return {
+        "read wall": rw,
+        "read cpu": rc,
+        "read1 wall": r1w,
+        "read1 cpu": r1c,
+        "sf wall": sw,
+        "sf cpu": sc,
+    }
 
 
 def write_month(folder: Path, days: int) -> list[Path]:
@@ -172,6 +206,7 @@ def main() -> None:
                 ).returncode
                 == 0
             )
+            byte_compile(python)
             f = compare_one_day(path, tmp_path / "out", python, args.repeat)
             print(f"  {python} ({'with' if has_dask else 'without'} dask installed)")
             print(f"    pandas.read_csv process  {f['read wall']:6.2f} s wall, "
@@ -180,6 +215,9 @@ def main() -> None:
                   f"{f['sf cpu']:6.2f} s CPU")  # fmt: skip
             print(f"    ratio sf-type / read_csv {f['sf wall'] / f['read wall']:6.2f} wall, "
                   f"{f['sf cpu'] / f['read cpu']:.2f} CPU (target <= 2)")  # fmt: skip
+            print(f"    read_csv, 1 BLAS thread  {f['read1 wall']:6.2f} s wall, "
+                  f"{f['read1 cpu']:6.2f} s CPU: ratio {f['sf wall'] / f['read1 wall']:.2f} "
+                  f"wall, {f['sf cpu'] / f['read1 cpu']:.2f} CPU")  # fmt: skip
         if args.days:
             month = write_month(tmp_path / f"month_{args.days}", min(args.days, 30))
             t = compare_month(month[0].parent, tmp_path / "month_out", args.python[0])

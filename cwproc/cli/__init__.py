@@ -42,12 +42,17 @@ COMMANDS = {
 
 #: the commands that may use dask (``batch --scheduler``); the others run without it
 DASK_COMMANDS = frozenset({"batch"})
+#: the commands of array work without linear algebra, one day of one sonic at a time:
+#: run with freed arrays kept for reuse (``keep_freed_arrays``: their temporaries are
+#: allocated again and again) and OpenBLAS on one thread (``one_blas_thread``)
+ARRAY_COMMANDS = frozenset({"sf-type"})
 
 
 @click.group(
     cls=CwprocGroup,
     lazy=COMMANDS,
     dask_commands=DASK_COMMANDS,
+    array_commands=ARRAY_COMMANDS,
     context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
 )
 @click.version_option(__version__, "-V", "--version", prog_name="cwproc")

@@ -28,8 +28,8 @@ from __future__ import annotations
 import csv
 import io
 import os
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from typing import Any, BinaryIO
 
 import numpy as np
 import pandas as pd
@@ -200,10 +200,13 @@ def read_toa5(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     check_options(path, options, OPTIONS)
     cols = column_map(path, options, DEFAULT_COLUMNS)
     offset_h = option_number(path, options, "utc_offset_hours", 0.0)
-    raw = read_bytes(path)
-    parsed = toa5_fast(path, raw, cols)
+    try:
+        with open(path, "rb") as fh:
+            parsed = toa5_fast(path, fh, cols)
+    except (OSError, InputFileError):  # worded by the checking reader, after its NUL check
+        parsed = None
     if parsed is None:  # anything but the plain layout: the checking reader below
-        parsed = _toa5_checked(path, raw, cols)
+        parsed = _toa5_checked(path, read_bytes(path), cols)
     env, names, units, times, columns = parsed
     times = check_times(path, times - np.timedelta64(round(offset_h * 3600e9), "ns"), 5)
     unit = dict(zip(names, units, strict=True))
@@ -289,7 +292,7 @@ def _toa5_checked(
 
 
 def toa5_fast(
-    path: str | os.PathLike, raw: bytes, cols: Mapping[str, str]
+    path: str | os.PathLike, source: bytes | BinaryIO, cols: Mapping[str, str]
 ) -> tuple[list[str], list[str], list[str], np.ndarray, dict[str, np.ndarray]] | None:
     """The same as :func:`_toa5_checked` for a plain TOA5 file, several times faster.
 
@@ -300,46 +303,81 @@ def toa5_fast(
     pandas' C parser with float dtypes. Returns None when the file is not plain or a
     field does not parse, and the caller reads it with the checking reader, which
     names the line of the problem; results are identical where both apply.
+
+    ``source`` is the file's bytes or the file open in binary mode; an open file is
+    read block by block (:data:`SCAN_BYTES`), never whole: a day's file (62 MB at
+    10.7 Hz) would be fresh memory the kernel zeroes before it is read into.
     """
+    head = source[:HEADER_BYTES] if isinstance(source, bytes) else source.read(HEADER_BYTES)
     ends = []
     pos = 0
     for _ in range(4):
-        pos = raw.find(b"\n", pos) + 1
+        pos = head.find(b"\n", pos) + 1
         if pos == 0:
             return None
         ends.append(pos)
     try:
-        header = [raw[a:b].decode("utf-8") for a, b in zip([0, *ends[:3]], ends, strict=True)]
+        header = [head[a:b].decode("utf-8") for a, b in zip([0, *ends[:3]], ends, strict=True)]
     except UnicodeDecodeError:
         return None
-    if any(len(line.splitlines()) != 1 for line in header):
+    if any(len(line.splitlines()) != 1 for line in header) or b"\x00" in head[: ends[3]]:
         return None
     env, names, units = _toa5_header(path, header, cols, 5)
-    if len(set(names)) != len(names) or names[0] != "TIMESTAMP" or len(raw) == ends[3]:
+    if len(set(names)) != len(names) or names[0] != "TIMESTAMP":
         return None
-    wanted = _wanted(names, cols)
-    body = np.frombuffer(raw, dtype=np.uint8, offset=ends[3])
-    times = _plain_stamps(body, len(names))
+    layout = _scan_body(_body_blocks(source, ends[3]), len(names))
+    if layout is None:
+        return None
+    newlines, first, last, windows = layout
+    if newlines.size == 0 or np.any(last > newlines) or np.any(first[1:] < newlines[:-1]):
+        return None
+    times = toa5_stamps(windows, first - np.concatenate([[0], newlines[:-1] + 1]))
     if times is None:
         return None
-    frame = _parse_fields(raw, ends[3], names, wanted)
+    wanted = _wanted(names, cols)
+    frame = _parse_fields(source, ends[3], names, wanted)
     if frame is None or len(frame) != times.size:
         return None
     columns = {name: frame[name].to_numpy(dtype=float) for name in wanted}
     return env, names, units, check_times(path, times, 5), columns
 
 
+#: bytes of a TOA5 file in which its four header lines must end (else the checking
+#: reader reads it)
+HEADER_BYTES = 1 << 16
+
+
+def _body_blocks(source: bytes | BinaryIO, start: int) -> Iterator[tuple[int, np.ndarray]]:
+    """``(offset, bytes)`` of the body from byte ``start`` on, in blocks of
+    :data:`SCAN_BYTES` followed by the next :data:`STAMP_WIDTH` bytes (fewer at the
+    end); an open file is read into one reused buffer."""
+    if isinstance(source, bytes):
+        body = np.frombuffer(source, dtype=np.uint8, offset=start)
+        for lo in range(0, body.size, SCAN_BYTES):
+            yield lo, body[lo : lo + SCAN_BYTES + STAMP_WIDTH]
+        return
+    buffer = np.empty(SCAN_BYTES + STAMP_WIDTH, dtype=np.uint8)
+    lo = 0
+    while True:
+        source.seek(start + lo)
+        n = source.readinto(memoryview(buffer))
+        if not n:
+            return
+        yield lo, buffer[:n]
+        lo += SCAN_BYTES
+
+
 def _parse_fields(
-    raw: bytes, start: int, names: list[str], wanted: list[str]
+    raw: bytes | BinaryIO, start: int, names: list[str], wanted: list[str]
 ) -> pd.DataFrame | None:
     """The ``wanted`` fields of the TOA5 data lines that begin at byte ``start`` of
-    ``raw``, as float64 (None if one does not parse).
+    ``raw`` (bytes or an open file), as float64 (None if one does not parse).
 
-    The parser reads from ``start`` of a buffer sharing ``raw`` (no copy of the body)
-    and tokenizes it in chunks (``low_memory``: the same values, as every dtype is
+    The parser reads from ``start`` of the file or of a buffer sharing ``raw`` (no copy
+    of the body) and tokenizes it in chunks (``low_memory``: the same values, as every dtype is
     given, with a third of the memory of a whole-file token table).
     """
-    buffer = io.BytesIO(raw)
+    buffer = io.BytesIO(raw) if isinstance(raw, bytes) else raw
     buffer.seek(start)
     try:
         return pd.read_csv(
@@ -357,39 +395,69 @@ def _parse_fields(
         return None
 
 
-def _plain_stamps(body: np.ndarray, n_fields: int) -> np.ndarray | None:
-    """Logger-time stamps of TOA5 data lines in the plain layout, else None.
+#: bytes of a TOA5 body scanned at once: the temporaries of a scan stay in the
+#: processor's cache and are reused, where whole-body ones (62 MB each for a day at
+#: 10.7 Hz) are fresh memory the kernel zeroes, each time
+SCAN_BYTES = 1 << 20
 
-    Plain: every line ends with LF (or every one with CRLF), no other control character
-    and no non-ASCII byte, ``n_fields - 1`` commas on every line, and a stamp decoded by
-    :func:`toa5_stamps`.
+
+def _scan_body(
+    blocks: Iterable[tuple[int, np.ndarray]], n_fields: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """The layout of the data lines of a TOA5 body, read block by block.
+
+    Parameters
+    ----------
+    blocks : iterable of (int, ndarray of uint8)
+        Offset in the body and bytes of consecutive blocks of :data:`SCAN_BYTES`, each
+        followed by the next :data:`STAMP_WIDTH` bytes of the body (:func:`_body_blocks`).
+    n_fields : int
+        Fields per line.
+
+    Returns
+    -------
+    tuple or None
+        Offsets of the line ends (LF), of the first and of the last comma of each run of
+        ``n_fields - 1`` commas, and the first :data:`STAMP_WIDTH` bytes of every line
+        (zero-padded past the end), shape (lines, STAMP_WIDTH); None when the body holds
+        a byte of no plain line (non-ASCII, DEL, a control character other than the line
+        ends), CR other than before every LF, not ``n_fields - 1`` commas for each line,
+        or does not end with a line end. Each line holds exactly its own run of commas
+        when every run lies between the end of the line before and the end of its line.
     """
-    newlines = np.flatnonzero(body == 10)
-    if newlines.size == 0 or newlines[-1] != body.size - 1:
+    per_line = n_fields - 1
+    if per_line < 1:
         return None
-    crlf = int(np.count_nonzero(body[newlines - 1] == 13))
-    if crlf not in (0, newlines.size):
+    newlines, first, last, windows = [], [], [], []
+    n_commas = n_control = n_cr = 0
+    previous = 10  # the byte before the body ends the header line
+    block = np.zeros(0, np.uint8)
+    for lo, ahead in blocks:
+        block = ahead[:SCAN_BYTES]
+        if block.max() > 126:
+            return None
+        ends = np.flatnonzero(block == 10)
+        commas = np.flatnonzero(block == 44)
+        # the commas whose index in the whole body is 0 or per_line - 1 modulo per_line
+        first.append(commas[(-n_commas) % per_line :: per_line] + lo)
+        last.append(commas[(per_line - 1 - n_commas) % per_line :: per_line] + lo)
+        newlines.append(ends + lo)
+        n_commas += commas.size
+        n_control += int(np.count_nonzero(block < 32))
+        n_cr += int(np.count_nonzero(block[ends[ends > 0] - 1] == 13))
+        n_cr += int(ends.size > 0 and ends[0] == 0 and previous == 13)  # CRLF across blocks
+        starts = ends[ends < block.size - 1] + 1
+        if previous == 10:
+            starts = np.concatenate([[0], starts])
+        padded = np.concatenate([ahead, np.zeros(STAMP_WIDTH, np.uint8)])
+        windows.append(np.lib.stride_tricks.sliding_window_view(padded, STAMP_WIDTH)[starts])
+        previous = int(block[-1])
+    lines = np.concatenate(newlines) if newlines else np.zeros(0, np.int64)
+    if block.size == 0 or previous != 10 or n_cr not in (0, lines.size):
         return None
-    # non-ASCII bytes or DEL, or control characters other than the line ends: not plain
-    if body.max() > 126 or np.count_nonzero(body < 32) != newlines.size + crlf:
+    if n_control != lines.size + n_cr or n_commas != lines.size * per_line:
         return None
-    commas = np.flatnonzero(body == 44)
-    per_line = np.diff(np.searchsorted(commas, newlines), prepend=0)
-    if np.any(per_line != n_fields - 1):
-        return None
-    return toa5_stamps(line_starts(body, newlines, STAMP_WIDTH))
-
-
-def line_starts(body: np.ndarray, newlines: np.ndarray, width: int) -> np.ndarray:
-    """The first ``width`` bytes of every line (zero-padded past the end), shape (n, width)."""
-    starts = np.concatenate([[0], newlines[:-1] + 1])
-    inside = int(np.searchsorted(starts, body.size - width, side="right"))
-    first = int(starts[inside]) if inside < starts.size else body.size
-    padded = np.concatenate([body[:first][-width:], body[first:], np.zeros(width, np.uint8)])
-    offset = first - min(first, width)
-    head = np.lib.stride_tricks.sliding_window_view(body[:first], width)[starts[:inside]]
-    rest = np.lib.stride_tricks.sliding_window_view(padded, width)[starts[inside:] - offset]
-    return np.concatenate([head, rest])
+    return lines, np.concatenate(first), np.concatenate(last), np.concatenate(windows)
 
 
 #: bytes of a data line examined for its stamp: '"' + 19 + '.' + 9 digits + '",'
@@ -423,13 +491,15 @@ def days_from_civil(year: np.ndarray, month: np.ndarray, day: np.ndarray) -> np.
     return era * 146097 + doe - 719468
 
 
-def toa5_stamps(windows: np.ndarray) -> np.ndarray | None:
+def toa5_stamps(windows: np.ndarray, ends: np.ndarray) -> np.ndarray | None:
     """Decode quoted TOA5 stamps ``"yyyy-mm-dd HH:MM:SS[.f]",`` from the line starts.
 
     Parameters
     ----------
     windows : ndarray of uint8, shape (n, STAMP_WIDTH)
         The first bytes of every data line.
+    ends : ndarray of int, shape (n,)
+        Offset of the first comma of every line in it (the end of the stamp field).
 
     Returns
     -------
@@ -440,6 +510,7 @@ def toa5_stamps(windows: np.ndarray) -> np.ndarray | None:
     """
     w = np.ascontiguousarray(windows)
     n = w.shape[0]
+    ends = np.asarray(ends, dtype=np.int64)
     # "yyyy-mm-dd HH:MM" (bytes 0-16) changes once a minute: decoded once per run
     words = w.view(np.uint64)
     new = np.ones(n, dtype=bool)
@@ -452,21 +523,49 @@ def toa5_stamps(windows: np.ndarray) -> np.ndarray | None:
     tens, units = w[:, 18] - np.uint8(48), w[:, 19] - np.uint8(48)
     if np.any(w[:, 17] != ord(":")) or np.any((tens > 5) | (units > 9)):
         return None
+    # the stamp closes at ends - 1: byte 20 (whole seconds) or 22-30 ('.' and 1-9 digits)
+    if np.any((ends < 21) | (ends == 22) | (ends > 31)):
+        return None
+    dotted = ends > 21
+    if np.any(w[:, 20] != np.where(dotted, np.uint8(ord(".")), np.uint8(ord('"')))):
+        return None
+    if np.any(np.take(w.reshape(-1), np.arange(n) * w.shape[1] + ends - 1) != ord('"')):
+        return None
     frac = w[:, 21:30] - np.uint8(48)
-    digit = np.concatenate([frac <= 9, np.zeros((n, 1), bool)], axis=1)
-    n_frac = digit.argmin(axis=1)
-    dotted = w[:, 20] == ord(".")
-    if np.any(~dotted & (w[:, 20] != ord('"'))) or np.any(dotted & (n_frac == 0)):
+    kept = np.take(_FRACTION_DIGITS, np.where(dotted, ends - 22, 0), axis=0)
+    if np.any(kept & (frac > 9)):
         return None
-    close = np.where(dotted, 21 + n_frac, 20)
-    rows = np.arange(n)
-    if np.any(w[rows, close] != ord('"')) or np.any(w[rows, close + 1] != ord(",")):
-        return None
-    kept = np.where(np.arange(9) < np.where(dotted, n_frac, 0)[:, None], frac, np.uint8(0))
-    nanos = _number(kept + np.uint8(48), 0, 9)
+    frac *= kept  # digits past the stamp's last are zeros
+    nanos = eight_digits(frac[:, :8]) * 10 + frac[:, 8]
     nanos += (tens.astype(np.int64) * 10 + units) * 1_000_000_000
     nanos += np.repeat(minutes, np.diff(np.append(first, n)))
     return nanos.astype("datetime64[ns]")
+
+
+#: row k: which of the nine fractional-second digits a stamp with k of them has
+_FRACTION_DIGITS = np.arange(9) < np.arange(10)[:, None]
+
+
+def eight_digits(digits: np.ndarray) -> np.ndarray:
+    """The numbers written by rows of eight decimal digits (values 0-9, most significant
+    first), each row read as one 64-bit word (little-endian: the first digit in the low
+    byte) and reduced in place: pairs, then the four pairs into one number, with three
+    multiplications per row (exact: every intermediate stays below 2**64).
+
+    Parameters
+    ----------
+    digits : ndarray of uint8, shape (n, 8)
+
+    Returns
+    -------
+    ndarray of int64, shape (n,)
+    """
+    v = np.ascontiguousarray(digits, dtype=np.uint8).view("<u8")[:, 0]
+    v = v * np.uint64(10) + (v >> np.uint64(8))  # byte 2i: the pair 10 d_2i + d_2i+1
+    low = v & np.uint64(0x000000FF000000FF)  # pairs 0 and 2
+    high = (v >> np.uint64(16)) & np.uint64(0x000000FF000000FF)  # pairs 1 and 3
+    v = low * np.uint64(100 + (1_000_000 << 32)) + high * np.uint64(1 + (10_000 << 32))
+    return (v >> np.uint64(32)).astype(np.int64)
 
 
 def _minute_ns(w: np.ndarray) -> np.ndarray | None:

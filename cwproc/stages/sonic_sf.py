@@ -92,21 +92,26 @@ def grid_windows(
     counts : ndarray of int, shape (W,)
         Number of grid slots holding a valid sample of every component.
     """
-    t_ns = time.astype("datetime64[ns]").astype(np.int64)
+    t_ns = time.astype("datetime64[ns]", copy=False).view(np.int64)
     win_ns = round(window_s * 1e9)
     n_slots = int(np.floor(window_s * rate_hz + 1e-9))
     widx = np.floor_divide(t_ns, win_ns)
-    if widx.size and np.all(widx[1:] >= widx[:-1]):  # time order (a reader's output)
+    if widx.size and not np.any(widx[1:] < widx[:-1]):  # time order (a reader's output)
         first = np.flatnonzero(np.concatenate([[True], widx[1:] != widx[:-1]]))
-        uniq, inverse = widx[first], np.cumsum(np.concatenate([[False], widx[1:] != widx[:-1]]))
+        uniq = widx[first]
+        inverse = np.repeat(np.arange(first.size), np.diff(np.append(first, widx.size)))
     else:
         uniq, inverse = np.unique(widx, return_inverse=True)
     slot = np.rint((t_ns - widx * win_ns) * 1e-9 * rate_hz).astype(np.int64)
     inside = slot < n_slots
     grid = np.full((uniq.size, 3, n_slots), np.nan)
+    place = inverse * (3 * n_slots) + slot  # flat index of (window, u, slot); v, w follow
     for c in range(3):
         keep = inside & valid[c]
-        grid[inverse[keep], c, slot[keep]] = values[c, keep]
+        if keep.all():
+            grid.reshape(-1)[place + c * n_slots] = values[c]
+        else:
+            grid.reshape(-1)[place[keep] + c * n_slots] = values[c, keep]
     counts = np.all(np.isfinite(grid), axis=1).sum(axis=1)
     starts = (uniq * win_ns).astype("datetime64[ns]")
     return starts, grid, counts
@@ -409,6 +414,8 @@ D_FLOOR = 1e-10
 
 #: windows typed together (memory bound: one day of 10-min windows at a time)
 WINDOW_BATCH = 144
+#: windows detrended and transformed together (:func:`_window_structure_functions`)
+FFT_WINDOWS = 16
 
 
 def window_batches(
@@ -514,8 +521,7 @@ def structure_function_types(
     if len(batches) > 1:
         # bounded memory: at most WINDOW_BATCH windows (a day) of grids and FFTs at once
         parts = [structure_function_types(sonic.isel(time=b), **kwargs) for b in batches]
-        out = xr.concat(parts, dim="window", combine_attrs="override")
-        return out
+        return xr.concat(parts, dim="window", combine_attrs="override")
     return _type_windows(sonic, kwargs, rate=rate, n_slots=n_slots, n_lags=n_lags)
 
 
@@ -554,11 +560,16 @@ def _window_structure_functions(
     starts, grid, counts = grid_windows(
         sonic["time"].values, values, valid, window_s=params["window_s"], rate_hz=rate
     )
-    rotated, speed = rotate_to_mean_wind(grid)
+    del values, valid
     direction = geographic_wind_direction(*window_mean_wind(grid), params["orientation_deg"])
-    detrended = remove_running_mean(rotated, max(round(params["running_mean_s"] * rate), 1))
-    d, pairs = structure_function_fft(detrended, n_lags)
-
+    width = max(round(params["running_mean_s"] * rate), 1)
+    shape = (starts.size, 3, n_lags)
+    speed, d, pairs = np.empty(starts.size), np.empty(shape), np.empty(shape)
+    # FFT_WINDOWS windows at a time, each on its own (any grouping): small temporaries
+    for lo in range(0, starts.size, FFT_WINDOWS):
+        part = slice(lo, lo + FFT_WINDOWS)
+        rotated, speed[part] = rotate_to_mean_wind(grid[part])
+        d[part], pairs[part] = structure_function_fft(remove_running_mean(rotated, width), n_lags)
     valid_fraction = counts / n_slots
     j = np.arange(1, n_lags + 1)
     r_win = speed[:, None] * j[None, :] / rate  # (W, K)

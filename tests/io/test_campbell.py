@@ -372,3 +372,52 @@ def test_fast_toa5_reader_leaves_odd_lines_to_the_checking_reader(tmp_path, toa5
     path = _write(tmp_path, lines)
     assert campbell.toa5_fast(path, path.read_bytes(), campbell.DEFAULT_COLUMNS) is None
     assert campbell.toa5_fast(path, b"".join(toa5_lines[:30]), campbell.DEFAULT_COLUMNS)
+
+
+def test_fast_toa5_reader_counts_the_commas_line_by_line(tmp_path, toa5_lines):
+    """A field moved from one line to the next keeps the file's number of commas, and
+    pandas' parse of the used fields takes both lines (the last field, unused here, is
+    left empty on one; the extra field of the other is ignored): the fast reader still
+    finds them, and the checking reader names line 10."""
+    lines = list(toa5_lines[:30])
+    lines[9] = lines[9].rsplit(b",", 1)[0] + b"\r\n"  # no diag_csat
+    lines[10] = lines[10].replace(b",", b",0,", 1)  # one field more
+    path = _write(tmp_path, lines)
+    cols = {**campbell.DEFAULT_COLUMNS, "diagnostic": "press"}
+    assert campbell.toa5_fast(path, path.read_bytes(), cols) is None
+    with pytest.raises(InputFileError) as err:
+        read_toa5(path, columns={"diagnostic": "press"})
+    assert err.value.line == 10
+
+
+def test_eight_digits_is_the_decimal_number():
+    rng = np.random.default_rng(1)
+    digits = rng.integers(0, 10, size=(10_000, 8)).astype(np.uint8)
+    digits[0], digits[1] = 9, 0
+    expected = digits.astype(np.int64) @ 10 ** np.arange(7, -1, -1)
+    np.testing.assert_array_equal(campbell.eight_digits(digits), expected)
+    assert campbell.eight_digits(digits[:2]).tolist() == [99_999_999, 0]
+
+
+@pytest.mark.parametrize("block", [7, 64, 1000])
+def test_fast_toa5_reader_is_the_same_in_any_blocks(tmp_path, monkeypatch, toa5_lines, block):
+    """The body scanned in blocks of any size (CRLF split across two blocks, runs of
+    commas and stamps across several), from the bytes or read from the open file, gives
+    the checking reader's result, and still refuses a bare CR or a field too many."""
+    monkeypatch.setattr(campbell, "SCAN_BYTES", block)
+    crlf = _write(tmp_path, toa5_lines[:120], "crlf.dat")
+    lf = _write(tmp_path, [line.replace(b"\r\n", b"\n") for line in toa5_lines[:120]], "lf.dat")
+    for path in (crlf, lf):
+        _assert_same(*_checked_and_fast(path))
+        with open(path, "rb") as fh:
+            _assert_same(_checked_and_fast(path)[0], campbell.toa5_fast(path, fh, DEFAULT))
+    for old, new in ((b"\r\n", b"\r"), (b",", b",,")):
+        lines = list(toa5_lines[:120])
+        lines[60] = lines[60].replace(old, new, 1)
+        path = _write(tmp_path, lines, "odd.dat")
+        assert campbell.toa5_fast(path, path.read_bytes(), DEFAULT) is None
+        with open(path, "rb") as fh:
+            assert campbell.toa5_fast(path, fh, DEFAULT) is None
+
+
+DEFAULT = campbell.DEFAULT_COLUMNS

@@ -349,3 +349,31 @@ def test_running_mean_and_grid_shortcuts_equal_the_general_paths():
     for a, b in zip(ordered, shuffled, strict=True):
         np.testing.assert_array_equal(a, b)
     assert ordered[1].shape == (5, 3, 600)
+    # every sample valid: sample i in slot i mod 600 of window i // 600
+    _, grid, counts = S.grid_windows(
+        time, values, np.ones((3, 3000), bool), window_s=60.0, rate_hz=10.0
+    )
+    np.testing.assert_array_equal(grid, values.reshape(3, 5, 600).transpose(1, 0, 2))
+    np.testing.assert_array_equal(counts, [600] * 5)
+    np.testing.assert_array_equal(ordered[1][~np.isnan(ordered[1])].size, valid.sum())
+
+
+def test_windows_transformed_in_any_groups_give_identical_results(sims, monkeypatch):
+    """Windows detrended and transformed one by one, a few or all at once (groups that
+    mix complete windows with windows missing samples) give the same product, bit for
+    bit: every step works window by window."""
+    ds, _ = sims[2]
+    ds = ds.copy(deep=True)
+    u = ds["u"].values.copy()
+    u[2 * 6420 : 4 * 6420 : 97] = np.nan  # windows 2 and 3 miss 1 % of their samples
+    ds["u"] = ("time", u)
+    keep = np.ones(ds.sizes["time"], bool)
+    keep[5 * 6420 + 300 : 5 * 6420 + 700] = False  # a gap in window 5
+    ds = ds.isel(time=keep)
+    products = []
+    for group in (1, 3, 24):
+        monkeypatch.setattr(S, "FFT_WINDOWS", group)
+        products.append(S.structure_function_types(ds))
+    assert (products[0]["valid_fraction"].values < 1).sum() == 3
+    for other in products[1:]:
+        xr.testing.assert_identical(other, products[0])
