@@ -166,7 +166,7 @@ def screen_radial_velocity(
         raise CwprocError(
             "Screening needs a scan dataset with radial_velocity(ray, range); this input has none."
         )
-    velocity = ds["radial_velocity"].values.astype(float)
+    velocity = ds["radial_velocity"].values.astype(float, copy=False)  # not written to
     flag = np.where(np.isfinite(velocity), 0, FLAG_NOT_FINITE).astype(np.int8)
     has_snr = "snr" in ds
     if has_snr:

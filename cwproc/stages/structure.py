@@ -160,18 +160,23 @@ def block_median(values: np.ndarray, n_scans: int) -> np.ndarray:
 
 
 def _nanmedian_columns(values: np.ndarray) -> np.ndarray:
-    """``numpy.nanmedian(values, axis=0)`` by one sort (NaN last), without a warning.
+    """``numpy.nanmedian(values, axis=0)`` by partitions (NaN last), without a warning.
 
-    The mean of the two middle values, ``(lo + hi) / 2``, as :func:`numpy.median` forms
-    it (the same value); NaN for a column without a number. (Partitions of the columns
-    with equal counts were no faster: numpy's vectorised sort of 1800 values is.)
+    The columns with the same count of numbers ``n`` (commonly all of them) are
+    partitioned at once at their two middle order statistics, ``(n - 1) // 2`` and
+    ``n // 2``, whose mean ``(lo + hi) / 2`` is the median as :func:`numpy.median` forms
+    it (the same value); NaN for a column without a number. For the 1800 values of a
+    block of 10 scans of 180 rays, the partition took half the time of a sort.
     """
-    ordered = np.sort(values, axis=0)
     n = np.count_nonzero(~np.isnan(values), axis=0)
-    lo = np.take_along_axis(ordered, np.maximum((n - 1) // 2, 0)[None, :], axis=0)[0]
-    hi = np.take_along_axis(ordered, np.maximum(n // 2, 0)[None, :], axis=0)[0]
-    with np.errstate(invalid="ignore"):
-        return np.where(n > 0, (lo + hi) / 2, np.nan)
+    out = np.full(values.shape[1], np.nan)
+    for count in np.unique(n[n > 0]):
+        columns = np.flatnonzero(n == count)
+        part = values if columns.size == values.shape[1] else values[:, columns]
+        lo, hi = (int(count) - 1) // 2, int(count) // 2
+        ordered = np.partition(part, [lo, hi], axis=0)
+        out[columns] = (ordered[lo] + ordered[hi]) / 2
+    return out
 
 
 def pair_azimuth_weights(
@@ -568,8 +573,8 @@ def _block_statistics_by_chunk(
         t0_, t1_ = b0 * n_scans, min(b1 * n_scans, grid.n_time)
         lo, hi = np.searchsorted(sorted_scan, [t0_, t1_])
         cells = uniq[order_cells[lo:hi]]
-        vr = screened_ds["radial_velocity"].values[rays[cells]][:, gates].astype(float)
-        flag = screened_ds["qc_flag_radial"].values[rays[cells]][:, gates]
+        vr = _rows_at(screened_ds["radial_velocity"].values, rays[cells], gates, float)
+        flag = _rows_at(screened_ds["qc_flag_radial"].values, rays[cells], gates)
         vr = np.where((flag == 0) & np.isfinite(vr), vr, np.nan)
         b = block_of_time[scan_pos[cells]]
         model = radial_velocity(
@@ -601,11 +606,23 @@ def _block_statistics_by_chunk(
         )
         if has_snr:
             snr = np.full_like(vprime, np.nan)
-            snr_vals = screened_ds["snr"].values[rays[cells]][:, gates].astype(float)
+            snr_vals = _rows_at(screened_ds["snr"].values, rays[cells], gates, float)
             snr[scan_pos[cells] - t0_, m[cells]] = np.where(np.isfinite(vr), snr_vals, np.nan)
             out["snr_median"][b0:b1] = block_median(snr, n_scans)
     out["wind_to"] = wind_to
     return out
+
+
+def _rows_at(
+    values: np.ndarray, rows: np.ndarray, gates: np.ndarray, dtype: type | None = None
+) -> np.ndarray:
+    """``values[rows][:, gates]`` (as ``dtype``) in one copy: the gates are commonly all
+    of them, in order."""
+    if gates.size == values.shape[1] and np.array_equal(gates, np.arange(gates.size)):
+        out = values[rows]
+    else:
+        out = values[np.ix_(rows, gates)]
+    return out if dtype is None else out.astype(dtype, copy=False)
 
 
 def _block_times(

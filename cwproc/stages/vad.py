@@ -391,7 +391,7 @@ def fit_vad(
         elevation,
     )
     homodyne = is_homodyne(ds) if homodyne is None else bool(homodyne)
-    velocity = ds["radial_velocity"].values.astype(float)
+    velocity = ds["radial_velocity"].values.astype(float, copy=False)  # not written to
     valid_all = usable_mask(ds)
     n_gates = velocity.shape[1]
     parts: list[dict[str, np.ndarray]] = []

@@ -336,7 +336,7 @@ def test_pair_node_weights_are_the_dense_azimuth_bin_weights():
 
 
 def test_block_median_is_numpy_nanmedian():
-    """The block SNR median (one sort, NaN last) equals numpy.nanmedian over scans and
+    """The block SNR median (partitions, NaN last) equals numpy.nanmedian over scans and
     azimuths to the bit: odd and even counts, a column with one value, one without any
     (NaN), a short last block."""
     import warnings
