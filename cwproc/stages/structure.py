@@ -29,7 +29,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 import xarray as xr
 
 from cwproc.errors import CwprocError
@@ -625,6 +624,21 @@ def _rows_at(
     return out if dtype is None else out.astype(dtype, copy=False)
 
 
+def _group_median(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.ndarray:
+    """Median of the ``values`` (NaN skipped) of each group ``0 .. n_groups - 1`` (NaN: none).
+
+    The middle value, or the mean ``(a + b) / 2`` of the two middle ones, as
+    :func:`numpy.median` and pandas' grouped median form it (the same value); one
+    partition per group present (a chunk's blocks are a few).
+    """
+    out = np.full(n_groups, np.nan)
+    keep = ~np.isnan(values)
+    values, group = values[keep], group[keep]
+    for g in np.unique(group):
+        out[g] = np.median(values[group == g])
+    return out
+
+
 def _block_times(
     wind: xr.Dataset,
     grid: RayGrid,
@@ -646,12 +660,9 @@ def _block_times(
     dm = (sign * wrapped_azimuth_difference(az[1:], az[:-1]) / dtheta)[same]
     dt = np.diff(t_sec)[same]
     good = (dm > 0.5) & (dt > 0)
-    per_step = (
-        pd.Series(dt[good] / np.rint(dm[good]))
-        .groupby(block_of_time[scan_pos[1:][same][good]])
-        .median()
+    step_time = _group_median(
+        dt[good] / np.rint(dm[good]), block_of_time[scan_pos[1:][same][good]], n_blocks
     )
-    step_time = per_step.reindex(np.arange(n_blocks)).to_numpy()
 
     t0 = wind_t0
     rel = (wind_time - t0) / np.timedelta64(1, "ns")
@@ -661,13 +672,7 @@ def _block_times(
     # time between the starts of consecutive scans (a sector scan's return included)
     gaps_s = np.diff(rel) / 1e9
     inside = block_of_time[1:] == block_of_time[:-1]
-    scan_interval = (
-        pd.Series(gaps_s[inside])
-        .groupby(block_of_time[1:][inside])
-        .median()
-        .reindex(np.arange(n_blocks))
-        .to_numpy()
-    )
+    scan_interval = _group_median(gaps_s[inside], block_of_time[1:][inside], n_blocks)
     return {
         "centre": centre,
         "scan_period": step_time * grid.n_az,
