@@ -628,14 +628,17 @@ def _group_median(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.nd
     """Median of the ``values`` (NaN skipped) of each group ``0 .. n_groups - 1`` (NaN: none).
 
     The middle value, or the mean ``(a + b) / 2`` of the two middle ones, as
-    :func:`numpy.median` and pandas' grouped median form it (the same value); one
-    partition per group present (a chunk's blocks are a few).
+    :func:`numpy.median` and pandas' grouped median form it (the same value); the values
+    sorted by group once and one partition per group present.
     """
     out = np.full(n_groups, np.nan)
     keep = ~np.isnan(values)
-    values, group = values[keep], group[keep]
-    for g in np.unique(group):
-        out[g] = np.median(values[group == g])
+    order = np.argsort(group[keep], kind="stable")
+    values, group = values[keep][order], group[keep][order]
+    ids, starts = np.unique(group, return_index=True)
+    stops = np.append(starts[1:], group.size)[: starts.size]  # none: no group
+    for g, start, stop in zip(ids, starts, stops, strict=True):
+        out[g] = np.median(values[start:stop])
     return out
 
 

@@ -376,3 +376,6 @@ def test_group_median_is_the_grouped_median_of_pandas():
     got = _group_median(values, group, 8)
     assert np.array_equal(got, expected, equal_nan=True)
     assert np.isnan(got[[2, 5, 7]]).all() and got[6] == values[-1]
+    assert np.isnan(_group_median(np.full(3, np.nan), np.arange(3), 4)).all()
+    shuffled = np.random.default_rng(1).permutation(40)  # groups in any order
+    assert np.array_equal(_group_median(values[shuffled], group[shuffled], 8), got, True)
