@@ -288,11 +288,13 @@ def _linear_passes(
     first on the scan and gate groups whose flags the pass before changed.
 
     The least-squares fit of a (scan, gate) group is its own (Smalikho (2020), eq. 1,
-    per scan and gate), so a group whose rays were flagged alike in the last two passes
-    is fitted on the same rays again, has the same residuals to the bit and is flagged
-    as before; only the scans with a changed group are refitted and only the changed
-    groups tested (about 3 of 2000 groups of a chunk of 20 scans after the first pass).
-    The flags are those of refitting and testing every group in every pass.
+    per scan and gate; numpy's stacked matrix products take one product per scan, so a
+    scan's fit does not depend on the other scans given with it), so a group whose rays
+    were flagged alike in the last two passes is fitted on the same rays again, has the
+    same residuals to the bit and is flagged as before; only the scans with a changed
+    group are refitted and only the changed groups tested (about 3 of 2000 groups of a
+    chunk of 20 scans after the first pass). The flags are those of refitting and
+    testing every group in every pass.
     """
     todo: np.ndarray | None = None  # (scan, gate) groups to test again; None: all
     for _ in range(OUTLIER_PASSES):
