@@ -29,7 +29,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 import xarray as xr
 
 from cwproc.errors import CwprocError
@@ -160,18 +159,23 @@ def block_median(values: np.ndarray, n_scans: int) -> np.ndarray:
 
 
 def _nanmedian_columns(values: np.ndarray) -> np.ndarray:
-    """``numpy.nanmedian(values, axis=0)`` by one sort (NaN last), without a warning.
+    """``numpy.nanmedian(values, axis=0)`` by partitions (NaN last), without a warning.
 
-    The mean of the two middle values, ``(lo + hi) / 2``, as :func:`numpy.median` forms
-    it (the same value); NaN for a column without a number. (Partitions of the columns
-    with equal counts were no faster: numpy's vectorised sort of 1800 values is.)
+    The columns with the same count of numbers ``n`` (commonly all of them) are
+    partitioned at once at their two middle order statistics, ``(n - 1) // 2`` and
+    ``n // 2``, whose mean ``(lo + hi) / 2`` is the median as :func:`numpy.median` forms
+    it (the same value); NaN for a column without a number. For the 1800 values of a
+    block of 10 scans of 180 rays, the partition took half the time of a sort.
     """
-    ordered = np.sort(values, axis=0)
     n = np.count_nonzero(~np.isnan(values), axis=0)
-    lo = np.take_along_axis(ordered, np.maximum((n - 1) // 2, 0)[None, :], axis=0)[0]
-    hi = np.take_along_axis(ordered, np.maximum(n // 2, 0)[None, :], axis=0)[0]
-    with np.errstate(invalid="ignore"):
-        return np.where(n > 0, (lo + hi) / 2, np.nan)
+    out = np.full(values.shape[1], np.nan)
+    for count in np.unique(n[n > 0]):
+        columns = np.flatnonzero(n == count)
+        part = values if columns.size == values.shape[1] else values[:, columns]
+        lo, hi = (int(count) - 1) // 2, int(count) // 2
+        ordered = np.partition(part, [lo, hi], axis=0)
+        out[columns] = (ordered[lo] + ordered[hi]) / 2
+    return out
 
 
 def pair_azimuth_weights(
@@ -568,8 +572,8 @@ def _block_statistics_by_chunk(
         t0_, t1_ = b0 * n_scans, min(b1 * n_scans, grid.n_time)
         lo, hi = np.searchsorted(sorted_scan, [t0_, t1_])
         cells = uniq[order_cells[lo:hi]]
-        vr = screened_ds["radial_velocity"].values[rays[cells]][:, gates].astype(float)
-        flag = screened_ds["qc_flag_radial"].values[rays[cells]][:, gates]
+        vr = _rows_at(screened_ds["radial_velocity"].values, rays[cells], gates, float)
+        flag = _rows_at(screened_ds["qc_flag_radial"].values, rays[cells], gates)
         vr = np.where((flag == 0) & np.isfinite(vr), vr, np.nan)
         b = block_of_time[scan_pos[cells]]
         model = radial_velocity(
@@ -601,10 +605,40 @@ def _block_statistics_by_chunk(
         )
         if has_snr:
             snr = np.full_like(vprime, np.nan)
-            snr_vals = screened_ds["snr"].values[rays[cells]][:, gates].astype(float)
+            snr_vals = _rows_at(screened_ds["snr"].values, rays[cells], gates, float)
             snr[scan_pos[cells] - t0_, m[cells]] = np.where(np.isfinite(vr), snr_vals, np.nan)
             out["snr_median"][b0:b1] = block_median(snr, n_scans)
     out["wind_to"] = wind_to
+    return out
+
+
+def _rows_at(
+    values: np.ndarray, rows: np.ndarray, gates: np.ndarray, dtype: type | None = None
+) -> np.ndarray:
+    """``values[rows][:, gates]`` (as ``dtype``) in one copy: the gates are commonly all
+    of them, in order."""
+    if gates.size == values.shape[1] and np.array_equal(gates, np.arange(gates.size)):
+        out = values[rows]
+    else:
+        out = values[np.ix_(rows, gates)]
+    return out if dtype is None else out.astype(dtype, copy=False)
+
+
+def _group_median(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.ndarray:
+    """Median of the ``values`` (NaN skipped) of each group ``0 .. n_groups - 1`` (NaN: none).
+
+    The middle value, or the mean ``(a + b) / 2`` of the two middle ones, as
+    :func:`numpy.median` and pandas' grouped median form it (the same value); the values
+    sorted by group once and one partition per group present.
+    """
+    out = np.full(n_groups, np.nan)
+    keep = ~np.isnan(values)
+    order = np.argsort(group[keep], kind="stable")
+    values, group = values[keep][order], group[keep][order]
+    ids, starts = np.unique(group, return_index=True)
+    stops = np.append(starts[1:], group.size)[: starts.size]  # none: no group
+    for g, start, stop in zip(ids, starts, stops, strict=True):
+        out[g] = np.median(values[start:stop])
     return out
 
 
@@ -629,12 +663,9 @@ def _block_times(
     dm = (sign * wrapped_azimuth_difference(az[1:], az[:-1]) / dtheta)[same]
     dt = np.diff(t_sec)[same]
     good = (dm > 0.5) & (dt > 0)
-    per_step = (
-        pd.Series(dt[good] / np.rint(dm[good]))
-        .groupby(block_of_time[scan_pos[1:][same][good]])
-        .median()
+    step_time = _group_median(
+        dt[good] / np.rint(dm[good]), block_of_time[scan_pos[1:][same][good]], n_blocks
     )
-    step_time = per_step.reindex(np.arange(n_blocks)).to_numpy()
 
     t0 = wind_t0
     rel = (wind_time - t0) / np.timedelta64(1, "ns")
@@ -644,13 +675,7 @@ def _block_times(
     # time between the starts of consecutive scans (a sector scan's return included)
     gaps_s = np.diff(rel) / 1e9
     inside = block_of_time[1:] == block_of_time[:-1]
-    scan_interval = (
-        pd.Series(gaps_s[inside])
-        .groupby(block_of_time[1:][inside])
-        .median()
-        .reindex(np.arange(n_blocks))
-        .to_numpy()
-    )
+    scan_interval = _group_median(gaps_s[inside], block_of_time[1:][inside], n_blocks)
     return {
         "centre": centre,
         "scan_period": step_time * grid.n_az,

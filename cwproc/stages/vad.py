@@ -167,6 +167,9 @@ def speed_direction_errors(
 def azimuth_gap(azimuth_deg: FloatArray, valid: BoolArray) -> FloatArray:
     """Largest azimuth gap (deg) between the valid rays of each (scan, gate), wrapping 360.
 
+    The gates whose every ray is valid (most of them) take the gap of their scan's
+    rays, found once per scan; the others are sorted one by one (the same values).
+
     Parameters
     ----------
     azimuth_deg : ndarray, shape (S, R)
@@ -178,6 +181,17 @@ def azimuth_gap(azimuth_deg: FloatArray, valid: BoolArray) -> FloatArray:
     ndarray, shape (S, G)
         360 where fewer than two rays are valid.
     """
+    full = valid.all(axis=1)
+    out = np.empty(full.shape)
+    out[...] = _sorted_gap(azimuth_deg, np.ones((*azimuth_deg.shape, 1), dtype=bool))
+    scan, gate = np.nonzero(~full)
+    if scan.size:
+        out[scan, gate] = _sorted_gap(azimuth_deg[scan], valid[scan, :, gate][..., None])[:, 0]
+    return out
+
+
+def _sorted_gap(azimuth_deg: FloatArray, valid: BoolArray) -> FloatArray:
+    """:func:`azimuth_gap` of every (scan, gate) by sorting its valid azimuths."""
     az = np.where(valid, azimuth_deg[:, :, None], np.nan)
     az = np.sort(az, axis=1)  # NaN last
     n = valid.sum(axis=1)
@@ -391,7 +405,7 @@ def fit_vad(
         elevation,
     )
     homodyne = is_homodyne(ds) if homodyne is None else bool(homodyne)
-    velocity = ds["radial_velocity"].values.astype(float)
+    velocity = ds["radial_velocity"].values.astype(float, copy=False)  # not written to
     valid_all = usable_mask(ds)
     n_gates = velocity.shape[1]
     parts: list[dict[str, np.ndarray]] = []

@@ -178,3 +178,37 @@ def test_real_stare_file_is_screened_without_change(real_data: Path) -> None:
     low = ~(ds["snr"].values >= 0.008)
     np.testing.assert_array_equal((flag & 1) == 1, low)
     assert np.all(flag & 2 == 0)  # a stare has no conical scan: no outlier test
+
+
+def test_outlier_passes_on_changed_groups_flag_as_refitting_every_group() -> None:
+    """The linear outlier passes after the first refit only the scans whose groups
+    changed and test only those groups: the flags equal those of refitting and testing
+    every (scan, gate) group in every pass (a least-squares fit per group is its own),
+    on noisy scans with wild estimates where the flags change from pass to pass."""
+    from cwproc.physics.geometry import beam_unit_vector
+    from cwproc.stages import qc
+    from cwproc.stages.vad_fit import fit_least_absolute, linear_residuals
+
+    rng = np.random.default_rng(3)
+    n_scans, n_rays, n_gates = 12, 24, 15
+    az = np.tile(np.arange(n_rays) * 15.0, (n_scans, 1)) + rng.uniform(0, 1, (n_scans, 1))
+    design = beam_unit_vector(az, np.full(az.shape, 60.0))
+    values = design @ np.array([6.0, -2.0, 0.2]) + 0.3 * rng.standard_normal((n_gates, 1, 1))
+    values = np.moveaxis(values, 0, -1) + 0.4 * rng.standard_normal((n_scans, n_rays, n_gates))
+    wild = rng.random(values.shape) < 0.12
+    values[wild] = rng.uniform(-8, 8, wild.sum())
+    base = rng.random(values.shape) > 0.05
+    _, residuals = fit_least_absolute(values, design, base, homodyne=False)
+    use, n = qc.tested_entries(base)
+    first = qc._outliers(residuals, use, n, 4.0, 0.04)
+    reference, history = first, [first]
+    for _ in range(qc.OUTLIER_PASSES):  # every group refitted and tested in every pass
+        again = qc._outliers(linear_residuals(values, design, base & ~reference), use, n, 4.0, 0.04)
+        history.append(again)
+        if np.array_equal(again, reference):
+            break
+        reference = again
+    changed = [np.any(a != b, axis=1).sum() for a, b in zip(history[1:], history[:-1], strict=True)]
+    assert changed[0] > changed[1] > 0  # later passes change fewer groups, but some
+    got = qc._linear_passes(values, design, base, first, use, n, 4.0, 0.04)
+    assert np.array_equal(got, reference)

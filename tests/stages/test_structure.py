@@ -336,7 +336,7 @@ def test_pair_node_weights_are_the_dense_azimuth_bin_weights():
 
 
 def test_block_median_is_numpy_nanmedian():
-    """The block SNR median (one sort, NaN last) equals numpy.nanmedian over scans and
+    """The block SNR median (partitions, NaN last) equals numpy.nanmedian over scans and
     azimuths to the bit: odd and even counts, a column with one value, one without any
     (NaN), a short last block."""
     import warnings
@@ -355,3 +355,27 @@ def test_block_median_is_numpy_nanmedian():
         expected = [np.nanmedian(values[k : k + 10].reshape(-1, 7), axis=0) for k in (0, 10, 20)]
     assert np.array_equal(got, np.array(expected), equal_nan=True)
     assert np.isnan(got[:, 2]).all() and got[0, 3] == 0.5
+
+
+def test_group_median_is_the_grouped_median_of_pandas():
+    """The per-block median of the scan period and interval (NaN skipped, NaN for a
+    block without values) equals pandas' grouped median, reindexed to every block, to
+    the bit: odd and even counts, one value, an infinite one, a block without any."""
+    import pandas as pd
+
+    from cwproc.stages.structure import _group_median
+
+    rng = np.random.default_rng(12)
+    values = np.round(rng.normal(45.0, 0.3, 40), 3)
+    values[[3, 17]] = np.nan
+    values[25] = np.inf
+    group = np.sort(rng.integers(0, 5, 40))
+    group[group == 2] = 1  # block 2 has no value
+    group[-1] = 6  # block 6 has one
+    expected = pd.Series(values).groupby(group).median().reindex(np.arange(8)).to_numpy()
+    got = _group_median(values, group, 8)
+    assert np.array_equal(got, expected, equal_nan=True)
+    assert np.isnan(got[[2, 5, 7]]).all() and got[6] == values[-1]
+    assert np.isnan(_group_median(np.full(3, np.nan), np.arange(3), 4)).all()
+    shuffled = np.random.default_rng(1).permutation(40)  # groups in any order
+    assert np.array_equal(_group_median(values[shuffled], group[shuffled], 8), got, True)

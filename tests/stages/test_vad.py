@@ -510,3 +510,26 @@ def test_homodyne_weak_wind_strong_updraft(u: float, v: float, w: float) -> None
     np.testing.assert_allclose(
         [wind["u"].item(), wind["v"].item(), wind["w"].item()], [u, v, w], atol=1e-9
     )
+
+
+def test_azimuth_gap_of_full_and_partial_gates_is_the_sorted_gap() -> None:
+    """azimuth_gap: gates with every ray valid take their scan's gap, the others their
+    own; each equals the largest step between its sorted valid azimuths or across 360
+    (first + 360 - last), to the bit; 360 with fewer than two rays."""
+    from cwproc.stages.vad import azimuth_gap
+
+    rng = np.random.default_rng(8)
+    n_scans, n_rays, n_gates = 6, 24, 9
+    azimuth = np.mod(np.arange(n_rays) * 15.0 + rng.uniform(0, 15, (n_scans, 1)), 360.0)
+    valid = rng.random((n_scans, n_rays, n_gates)) > 0.3
+    valid[:, :, :4] = True  # full gates
+    valid[0, :, 5] = False
+    valid[1, :, 5] = False
+    valid[1, 3, 5] = True  # one ray
+    got = azimuth_gap(azimuth, valid)
+    for s in range(n_scans):
+        for g in range(n_gates):
+            az = np.sort(azimuth[s, valid[s, :, g]])
+            want = 360.0 if az.size < 2 else max(np.diff(az).max(), az[0] + 360.0 - az[-1])
+            assert got[s, g] == want, (s, g)
+    assert got[0, 5] == got[1, 5] == 360.0
