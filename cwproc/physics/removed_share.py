@@ -57,7 +57,10 @@ def _removed_share_curve(phi_deg: float, model: str) -> tuple[np.ndarray, np.nda
             pos = x[:, None, None] * (circle - mu * theta[:, None] * wind)[None]
             r_vec = pos[:, :, None, :] - pos[:, None, :, :]  # (x, i, j, 3)
             r = np.linalg.norm(r_vec, axis=-1)
-            f, g = spectra.correlation_functions(r, model, 1.0)
+            # each distinct separation once (r_ij = r_ji; at mu 0 a few per x)
+            r_u, at = np.unique(r, return_inverse=True)
+            f_u, g_u = spectra.correlation_functions(r_u, model, 1.0)
+            f, g = f_u[at].reshape(r.shape), g_u[at].reshape(r.shape)
             unit = np.where(r[..., None] > 0, r_vec / np.where(r > 0, r, 1.0)[..., None], 0.0)
             proj_i = np.einsum("xijk,ik->xij", unit, s)
             proj_j = np.einsum("xijk,jk->xij", unit, s)

@@ -223,8 +223,9 @@ def estimate_epsilon(
         raise ValueError("lag_number must be >= 2 (Smalikho (2020), eq. 5)")
     options = table_options_for(sf, table_options)  # the A-table of all heights
     settings = (probe, lag_number, model, min_pairs, n_outer_scales, options, fit_noise)
+    memo: dict = {}  # what the groups share: per distinct (dy, range) pair (fit_setup)
     parts = [
-        _block_group(sf.isel(time=rows), *settings, noise_window_blocks)
+        _block_group(sf.isel(time=rows), *settings, noise_window_blocks, memo)
         for rows in block_groups(sf, probe)
     ]
     out = parts[0][0] if len(parts) == 1 else _join_blocks([p[0] for p in parts])
@@ -303,8 +304,10 @@ def _block_group(
     options: dict,
     fit_noise: bool,
     noise_window_blocks: int,
+    memo: dict | None = None,
 ) -> tuple[xr.Dataset, int, int, float]:
-    """The turbulence product of the blocks of ``sf`` (:func:`estimate_epsilon`).
+    """The turbulence product of the blocks of ``sf`` (:func:`estimate_epsilon`);
+    ``memo`` as :func:`cwproc.stages.epsilon.outer_scale.fit_setup`.
 
     Returns the product without its descriptive attributes, the numbers of
     finite-outer-scale and exact cw cells, and ``c`` of ``L_V = c sigma_V^3 / eps``.
@@ -317,7 +320,17 @@ def _block_group(
     a_functions = cell_a_functions(probe, cells, model, options)
     cov = statistics_covariance(sf)
     fixed = fit_setup(
-        probe, cells, model, options, a_functions, valid, exact, noise_pred, n_outer_scales, cov
+        probe,
+        cells,
+        model,
+        options,
+        a_functions,
+        valid,
+        exact,
+        noise_pred,
+        n_outer_scales,
+        cov,
+        memo,
     )
     res = retrieve(fixed, cells.d, cells.var_raw)
     est = {**res, "sf_model_exact": np.full(cells.d.shape, np.nan)}

@@ -60,6 +60,7 @@ def finite_scale_inputs(
     inverse: np.ndarray,
     cells: Cells,
     n_outer_scales: int,
+    memo: dict | None = None,
 ) -> dict:
     """What the finite-outer-scale fit needs besides D and the variance (per cell).
 
@@ -70,18 +71,24 @@ def finite_scale_inputs(
     of the block; sectors and gaps (:func:`partial_circle` of the ``weights`` and ``dtheta``
     of the ``cells``): :func:`sector_removed_share` with the scans' ``interval`` over
     T_scan); the full variance per eps^(2/3) on that grid; the coarse L_V nodes.
+    ``memo``: see :func:`fit_setup`.
     """
     n_t, n_h = cells.range_m.shape
     scans, radius, mu_eval, weights = cells.scans, cells.radius, cells.mu_eval, cells.weights
     lo, hi = options.get("outer_scale_range_m", (10.0, 3000.0))
     scale_grid = np.geomspace(lo, hi, int(np.ceil(np.log(hi / lo) / np.log(1.1))) + 1)
-    cells_u = np.nonzero(uniq[:, 0] >= 0)[0]
-    passed_u = np.full((uniq.shape[0], scale_grid.size), np.nan)
-    for start in range(0, cells_u.size, EVALUATION_CELLS):  # bounded working memory
-        part = cells_u[start : start + EVALUATION_CELLS]
-        passed_u[part] = passed_variance(
-            probe, np.abs(uniq[part, 0]), np.abs(uniq[part, 1]), model, scale_grid
-        )
+
+    def passed_per_pair() -> np.ndarray:
+        cells_u = np.nonzero(uniq[:, 0] >= 0)[0]
+        passed_u = np.full((uniq.shape[0], scale_grid.size), np.nan)
+        for start in range(0, cells_u.size, EVALUATION_CELLS):  # bounded working memory
+            part = cells_u[start : start + EVALUATION_CELLS]
+            passed_u[part] = passed_variance(
+                probe, np.abs(uniq[part, 0]), np.abs(uniq[part, 1]), model, scale_grid
+            )
+        return passed_u
+
+    passed_u = _remembered(memo, ("passed", model, scale_grid.tobytes(), uniq), passed_per_pair)
     passed_cell = passed_u[inverse.ravel()].reshape(n_t, n_h, scale_grid.size)
     full_var = np.array([spectra.variance_per_eps23(model, x) for x in scale_grid])
     n_eff = np.where(np.isfinite(scans) & (scans >= 1), scans, 1.0)
@@ -325,6 +332,18 @@ def retrieve(
     }
 
 
+def _remembered(memo: dict | None, key: tuple, compute: Callable[[], np.ndarray]) -> np.ndarray:
+    """``compute()``, kept in ``memo`` under ``key`` (whose last item is the array of the
+    distinct (dy, range) pairs) and taken from it for the same key again."""
+    if memo is None:
+        return compute()
+    *head, pairs = key
+    full = (*head, pairs.shape, pairs.tobytes())
+    if full not in memo:
+        memo[full] = compute()
+    return memo[full]
+
+
 def fit_setup(
     probe: Any,
     cells: Cells,
@@ -336,6 +355,7 @@ def fit_setup(
     noise_pred: np.ndarray,
     n_outer_scales: int,
     cov: np.ndarray | None = None,
+    memo: dict | None = None,
 ) -> dict:
     """Everything :func:`retrieve` needs besides ``D`` and the variance of ``V'_L``.
 
@@ -350,6 +370,10 @@ def fit_setup(
     covariance of the block means of ``(D_L(1..L), variance)``
     (:func:`cwproc.stages.epsilon.cells.statistics_covariance`); its ``D_L`` block decides
     where the noise is fitted (:func:`cwproc.physics.structure_fit.fit_structure_function`).
+    ``memo`` (a dict, empty at first) keeps what depends on the distinct (dy, range)
+    pairs only (the averaging loss, the passed variance) for the next group of blocks of
+    the same probe and model, which has the same pairs where
+    :func:`cwproc.stages.epsilon.block_groups` splits a day.
     """
     a1, a2, sector, groups = a_functions
     n_t, n_h, n_l = cells.d.shape
@@ -359,13 +383,19 @@ def fit_setup(
     dy_filter = dy if options["swept"] else np.where(np.isfinite(dy), 0.0, np.nan)
     pairs_dr = np.stack([np.round(dy_filter, 6).ravel(), np.round(cells.range_m, 6).ravel()], 1)
     uniq, inverse = np.unique(np.nan_to_num(pairs_dr, nan=-1.0), axis=0, return_inverse=True)
-    loss_u = np.where(
-        uniq[:, 0] >= 0, averaging_loss(probe, np.abs(uniq[:, 0]), np.abs(uniq[:, 1])), np.nan
+    loss_u = _remembered(
+        memo,
+        ("loss", uniq),
+        lambda: np.where(
+            uniq[:, 0] >= 0, averaging_loss(probe, np.abs(uniq[:, 0]), np.abs(uniq[:, 1])), np.nan
+        ),
     )
     loss = loss_u[inverse.ravel()].reshape(dy.shape)
     finite = None
     if model != "inertial" and groups:
-        finite = finite_scale_inputs(probe, model, options, uniq, inverse, cells, n_outer_scales)
+        finite = finite_scale_inputs(
+            probe, model, options, uniq, inverse, cells, n_outer_scales, memo
+        )
         probe_len = np.asarray(probe.length_scale_m(cells.range_m), float)
         probe_len = np.broadcast_to(probe_len, (n_t, n_h))
         finite["longest"] = np.maximum(n_l * dy * (1 + mu_eval), probe_len)
