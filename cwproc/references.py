@@ -45,6 +45,12 @@ VAD_ACCURACY = (
     "(in Russian; authors and year not given in the available text)"
 )
 
+#: the papers of the VAD wind fit (the wind product's ``vad_references`` attribute and
+#: the references of its wind variables)
+VAD_WIND = (
+    f"{SMALIKHO_2020}, eqs. 1 and 8; {BANAKH_1999}, after eq. 23; {VAD_ACCURACY}, sections 2-4"
+)
+
 EFRON_STEIN_1981 = (
     "Efron, B. and Stein, C. (1981), The jackknife estimate of variance, Ann. Statist. 9, 586-596"
 )

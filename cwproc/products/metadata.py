@@ -36,9 +36,9 @@ from cwproc.references import (
     OCONNOR_2010,
     SMALIKHO_2020,
     VAD_ACCURACY,
+    VAD_WIND,
     WAGNER_DTU,
 )
-from cwproc.stages.vad import REFERENCES as _VAD_REFERENCES
 
 
 def _gladkikh(long_name: str, units: str, equation: str) -> VarMeta:
@@ -506,7 +506,7 @@ PRODUCT_VARIABLES: dict[str, dict[str, VarMeta]] = {
             "(see bad_fit_definition)",
         ),
         **{
-            name: replace(VARIABLES[name], references=_VAD_REFERENCES)
+            name: replace(VARIABLES[name], references=VAD_WIND)
             for name in ("u", "v", "w", "wind_speed", "wind_direction")
         },
         **{

@@ -38,7 +38,7 @@ from cwproc.physics.geometry import (
     normalise_pointing,
     speed_and_direction,
 )
-from cwproc.references import BANAKH_1999, SMALIKHO_2020, VAD_ACCURACY
+from cwproc.references import VAD_WIND
 from cwproc.stages.vad_fit import fit_scans
 
 #: elevations (deg) that count as conical scans; outside, w or u, v are not determined
@@ -49,9 +49,7 @@ ELEVATION_TOLERANCE_DEG = 0.5
 CHUNK_ELEMENTS = 4_000_000
 
 #: the papers of the VAD fit (the ``vad_references`` attribute of the wind product)
-REFERENCES = (
-    f"{SMALIKHO_2020}, eqs. 1 and 8; {BANAKH_1999}, after eq. 23; {VAD_ACCURACY}, sections 2-4"
-)
+REFERENCES = VAD_WIND
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
