@@ -10,10 +10,11 @@ heights 50-2000 m, 10-min blocks, random wind 1-15 m s-1, eps 1e-4 to 1e-2) for
 each with the spectrum model ``--model`` (default von Karman, the default of the
 configuration). The A-tables are built first (timed separately, cached in a temporary
 directory), then the stage is run ``--repeat`` times on warm tables; the best time is
-printed. Target: under 1 s per day and configuration, error bars included (measured
-warm, same run on a shared 2-core box: 0.13 / 0.16 s inertial, 0.49 / 0.62 s von
-Karman for the 24-ray VAD / the 180-ray scan; 0.77 / 2.3-3.0 s before the outer-scale
-root search used :meth:`cwproc.physics.atable_interp.ATable.at_cells`).
+printed. Target: under 1 s per day and configuration, error bars included. Measured
+warm on the shared 2-core box (load 0.6-1.2), alternately with the previous round's
+code: 0.16 / 0.22 s inertial, 0.78-0.89 / 0.92-0.97 s von Karman for the 24-ray VAD /
+the 180-ray scan (1.09-1.21 s for the 180-ray scan before the error bars' root searches
+were replayed; ``docs/physics-epsilon.md``, "Speed").
 
 Run::
 
