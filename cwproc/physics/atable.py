@@ -28,20 +28,17 @@ announces itself on stderr when that is a terminal.
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
-import platformdirs
 
 from cwproc.physics import afunctions, atable_swept, spectra, two_beam
 from cwproc.physics.atable_interp import N_BINS, ATable, azimuth_nodes
+from cwproc.physics.disk_cache import cache_path, load_arrays, parameter_key, save_arrays
 from cwproc.physics.spectra import MODELS, Model
 from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
 
@@ -155,8 +152,7 @@ def table_parameters(
 
 def table_key(params: dict) -> str:
     """SHA-256 of the canonical JSON of the table parameters."""
-    text = json.dumps(params, sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(text.encode()).hexdigest()
+    return parameter_key(params)
 
 
 def full_circle() -> np.ndarray:
@@ -521,27 +517,26 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
 
 
 def _cache_path(cache_dir: str | os.PathLike | None, key: str) -> Path:
-    base = Path(cache_dir) if cache_dir is not None else Path(platformdirs.user_cache_dir("cwproc"))
-    return base / f"atable-{key}.npz"
+    return cache_path(cache_dir, "atable", key)
 
 
 def _load(path: Path, key: str, params: dict) -> ATable | None:
     """The cached table at ``path``, or ``None`` if it is missing, corrupt or not this one."""
+    data = load_arrays(path, key)
+    if data is None:
+        return None
     try:
-        with np.load(path, allow_pickle=False) as data:
-            if str(data["key"]) != key:
-                return None
-            table = ATable(
-                np.array(data["heights_m"]),
-                np.array(data["mu"]),
-                np.array(data["outer_scales_m"]),
-                np.array(data["log_a1"]),
-                np.array(data["log_a2"]),
-                dict(params),
-                np.array(data["bins_a2"]) if params["model"] == "inertial" else None,
-                np.array(data["scale_bins"]) if data["scale_bins"].size else None,
-            )
-    except Exception:  # any unreadable/corrupt file is rebuilt, never trusted
+        table = ATable(
+            data["heights_m"],
+            data["mu"],
+            data["outer_scales_m"],
+            data["log_a1"],
+            data["log_a2"],
+            dict(params),
+            data["bins_a2"] if params["model"] == "inertial" else None,
+            data["scale_bins"] if data["scale_bins"].size else None,
+        )
+    except Exception:  # an array missing or unusable: rebuilt, never trusted
         return None
     nl, nh, nm = table.outer_scales_m.size, table.heights_m.size, table.mu.size
     ok = (
@@ -570,29 +565,20 @@ def _load(path: Path, key: str, params: dict) -> ATable | None:
 
 
 def _save(table: ATable, path: Path, key: str) -> None:
-    """Write atomically (temporary file in the same directory, then rename)."""
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".atable-", suffix=".npz.part", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                np.savez(
-                    fh,
-                    key=np.array(key),
-                    heights_m=table.heights_m,
-                    mu=table.mu,
-                    outer_scales_m=table.outer_scales_m,
-                    log_a1=table.log_a1,
-                    log_a2=table.log_a2,
-                    bins_a2=np.zeros(0) if table.bins_a2 is None else table.bins_a2,
-                    scale_bins=np.zeros(0) if table.scale_bins is None else table.scale_bins,
-                )
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-    except OSError:
-        return  # an unwritable cache only costs a rebuild next time
+    """Write atomically (:func:`cwproc.physics.disk_cache.save_arrays`)."""
+    save_arrays(
+        path,
+        {
+            "key": np.array(key),
+            "heights_m": table.heights_m,
+            "mu": table.mu,
+            "outer_scales_m": table.outer_scales_m,
+            "log_a1": table.log_a1,
+            "log_a2": table.log_a2,
+            "bins_a2": np.zeros(0) if table.bins_a2 is None else table.bins_a2,
+            "scale_bins": np.zeros(0) if table.scale_bins is None else table.scale_bins,
+        },
+    )
 
 
 def get_a_table(

@@ -12,11 +12,13 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 
 import numpy as np
 
 from cwproc.physics import spectra
 from cwproc.physics.atable_interp import N_BINS, azimuth_nodes
+from cwproc.physics.disk_cache import cached_arrays
 
 #: nodes of mu = U/V_s of :func:`mean_removed_share` (linear interpolation between them)
 REMOVED_SHARE_MU = np.array([0.0, 0.5, 1.0, 2.0, 3.0, 5.0, 10.0])
@@ -26,8 +28,38 @@ REMOVED_SHARE_MU = np.array([0.0, 0.5, 1.0, 2.0, 3.0, 5.0, 10.0])
 _REMOVED_SHARE_DIRECTIONS = 4
 
 
+#: bump when the numerics of :func:`removed_share_curve` change: cached curves are then
+#: computed again
+REMOVED_SHARE_VERSION = 1
+#: nodes of ``x = R'/L_V`` of :func:`removed_share_curve`
+_CURVE_X = np.geomspace(1e-2, 1e2, 25)
+#: point beams of the full circle of :func:`removed_share_curve`
+_CURVE_BEAMS = 48
+
+
 @functools.lru_cache(maxsize=16)
-def _removed_share_curve(phi_deg: float, model: str) -> tuple[np.ndarray, np.ndarray]:
+def _removed_share_curve(
+    phi_deg: float, model: str, cache_dir: str | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`removed_share_curve`, computed once per elevation and model and kept on
+    disk (:func:`cwproc.physics.disk_cache.cached_arrays`, folder ``cache_dir``): about
+    0.6 s of correlation functions, otherwise paid by every run."""
+    params = {"phi_deg": phi_deg, "model": model, "version": REMOVED_SHARE_VERSION}
+    params |= {"x": _CURVE_X.tolist(), "mu": REMOVED_SHARE_MU.tolist(), "n_az": _CURVE_BEAMS}
+    shape = (REMOVED_SHARE_MU.size, _CURVE_X.size)
+
+    def compute() -> dict[str, np.ndarray]:
+        return {"share": removed_share_curve(phi_deg, model)[1]}
+
+    def valid(arrays: dict[str, np.ndarray]) -> bool:
+        share = arrays.get("share")
+        return share is not None and share.shape == shape and bool(np.isfinite(share).all())
+
+    share = cached_arrays("removed-share", params, compute, valid, cache_dir)["share"]
+    return np.log(_CURVE_X), share
+
+
+def removed_share_curve(phi_deg: float, model: str) -> tuple[np.ndarray, np.ndarray]:
     """``(log x, r(mu, x))`` of :func:`mean_removed_share` on 25 nodes of ``x = R'/L_V``.
 
     ``tr(H B)/M`` of the VAD hat matrix ``H = (1 + 2 cos(theta_i - theta_j))/M`` of a
@@ -37,8 +69,8 @@ def _removed_share_curve(phi_deg: float, model: str) -> tuple[np.ndarray, np.nda
     theta_m`` along its direction (Smalikho (2020), eq. 3: ``U T = 2 pi mu R'``);
     averaged over :data:`_REMOVED_SHARE_DIRECTIONS` wind directions.
     """
-    x = np.geomspace(1e-2, 1e2, 25)
-    n_az = 48
+    x = _CURVE_X
+    n_az = _CURVE_BEAMS
     theta = 2.0 * np.pi * np.arange(n_az) / n_az
     ph = math.radians(phi_deg)
     s = np.stack(
@@ -70,21 +102,28 @@ def _removed_share_curve(phi_deg: float, model: str) -> tuple[np.ndarray, np.nda
 
 
 def mean_removed_share(
-    ratio: np.ndarray, phi_deg: float, model: str, mu: np.ndarray | float = 0.0
+    ratio: np.ndarray,
+    phi_deg: float,
+    model: str,
+    mu: np.ndarray | float = 0.0,
+    cache_dir: str | os.PathLike | None = None,
 ) -> np.ndarray:
     """Share of sigma_V^2 the scan-mean (VAD) wind takes from one scan's V'_L.
 
     ``tr(H B)/(M sigma_V^2)`` of a full circle of point beams, Banakh et al. (1999),
     eqs. 15-16 with the isotropic tensor of ``model``, the rays seen at their own times
-    in the field carried by the wind (:func:`_removed_share_curve`); a function of
+    in the field carried by the wind (:func:`removed_share_curve`); a function of
     ``ratio = R'/L_V`` and ``mu = U/V_s`` (tabulated once per elevation and model). The
     block mean of N independent scans removes this divided by N. The probe volume is
     neglected (the share is carried by scales of the circle, far above the probe).
     Transport matters: on exact 24-ray statistics at ``mu = 3`` (R'/L_V = 0.71) the
     block-mean wind removed 2.4 % of sigma_V^2, the frozen circle predicts 5.0 %; the
-    overestimate biased the variance condition and eps 8 % low.
+    overestimate biased the variance condition and eps 8 % low. The curve of an
+    elevation and model is kept in the cache folder ``cache_dir`` (default
+    ``platformdirs.user_cache_dir("cwproc")``, as the A-tables).
     """
-    log_x, share = _removed_share_curve(round(float(phi_deg), 2), model)
+    folder = None if cache_dir is None else os.fspath(cache_dir)
+    log_x, share = _removed_share_curve(round(float(phi_deg), 2), model, folder)
     lx = np.log(np.clip(ratio, 1e-2, 1e2))
     m = np.clip(np.nan_to_num(np.asarray(mu, float), nan=0.0), 0.0, REMOVED_SHARE_MU[-1])
     lx, m = np.broadcast_arrays(lx, m)

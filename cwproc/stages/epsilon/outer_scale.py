@@ -98,7 +98,9 @@ def finite_scale_inputs(
     for t0 in range(0, n_t, step):
         rows = slice(t0, t0 + step)
         ratio_rl = radius[rows, :, None] / scale_grid[None, None, :]
-        share[rows] = mean_removed_share(ratio_rl, phi_med, model, mu_eval[rows, :, None])
+        share[rows] = mean_removed_share(
+            ratio_rl, phi_med, model, mu_eval[rows, :, None], options.get("cache_dir")
+        )
     share /= n_eff[:, None, None]
     ti, hi_ = np.nonzero(
         partial_circle(weights, np.broadcast_to(cells.dtheta[:, None], (n_t, n_h)))

@@ -1,0 +1,100 @@
+"""Arrays computed once per parameter set and kept on disk between runs.
+
+The expensive tables of the turbulence retrieval (the A-functions of
+:mod:`cwproc.physics.atable`, the removed share of :mod:`cwproc.physics.removed_share`)
+depend only on a few parameters, so each is stored as ``<kind>-<sha256>.npz`` in
+``platformdirs.user_cache_dir("cwproc")`` (or a given folder), keyed by the SHA-256 of
+the canonical JSON of its parameters (:func:`parameter_key`). A file is written
+atomically (temporary file in the same folder, then rename), and one that cannot be
+read, holds another key or fails the caller's check is computed again, never trusted;
+an unwritable folder only costs the computation next time. Stored as ``.npz``
+(float64 kept bit for bit), a table read back gives the results of the table computed.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import platformdirs
+
+
+def parameter_key(params: dict) -> str:
+    """SHA-256 (hex) of the canonical JSON of ``params`` (keys sorted, no spaces)."""
+    text = json.dumps(params, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def cache_path(cache_dir: str | os.PathLike | None, kind: str, key: str) -> Path:
+    """``<cache_dir>/<kind>-<key>.npz``; default folder ``user_cache_dir("cwproc")``."""
+    base = Path(cache_dir) if cache_dir is not None else Path(platformdirs.user_cache_dir("cwproc"))
+    return base / f"{kind}-{key}.npz"
+
+
+def save_arrays(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """Write ``arrays`` to ``path`` as ``.npz``, atomically; nothing on an ``OSError``
+    (an unwritable cache only costs a rebuild next time)."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=".npz.part", dir=path.parent)
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                np.savez(fh, **arrays)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+    except OSError:
+        return
+
+
+def load_arrays(path: Path, key: str) -> dict[str, np.ndarray] | None:
+    """The arrays of the cache file at ``path`` written under ``key`` (all but ``key``),
+    or ``None`` when it is missing, unreadable or of another key."""
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if str(data["key"]) != key:
+                return None
+            return {name: np.array(data[name]) for name in data.files if name != "key"}
+    except Exception:  # any unreadable/corrupt file is rebuilt, never trusted
+        return None
+
+
+def cached_arrays(
+    kind: str,
+    params: dict,
+    compute: Callable[[], dict[str, np.ndarray]],
+    valid: Callable[[dict[str, np.ndarray]], bool],
+    cache_dir: str | os.PathLike | None = None,
+) -> dict[str, np.ndarray]:
+    """The arrays ``compute()`` returns for ``params``, read from the cache when there.
+
+    Parameters
+    ----------
+    kind : str
+        File name prefix (e.g. ``"removed-share"``).
+    params : dict
+        Every parameter the arrays depend on, JSON-serialisable, with a version number
+        of the numerics (so that a change of the computation is never served old
+        results).
+    compute : callable
+        ``compute() -> {name: ndarray}``, the arrays (``"key"`` is reserved).
+    valid : callable
+        ``valid(arrays) -> bool``: a file read back is used only when this holds (the
+        names, shapes and finite values ``compute`` gives).
+    cache_dir : path, optional
+        Folder of the cache; default ``platformdirs.user_cache_dir("cwproc")``.
+    """
+    key = parameter_key(params)
+    path = cache_path(cache_dir, kind, key)
+    arrays = load_arrays(path, key)
+    if arrays is not None and valid(arrays):
+        return arrays
+    arrays = compute()
+    save_arrays(path, {"key": np.array(key), **arrays})
+    return arrays
