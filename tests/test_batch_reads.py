@@ -49,9 +49,9 @@ def body_reads(monkeypatch) -> Counter:
     counts: Counter = Counter()
     original = halo.read_header_body_offset
 
-    def counting(path):
+    def counting(path, *rest):
         counts[os.fspath(path)] += 1
-        return original(path)
+        return original(path, *rest)
 
     monkeypatch.setattr(halo, "read_header_body_offset", counting)
     monkeypatch.setattr(halo_files, "read_header_body_offset", counting)

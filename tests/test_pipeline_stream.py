@@ -181,6 +181,57 @@ def test_input_rewritten_after_grouping_is_caught(tmp_path, config):
         load_item(items[1], config)
 
 
+@pytest.mark.parametrize("ahead", [False, True])
+def test_checksums_left_to_the_read_are_taken_by_it(tmp_path, config, monkeypatch, ahead):
+    """Files identified by their header without a checksum (``checksum=False``, as
+    ``cwproc retrieve`` groups them) get it from the streamed read of their data, with
+    no further read of the file: each checksum is that of the file, and the products
+    are those of the whole day."""
+    import cwproc.pipeline.units as units
+    from cwproc.io.netcdf import sha256_file
+
+    spec = StreamLineSpec(n_scans=12, scans_per_file=1, n_gates=24, seed=29)
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    paths = sorted((tmp_path / "day").glob("*.hpl"))
+    calls: list[str] = []
+    monkeypatch.setattr(units, "sha256_file", lambda path: calls.append(str(path)) or "")
+    items = [read_input(p, config, identify_only=True, checksum=False) for p in paths]
+    assert all(i.sha256 is None and i.signature is not None for i in items)
+    (unit,) = group_units(items)
+    products = stream_scan_unit(
+        unit, config, [], lambda i: load_item(i, config), SMALL_CHUNK, read_ahead=ahead
+    )
+    assert calls == []  # taken by the plan's read of each file, not by another read
+    assert [i.sha256 for i in unit.inputs] == [sha256_file(p) for p in paths]
+    assert_same_products(products, whole_day(tmp_path / "day", config))
+
+
+def test_a_file_read_alone_gets_the_checksum_left_to_its_read(tmp_path, config):
+    """An input identified without a checksum and read on its own (a chunk read file by
+    file, a day processed whole) gets it from that read; one written since it was
+    identified is refused, since what its header said may no longer hold."""
+    import os
+
+    from cwproc.errors import CwprocError
+    from cwproc.io.netcdf import sha256_file
+
+    spec = StreamLineSpec(n_scans=3, scans_per_file=1, n_gates=24, seed=31)
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    first, second, third = sorted((tmp_path / "day").glob("*.hpl"))
+    items = [
+        read_input(p, config, identify_only=True, checksum=False) for p in (first, second, third)
+    ]
+    assert load_item(items[0], config)["radial_velocity"].shape[1] == 24
+    assert items[0].sha256 == sha256_file(first)
+    os.utime(second, ns=(0, 10**18))  # touched after identification
+    with pytest.raises(CwprocError, match="changed while cwproc was running"):
+        load_item(items[1], config)
+    assert items[1].sha256 is None
+    third.write_bytes(third.read_bytes().replace(b"0.", b"1.", 1))  # same size, other content
+    with pytest.raises(CwprocError, match="changed while cwproc was running"):
+        load_item(items[2], config)
+
+
 def test_read_ahead_gives_the_serial_products_and_failures(tmp_path, config):
     """Files read in a second thread: the same products, notes and failure lines as one
     by one; a file damaged beyond its header is left out, named with its line."""
@@ -419,7 +470,7 @@ def test_read_inputs_keeps_the_order_and_hands_errors_in_place(monkeypatch):
     taken = 0
     ahead: list[int] = []
 
-    def fake_read(path, config, *, identify_only):
+    def fake_read(path, config, *, identify_only, checksum):
         with lock:
             started.append(path)
             ahead.append(len(started) - taken)

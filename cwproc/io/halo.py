@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import xarray as xr
@@ -68,6 +69,9 @@ from cwproc.io.scans import scan_indices
 from cwproc.io.schema import with_canonical_attrs
 from cwproc.physics.geometry import normalise_pointing
 
+if TYPE_CHECKING:
+    import hashlib
+
 INSTRUMENT = "Halo Photonics Stream Line"
 INSTRUMENT_KIND = "streamline"
 
@@ -95,11 +99,15 @@ def read_header_and_body(path: Path) -> tuple[list[str], bytes]:
     return lines, body
 
 
-def read_header_body_offset(path: Path) -> tuple[list[str], bytes, int]:
+def read_header_body_offset(
+    path: Path, digest: hashlib._Hash | None = None
+) -> tuple[list[str], bytes, int]:
     """As :func:`read_header_and_body`, and the byte offset of the body in the file.
 
     The offset lets :func:`cwproc.io.halo_files.read_hpl_files` read the data lines a
-    second time without splitting the header again.
+    second time without splitting the header again. With ``digest`` (a
+    :mod:`hashlib` object), every byte of the file is fed to it as read: the file's
+    checksum taken by the same read.
     """
     try:
         with path.open("rb") as f:
@@ -109,11 +117,15 @@ def read_header_body_offset(path: Path) -> tuple[list[str], bytes, int]:
             except InputFileError:
                 if len(head) < _HEAD_BYTES:
                     raise
-                lines, offset = split_header(path, head + f.read())  # huge header lines
+                head += f.read()  # huge header lines
+                lines, offset = split_header(path, head)
             f.seek(offset)
             body = f.read()
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    if digest is not None:
+        digest.update(memoryview(head)[:offset])
+        digest.update(body)
     end = content_end(body)
     tail = body[end:]
     if tail.lstrip(b" ") not in (b"", b"\n", b"\r\n", b"\r"):

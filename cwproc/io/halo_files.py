@@ -10,6 +10,7 @@ problem.
 
 from __future__ import annotations
 
+import hashlib
 import io
 import os
 from collections.abc import Iterator
@@ -63,12 +64,16 @@ class _FilePlan:
     #: lines end in LF, CRLF or CR alone (a file that mixes lone CR with LF parses to
     #: another count and takes the reference path)
     n_lines: int
+    #: SHA-256 (hex) of the file as this pass read it, when asked for
+    sha256: str | None = None
 
 
-def _plan_file(path: Path) -> _FilePlan | None:
-    """Header and line count of a file, or ``None`` when anything is off (no raise)."""
+def _plan_file(path: Path, checksum: bool = False) -> _FilePlan | None:
+    """Header and line count of a file (and with ``checksum`` its SHA-256, taken by the
+    same read), or ``None`` when anything is off (no raise)."""
+    digest = hashlib.sha256() if checksum else None
     try:
-        lines, body, offset = read_header_body_offset(path)
+        lines, body, offset = read_header_body_offset(path, digest)
         header = parse_header(path, lines)
     except InputFileError:
         return None
@@ -76,7 +81,8 @@ def _plan_file(path: Path) -> _FilePlan | None:
     if end == 0 or body.find(b"\x00", 0, end) >= 0:
         return None
     line_ends = _count_byte(body, end, b"\n") or _count_byte(body, end, b"\r")
-    return _FilePlan(path, header, offset, end, line_ends + 1)
+    sha256 = None if digest is None else digest.hexdigest()
+    return _FilePlan(path, header, offset, end, line_ends + 1, sha256)
 
 
 def _count_byte(data: bytes, end: int, byte: bytes) -> int:
@@ -375,10 +381,15 @@ def read_hpl_files(paths: list[str | os.PathLike], **options: object) -> xr.Data
     return concat_scans([read_hpl(path) for path in paths])
 
 
-def plan_hpl_file(path: str | os.PathLike) -> _FilePlan | None:
+def plan_hpl_file(path: str | os.PathLike, checksum: bool = False) -> _FilePlan | None:
     """A file's header and data line count (the first pass of :func:`read_hpl_files`),
-    or ``None`` when anything is off (its error is :func:`read_hpl`'s to name)."""
-    return _plan_file(Path(path))
+    or ``None`` when anything is off (its error is :func:`read_hpl`'s to name).
+
+    With ``checksum``, the plan also holds the SHA-256 of the file, fed by the same read
+    (``sha256``): the checksum of a file identified by its header alone, taken without
+    reading the file once more.
+    """
+    return _plan_file(Path(path), checksum)
 
 
 def planned_bytes(plan: _FilePlan) -> int:

@@ -183,7 +183,7 @@ def read_units(
     return found
 
 
-#: inputs identified at once by :func:`read_inputs` (their checksums are computed in
+#: inputs identified at once by :func:`read_inputs` (file reads and checksums run in
 #: parallel; each holds at most one file's data, or its dataset when not a ``.hpl``)
 READ_INPUT_THREADS = 2
 
@@ -191,8 +191,11 @@ READ_INPUT_THREADS = 2
 def read_inputs(
     paths: Iterable[str | os.PathLike], config: Config, threads: int = READ_INPUT_THREADS
 ) -> Iterator[tuple[str | os.PathLike, InputFile | Exception]]:
-    """``(path, read_input(path, identify_only=True))`` of each input, in order; the
-    exception a file raised in place of its item.
+    """``(path, read_input(path, identify_only=True, checksum=False))`` of each input,
+    in order; the exception a file raised in place of its item. A ``.hpl`` file is
+    identified by its header, and its checksum taken when its unit reads its data
+    (:func:`cwproc.pipeline.units.load_item`, :func:`cwproc.pipeline.stream_read.planned_chunks`):
+    a day of scans is read once less.
 
     The inputs are read by ``threads`` threads, at most ``2 * threads`` ahead of the
     caller: the checksum (``hashlib`` releases the GIL) and the file reads of one
@@ -215,7 +218,7 @@ def read_inputs(
 
 def _read_one(path: str | os.PathLike, config: Config) -> InputFile | Exception:
     try:
-        return read_input(path, config, identify_only=True)
+        return read_input(path, config, identify_only=True, checksum=False)
     except Exception as exc:  # handed to the caller with its path
         return exc
 

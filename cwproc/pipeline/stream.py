@@ -164,7 +164,9 @@ def _planned_chunk(
         return concat_scans(parts) if parts else None
     chunk, files = got
     vertical = stare_mask(chunk)
-    for (item, _), part in zip(planned, files, strict=True):
+    for (item, plan), part in zip(planned, files, strict=True):
+        if item.sha256 is None:  # the plan's read of the file, unchanged since (read_planned_chunk)
+            item.sha256 = plan.sha256
         line = describe_scan_file(
             item.path, part.identity.attrs, vertical[part.start : part.stop], part.scan
         )

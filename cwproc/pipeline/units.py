@@ -32,7 +32,9 @@ class InputFile:
 
     path: Path
     format: Format
-    sha256: str
+    #: SHA-256 of the file; None until its data are read when it was identified by its
+    #: header alone (``read_input(..., checksum=False)``): taken by that read then
+    sha256: str | None
     dataset: xr.Dataset | None = None
     #: the UTC day this item holds when a file crossing midnight was split (sonic)
     day: str | None = None
@@ -40,7 +42,8 @@ class InputFile:
     start: np.datetime64 | None = None
     #: what the header says (attributes, first time) when the data are not read yet
     identity: FileIdentity | None = None
-    #: the file's :func:`file_signature` when ``sha256`` was computed (None: unknown)
+    #: the file's :func:`file_signature` when ``sha256`` was computed, or when it was
+    #: identified if ``sha256`` is not taken yet (None: unknown)
     signature: tuple[int, ...] | None = None
 
 
@@ -83,14 +86,22 @@ def reader_options(config: Config, fmt: Format) -> dict:
 
 
 def read_input(
-    path: str | os.PathLike, config: Config, *, identify_only: bool = False
+    path: str | os.PathLike,
+    config: Config,
+    *,
+    identify_only: bool = False,
+    checksum: bool = True,
 ) -> InputFile:
     """Detect the format of one file, checksum it and read it.
 
     With ``identify_only``, a format with a header-only identifier (``.hpl``) is not
     read: the item gets ``identity`` (attributes and first time, enough for
     :func:`unit_key`) and no dataset, and its data are read when its unit is processed.
-    A header the identifier cannot take is read whole (and its error reported).
+    A header the identifier cannot take is read whole (and its error reported). Such an
+    item is also left without its checksum when ``checksum`` is false (``sha256`` None,
+    its :func:`file_signature` kept): the read of its data takes it
+    (:func:`load_item`, :func:`cwproc.pipeline.stream_read.planned_chunks`), so that a
+    day of files is read once less.
 
     Raises
     ------
@@ -112,11 +123,11 @@ def read_input(
     )
     try:
         signature = file_signature(path)
-        checksum = sha256_file(path)
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
     if fmt is Format.HALO_BACKGROUND:  # read by correct_background for the scans beside it
-        return InputFile(path=path, format=fmt, sha256=checksum, signature=signature)
+        sha = _checksum(path)
+        return InputFile(path=path, format=fmt, sha256=sha, signature=signature)
     identify = get_identifier(fmt) if identify_only and not reader_options(config, fmt) else None
     if identify is not None:
         try:
@@ -127,15 +138,24 @@ def read_input(
             return InputFile(
                 path=path,
                 format=fmt,
-                sha256=checksum,
+                sha256=_checksum(path) if checksum else None,
                 identity=identity,
                 start=_start(identity),
                 signature=signature,
             )
+    sha = _checksum(path)
     ds = get_reader(fmt)(path, **reader_options(config, fmt))
     return InputFile(
-        path=path, format=fmt, sha256=checksum, dataset=ds, start=_start(ds), signature=signature
+        path=path, format=fmt, sha256=sha, dataset=ds, start=_start(ds), signature=signature
     )
+
+
+def _checksum(path: Path) -> str:
+    """:func:`cwproc.io.netcdf.sha256_file`, its ``OSError`` an :class:`InputFileError`."""
+    try:
+        return sha256_file(path)
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
 
 
 def file_signature(path: str | os.PathLike) -> tuple[int, ...]:
@@ -328,7 +348,9 @@ def load_item(item: InputFile, config: Config) -> xr.Dataset | None:
 
     The file is checksummed once per run: read again unchanged (its
     :func:`file_signature` is the one taken with the checksum) it is only parsed;
-    otherwise its checksum is taken again and compared.
+    otherwise its checksum is taken again and compared. An item identified by its
+    header without a checksum gets it here, from the file as read
+    (:func:`checksummed_read`).
 
     Raises
     ------
@@ -337,7 +359,10 @@ def load_item(item: InputFile, config: Config) -> xr.Dataset | None:
     """
     if item.dataset is not None:
         return item.dataset
-    ds = unchanged_read(item, config)
+    if item.sha256 is None:
+        ds = checksummed_read(item, config)
+    else:
+        ds = unchanged_read(item, config)
     if ds is None:
         again = read_input(item.path, config)
         if again.sha256 != item.sha256:
@@ -346,6 +371,33 @@ def load_item(item: InputFile, config: Config) -> xr.Dataset | None:
     if item.day is not None and ds is not None:
         days = ds["time"].values.astype("datetime64[D]")
         ds = ds.isel(time=np.flatnonzero(days == np.datetime64(item.day, "D")))
+    return ds
+
+
+def checksummed_read(item: InputFile, config: Config) -> xr.Dataset:
+    """The dataset of an input identified by its header alone, and its checksum
+    (``item.sha256``), when the file is as it was identified (same
+    :func:`file_signature` before the checksum and after the read).
+
+    Raises
+    ------
+    CwprocError
+        The file changed or vanished since it was identified: what was grouped by its
+        header may not be what it holds now.
+    InputFileError
+        Whatever the reader found wrong with the file.
+    """
+    changed = CwprocError(f"{item.path}: changed while cwproc was running; run again")
+    try:
+        if file_signature(item.path) != item.signature:
+            raise changed
+        sha = sha256_file(item.path)
+        ds = get_reader(item.format)(item.path, **reader_options(config, item.format))
+        if file_signature(item.path) != item.signature:
+            raise changed
+    except OSError:
+        raise changed from None
+    item.sha256 = sha
     return ds
 
 

@@ -75,7 +75,8 @@ def _write_staged(
                     title=f"cwproc {about.title}: {unit.key}",
                     summary=about.summary,
                     inputs=list(dict.fromkeys(i.path for i in unit.inputs)),
-                    checksums={os.fspath(i.path): i.sha256 for i in unit.inputs},
+                    # a checksum not taken yet is taken by the writer
+                    checksums={os.fspath(i.path): i.sha256 for i in unit.inputs if i.sha256},
                     config_toml=config.to_toml(),
                     references=about.references,
                     keywords=about.keywords,
