@@ -494,3 +494,40 @@ def test_read_inputs_keeps_the_order_and_hands_errors_in_place(monkeypatch):
         f"item {p}" for p in paths if p not in ("f7", "f9")
     ]
     assert max(ahead) <= 2 * 2 + 1
+
+
+def test_parts_joined_like_xarray_concat(tmp_path, config, monkeypatch):
+    """The day's wind rows, structure functions and stares joined from the chunks'
+    pieces: exactly ``xr.concat`` (values, attributes, encodings, variable order); parts
+    that differ in a coordinate or hold a variable not along the dimension are left to
+    xarray."""
+    from cwproc.pipeline import stream
+
+    spec = StreamLineSpec(n_gates=24, seed=37)
+    write_stare_series(
+        tmp_path / "day", tmp_path / "truth.json", spec, scan="mixed", hours=1.0, vad_every_s=60
+    )
+    items = [read_input(p, config) for p in sorted((tmp_path / "day").glob("*.hpl"))]
+    (unit,) = group_units(items)
+    pieces: list[tuple[list, str]] = []
+    real_join = stream._join
+
+    def recording(parts, dim):
+        pieces.append((list(parts), dim))
+        return real_join(parts, dim)
+
+    monkeypatch.setattr(stream, "_join", recording)
+    stream_scan_unit(unit, config, [], lambda i: load_item(i, config), SMALL_CHUNK)
+    joined = [(parts, dim) for parts, dim in pieces if len(parts) > 1]
+    assert {dim for _, dim in joined} >= {"time", "ray"}  # winds, sfs and stares
+    for parts, dim in joined:
+        ours = stream.concat_like_parts(parts, dim)
+        theirs = xr.concat(parts, dim=dim, combine_attrs="override")
+        assert ours is not None and ours.identical(theirs)
+        assert list(ours.variables) == list(theirs.variables)
+        assert all(ours[k].encoding == theirs[k].encoding for k in theirs.variables)
+    parts, dim = next((p, d) for p, d in joined if d == "time")
+    shifted = [parts[0], parts[1].assign_coords(height=parts[1]["height"] + 1.0)]
+    assert stream.concat_like_parts(shifted, dim) is None
+    flat = [part.assign(extra=((), 1.0)) for part in parts]
+    assert stream.concat_like_parts(flat, dim) is None

@@ -202,7 +202,52 @@ def number_scans(chunk: xr.Dataset, state: StreamState) -> xr.Dataset:
 
 
 def _join(parts: list[xr.Dataset], dim: str) -> xr.Dataset:
-    return parts[0] if len(parts) == 1 else xr.concat(parts, dim=dim, combine_attrs="override")
+    """``xr.concat(parts, dim, combine_attrs="override")`` (:func:`concat_like_parts`
+    when the parts allow it)."""
+    if len(parts) == 1:
+        return parts[0]
+    joined = concat_like_parts(parts, dim)
+    return joined if joined is not None else xr.concat(parts, dim=dim, combine_attrs="override")
+
+
+def concat_like_parts(parts: list[xr.Dataset], dim: str) -> xr.Dataset | None:
+    """Datasets of the same variables joined along ``dim``, one ``np.concatenate`` each.
+
+    The result of ``xr.concat(parts, dim, combine_attrs="override")`` when every part
+    has the variables of the first (in any order), with its dimensions and dtype, every
+    data variable lies along ``dim`` and every other variable (a coordinate) equals the
+    first's: the first's attributes and encodings, the variables along ``dim`` joined,
+    the others the first's. ``xr.concat`` aligns and compares the parts variable by
+    variable: 0.5 s for the 96 chunks of a day of wind rows and structure functions,
+    against a few ms here. None when a part differs (the caller concatenates with
+    xarray).
+    """
+    first = parts[0]
+    if any(dim not in first.variables[name].dims for name in first.data_vars):
+        return None
+    names = list(first.variables)
+    variables: dict[str, xr.Variable] = {}
+    for name in names:
+        var = first.variables[name]
+        others = [part.variables.get(name) for part in parts[1:]]
+        if any(o is None or o.dims != var.dims or o.dtype != var.dtype for o in others):
+            return None
+        if dim in var.dims:
+            data = np.concatenate(
+                [var.values, *(o.values for o in others)], axis=var.dims.index(dim)
+            )
+            variables[name] = xr.Variable(var.dims, data, var.attrs, var.encoding)
+        elif all(o.equals(var) for o in others):
+            variables[name] = var
+        else:
+            return None
+    if any(len(part.variables) != len(names) for part in parts[1:]):
+        return None
+    return xr.Dataset(
+        {name: variables[name] for name in first.data_vars},
+        coords={name: variables[name] for name in first.coords},
+        attrs=dict(first.attrs),
+    )
 
 
 def flush_blocks(
