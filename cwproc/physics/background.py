@@ -21,7 +21,6 @@ All functions are pure numpy. Arrays are ``(ray, range)`` unless stated; ranges 
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
 
 #: gates nearer than this (m) are left out of every fit: the outgoing pulse and the
 #: telescope's near-field leak into them (3 pulse lengths, as in doppy)
@@ -160,6 +159,8 @@ def signal_free_gates(
     -------
     numpy.ndarray of bool, shape of ``intensity``.
     """
+    from scipy import ndimage  # here: 0.1-0.2 s of imports only a corrected day needs
+
     i = np.atleast_2d(np.asarray(intensity, dtype=float))
     level = np.nanmedian(i, axis=1, keepdims=True)
     sd = _robust_sd(i, axis=1)[:, None]

@@ -36,7 +36,7 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import integrate, interpolate, special
+from scipy import interpolate, special
 
 Model = Literal["inertial", "von_karman", "exponential"]
 MODELS: tuple[str, ...] = ("inertial", "von_karman", "exponential")
@@ -248,6 +248,8 @@ def _exponential_series(q: np.ndarray, n_terms: int = 90) -> np.ndarray:
 @lru_cache(maxsize=1)
 def _exponential_low_q() -> interpolate.CubicSpline:
     """Cubic spline of ``ln e(q)`` against ``ln q`` for ``1e-3 <= q <= 1`` (quadrature)."""
+    from scipy import integrate  # here: 0.1 s of imports that only this table needs
+
     a = EXPONENTIAL_COEFFICIENT
     qs = np.geomspace(1e-3, 1.0, 61)
     vals = []
@@ -318,6 +320,8 @@ def _exponential_plane_splines() -> tuple[interpolate.CubicSpline, interpolate.C
     metre, ``kappa3 = q sinh u``); trapezoid rule in ``u`` with step 0.02 (relative error
     below 1e-7, checked against the closed form of von Karman).
     """
+    from scipy import integrate  # here: 0.1 s of imports that only this table needs
+
     q = np.geomspace(1e-5, 1e5, 401)
     u = np.arange(0.0, 36.0, 0.02)
     ch = np.cosh(u)
