@@ -206,6 +206,35 @@ def test_checksums_left_to_the_read_are_taken_by_it(tmp_path, config, monkeypatc
     assert_same_products(products, whole_day(tmp_path / "day", config))
 
 
+def test_a_streamed_file_is_opened_once(tmp_path, config, monkeypatch):
+    """Grouped by its header without a checksum, each file of a streamed day is opened
+    once by the unit: the plan's read gives its line count, its checksum and the data
+    lines the parse takes."""
+    from collections import Counter
+    from pathlib import Path
+
+    spec = StreamLineSpec(n_scans=12, scans_per_file=1, n_gates=24, seed=41)
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    paths = sorted((tmp_path / "day").glob("*.hpl"))
+    items = [read_input(p, config, identify_only=True, checksum=False) for p in paths]
+    (unit,) = group_units(items)
+    opened: Counter = Counter()
+    real_open = Path.open
+
+    def counting(self, *args, **kwargs):
+        if self.suffix == ".hpl":
+            opened[self.name] += 1
+        return real_open(self, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "open", counting)
+    products = stream_scan_unit(
+        unit, config, [], lambda i: load_item(i, config), SMALL_CHUNK, read_ahead=False
+    )
+    monkeypatch.undo()
+    assert sorted(opened) == [p.name for p in paths] and set(opened.values()) == {1}
+    assert_same_products(products, whole_day(tmp_path / "day", config))
+
+
 def test_a_file_read_alone_gets_the_checksum_left_to_its_read(tmp_path, config):
     """An input identified without a checksum and read on its own (a chunk read file by
     file, a day processed whole) gets it from that read; one written since it was

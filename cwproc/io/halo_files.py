@@ -14,7 +14,7 @@ import hashlib
 import io
 import os
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -64,13 +64,19 @@ class _FilePlan:
     #: lines end in LF, CRLF or CR alone (a file that mixes lone CR with LF parses to
     #: another count and takes the reference path)
     n_lines: int
+    #: fields of the first ray line and of the first gate line (3 and 4 when absent)
+    fields: tuple[int, int] = (3, 4)
     #: SHA-256 (hex) of the file as this pass read it, when asked for
     sha256: str | None = None
+    #: the data lines as this pass read them, when kept for the parse (taken by it)
+    held: list[bytes] = field(default_factory=list, compare=False, repr=False)
 
 
-def _plan_file(path: Path, checksum: bool = False) -> _FilePlan | None:
+def _plan_file(path: Path, checksum: bool = False, keep: bool = False) -> _FilePlan | None:
     """Header and line count of a file (and with ``checksum`` its SHA-256, taken by the
-    same read), or ``None`` when anything is off (no raise)."""
+    same read), or ``None`` when anything is off (no raise). With ``keep``, the data
+    lines read are kept for the parse (:func:`_data_lines`), which then does not read
+    the file again."""
     digest = hashlib.sha256() if checksum else None
     try:
         lines, body, offset = read_header_body_offset(path, digest)
@@ -82,7 +88,13 @@ def _plan_file(path: Path, checksum: bool = False) -> _FilePlan | None:
         return None
     line_ends = _count_byte(body, end, b"\n") or _count_byte(body, end, b"\r")
     sha256 = None if digest is None else digest.hexdigest()
-    return _FilePlan(path, header, offset, end, line_ends + 1, sha256)
+    first = body[:4096].lstrip(b"\r\n").splitlines()
+    fields = (
+        len(first[0].split()) if first else 3,
+        len(first[1].split()) if len(first) > 1 else 4,
+    )
+    held = [body] if keep else []
+    return _FilePlan(path, header, offset, end, line_ends + 1, fields, sha256, held)
 
 
 def _count_byte(data: bytes, end: int, byte: bytes) -> int:
@@ -117,7 +129,10 @@ def _plan(paths: list[Path]) -> list[_FilePlan] | None:
 
 
 def _data_lines(plan: _FilePlan) -> bytes | None:
-    """The data lines of a planned file, read again; ``None`` if the file changed."""
+    """The data lines of a planned file: those the plan kept (handed over once), else
+    read again; ``None`` if the file changed."""
+    if plan.held:
+        return plan.held.pop()
     try:
         with plan.path.open("rb") as f:
             f.seek(plan.offset)
@@ -381,15 +396,19 @@ def read_hpl_files(paths: list[str | os.PathLike], **options: object) -> xr.Data
     return concat_scans([read_hpl(path) for path in paths])
 
 
-def plan_hpl_file(path: str | os.PathLike, checksum: bool = False) -> _FilePlan | None:
+def plan_hpl_file(
+    path: str | os.PathLike, checksum: bool = False, keep_body: bool = False
+) -> _FilePlan | None:
     """A file's header and data line count (the first pass of :func:`read_hpl_files`),
     or ``None`` when anything is off (its error is :func:`read_hpl`'s to name).
 
     With ``checksum``, the plan also holds the SHA-256 of the file, fed by the same read
     (``sha256``): the checksum of a file identified by its header alone, taken without
-    reading the file once more.
+    reading the file once more. With ``keep_body``, the plan keeps the data lines it
+    read until :func:`read_hpl_run` parses them (one read of the file in all; the
+    caller holds a chunk's text in the meantime).
     """
-    return _plan_file(Path(path), checksum)
+    return _plan_file(Path(path), checksum, keep_body)
 
 
 def planned_bytes(plan: _FilePlan) -> int:
@@ -400,12 +419,7 @@ def planned_bytes(plan: _FilePlan) -> int:
     ray lines, pitch and roll; 8 bytes each), from the fields of the first ray and gate
     lines, plus the range grid.
     """
-    with plan.path.open("rb") as f:
-        f.seek(plan.offset)
-        head = f.read(4096)
-    lines = head.lstrip(b"\r\n").splitlines()
-    ray_fields = len(lines[0].split()) if lines else 3
-    gate_fields = len(lines[1].split()) if len(lines) > 1 else 4
+    ray_fields, gate_fields = plan.fields
     n_gates = plan.header.n_gates
     n_rays = plan.n_lines // (n_gates + 1)
     per_ray = 4 + (2 if ray_fields == 5 else 0)

@@ -47,8 +47,9 @@ def planned_chunks(items: list[InputFile], max_bytes: int) -> Iterator[list[tupl
     (:func:`cwproc.io.halo_files.plan_hpl_file`; ``None`` for a held dataset or a file
     whose header or body is off), with the file's checksum when the item has none yet
     (identified by its header alone: the plan's read takes it; the caller gives it to
-    the item once the chunk is read unchanged); sizes are those of the datasets the
-    files make (:func:`cwproc.io.halo_files.planned_bytes`), as when each is read alone.
+    the item once the chunk is read unchanged) and its data lines, kept for the parse
+    (each file read once); sizes are those of the datasets the files make
+    (:func:`cwproc.io.halo_files.planned_bytes`), as when each is read alone.
     """
     chunk: list[tuple] = []
     size = 0
@@ -56,7 +57,7 @@ def planned_chunks(items: list[InputFile], max_bytes: int) -> Iterator[list[tupl
         if item.dataset is not None:
             plan, nbytes = None, int(item.dataset.nbytes)
         else:
-            plan = plan_hpl_file(item.path, checksum=item.sha256 is None)
+            plan = plan_hpl_file(item.path, checksum=item.sha256 is None, keep_body=True)
             nbytes = 0 if plan is None else planned_bytes(plan)
         chunk.append((item, plan))
         size += nbytes
