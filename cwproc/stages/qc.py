@@ -38,7 +38,12 @@ from cwproc.errors import CwprocError
 from cwproc.io.scans import is_homodyne
 from cwproc.physics.geometry import beam_unit_vector
 from cwproc.stages.vad import pointing, scan_chunks, scan_layout
-from cwproc.stages.vad_fit import fit_least_absolute, fit_scans, linear_residuals
+from cwproc.stages.vad_fit import (
+    fit_least_absolute,
+    fit_scans,
+    group_linear_residuals,
+    linear_start,
+)
 
 FLAG_LOW_SNR = 1
 FLAG_OUTLIER = 2
@@ -241,13 +246,20 @@ def outlier_flags(
         base = sub.take(good) & present
         values = sub.take(velocity)
         design = beam_unit_vector(sub.take(azimuth), sub.take(elevation))
-        _, residuals = fit_least_absolute(values, design, base, homodyne=homodyne)
         use, n = tested_entries(base)  # the same in every pass
-        flagged = _outliers(residuals, use, n, threshold, min_spread)
         if homodyne:
+            _, residuals = fit_least_absolute(values, design, base, homodyne=True)
+            flagged = _outliers(residuals, use, n, threshold, min_spread)
             flagged = _homodyne_passes(values, design, base, flagged, use, n, threshold, min_spread)
         else:
-            flagged = _linear_passes(values, design, base, flagged, use, n, threshold, min_spread)
+            ok, beta, least_squares = linear_start(values, design, base)
+            _, residuals = fit_least_absolute(
+                values, design, base, homodyne=False, start=(ok, beta)
+            )
+            flagged = _outliers(residuals, use, n, threshold, min_spread)
+            flagged = _linear_passes(
+                values, design, base, flagged, use, n, threshold, min_spread, least_squares
+            )
         index = sub.index[sub.present]
         outlier[index] = flagged[sub.present]
     return outlier
@@ -283,40 +295,43 @@ def _linear_passes(
     n: np.ndarray,
     threshold: float,
     min_spread: float,
+    residuals: np.ndarray,
 ) -> np.ndarray:
-    """The ``OUTLIER_PASSES`` fit / flag passes of the linear VAD model, each after the
-    first on the scan and gate groups whose flags the pass before changed.
+    """The ``OUTLIER_PASSES`` fit / flag passes of the linear VAD model; each refits only
+    the (scan, gate) groups whose rays differ from those of their last fit.
 
-    The least-squares fit of a (scan, gate) group is its own (Smalikho (2020), eq. 1,
-    per scan and gate; numpy's stacked matrix products take one product per scan, so a
-    scan's fit does not depend on the other scans given with it), so a group whose rays
-    were flagged alike in the last two passes is fitted on the same rays again, has the
-    same residuals to the bit and is flagged as before; only the scans with a changed
-    group are refitted and only the changed groups tested (about 3 of 2000 groups of a
-    chunk of 20 scans after the first pass). The flags are those of refitting and
-    testing every group in every pass.
+    ``residuals`` (S, R, G) are those of the least-squares fit of every group on all its
+    ``base`` rays (:func:`cwproc.stages.vad_fit.linear_start`; overwritten). The
+    least-squares fit of a (scan, gate) group is its own (Smalikho (2020), eq. 1, per
+    scan and gate), so a group with no flagged ray keeps these residuals in the first
+    pass, and a group whose rays were flagged alike in the last two passes is fitted on
+    the same rays again and is flagged as before. The first pass refits the groups with
+    a ray flagged by the L1 fit (about 75 of 2000 groups of a chunk of 20 scans) and
+    tests every group; the later ones refit and test the groups whose flags the pass
+    before changed (about 3). Each group is refitted alone, as a row of rays
+    (:func:`cwproc.stages.vad_fit.group_linear_residuals`): the flags are those of
+    refitting and testing every group in every pass, up to the round-off of a sum
+    taken in another order.
     """
-    todo: np.ndarray | None = None  # (scan, gate) groups to test again; None: all
-    for _ in range(OUTLIER_PASSES):
-        if todo is None:
-            residuals = linear_residuals(values, design, base & ~flagged)
+    todo = flagged.any(axis=1)  # groups fitted on other rays than their residuals'
+    for number in range(OUTLIER_PASSES):
+        scans, gates = np.nonzero(todo)
+        if scans.size:
+            residuals[scans, :, gates] = group_linear_residuals(
+                values, design, base & ~flagged, scans, gates
+            )
+        if number == 0:
             again = _outliers(residuals, use, n, threshold, min_spread)
         else:
             again = flagged.copy()
-            scans = np.flatnonzero(todo.any(axis=1))
-            residuals = linear_residuals(
-                values[scans], design[scans], base[scans] & ~flagged[scans]
-            )
-            at, gate = np.nonzero(todo[scans])  # into the refitted scans
-            cell = (scans[at], slice(None), gate)
             tested = _outliers(
-                residuals[at, :, gate][..., None],
-                use[cell][..., None],
-                n[scans[at], gate][:, None],
+                residuals[scans, :, gates][..., None],
+                use[scans, :, gates][..., None],
+                n[scans, gates][:, None],
                 threshold,
                 min_spread,
             )
-            again[cell] = tested[..., 0]
+            again[scans, :, gates] = tested[..., 0]
         changed = np.any(again != flagged, axis=1)
         if not changed.any():
             break  # the next pass would fit the same rays and flag the same again

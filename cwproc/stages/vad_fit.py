@@ -228,17 +228,47 @@ def linear_residuals(velocity: FloatArray, design: FloatArray, valid: BoolArray)
     return velocity - _model(design, beta)
 
 
-def _linear_start(
+def linear_start(
     velocity: FloatArray, design: FloatArray, valid: BoolArray
-) -> tuple[BoolArray, FloatArray]:
-    """``determined`` and ``nan_to_num(beta)`` of :func:`fit_linear`, the same values,
-    without its residuals, residual variance and covariances."""
+) -> tuple[BoolArray, FloatArray, FloatArray]:
+    """``determined``, ``nan_to_num(beta)`` and the residuals of :func:`fit_linear`, the
+    same values, without its residual variance and covariances; the residuals are those
+    of :func:`linear_residuals` (the model of an undetermined (scan, gate) is 0)."""
     design = np.nan_to_num(design)
     weight = valid.astype(float)
     y = np.where(valid, velocity, 0.0)
     inverse, determined = _safe_inverse(_normal_matrix(design, weight), weight.sum(axis=1))
     beta = _solve(np.nan_to_num(inverse), design, y)
-    return determined, np.nan_to_num(np.where(determined[..., None], beta, np.nan))
+    beta = np.nan_to_num(np.where(determined[..., None], beta, np.nan))
+    return determined, beta, velocity - _model(design, beta)
+
+
+def group_linear_residuals(
+    velocity: FloatArray,
+    design: FloatArray,
+    valid: BoolArray,
+    scans: NDArray[np.intp],
+    gates: NDArray[np.intp],
+) -> FloatArray:
+    """:func:`linear_residuals` of the (scan, gate) groups ``(scans[i], gates[i])`` alone.
+
+    Each group is fitted on its own rays (Smalikho (2020), eq. 1), as rows of rays, so
+    that a few groups cost a few rows and not their scans' every gate.
+
+    Returns
+    -------
+    ndarray, shape (N, R)
+        Data minus model of every ray of each group (m s-1).
+    """
+    y = velocity[scans, :, gates]
+    used = valid[scans, :, gates]
+    weight = used.astype(float)[:, None, :]  # (N, 1, R)
+    a = np.nan_to_num(design)[scans]  # (N, R, 3)
+    m = np.matmul(weight, _design_outer(a))[:, 0].reshape(-1, 3, 3)
+    inverse, _ = _safe_inverse(m, used.sum(axis=1))
+    aty = np.matmul(weight * np.where(used, y, 0.0)[:, None, :], a)[:, 0]
+    beta = np.einsum("njk,nk->nj", np.nan_to_num(inverse), aty)
+    return y - np.einsum("nrk,nk->nr", a, beta)
 
 
 def fit_linear(velocity: FloatArray, design: FloatArray, valid: BoolArray) -> BatchedFit:
@@ -412,6 +442,7 @@ def fit_least_absolute(
     iterations: int = 20,
     floor: float = 0.01,
     tolerance: float = 0.005,
+    start: tuple[BoolArray, FloatArray] | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Residuals about a least-absolute-deviations (L1) VAD fit of every (scan, gate).
 
@@ -448,8 +479,11 @@ def fit_least_absolute(
     floor : float, optional
         Smallest residual (m s-1) in the weights.
     tolerance : float, optional
-        A cell stops when none of its coefficients changed by more than this in a step
+        A cell stops when all of its coefficients changed by less than this in a step
         (m s-1); screening needs residuals only to a fraction of the noise.
+    start : (ndarray of bool (S, G), ndarray (S, G, 3)), optional
+        ``determined`` and ``nan_to_num(beta)`` of the start (:func:`linear_start`) when
+        the caller holds them (not written to); None: computed here.
 
     Returns
     -------
@@ -457,11 +491,13 @@ def fit_least_absolute(
         The L1 coefficients (m s-1; NaN where not determined) and data minus model
         (homodyne: ``|V_r| - |A beta|``) (m s-1).
     """
-    if homodyne:
-        start = fit_homodyne(values, design, valid)
-        ok, beta = start.determined, np.nan_to_num(start.beta)
+    if start is not None:
+        ok, beta = start[0], start[1].copy()
+    elif homodyne:
+        first = fit_homodyne(values, design, valid)
+        ok, beta = first.determined, np.nan_to_num(first.beta)
     else:
-        ok, beta = _linear_start(values, design, valid)
+        ok, beta, _ = linear_start(values, design, valid)
     design = np.nan_to_num(design)
     y = np.where(valid, np.abs(values) if homodyne else values, 0.0)
     batch = _IrlsBatch.of(y, valid, design, beta, ok)
