@@ -43,6 +43,7 @@ from cwproc.stages.vad_fit import (
     fit_scans,
     group_linear_residuals,
     linear_start,
+    ray_rows,
 )
 
 FLAG_LOW_SNR = 1
@@ -252,9 +253,10 @@ def outlier_flags(
             flagged = _outliers(residuals, use, n, threshold, min_spread)
             flagged = _homodyne_passes(values, design, base, flagged, use, n, threshold, min_spread)
         else:
-            ok, beta, least_squares = linear_start(values, design, base)
+            rows = ray_rows(values, base)
+            ok, beta, least_squares = linear_start(values, design, base, rows)
             _, residuals = fit_least_absolute(
-                values, design, base, homodyne=False, start=(ok, beta)
+                values, design, base, homodyne=False, start=(ok, beta), rows=rows
             )
             flagged = _outliers(residuals, use, n, threshold, min_spread)
             flagged = _linear_passes(

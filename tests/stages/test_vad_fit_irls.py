@@ -100,7 +100,9 @@ def test_stop_per_cell_keeps_the_l1_cost_of_a_fully_iterated_fit(n_rays: int) ->
 
 def test_packed_batch_gives_each_cell_its_own_fit() -> None:
     """Cells stop at different steps and are packed together: each cell's coefficients
-    are those of fitting it alone (to round-off), undetermined cells (fewer than 3 rays)
+    are those of fitting it alone (to the float32 round-off of the iterations' sums,
+    1e-6 of the coefficients a step, within a fifth of ``tolerance`` at the stop; a
+    mixed-up cell would be off by metres per second), undetermined cells (fewer than 3 rays)
     come back NaN with the data as residuals, and partly valid cells use only their
     valid rays."""
     design, values, rng = conical_scans(5, 24, 30, 0.3, seed=3)
@@ -120,4 +122,4 @@ def test_packed_batch_gives_each_cell_its_own_fit() -> None:
             alone, _ = fit_least_absolute(
                 values[cell], design[s : s + 1], valid[cell], homodyne=False
             )
-            np.testing.assert_allclose(beta[s, g], alone[0, 0], atol=1e-9)
+            np.testing.assert_allclose(beta[s, g], alone[0, 0], rtol=0, atol=1e-3)
