@@ -63,7 +63,7 @@ def snr_flags(snr: np.ndarray, snr_min: float) -> np.ndarray:
     """``FLAG_LOW_SNR`` where ``snr < snr_min`` or the SNR is not finite (int8)."""
     with np.errstate(invalid="ignore"):
         low = ~(np.asarray(snr, dtype=float) >= snr_min)
-    return np.where(low, FLAG_LOW_SNR, 0).astype(np.int8)
+    return np.where(low, np.int8(FLAG_LOW_SNR), np.int8(0))
 
 
 def robust_outliers(
@@ -173,7 +173,7 @@ def screen_radial_velocity(
             "Screening needs a scan dataset with radial_velocity(ray, range); this input has none."
         )
     velocity = ds["radial_velocity"].values.astype(float, copy=False)  # not written to
-    flag = np.where(np.isfinite(velocity), 0, FLAG_NOT_FINITE).astype(np.int8)
+    flag = np.where(np.isfinite(velocity), np.int8(0), np.int8(FLAG_NOT_FINITE))
     has_snr = "snr" in ds
     if has_snr:
         flag |= snr_flags(ds["snr"].values, snr_min)
@@ -187,7 +187,7 @@ def screen_radial_velocity(
         min_spread=min_spread,
         homodyne=homodyne,
     )
-    flag |= np.where(outlier, FLAG_OUTLIER, 0).astype(np.int8)
+    np.bitwise_or(flag, np.int8(FLAG_OUTLIER), out=flag, where=outlier)
     out = ds.copy()
     out["qc_flag_radial"] = (
         ("ray", "range"),
