@@ -98,38 +98,48 @@ def tested_entries(valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _outliers(
-    residuals: np.ndarray, use: np.ndarray, n: np.ndarray, threshold: float, min_spread: float
+    residuals: np.ndarray,
+    use: np.ndarray,
+    n: np.ndarray,
+    threshold: float,
+    min_spread: float,
+    axis: int = 1,
 ) -> np.ndarray:
-    """:func:`robust_outliers` of the entries ``use`` (``n`` of them per group)."""
-    centre = median_along_rays(residuals, use, n)
-    deviation = np.abs(residuals - centre[:, None, :])
-    spread = np.maximum(MAD_TO_STD * median_along_rays(deviation, use, n), min_spread)
-    return use & (deviation > threshold * spread[:, None, :])
+    """:func:`robust_outliers` of the entries ``use`` (``n`` of them per group; the rays
+    along ``axis``)."""
+    centre = np.expand_dims(median_along_rays(residuals, use, n, axis), axis)
+    deviation = np.abs(residuals - centre)
+    mad = median_along_rays(deviation, use, n, axis)
+    spread = np.maximum(MAD_TO_STD * mad, min_spread)
+    return use & (deviation > threshold * np.expand_dims(spread, axis))
 
 
 def median_along_rays(
-    values: np.ndarray, use: np.ndarray, n: np.ndarray | None = None
+    values: np.ndarray, use: np.ndarray, n: np.ndarray | None = None, axis: int = 1
 ) -> np.ndarray:
-    """Median over axis 1 of the entries where ``use`` is true (NaN for empty groups).
+    """Median over ``axis`` of the entries where ``use`` is true (NaN for empty groups).
 
     Parameters
     ----------
     values : ndarray, shape (S, R, G)
-    use : ndarray of bool, shape (S, R, G)
+        (or (S, G, R) with ``axis=-1``: rays contiguous, the faster sort)
+    use : ndarray of bool, the shape of ``values``
     n : ndarray of int, shape (S, G), optional
-        ``use.sum(axis=1)`` when the caller holds it.
+        ``use.sum(axis=axis)`` when the caller holds it.
+    axis : int, optional
+        The axis of the rays.
 
     Returns
     -------
     ndarray, shape (S, G)
     """
     ordered = np.where(use, values, np.inf)
-    ordered.sort(axis=1)  # in place: no second (S, R, G) array
-    n = use.sum(axis=1) if n is None else n
-    lo = np.take_along_axis(ordered, np.maximum((n - 1) // 2, 0)[:, None, :], axis=1)[:, 0]
-    hi = np.take_along_axis(ordered, np.maximum(n // 2, 0)[:, None, :], axis=1)[:, 0]
+    ordered.sort(axis=axis)  # in place: no second (S, R, G) array
+    n = use.sum(axis=axis) if n is None else n
+    lo = np.take_along_axis(ordered, np.expand_dims(np.maximum((n - 1) // 2, 0), axis), axis)
+    hi = np.take_along_axis(ordered, np.expand_dims(np.maximum(n // 2, 0), axis), axis)
     with np.errstate(invalid="ignore"):
-        return np.where(n > 0, 0.5 * (lo + hi), np.nan)
+        return np.where(n > 0, 0.5 * (lo + hi).squeeze(axis), np.nan)
 
 
 def screen_radial_velocity(
@@ -256,9 +266,11 @@ def outlier_flags(
             rows = ray_rows(values, base)
             ok, beta, least_squares = linear_start(values, design, base, rows)
             _, residuals = fit_least_absolute(
-                values, design, base, homodyne=False, start=(ok, beta), rows=rows
-            )
-            flagged = _outliers(residuals, use, n, threshold, min_spread)
+                values, design, base, homodyne=False, start=(ok, beta), rows=rows, as_rows=True
+            )  # float32 rows (S, G, R): the faster sort
+            rays_last = use.transpose(0, 2, 1)
+            flagged = _outliers(residuals, rays_last, n, threshold, min_spread, axis=-1)
+            flagged = flagged.transpose(0, 2, 1)
             flagged = _linear_passes(
                 values, design, base, flagged, use, n, threshold, min_spread, least_squares
             )

@@ -468,6 +468,7 @@ def fit_least_absolute(
     tolerance: float = 0.005,
     start: tuple[BoolArray, FloatArray] | None = None,
     rows: tuple[FloatArray, FloatArray] | None = None,
+    as_rows: bool = False,
 ) -> tuple[FloatArray, FloatArray]:
     """Residuals about a least-absolute-deviations (L1) VAD fit of every (scan, gate).
 
@@ -517,6 +518,10 @@ def fit_least_absolute(
     rows : (ndarray (S, G, R), ndarray (S, G, R)), optional
         :func:`ray_rows` of ``values`` and ``valid`` (``magnitude=homodyne``) when the
         caller holds them (not written to); None: computed here.
+    as_rows : bool, optional
+        Linear model only: the residuals as float32 rows of rays (S, G, R) (for a
+        median along the contiguous axis; where ``valid`` is false they are
+        ``-A beta``), made from the iterations' float32 data.
 
     Returns
     -------
@@ -533,7 +538,8 @@ def fit_least_absolute(
     else:
         ok, beta, _ = linear_start(values, design, valid, rows)
     design = np.nan_to_num(design)
-    batch = _IrlsBatch.of(rows, design, beta, ok)
+    rows32 = rows[0].astype(np.float32), rows[1].astype(np.float32)
+    batch = _IrlsBatch.of(rows32, design, beta, ok)
     for _ in range(iterations):
         if batch is None:
             break
@@ -541,6 +547,10 @@ def fit_least_absolute(
         batch = batch.narrowed(moving, beta)
     if batch is not None:
         batch.write(beta)
+    if as_rows and not homodyne:
+        model = np.matmul(beta.astype(np.float32), design.transpose(0, 2, 1).astype(np.float32))
+        residuals = np.subtract(rows32[0], model, out=model)
+        return np.where(ok[..., None], beta, np.nan), residuals
     model = _model(design, beta)
     residuals = np.abs(values) - np.abs(model) if homodyne else values - model
     return np.where(ok[..., None], beta, np.nan), residuals
@@ -577,7 +587,7 @@ class _IrlsBatch:
         ok: BoolArray,
     ) -> _IrlsBatch | None:
         """The batch of the determined cells ``ok`` (None if there is none); ``rows``:
-        :func:`ray_rows` (not written to)."""
+        :func:`ray_rows` as float32 (not written to)."""
         y, used = rows
         none = np.zeros(ok.shape, dtype=bool)
         whole = cls(
@@ -585,8 +595,8 @@ class _IrlsBatch:
             gates=np.broadcast_to(np.arange(y.shape[1]), ok.shape),
             pad=none,
             idle=none,
-            y=y.astype(np.float32),
-            used=used.astype(np.float32),
+            y=y,
+            used=used,
             design=np.ascontiguousarray(design.transpose(0, 2, 1), dtype=np.float32),
             pairs=_design_pairs(design).astype(np.float32),
             beta=beta.copy(),
