@@ -489,12 +489,15 @@ def fit_least_absolute(
     its slowest cell lay up to 0.1 m s-1 from it; their mean absolute residual exceeds
     the iterated fit's by less than 1e-3 m s-1 (0.5 %) in every cell. The outlier flags
     that follow (:mod:`cwproc.stages.qc`) differ from those of the whole-batch stop in
-    about 3 % of the flagged rays, those whose residual lies at the threshold.
+    about 3 % of the flagged rays, those whose residual lies at the threshold (on the
+    simulated day 220 of 34.6 million rays and gates, 7274 flagged before, 7202 after).
 
     The iterations run in float32 (data, weights and the sums of the normal equations;
     the 3x3 solutions in float64): the sums of 180 rays round to about 1e-6 of the
     coefficients, far below ``tolerance``, at half the memory traffic; the returned
-    residuals are computed in float64 from the final coefficients.
+    residuals are computed in float64 from the final coefficients (float32 with
+    ``as_rows``: the outlier test's medians and thresholds then round at 1e-7 relative,
+    which changed no flag of the simulated day).
 
     Parameters
     ----------
