@@ -44,6 +44,7 @@ from cwproc.stages.vad_fit import (
     group_linear_residuals,
     linear_start,
     ray_rows,
+    row_residuals,
 )
 
 FLAG_LOW_SNR = 1
@@ -263,16 +264,25 @@ def outlier_flags(
             flagged = _outliers(residuals, use, n, threshold, min_spread)
             flagged = _homodyne_passes(values, design, base, flagged, use, n, threshold, min_spread)
         else:
-            rows = ray_rows(values, base)
-            ok, beta, least_squares = linear_start(values, design, base, rows)
+            ray_data = ray_rows(values, base)
+            ok, beta, _ = linear_start(values, design, base, ray_data, residuals=False)
+            # float32 rows of rays (contiguous): the iterations' data and the faster sorts
+            ray_data = tuple(a.astype(np.float32) for a in ray_data)
             _, residuals = fit_least_absolute(
-                values, design, base, homodyne=False, start=(ok, beta), rows=rows, as_rows=True
-            )  # float32 rows (S, G, R): the faster sort
+                values, design, base, homodyne=False, start=(ok, beta), rows=ray_data, as_rows=True
+            )
             rays_last = use.transpose(0, 2, 1)
             flagged = _outliers(residuals, rays_last, n, threshold, min_spread, axis=-1)
-            flagged = flagged.transpose(0, 2, 1)
             flagged = _linear_passes(
-                values, design, base, flagged, use, n, threshold, min_spread, least_squares
+                values,
+                design,
+                base,
+                flagged.transpose(0, 2, 1),
+                use,
+                n,
+                threshold,
+                min_spread,
+                row_residuals(ray_data[0], design, beta),
             )
         index = sub.index[sub.present]
         outlier[index] = flagged[sub.present]
@@ -314,38 +324,41 @@ def _linear_passes(
     """The ``OUTLIER_PASSES`` fit / flag passes of the linear VAD model; each refits only
     the (scan, gate) groups whose rays differ from those of their last fit.
 
-    ``residuals`` (S, R, G) are those of the least-squares fit of every group on all its
-    ``base`` rays (:func:`cwproc.stages.vad_fit.linear_start`; overwritten). The
-    least-squares fit of a (scan, gate) group is its own (Smalikho (2020), eq. 1, per
-    scan and gate), so a group with no flagged ray keeps these residuals in the first
-    pass, and a group whose rays were flagged alike in the last two passes is fitted on
-    the same rays again and is flagged as before. The first pass refits the groups with
-    a ray flagged by the L1 fit (about 75 of 2000 groups of a chunk of 20 scans) and
-    tests every group; the later ones refit and test the groups whose flags the pass
-    before changed (about 3). Each group is refitted alone, as a row of rays
-    (:func:`cwproc.stages.vad_fit.group_linear_residuals`): the flags are those of
-    refitting and testing every group in every pass, up to the round-off of a sum
-    taken in another order.
+    ``values``, ``base``, ``flagged`` and ``use`` are (S, R, G), ``n`` (S, G);
+    ``residuals`` are those of the least-squares fit of every group on all its ``base``
+    rays as rows of rays (S, G, R) (:func:`cwproc.stages.vad_fit.row_residuals`, float32
+    or float64; overwritten), tested along their contiguous axis. The least-squares fit
+    of a (scan, gate) group is its own (Smalikho (2020), eq. 1, per scan and gate), so a
+    group with no flagged ray keeps these residuals in the first pass, and a group whose
+    rays were flagged alike in the last two passes is fitted on the same rays again and
+    is flagged as before. The first pass refits the groups with a ray flagged by the L1
+    fit (about 75 of 2000 groups of a chunk of 20 scans) and tests every group; the
+    later ones refit and test the groups whose flags the pass before changed (about 3).
+    Each group is refitted alone (:func:`cwproc.stages.vad_fit.group_linear_residuals`):
+    the flags are those of refitting and testing every group in every pass, up to the
+    round-off of a sum taken in another order (and of float32 residuals).
     """
     todo = flagged.any(axis=1)  # groups fitted on other rays than their residuals'
     for number in range(OUTLIER_PASSES):
         scans, gates = np.nonzero(todo)
         if scans.size:
-            residuals[scans, :, gates] = group_linear_residuals(
+            residuals[scans, gates] = group_linear_residuals(
                 values, design, base & ~flagged, scans, gates
             )
         if number == 0:
-            again = _outliers(residuals, use, n, threshold, min_spread)
+            rays_last = use.transpose(0, 2, 1)
+            again = _outliers(residuals, rays_last, n, threshold, min_spread, axis=-1)
+            again = again.transpose(0, 2, 1)
         else:
             again = flagged.copy()
-            tested = _outliers(
-                residuals[scans, :, gates][..., None],
-                use[scans, :, gates][..., None],
-                n[scans, gates][:, None],
+            again[scans, :, gates] = _outliers(
+                residuals[scans, gates],
+                use[scans, :, gates],
+                n[scans, gates],
                 threshold,
                 min_spread,
+                axis=-1,
             )
-            again[scans, :, gates] = tested[..., 0]
         changed = np.any(again != flagged, axis=1)
         if not changed.any():
             break  # the next pass would fit the same rays and flag the same again

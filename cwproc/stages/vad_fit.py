@@ -248,13 +248,17 @@ def linear_start(
     design: FloatArray,
     valid: BoolArray,
     rows: tuple[FloatArray, FloatArray] | None = None,
-) -> tuple[BoolArray, FloatArray, FloatArray]:
+    *,
+    residuals: bool = True,
+) -> tuple[BoolArray, FloatArray, FloatArray | None]:
     """``determined``, ``nan_to_num(beta)`` and the residuals of the least-squares fit
     of every (scan, gate) (:func:`fit_linear`, to round-off), without its residual
     variance and covariances; the model of an undetermined (scan, gate) is 0.
 
     ``rows`` is :func:`ray_rows` of ``velocity`` and ``valid`` when the caller holds it:
-    the normal equations are then summed over contiguous rows of rays.
+    the normal equations are then summed over contiguous rows of rays. ``residuals``
+    False: None instead of the residuals (a caller that takes them as rows,
+    :func:`row_residuals`).
     """
     design = np.nan_to_num(design)
     y, used = ray_rows(velocity, valid) if rows is None else rows
@@ -264,7 +268,20 @@ def linear_start(
     aty = np.matmul(y, design)
     beta = np.einsum("sgjk,sgk->sgj", np.nan_to_num(inverse), aty)
     beta = np.nan_to_num(np.where(determined[..., None], beta, np.nan))
+    if not residuals:
+        return determined, beta, None
     return determined, beta, velocity - _model(design, beta)
+
+
+def row_residuals(y: FloatArray, design: FloatArray, beta: FloatArray) -> FloatArray:
+    """``y - A beta`` of every (scan, gate) as rows of rays (S, G, R), in ``y``'s dtype.
+
+    ``y``: the first of :func:`ray_rows` (0 where not valid, so that there the result
+    is ``-A beta``); ``beta`` (S, G, 3) finite (m s-1).
+    """
+    a = np.nan_to_num(design).transpose(0, 2, 1).astype(y.dtype)
+    model = np.matmul(beta.astype(y.dtype), a)
+    return np.subtract(y, model, out=model)
 
 
 def group_linear_residuals(
@@ -519,8 +536,8 @@ def fit_least_absolute(
         ``determined`` and ``nan_to_num(beta)`` of the start (:func:`linear_start`) when
         the caller holds them (not written to); None: computed here.
     rows : (ndarray (S, G, R), ndarray (S, G, R)), optional
-        :func:`ray_rows` of ``values`` and ``valid`` (``magnitude=homodyne``) when the
-        caller holds them (not written to); None: computed here.
+        :func:`ray_rows` of ``values`` and ``valid`` (``magnitude=homodyne``), float64
+        or float32, when the caller holds them (not written to); None: computed here.
     as_rows : bool, optional
         Linear model only: the residuals as float32 rows of rays (S, G, R) (for a
         median along the contiguous axis; where ``valid`` is false they are
@@ -541,7 +558,7 @@ def fit_least_absolute(
     else:
         ok, beta, _ = linear_start(values, design, valid, rows)
     design = np.nan_to_num(design)
-    rows32 = rows[0].astype(np.float32), rows[1].astype(np.float32)
+    rows32 = rows[0].astype(np.float32, copy=False), rows[1].astype(np.float32, copy=False)
     batch = _IrlsBatch.of(rows32, design, beta, ok)
     for _ in range(iterations):
         if batch is None:
@@ -551,9 +568,7 @@ def fit_least_absolute(
     if batch is not None:
         batch.write(beta)
     if as_rows and not homodyne:
-        model = np.matmul(beta.astype(np.float32), design.transpose(0, 2, 1).astype(np.float32))
-        residuals = np.subtract(rows32[0], model, out=model)
-        return np.where(ok[..., None], beta, np.nan), residuals
+        return np.where(ok[..., None], beta, np.nan), row_residuals(rows32[0], design, beta)
     model = _model(design, beta)
     residuals = np.abs(values) - np.abs(model) if homodyne else values - model
     return np.where(ok[..., None], beta, np.nan), residuals

@@ -190,7 +190,13 @@ def test_outlier_passes_on_changed_groups_flag_as_refitting_every_group() -> Non
     pass."""
     from cwproc.physics.geometry import beam_unit_vector
     from cwproc.stages import qc
-    from cwproc.stages.vad_fit import fit_least_absolute, linear_residuals, linear_start
+    from cwproc.stages.vad_fit import (
+        fit_least_absolute,
+        linear_residuals,
+        linear_start,
+        ray_rows,
+        row_residuals,
+    )
 
     rng = np.random.default_rng(3)
     n_scans, n_rays, n_gates = 12, 24, 15
@@ -213,6 +219,7 @@ def test_outlier_passes_on_changed_groups_flag_as_refitting_every_group() -> Non
         reference = again
     changed = [np.any(a != b, axis=1).sum() for a, b in zip(history[1:], history[:-1], strict=True)]
     assert changed[0] > changed[1] > 0  # later passes change fewer groups, but some
-    least_squares = linear_start(values, design, base)[2]
+    rows = ray_rows(values, base)
+    least_squares = row_residuals(rows[0], design, linear_start(values, design, base, rows)[1])
     got = qc._linear_passes(values, design, base, first, use, n, 4.0, 0.04, least_squares)
     assert np.array_equal(got, reference)
