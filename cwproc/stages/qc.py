@@ -38,7 +38,14 @@ from cwproc.errors import CwprocError
 from cwproc.io.scans import is_homodyne
 from cwproc.physics.geometry import beam_unit_vector
 from cwproc.stages.vad import pointing, scan_chunks, scan_layout
-from cwproc.stages.vad_fit import fit_least_absolute, fit_scans, linear_residuals
+from cwproc.stages.vad_fit import (
+    fit_least_absolute,
+    fit_scans,
+    group_linear_residuals,
+    linear_start,
+    ray_rows,
+    row_residuals,
+)
 
 FLAG_LOW_SNR = 1
 FLAG_OUTLIER = 2
@@ -57,7 +64,7 @@ def snr_flags(snr: np.ndarray, snr_min: float) -> np.ndarray:
     """``FLAG_LOW_SNR`` where ``snr < snr_min`` or the SNR is not finite (int8)."""
     with np.errstate(invalid="ignore"):
         low = ~(np.asarray(snr, dtype=float) >= snr_min)
-    return np.where(low, FLAG_LOW_SNR, 0).astype(np.int8)
+    return np.where(low, np.int8(FLAG_LOW_SNR), np.int8(0))
 
 
 def robust_outliers(
@@ -92,38 +99,48 @@ def tested_entries(valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _outliers(
-    residuals: np.ndarray, use: np.ndarray, n: np.ndarray, threshold: float, min_spread: float
+    residuals: np.ndarray,
+    use: np.ndarray,
+    n: np.ndarray,
+    threshold: float,
+    min_spread: float,
+    axis: int = 1,
 ) -> np.ndarray:
-    """:func:`robust_outliers` of the entries ``use`` (``n`` of them per group)."""
-    centre = median_along_rays(residuals, use, n)
-    deviation = np.abs(residuals - centre[:, None, :])
-    spread = np.maximum(MAD_TO_STD * median_along_rays(deviation, use, n), min_spread)
-    return use & (deviation > threshold * spread[:, None, :])
+    """:func:`robust_outliers` of the entries ``use`` (``n`` of them per group; the rays
+    along ``axis``)."""
+    centre = np.expand_dims(median_along_rays(residuals, use, n, axis), axis)
+    deviation = np.abs(residuals - centre)
+    mad = median_along_rays(deviation, use, n, axis)
+    spread = np.maximum(MAD_TO_STD * mad, min_spread)
+    return use & (deviation > threshold * np.expand_dims(spread, axis))
 
 
 def median_along_rays(
-    values: np.ndarray, use: np.ndarray, n: np.ndarray | None = None
+    values: np.ndarray, use: np.ndarray, n: np.ndarray | None = None, axis: int = 1
 ) -> np.ndarray:
-    """Median over axis 1 of the entries where ``use`` is true (NaN for empty groups).
+    """Median over ``axis`` of the entries where ``use`` is true (NaN for empty groups).
 
     Parameters
     ----------
     values : ndarray, shape (S, R, G)
-    use : ndarray of bool, shape (S, R, G)
+        (or (S, G, R) with ``axis=-1``: rays contiguous, the faster sort)
+    use : ndarray of bool, the shape of ``values``
     n : ndarray of int, shape (S, G), optional
-        ``use.sum(axis=1)`` when the caller holds it.
+        ``use.sum(axis=axis)`` when the caller holds it.
+    axis : int, optional
+        The axis of the rays.
 
     Returns
     -------
     ndarray, shape (S, G)
     """
     ordered = np.where(use, values, np.inf)
-    ordered.sort(axis=1)  # in place: no second (S, R, G) array
-    n = use.sum(axis=1) if n is None else n
-    lo = np.take_along_axis(ordered, np.maximum((n - 1) // 2, 0)[:, None, :], axis=1)[:, 0]
-    hi = np.take_along_axis(ordered, np.maximum(n // 2, 0)[:, None, :], axis=1)[:, 0]
+    ordered.sort(axis=axis)  # in place: no second (S, R, G) array
+    n = use.sum(axis=axis) if n is None else n
+    lo = np.take_along_axis(ordered, np.expand_dims(np.maximum((n - 1) // 2, 0), axis), axis)
+    hi = np.take_along_axis(ordered, np.expand_dims(np.maximum(n // 2, 0), axis), axis)
     with np.errstate(invalid="ignore"):
-        return np.where(n > 0, 0.5 * (lo + hi), np.nan)
+        return np.where(n > 0, 0.5 * (lo + hi).squeeze(axis), np.nan)
 
 
 def screen_radial_velocity(
@@ -167,7 +184,7 @@ def screen_radial_velocity(
             "Screening needs a scan dataset with radial_velocity(ray, range); this input has none."
         )
     velocity = ds["radial_velocity"].values.astype(float, copy=False)  # not written to
-    flag = np.where(np.isfinite(velocity), 0, FLAG_NOT_FINITE).astype(np.int8)
+    flag = np.where(np.isfinite(velocity), np.int8(0), np.int8(FLAG_NOT_FINITE))
     has_snr = "snr" in ds
     if has_snr:
         flag |= snr_flags(ds["snr"].values, snr_min)
@@ -181,7 +198,7 @@ def screen_radial_velocity(
         min_spread=min_spread,
         homodyne=homodyne,
     )
-    flag |= np.where(outlier, FLAG_OUTLIER, 0).astype(np.int8)
+    np.bitwise_or(flag, np.int8(FLAG_OUTLIER), out=flag, where=outlier)
     out = ds.copy()
     out["qc_flag_radial"] = (
         ("ray", "range"),
@@ -241,13 +258,32 @@ def outlier_flags(
         base = sub.take(good) & present
         values = sub.take(velocity)
         design = beam_unit_vector(sub.take(azimuth), sub.take(elevation))
-        _, residuals = fit_least_absolute(values, design, base, homodyne=homodyne)
         use, n = tested_entries(base)  # the same in every pass
-        flagged = _outliers(residuals, use, n, threshold, min_spread)
         if homodyne:
+            _, residuals = fit_least_absolute(values, design, base, homodyne=True)
+            flagged = _outliers(residuals, use, n, threshold, min_spread)
             flagged = _homodyne_passes(values, design, base, flagged, use, n, threshold, min_spread)
         else:
-            flagged = _linear_passes(values, design, base, flagged, use, n, threshold, min_spread)
+            ray_data = ray_rows(values, base)
+            ok, beta, _ = linear_start(values, design, base, ray_data, residuals=False)
+            # float32 rows of rays (contiguous): the iterations' data and the faster sorts
+            ray_data = tuple(a.astype(np.float32) for a in ray_data)
+            _, residuals = fit_least_absolute(
+                values, design, base, homodyne=False, start=(ok, beta), rows=ray_data, as_rows=True
+            )
+            rays_last = use.transpose(0, 2, 1)
+            flagged = _outliers(residuals, rays_last, n, threshold, min_spread, axis=-1)
+            flagged = _linear_passes(
+                values,
+                design,
+                base,
+                flagged.transpose(0, 2, 1),
+                use,
+                n,
+                threshold,
+                min_spread,
+                row_residuals(ray_data[0], design, beta),
+            )
         index = sub.index[sub.present]
         outlier[index] = flagged[sub.present]
     return outlier
@@ -283,40 +319,46 @@ def _linear_passes(
     n: np.ndarray,
     threshold: float,
     min_spread: float,
+    residuals: np.ndarray,
 ) -> np.ndarray:
-    """The ``OUTLIER_PASSES`` fit / flag passes of the linear VAD model, each after the
-    first on the scan and gate groups whose flags the pass before changed.
+    """The ``OUTLIER_PASSES`` fit / flag passes of the linear VAD model; each refits only
+    the (scan, gate) groups whose rays differ from those of their last fit.
 
-    The least-squares fit of a (scan, gate) group is its own (Smalikho (2020), eq. 1,
-    per scan and gate; numpy's stacked matrix products take one product per scan, so a
-    scan's fit does not depend on the other scans given with it), so a group whose rays
-    were flagged alike in the last two passes is fitted on the same rays again, has the
-    same residuals to the bit and is flagged as before; only the scans with a changed
-    group are refitted and only the changed groups tested (about 3 of 2000 groups of a
-    chunk of 20 scans after the first pass). The flags are those of refitting and
-    testing every group in every pass.
+    ``values``, ``base``, ``flagged`` and ``use`` are (S, R, G), ``n`` (S, G);
+    ``residuals`` are those of the least-squares fit of every group on all its ``base``
+    rays as rows of rays (S, G, R) (:func:`cwproc.stages.vad_fit.row_residuals`, float32
+    or float64; overwritten), tested along their contiguous axis. The least-squares fit
+    of a (scan, gate) group is its own (Smalikho (2020), eq. 1, per scan and gate), so a
+    group with no flagged ray keeps these residuals in the first pass, and a group whose
+    rays were flagged alike in the last two passes is fitted on the same rays again and
+    is flagged as before. The first pass refits the groups with a ray flagged by the L1
+    fit (about 75 of 2000 groups of a chunk of 20 scans) and tests every group; the
+    later ones refit and test the groups whose flags the pass before changed (about 3).
+    Each group is refitted alone (:func:`cwproc.stages.vad_fit.group_linear_residuals`):
+    the flags are those of refitting and testing every group in every pass, up to the
+    round-off of a sum taken in another order (and of float32 residuals).
     """
-    todo: np.ndarray | None = None  # (scan, gate) groups to test again; None: all
-    for _ in range(OUTLIER_PASSES):
-        if todo is None:
-            residuals = linear_residuals(values, design, base & ~flagged)
-            again = _outliers(residuals, use, n, threshold, min_spread)
+    todo = flagged.any(axis=1)  # groups fitted on other rays than their residuals'
+    for number in range(OUTLIER_PASSES):
+        scans, gates = np.nonzero(todo)
+        if scans.size:
+            residuals[scans, gates] = group_linear_residuals(
+                values, design, base & ~flagged, scans, gates
+            )
+        if number == 0:
+            rays_last = use.transpose(0, 2, 1)
+            again = _outliers(residuals, rays_last, n, threshold, min_spread, axis=-1)
+            again = again.transpose(0, 2, 1)
         else:
             again = flagged.copy()
-            scans = np.flatnonzero(todo.any(axis=1))
-            residuals = linear_residuals(
-                values[scans], design[scans], base[scans] & ~flagged[scans]
-            )
-            at, gate = np.nonzero(todo[scans])  # into the refitted scans
-            cell = (scans[at], slice(None), gate)
-            tested = _outliers(
-                residuals[at, :, gate][..., None],
-                use[cell][..., None],
-                n[scans[at], gate][:, None],
+            again[scans, :, gates] = _outliers(
+                residuals[scans, gates],
+                use[scans, :, gates],
+                n[scans, gates],
                 threshold,
                 min_spread,
+                axis=-1,
             )
-            again[cell] = tested[..., 0]
         changed = np.any(again != flagged, axis=1)
         if not changed.any():
             break  # the next pass would fit the same rays and flag the same again

@@ -31,6 +31,9 @@ MAX_CONDITION = 1e8
 HOMODYNE_MAX_ITERATIONS = 50
 #: homodyne arc search: most (scan x ray x gate) elements per block (memory bound)
 HOMODYNE_BLOCK_ELEMENTS = 500_000
+#: L1 fit: the still-moving cells are packed anew when that leaves at most this share of
+#: the batch's columns (packing copies the batch's arrays)
+PACK_FRACTION = 0.5
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -225,17 +228,88 @@ def linear_residuals(velocity: FloatArray, design: FloatArray, valid: BoolArray)
     return velocity - _model(design, beta)
 
 
-def _linear_start(
-    velocity: FloatArray, design: FloatArray, valid: BoolArray
-) -> tuple[BoolArray, FloatArray]:
-    """``determined`` and ``nan_to_num(beta)`` of :func:`fit_linear`, the same values,
-    without its residuals, residual variance and covariances."""
+def ray_rows(
+    values: FloatArray, valid: BoolArray, *, magnitude: bool = False
+) -> tuple[FloatArray, FloatArray]:
+    """The data of every (scan, gate) as a row of its rays: ``y`` (S, G, R), the values
+    (``|values|`` when ``magnitude``) where ``valid`` and 0 elsewhere, and the 0/1
+    weights ``used`` (S, G, R); both C-contiguous new arrays."""
+    valid_rows = valid.transpose(0, 2, 1)
+    used = np.array(valid_rows, dtype=float, order="C")
+    y = np.array(values.transpose(0, 2, 1), dtype=float, order="C")
+    if magnitude:
+        np.abs(y, out=y)
+    np.copyto(y, 0.0, where=~valid_rows)
+    return y, used
+
+
+def linear_start(
+    velocity: FloatArray,
+    design: FloatArray,
+    valid: BoolArray,
+    rows: tuple[FloatArray, FloatArray] | None = None,
+    *,
+    residuals: bool = True,
+) -> tuple[BoolArray, FloatArray, FloatArray | None]:
+    """``determined``, ``nan_to_num(beta)`` and the residuals of the least-squares fit
+    of every (scan, gate) (:func:`fit_linear`, to round-off), without its residual
+    variance and covariances; the model of an undetermined (scan, gate) is 0.
+
+    ``rows`` is :func:`ray_rows` of ``velocity`` and ``valid`` when the caller holds it:
+    the normal equations are then summed over contiguous rows of rays. ``residuals``
+    False: None instead of the residuals (a caller that takes them as rows,
+    :func:`row_residuals`).
+    """
     design = np.nan_to_num(design)
-    weight = valid.astype(float)
-    y = np.where(valid, velocity, 0.0)
-    inverse, determined = _safe_inverse(_normal_matrix(design, weight), weight.sum(axis=1))
-    beta = _solve(np.nan_to_num(inverse), design, y)
-    return determined, np.nan_to_num(np.where(determined[..., None], beta, np.nan))
+    y, used = ray_rows(velocity, valid) if rows is None else rows
+    n_scan, n_gate = y.shape[:2]
+    ata = np.matmul(used, _design_outer(design)).reshape(n_scan, n_gate, 3, 3)
+    inverse, determined = _safe_inverse(ata, used.sum(axis=-1))
+    aty = np.matmul(y, design)
+    beta = np.einsum("sgjk,sgk->sgj", np.nan_to_num(inverse), aty)
+    beta = np.nan_to_num(np.where(determined[..., None], beta, np.nan))
+    if not residuals:
+        return determined, beta, None
+    return determined, beta, velocity - _model(design, beta)
+
+
+def row_residuals(y: FloatArray, design: FloatArray, beta: FloatArray) -> FloatArray:
+    """``y - A beta`` of every (scan, gate) as rows of rays (S, G, R), in ``y``'s dtype.
+
+    ``y``: the first of :func:`ray_rows` (0 where not valid, so that there the result
+    is ``-A beta``); ``beta`` (S, G, 3) finite (m s-1).
+    """
+    a = np.nan_to_num(design).transpose(0, 2, 1).astype(y.dtype)
+    model = np.matmul(beta.astype(y.dtype), a)
+    return np.subtract(y, model, out=model)
+
+
+def group_linear_residuals(
+    velocity: FloatArray,
+    design: FloatArray,
+    valid: BoolArray,
+    scans: NDArray[np.intp],
+    gates: NDArray[np.intp],
+) -> FloatArray:
+    """:func:`linear_residuals` of the (scan, gate) groups ``(scans[i], gates[i])`` alone.
+
+    Each group is fitted on its own rays (Smalikho (2020), eq. 1), as rows of rays, so
+    that a few groups cost a few rows and not their scans' every gate.
+
+    Returns
+    -------
+    ndarray, shape (N, R)
+        Data minus model of every ray of each group (m s-1).
+    """
+    y = velocity[scans, :, gates]
+    used = valid[scans, :, gates]
+    weight = used.astype(float)[:, None, :]  # (N, 1, R)
+    a = np.nan_to_num(design)[scans]  # (N, R, 3)
+    m = np.matmul(weight, _design_outer(a))[:, 0].reshape(-1, 3, 3)
+    inverse, _ = _safe_inverse(m, used.sum(axis=1))
+    aty = np.matmul(weight * np.where(used, y, 0.0)[:, None, :], a)[:, 0]
+    beta = np.einsum("njk,nk->nj", np.nan_to_num(inverse), aty)
+    return y - np.einsum("nrk,nk->nr", a, beta)
 
 
 def fit_linear(velocity: FloatArray, design: FloatArray, valid: BoolArray) -> BatchedFit:
@@ -409,6 +483,9 @@ def fit_least_absolute(
     iterations: int = 20,
     floor: float = 0.01,
     tolerance: float = 0.005,
+    start: tuple[BoolArray, FloatArray] | None = None,
+    rows: tuple[FloatArray, FloatArray] | None = None,
+    as_rows: bool = False,
 ) -> tuple[FloatArray, FloatArray]:
     """Residuals about a least-absolute-deviations (L1) VAD fit of every (scan, gate).
 
@@ -417,6 +494,27 @@ def fit_least_absolute(
     iteratively reweighted least squares, weights ``1 / max(|r|, floor)``, started from
     :func:`fit_scans`; for homodyne data each step re-assigns the signs as in
     :func:`fit_homodyne`.
+
+    Each (scan, gate) stops on its own: once all of its coefficients changed by less than
+    ``tolerance`` in a step it leaves the batch, and the cells still moving are packed
+    into fewer columns, so the work follows the cells that need it (on the 180-ray scans
+    of a simulated day a cell stops after 5.7 steps on average, where a stop of the whole
+    batch at the slowest cell took 19.5). Stopping a cell at a step below ``tolerance`` is
+    not being within ``tolerance`` of the limit: IRLS converges linearly and slowly where
+    the L1 cost is flat, and on those scans the stopped coefficients lie up to 0.16 m s-1
+    (90 % within 0.03 m s-1) from a fit iterated 400 times, where the batch stopped at
+    its slowest cell lay up to 0.1 m s-1 from it; their mean absolute residual exceeds
+    the iterated fit's by less than 1e-3 m s-1 (0.5 %) in every cell. The outlier flags
+    that follow (:mod:`cwproc.stages.qc`) differ from those of the whole-batch stop in
+    about 3 % of the flagged rays, those whose residual lies at the threshold (on the
+    simulated day 220 of 34.6 million rays and gates, 7274 flagged before, 7202 after).
+
+    The iterations run in float32 (data, weights and the sums of the normal equations;
+    the 3x3 solutions in float64): the sums of 180 rays round to about 1e-6 of the
+    coefficients, far below ``tolerance``, at half the memory traffic; the returned
+    residuals are computed in float64 from the final coefficients (float32 with
+    ``as_rows``: the outlier test's medians and thresholds then round at 1e-7 relative,
+    which changed no flag of the simulated day).
 
     Parameters
     ----------
@@ -428,12 +526,22 @@ def fit_least_absolute(
     homodyne : bool
         Fit ``|A beta|`` instead of ``A beta``.
     iterations : int, optional
-        Most IRLS iterations.
+        Most IRLS iterations of a cell.
     floor : float, optional
         Smallest residual (m s-1) in the weights.
     tolerance : float, optional
-        Stop when no coefficient changes by more than this (m s-1); screening needs
-        residuals only to a fraction of the noise.
+        A cell stops when all of its coefficients changed by less than this in a step
+        (m s-1); screening needs residuals only to a fraction of the noise.
+    start : (ndarray of bool (S, G), ndarray (S, G, 3)), optional
+        ``determined`` and ``nan_to_num(beta)`` of the start (:func:`linear_start`) when
+        the caller holds them (not written to); None: computed here.
+    rows : (ndarray (S, G, R), ndarray (S, G, R)), optional
+        :func:`ray_rows` of ``values`` and ``valid`` (``magnitude=homodyne``), float64
+        or float32, when the caller holds them (not written to); None: computed here.
+    as_rows : bool, optional
+        Linear model only: the residuals as float32 rows of rays (S, G, R) (for a
+        median along the contiguous axis; where ``valid`` is false they are
+        ``-A beta``), made from the iterations' float32 data.
 
     Returns
     -------
@@ -441,32 +549,136 @@ def fit_least_absolute(
         The L1 coefficients (m s-1; NaN where not determined) and data minus model
         (homodyne: ``|V_r| - |A beta|``) (m s-1).
     """
-    if homodyne:
-        start = fit_homodyne(values, design, valid)
-        ok, beta = start.determined, np.nan_to_num(start.beta)
+    rows = ray_rows(values, valid, magnitude=homodyne) if rows is None else rows
+    if start is not None:
+        ok, beta = start[0], start[1].copy()
+    elif homodyne:
+        first = fit_homodyne(values, design, valid)
+        ok, beta = first.determined, np.nan_to_num(first.beta)
     else:
-        ok, beta = _linear_start(values, design, valid)
+        ok, beta, _ = linear_start(values, design, valid, rows)
     design = np.nan_to_num(design)
-    y = np.where(valid, np.abs(values) if homodyne else values, 0.0)
-    # the (S, R, G) arrays of an iteration live in three buffers (no allocation per step)
-    pairs, model, weight, weighted = _design_pairs(design), *(np.empty_like(y) for _ in "123")
-    used = valid.astype(float)  # 1/0: the weights' numerators, converted once
-    keep = ~ok[..., None]
+    rows32 = rows[0].astype(np.float32, copy=False), rows[1].astype(np.float32, copy=False)
+    batch = _IrlsBatch.of(rows32, design, beta, ok)
     for _ in range(iterations):
-        np.matmul(design, np.nan_to_num(beta).transpose(0, 2, 1), out=model)  # _model
-        target = y * np.where(model >= 0, 1.0, -1.0) if homodyne else y
-        np.abs(np.subtract(target, model, out=weight), out=weight)
-        np.divide(used, np.maximum(weight, floor, out=weight), out=weight)
-        np.multiply(weight, target, out=weighted)
-        new = _cramer(*_normal_equations(design, weight, weighted, pairs))
-        np.copyto(new, beta, where=keep)  # undetermined problems keep their start
-        change = float(np.max(np.abs(new - beta), initial=0.0))
-        beta = new
-        if change < tolerance:
+        if batch is None:
             break
+        moving = batch.step(homodyne, floor, tolerance)
+        batch = batch.narrowed(moving, beta)
+    if batch is not None:
+        batch.write(beta)
+    if as_rows and not homodyne:
+        return np.where(ok[..., None], beta, np.nan), row_residuals(rows32[0], design, beta)
     model = _model(design, beta)
     residuals = np.abs(values) - np.abs(model) if homodyne else values - model
     return np.where(ok[..., None], beta, np.nan), residuals
+
+
+@dataclass
+class _IrlsBatch:
+    """The (scan, gate) cells of :func:`fit_least_absolute` still iterated, packed.
+
+    ``scans`` (S') are the scans with a moving cell and ``gates`` (S', K) the gate of each
+    column: the scan's moving cells in gate order, then padding (``pad``), which
+    repeats a moving gate with zero weight. ``idle`` (S', K) marks the columns whose
+    step is discarded: padding and the cells that stopped since the batch was packed.
+    ``y``, ``used`` (S', K, R: a cell's rays contiguous), ``design`` (S', 3, R),
+    ``pairs`` (S', R, 6) and ``beta`` (S', K, 3) are the cells' data.
+    """
+
+    scans: NDArray[np.intp]
+    gates: NDArray[np.intp]
+    pad: BoolArray
+    idle: BoolArray
+    y: FloatArray
+    used: FloatArray
+    design: FloatArray
+    pairs: FloatArray
+    beta: FloatArray
+
+    @classmethod
+    def of(
+        cls,
+        rows: tuple[FloatArray, FloatArray],
+        design: FloatArray,
+        beta: FloatArray,
+        ok: BoolArray,
+    ) -> _IrlsBatch | None:
+        """The batch of the determined cells ``ok`` (None if there is none); ``rows``:
+        :func:`ray_rows` as float32 (not written to)."""
+        y, used = rows
+        none = np.zeros(ok.shape, dtype=bool)
+        whole = cls(
+            scans=np.arange(y.shape[0]),
+            gates=np.broadcast_to(np.arange(y.shape[1]), ok.shape),
+            pad=none,
+            idle=none,
+            y=y,
+            used=used,
+            design=np.ascontiguousarray(design.transpose(0, 2, 1), dtype=np.float32),
+            pairs=_design_pairs(design).astype(np.float32),
+            beta=beta.copy(),
+        )
+        return whole.narrowed(ok, beta)
+
+    def write(self, beta: FloatArray) -> None:
+        """Copy the coefficients of the batch's cells into ``beta`` (S, G, 3)."""
+        cell = ~self.pad
+        scans = np.broadcast_to(self.scans[:, None], cell.shape)
+        beta[scans[cell], self.gates[cell]] = self.beta[cell]
+
+    def narrowed(self, moving: BoolArray, beta: FloatArray) -> _IrlsBatch | None:
+        """The batch of the cells ``moving`` (S', K) of this one, or None if none moves.
+
+        When packing would leave at most ``PACK_FRACTION`` of the columns, the moving
+        cells are packed anew (the coefficients of this batch written to ``beta``
+        first); otherwise this batch goes on with the stopped cells idle.
+        """
+        moving = moving & ~self.idle
+        keep = np.flatnonzero(moving.any(axis=1))
+        if keep.size == 0:
+            self.write(beta)
+            return None
+        count = moving[keep].sum(axis=1)
+        width = int(count.max())
+        if keep.size * width > PACK_FRACTION * moving.size:
+            self.idle = ~moving
+            return self
+        self.write(beta)
+        # the moving columns of each kept scan first, in gate order; then padding
+        column = np.argsort(~moving[keep], axis=1, kind="stable")[:, :width]
+        pad = np.arange(width) >= count[:, None]
+        column = np.where(pad, column[:, :1], column)
+        rows = keep[:, None]
+        used = self.used[rows, column]
+        used[pad] = 0.0
+        return _IrlsBatch(
+            scans=self.scans[keep],
+            gates=self.gates[rows, column],
+            pad=pad,
+            idle=pad,
+            y=self.y[rows, column],
+            used=used,
+            design=self.design[keep],
+            pairs=self.pairs[keep],
+            beta=self.beta[rows, column],
+        )
+
+    def step(self, homodyne: bool, floor: float, tolerance: float) -> BoolArray:
+        """One IRLS step of every cell (``beta`` updated; ``idle`` cells keep theirs);
+        the cells with a coefficient that changed by ``tolerance`` or more (S', K)."""
+        model = np.matmul(self.beta.astype(np.float32), self.design)  # A beta, (S', K, R)
+        target = self.y * np.where(model >= 0, 1.0, -1.0).astype(np.float32) if homodyne else self.y
+        weight = np.abs(np.subtract(target, model, out=model), out=model)
+        np.divide(self.used, np.maximum(weight, np.float32(floor), out=weight), out=weight)
+        # the distinct entries of sum_r w a_j a_k and sum_r w y a_j (_normal_equations)
+        m = np.matmul(weight, self.pairs)
+        rhs = np.matmul(np.multiply(weight, target, out=weight), self.design.transpose(0, 2, 1))
+        new = _cramer(m.astype(float), rhs.astype(float))
+        np.copyto(new, self.beta, where=self.idle[..., None])
+        moving = ~(np.max(np.abs(new - self.beta), axis=-1) < tolerance)
+        self.beta = new
+        return moving
 
 
 def fit_scans(

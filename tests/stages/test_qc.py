@@ -181,13 +181,22 @@ def test_real_stare_file_is_screened_without_change(real_data: Path) -> None:
 
 
 def test_outlier_passes_on_changed_groups_flag_as_refitting_every_group() -> None:
-    """The linear outlier passes after the first refit only the scans whose groups
-    changed and test only those groups: the flags equal those of refitting and testing
-    every (scan, gate) group in every pass (a least-squares fit per group is its own),
-    on noisy scans with wild estimates where the flags change from pass to pass."""
+    """The linear outlier passes refit only the (scan, gate) groups whose rays differ
+    from those of their last fit (the first pass: the groups with a ray flagged by the
+    L1 fit, the others keep the least-squares residuals of all their rays), each alone,
+    and after the first pass test only the groups that changed: the flags equal those
+    of refitting and testing every group in every pass (a least-squares fit per group is
+    its own), on noisy scans with wild estimates where the flags change from pass to
+    pass."""
     from cwproc.physics.geometry import beam_unit_vector
     from cwproc.stages import qc
-    from cwproc.stages.vad_fit import fit_least_absolute, linear_residuals
+    from cwproc.stages.vad_fit import (
+        fit_least_absolute,
+        linear_residuals,
+        linear_start,
+        ray_rows,
+        row_residuals,
+    )
 
     rng = np.random.default_rng(3)
     n_scans, n_rays, n_gates = 12, 24, 15
@@ -210,5 +219,7 @@ def test_outlier_passes_on_changed_groups_flag_as_refitting_every_group() -> Non
         reference = again
     changed = [np.any(a != b, axis=1).sum() for a, b in zip(history[1:], history[:-1], strict=True)]
     assert changed[0] > changed[1] > 0  # later passes change fewer groups, but some
-    got = qc._linear_passes(values, design, base, first, use, n, 4.0, 0.04)
+    rows = ray_rows(values, base)
+    least_squares = row_residuals(rows[0], design, linear_start(values, design, base, rows)[1])
+    got = qc._linear_passes(values, design, base, first, use, n, 4.0, 0.04, least_squares)
     assert np.array_equal(got, reference)
