@@ -37,6 +37,63 @@ def _block_sum(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
     return np.add.reduceat(values, starts, axis=0)
 
 
+@dataclass(frozen=True)
+class FiniteColumns:
+    """Where V'_L ``(scan, m, height)`` is finite, kept per column ``(scan, height)``.
+
+    Commonly all but a few columns hold a value at every azimuth ``m``: only those few
+    (``scans``, ``heights``) keep their mask (``masks``), so that counts of values and
+    of pairs cost a pass over them rather than over every value.
+
+    Attributes
+    ----------
+    finite : (scan, m, height) True where V'_L is a number.
+    zeroed : (scan, m, height) V'_L with 0 where it is missing (m s-1).
+    scans, heights : (k,) the columns with a missing value.
+    masks : (k, m) ``finite`` of those columns.
+    """
+
+    finite: np.ndarray
+    zeroed: np.ndarray
+    scans: np.ndarray
+    heights: np.ndarray
+    masks: np.ndarray
+
+    def counts(self, lag: int = 0) -> np.ndarray:
+        """``(scan, height)`` values (``lag`` 0) or pairs ``lag`` apart with both finite."""
+        n_t, n_m, n_h = self.finite.shape
+        out = np.full((n_t, n_h), max(n_m - lag, 0), dtype=np.int64)
+        both = self.masks if lag == 0 else self.masks[:, lag:] & self.masks[:, :-lag]
+        out[self.scans, self.heights] = both.sum(axis=1)
+        return out
+
+    def block_pairs(self, starts: np.ndarray, lag: int) -> np.ndarray:
+        """``(block, m, height)`` pairs ``lag`` apart with both values finite, summed over
+        the scans of each block (blocks starting at ``starts``), as floats."""
+        n_t, n_m, n_h = self.finite.shape
+        sizes = np.diff(np.append(starts, n_t))
+        out = np.empty((starts.size, max(n_m - lag, 0), n_h))
+        out[:] = sizes[:, None, None]
+        k, m = np.nonzero(~(self.masks[:, lag:] & self.masks[:, :-lag]))
+        block = np.repeat(np.arange(starts.size), sizes)[self.scans[k]]
+        np.subtract.at(out, (block, m, self.heights[k]), 1.0)
+        return out
+
+
+def _ordered_sum(values: np.ndarray) -> np.ndarray:
+    """Sum over axis 1 of ``(k, m)`` in ``m`` order from 0, as :func:`numpy.sum` adds
+    along an axis that is not the last (the last axis is summed pairwise)."""
+    return np.cumsum(values, axis=1)[:, -1] + 0.0  # 0 + x: -0 -> +0, as numpy starts
+
+
+def finite_columns(vprime: np.ndarray) -> FiniteColumns:
+    """:class:`FiniteColumns` of ``vprime`` ``(scan, m, height)``."""
+    finite = np.isfinite(vprime)
+    scans, heights = np.nonzero(~finite.all(axis=1))
+    zeroed = np.where(finite, vprime, 0.0)
+    return FiniteColumns(finite, zeroed, scans, heights, finite[scans, :, heights])
+
+
 def _scan_spread(per_scan: np.ndarray, starts: np.ndarray) -> np.ndarray:
     """Standard error of the block mean from the scatter of per-scan values (axis 0).
 
@@ -74,7 +131,11 @@ def _scan_covariance(per_scan: np.ndarray, starts: np.ndarray) -> np.ndarray:
 
 
 def block_statistics(
-    vprime: np.ndarray, n_scans: int, n_lags: int, refit: WindRefit | None = None
+    vprime: np.ndarray,
+    n_scans: int,
+    n_lags: int,
+    refit: WindRefit | None = None,
+    valid: FiniteColumns | None = None,
 ) -> tuple[np.ndarray, ...]:
     """D_L, pair counts and variance of V'_L per block of ``n_scans`` consecutive scans.
 
@@ -97,6 +158,8 @@ def block_statistics(
         The beams and per-scan winds of the block-mean VAD fit: the covariance is then
         the jackknife over the scans with that fit redone without each scan
         (:func:`jackknife_covariance`), else the scatter of the per-scan values.
+    valid : FiniteColumns, optional
+        :func:`finite_columns` of ``vprime`` when the caller has it already.
 
     Returns
     -------
@@ -110,6 +173,7 @@ def block_statistics(
     """
     starts = np.arange(0, vprime.shape[0], n_scans)
     n_h = vprime.shape[2]
+    valid = finite_columns(vprime) if valid is None else valid
     sf = np.empty((starts.size, n_h, n_lags))
     pairs = np.empty((starts.size, n_h, n_lags), dtype=np.int64)
     sf_se = np.empty_like(sf)
@@ -117,10 +181,11 @@ def block_statistics(
     first = None
     per_stats = np.empty((vprime.shape[0], n_h, n_lags + 1))
     for lag in range(1, n_lags + 1):  # each lag vectorised
-        d2 = (vprime[:, lag:, :] - vprime[:, :-lag, :]) ** 2
-        ok = np.isfinite(d2)
-        per_total = np.where(ok, d2, 0.0).sum(axis=1)
-        per_count = ok.sum(axis=1)
+        d2 = np.subtract(vprime[:, lag:, :], vprime[:, :-lag, :])
+        np.square(d2, out=d2)
+        np.fmax(d2, 0.0, out=d2)  # a pair with a missing value (NaN) adds 0
+        per_total = d2.sum(axis=1)
+        per_count = valid.counts(lag)
         total = _block_sum(per_total, starts)
         count = _block_sum(per_count, starts)
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -131,24 +196,27 @@ def block_statistics(
         first = per_scan if first is None else first
         sf_se[:, :, lag - 1] = _scan_spread(per_scan, starts)
         diff_se[:, :, lag - 1] = _scan_spread(per_scan - first, starts)
-    ok = np.isfinite(vprime)
-    n_val = _block_sum(ok.sum(axis=1), starts).astype(float)
-    s1 = _block_sum(np.where(ok, vprime, 0.0).sum(axis=1), starts)
-    s2 = _block_sum(np.where(ok, vprime**2, 0.0).sum(axis=1), starts)
+    per_n = valid.counts()
+    n_val = _block_sum(per_n, starts).astype(float)
+    per_s2 = np.square(valid.zeroed).sum(axis=1)
+    s1 = _block_sum(valid.zeroed.sum(axis=1), starts)
+    s2 = _block_sum(per_s2, starts)
     with np.errstate(invalid="ignore", divide="ignore"):
         variance = np.where(n_val > 1, (s2 - s1**2 / n_val) / (n_val - 1), np.nan)
-        per_n = ok.sum(axis=1).astype(float)
-        per_var = np.where(per_n > 1, (np.nansum(vprime**2, axis=1)) / per_n, np.nan)
+        per_n = per_n.astype(float)
+        per_var = np.where(per_n > 1, per_s2 / per_n, np.nan)
     per_stats[:, :, n_lags] = per_var
     if refit is None:
         covariance = _scan_covariance(per_stats, starts)
     else:
-        terms = wind_refit_terms(vprime, refit, n_scans)
+        terms = wind_refit_terms(vprime, refit, n_scans, valid)
         covariance = jackknife_covariance(per_stats, starts, terms)
     return sf, pairs, variance, sf_se, diff_se, _scan_spread(per_var, starts), covariance
 
 
-def wind_refit_terms(vprime: np.ndarray, refit: WindRefit, n_scans: int) -> dict[str, np.ndarray]:
+def wind_refit_terms(
+    vprime: np.ndarray, refit: WindRefit, n_scans: int, valid: FiniteColumns | None = None
+) -> dict[str, np.ndarray]:
     """Per-scan sums that give the variance of V'_L of a block without one of its scans.
 
     Without scan ``k`` the block-mean wind of ``N`` scans moves by
@@ -157,22 +225,29 @@ def wind_refit_terms(vprime: np.ndarray, refit: WindRefit, n_scans: int) -> dict
     with ``g_s`` the scan's mean of ``V'_L S`` and ``M_s`` its mean of ``S S^T`` over the
     valid rays. Returns ``g`` (scan, height, 3), ``m`` (scan, height, 3, 3) and
     ``delta`` (scan, height, 3; 0 where the scan has no wind). Sums over the rays as
-    the statistics take them (not a BLAS product), so that a day processed in chunks
-    gives the same bits as the whole day.
+    the statistics take them, in azimuth order (not a BLAS product), so that a day
+    processed in chunks gives the same bits as the whole day; ``M_s`` of a column valid
+    at every azimuth is the scan's sum over its beams, formed once per scan.
+    ``valid`` is :func:`finite_columns` of ``vprime`` when the caller has it already.
     """
-    ok = np.isfinite(vprime) & np.all(np.isfinite(refit.beams), axis=-1)[..., None]
+    beam_ok = np.all(np.isfinite(refit.beams), axis=-1)
+    valid = finite_columns(vprime) if valid is None else valid
+    if valid.finite[~beam_ok].any():  # a value without a beam is left out
+        valid = finite_columns(np.where(beam_ok[..., None], vprime, np.nan))
     beams = np.nan_to_num(refit.beams)
-    v0 = np.where(ok, vprime, 0.0)
-    okf = ok.astype(float)
     n_t, n_h = vprime.shape[0], vprime.shape[2]
     g = np.empty((n_t, n_h, 3))
     m = np.empty((n_t, n_h, 3, 3))
+    masks = valid.masks.astype(float)
     with np.errstate(invalid="ignore", divide="ignore"):
-        count = okf.sum(axis=1)
+        count = valid.counts().astype(float)
         for i in range(3):
-            g[..., i] = (v0 * beams[..., i, None]).sum(axis=1) / count
+            g[..., i] = (valid.zeroed * beams[..., i, None]).sum(axis=1) / count
             for j in range(i, 3):
-                m[..., i, j] = (okf * (beams[..., i] * beams[..., j])[..., None]).sum(axis=1)
+                s_ij = beams[..., i] * beams[..., j]  # (scan, m)
+                # sums in azimuth order, as the reduction over axis 1 of (scan, m, height)
+                m[..., i, j] = _ordered_sum(s_ij)[:, None]
+                m[valid.scans, valid.heights, i, j] = _ordered_sum(masks * s_ij[valid.scans])
                 m[..., i, j] /= count
                 m[..., j, i] = m[..., i, j]
     block = np.arange(n_t) // n_scans

@@ -35,7 +35,13 @@ from cwproc.errors import CwprocError
 from cwproc.io.scans import is_homodyne
 from cwproc.physics.atable_interp import N_BINS, azimuth_nodes
 from cwproc.physics.geometry import beam_unit_vector, radial_velocity, speed_and_direction
-from cwproc.stages.block_stats import WindRefit, _block_sum, block_statistics
+from cwproc.stages.block_stats import (
+    FiniteColumns,
+    WindRefit,
+    _block_sum,
+    block_statistics,
+    finite_columns,
+)
 
 #: largest relative mismatch (m) between wind-product gate ranges and scan gate ranges
 _RANGE_TOLERANCE_M = 0.5
@@ -186,6 +192,7 @@ def pair_azimuth_weights(
     sign: float,
     wind_to_deg: np.ndarray,
     n_lags: int = 1,
+    valid: FiniteColumns | None = None,
 ) -> np.ndarray:
     """Weights of the azimuth nodes of the A-table for the pairs of each lag present.
 
@@ -213,6 +220,10 @@ def pair_azimuth_weights(
         Azimuth step (deg) and rotation (+1 clockwise).
     wind_to_deg : numpy.ndarray
         ``(block, height)`` direction the mean wind blows towards (deg from north).
+    n_lags : int, optional
+        Lags l = 1..n_lags.
+    valid : FiniteColumns, optional
+        :func:`cwproc.stages.block_stats.finite_columns` of ``vprime``, if at hand.
 
     Returns
     -------
@@ -221,18 +232,60 @@ def pair_azimuth_weights(
         the day's statistics otherwise); NaN where a block, height and lag has no pair.
     """
     starts = np.arange(0, vprime.shape[0], n_scans)
-    n_blocks, n_h = starts.size, vprime.shape[2]
+    n_blocks, n_az, n_h = starts.size, vprime.shape[1], vprime.shape[2]
     out = np.full((n_blocks, n_h, n_lags, N_BINS), np.nan, dtype=np.float32)
-    finite = np.isfinite(vprime)
-    for li in range(min(n_lags, vprime.shape[1] - 1)):
-        lag = li + 1
-        ok = finite[:, lag:, :] & finite[:, :-lag, :]
-        count = _block_sum(ok.astype(float), starts)  # (block, m, height)
-        m_mid = np.arange(vprime.shape[1] - lag) + 0.5 * lag
-        beta = first_azimuth_deg[:, None] + sign * dtheta_deg * m_mid[None, :]  # (block, m)
-        theta = np.radians(sign * (wind_to_deg[:, None, :] - beta[:, :, None]))
-        out[:, :, li] = pair_node_weights(theta, count)
+    lags = min(n_lags, n_az - 1)
+    if lags < 1:
+        return out
+    valid = finite_columns(vprime) if valid is None else valid
+    # the pair middles m + l / 2 of every lag l on one grid of half steps j / 2
+    m_mid = np.arange(1, 2 * n_az - 2) * 0.5
+    beta = first_azimuth_deg[:, None] + sign * dtheta_deg * m_mid[None, :]  # (block, j)
+    theta = np.radians(sign * (wind_to_deg[:, None, :] - beta[:, :, None]))
+    nodes, shares, total = [], [], np.empty((n_blocks, n_h, lags))
+    for li in range(lags):
+        j = slice(li, 2 * n_az - li - 3, 2)  # j = 2 m + l
+        node, share, total[..., li] = _node_shares(
+            theta[:, j], valid.block_pairs(starts, li + 1), li, lags
+        )
+        nodes.append(node.ravel())
+        shares.append(share.ravel())
+    size = n_blocks * n_h * lags * N_BINS  # one sum: each node's shares in m order
+    sums = np.bincount(np.concatenate(nodes), np.concatenate(shares), minlength=size)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out[:, :, :lags] = sums.reshape(n_blocks, n_h, lags, N_BINS) / total[..., None]
     return out
+
+
+def _node_shares(
+    theta: np.ndarray, counts: np.ndarray, lag_index: int, n_lags: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Nodes, shares and pairs of :func:`pair_node_weights` for one lag of ``n_lags``.
+
+    ``theta`` and ``counts`` are ``(block, m, height)``; the nodes are numbered in the
+    ``(block, height, lag, N_BINS)`` layout; nodes and shares are ``(block, m, height,
+    2)`` (the lower and the upper node of each pair position), in the order that
+    :func:`pair_node_weights` sums them, and the pairs ``(block, height)``. A position
+    without a pair shares 0 between its nodes (adds nothing to the sums).
+    """
+    n_b, _, n_h = theta.shape
+    finite = np.isfinite(theta)
+    n = np.where(finite, counts, 0.0)
+    pos = np.mod(np.where(finite, theta, 0.0), 2.0 * np.pi) / (2.0 * np.pi / N_BINS)
+    floor = np.floor(pos)
+    i0 = floor.astype(np.int64)
+    i0[i0 >= N_BINS] -= N_BINS  # pos is in [0, N_BINS]
+    frac = pos - floor
+    cell = ((np.arange(n_b)[:, None] * n_h + np.arange(n_h)) * n_lags + lag_index) * N_BINS
+    node = np.empty((*theta.shape, 2), dtype=np.int64)
+    np.add(cell[:, None, :], i0, out=node[..., 0])
+    i0 += 1
+    i0[i0 == N_BINS] = 0
+    np.add(cell[:, None, :], i0, out=node[..., 1])
+    share = np.empty(node.shape)
+    np.multiply(1.0 - frac, n, out=share[..., 0])
+    np.multiply(frac, n, out=share[..., 1])
+    return node, share, n.sum(axis=1)
 
 
 def pair_node_weights(theta: np.ndarray, counts: np.ndarray) -> np.ndarray:
@@ -591,7 +644,8 @@ def _block_statistics_by_chunk(
             )
             block_winds = np.stack([u_b[b0:b1], v_b[b0:b1], w_b[b0:b1]], -1)
             refit = WindRefit(beams, scan_wind[t0_:t1_], block_winds)
-        stats = block_statistics(vprime, n_scans, n_lags, refit)
+        valid = finite_columns(vprime)
+        stats = block_statistics(vprime, n_scans, n_lags, refit, valid)
         for name, value in zip(stat_names, stats, strict=True):
             out[name][b0:b1] = value
         out["weights"][b0:b1] = pair_azimuth_weights(
@@ -602,6 +656,7 @@ def _block_statistics_by_chunk(
             grid.sign,
             wind_to[b0:b1],
             n_lags,
+            valid,
         )
         if has_snr:
             snr = np.full_like(vprime, np.nan)
