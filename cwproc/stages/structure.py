@@ -26,6 +26,7 @@ times) and the block-mean horizontal wind speed U.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,11 +37,11 @@ from cwproc.io.scans import is_homodyne
 from cwproc.physics.atable_interp import N_BINS, azimuth_nodes
 from cwproc.physics.geometry import beam_unit_vector, radial_velocity, speed_and_direction
 from cwproc.stages.block_stats import (
-    FiniteColumns,
     WindRefit,
     _block_sum,
     block_statistics,
     finite_columns,
+    pair_azimuth_weights,
 )
 
 #: largest relative mismatch (m) between wind-product gate ranges and scan gate ranges
@@ -182,110 +183,6 @@ def _nanmedian_columns(values: np.ndarray) -> np.ndarray:
         ordered = np.partition(part, [lo, hi], axis=0)
         out[columns] = (ordered[lo] + ordered[hi]) / 2
     return out
-
-
-def pair_azimuth_weights(
-    vprime: np.ndarray,
-    n_scans: int,
-    first_azimuth_deg: np.ndarray,
-    dtheta_deg: float,
-    sign: float,
-    wind_to_deg: np.ndarray,
-    n_lags: int = 1,
-    valid: FiniteColumns | None = None,
-) -> np.ndarray:
-    """Weights of the azimuth nodes of the A-table for the pairs of each lag present.
-
-    Each pair of rays ``l`` steps apart with both values valid counts at the angle of the
-    block-mean wind's direction of motion from the scan's direction of motion at the
-    pair's middle, ``sign (alpha - beta)`` (Smalikho (2020), eq. 15: the wind's component
-    along the scan is ``U sin theta``); :func:`cwproc.physics.atable_interp.azimuth_bin_weights`
-    shares it between the nodes. The azimuth grid of a block is that of its first scan.
-    The weights are kept per lag: pairs do not wrap from a scan's last ray to its first,
-    so a full circle lacks ``l`` of its ``M`` pair positions at lag ``l``, and where the
-    wind makes ``D`` vary strongly with azimuth (``mu`` near 1) the missing positions
-    move the mean of ``D(l)`` by several per cent (24-ray VAD, ``mu = 1``, wind fixed to
-    the scan start: +3, +5, +7 % at lags 1-3 against the circle mean; exact covariance
-    of :mod:`cwproc.sim.exact_gaussian`).
-
-    Parameters
-    ----------
-    vprime : numpy.ndarray
-        ``(scan, m, height)`` deviations V'_L of the blocks.
-    n_scans : int
-        Scans per block.
-    first_azimuth_deg : numpy.ndarray
-        ``(block,)`` azimuth of the first ray of each block's first scan (deg).
-    dtheta_deg, sign : float
-        Azimuth step (deg) and rotation (+1 clockwise).
-    wind_to_deg : numpy.ndarray
-        ``(block, height)`` direction the mean wind blows towards (deg from north).
-    n_lags : int, optional
-        Lags l = 1..n_lags.
-    valid : FiniteColumns, optional
-        :func:`cwproc.stages.block_stats.finite_columns` of ``vprime``, if at hand.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``(block, height, n_lags, N_BINS)`` (float32: shares, a quarter of the memory of
-        the day's statistics otherwise); NaN where a block, height and lag has no pair.
-    """
-    starts = np.arange(0, vprime.shape[0], n_scans)
-    n_blocks, n_az, n_h = starts.size, vprime.shape[1], vprime.shape[2]
-    out = np.full((n_blocks, n_h, n_lags, N_BINS), np.nan, dtype=np.float32)
-    lags = min(n_lags, n_az - 1)
-    if lags < 1:
-        return out
-    valid = finite_columns(vprime) if valid is None else valid
-    # the pair middles m + l / 2 of every lag l on one grid of half steps j / 2
-    m_mid = np.arange(1, 2 * n_az - 2) * 0.5
-    beta = first_azimuth_deg[:, None] + sign * dtheta_deg * m_mid[None, :]  # (block, j)
-    theta = np.radians(sign * (wind_to_deg[:, None, :] - beta[:, :, None]))
-    nodes, shares, total = [], [], np.empty((n_blocks, n_h, lags))
-    for li in range(lags):
-        j = slice(li, 2 * n_az - li - 3, 2)  # j = 2 m + l
-        node, share, total[..., li] = _node_shares(
-            theta[:, j], valid.block_pairs(starts, li + 1), li, lags
-        )
-        nodes.append(node.ravel())
-        shares.append(share.ravel())
-    size = n_blocks * n_h * lags * N_BINS  # one sum: each node's shares in m order
-    sums = np.bincount(np.concatenate(nodes), np.concatenate(shares), minlength=size)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out[:, :, :lags] = sums.reshape(n_blocks, n_h, lags, N_BINS) / total[..., None]
-    return out
-
-
-def _node_shares(
-    theta: np.ndarray, counts: np.ndarray, lag_index: int, n_lags: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Nodes, shares and pairs of :func:`pair_node_weights` for one lag of ``n_lags``.
-
-    ``theta`` and ``counts`` are ``(block, m, height)``; the nodes are numbered in the
-    ``(block, height, lag, N_BINS)`` layout; nodes and shares are ``(block, m, height,
-    2)`` (the lower and the upper node of each pair position), in the order that
-    :func:`pair_node_weights` sums them, and the pairs ``(block, height)``. A position
-    without a pair shares 0 between its nodes (adds nothing to the sums).
-    """
-    n_b, _, n_h = theta.shape
-    finite = np.isfinite(theta)
-    n = np.where(finite, counts, 0.0)
-    pos = np.mod(np.where(finite, theta, 0.0), 2.0 * np.pi) / (2.0 * np.pi / N_BINS)
-    floor = np.floor(pos)
-    i0 = floor.astype(np.int64)
-    i0[i0 >= N_BINS] -= N_BINS  # pos is in [0, N_BINS]
-    frac = pos - floor
-    cell = ((np.arange(n_b)[:, None] * n_h + np.arange(n_h)) * n_lags + lag_index) * N_BINS
-    node = np.empty((*theta.shape, 2), dtype=np.int64)
-    np.add(cell[:, None, :], i0, out=node[..., 0])
-    i0 += 1
-    i0[i0 == N_BINS] = 0
-    np.add(cell[:, None, :], i0, out=node[..., 1])
-    share = np.empty(node.shape)
-    np.multiply(1.0 - frac, n, out=share[..., 0])
-    np.multiply(frac, n, out=share[..., 1])
-    return node, share, n.sum(axis=1)
 
 
 def pair_node_weights(theta: np.ndarray, counts: np.ndarray) -> np.ndarray:
@@ -634,14 +531,11 @@ def _block_statistics_by_chunk(
         )
         if homodyne:
             vr = homodyne_radial_velocity(vr, model, b - b0)
-        vprime = np.full((t1_ - t0_, n_az, n_h), np.nan)
-        vprime[scan_pos[cells] - t0_, m[cells]] = vr - model
+        on_grid = _grid_placer(scan_pos[cells] - t0_, m[cells], t1_ - t0_, n_az)
+        vprime = on_grid(vr - model)
         refit = None
         if not homodyne:
-            beams = np.full((t1_ - t0_, n_az, 3), np.nan)
-            beams[scan_pos[cells] - t0_, m[cells]] = beam_unit_vector(
-                grid.az[cells], grid.el[cells]
-            )
+            beams = on_grid(beam_unit_vector(grid.az[cells], grid.el[cells]))
             block_winds = np.stack([u_b[b0:b1], v_b[b0:b1], w_b[b0:b1]], -1)
             refit = WindRefit(beams, scan_wind[t0_:t1_], block_winds)
         valid = finite_columns(vprime)
@@ -659,21 +553,37 @@ def _block_statistics_by_chunk(
             valid,
         )
         if has_snr:
-            snr = np.full_like(vprime, np.nan)
             snr_vals = _rows_at(screened_ds["snr"].values, rays[cells], gates, float)
-            snr[scan_pos[cells] - t0_, m[cells]] = np.where(np.isfinite(vr), snr_vals, np.nan)
+            snr = on_grid(np.where(np.isfinite(vr), snr_vals, np.nan))
             out["snr_median"][b0:b1] = block_median(snr, n_scans)
     out["wind_to"] = wind_to
     return out
+
+
+def _grid_placer(scans: np.ndarray, m: np.ndarray, n_time: int, n_az: int) -> Callable:
+    """A function placing values ``(cell, ...)`` of the cells ``(scans, m)`` on the grid
+    ``(n_time, n_az, ...)``, NaN where no cell; the values themselves, reshaped, when
+    the cells fill the grid in order (every ray of every scan present, as commonly)."""
+    flat = scans * n_az + m
+    if flat.size == n_time * n_az and np.array_equal(flat, np.arange(flat.size)):
+        return lambda values: values.reshape(n_time, n_az, *values.shape[1:])
+
+    def place(values: np.ndarray) -> np.ndarray:
+        out = np.full((n_time, n_az, *values.shape[1:]), np.nan)
+        out[scans, m] = values
+        return out
+
+    return place
 
 
 def _rows_at(
     values: np.ndarray, rows: np.ndarray, gates: np.ndarray, dtype: type | None = None
 ) -> np.ndarray:
     """``values[rows][:, gates]`` (as ``dtype``) in one copy: the gates are commonly all
-    of them, in order."""
+    of them, in order (then consecutive rows are a view, not a copy)."""
     if gates.size == values.shape[1] and np.array_equal(gates, np.arange(gates.size)):
-        out = values[rows]
+        consecutive = rows.size > 0 and np.array_equal(rows, np.arange(rows[0], rows[-1] + 1))
+        out = values[rows[0] : rows[-1] + 1] if consecutive else values[rows]
     else:
         out = values[np.ix_(rows, gates)]
     return out if dtype is None else out.astype(dtype, copy=False)
