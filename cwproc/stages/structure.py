@@ -320,9 +320,7 @@ def azimuth_structure_function(
     homodyne = is_homodyne(screened_ds) if homodyne is None else bool(homodyne)
     starts = np.arange(0, grid.n_time, n_scans)
     # block-mean wind vector <V>_N per block and height (Smalikho (2020), eq. 1)
-    scan_wind = np.stack(
-        [wind[name].transpose("time", "height").values.astype(float) for name in "uvw"], -1
-    )
+    scan_wind = np.stack([_time_height(wind[name]).astype(float) for name in "uvw"], -1)
     mean_wind = tuple(_block_mean(scan_wind[..., i], starts) for i in range(3))
     stats = _block_statistics_by_chunk(
         screened_ds, grid, gates, mean_wind, scan_wind, n_scans=n_scans, homodyne=homodyne
@@ -346,6 +344,13 @@ def azimuth_structure_function(
         }
     )
     return out
+
+
+def _time_height(values: xr.DataArray) -> np.ndarray:
+    """The values of a ``(time, height)`` variable in that order (transposed if need be)."""
+    if values.dims == ("time", "height"):
+        return values.values
+    return values.transpose("time", "height").values
 
 
 def _check_inputs(screened_ds: xr.Dataset, wind: xr.Dataset, n_scans: int) -> None:
@@ -526,12 +531,20 @@ def _block_statistics_by_chunk(
         flag = _rows_at(screened_ds["qc_flag_radial"].values, rays[cells], gates)
         vr = np.where((flag == 0) & np.isfinite(vr), vr, np.nan)
         b = block_of_time[scan_pos[cells]]
-        model = radial_velocity(
-            u_b[b], v_b[b], w_b[b], grid.az[cells][:, None], grid.el[cells][:, None]
-        )
+        complete, on_grid = _grid_placer(scan_pos[cells] - t0_, m[cells], t1_ - t0_, n_az)
+        if complete and t1_ - t0_ == (b1 - b0) * n_scans:  # (block, ray, height) broadcast
+            rays_of = (b1 - b0, n_scans * n_az, 1)
+            model = radial_velocity(
+                *(c[b0:b1, None] for c in (u_b, v_b, w_b)),
+                grid.az[cells].reshape(rays_of),
+                grid.el[cells].reshape(rays_of),
+            ).reshape(cells.size, n_h)
+        else:
+            model = radial_velocity(
+                u_b[b], v_b[b], w_b[b], grid.az[cells][:, None], grid.el[cells][:, None]
+            )
         if homodyne:
             vr = homodyne_radial_velocity(vr, model, b - b0)
-        on_grid = _grid_placer(scan_pos[cells] - t0_, m[cells], t1_ - t0_, n_az)
         vprime = on_grid(vr - model)
         refit = None
         if not homodyne:
@@ -560,20 +573,21 @@ def _block_statistics_by_chunk(
     return out
 
 
-def _grid_placer(scans: np.ndarray, m: np.ndarray, n_time: int, n_az: int) -> Callable:
-    """A function placing values ``(cell, ...)`` of the cells ``(scans, m)`` on the grid
-    ``(n_time, n_az, ...)``, NaN where no cell; the values themselves, reshaped, when
-    the cells fill the grid in order (every ray of every scan present, as commonly)."""
+def _grid_placer(scans: np.ndarray, m: np.ndarray, n_time: int, n_az: int) -> tuple[bool, Callable]:
+    """Whether the cells ``(scans, m)`` fill the grid ``(n_time, n_az)`` in order (every
+    ray of every scan present, as commonly), and a function placing values ``(cell,
+    ...)`` of the cells on the grid, NaN where no cell (the values themselves, reshaped,
+    when they fill it)."""
     flat = scans * n_az + m
     if flat.size == n_time * n_az and np.array_equal(flat, np.arange(flat.size)):
-        return lambda values: values.reshape(n_time, n_az, *values.shape[1:])
+        return True, lambda values: values.reshape(n_time, n_az, *values.shape[1:])
 
     def place(values: np.ndarray) -> np.ndarray:
         out = np.full((n_time, n_az, *values.shape[1:]), np.nan)
         out[scans, m] = values
         return out
 
-    return place
+    return False, place
 
 
 def _rows_at(
