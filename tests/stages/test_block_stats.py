@@ -63,3 +63,93 @@ def test_jackknife_takes_in_what_the_block_mean_wind_fit_removes():
     reported_jack = np.mean(jack[6][:, 0, -1, -1])
     assert reported_plain < 0.9 * scatter  # the scatter over 4000 blocks: +-2.2 %
     assert 0.97 < reported_jack / scatter < 1.12
+
+
+def _noisy_vprime(rng: np.random.Generator) -> np.ndarray:
+    """(23 scans, 36 azimuths, 5 heights): blocks of 10, 10 and 3; missing values in a
+    few columns, a column without any value and a scan without any value at a height."""
+    vprime = rng.normal(0.0, 1.0, (23, 36, 5))
+    vprime[rng.random(vprime.shape) < 0.01] = np.nan
+    vprime[4, :, 2] = np.nan
+    vprime[21, 7:9, :] = np.nan
+    return vprime
+
+
+def test_counts_of_values_and_pairs_from_the_columns_with_a_gap():
+    """FiniteColumns counts values and pairs as the finite mask counted in full does."""
+    from cwproc.stages.block_stats import finite_columns
+
+    vprime = _noisy_vprime(np.random.default_rng(21))
+    valid = finite_columns(vprime)
+    finite = np.isfinite(vprime)
+    assert 0 < valid.scans.size < 23 * 5  # the fast path and the few columns both used
+    assert np.array_equal(valid.counts(), finite.sum(axis=1))
+    assert np.array_equal(valid.zeroed, np.where(finite, vprime, 0.0))
+    starts = np.arange(0, 23, 10)
+    for lag in (1, 2, 5):
+        both = finite[:, lag:] & finite[:, :-lag]
+        assert np.array_equal(valid.counts(lag), both.sum(axis=1))
+        assert np.array_equal(
+            valid.block_pairs(starts, lag), np.add.reduceat(both.astype(float), starts, axis=0)
+        )
+
+
+def _reference_statistics(vprime: np.ndarray, n_scans: int, n_lags: int) -> tuple:
+    """D_L, pairs and variance of V'_L with every value masked and counted in full."""
+    starts = np.arange(0, vprime.shape[0], n_scans)
+    sf, pairs = [], []
+    for lag in range(1, n_lags + 1):
+        d2 = (vprime[:, lag:] - vprime[:, :-lag]) ** 2
+        ok = np.isfinite(d2)
+        total = np.add.reduceat(np.where(ok, d2, 0.0).sum(axis=1), starts, axis=0)
+        count = np.add.reduceat(ok.sum(axis=1), starts, axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            sf.append(np.where(count > 0, total / count, np.nan))
+        pairs.append(count)
+    ok = np.isfinite(vprime)
+    n = np.add.reduceat(ok.sum(axis=1), starts, axis=0).astype(float)
+    s1 = np.add.reduceat(np.where(ok, vprime, 0.0).sum(axis=1), starts, axis=0)
+    s2 = np.add.reduceat(np.where(ok, vprime**2, 0.0).sum(axis=1), starts, axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        variance = np.where(n > 1, (s2 - s1**2 / n) / (n - 1), np.nan)
+    return np.stack(sf, -1), np.stack(pairs, -1), variance
+
+
+def test_block_statistics_are_the_fully_masked_sums_to_the_bit():
+    """Counting from the columns with a gap and squaring the zeroed values change no bit
+    of D_L, the pair counts or the variance (sums in azimuth order either way)."""
+    vprime = _noisy_vprime(np.random.default_rng(22))
+    sf, pairs, variance, *_ = block_statistics(vprime, 10, 4)
+    ref_sf, ref_pairs, ref_variance = _reference_statistics(vprime, 10, 4)
+    assert sf.tobytes() == ref_sf.tobytes()
+    assert np.array_equal(pairs, ref_pairs) and pairs.dtype == np.int64
+    assert variance.tobytes() == ref_variance.tobytes()
+
+
+def test_wind_refit_terms_are_the_masked_sums_over_the_rays_to_the_bit():
+    """g and M of every (scan, height) equal the sums over the valid rays in azimuth
+    order, masked in full: with a scan missing a ray (its beam NaN) and a value left
+    where the beam is missing (left out of the sums)."""
+    from cwproc.stages.block_stats import wind_refit_terms
+
+    rng = np.random.default_rng(23)
+    vprime = _noisy_vprime(rng)
+    beams = np.broadcast_to(beam_unit_vector(np.arange(36) * 10.0, 60.0), (23, 36, 3)).copy()
+    beams[5, 3] = np.nan
+    vprime[5, 3, :] = np.nan
+    beams[12, 30] = np.nan  # V'_L is finite there: that ray is left out
+    winds = rng.normal(0.0, 1.0, (23, 5, 3))
+    refit = WindRefit(beams, winds, rng.normal(0.0, 1.0, (3, 5, 3)))
+    terms = wind_refit_terms(vprime, refit, 10)
+    ok = np.isfinite(vprime) & np.all(np.isfinite(beams), axis=-1)[..., None]
+    okf, b = ok.astype(float), np.nan_to_num(beams)
+    count = okf.sum(axis=1)
+    assert (count == 0).any()  # a scan without any value at a height: 0 in g and M
+    for i in range(3):
+        with np.errstate(invalid="ignore"):
+            g = (np.where(ok, vprime, 0.0) * b[..., i, None]).sum(axis=1) / count
+        assert terms["g"][..., i].tobytes() == np.nan_to_num(g).tobytes()
+        for j in range(3):
+            with np.errstate(invalid="ignore"):
+                m = (okf * (b[..., i] * b[..., j])[..., None]).sum(axis=1) / count
+            assert terms["m"][..., i, j].tobytes() == np.nan_to_num(m).tobytes()

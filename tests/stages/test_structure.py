@@ -379,3 +379,67 @@ def test_group_median_is_the_grouped_median_of_pandas():
     assert np.isnan(_group_median(np.full(3, np.nan), np.arange(3), 4)).all()
     shuffled = np.random.default_rng(1).permutation(40)  # groups in any order
     assert np.array_equal(_group_median(values[shuffled], group[shuffled], 8), got, True)
+
+
+def test_pair_azimuth_weights_of_all_lags_at_once_are_those_lag_by_lag():
+    """The weights of every lag from one grid of pair middles and one sum per node equal
+    :func:`pair_node_weights` of each lag on its own, to the bit (missing values, a
+    block without a start azimuth, a height without a wind direction, both rotations,
+    more lags than pair positions)."""
+    from cwproc.stages.structure import pair_azimuth_weights, pair_node_weights
+
+    rng = np.random.default_rng(31)
+    vprime = rng.normal(size=(23, 40, 4))
+    vprime[rng.random(vprime.shape) < 0.05] = np.nan
+    vprime[2, :, 1] = np.nan
+    first_az = np.array([12.0, np.nan, 300.5])
+    wind_to = rng.uniform(0.0, 360.0, (3, 4))
+    wind_to[0, 2] = np.nan
+    starts = np.arange(0, 23, 10)
+    finite = np.isfinite(vprime)
+    for sign in (1.0, -1.0):
+        got = pair_azimuth_weights(vprime, 10, first_az, 9.0, sign, wind_to, 42)
+        assert got.shape == (3, 4, 42, 36) and np.isnan(got[:, :, 39:]).all()
+        for lag in (1, 2, 7, 39):
+            ok = finite[:, lag:] & finite[:, :-lag]
+            count = np.add.reduceat(ok.astype(float), starts, axis=0)
+            beta = first_az[:, None] + sign * 9.0 * (np.arange(40 - lag) + 0.5 * lag)
+            theta = np.radians(sign * (wind_to[:, None, :] - beta[:, :, None]))
+            expected = pair_node_weights(theta, count).astype(np.float32)
+            assert got[:, :, lag - 1].tobytes() == expected.tobytes()
+
+
+def test_rays_out_of_order_give_the_same_structure_function():
+    """Rays stored out of time order (placed on the grid one by one) and in order (the
+    grid taken as it is): the same dataset, bit for bit."""
+    ds = ramp_scans(n_scans=20, rays=36)
+    ds["radial_velocity"][:] += np.random.default_rng(32).normal(
+        0.0, 0.3, ds["radial_velocity"].shape
+    )
+    wind = true_wind(ds)
+    shuffled = ds.isel(ray=np.random.default_rng(33).permutation(ds.sizes["ray"]))
+    in_order = azimuth_structure_function(ds, wind, n_scans=10)
+    out_of_order = azimuth_structure_function(shuffled, wind, n_scans=10)
+    assert in_order.identical(out_of_order)
+
+
+def test_a_missing_ray_is_a_flagged_ray():
+    """A ray absent from the scans (the grid filled ray by ray) and the same ray flagged
+    (the complete grid taken as it is) give the same statistics, bit for bit."""
+    ds = ramp_scans(n_scans=20, rays=36)
+    noise = np.random.default_rng(34).normal(0.0, 0.3, ds["radial_velocity"].shape)
+    ds["radial_velocity"][:] += noise
+    wind = true_wind(ds)
+    flagged = ds.copy(deep=True)
+    flagged["qc_flag_radial"][50] = 1
+    dropped = ds.isel(ray=np.delete(np.arange(ds.sizes["ray"]), 50))
+    a = azimuth_structure_function(flagged, wind, n_scans=10)
+    b = azimuth_structure_function(dropped, wind, n_scans=10)
+    for name in (
+        "structure_function",
+        "n_pairs",
+        "radial_velocity_variance",
+        "statistics_covariance",
+        "pair_azimuth_weights",
+    ):
+        assert a[name].identical(b[name]), name
