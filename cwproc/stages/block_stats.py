@@ -2,7 +2,8 @@
 
 Smalikho (2020), eq. 2, per block of consecutive scans (:func:`block_statistics`), with
 the standard errors and the covariance of the block means (:func:`jackknife_covariance`)
-that the error bars of eps, sigma_V^2 and L_V take (delta method, stage ``epsilon``).
+that the error bars of eps, sigma_V^2 and L_V take (delta method, stage ``epsilon``),
+and the azimuth-node weights of the pairs of each lag (:func:`pair_azimuth_weights`).
 
 Reference: Efron, B. and Stein, C. (1981), The jackknife estimate of variance, Ann.
 Statist. 9, 586-596 (``cwproc.references.EFRON_STEIN_1981``): the jackknife variance is
