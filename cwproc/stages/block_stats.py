@@ -45,22 +45,40 @@ class FiniteColumns:
     """Where V'_L ``(scan, m, height)`` is finite, kept per column ``(scan, height)``.
 
     Commonly all but a few columns hold a value at every azimuth ``m``: only those few
-    (``scans``, ``heights``) keep their mask (``masks``), so that counts of values and
-    of pairs cost a pass over them rather than over every value.
+    (``scans``, ``heights``) keep their mask (``masks``) and values (``values``, 0
+    where missing), so that counts and sums over the valid values cost a pass over
+    them rather than a masking of every value.
 
     Attributes
     ----------
     finite : (scan, m, height) True where V'_L is a number.
-    zeroed : (scan, m, height) V'_L with 0 where it is missing (m s-1).
     scans, heights : (k,) the columns with a missing value.
     masks : (k, m) ``finite`` of those columns.
+    values : (k, m) V'_L of those columns, 0 where missing (m s-1).
     """
 
     finite: np.ndarray
-    zeroed: np.ndarray
     scans: np.ndarray
     heights: np.ndarray
     masks: np.ndarray
+    values: np.ndarray
+
+    def sum_over_m(self, full: np.ndarray, gaps: np.ndarray) -> np.ndarray:
+        """Sum over axis 1 of ``full`` ``(scan, m, height)`` with its missing values as 0.
+
+        ``full`` may be NaN in the columns with a gap only, whose values with the missing
+        ones as 0 are ``gaps`` ``(k, m)``. The same bits as :func:`numpy.sum` of the
+        masked values: those columns are summed apart in ``m`` order, as numpy sums an
+        axis that is not the last; a single height (which numpy sums pairwise) is
+        masked in full.
+        """
+        if full.shape[2] == 1:
+            full = full.copy()
+            full[self.scans, :, self.heights] = gaps
+            return full.sum(axis=1)
+        out = full.sum(axis=1)
+        out[self.scans, self.heights] = _ordered_sum(gaps)
+        return out
 
     def counts(self, lag: int = 0) -> np.ndarray:
         """``(scan, height)`` values (``lag`` 0) or pairs ``lag`` apart with both finite."""
@@ -93,8 +111,9 @@ def finite_columns(vprime: np.ndarray) -> FiniteColumns:
     """:class:`FiniteColumns` of ``vprime`` ``(scan, m, height)``."""
     finite = np.isfinite(vprime)
     scans, heights = np.nonzero(~finite.all(axis=1))
-    zeroed = np.where(finite, vprime, 0.0)
-    return FiniteColumns(finite, zeroed, scans, heights, finite[scans, :, heights])
+    masks = finite[scans, :, heights]
+    values = np.where(masks, vprime[scans, :, heights], 0.0)
+    return FiniteColumns(finite, scans, heights, masks, values)
 
 
 def _scan_spread(per_scan: np.ndarray, starts: np.ndarray) -> np.ndarray:
@@ -185,9 +204,10 @@ def block_statistics(
     per_stats = np.empty((vprime.shape[0], n_h, n_lags + 1))
     for lag in range(1, n_lags + 1):  # each lag vectorised
         d2 = np.subtract(vprime[:, lag:, :], vprime[:, :-lag, :])
-        np.square(d2, out=d2)
-        np.fmax(d2, 0.0, out=d2)  # a pair with a missing value (NaN) adds 0
-        per_total = d2.sum(axis=1)
+        np.square(d2, out=d2)  # NaN where a value of the pair is missing
+        gaps = np.square(valid.values[:, lag:] - valid.values[:, :-lag])
+        gaps[~(valid.masks[:, lag:] & valid.masks[:, :-lag])] = 0.0
+        per_total = valid.sum_over_m(d2, gaps)
         per_count = valid.counts(lag)
         total = _block_sum(per_total, starts)
         count = _block_sum(per_count, starts)
@@ -201,8 +221,8 @@ def block_statistics(
         diff_se[:, :, lag - 1] = _scan_spread(per_scan - first, starts)
     per_n = valid.counts()
     n_val = _block_sum(per_n, starts).astype(float)
-    per_s2 = np.square(valid.zeroed).sum(axis=1)
-    s1 = _block_sum(valid.zeroed.sum(axis=1), starts)
+    per_s2 = valid.sum_over_m(np.square(vprime), np.square(valid.values))
+    s1 = _block_sum(valid.sum_over_m(vprime, valid.values), starts)
     s2 = _block_sum(per_s2, starts)
     with np.errstate(invalid="ignore", divide="ignore"):
         variance = np.where(n_val > 1, (s2 - s1**2 / n_val) / (n_val - 1), np.nan)
@@ -236,7 +256,8 @@ def wind_refit_terms(
     beam_ok = np.all(np.isfinite(refit.beams), axis=-1)
     valid = finite_columns(vprime) if valid is None else valid
     if valid.finite[~beam_ok].any():  # a value without a beam is left out
-        valid = finite_columns(np.where(beam_ok[..., None], vprime, np.nan))
+        vprime = np.where(beam_ok[..., None], vprime, np.nan)
+        valid = finite_columns(vprime)
     beams = np.nan_to_num(refit.beams)
     n_t, n_h = vprime.shape[0], vprime.shape[2]
     g = np.empty((n_t, n_h, 3))
@@ -245,12 +266,17 @@ def wind_refit_terms(
     with np.errstate(invalid="ignore", divide="ignore"):
         count = valid.counts().astype(float)
         for i in range(3):
-            g[..., i] = (valid.zeroed * beams[..., i, None]).sum(axis=1) / count
+            b_gaps = beams[valid.scans, :, i]
+            g[..., i] = valid.sum_over_m(vprime * beams[..., i, None], valid.values * b_gaps)
+            g[..., i] /= count
             for j in range(i, 3):
                 s_ij = beams[..., i] * beams[..., j]  # (scan, m)
-                # sums in azimuth order, as the reduction over axis 1 of (scan, m, height)
-                m[..., i, j] = _ordered_sum(s_ij)[:, None]
-                m[valid.scans, valid.heights, i, j] = _ordered_sum(masks * s_ij[valid.scans])
+                if n_h > 1:  # a column valid at every m sums its scan's S S^T (m order)
+                    m[..., i, j] = _ordered_sum(s_ij)[:, None]
+                    gaps = masks * s_ij[valid.scans]
+                    m[valid.scans, valid.heights, i, j] = _ordered_sum(gaps)
+                else:  # summed pairwise by numpy
+                    m[..., i, j] = (valid.finite * s_ij[..., None]).sum(axis=1)
                 m[..., i, j] /= count
                 m[..., j, i] = m[..., i, j]
     block = np.arange(n_t) // n_scans

@@ -84,7 +84,9 @@ def test_counts_of_values_and_pairs_from_the_columns_with_a_gap():
     finite = np.isfinite(vprime)
     assert 0 < valid.scans.size < 23 * 5  # the fast path and the few columns both used
     assert np.array_equal(valid.counts(), finite.sum(axis=1))
-    assert np.array_equal(valid.zeroed, np.where(finite, vprime, 0.0))
+    zeroed = np.where(finite, vprime, 0.0)
+    assert np.array_equal(valid.values, zeroed[valid.scans, :, valid.heights])
+    assert np.all(finite[valid.scans, :, valid.heights].any(axis=1) | ~valid.masks.any(axis=1))
     starts = np.arange(0, 23, 10)
     for lag in (1, 2, 5):
         both = finite[:, lag:] & finite[:, :-lag]
@@ -116,14 +118,16 @@ def _reference_statistics(vprime: np.ndarray, n_scans: int, n_lags: int) -> tupl
 
 
 def test_block_statistics_are_the_fully_masked_sums_to_the_bit():
-    """Counting from the columns with a gap and squaring the zeroed values change no bit
-    of D_L, the pair counts or the variance (sums in azimuth order either way)."""
-    vprime = _noisy_vprime(np.random.default_rng(22))
-    sf, pairs, variance, *_ = block_statistics(vprime, 10, 4)
-    ref_sf, ref_pairs, ref_variance = _reference_statistics(vprime, 10, 4)
-    assert sf.tobytes() == ref_sf.tobytes()
-    assert np.array_equal(pairs, ref_pairs) and pairs.dtype == np.int64
-    assert variance.tobytes() == ref_variance.tobytes()
+    """Counting and summing the columns with a gap apart change no bit of D_L, the pair
+    counts or the variance (sums in azimuth order; pairwise, as numpy's, for a single
+    height)."""
+    noisy = _noisy_vprime(np.random.default_rng(22))
+    for vprime in (noisy, noisy[..., 2:3], noisy[..., 3:4]):
+        sf, pairs, variance, *_ = block_statistics(vprime, 10, 4)
+        ref_sf, ref_pairs, ref_variance = _reference_statistics(vprime, 10, 4)
+        assert sf.tobytes() == ref_sf.tobytes()
+        assert np.array_equal(pairs, ref_pairs) and pairs.dtype == np.int64
+        assert variance.tobytes() == ref_variance.tobytes()
 
 
 def test_wind_refit_terms_are_the_masked_sums_over_the_rays_to_the_bit():
@@ -139,17 +143,19 @@ def test_wind_refit_terms_are_the_masked_sums_over_the_rays_to_the_bit():
     vprime[5, 3, :] = np.nan
     beams[12, 30] = np.nan  # V'_L is finite there: that ray is left out
     winds = rng.normal(0.0, 1.0, (23, 5, 3))
-    refit = WindRefit(beams, winds, rng.normal(0.0, 1.0, (3, 5, 3)))
-    terms = wind_refit_terms(vprime, refit, 10)
-    ok = np.isfinite(vprime) & np.all(np.isfinite(beams), axis=-1)[..., None]
-    okf, b = ok.astype(float), np.nan_to_num(beams)
-    count = okf.sum(axis=1)
-    assert (count == 0).any()  # a scan without any value at a height: 0 in g and M
-    for i in range(3):
-        with np.errstate(invalid="ignore"):
-            g = (np.where(ok, vprime, 0.0) * b[..., i, None]).sum(axis=1) / count
-        assert terms["g"][..., i].tobytes() == np.nan_to_num(g).tobytes()
-        for j in range(3):
+    block_winds = rng.normal(0.0, 1.0, (3, 5, 3))
+    assert (np.isfinite(vprime).sum(axis=1) == 0).any()  # no value at a height: 0 in g, M
+    for h in (slice(None), slice(1, 2)):  # a single height is summed pairwise by numpy
+        refit = WindRefit(beams, winds[:, h], block_winds[:, h])
+        terms = wind_refit_terms(vprime[..., h], refit, 10)
+        ok = np.isfinite(vprime[..., h]) & np.all(np.isfinite(beams), axis=-1)[..., None]
+        okf, b = ok.astype(float), np.nan_to_num(beams)
+        count = okf.sum(axis=1)
+        for i in range(3):
             with np.errstate(invalid="ignore"):
-                m = (okf * (b[..., i] * b[..., j])[..., None]).sum(axis=1) / count
-            assert terms["m"][..., i, j].tobytes() == np.nan_to_num(m).tobytes()
+                g = (np.where(ok, vprime[..., h], 0.0) * b[..., i, None]).sum(axis=1) / count
+            assert terms["g"][..., i].tobytes() == np.nan_to_num(g).tobytes()
+            for j in range(3):
+                with np.errstate(invalid="ignore"):
+                    m = (okf * (b[..., i] * b[..., j])[..., None]).sum(axis=1) / count
+                assert terms["m"][..., i, j].tobytes() == np.nan_to_num(m).tobytes()
