@@ -107,6 +107,23 @@ def _ordered_sum(values: np.ndarray) -> np.ndarray:
     return np.cumsum(values, axis=1)[:, -1] + 0.0  # 0 + x: -0 -> +0, as numpy starts
 
 
+def _mod_turn(angle: np.ndarray) -> np.ndarray:
+    """``numpy.mod(angle, 2 pi)`` (rad), the same bits, by exact steps for ``|angle| < 4 pi``.
+
+    numpy takes the exact remainder ``fmod`` and adds ``2 pi`` (rounded) to a negative
+    one; below ``4 pi`` the remainder is ``angle -+ 2 pi`` (exact: Sterbenz's lemma), so
+    the same values follow from comparisons and additions, at a fifth of the cost.
+    Larger angles go to :func:`numpy.mod`.
+    """
+    turn = 2.0 * np.pi
+    if not np.all(np.abs(angle) < 2.0 * turn):
+        return np.mod(angle, turn)
+    out = angle - turn * (angle >= turn)
+    out += turn * (out < 0.0)  # the remainder of (-4 pi, -2 pi], exact
+    out += turn * (out < 0.0)  # a negative remainder + 2 pi, rounded as numpy does
+    return out + 0.0  # -0 -> +0, as numpy's
+
+
 def finite_columns(vprime: np.ndarray) -> FiniteColumns:
     """:class:`FiniteColumns` of ``vprime`` ``(scan, m, height)``."""
     finite = np.isfinite(vprime)
@@ -397,7 +414,7 @@ def pair_azimuth_weights(
     theta = np.radians(sign * (wind_to_deg[:, None, :] - beta[:, :, None]))
     finite = np.isfinite(theta)
     # each pair shared linearly between its two neighbouring nodes, as pair_node_weights
-    pos = np.mod(np.where(finite, theta, 0.0), 2.0 * np.pi) / (2.0 * np.pi / N_BINS)
+    pos = _mod_turn(np.where(finite, theta, 0.0)) / (2.0 * np.pi / N_BINS)
     floor = np.floor(pos)
     lower = floor.astype(np.int64)
     lower[lower >= N_BINS] -= N_BINS  # pos is in [0, N_BINS]

@@ -159,3 +159,21 @@ def test_wind_refit_terms_are_the_masked_sums_over_the_rays_to_the_bit():
                 with np.errstate(invalid="ignore"):
                     m = (okf * (b[..., i] * b[..., j])[..., None]).sum(axis=1) / count
                 assert terms["m"][..., i, j].tobytes() == np.nan_to_num(m).tobytes()
+
+
+def test_angles_modulo_a_turn_are_numpy_mod_to_the_bit():
+    """``_mod_turn`` equals ``numpy.mod(x, 2 pi)`` bit for bit: below 4 pi by exact steps
+    (multiples of pi/2 and their neighbours, signed zeros, tiny negatives that round up
+    to 2 pi), beyond by numpy itself."""
+    from cwproc.stages.block_stats import _mod_turn
+
+    turn = 2.0 * np.pi
+    rng = np.random.default_rng(24)
+    edges = np.array([k * np.pi / 2 for k in range(-7, 8)] + [0.0, -0.0, -1e-300, 5e-324])
+    edges = np.concatenate([edges, np.nextafter(edges, np.inf), np.nextafter(edges, -np.inf)])
+    near = np.concatenate([rng.uniform(-1e-12, 1e-12, 1000) + c for c in (-turn, 0.0, turn)])
+    angles = np.concatenate([rng.uniform(-2 * turn, 2 * turn, 100_000), edges, near])
+    angles = angles[np.abs(angles) < 2 * turn]
+    assert _mod_turn(angles).tobytes() == np.mod(angles, turn).tobytes()
+    wide = rng.uniform(-50.0, 50.0, 1000)
+    assert _mod_turn(wide).tobytes() == np.mod(wide, turn).tobytes()
