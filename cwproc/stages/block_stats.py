@@ -215,9 +215,6 @@ def block_statistics(
     valid = finite_columns(vprime) if valid is None else valid
     sf = np.empty((starts.size, n_h, n_lags))
     pairs = np.empty((starts.size, n_h, n_lags), dtype=np.int64)
-    sf_se = np.empty_like(sf)
-    diff_se = np.empty_like(sf)
-    first = None
     per_stats = np.empty((vprime.shape[0], n_h, n_lags + 1))
     for lag in range(1, n_lags + 1):  # each lag vectorised
         d2 = np.subtract(vprime[:, lag:, :], vprime[:, :-lag, :])
@@ -233,9 +230,6 @@ def block_statistics(
             per_scan = np.where(per_count > 0, per_total / per_count, np.nan)
         pairs[:, :, lag - 1] = count
         per_stats[:, :, lag - 1] = per_scan
-        first = per_scan if first is None else first
-        sf_se[:, :, lag - 1] = _scan_spread(per_scan, starts)
-        diff_se[:, :, lag - 1] = _scan_spread(per_scan - first, starts)
     per_n = valid.counts()
     n_val = _block_sum(per_n, starts).astype(float)
     per_s2 = valid.sum_over_m(np.square(vprime), np.square(valid.values))
@@ -246,12 +240,14 @@ def block_statistics(
         per_n = per_n.astype(float)
         per_var = np.where(per_n > 1, per_s2 / per_n, np.nan)
     per_stats[:, :, n_lags] = per_var
+    spread = _scan_spread(per_stats, starts)  # of D_L(1..L) and the variance
+    diff_se = _scan_spread(per_stats[:, :, :n_lags] - per_stats[:, :, :1], starts)
     if refit is None:
         covariance = _scan_covariance(per_stats, starts)
     else:
         terms = wind_refit_terms(vprime, refit, n_scans, valid)
         covariance = jackknife_covariance(per_stats, starts, terms)
-    return sf, pairs, variance, sf_se, diff_se, _scan_spread(per_var, starts), covariance
+    return sf, pairs, variance, spread[..., :n_lags], diff_se, spread[..., n_lags], covariance
 
 
 def wind_refit_terms(
