@@ -102,8 +102,8 @@ class FiniteColumns:
 
 
 def _ordered_sum(values: np.ndarray) -> np.ndarray:
-    """Sum over axis 1 of ``(k, m)`` in ``m`` order from 0, as :func:`numpy.sum` adds
-    along an axis that is not the last (the last axis is summed pairwise)."""
+    """Sum over axis 1 of ``(k, m, ...)`` in ``m`` order from 0, as :func:`numpy.sum`
+    adds along an axis that is not the last (the last axis is summed pairwise)."""
     return np.cumsum(values, axis=1)[:, -1] + 0.0  # 0 + x: -0 -> +0, as numpy starts
 
 
@@ -275,23 +275,21 @@ def wind_refit_terms(
     n_t, n_h = vprime.shape[0], vprime.shape[2]
     g = np.empty((n_t, n_h, 3))
     m = np.empty((n_t, n_h, 3, 3))
-    masks = valid.masks.astype(float)
+    outer = beams[..., :, None] * beams[..., None, :]  # (scan, m, 3, 3) S S^T
     with np.errstate(invalid="ignore", divide="ignore"):
         count = valid.counts().astype(float)
         for i in range(3):
             b_gaps = beams[valid.scans, :, i]
             g[..., i] = valid.sum_over_m(vprime * beams[..., i, None], valid.values * b_gaps)
             g[..., i] /= count
-            for j in range(i, 3):
-                s_ij = beams[..., i] * beams[..., j]  # (scan, m)
-                if n_h > 1:  # a column valid at every m sums its scan's S S^T (m order)
-                    m[..., i, j] = _ordered_sum(s_ij)[:, None]
-                    gaps = masks * s_ij[valid.scans]
-                    m[valid.scans, valid.heights, i, j] = _ordered_sum(gaps)
-                else:  # summed pairwise by numpy
-                    m[..., i, j] = (valid.finite * s_ij[..., None]).sum(axis=1)
-                m[..., i, j] /= count
-                m[..., j, i] = m[..., i, j]
+        if n_h > 1:  # a column valid at every m sums its scan's S S^T (m order)
+            m[:] = _ordered_sum(outer)[:, None]
+            gaps = valid.masks[:, :, None, None] * outer[valid.scans]
+            m[valid.scans, valid.heights] = _ordered_sum(gaps)
+        else:  # summed pairwise by numpy
+            for i, j in np.ndindex(3, 3):
+                m[..., i, j] = (valid.finite * outer[..., i, j, None]).sum(axis=1)
+        m /= count[..., None, None]
     block = np.arange(n_t) // n_scans
     has_wind = np.all(np.isfinite(refit.winds), axis=-1)
     n_w = np.add.reduceat(has_wind.astype(float), np.arange(0, n_t, n_scans), axis=0)[block]
