@@ -443,3 +443,31 @@ def test_a_missing_ray_is_a_flagged_ray():
         "pair_azimuth_weights",
     ):
         assert a[name].identical(b[name]), name
+
+
+def test_block_median_between_bounds_is_numpy_nanmedian():
+    """Blocks of 1800 values per height (10 scans of 180 rays): the medians sought
+    between two sampled bounds equal numpy.nanmedian to the bit, with missing values,
+    ties, infinities, a column without any value, one with a single value, and one whose
+    sampled rows are far off (its middle is not between the bounds: partitioned whole)."""
+    import warnings
+
+    from cwproc.stages.structure import _median_within_bounds, block_median
+
+    rng = np.random.default_rng(12)
+    values = rng.lognormal(size=(20, 180, 8))
+    values[rng.random(values.shape) < 0.002] = np.nan
+    values[..., 1] = np.round(values[..., 1])  # ties
+    values[:10, :, 2] = np.nan
+    values[:10, 7, 2] = 0.25
+    values[10:, :, 3] = np.nan
+    values[:, ::8, 4] += 100.0  # every sampled row far above the others
+    values[0, :20, 5] = np.inf
+    got = block_median(values, 10)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        expected = [np.nanmedian(values[k : k + 10].reshape(-1, 8), axis=0) for k in (0, 10)]
+    assert got.tobytes() == np.array(expected).tobytes()
+    first = values[:10].reshape(-1, 8)
+    bounded = _median_within_bounds(first, np.count_nonzero(~np.isnan(first), axis=0))
+    assert np.isnan(bounded[4]) and np.count_nonzero(np.isnan(bounded)) <= 3
