@@ -214,8 +214,9 @@ def _median_within_bounds(values: np.ndarray, n: np.ndarray) -> np.ndarray:
     k_low = int(sample.shape[0] * (0.5 - _MEDIAN_BAND))
     k_high = min(int(sample.shape[0] * (0.5 + _MEDIAN_BAND)), sample.shape[0] - 1)
     bounds = np.partition(sample, [k_low, k_high], axis=0)  # NaN last
-    inside = (values >= bounds[k_low]) & (values <= bounds[k_high])
-    below = np.count_nonzero(values < bounds[k_low], axis=0)
+    above_low = values >= bounds[k_low]  # False for NaN
+    below = n - np.count_nonzero(above_low, axis=0)
+    inside = above_low & (values <= bounds[k_high])
     n_in = np.count_nonzero(inside, axis=0)
     found = (n > 0) & (below <= lo) & (hi < below + n_in)
     width = max(int(n_in.max()), 2)
@@ -579,10 +580,13 @@ def _block_statistics_by_chunk(
         complete, on_grid = _grid_placer(scan_pos[cells] - t0_, m[cells], t1_ - t0_, n_az)
         if complete and t1_ - t0_ == (b1 - b0) * n_scans:  # (block, ray, height) broadcast
             rays_of = (b1 - b0, n_scans * n_az, 1)
+            el = grid.el[cells].reshape(rays_of)
+            if np.all(el == el[:, :1]):  # one elevation per block: w sin(phi) once
+                el = el[:, :1]
             model = radial_velocity(
                 *(c[b0:b1, None] for c in (u_b, v_b, w_b)),
                 grid.az[cells].reshape(rays_of),
-                grid.el[cells].reshape(rays_of),
+                el,
             ).reshape(cells.size, n_h)
         else:
             model = radial_velocity(
