@@ -210,13 +210,13 @@ def _median_within_bounds(values: np.ndarray, n: np.ndarray) -> np.ndarray:
     bounds (a sample far off or too many NaN, rare), which the caller partitions whole.
     """
     lo, hi = (n - 1) // 2, n // 2
-    sample = values[::_MEDIAN_SAMPLE_STEP]
-    k_low = int(sample.shape[0] * (0.5 - _MEDIAN_BAND))
-    k_high = min(int(sample.shape[0] * (0.5 + _MEDIAN_BAND)), sample.shape[0] - 1)
-    bounds = np.partition(sample, [k_low, k_high], axis=0)  # NaN last
-    above_low = values >= bounds[k_low]  # False for NaN
+    sample = np.ascontiguousarray(values[::_MEDIAN_SAMPLE_STEP].T)  # (column, row)
+    k_low = int(sample.shape[1] * (0.5 - _MEDIAN_BAND))
+    k_high = min(int(sample.shape[1] * (0.5 + _MEDIAN_BAND)), sample.shape[1] - 1)
+    sample.partition([k_low, k_high], axis=1)  # NaN last
+    above_low = values >= sample[:, k_low]  # False for NaN
     below = n - np.count_nonzero(above_low, axis=0)
-    inside = above_low & (values <= bounds[k_high])
+    inside = above_low & (values <= sample[:, k_high])
     n_in = np.count_nonzero(inside, axis=0)
     found = (n > 0) & (below <= lo) & (hi < below + n_in)
     width = max(int(n_in.max()), 2)
