@@ -418,22 +418,25 @@ def pair_azimuth_weights(
     rest = 1.0 - frac
     # nodes numbered in the (block, height, lag, N_BINS) layout
     cell = (np.arange(n_blocks)[:, None] * n_h + np.arange(n_h)) * (lags * N_BINS)
-    nodes, shares, total = [], [], np.empty((n_blocks, n_h, lags))
+    # every lag's (block, m, height, lower/upper) nodes and shares, lag after lag
+    offsets = np.cumsum([0] + [n_blocks * (n_az - lag) * n_h * 2 for lag in range(1, lags + 1)])
+    nodes, shares = np.empty(offsets[-1], dtype=np.int64), np.empty(offsets[-1])
+    total = np.empty((n_blocks, n_h, lags))
+    all_finite = bool(finite.all())
     for li in range(lags):
         j = slice(li, 2 * n_az - li - 3, 2)  # j = 2 m + l
-        # a position without a pair shares 0 between its nodes (adds nothing)
-        n = np.where(finite[:, j], valid.block_pairs(starts, li + 1), 0.0)
+        n = valid.block_pairs(starts, li + 1)
+        if not all_finite:  # a position without a pair shares 0 between its nodes
+            n = np.where(finite[:, j], n, 0.0)
         total[..., li] = n.sum(axis=1)
-        node = np.empty((*n.shape, 2), dtype=np.int64)  # lower, upper node of each pair
+        node = nodes[offsets[li] : offsets[li + 1]].reshape(*n.shape, 2)
         np.add((cell + li * N_BINS)[:, None, :], lower[:, j], out=node[..., 0])
         np.add((cell + li * N_BINS)[:, None, :], upper[:, j], out=node[..., 1])
-        share = np.empty(node.shape)
+        share = shares[offsets[li] : offsets[li + 1]].reshape(node.shape)
         np.multiply(rest[:, j], n, out=share[..., 0])
         np.multiply(frac[:, j], n, out=share[..., 1])
-        nodes.append(node.ravel())
-        shares.append(share.ravel())
     size = n_blocks * n_h * lags * N_BINS  # one sum: each node's shares in m order
-    sums = np.bincount(np.concatenate(nodes), np.concatenate(shares), minlength=size)
+    sums = np.bincount(nodes, shares, minlength=size)
     with np.errstate(invalid="ignore", divide="ignore"):
         out[:, :, :lags] = sums.reshape(n_blocks, n_h, lags, N_BINS) / total[..., None]
     return out

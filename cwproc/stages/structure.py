@@ -575,7 +575,8 @@ def _block_statistics_by_chunk(
         cells = uniq[order_cells[lo:hi]]
         vr = _rows_at(screened_ds["radial_velocity"].values, rays[cells], gates, float)
         flag = _rows_at(screened_ds["qc_flag_radial"].values, rays[cells], gates)
-        vr = np.where((flag == 0) & np.isfinite(vr), vr, np.nan)
+        usable = (flag == 0) & np.isfinite(vr)
+        vr = np.where(usable, vr, np.nan)
         b = block_of_time[scan_pos[cells]]
         complete, on_grid = _grid_placer(scan_pos[cells] - t0_, m[cells], t1_ - t0_, n_az)
         if complete and t1_ - t0_ == (b1 - b0) * n_scans:  # (block, ray, height) broadcast
@@ -594,6 +595,7 @@ def _block_statistics_by_chunk(
             )
         if homodyne:
             vr = homodyne_radial_velocity(vr, model, b - b0)
+            usable = np.isfinite(vr)
         vprime = on_grid(vr - model)
         refit = None
         if not homodyne:
@@ -616,7 +618,7 @@ def _block_statistics_by_chunk(
         )
         if has_snr:
             snr_vals = _rows_at(screened_ds["snr"].values, rays[cells], gates, float)
-            snr = on_grid(np.where(np.isfinite(vr), snr_vals, np.nan))
+            snr = on_grid(np.where(usable, snr_vals, np.nan))
             out["snr_median"][b0:b1] = block_median(snr, n_scans)
     out["wind_to"] = wind_to
     return out
