@@ -463,41 +463,34 @@ def stream_products(
 
 
 #: glibc ``mallopt`` parameters: free memory at the top of the heap above which ``free``
-#: returns it to the system; size from which ``malloc`` maps memory apart
+#: returns it to the system; size from which ``malloc`` maps memory apart (left at the
+#: chunks' value after them)
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
 #: while the chunks are processed: arrays up to glibc's largest threshold (64-bit) come
 #: from the heap, and up to this much free heap is kept for the next chunk's arrays
 _CHUNK_MMAP_BYTES, _CHUNK_TRIM_BYTES = 32 << 20, 256 << 20
 #: glibc's default trim threshold, set back after the chunks
 _DEFAULT_TRIM_BYTES = 128 << 10
-#: while the dissipation rate is fitted: arrays from 128 KiB are mapped apart (returned
-#: to the system when freed); after it, glibc's largest dynamic threshold (64-bit)
-_EPSILON_MMAP_BYTES, _AFTER_MMAP_BYTES = 128 << 10, 32 << 20
 
 
 @contextlib.contextmanager
 def heap_returned() -> Iterator[None]:
-    """Run a step with the chunks' freed heap returned to the system (glibc only).
+    """Run a step with the chunks' freed heap returned to the system first (glibc only).
 
     After the chunks, tens of MiB of freed heap stay resident, and the dissipation
-    rate's working arrays (A-table evaluations, the delta-method errors: about 85 MiB
-    for a day) are laid out in and beside them, which set the day's peak memory. The
-    free heap is given back (``malloc_trim``) and the step's arrays mapped apart (a
-    fixed ``M_MMAP_THRESHOLD``), so the peak is what is in use (keeping 64 MiB of free
-    heap instead saved 0.3 s of page faults for a day of 1920 scans but added 15 MiB to
-    the peak). The values computed are the same; with another C library this does
-    nothing.
+    rate's working arrays (A-table evaluations, the delta-method errors of groups of 40
+    blocks) would be laid out in and beside them. The free heap is given back
+    (``malloc_trim``), so the step's peak is what it uses. Its arrays then come from
+    the heap as the chunks' did (up to 32 MiB, :func:`heap_kept`): mapping those of
+    128 KiB and more apart as well, as until 2026-11-26, kept the peak of a day of 1920
+    scans within 0-4 MiB of this but faulted in 80 000 more pages (0.3-0.4 s); keeping
+    64 MiB of free heap instead added 15 MiB to the peak. The values computed are the
+    same; with another C library this does nothing.
     """
     libc = _glibc()
-    if libc is None:
-        yield
-        return
-    libc.malloc_trim(0)
-    libc.mallopt(_M_MMAP_THRESHOLD, _EPSILON_MMAP_BYTES)
-    try:
-        yield
-    finally:
-        libc.mallopt(_M_MMAP_THRESHOLD, _AFTER_MMAP_BYTES)
+    if libc is not None:
+        libc.malloc_trim(0)
+    yield
 
 
 @contextlib.contextmanager
