@@ -40,7 +40,6 @@ from typing import Any
 import numpy as np
 from numpy.polynomial import legendre
 from numpy.typing import ArrayLike
-from scipy import interpolate
 
 from cwproc.physics import spectra
 from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
@@ -559,6 +558,8 @@ class ACurves:
     log_par: np.ndarray
 
     def _eval(self, logv: np.ndarray, rho: np.ndarray) -> np.ndarray:
+        from scipy import interpolate  # here: with scipy.optimize, 0.1 s of imports
+
         spline = interpolate.CubicSpline(self.log_rho, logv)
         lr = np.log(np.maximum(np.asarray(rho, dtype=float), 1e-300))
         lo, hi = self.log_rho[0], self.log_rho[-1]

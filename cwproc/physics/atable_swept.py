@@ -42,7 +42,6 @@ from typing import Any
 
 import numpy as np
 from numpy.polynomial import legendre
-from scipy import interpolate
 
 from cwproc.physics import afunctions, two_beam
 
@@ -72,6 +71,8 @@ class PlaneCurves:
         """``A`` (m^(2/3)) at separations ``s_par`` along and ``s_perp`` across the beam."""
         s = np.hypot(s_par, s_perp)
         beta = _angle_coordinate(np.arctan2(np.abs(s_par), np.abs(s_perp)))
+        from scipy import interpolate  # here: with scipy.optimize, 0.1 s of imports
+
         spline = interpolate.RectBivariateSpline(self.log_s, self.angle, self.log_a)
         ls = np.log(np.maximum(s, 1e-300))
         lo = self.log_s[0]

@@ -32,11 +32,14 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import interpolate, special
+from scipy import special
+
+if TYPE_CHECKING:
+    from scipy.interpolate import CubicSpline
 
 Model = Literal["inertial", "von_karman", "exponential"]
 MODELS: tuple[str, ...] = ("inertial", "von_karman", "exponential")
@@ -246,9 +249,9 @@ def _exponential_series(q: np.ndarray, n_terms: int = 90) -> np.ndarray:
 
 
 @lru_cache(maxsize=1)
-def _exponential_low_q() -> interpolate.CubicSpline:
+def _exponential_low_q() -> CubicSpline:
     """Cubic spline of ``ln e(q)`` against ``ln q`` for ``1e-3 <= q <= 1`` (quadrature)."""
-    from scipy import integrate  # here: 0.1 s of imports that only this table needs
+    from scipy import integrate, interpolate  # here: 0.2 s of imports only this table needs
 
     a = EXPONENTIAL_COEFFICIENT
     qs = np.geomspace(1e-3, 1.0, 61)
@@ -312,7 +315,7 @@ def energy_spectrum(
 
 
 @lru_cache(maxsize=1)
-def _exponential_plane_splines() -> tuple[interpolate.CubicSpline, interpolate.CubicSpline]:
+def _exponential_plane_splines() -> tuple[CubicSpline, CubicSpline]:
     """Splines of ``ln I1``, ``ln I2`` against ``ln q`` for the exponential model (L_V = 1).
 
     ``I1(q) = (1/2pi q) int_0^inf E(q cosh u) / cosh u du`` and
@@ -320,7 +323,7 @@ def _exponential_plane_splines() -> tuple[interpolate.CubicSpline, interpolate.C
     metre, ``kappa3 = q sinh u``); trapezoid rule in ``u`` with step 0.02 (relative error
     below 1e-7, checked against the closed form of von Karman).
     """
-    from scipy import integrate  # here: 0.1 s of imports that only this table needs
+    from scipy import integrate, interpolate  # here: 0.2 s of imports only this table needs
 
     q = np.geomspace(1e-5, 1e5, 401)
     u = np.arange(0.0, 36.0, 0.02)
