@@ -560,3 +560,74 @@ def test_parts_joined_like_xarray_concat(tmp_path, config, monkeypatch):
     assert stream.concat_like_parts(shifted, dim) is None
     flat = [part.assign(extra=((), 1.0)) for part in parts]
     assert stream.concat_like_parts(flat, dim) is None
+
+
+def test_groups_of_blocks_estimated_during_the_chunks_give_the_whole_day(
+    tmp_path, config, monkeypatch
+):
+    """With the worker threads, each group of blocks is estimated as soon as the chunks
+    have made it (groups of 2 blocks here) and the day's estimate takes those groups
+    instead of estimating them again: the products of the day estimated whole."""
+    import cwproc.pipeline.stream_epsilon as stream_epsilon
+    import cwproc.stages.epsilon as eps
+
+    spec = StreamLineSpec(n_scans=60, scans_per_file=1, n_gates=24, seed=43)
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    whole = whole_day(tmp_path / "day", config)
+    n_heights = whole["turbulence"].sizes["height"]
+    monkeypatch.setattr(eps, "EPSILON_CELLS", 2 * n_heights)
+    monkeypatch.setattr(stream_epsilon, "EPSILON_CELLS", 2 * n_heights)
+    whole = whole_day(tmp_path / "day", config)  # its groups of 2 blocks, estimated at once
+    fits: list[str] = []
+    real_group = eps._block_group
+
+    def counted(sf, *args, **kwargs):
+        fits.append(str(sf["time"].values[0]))
+        return real_group(sf, *args, **kwargs)
+
+    monkeypatch.setattr(eps, "_block_group", counted)
+    items = [read_input(p, config) for p in sorted((tmp_path / "day").glob("*.hpl"))]
+    (unit,) = group_units(items)
+    streamed = stream_scan_unit(
+        unit, config, [], lambda i: load_item(i, config), SMALL_CHUNK, read_ahead=True
+    )
+    n_groups = -(-whole["turbulence"].sizes["time"] // 2)
+    assert n_groups >= 3
+    assert len(fits) == n_groups  # each group fitted once: ahead, or at the end
+    assert len(set(fits)) == n_groups
+    assert_same_products(streamed, whole)
+
+
+def test_a_group_estimated_ahead_on_other_data_is_estimated_again(tmp_path, config):
+    """A group estimated ahead is taken only for the same rows, data, attributes and
+    settings: another instrument setting, or other rows, and the day's estimate makes
+    the group itself (the result of the day estimated without anything ahead)."""
+    import cwproc.stages.epsilon as eps
+    from cwproc.pipeline import probe_for
+
+    spec = StreamLineSpec(n_scans=40, scans_per_file=1, n_gates=24, seed=47)
+    write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
+    items = [read_input(p, config) for p in sorted((tmp_path / "day").glob("*.hpl"))]
+    (unit,) = group_units(items)
+    ds = correct_background(concat_unit(unit), unit, config, [])
+    from cwproc.pipeline.chain import screened_wind
+    from cwproc.stages import structure
+
+    screened, wind = screened_wind(ds, config)
+    sf = structure.azimuth_structure_function(screened, wind, n_scans=config.turbulence.n_scans)
+    probe = probe_for(config)
+    plain = eps.estimate_epsilon(sf, probe=probe)
+    rows = slice(0, sf.sizes["time"])
+    same = eps.estimate_group(sf.isel(time=rows), rows, probe=probe)
+    other = sf.copy()
+    other.attrs["points_per_gate"] = int(sf.attrs.get("points_per_gate", 10)) + 1
+    changed = eps.estimate_group(other.isel(time=rows), rows, probe=probe)
+    assert same.key != changed.key
+    shifted = eps.GroupEstimate(slice(1, rows.stop), same.key, same.part)
+    for ahead in ([same], [changed], [shifted]):
+        got = eps.estimate_epsilon(sf, probe=probe, ahead=ahead)
+        assert got.identical(plain)
+    # the group taken: made from other data, it would show (the noise it predicts)
+    fake = eps.GroupEstimate(rows, same.key, changed.part)
+    taken = eps.estimate_epsilon(sf, probe=probe, ahead=[fake])
+    assert not taken["noise_std_predicted"].identical(plain["noise_std_predicted"])
