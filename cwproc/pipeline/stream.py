@@ -51,7 +51,6 @@ from cwproc.pipeline.chain import (
     screened_wind,
     stare_products,
 )
-from cwproc.pipeline.stream_epsilon import EpsilonAhead, with_day_attrs
 from cwproc.pipeline.stream_read import (
     ChunkAhead,
     ReadAhead,
@@ -64,6 +63,7 @@ from cwproc.pipeline.units import drop_input
 from cwproc.stages import epsilon, structure, vad
 from cwproc.stages.background import correction_summary
 from cwproc.stages.stare import split_stares, stare_mask
+from cwproc.stages.structure import INSTRUMENT_SETTINGS
 
 #: input data joined into one chunk (bytes of the read datasets): the stages need about
 #: ten times this at once (padded per-scan arrays of the robust VAD fits), so 8 MiB
@@ -199,17 +199,6 @@ def number_scans(chunk: xr.Dataset, state: StreamState) -> xr.Dataset:
         )
     )
     return chunk.assign_coords(scan=("ray", shifted, chunk["scan"].attrs))
-
-
-def epsilon_options(config: Config) -> dict:
-    """Keyword arguments of :func:`cwproc.stages.epsilon.estimate_epsilon` of a day from
-    the configuration (besides the probe)."""
-    return {"lag_number": config.turbulence.lag_number, "model": config.turbulence.model}
-
-
-def join_times(parts: list[xr.Dataset]) -> xr.Dataset:
-    """Structure-function pieces joined along ``time`` as the day's are."""
-    return _join(parts, "time")
 
 
 def _join(parts: list[xr.Dataset], dim: str) -> xr.Dataset:
@@ -422,15 +411,6 @@ def check_day_choices(state: StreamState, config: Config) -> None:
                 raise StreamMismatch("azimuth step")
 
 
-def attrs_of_seen(seen: dict[int, FileIdentity], state: StreamState) -> dict:
-    """:func:`day_attrs` of the files read so far (``seen``: their identities by
-    position in the unit)."""
-    firsts = [seen[k] for k in sorted(seen)]
-    files = [f for ds in firsts for f in _source_files(ds)]
-    types = [str(ds.attrs.get("scan_type", "")) for ds in firsts]
-    return day_attrs(firsts[0].attrs, files, types, state)
-
-
 def day_attrs(first: dict, files: list[str], scan_types: list[str], state: StreamState) -> dict:
     """Attributes of the whole day's scans (those the whole-day run would carry)."""
 
@@ -444,14 +424,9 @@ def day_attrs(first: dict, files: list[str], scan_types: list[str], state: Strea
 
 
 def stream_products(
-    state: StreamState,
-    attrs: dict,
-    config: Config,
-    notes: list[str] | None,
-    ahead: EpsilonAhead | None = None,
+    state: StreamState, attrs: dict, config: Config, notes: list[str] | None
 ) -> dict[str, xr.Dataset]:
-    """Wind, turbulence and stare products of the day from what the chunks kept;
-    ``ahead``: the groups of blocks whose dissipation rate was estimated on the way."""
+    """Wind, turbulence and stare products of the day from what the chunks kept."""
 
     products: dict[str, xr.Dataset] = {}
     any_wind = bool(state.winds)
@@ -463,13 +438,19 @@ def stream_products(
         wind.attrs = {**attrs, **{k: v for k, v in wind.attrs.items() if k.startswith("vad_")}}
         products["wind"] = wind
     if state.sfs:
-        # the instrument settings of the day, as the whole-day run has them
-        sf = with_day_attrs(_join(state.sfs, "time"), attrs)
+        sf = _join(state.sfs, "time")
         state.sfs = []
-        done = ahead or EpsilonAhead(probe_for(config), epsilon_options(config), join_times)
+        sf.attrs["instrument"] = str(attrs.get("instrument", ""))
+        for key in INSTRUMENT_SETTINGS:  # the day's, as the whole-day run has them
+            sf.attrs.pop(key, None)
+            if key in attrs:
+                sf.attrs[key] = attrs[key]
         with heap_returned():
             products["turbulence"] = epsilon.estimate_epsilon(
-                sf, probe=done.probe, ahead=done.done, memo=done.memo, **done.options
+                sf,
+                probe=probe_for(config),
+                lag_number=config.turbulence.lag_number,
+                model=config.turbulence.model,
             )
     elif state.turbulence and any_wind and notes is not None:
         notes.append("turbulence not computed: no complete block of scans")
@@ -639,7 +620,6 @@ def stream_scan_unit(
     else:
         chunks = (concat_scans(parts) for parts in chunks_of(ordered, take, chunk_bytes))
     screening = ChunkScreening(state, config, reading_ahead)
-    grouped = EpsilonAhead(probe_for(config), epsilon_options(config), join_times)
     try:
         with heap_kept():  # the chunks' arrays reuse the freed heap
             for chunk in chunks:
@@ -650,8 +630,6 @@ def stream_scan_unit(
                 if others is not None:
                     screening.take(others)  # screened while the previous one is reduced
                 del others
-                if state.turbulence and reading_ahead:  # beside the next chunks' threads
-                    grouped.advance(state.sfs, lambda: attrs_of_seen(seen, state))
             screening.finish()
         if not seen:  # every input damaged beyond its header: each has its failure line
             return {} if not unit.inputs else None
@@ -674,8 +652,7 @@ def stream_scan_unit(
         return None  # no conical scan: the whole-day run words what it cannot make
     if state.corrected:
         own.append(background_summary(state))
-    attrs = day_attrs(firsts[0].attrs, files, types, state)
-    products = stream_products(state, attrs, config, own, grouped)
+    products = stream_products(state, day_attrs(firsts[0].attrs, files, types, state), config, own)
     if notes is not None:
         notes.extend(dict.fromkeys(own))
     return products

@@ -140,10 +140,6 @@ sampling geometry and regime of each cell and are auxiliary coordinates
 
 from __future__ import annotations
 
-import hashlib
-from collections.abc import Sequence
-from dataclasses import dataclass
-
 import numpy as np
 import xarray as xr
 
@@ -179,8 +175,6 @@ def estimate_epsilon(
     table_options: dict | None = None,
     fit_noise: bool = True,
     noise_window_blocks: int = NOISE_WINDOW_BLOCKS,
-    ahead: Sequence[GroupEstimate] = (),
-    memo: dict | None = None,
 ) -> xr.Dataset:
     """Dissipation rate (methods 1 and 2), noise, variance and integral scale.
 
@@ -217,15 +211,6 @@ def estimate_epsilon(
         many neighbouring blocks at the same height
         (:func:`cwproc.physics.exact_lag.running_nanmedian`), and each block refitted
         with it fixed; 1 keeps each block's own estimate.
-    ahead : sequence of GroupEstimate, optional
-        Groups of blocks estimated earlier (:func:`estimate_group`, e.g. while a day
-        was streamed): the ``k``-th is used for the ``k``-th group of
-        :func:`block_groups` only when it was made of the same rows, the same data and
-        attributes and the same settings (:func:`group_key`); any other is estimated
-        here. The result is the same either way.
-    memo : dict, optional
-        What the groups share (:func:`cwproc.stages.epsilon.outer_scale.fit_setup`),
-        e.g. the one the groups estimated ahead filled.
 
     Returns
     -------
@@ -238,16 +223,11 @@ def estimate_epsilon(
         raise ValueError("lag_number must be >= 2 (Smalikho (2020), eq. 5)")
     options = table_options_for(sf, table_options)  # the A-table of all heights
     settings = (probe, lag_number, model, min_pairs, n_outer_scales, options, fit_noise)
-    memo = {} if memo is None else memo  # shared by the groups: per (dy, range) pair
-    parts = []
-    for k, rows in enumerate(block_groups(sf, probe)):
-        group = sf.isel(time=rows)
-        done = ahead[k] if k < len(ahead) else None
-        if done is not None and done.rows == rows:
-            if done.key == group_key(group, settings, noise_window_blocks):
-                parts.append(done.part)
-                continue
-        parts.append(_block_group(group, *settings, noise_window_blocks, memo))
+    memo: dict = {}  # what the groups share: per distinct (dy, range) pair (fit_setup)
+    parts = [
+        _block_group(sf.isel(time=rows), *settings, noise_window_blocks, memo)
+        for rows in block_groups(sf, probe)
+    ]
     out = parts[0][0] if len(parts) == 1 else _join_blocks([p[0] for p in parts])
     finite_used = sum(p[1] for p in parts)
     exact_cells_n = sum(p[2] for p in parts)
@@ -376,59 +356,3 @@ def _block_group(
         flag,
     )
     return out, int(est["finite_used"].sum()), int(exact.sum()), fixed["c_model"]
-
-
-@dataclass(frozen=True)
-class GroupEstimate:
-    """The estimates of one group of blocks (:func:`block_groups`) made ahead of the
-    day's :func:`estimate_epsilon` (:func:`estimate_group`)."""
-
-    #: the group's blocks in the day's structure function
-    rows: slice
-    #: :func:`group_key` of the group's data and the settings
-    key: str
-    #: what :func:`_block_group` returned
-    part: tuple
-
-
-def group_key(sf: xr.Dataset, settings: tuple, noise_window_blocks: int) -> str:
-    """SHA-256 of a group's structure function (every variable's dimensions, dtype,
-    bytes and attributes, the dataset's attributes) and of the estimation settings:
-    equal keys give equal estimates."""
-    digest = hashlib.sha256(repr((settings, noise_window_blocks)).encode())
-    digest.update(repr(sorted(sf.attrs.items())).encode())
-    for name in sorted(sf.variables, key=str):
-        var = sf.variables[name]
-        values = np.ascontiguousarray(var.values)
-        digest.update(repr((name, var.dims, values.dtype.str, values.shape)).encode())
-        digest.update(repr(sorted(var.attrs.items())).encode())
-        digest.update(values.tobytes() if values.dtype.kind != "O" else repr(values).encode())
-    return digest.hexdigest()
-
-
-def estimate_group(
-    sf: xr.Dataset,
-    rows: slice,
-    *,
-    probe: Probe = PRESET_PROBE,
-    lag_number: int = PRESET.turbulence.lag_number,
-    model: Model = PRESET.turbulence.model,
-    min_pairs: int = 100,
-    n_outer_scales: int = 7,
-    table_options: dict | None = None,
-    fit_noise: bool = True,
-    noise_window_blocks: int = NOISE_WINDOW_BLOCKS,
-    memo: dict | None = None,
-) -> GroupEstimate:
-    """The estimates of the blocks ``rows`` of a day (``sf``: those blocks alone), made
-    before the day is complete; :func:`estimate_epsilon` of the day takes them where
-    its own group of those rows has the same data and settings (:func:`group_key`).
-
-    The arguments are those of :func:`estimate_epsilon`; the A-table options are taken
-    from ``sf`` as the day's are from the day (its heights and ``swept_rays``).
-    """
-    options = table_options_for(sf, table_options)
-    settings = (probe, lag_number, model, min_pairs, n_outer_scales, options, fit_noise)
-    memo = {} if memo is None else memo
-    part = _block_group(sf, *settings, noise_window_blocks, memo)
-    return GroupEstimate(rows, group_key(sf, settings, noise_window_blocks), part)
