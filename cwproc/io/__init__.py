@@ -12,6 +12,7 @@ from __future__ import annotations
 import importlib
 import os
 import stat
+import threading
 from collections.abc import Iterable
 from dataclasses import dataclass
 from enum import StrEnum
@@ -21,6 +22,11 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import InputFileError
+
+#: held by every open, read and write of a NetCDF file by cwproc: libnetcdf and HDF5 are
+#: not thread-safe, and ``retrieve`` identifies its inputs in two threads (two NetCDF
+#: scans opened at once crashed the process)
+NETCDF_LOCK = threading.RLock()
 
 
 class Format(StrEnum):
@@ -187,7 +193,7 @@ def is_cwproc_product(path: str | os.PathLike) -> bool:
     import netCDF4
 
     try:
-        with netCDF4.Dataset(path) as nc:
+        with NETCDF_LOCK, netCDF4.Dataset(path) as nc:
             return is_product_layout(nc.ncattrs(), nc.dimensions)
     except OSError:
         return False

@@ -20,6 +20,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import ProductError
+from cwproc.io import NETCDF_LOCK
 
 _CHUNK = 1 << 20
 
@@ -93,12 +94,13 @@ def stage_netcdf(ds: xr.Dataset, path: str | os.PathLike, *, compression_level: 
     except OSError as exc:
         raise ProductError(f"{path}: cannot write product: {exc.strerror or exc}") from None
     try:
-        ds.to_netcdf(
-            tmp,
-            format="NETCDF4",
-            engine="netcdf4",
-            encoding=encoding_for(ds, compression_level),
-        )
+        with NETCDF_LOCK:
+            ds.to_netcdf(
+                tmp,
+                format="NETCDF4",
+                engine="netcdf4",
+                encoding=encoding_for(ds, compression_level),
+            )
         with open(tmp, "rb") as fh:
             os.fsync(fh.fileno())
         os.chmod(tmp, umask_mode())
@@ -243,5 +245,5 @@ def _unlink_quietly(path: str) -> None:
 
 def read_product(path: str | os.PathLike) -> xr.Dataset:
     """Open a cwproc product fully into memory (the file is closed on return)."""
-    with xr.open_dataset(path, engine="netcdf4") as ds:
+    with NETCDF_LOCK, xr.open_dataset(path, engine="netcdf4") as ds:
         return ds.load()

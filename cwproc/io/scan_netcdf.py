@@ -25,6 +25,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import ConfigError, InputFileError
+from cwproc.io import NETCDF_LOCK
 from cwproc.io.netcdf import write_netcdf_atomic
 from cwproc.io.scans import assign_scans, parse_homodyne
 from cwproc.io.schema import with_canonical_attrs
@@ -174,7 +175,7 @@ def read_scan_netcdf(path: str | os.PathLike, **options: object) -> xr.Dataset:
         )
     path = Path(path)
     try:
-        with xr.open_dataset(path, engine="netcdf4") as handle:
+        with NETCDF_LOCK, xr.open_dataset(path, engine="netcdf4") as handle:
             ds = handle.load()
     except FileNotFoundError:
         raise InputFileError(path, "cannot read: no such file") from None

@@ -19,6 +19,7 @@ import xarray as xr
 
 from cwproc._version import __version__
 from cwproc.config import OutputConfig
+from cwproc.io import NETCDF_LOCK
 from cwproc.io.netcdf import sha256_file, stage_netcdf, write_netcdf_atomic
 from cwproc.products.metadata import apply_metadata
 
@@ -162,7 +163,7 @@ def source_file_uuids(inputs: Iterable[str | os.PathLike]) -> str:
         import netCDF4
 
         try:
-            with netCDF4.Dataset(path) as nc:
+            with NETCDF_LOCK, netCDF4.Dataset(path) as nc:
                 value = str(getattr(nc, "file_uuid", "")).strip()
         except OSError:
             continue

@@ -131,3 +131,39 @@ def test_write_refuses_dataset_without_schema(tmp_path: Path) -> None:
     with pytest.raises(InputFileError, match="'radial_velocity'"):
         write_scan_netcdf(cw_scan().drop_vars("radial_velocity"), tmp_path / "bad.nc")
     assert not (tmp_path / "bad.nc").exists()
+
+
+def test_netcdf_scans_identified_in_two_threads_are_read_under_the_lock(tmp_path, monkeypatch):
+    """libnetcdf and HDF5 are not thread-safe: ``retrieve`` identifies its inputs in two
+    threads, and two NetCDF scans opened at once crashed the process (a segmentation
+    fault in CI). Every open holds ``NETCDF_LOCK``, and the items are those of a serial
+    read."""
+    import threading
+
+    import cwproc.io.scan_netcdf as scan_netcdf
+    from cwproc.config import load_config
+    from cwproc.io import NETCDF_LOCK
+    from cwproc.pipeline import retrieve
+
+    paths = [write_scan_netcdf(cw_scan(seed=k), tmp_path / f"scan_{k}.nc") for k in range(8)]
+    held: list[bool] = []
+    real_open = scan_netcdf.xr.open_dataset
+
+    def checked_open(*args, **kwargs):
+        free: list[bool] = []
+        probe = threading.Thread(target=lambda: free.append(NETCDF_LOCK.acquire(blocking=False)))
+        probe.start()
+        probe.join()
+        if free[0]:
+            NETCDF_LOCK.release()
+        held.append(not free[0])
+        return real_open(*args, **kwargs)
+
+    monkeypatch.setattr(scan_netcdf.xr, "open_dataset", checked_open)
+    config = load_config("banakh1999")  # reads scan_netcdf files
+    got = list(retrieve.read_inputs(paths, config, threads=2))
+    assert len(held) == len(paths) and all(held)
+    assert [p for p, _ in got] == paths
+    for path, item in got:
+        assert not isinstance(item, Exception), item
+        assert item.dataset.identical(read_scan_netcdf(path))
