@@ -389,14 +389,13 @@ def checksummed_read(item: InputFile, config: Config) -> xr.Dataset:
     """
     changed = CwprocError(f"{item.path}: changed while cwproc was running; run again")
     try:
-        if file_signature(item.path) != item.signature:
-            raise changed
-        sha = sha256_file(item.path)
-        ds = get_reader(item.format)(item.path, **reader_options(config, item.format))
-        if file_signature(item.path) != item.signature:
-            raise changed
+        unchanged = file_signature(item.path) == item.signature
+        sha = sha256_file(item.path) if unchanged else None
     except OSError:
         raise changed from None
+    ds = unchanged_read(item, config) if unchanged else None  # signature before and after
+    if ds is None:
+        raise changed
     item.sha256 = sha
     return ds
 
