@@ -487,7 +487,8 @@ def test_chunk_screening_reduces_in_order_and_raises_where_serial(monkeypatch, t
 
 def test_read_inputs_keeps_the_order_and_hands_errors_in_place(monkeypatch):
     """read_inputs: items in the order of the paths whatever order the threads finish
-    in, a file's error in its place, at most 2 * threads inputs read ahead."""
+    in, a file's error in its place, at most 2 * threads inputs read whole ahead; the
+    inputs known from their header identified in the caller's thread."""
     import threading
     import time
 
@@ -498,31 +499,71 @@ def test_read_inputs_keeps_the_order_and_hands_errors_in_place(monkeypatch):
     started: list[str] = []
     taken = 0
     ahead: list[int] = []
+    caller = threading.current_thread()
+    identified_in: set[threading.Thread] = set()
+
+    def fake_identify(path, config):
+        identified_in.add(threading.current_thread())
+        if path == "f4":
+            raise InputFileError(path, "not a regular file")
+        return f"header {path}" if int(path[1:]) % 3 == 0 else None  # None: read whole
 
     def fake_read(path, config, *, identify_only, checksum):
+        assert identify_only and not checksum
         with lock:
             started.append(path)
             ahead.append(len(started) - taken)
         time.sleep(0.002 * (len(path) % 3))  # later ones may finish first
         if path == "f7":
             raise InputFileError(path, "line 3: not a number")
-        if path == "f9":
+        if path == "f11":
             raise KeyError("a reader bug")
         return f"item {path}"
 
+    monkeypatch.setattr(retrieve, "identify_input", fake_identify)
     monkeypatch.setattr(retrieve, "read_input", fake_read)
     paths = [f"f{k}" for k in range(20)]
     got = []
     for path, item in retrieve.read_inputs(paths, None, threads=2):
         got.append((path, item))
-        taken += 1
+        with lock:
+            taken += 1
     assert [p for p, _ in got] == paths
+    assert identified_in == {caller}
+    assert isinstance(got[4][1], InputFileError) and "regular" in str(got[4][1])
     assert isinstance(got[7][1], InputFileError) and "line 3" in str(got[7][1])
-    assert isinstance(got[9][1], KeyError)
-    assert [item for p, item in got if p not in ("f7", "f9")] == [
-        f"item {p}" for p in paths if p not in ("f7", "f9")
+    assert isinstance(got[11][1], KeyError)
+    whole = [p for p in paths if int(p[1:]) % 3 and p != "f4"]
+    assert sorted(started) == sorted(whole)
+    assert [item for p, item in got if p not in ("f4", "f7", "f11")] == [
+        f"header {p}" if int(p[1:]) % 3 == 0 else f"item {p}"
+        for p in paths
+        if p not in ("f4", "f7", "f11")
     ]
     assert max(ahead) <= 2 * 2 + 1
+
+
+def test_read_inputs_identifies_hpl_headers_in_the_callers_thread(tmp_path, monkeypatch):
+    """``.hpl`` files known from their header are identified by the caller's thread
+    (nothing handed to the reading threads), with no checksum and no dataset (the
+    unit's read of the data takes both); a header cut short is read whole, by a thread,
+    and its reader's error handed back in its place."""
+    from cwproc.pipeline import retrieve
+
+    spec = StreamLineSpec(n_scans=4, scans_per_file=1, n_gates=24, seed=3)
+    paths = write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)[:-1]
+    whole: list = []
+    real_read_one = retrieve._read_one
+    monkeypatch.setattr(retrieve, "_read_one", lambda p, c: whole.append(p) or real_read_one(p, c))
+    got = list(retrieve.read_inputs(paths, load_config("streamline"), threads=2))
+    assert [p for p, _ in got] == paths and not whole
+    for _, item in got:
+        assert item.identity is not None and item.dataset is None and item.sha256 is None
+    broken = tmp_path / "day" / "broken.hpl"
+    broken.write_bytes(paths[0].read_bytes()[:200])  # cut inside the header
+    got = list(retrieve.read_inputs([broken], load_config("streamline"), threads=2))
+    assert whole == [broken] and isinstance(got[0][1], Exception)
+    assert "broken.hpl" in str(got[0][1])
 
 
 def test_parts_joined_like_xarray_concat(tmp_path, config, monkeypatch):

@@ -109,6 +109,42 @@ def read_input(
         Whatever the reader found wrong with the file.
     """
     path = Path(path)
+    fmt, signature = _examined(path, config)
+    if identify_only:
+        item = _identified(path, fmt, signature, config, checksum)
+        if item is not None:
+            return item
+    sha = _checksum(path)
+    if fmt is Format.HALO_BACKGROUND:  # read by correct_background for the scans beside it
+        return InputFile(path=path, format=fmt, sha256=sha, signature=signature)
+    ds = get_reader(fmt)(path, **reader_options(config, fmt))
+    return InputFile(
+        path=path, format=fmt, sha256=sha, dataset=ds, start=_start(ds), signature=signature
+    )
+
+
+def identify_input(path: str | os.PathLike, config: Config) -> InputFile | None:
+    """``read_input(path, config, identify_only=True, checksum=False)`` when that reads
+    the file's header alone; None when it would read the file whole.
+
+    None for a format without a header-only identifier, a format with reader options, a
+    header the identifier cannot take (its reader words the problem) and a Stream Line
+    background file (checksummed whole). What it does costs a few Python-level steps
+    and one small read, so :func:`cwproc.pipeline.retrieve.read_inputs` runs it in the
+    caller's thread.
+
+    Raises
+    ------
+    InputFileError
+        The file cannot be examined, or is not a regular file, or its format is unknown.
+    """
+    path = Path(path)
+    fmt, signature = _examined(path, config)
+    return _identified(path, fmt, signature, config, checksum=False)
+
+
+def _examined(path: Path, config: Config) -> tuple[Format, tuple[int, ...]]:
+    """The format of a regular file (detected unless pinned) and its :func:`file_signature`."""
     try:
         mode = path.stat().st_mode
     except OSError as exc:
@@ -125,28 +161,29 @@ def read_input(
         signature = file_signature(path)
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
-    if fmt is Format.HALO_BACKGROUND:  # read by correct_background for the scans beside it
-        sha = _checksum(path)
-        return InputFile(path=path, format=fmt, sha256=sha, signature=signature)
-    identify = get_identifier(fmt) if identify_only and not reader_options(config, fmt) else None
-    if identify is not None:
-        try:
-            identity = identify(path)
-        except CwprocError:
-            identity = None  # read whole below: its reader words the problem
-        if identity is not None:
-            return InputFile(
-                path=path,
-                format=fmt,
-                sha256=_checksum(path) if checksum else None,
-                identity=identity,
-                start=_start(identity),
-                signature=signature,
-            )
-    sha = _checksum(path)
-    ds = get_reader(fmt)(path, **reader_options(config, fmt))
+    return fmt, signature
+
+
+def _identified(
+    path: Path, fmt: Format, signature: tuple[int, ...], config: Config, checksum: bool
+) -> InputFile | None:
+    """The item of a file identified by its header (None: it must be read whole)."""
+    if fmt is Format.HALO_BACKGROUND or reader_options(config, fmt):
+        return None
+    identify = get_identifier(fmt)
+    if identify is None:
+        return None
+    try:
+        identity = identify(path)
+    except CwprocError:
+        return None  # read whole: its reader words the problem
     return InputFile(
-        path=path, format=fmt, sha256=sha, dataset=ds, start=_start(ds), signature=signature
+        path=path,
+        format=fmt,
+        sha256=_checksum(path) if checksum else None,
+        identity=identity,
+        start=_start(identity),
+        signature=signature,
     )
 
 
