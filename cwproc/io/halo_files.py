@@ -42,7 +42,12 @@ from cwproc.io.halo_body import (
     structure_problem,
 )
 from cwproc.io.halo_header import HplHeader, parse_header
-from cwproc.io.scans import concat_scans, joined_attrs, scan_indices, time_sorted_scans
+from cwproc.io.scans import (
+    concat_scans,
+    joined_attrs,
+    scan_indices_of_runs,
+    time_sorted_scans,
+)
 from cwproc.physics.geometry import normalise_pointing
 
 #: data lines joined for one call of the pandas tokenizer (bytes), used only when the
@@ -464,12 +469,12 @@ def read_hpl_run(plans: list[_FilePlan]) -> tuple[xr.Dataset, list[HplFilePart]]
         return None
     azimuth = ds.variables["azimuth"].values
     elevation = ds.variables["elevation"].values
+    scans = scan_indices_of_runs(
+        time, azimuth, elevation, bounds, [plan.header.scan_type for plan in plans]
+    )
     parts = []
-    for plan, a, b in zip(plans, bounds[:-1], bounds[1:], strict=True):
+    for plan, a, b, scan in zip(plans, bounds[:-1], bounds[1:], scans, strict=True):
         a, b = int(a), int(b)
-        scan, _ = scan_indices(
-            time[a:b], azimuth[a:b], elevation[a:b], scan_type=plan.header.scan_type
-        )
         identity = FileIdentity(_attrs(plan.path, plan.header), time[a : a + 1].copy())
         parts.append(HplFilePart(identity, a, b, scan))
     return ds, parts

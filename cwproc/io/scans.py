@@ -25,6 +25,7 @@ get scan ``-1``.
 
 from __future__ import annotations
 
+import itertools
 import re
 from collections.abc import Sequence
 
@@ -53,6 +54,7 @@ def sweep_links(
     elevation_tolerance_deg: float,
     min_step_deg: float,
     max_gap_s: float,
+    breaks: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Whether each ray continues the sweep of the ray before it, and the step (deg).
 
@@ -64,6 +66,9 @@ def sweep_links(
         Pointing (deg).
     max_elevation_deg, elevation_tolerance_deg, min_step_deg, max_gap_s : float
         See the module docstring.
+    breaks : ndarray of int, optional
+        Rays that start a sweep whatever their pointing, as ray 0 does (the first ray of
+        each file of a run of files numbered file by file, :func:`scan_indices_of_runs`).
 
     Returns
     -------
@@ -89,6 +94,9 @@ def sweep_links(
         & (np.diff(time_s) <= max_gap_s)
         & (np.diff(time_s) >= 0)
     )
+    if breaks is not None:
+        candidate[breaks] = False
+        step[breaks] = 0.0
     # a reversal of the turning direction starts a new sweep
     reversal = np.zeros(n, dtype=bool)
     reversal[2:] = candidate[2:] & candidate[1:-1] & (np.sign(step[2:]) != np.sign(step[1:-1]))
@@ -104,8 +112,9 @@ def rotation_index(link: np.ndarray, step: np.ndarray, min_rays: int) -> np.ndar
         From :func:`sweep_links`.
     step : ndarray
         Signed azimuth steps (deg).
-    min_rays : int
-        Shortest sweep that counts as a conical scan.
+    min_rays : int or ndarray of int
+        Shortest sweep that counts as a conical scan (per ray: that of a sweep's first
+        ray counts).
 
     Returns
     -------
@@ -123,7 +132,8 @@ def rotation_index(link: np.ndarray, step: np.ndarray, min_rays: int) -> np.ndar
     total = turned_all[np.r_[starts[1:] - 1, n - 1]] - turned_all[starts]
     mean_step = total / np.maximum(length - 1, 1)
     rotation = np.floor((turned + 0.5 * mean_step[sweep]) / 360.0).astype(np.int64)
-    valid = length[sweep] >= max(min_rays, 2)
+    shortest = np.maximum(np.asarray(min_rays), 2)
+    valid = length[sweep] >= (shortest[starts][sweep] if shortest.ndim else shortest)
     scan = np.full(n, -1, dtype=np.int64)
     if valid.any():
         key = sweep[valid].astype(np.int64) * (1 << 32) + rotation[valid]
@@ -190,6 +200,78 @@ def scan_indices(
         "min_rays": min_rays,
     }
     return scan, attrs
+
+
+def scan_indices_of_runs(
+    time: np.ndarray,
+    azimuth: np.ndarray,
+    elevation: np.ndarray,
+    bounds: Sequence[int],
+    scan_types: Sequence[object],
+) -> list[np.ndarray]:
+    """:func:`scan_indices` (default parameters) of each run of rays on its own.
+
+    The files of a record read at once (:func:`cwproc.io.halo_files.read_hpl_run`)
+    are numbered as each file's own dataset numbers them, in one pass over the record
+    instead of one per file: a run's first ray starts a sweep (``breaks`` of
+    :func:`sweep_links`), a sweep counts with the ``min_rays`` of its run's
+    ``scan_type``, and each run's indices start at 0. With ``time`` strictly increasing
+    (rays in time order within and across the runs) the result is, run by run,
+    exactly that of :func:`scan_indices`.
+
+    Parameters
+    ----------
+    time : ndarray of datetime64
+        Ray times, strictly increasing.
+    azimuth, elevation : ndarray
+        Pointing (deg).
+    bounds : sequence of int
+        Run ``k`` is rays ``bounds[k]:bounds[k + 1]`` (``bounds[0] == 0``, ``bounds[-1]``
+        the number of rays).
+    scan_types : sequence
+        Header ``scan_type`` of each run.
+
+    Returns
+    -------
+    list of ndarray of int64
+        Scan index of each ray of each run (0, 1, ... in time order, -1 for rays in no
+        conical scan).
+
+    Raises
+    ------
+    ValueError
+        ``time`` is not strictly increasing, or ``bounds`` and ``scan_types`` do not
+        describe the rays.
+    """
+    time = np.asarray(time)
+    edges = np.asarray(bounds, dtype=np.int64)
+    n = time.size
+    if edges.size != len(scan_types) + 1 or edges[0] != 0 or edges[-1] != n:
+        raise ValueError("bounds must run from 0 to the number of rays, one run a scan type")
+    if np.any(np.diff(edges) < 0) or not bool(np.all(time[1:] > time[:-1])):
+        raise ValueError("runs and times must be in order (time strictly increasing)")
+    lengths = np.diff(edges)
+    starts = edges[:-1][lengths > 0]
+    origin = np.repeat(time[starts], lengths[lengths > 0])
+    time_s = (time - origin) / np.timedelta64(1, "s")
+    link, step = sweep_links(
+        time_s,
+        np.asarray(azimuth, dtype=np.float64),
+        np.asarray(elevation, dtype=np.float64),
+        max_elevation_deg=89.0,
+        elevation_tolerance_deg=0.5,
+        min_step_deg=0.2,
+        max_gap_s=120.0,
+        breaks=starts,
+    )
+    min_rays = np.repeat([2 if declares_conical(t) else 3 for t in scan_types], lengths)
+    scan = rotation_index(link, step, min_rays)
+    runs = []
+    for a, b in itertools.pairwise(edges):
+        own = scan[a:b]
+        first = own[own >= 0][:1]  # indices rise with time: the run's first is its least
+        runs.append(np.where(own >= 0, own - first, -1) if first.size else own)
+    return runs
 
 
 def assign_scans(

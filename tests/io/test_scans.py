@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import numpy as np
 import pytest
 import xarray as xr
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from cwproc.errors import CwprocError
 from cwproc.io.halo import read_hpl
@@ -16,6 +19,8 @@ from cwproc.io.scans import (
     concat_scans,
     is_homodyne,
     parse_homodyne,
+    scan_indices,
+    scan_indices_of_runs,
 )
 
 T0 = np.datetime64("2024-06-01T12:00:00", "ns")
@@ -236,3 +241,62 @@ def test_is_homodyne_names_the_files_and_defaults_to_heterodyne() -> None:
     ds.attrs["homodyne"] = "on"
     with pytest.raises(CwprocError, match=r"a\.nc.*homodyne is 'on'"):
         is_homodyne(ds)
+
+
+def _run_pointing(draw_steps, rng: np.random.Generator, n: int):
+    """Pointing of ``n`` rays: sweeps that turn either way, stares, elevation changes."""
+    azimuth = np.mod(np.cumsum(draw_steps(n)), 360.0)
+    elevation = np.where(rng.random(n) < 0.05, 90.0, 75.0)
+    elevation = elevation + np.where(rng.random(n) < 0.05, 5.0, 0.0)
+    return azimuth, elevation
+
+
+@given(
+    sizes=st.lists(st.integers(0, 40), min_size=1, max_size=8),
+    seed=st.integers(0, 2**32 - 1),
+    types=st.lists(st.sampled_from(["VAD", "User file 1 - stepped", "Stare", ""]), min_size=8),
+)
+@settings(max_examples=150, deadline=None)
+def test_scan_indices_of_runs_equal_each_run_numbered_alone(sizes, seed, types):
+    """The files of a record numbered in one pass (scan_indices_of_runs) exactly as
+    each file's own scan_indices numbers it: sweeps that reverse, pause, change
+    elevation or stare, and runs of 0 to 40 rays whose scan type sets min_rays."""
+    rng = np.random.default_rng(seed)
+    n = sum(sizes)
+
+    def steps(k):
+        kind = rng.choice(4, size=k)
+        return np.choose(
+            kind, [np.full(k, 30.0), np.full(k, -45.0), rng.uniform(-180, 180, k), np.full(k, 0.05)]
+        )
+
+    azimuth, elevation = _run_pointing(steps, rng, n)
+    gaps = np.where(rng.random(n) < 0.05, 200.0, rng.uniform(0.1, 5.0, n))
+    time = T0 + np.cumsum(np.round(gaps * 1e9)).astype("timedelta64[ns]")
+    bounds = np.concatenate([[0], np.cumsum(sizes)])
+    got = scan_indices_of_runs(time, azimuth, elevation, bounds, types[: len(sizes)])
+    for k, (a, b) in enumerate(itertools.pairwise(bounds)):
+        alone, _ = scan_indices(time[a:b], azimuth[a:b], elevation[a:b], scan_type=types[k])
+        np.testing.assert_array_equal(got[k], alone)
+
+
+def test_scan_indices_of_runs_refuses_times_out_of_order():
+    """Runs must be in time order: a step back in time is refused, not misnumbered."""
+    time = T0 + np.array([0, 2, 1], dtype="timedelta64[s]")
+    with pytest.raises(ValueError, match="strictly increasing"):
+        scan_indices_of_runs(time, np.zeros(3), np.zeros(3), [0, 3], ["VAD"])
+    with pytest.raises(ValueError, match="bounds"):
+        scan_indices_of_runs(time[:2], np.zeros(2), np.zeros(2), [0, 1], ["VAD"])
+
+
+def test_scan_indices_of_runs_start_a_sweep_at_each_file():
+    """A file's first ray starts a sweep even where it would continue the last file's
+    (a one-ray file: its time origin then equals the next file's)."""
+    time = T0 + np.arange(5).astype("timedelta64[s]")
+    azimuth = np.array([0.0, 30.0, 60.0, 90.0, 120.0])
+    elevation = np.full(5, 75.0)
+    got = scan_indices_of_runs(time, azimuth, elevation, [0, 1, 5], ["VAD", "VAD"])
+    np.testing.assert_array_equal(got[0], [-1])
+    np.testing.assert_array_equal(got[1], [0, 0, 0, 0])
+    alone, _ = scan_indices(time[1:], azimuth[1:], elevation[1:], scan_type="VAD")
+    np.testing.assert_array_equal(got[1], alone)
