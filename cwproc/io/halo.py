@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 import xarray as xr
@@ -72,6 +72,13 @@ from cwproc.physics.geometry import normalise_pointing
 if TYPE_CHECKING:
     import hashlib
 
+
+class Fed(Protocol):
+    """What :func:`read_header_body_offset` feeds the bytes of a file to (``update``)."""
+
+    def update(self, data: bytes | memoryview, /) -> None: ...
+
+
 INSTRUMENT = "Halo Photonics Stream Line"
 INSTRUMENT_KIND = "streamline"
 
@@ -100,14 +107,14 @@ def read_header_and_body(path: Path) -> tuple[list[str], bytes]:
 
 
 def read_header_body_offset(
-    path: Path, digest: hashlib._Hash | None = None
+    path: Path, digest: hashlib._Hash | Fed | None = None
 ) -> tuple[list[str], bytes, int]:
     """As :func:`read_header_and_body`, and the byte offset of the body in the file.
 
     The offset lets :func:`cwproc.io.halo_files.read_hpl_files` read the data lines a
     second time without splitting the header again. With ``digest`` (a
-    :mod:`hashlib` object), every byte of the file is fed to it as read: the file's
-    checksum taken by the same read.
+    :mod:`hashlib` object, or anything with its ``update``), every byte of the file is
+    fed to it as read: the file's checksum taken by the same read.
     """
     try:
         with path.open("rb") as f:

@@ -10,6 +10,7 @@ problem.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import io
 import os
@@ -71,10 +72,44 @@ class _FilePlan:
     n_lines: int
     #: fields of the first ray line and of the first gate line (3 and 4 when absent)
     fields: tuple[int, int] = (3, 4)
-    #: SHA-256 (hex) of the file as this pass read it, when asked for
-    sha256: str | None = None
+    #: the bytes of the file as this pass read them, when its checksum was asked for
+    #: (hashed when :attr:`sha256` is first read)
+    read: _ReadBytes | None = field(default=None, compare=False, repr=False)
     #: the data lines as this pass read them, when kept for the parse (taken by it)
     held: list[bytes] = field(default_factory=list, compare=False, repr=False)
+
+    @functools.cached_property
+    def sha256(self) -> str | None:
+        """SHA-256 (hex) of the file as this pass read it (None: not asked for).
+
+        Computed where it is first asked for, from the bytes the pass read (kept until
+        then): a streamed day takes it in the thread that processes the chunk, beside
+        the parse of the next one, not in the reading thread, whose work is the day's
+        critical path (``hashlib`` releases the GIL).
+        """
+        return None if self.read is None else self.read.hexdigest()
+
+
+class _ReadBytes:
+    """The pieces of a file as read, kept for its SHA-256 (:attr:`_FilePlan.sha256`).
+
+    Takes the place of a :mod:`hashlib` object in
+    :func:`cwproc.io.halo.read_header_body_offset`: ``update`` keeps a reference to
+    each piece (no copy), and :meth:`hexdigest` hashes them once, then drops them.
+    """
+
+    def __init__(self) -> None:
+        self._pieces: list[bytes | memoryview] = []
+
+    def update(self, data: bytes | memoryview) -> None:
+        self._pieces.append(data)
+
+    def hexdigest(self) -> str:
+        digest = hashlib.sha256()
+        for piece in self._pieces:
+            digest.update(piece)
+        self._pieces = []
+        return digest.hexdigest()
 
 
 def _plan_file(path: Path, checksum: bool = False, keep: bool = False) -> _FilePlan | None:
@@ -82,9 +117,9 @@ def _plan_file(path: Path, checksum: bool = False, keep: bool = False) -> _FileP
     same read), or ``None`` when anything is off (no raise). With ``keep``, the data
     lines read are kept for the parse (:func:`_data_lines`), which then does not read
     the file again."""
-    digest = hashlib.sha256() if checksum else None
+    read = _ReadBytes() if checksum else None
     try:
-        lines, body, offset = read_header_body_offset(path, digest)
+        lines, body, offset = read_header_body_offset(path, read)
         header = parse_header(path, lines)
     except InputFileError:
         return None
@@ -92,14 +127,13 @@ def _plan_file(path: Path, checksum: bool = False, keep: bool = False) -> _FileP
     if end == 0 or body.find(b"\x00", 0, end) >= 0:
         return None
     line_ends = _count_byte(body, end, b"\n") or _count_byte(body, end, b"\r")
-    sha256 = None if digest is None else digest.hexdigest()
     first = body[:4096].lstrip(b"\r\n").splitlines()
     fields = (
         len(first[0].split()) if first else 3,
         len(first[1].split()) if len(first) > 1 else 4,
     )
     held = [body] if keep else []
-    return _FilePlan(path, header, offset, end, line_ends + 1, fields, sha256, held)
+    return _FilePlan(path, header, offset, end, line_ends + 1, fields, read, held)
 
 
 def _count_byte(data: bytes, end: int, byte: bytes) -> int:

@@ -290,3 +290,35 @@ def test_body_keeps_one_final_line_end_only(
     lines, body = read_header_and_body(path)
     assert len(lines) == HEADER_LINES
     assert body == text.split(b"\r\n", HEADER_LINES)[-1] + kept
+
+
+def test_plan_checksum_is_taken_where_it_is_asked_for(
+    day: list[Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A plan's SHA-256 is that of the whole file as read (header and data lines, blank
+    lines after the data included), hashed when first asked for, in the asking thread
+    (a streamed day's reading thread only reads and parses), and once."""
+    import hashlib
+    import threading
+
+    from cwproc.io.netcdf import sha256_file
+
+    path = day[0]
+    path.write_bytes(path.read_bytes() + b"\r\n\r\n")  # blank lines: the body is cut
+    hashed_in: list[str] = []
+    real = hashlib.sha256
+
+    def counted(*args):
+        hashed_in.append(threading.current_thread().name)
+        return real(*args)
+
+    monkeypatch.setattr(halo_files.hashlib, "sha256", counted)
+    plan = halo_files.plan_hpl_file(path, checksum=True, keep_body=True)
+    assert plan is not None and not hashed_in
+    worker = threading.Thread(target=lambda: plan.sha256, name="asker")
+    worker.start()
+    worker.join()
+    assert hashed_in == ["asker"]
+    monkeypatch.setattr(halo_files.hashlib, "sha256", real)
+    assert plan.sha256 == sha256_file(path) and hashed_in == ["asker"]
+    assert halo_files.plan_hpl_file(path).sha256 is None
