@@ -16,6 +16,19 @@
  * n_lines (n_lines + 1 for more lines), with values then incomplete: the caller takes
  * the file's reference path. Both release the GIL while they count and parse.
  *
+ * first_bad_row(values, n_lines, n_fields, n_gates, ray_fields, gate_fields) -> int
+ * checks the ray/gate block structure of a parsed table (values as tokenize returns
+ * them): the index of the first line that breaks it, or -1. Line k is a ray line when
+ * k is a multiple of n_gates + 1, else a gate line; its first ray_fields (gate_fields)
+ * fields must be finite and the others NaN, and a gate line's first field must equal
+ * its position in the block less one (its gate index). An incomplete last block is
+ * checked as far as it goes. This is cwproc.io.halo_body.first_bad_row in one pass,
+ * without the GIL (the numpy version makes about twenty passes, each taking the GIL
+ * back when done).
+ *
+ * count_byte(data, end, byte) -> int: how often the byte occurs in data[:end]
+ * (memchr, without the GIL).
+ *
  * Numbers: [+-]digits[.digits][(e|E)[+-]digits]. With at most 19 significant digits
  * and a decimal exponent within +-22 the value is m * 10^e or m / 10^-e computed in
  * double precision from an exact integer m < 2^53 and an exact power of ten, which is
@@ -219,12 +232,81 @@ static PyObject *tokenize_lines(PyObject *self, PyObject *args)
     return tokenize_impl(args, 1);
 }
 
+/* First line of a parsed table that breaks the block structure, or -1 (see the top). No
+   Python API. */
+static Py_ssize_t check_blocks(const double *values, Py_ssize_t n_lines, int n_fields,
+                               Py_ssize_t n_gates, int ray_fields, int gate_fields)
+{
+    const Py_ssize_t block = n_gates + 1;
+    for (Py_ssize_t line = 0; line < n_lines; line++) {
+        const double *row = values + line * n_fields;
+        const Py_ssize_t position = line % block;
+        const int present = position == 0 ? ray_fields : gate_fields;
+        for (int k = 0; k < n_fields; k++) {
+            if (k < present ? !isfinite(row[k]) : !isnan(row[k])) return line;
+        }
+        if (position > 0 && row[0] != (double)(position - 1)) return line;
+    }
+    return -1;
+}
+
+static PyObject *first_bad_row(PyObject *self, PyObject *args)
+{
+    Py_buffer view;
+    Py_ssize_t n_lines, n_gates;
+    int n_fields, ray_fields, gate_fields;
+    if (!PyArg_ParseTuple(args, "y*ninii", &view, &n_lines, &n_fields, &n_gates, &ray_fields,
+                          &gate_fields))
+        return NULL;
+    if (n_fields < 1 || n_lines < 0 || n_gates < 0 || ray_fields < 0 || gate_fields < 0 ||
+        view.len < n_lines * n_fields * (Py_ssize_t)sizeof(double)) {
+        PyBuffer_Release(&view);
+        PyErr_SetString(PyExc_ValueError, "values hold fewer than n_lines * n_fields doubles");
+        return NULL;
+    }
+    Py_ssize_t bad;
+    Py_BEGIN_ALLOW_THREADS
+    bad = check_blocks((const double *)view.buf, n_lines, n_fields, n_gates, ray_fields,
+                       gate_fields);
+    Py_END_ALLOW_THREADS
+    PyBuffer_Release(&view);
+    return PyLong_FromSsize_t(bad);
+}
+
+static PyObject *count_byte(PyObject *self, PyObject *args)
+{
+    Py_buffer view;
+    Py_ssize_t end;
+    int byte;
+    if (!PyArg_ParseTuple(args, "y*ni", &view, &end, &byte)) return NULL;
+    if (end < 0 || end > view.len || byte < 0 || byte > 255) {
+        PyBuffer_Release(&view);
+        PyErr_SetString(PyExc_ValueError, "end must be in 0..len(data) and byte in 0..255");
+        return NULL;
+    }
+    Py_ssize_t count = 0;
+    Py_BEGIN_ALLOW_THREADS
+    const char *p = (const char *)view.buf, *stop = p + end;
+    while (p < stop && (p = memchr(p, byte, (size_t)(stop - p))) != NULL) {
+        count++;
+        p++;
+    }
+    Py_END_ALLOW_THREADS
+    PyBuffer_Release(&view);
+    return PyLong_FromSsize_t(count);
+}
+
 static PyMethodDef methods[] = {
     {"tokenize", tokenize, METH_VARARGS,
      "tokenize(body, n_fields) -> (values bytearray of doubles, n_lines, bad_line)"},
     {"tokenize_lines", tokenize_lines, METH_VARARGS,
      "tokenize_lines(body, n_fields, n_lines) -> as tokenize, for a body of n_lines lines "
      "(any other count is returned as n_lines + 1 or fewer; values then incomplete)"},
+    {"first_bad_row", first_bad_row, METH_VARARGS,
+     "first_bad_row(values, n_lines, n_fields, n_gates, ray_fields, gate_fields) -> first "
+     "line breaking the ray/gate block structure, or -1"},
+    {"count_byte", count_byte, METH_VARARGS,
+     "count_byte(data, end, byte) -> occurrences of byte in data[:end]"},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_hpltok",

@@ -274,7 +274,47 @@ def first_bad_row(
     finite numbers (``+inf`` marks a field that is no number, see :func:`_tokenize`),
     and, for a gate row, when its gate index equals its position in the block.
     Rows of an incomplete last block are checked as far as they go.
+
+    Columns of the compiled tokenizer's table (:func:`_row_major_table`) are checked
+    by its checker (``_hpltok.first_bad_row``) in one pass without the GIL; others by
+    :func:`first_bad_row_of_columns`, the same result.
     """
+    checker = getattr(_hpltok, "first_bad_row", None)
+    table = _row_major_table(columns) if checker is not None else None
+    if table is None:
+        return first_bad_row_of_columns(columns, n_gates, ray_fields, gate_fields)
+    return checker(table, table.shape[0], table.shape[1], n_gates, ray_fields, gate_fields)
+
+
+def _row_major_table(columns: list[np.ndarray]) -> np.ndarray | None:
+    """The float64 table (rows x columns, C order) whose columns ``columns`` are, as the
+    compiled tokenizer's ``table[:, j]`` views are; None for columns laid out otherwise.
+
+    Checked from the columns' own layout: every column float64 and of one length, with
+    the stride of a table row, column ``j`` starting ``j`` values after the first.
+    """
+    k = len(columns)
+    first = columns[0]
+    if first.dtype != np.float64 or first.ndim != 1 or first.strides != (8 * k,):
+        return None
+    start = first.__array_interface__["data"][0]
+    for j, col in enumerate(columns):
+        if (
+            col.dtype != np.float64
+            or col.shape != first.shape
+            or col.strides != first.strides
+            or col.__array_interface__["data"][0] != start + 8 * j
+        ):
+            return None
+    return np.lib.stride_tricks.as_strided(
+        first, shape=(first.size, k), strides=(8 * k, 8), writeable=False
+    )
+
+
+def first_bad_row_of_columns(
+    columns: list[np.ndarray], n_gates: int, ray_fields: int, gate_fields: int
+) -> int:
+    """:func:`first_bad_row` with array operations on the columns (any layout)."""
     n_rows = columns[0].size
     block = n_gates + 1
     n_blocks = -(-n_rows // block)

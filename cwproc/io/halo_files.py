@@ -138,7 +138,11 @@ def _plan_file(path: Path, checksum: bool = False, keep: bool = False) -> _FileP
 
 def _count_byte(data: bytes, end: int, byte: bytes) -> int:
     """How often ``byte`` occurs in the first ``end`` bytes of ``data`` (``bytes.count``
-    compares one byte at a time; a vectorised compare is about 4 times faster)."""
+    compares one byte at a time; ``memchr`` in the compiled tokenizer, else a vectorised
+    compare, is about 4 times faster; the compiled count takes the GIL back once)."""
+    counter = getattr(_hpltok, "count_byte", None)
+    if counter is not None:
+        return counter(data, end, byte[0])
     values = np.frombuffer(data, dtype=np.uint8, count=end)
     return int(np.count_nonzero(values == byte[0]))
 

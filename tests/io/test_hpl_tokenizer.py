@@ -148,3 +148,63 @@ def test_real_files_tokenize_as_with_pandas(
             np.testing.assert_array_max_ulp(a[finite], b[finite], maxulp=1)
             np.testing.assert_array_equal(np.isnan(a), np.isnan(b))
             np.testing.assert_array_equal(np.isinf(a), np.isinf(b))
+
+
+@st.composite
+def block_tables(draw) -> tuple[np.ndarray, int, int, int]:
+    """Tables of ray/gate blocks, mostly well formed, with damage sprinkled in: a
+    missing or extra field, a field that is no number (+inf), a wrong gate index."""
+    n_gates = draw(st.integers(1, 6))
+    ray_fields = draw(st.sampled_from([3, 5]))
+    gate_fields = draw(st.sampled_from([4, 5]))
+    n_rows = draw(st.integers(0, 4 * (n_gates + 1) + 2))
+    table = np.full((n_rows, 5), np.nan)
+    position = np.arange(n_rows) % (n_gates + 1)
+    for row in range(n_rows):
+        present = ray_fields if position[row] == 0 else gate_fields
+        table[row, :present] = draw(
+            st.lists(st.floats(-1e3, 1e3), min_size=present, max_size=present)
+        )
+        if position[row]:
+            table[row, 0] = position[row] - 1
+    for _ in range(draw(st.integers(0, 3))):
+        if n_rows:
+            row, col = draw(st.integers(0, n_rows - 1)), draw(st.integers(0, 4))
+            table[row, col] = draw(st.sampled_from([np.nan, np.inf, 7.0, 0.5]))
+    return table, n_gates, ray_fields, gate_fields
+
+
+@given(block_tables())
+@settings(max_examples=300, deadline=None)
+def test_compiled_block_check_equals_the_array_check(case) -> None:
+    """The compiled structure check (one pass, without the GIL) finds the row the array
+    operations find, on the compiled tokenizer's table layout."""
+    table, n_gates, ray_fields, gate_fields = case
+    columns = [table[:, j] for j in range(5)]
+    # (an empty table's columns may have any strides: the array check takes them)
+    assert table.shape[0] < 2 or halo_body._row_major_table(columns) is not None
+    expected = halo_body.first_bad_row_of_columns(columns, n_gates, ray_fields, gate_fields)
+    assert halo_body.first_bad_row(columns, n_gates, ray_fields, gate_fields) == expected
+    got = _hpltok.first_bad_row(table, table.shape[0], 5, n_gates, ray_fields, gate_fields)
+    assert got == expected
+
+
+def test_block_check_takes_other_layouts_to_the_array_check() -> None:
+    """Columns that are not one row-major table (pandas' own columns, a transposed
+    copy) are checked by array operations, with the same result."""
+    table = np.array([[1.0, 2.0, 3.0, np.nan, np.nan], [0.0, 1.0, 2.0, 3.0, np.nan]] * 2)
+    apart = [np.ascontiguousarray(table[:, j]) for j in range(5)]
+    assert halo_body._row_major_table(apart) is None
+    assert halo_body._row_major_table([table[:, j] for j in (0, 2, 1, 3, 4)]) is None
+    assert halo_body.first_bad_row(apart, 1, 3, 4) == -1
+    apart[0][3] = 5.0  # gate index of the second block's gate
+    assert halo_body.first_bad_row(apart, 1, 3, 4) == 3
+
+
+def test_count_byte_counts_in_the_first_bytes() -> None:
+    data = b"1 2\n3 4\r\n5\n\n"
+    assert _hpltok.count_byte(data, len(data), ord("\n")) == data.count(b"\n")
+    assert _hpltok.count_byte(data, 5, ord("\n")) == data[:5].count(b"\n")
+    assert _hpltok.count_byte(data, 0, ord("\n")) == 0
+    with pytest.raises(ValueError):
+        _hpltok.count_byte(data, len(data) + 1, 10)
