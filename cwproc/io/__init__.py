@@ -14,7 +14,7 @@ import os
 import stat
 import threading
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
 
@@ -64,10 +64,15 @@ class FileIdentity:
     """What a file's header says it is, without its data: attributes and ray times.
 
     ``time`` holds the times known from the header (for ``.hpl``: the first ray's).
+    ``header`` and ``offset`` keep what the reader parsed (a Stream Line's
+    :class:`~cwproc.io.halo_header.HplHeader` and the byte offset of its data lines),
+    so that the read of its data need not parse the header again; None when unknown.
     """
 
     attrs: dict
     time: np.ndarray
+    header: object = field(default=None, compare=False, repr=False)
+    offset: int | None = field(default=None, compare=False, repr=False)
 
 
 #: format -> "module:function" that tells from a file's header alone what it is (its

@@ -107,26 +107,31 @@ def read_header_and_body(path: Path) -> tuple[list[str], bytes]:
 
 
 def read_header_body_offset(
-    path: Path, digest: hashlib._Hash | Fed | None = None
+    path: Path, digest: hashlib._Hash | Fed | None = None, offset: int | None = None
 ) -> tuple[list[str], bytes, int]:
     """As :func:`read_header_and_body`, and the byte offset of the body in the file.
 
     The offset lets :func:`cwproc.io.halo_files.read_hpl_files` read the data lines a
     second time without splitting the header again. With ``digest`` (a
     :mod:`hashlib` object, or anything with its ``update``), every byte of the file is
-    fed to it as read: the file's checksum taken by the same read.
+    fed to it as read: the file's checksum taken by the same read. With ``offset``
+    (the offset an earlier read of the header found), the header is not split again:
+    its lines are not returned (an empty list) and the data lines are read from there.
     """
     try:
         with path.open("rb") as f:
-            head = f.read(_HEAD_BYTES)
-            try:
-                lines, offset = split_header(path, head)
-            except InputFileError:
-                if len(head) < _HEAD_BYTES:
-                    raise
-                head += f.read()  # huge header lines
-                lines, offset = split_header(path, head)
-            f.seek(offset)
+            if offset is not None:
+                lines, head = [], f.read(offset)
+            else:
+                head = f.read(_HEAD_BYTES)
+                try:
+                    lines, offset = split_header(path, head)
+                except InputFileError:
+                    if len(head) < _HEAD_BYTES:
+                        raise
+                    head += f.read()  # huge header lines
+                    lines, offset = split_header(path, head)
+                f.seek(offset)
             body = f.read()
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
@@ -282,7 +287,7 @@ def read_hpl_identity(path: str | os.PathLike) -> FileIdentity:
     except (IndexError, ValueError):
         raise InputFileError(path, "no ray line after the header", HEADER_LINES + 1) from None
     time = decimal_hours_to_time(np.array([hours]), header.start_time)
-    return FileIdentity(attrs=_attrs(path, header), time=time)
+    return FileIdentity(attrs=_attrs(path, header), time=time, header=header, offset=offset)
 
 
 def scan_dataset(

@@ -112,15 +112,25 @@ class _ReadBytes:
         return digest.hexdigest()
 
 
-def _plan_file(path: Path, checksum: bool = False, keep: bool = False) -> _FilePlan | None:
+def _plan_file(
+    path: Path,
+    checksum: bool = False,
+    keep: bool = False,
+    known: tuple[HplHeader, int] | None = None,
+) -> _FilePlan | None:
     """Header and line count of a file (and with ``checksum`` its SHA-256, taken by the
     same read), or ``None`` when anything is off (no raise). With ``keep``, the data
     lines read are kept for the parse (:func:`_data_lines`), which then does not read
-    the file again."""
+    the file again. ``known``: the header and data offset an earlier read of the file
+    found (not parsed again)."""
     read = _ReadBytes() if checksum else None
     try:
-        lines, body, offset = read_header_body_offset(path, read)
-        header = parse_header(path, lines)
+        if known is not None:
+            header, known_offset = known
+            _, body, offset = read_header_body_offset(path, read, known_offset)
+        else:
+            lines, body, offset = read_header_body_offset(path, read)
+            header = parse_header(path, lines)
     except InputFileError:
         return None
     end = content_end(body)
@@ -440,7 +450,10 @@ def read_hpl_files(paths: list[str | os.PathLike], **options: object) -> xr.Data
 
 
 def plan_hpl_file(
-    path: str | os.PathLike, checksum: bool = False, keep_body: bool = False
+    path: str | os.PathLike,
+    checksum: bool = False,
+    keep_body: bool = False,
+    identity: FileIdentity | None = None,
 ) -> _FilePlan | None:
     """A file's header and data line count (the first pass of :func:`read_hpl_files`),
     or ``None`` when anything is off (its error is :func:`read_hpl`'s to name).
@@ -449,9 +462,14 @@ def plan_hpl_file(
     (``sha256``): the checksum of a file identified by its header alone, taken without
     reading the file once more. With ``keep_body``, the plan keeps the data lines it
     read until :func:`read_hpl_run` parses them (one read of the file in all; the
-    caller holds a chunk's text in the meantime).
+    caller holds a chunk's text in the meantime). With ``identity`` (the file's
+    :func:`cwproc.io.halo.read_hpl_identity`, the file unchanged since: the caller
+    checks its signature), its header is taken from there, not split and parsed again.
     """
-    return _plan_file(Path(path), checksum, keep_body)
+    header = getattr(identity, "header", None)
+    offset = getattr(identity, "offset", None)
+    known = (header, offset) if isinstance(header, HplHeader) and offset is not None else None
+    return _plan_file(Path(path), checksum, keep_body, known)
 
 
 def planned_bytes(plan: _FilePlan) -> int:

@@ -48,7 +48,9 @@ def planned_chunks(items: list[InputFile], max_bytes: int) -> Iterator[list[tupl
     whose header or body is off), with the file's checksum when the item has none yet
     (identified by its header alone: the plan's read takes it; the caller gives it to
     the item once the chunk is read unchanged) and its data lines, kept for the parse
-    (each file read once); sizes are those of the datasets the files make
+    (each file read once); the header is the one the item's identity holds (parsed
+    when the files were grouped; the chunk is read only when every file still has the
+    signature taken then, :func:`read_planned_chunk`); sizes are those of the datasets the files make
     (:func:`cwproc.io.halo_files.planned_bytes`), as when each is read alone.
     """
     chunk: list[tuple] = []
@@ -57,7 +59,9 @@ def planned_chunks(items: list[InputFile], max_bytes: int) -> Iterator[list[tupl
         if item.dataset is not None:
             plan, nbytes = None, int(item.dataset.nbytes)
         else:
-            plan = plan_hpl_file(item.path, checksum=item.sha256 is None, keep_body=True)
+            plan = plan_hpl_file(
+                item.path, checksum=item.sha256 is None, keep_body=True, identity=item.identity
+            )
             nbytes = 0 if plan is None else planned_bytes(plan)
         chunk.append((item, plan))
         size += nbytes

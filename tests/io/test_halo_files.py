@@ -322,3 +322,17 @@ def test_plan_checksum_is_taken_where_it_is_asked_for(
     monkeypatch.setattr(halo_files.hashlib, "sha256", real)
     assert plan.sha256 == sha256_file(path) and hashed_in == ["asker"]
     assert halo_files.plan_hpl_file(path).sha256 is None
+
+
+def test_plan_takes_the_header_the_identity_parsed(day: list[Path]) -> None:
+    """A plan given the file's identity (read_hpl_identity) takes its header and data
+    offset from it, and is the plan of a fresh read: the same header, offset, lines,
+    layout and checksum."""
+    from cwproc.io.halo import read_hpl_identity
+
+    identity = read_hpl_identity(day[3])
+    assert identity.header is not None and identity.offset is not None
+    fresh = halo_files.plan_hpl_file(day[3], checksum=True)
+    known = halo_files.plan_hpl_file(day[3], checksum=True, identity=identity)
+    assert known == fresh and known.sha256 == fresh.sha256
+    assert known.header is identity.header
