@@ -24,8 +24,8 @@ import xarray as xr
 from cwproc.errors import InputFileError
 
 #: held by every open, read and write of a NetCDF file by cwproc: libnetcdf and HDF5 are
-#: not thread-safe, and ``retrieve`` identifies its inputs in two threads (two NetCDF
-#: scans opened at once crashed the process)
+#: not thread-safe, and ``retrieve`` reads the inputs it cannot identify from a header
+#: in two threads (two NetCDF scans opened at once crashed the process)
 NETCDF_LOCK = threading.RLock()
 
 
