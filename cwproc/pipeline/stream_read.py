@@ -50,8 +50,9 @@ def planned_chunks(items: list[InputFile], max_bytes: int) -> Iterator[list[tupl
     the item once the chunk is read unchanged) and its data lines, kept for the parse
     (each file read once); the header is the one the item's identity holds (parsed
     when the files were grouped; the chunk is read only when every file still has the
-    signature taken then, :func:`read_planned_chunk`); sizes are those of the datasets the files make
-    (:func:`cwproc.io.halo_files.planned_bytes`), as when each is read alone.
+    signature taken then, :func:`read_planned_chunk`); sizes are those of the datasets
+    the files make (:func:`cwproc.io.halo_files.planned_bytes`), as when each is read
+    alone.
     """
     chunk: list[tuple] = []
     size = 0
