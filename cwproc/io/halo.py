@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 import numpy as np
 import xarray as xr
@@ -69,12 +69,10 @@ from cwproc.io.scans import scan_indices
 from cwproc.io.schema import with_canonical_attrs
 from cwproc.physics.geometry import normalise_pointing
 
-if TYPE_CHECKING:
-    import hashlib
-
 
 class Fed(Protocol):
-    """What :func:`read_header_body_offset` feeds the bytes of a file to (``update``)."""
+    """What :func:`read_header_body_offset` feeds the bytes of a file to: a
+    :mod:`hashlib` object, or anything with its ``update``."""
 
     def update(self, data: bytes | memoryview, /) -> None: ...
 
@@ -107,7 +105,7 @@ def read_header_and_body(path: Path) -> tuple[list[str], bytes]:
 
 
 def read_header_body_offset(
-    path: Path, digest: hashlib._Hash | Fed | None = None, offset: int | None = None
+    path: Path, digest: Fed | None = None, offset: int | None = None
 ) -> tuple[list[str], bytes, int]:
     """As :func:`read_header_and_body`, and the byte offset of the body in the file.
 

@@ -5,9 +5,9 @@ and, on most instruments, pitch and roll) and ``Number of gates`` *gate lines* (
 index, Doppler velocity, intensity, attenuated backscatter and optionally the spectral
 width; ``real_data/FORMATS.md`` section 1). :func:`_tokenize` parses a whole body with
 one call of the compiled tokenizer (``_hpltok``, built by ``setup.py``) or the pandas C
-tokenizer, :func:`structure_problem` checks the block structure with array operations,
-and only when a check fails :func:`diagnose` walks the offending ray block line by line
-to name the first bad line.
+tokenizer, :func:`structure_problem` checks the block structure (in one compiled pass
+over the tokenizer's table, else with array operations), and only when a check fails
+:func:`diagnose` walks the offending ray block line by line to name the first bad line.
 """
 
 from __future__ import annotations
