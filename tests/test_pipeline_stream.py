@@ -493,7 +493,9 @@ def test_read_inputs_keeps_the_order_and_hands_errors_in_place(monkeypatch):
     import time
 
     from cwproc.errors import InputFileError
+    from cwproc.io import Format
     from cwproc.pipeline import retrieve
+    from cwproc.pipeline.units import Examined
 
     lock = threading.Lock()
     started: list[str] = []
@@ -506,10 +508,12 @@ def test_read_inputs_keeps_the_order_and_hands_errors_in_place(monkeypatch):
         identified_in.add(threading.current_thread())
         if path == "f4":
             raise InputFileError(path, "not a regular file")
-        return f"header {path}" if int(path[1:]) % 3 == 0 else None  # None: read whole
+        if int(path[1:]) % 3 == 0:
+            return f"header {path}"
+        return Examined(Format.HPL, (0, 0, 0, 0, 0))  # read whole
 
-    def fake_read(path, config, *, identify_only, checksum):
-        assert identify_only and not checksum
+    def fake_read(path, config, *, examined):
+        assert examined.format is Format.HPL  # not examined again
         with lock:
             started.append(path)
             ahead.append(len(started) - taken)
@@ -554,7 +558,9 @@ def test_read_inputs_identifies_hpl_headers_in_the_callers_thread(tmp_path, monk
     paths = write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)[:-1]
     whole: list = []
     real_read_one = retrieve._read_one
-    monkeypatch.setattr(retrieve, "_read_one", lambda p, c: whole.append(p) or real_read_one(p, c))
+    monkeypatch.setattr(
+        retrieve, "_read_one", lambda p, c, e: whole.append(p) or real_read_one(p, c, e)
+    )
     got = list(retrieve.read_inputs(paths, load_config("streamline"), threads=2))
     assert [p for p, _ in got] == paths and not whole
     for _, item in got:

@@ -18,6 +18,7 @@ from cwproc.io import KIND
 from cwproc.io.netcdf import remove_stale_temporaries
 from cwproc.pipeline.run import internal_error, run_unit
 from cwproc.pipeline.units import (
+    Examined,
     InputFile,
     ProductUnit,
     identify_input,
@@ -213,8 +214,8 @@ def read_inputs(
         try:
             for p in paths:
                 item = _identify_one(p, config)
-                if item is None:
-                    item = pool.submit(_read_one, p, config)
+                if isinstance(item, Examined):  # read whole, by a thread
+                    item = pool.submit(_read_one, p, config, item)
                     reading += 1
                 pending.append((p, item))
                 while pending and (reading > 2 * threads or not _is_future(pending[0][1])):
@@ -232,16 +233,18 @@ def _is_future(item: object) -> bool:
     return isinstance(item, Future)
 
 
-def _identify_one(path: str | os.PathLike, config: Config) -> InputFile | Exception | None:
+def _identify_one(path: str | os.PathLike, config: Config) -> InputFile | Examined | Exception:
     try:
         return identify_input(path, config)
     except Exception as exc:  # handed to the caller with its path
         return exc
 
 
-def _read_one(path: str | os.PathLike, config: Config) -> InputFile | Exception:
+def _read_one(path: str | os.PathLike, config: Config, examined: Examined) -> InputFile | Exception:
+    """The item of a file its header could not identify: read whole, with its checksum
+    (what ``read_input(..., identify_only=True)`` falls back to), not examined again."""
     try:
-        return read_input(path, config, identify_only=True, checksum=False)
+        return read_input(path, config, examined=examined)
     except Exception as exc:  # handed to the caller with its path
         return exc
 

@@ -15,6 +15,7 @@ import stat
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import xarray as xr
@@ -91,6 +92,7 @@ def read_input(
     *,
     identify_only: bool = False,
     checksum: bool = True,
+    examined: Examined | None = None,
 ) -> InputFile:
     """Detect the format of one file, checksum it and read it.
 
@@ -101,7 +103,8 @@ def read_input(
     item is also left without its checksum when ``checksum`` is false (``sha256`` None,
     its :func:`file_signature` kept): the read of its data takes it
     (:func:`load_item`, :func:`cwproc.pipeline.stream_read.planned_chunks`), so that a
-    day of files is read once less.
+    day of files is read once less. ``examined``: what :func:`identify_input` found of the
+    file (its format and signature), not looked for again.
 
     Raises
     ------
@@ -109,7 +112,7 @@ def read_input(
         Whatever the reader found wrong with the file.
     """
     path = Path(path)
-    fmt, signature = _examined(path, config)
+    fmt, signature = examined if examined is not None else _examined(path, config)
     if identify_only:
         item = _identified(path, fmt, signature, config, checksum)
         if item is not None:
@@ -123,12 +126,20 @@ def read_input(
     )
 
 
-def identify_input(path: str | os.PathLike, config: Config) -> InputFile | None:
-    """``read_input(path, config, identify_only=True, checksum=False)`` when that reads
-    the file's header alone; None when it would read the file whole.
+class Examined(NamedTuple):
+    """What examining a file found: its format and :func:`file_signature`."""
 
-    None for a format without a header-only identifier, a format with reader options, a
-    header the identifier cannot take (its reader words the problem) and a Stream Line
+    format: Format
+    signature: tuple[int, ...]
+
+
+def identify_input(path: str | os.PathLike, config: Config) -> InputFile | Examined:
+    """``read_input(path, config, identify_only=True, checksum=False)`` when that reads
+    the file's header alone; else what examining the file found (:class:`Examined`),
+    for ``read_input(path, config, examined=...)``, which reads it whole (the same item).
+
+    Read whole: a format without a header-only identifier, a format with reader options,
+    a header the identifier cannot take (its reader words the problem) and a Stream Line
     background file (checksummed whole). What it does costs a few Python-level steps
     and one small read, so :func:`cwproc.pipeline.retrieve.read_inputs` runs it in the
     caller's thread.
@@ -139,11 +150,12 @@ def identify_input(path: str | os.PathLike, config: Config) -> InputFile | None:
         The file cannot be examined, or is not a regular file, or its format is unknown.
     """
     path = Path(path)
-    fmt, signature = _examined(path, config)
-    return _identified(path, fmt, signature, config, checksum=False)
+    examined = _examined(path, config)
+    item = _identified(path, *examined, config, checksum=False)
+    return examined if item is None else item
 
 
-def _examined(path: Path, config: Config) -> tuple[Format, tuple[int, ...]]:
+def _examined(path: Path, config: Config) -> Examined:
     """The format of a regular file (detected unless pinned) and its :func:`file_signature`."""
     try:
         mode = path.stat().st_mode
@@ -161,7 +173,7 @@ def _examined(path: Path, config: Config) -> tuple[Format, tuple[int, ...]]:
         signature = file_signature(path)
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
-    return fmt, signature
+    return Examined(fmt, signature)
 
 
 def _identified(
