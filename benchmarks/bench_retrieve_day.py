@@ -24,8 +24,9 @@ before; ``cwproc.pipeline.stream``); ``--serial`` also runs it in one thread
 main's, imported through ``PYTHONPATH``, with this interpreter), each repeat right
 after this one, prints this checkout's times and peak as ratios to it (the machine is
 shared, so only figures of one run, back to back, compare) and compares the products
-of every variant with the baseline's, variable by variable and bit for bit (attributes
-that name the run, such as its date, aside).
+of every variant with the baseline's, variable by variable: bit for bit, else to
+round-off (:data:`ROUND_OFF`), integers and flags always bit for bit (attributes that
+name the run, such as its date, aside).
 
 Run::
 
@@ -219,12 +220,22 @@ def report_baseline(retrieves: dict[str, list], peaks: dict[str, list[float]]) -
     print(f"  peak RSS this / baseline          {max(peaks['']):.0f} / {base_peak:.0f} MiB")
 
 
+#: largest difference of a float variable from the baseline's, relative to the largest
+#: magnitude of the baseline's variable, still called round-off (a change of the order
+#: of summation: a sum of 180 rays rounds at about 1e-14 of its terms)
+ROUND_OFF = 1e-9
+
+
 def same_products(ours: Path, theirs: Path) -> str:
     """'identical' when both folders hold the same product files whose variables are
-    equal bit for bit (NaN where NaN), else which file and variable differ."""
+    equal bit for bit (NaN where NaN); 'equal to round-off' when only float values
+    differ, NaN where NaN and by at most :data:`ROUND_OFF` of the variable's largest
+    magnitude (the largest such difference named); else which file and variable differ.
+    """
     names = sorted(p.name for p in ours.glob("*.nc"))
     if not names or names != sorted(p.name for p in theirs.glob("*.nc")):
         return f"DIFFERENT files: {names} against {sorted(p.name for p in theirs.glob('*.nc'))}"
+    worst = (0.0, "")
     for name in names:
         with netCDF4.Dataset(ours / name) as a, netCDF4.Dataset(theirs / name) as b:
             a.set_auto_mask(False)
@@ -234,9 +245,33 @@ def same_products(ours: Path, theirs: Path) -> str:
             for var in a.variables:
                 x, y = a[var][...], b[var][...]
                 nan = x.dtype.kind == "f" and y.dtype.kind == "f"
-                if x.shape != y.shape or not np.array_equal(x, y, equal_nan=nan):
-                    return f"DIFFERENT: {name} {var}"
+                if x.shape == y.shape and np.array_equal(x, y, equal_nan=nan):
+                    continue
+                relative = _relative_difference(x, y) if nan else np.inf
+                if not relative <= ROUND_OFF:
+                    return f"DIFFERENT: {name} {var} (largest difference {relative:.1e} relative)"
+                worst = max(worst, (relative, f"{name} {var}"))
+    if worst[1]:
+        return (
+            f"equal to round-off ({len(names)} files; largest difference {worst[0]:.1e} of "
+            f"the variable's magnitude, {worst[1]}; every integer and flag bit for bit)"
+        )
     return f"identical ({len(names)} files, every variable bit for bit)"
+
+
+def _relative_difference(x: np.ndarray, y: np.ndarray) -> float:
+    """Largest ``|x - y|`` over the largest ``|y|`` of the finite values (inf where the
+    shapes, the NaN or the infinities differ)."""
+    if x.shape != y.shape:
+        return np.inf
+    finite = np.isfinite(y)
+    if not np.array_equal(x[~finite], y[~finite], equal_nan=True):
+        return np.inf
+    if not np.all(np.isfinite(x[finite])):
+        return np.inf
+    scale = float(np.max(np.abs(y[finite]), initial=0.0))
+    diff = float(np.max(np.abs(x[finite] - y[finite]), initial=0.0))
+    return diff / scale if scale > 0 else (0.0 if diff == 0 else np.inf)
 
 
 if __name__ == "__main__":
