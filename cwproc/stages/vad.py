@@ -412,7 +412,7 @@ def fit_vad(
         present = sub.present[:, :, None]
         valid = sub.take(valid_all) & present
         design = beam_unit_vector(sub.take(azimuth), sub.take(elevation))
-        fit = fit_scans(sub.take(velocity), design, valid, homodyne=homodyne, residuals=False)
+        fit = fit_scans(sub.take(velocity), design, valid, homodyne=homodyne)
         parts.append(
             {
                 "beta": fit.beta,

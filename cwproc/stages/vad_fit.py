@@ -7,10 +7,7 @@ arrays padded with masked entries; the 3x3 normal equations are summed with mask
 batched matrix products and solved by batched adjugate inverses (the iterations of the
 L1 fit of the outlier screening sum only the 6 distinct entries of the symmetric matrix
 and solve by the cofactors, Cramer's rule). Standard errors come from the residual
-variance and ``(A^T A)^-1``. The least-squares fit of the VAD stage sums its normal
-equations and residuals in one pass each without the GIL (``cwproc/stages/_vadsums.c``,
-built by ``setup.py``; numpy's matrix products where it is not built, the same to
-round-off).
+variance and ``(A^T A)^-1``.
 
 Homodyne cw lidars (ZephIR) measure only ``|V_r|``: the model becomes ``|A beta|``,
 fitted by Gauss-Newton. Because ``d|A beta|/d beta = sign(A beta) A``,
@@ -27,11 +24,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-
-try:  # the compiled sums (setup.py); without them, numpy's (the same to round-off)
-    from cwproc.stages import _vadsums
-except ImportError:  # pragma: no cover - an install that could not compile it
-    _vadsums = None
 
 #: condition number of A^T A above which a fit is "bad" (ill-posed geometry)
 MAX_CONDITION = 1e8
@@ -69,9 +61,8 @@ class BatchedFit:
         At least 3 rays and ``cond(A^T A) <= MAX_CONDITION``.
     converged : ndarray of bool, shape (S, G)
         Homodyne iterations reached a fixed point (always true for linear fits).
-    residuals : ndarray, shape (S, R, G), or None
-        Data minus model for every ray (also the unused ones; NaN for padding) (m s-1);
-        None from :func:`fit_linear` asked without them.
+    residuals : ndarray, shape (S, R, G)
+        Data minus model for every ray (also the unused ones; NaN for padding) (m s-1).
     """
 
     beta: FloatArray
@@ -80,7 +71,7 @@ class BatchedFit:
     residual_std: FloatArray
     determined: BoolArray
     converged: BoolArray
-    residuals: FloatArray | None
+    residuals: FloatArray
 
 
 def _design_outer(design: FloatArray) -> FloatArray:
@@ -207,21 +198,8 @@ def _finish(
     residuals: FloatArray,
     valid: BoolArray,
 ) -> BatchedFit:
+    n_rays = valid.sum(axis=1)
     ssr = np.sum(np.where(valid, residuals, 0.0) ** 2, axis=1)
-    return _fit_result(beta, inverse, determined, converged, ssr, valid.sum(axis=1), residuals)
-
-
-def _fit_result(
-    beta: FloatArray,
-    inverse: FloatArray,
-    determined: BoolArray,
-    converged: BoolArray,
-    ssr: FloatArray,
-    n_rays: np.ndarray,
-    residuals: FloatArray | None,
-) -> BatchedFit:
-    """The :class:`BatchedFit` of coefficients, inverse normal matrices and the residual
-    sums of squares ``ssr`` of ``n_rays`` rays (S, G)."""
     dof = n_rays - 3
     with np.errstate(invalid="ignore", divide="ignore"):
         variance = np.where(determined & (dof > 0), ssr / np.maximum(dof, 1), np.nan)
@@ -235,77 +213,6 @@ def _fit_result(
         converged=converged,
         residuals=residuals,
     )
-
-
-def normal_sums(
-    velocity: FloatArray, design: FloatArray, valid: BoolArray
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """The normal equations of the least-squares fit of every (scan, gate) (Smalikho
-    (2020), eq. 1): ``sum_r w a_j a_k`` (S, G, 3, 3), ``sum_r w y a_j`` (S, G, 3) and the
-    number of rays ``sum_r w`` (S, G, as float), ``w`` 1 where ``valid`` and 0 elsewhere.
-
-    Parameters
-    ----------
-    velocity : ndarray, shape (S, R, G)
-        Radial velocity (m s-1); where ``valid`` is false any value (NaN) adds nothing.
-    design : ndarray, shape (S, R, 3)
-        Beam unit vectors, finite (padding: any finite value).
-    valid : ndarray of bool, shape (S, R, G)
-
-    One pass over the rays without the GIL by the compiled sums where they are built,
-    else numpy's batched matrix products (:func:`normal_sums_numpy`): the same sums to
-    round-off (about 1e-15 relative), in another order.
-    """
-    if _vadsums is None:
-        return normal_sums_numpy(velocity, design, valid)
-    y, a, used = _contiguous(velocity, design, valid)
-    n_scan, n_ray, n_gate = y.shape
-    ata = np.empty((n_scan, n_gate, 3, 3))
-    aty = np.empty((n_scan, n_gate, 3))
-    count = np.empty((n_scan, n_gate))
-    _vadsums.normal_sums(y, a, used, ata, aty, count, n_scan, n_ray, n_gate)
-    return ata, aty, count
-
-
-def normal_sums_numpy(
-    velocity: FloatArray, design: FloatArray, valid: BoolArray
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """:func:`normal_sums` by numpy's batched matrix products."""
-    weight = valid.astype(float)
-    aty = np.matmul(np.where(valid, velocity, 0.0).transpose(0, 2, 1), design)
-    return _normal_matrix(design, weight), aty, weight.sum(axis=1)
-
-
-def residual_ssr(
-    velocity: FloatArray, design: FloatArray, valid: BoolArray, beta: FloatArray
-) -> FloatArray:
-    """``sum_r (y - A beta)^2`` over the ``valid`` rays of every (scan, gate) (S, G);
-    ``beta`` (S, G, 3), NaN taken as 0 (as :func:`_model`). Compiled as
-    :func:`normal_sums`, else :func:`residual_ssr_numpy` (the same to round-off)."""
-    beta = np.nan_to_num(beta)
-    if _vadsums is None:
-        return residual_ssr_numpy(velocity, design, valid, beta)
-    y, a, used = _contiguous(velocity, design, valid)
-    n_scan, n_ray, n_gate = y.shape
-    ssr = np.empty((n_scan, n_gate))
-    coefficients = np.ascontiguousarray(beta, dtype=float)
-    _vadsums.residual_ssr(y, a, used, coefficients, ssr, n_scan, n_ray, n_gate)
-    return ssr
-
-
-def residual_ssr_numpy(
-    velocity: FloatArray, design: FloatArray, valid: BoolArray, beta: FloatArray
-) -> FloatArray:
-    """:func:`residual_ssr` by numpy (the residuals of every ray, then their sums)."""
-    return np.sum(np.where(valid, velocity - _model(design, beta), 0.0) ** 2, axis=1)
-
-
-def _contiguous(
-    velocity: FloatArray, design: FloatArray, valid: BoolArray
-) -> tuple[FloatArray, FloatArray, BoolArray]:
-    """The arrays of the compiled sums: C-contiguous float64, float64 and bool."""
-    as_c = np.ascontiguousarray
-    return as_c(velocity, dtype=float), as_c(design, dtype=float), as_c(valid, dtype=bool)
 
 
 def linear_residuals(velocity: FloatArray, design: FloatArray, valid: BoolArray) -> FloatArray:
@@ -405,9 +312,7 @@ def group_linear_residuals(
     return y - np.einsum("nrk,nk->nr", a, beta)
 
 
-def fit_linear(
-    velocity: FloatArray, design: FloatArray, valid: BoolArray, *, residuals: bool = True
-) -> BatchedFit:
+def fit_linear(velocity: FloatArray, design: FloatArray, valid: BoolArray) -> BatchedFit:
     """Least-squares VAD fit of every (scan, gate) at once (Smalikho (2020), eq. 1).
 
     Parameters
@@ -418,25 +323,18 @@ def fit_linear(
         :func:`cwproc.physics.geometry.beam_unit_vector` of each ray (padding: any finite value).
     valid : ndarray of bool, shape (S, R, G)
         Which entries enter the fit.
-    residuals : bool, optional
-        Also return the residual of every ray (``BatchedFit.residuals``; else None,
-        saving an (S, R, G) array the VAD stage does not use).
 
     Returns
     -------
     BatchedFit
-
-    The normal equations and the residual sum of squares are :func:`normal_sums` and
-    :func:`residual_ssr`.
     """
     design = np.nan_to_num(design)
-    ata, aty, n_rays = normal_sums(velocity, design, valid)
-    inverse, determined = _safe_inverse(ata, n_rays)
-    beta = np.einsum("sgjk,sgk->sgj", np.nan_to_num(inverse), aty)
-    ssr = residual_ssr(velocity, design, valid, beta)
-    every = velocity - _model(design, beta) if residuals else None
-    converged = np.ones_like(determined)
-    return _fit_result(beta, inverse, determined, converged, ssr, n_rays, every)
+    weight = valid.astype(float)
+    y = np.where(valid, velocity, 0.0)
+    inverse, determined = _safe_inverse(_normal_matrix(design, weight), weight.sum(axis=1))
+    beta = _solve(np.nan_to_num(inverse), design, y)
+    residuals = velocity - _model(design, beta)
+    return _finish(beta, inverse, determined, np.ones_like(determined), residuals, valid)
 
 
 def _sign_iterations(
@@ -784,15 +682,9 @@ class _IrlsBatch:
 
 
 def fit_scans(
-    velocity: FloatArray,
-    design: FloatArray,
-    valid: BoolArray,
-    *,
-    homodyne: bool,
-    residuals: bool = True,
+    velocity: FloatArray, design: FloatArray, valid: BoolArray, *, homodyne: bool
 ) -> BatchedFit:
-    """:func:`fit_homodyne` when ``homodyne``, else :func:`fit_linear` (with the
-    residuals of every ray unless ``residuals`` is false; the homodyne fit has them)."""
+    """:func:`fit_homodyne` when ``homodyne``, else :func:`fit_linear`."""
     if homodyne:
         return fit_homodyne(velocity, design, valid)
-    return fit_linear(velocity, design, valid, residuals=residuals)
+    return fit_linear(velocity, design, valid)
