@@ -185,10 +185,23 @@ def test_input_rewritten_after_grouping_is_caught(tmp_path, config):
 def test_checksums_left_to_the_read_are_taken_by_it(tmp_path, config, monkeypatch, ahead):
     """Files identified by their header without a checksum (``checksum=False``, as
     ``cwproc retrieve`` groups them) get it from the streamed read of their data, with
-    no further read of the file: each checksum is that of the file, and the products
-    are those of the whole day."""
+    no further read of the file: each checksum is that of the file, hashed in the
+    reading thread when reading ahead (beside the caller's numerical work), and the
+    products are those of the whole day."""
+    import threading
+
     import cwproc.pipeline.units as units
+    from cwproc.io import halo_files
     from cwproc.io.netcdf import sha256_file
+
+    hashed_in: list[str] = []
+    hexdigest = halo_files._ReadBytes.hexdigest
+
+    def recorded(self):
+        hashed_in.append(threading.current_thread().name)
+        return hexdigest(self)
+
+    monkeypatch.setattr(halo_files._ReadBytes, "hexdigest", recorded)
 
     spec = StreamLineSpec(n_scans=12, scans_per_file=1, n_gates=24, seed=29)
     write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
@@ -203,6 +216,10 @@ def test_checksums_left_to_the_read_are_taken_by_it(tmp_path, config, monkeypatc
     )
     assert calls == []  # taken by the plan's read of each file, not by another read
     assert [i.sha256 for i in unit.inputs] == [sha256_file(p) for p in paths]
+    assert len(hashed_in) == len(paths)
+    caller = threading.current_thread().name
+    assert all(name.startswith("cwproc-chunk-ahead") == ahead for name in hashed_in)
+    assert all((name == caller) != ahead for name in hashed_in)
     assert_same_products(products, whole_day(tmp_path / "day", config))
 
 
@@ -444,45 +461,6 @@ def test_heap_kept_sets_and_restores_the_glibc_thresholds(monkeypatch):
     with stream.heap_kept(), stream.heap_returned():
         pass
     assert len(calls) == 3
-
-
-@pytest.mark.parametrize("threaded", [False, True])
-def test_chunk_screening_reduces_in_order_and_raises_where_serial(monkeypatch, threaded):
-    """ChunkScreening: each chunk screened (in a worker thread when threaded), reduced in
-    chunk order in the caller's thread; a chunk whose screening fails raises its error
-    before any later chunk is reduced, and close() leaves no thread behind."""
-    import threading
-
-    from cwproc.pipeline import stream
-
-    screened_in: list[str] = []
-    reduced: list[tuple[int, str]] = []
-
-    def screen(others, config):
-        screened_in.append(threading.current_thread().name)
-        if others == 2:
-            raise stream.StreamMismatch("wind of a chunk: chunk 2")
-        return others, f"wind {others}"
-
-    def reduce(screened, wind, state, config):
-        assert wind == f"wind {screened}"
-        reduced.append((screened, threading.current_thread().name))
-
-    monkeypatch.setattr(stream, "screen_chunk", screen)
-    monkeypatch.setattr(stream, "reduce_chunk", reduce)
-    screening = stream.ChunkScreening(None, None, threaded)
-    with pytest.raises(stream.StreamMismatch, match="chunk 2"):
-        for k in range(5):
-            screening.take(k)
-            assert screening.pending == threaded
-        screening.finish()
-    screening.close()
-    caller = threading.current_thread().name
-    assert reduced == [(0, caller), (1, caller)]
-    assert all((name != caller) == threaded for name in screened_in)
-    # chunk 3 was handed in (threaded) but is never reduced: screened or cancelled
-    assert len(screened_in) in ((3, 4) if threaded else (3,))
-    assert not [t for t in threading.enumerate() if t.name.startswith("cwproc-screen")]
 
 
 def test_read_inputs_keeps_the_order_and_hands_errors_in_place(monkeypatch):

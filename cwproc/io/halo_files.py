@@ -83,9 +83,9 @@ class _FilePlan:
         """SHA-256 (hex) of the file as this pass read it (None: not asked for).
 
         Computed where it is first asked for, from the bytes the pass read (kept until
-        then): a streamed day takes it in the thread that processes the chunk, beside
-        the parse of the next one, not in the reading thread, whose work is the day's
-        critical path (``hashlib`` releases the GIL).
+        then): a streamed day takes it in the reading thread once the file is parsed
+        (:func:`cwproc.pipeline.stream_read.read_planned_chunk`), beside the numerical
+        work of the caller's thread (``hashlib`` releases the GIL).
         """
         return None if self.read is None else self.read.hexdigest()
 

@@ -11,12 +11,16 @@ the per-block structure statistics and the (vertical) stare rays are kept; the
 dissipation rate (which may pool noise over neighbouring blocks) and the stare product
 are computed once over the day.
 
-Three threads share the work (unless ``CWPROC_READ_AHEAD=0``): one plans and parses the
-next chunk, one screens and VAD-fits the current chunk's conical scans, and the
-caller's thread does everything that changes the day's state (background correction,
-scan numbering, the structure function of the blocks) in chunk order. The compiled
-tokenizer, the file reads and numpy's whole-array operations release the GIL, so the
-threads run on both cores when they are free.
+Two threads share the work (unless ``CWPROC_READ_AHEAD=0``): one plans, reads, parses
+and checksums the next chunk's files, whose costly parts (the file reads, the compiled
+tokenizer, ``hashlib``) release the GIL, while the caller's thread does all the
+numerical work of the chunk before it, in chunk order (background correction, scan
+numbering, screening and VAD fit, the structure function of the blocks). That work is
+numpy operations on a chunk's arrays, each holding the GIL for its Python-level part:
+a third thread that screened the next chunk beside the reduction of the one before
+gained nothing over the caller's thread doing both (5 pairs of runs of a simulated
+day) and cost 0.7 s more CPU, so the caller's thread is the day's critical path and
+the checksums are taken in the reading thread.
 
 The whole-day run is the definition: the choices it makes over the whole day (scan
 numbering, the most common conical elevation, the azimuth step and rotation, the
@@ -32,7 +36,6 @@ import contextlib
 import ctypes
 import dataclasses
 from collections.abc import Callable, Iterator
-from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -164,9 +167,7 @@ def _planned_chunk(
         return concat_scans(parts) if parts else None
     chunk, files = got
     vertical = stare_mask(chunk)
-    for (item, plan), part in zip(planned, files, strict=True):
-        if item.sha256 is None:  # the plan's read of the file, unchanged since (read_planned_chunk)
-            item.sha256 = plan.sha256
+    for (item, _), part in zip(planned, files, strict=True):  # checksummed by the read
         line = describe_scan_file(
             item.path, part.identity.attrs, vertical[part.start : part.stop], part.scan
         )
@@ -308,8 +309,7 @@ def split_chunk(chunk: xr.Dataset, state: StreamState) -> xr.Dataset | None:
 
 
 def screen_chunk(others: xr.Dataset, config: Config) -> tuple[xr.Dataset, xr.Dataset]:
-    """Screened conical scans of a chunk and their wind rows (no state: may run in a
-    worker thread).
+    """Screened conical scans of a chunk and their wind rows (the day's state untouched).
 
     Raises
     ------
@@ -333,50 +333,6 @@ def reduce_chunk(
             screened = _join([state.carry[0], screened], "ray")
             wind = _join([state.carry[1], wind], "time")
         flush_blocks(screened, wind, state, config, final=False)
-
-
-class ChunkScreening:
-    """The screening and VAD fit of each chunk (:func:`screen_chunk`), in a worker
-    thread when ``threaded``, while the caller reduces the chunk before it.
-
-    :meth:`take` hands a chunk's conical scans to the worker and then reduces the
-    previous chunk (:func:`reduce_chunk`, in the caller's thread, so the state changes
-    in chunk order); :meth:`finish` reduces the last one. At most one chunk is being
-    screened; its error (a :class:`StreamMismatch`, or a bug) is raised where the
-    serial run raises it, before anything of a later chunk is reduced.
-    """
-
-    def __init__(self, state: StreamState, config: Config, threaded: bool) -> None:
-        self._state, self._config = state, config
-        self._pool = ThreadPoolExecutor(1, "cwproc-screen") if threaded else None
-        self._pending: Future | tuple | None = None
-
-    @property
-    def pending(self) -> bool:
-        """Whether a chunk with conical scans is handed in but not reduced yet."""
-        return self._pending is not None
-
-    def take(self, others: xr.Dataset) -> None:
-        """Screen ``others`` (a chunk's conical scans) and reduce the previous chunk."""
-        if self._pool is None:
-            reduce_chunk(*screen_chunk(others, self._config), self._state, self._config)
-            return
-        previous = self._pending
-        self._pending = self._pool.submit(screen_chunk, others, self._config)
-        if previous is not None:
-            reduce_chunk(*previous.result(), self._state, self._config)
-
-    def finish(self) -> None:
-        """Reduce the last chunk handed in (its error raised here)."""
-        pending, self._pending = self._pending, None
-        if pending is not None:
-            reduce_chunk(*pending.result(), self._state, self._config)
-
-    def close(self) -> None:
-        """Wait for the chunk being screened (dropped) and stop the thread."""
-        self._pending = None
-        if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
 
 
 def check_day_choices(state: StreamState, config: Config) -> None:
@@ -568,12 +524,11 @@ def stream_scan_unit(
     chunk_bytes : int
         Input data joined into one chunk (bytes).
     read_ahead : bool, optional
-        Use the worker threads: the next files read in a second thread
+        Read ahead: the next files read (and checksummed) in a second thread
         (:class:`ChunkAhead` for chunks read at once, else :class:`ReadAhead`; at most
-        one chunk ahead) and each chunk screened and VAD-fitted in a third
-        (:class:`ChunkScreening`) while the caller's thread reduces the chunk before it;
-        None: unless ``CWPROC_READ_AHEAD=0`` (:func:`read_ahead_enabled`). The products,
-        notes and failures are the same either way.
+        one chunk ahead) while the caller's thread processes the chunk before it; None:
+        unless ``CWPROC_READ_AHEAD=0`` (:func:`read_ahead_enabled`). The products, notes
+        and failures are the same either way.
 
     Returns
     -------
@@ -619,18 +574,16 @@ def stream_scan_unit(
         chunks = planned_chunk_datasets(ordered, take, took, chunk_bytes, reading_ahead)
     else:
         chunks = (concat_scans(parts) for parts in chunks_of(ordered, take, chunk_bytes))
-    screening = ChunkScreening(state, config, reading_ahead)
     try:
         with heap_kept():  # the chunks' arrays reuse the freed heap
             for chunk in chunks:
                 if chunk is None:
                     continue  # every file of the chunk damaged beyond its header
-                others = conical_part(chunk, unit, config, own, state, screening)
+                others = conical_part(chunk, unit, config, own, state)
                 del chunk  # released before the next chunk is read (and before epsilon)
                 if others is not None:
-                    screening.take(others)  # screened while the previous one is reduced
+                    reduce_chunk(*screen_chunk(others, config), state, config)
                 del others
-            screening.finish()
         if not seen:  # every input damaged beyond its header: each has its failure line
             return {} if not unit.inputs else None
         if state.carry is not None:
@@ -644,7 +597,6 @@ def stream_scan_unit(
     except StreamMismatch:
         return None
     finally:
-        screening.close()
         chunks.close()  # stops the reading thread of a chunk reader
         if ahead is not None:
             ahead.close()
@@ -664,22 +616,13 @@ def conical_part(
     config: Config,
     notes: list[str],
     state: StreamState,
-    screening: ChunkScreening,
 ) -> xr.Dataset | None:
     """A chunk corrected, its scans numbered after the earlier chunks' and its stares
-    kept (in chunk order): its conical part, to be screened (None: none).
-
-    An error here is raised after that of the chunk being screened (as in the serial
-    run, where the earlier chunk fails first).
-    """
-    try:
-        chunk = corrected_chunk(chunk, unit, config, notes, state)
-        state.scan_type = str(chunk.attrs.get("scan_type", ""))
-        chunk = number_scans(chunk, state)
-    except Exception:
-        screening.finish()  # the previous chunk's error first, as serially
-        raise
-    if state.turbulence and not (state.winds or state.stares or screening.pending):
+    kept (in chunk order): its conical part, to be screened (None: none)."""
+    chunk = corrected_chunk(chunk, unit, config, notes, state)
+    state.scan_type = str(chunk.attrs.get("scan_type", ""))
+    chunk = number_scans(chunk, state)
+    if state.turbulence and not (state.winds or state.stares):
         mismatch = probe_mismatch(chunk, config)  # the first chunk of the day's data
         if mismatch:
             state.turbulence = False

@@ -84,7 +84,13 @@ def _unchanged(items: list[InputFile]) -> bool:
 def read_planned_chunk(chunk: list[tuple]) -> tuple[xr.Dataset, list[HplFilePart]] | None:
     """The files of a planned chunk as one dataset and their parts, or ``None`` (read
     them one by one): a held dataset or damaged file among them, a file changed since
-    its checksum (before or after the read), or rays not running forward in time."""
+    its checksum (before or after the read), or rays not running forward in time.
+
+    The items without a checksum get the SHA-256 of the bytes their plan read
+    (:attr:`cwproc.io.halo_files._FilePlan.sha256`), unchanged since: hashed here, in
+    the reading thread when reading ahead, beside the caller's numerical work (the
+    day's critical path; ``hashlib`` releases the GIL).
+    """
     items = [item for item, _ in chunk]
     plans = [plan for _, plan in chunk]
     if any(plan is None for plan in plans) or not _unchanged(items):
@@ -92,6 +98,9 @@ def read_planned_chunk(chunk: list[tuple]) -> tuple[xr.Dataset, list[HplFilePart
     got = read_hpl_run(plans)
     if got is None or not _unchanged(items):
         return None
+    for item, plan in chunk:
+        if item.sha256 is None:
+            item.sha256 = plan.sha256
     return got
 
 
