@@ -104,22 +104,21 @@ def read_planned_chunk(chunk: list[tuple]) -> tuple[xr.Dataset, list[HplFilePart
     return got
 
 
-#: environment variable that turns the worker threads of a streamed day off ("0", also
+#: environment variable that turns the reading thread of a streamed day off ("0", also
 #: ``false``, ``no``, ``off``) or on (anything else) whatever the default
 READ_AHEAD_VARIABLE = "CWPROC_READ_AHEAD"
 
 
 def read_ahead_enabled(read_ahead: bool | None = None) -> bool:
-    """Whether a streamed day uses its worker threads: ``read_ahead`` when given, else
+    """Whether a streamed day reads ahead in a second thread: ``read_ahead`` when given, else
     the environment variable ``CWPROC_READ_AHEAD`` when set (``0``, ``false``, ``no``,
     ``off``: not; anything else: yes), else unless this process is a child of a
     process pool (``cwproc batch --workers N``, a Dask worker), whose processes already
     take the cores.
 
-    With them, the next chunk is parsed in a second thread (:class:`ChunkAhead`; chunks
-    not read at once, file by file: :class:`ReadAhead`) and each chunk's outlier
-    screening and VAD fit run in a third one while the caller's thread reduces the
-    previous chunk to its structure function
+    With it, the next chunk is read, parsed and checksummed in a second thread
+    (:class:`ChunkAhead`; chunks not read at once, file by file: :class:`ReadAhead`)
+    while the caller's thread processes the chunk before it
     (:func:`cwproc.pipeline.stream.stream_scan_unit`); the products, notes and failures
     are those of the serial run. On the shared 2-core machine a day of 1920 scans took
     0.74-0.84 of the serial time with part of the second core free, and up to 1.16
