@@ -37,6 +37,7 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
+import host_scaling
 import numpy as np
 
 from cwproc.batch import (
@@ -239,6 +240,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"    failure: {line}")
     if 1 in args.workers and 2 in args.workers:
         print(f"speed-up 2 workers / 1 worker: {times['1 worker'] / times['2 workers']:.2f}")
+        print(host_scaling.describe("after the runs; what 2 workers can reach"))
     if 2 in args.workers:
         print(f"speed-up 2 workers / serial: {times['serial'] / times['2 workers']:.2f}")
     if args.dask and 2 in args.workers:

@@ -35,6 +35,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import host_scaling
 import numpy as np
 import pandas as pd
 
@@ -227,6 +228,7 @@ def main() -> None:
                 print(f"  {label:<10} {wall:7.2f} s wall, {cpu:7.2f} s CPU")
             print(f"  speed-up 2 workers / 1 worker {t['1 worker'][0] / t['2 workers'][0]:.2f}, "
                   f"/ serial {t['serial'][0] / t['2 workers'][0]:.2f} (target >= 1.8)")  # fmt: skip
+            print(f"  {host_scaling.describe('after the runs; what 2 workers can reach')}")
 
 
 if __name__ == "__main__":
