@@ -579,11 +579,8 @@ def stream_scan_unit(
             for chunk in chunks:
                 if chunk is None:
                     continue  # every file of the chunk damaged beyond its header
-                others = conical_part(chunk, unit, config, own, state)
+                take_chunk(prepared_chunk(chunk, unit, config, own, state), state, config)
                 del chunk  # released before the next chunk is read (and before epsilon)
-                if others is not None:
-                    reduce_chunk(*screen_chunk(others, config), state, config)
-                del others
         if not seen:  # every input damaged beyond its header: each has its failure line
             return {} if not unit.inputs else None
         if state.carry is not None:
@@ -610,15 +607,15 @@ def stream_scan_unit(
     return products
 
 
-def conical_part(
+def prepared_chunk(
     chunk: xr.Dataset,
     unit,
     config: Config,
     notes: list[str],
     state: StreamState,
-) -> xr.Dataset | None:
-    """A chunk corrected, its scans numbered after the earlier chunks' and its stares
-    kept (in chunk order): its conical part, to be screened (None: none)."""
+) -> xr.Dataset:
+    """A chunk corrected and its scans numbered after the earlier chunks' (in chunk
+    order), for :func:`take_chunk`."""
     chunk = corrected_chunk(chunk, unit, config, notes, state)
     state.scan_type = str(chunk.attrs.get("scan_type", ""))
     chunk = number_scans(chunk, state)
@@ -627,7 +624,7 @@ def conical_part(
         if mismatch:
             state.turbulence = False
             notes.append(f"turbulence not computed: {mismatch}")
-    return split_chunk(chunk, state)
+    return chunk
 
 
 def corrected_chunk(
