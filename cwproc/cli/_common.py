@@ -140,3 +140,44 @@ def inputs_or_exit(inputs: tuple[str, ...], config: Config, quiet: bool) -> Inpu
             sys.exit(1)
         raise click.UsageError(f"no input files found{found.skipped_text()}")
     return found
+
+
+#: files in a row whose note lines say the same, from which ``cwproc retrieve`` prints one
+#: line for them all (a day of 1920 scan files would otherwise print 1920 alike lines)
+ALIKE_FILES_MIN = 4
+
+
+def collapsed_notes(notes: list[str], paths: list[str]) -> list[str]:
+    """``notes`` with each run of at least :data:`ALIKE_FILES_MIN` consecutive lines that
+    say the same of different input files (``"<path>: <text>"``, ``path`` one of
+    ``paths``) made one line: ``"<n> files <first> .. <last>: <text>"``.
+
+    Every other line is kept as it is, in its place; a file whose line differs (stares
+    among the VAD scans, rays not used) ends the run and keeps its own line.
+    """
+    known = sorted({str(p) for p in paths}, key=len, reverse=True)  # the longest first
+
+    def split(line: str) -> tuple[str, str] | None:
+        path = next((p for p in known if line.startswith(p + ": ")), None)
+        return None if path is None else (path, line[len(path) + 2 :])
+
+    out: list[str] = []
+    run: list[tuple[str, str]] = []
+
+    def flush() -> None:
+        if len(run) >= ALIKE_FILES_MIN:
+            out.append(f"{len(run)} files {run[0][0]} .. {run[-1][0]}: {run[0][1]}")
+        else:
+            out.extend(f"{path}: {text}" for path, text in run)
+        run.clear()
+
+    for line in notes:
+        parts = split(line)
+        if run and (parts is None or parts[1] != run[-1][1]):
+            flush()
+        if parts is None:
+            out.append(line)
+        else:
+            run.append(parts)
+    flush()
+    return out

@@ -7,6 +7,7 @@ import sys
 import click
 
 from cwproc.cli._common import (
+    collapsed_notes,
     inputs_or_exit,
     load_config_or_fail,
     product_command,
@@ -24,6 +25,7 @@ def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bo
     <unit>_wind.nc and <unit>_turbulence.nc; ZephIR/WindCube exports give <name>_wind.nc;
     sonic logs give <name>_sf.nc. Exit status 0 when every input was processed, 1
     otherwise, with one line per failed input naming the file, the line and the problem.
+    A note says what each file held; files in a row that held the same get one note.
     """
     from cwproc.pipeline import EXIT_FAILED, EXIT_OK, retrieve_files  # --help stays light
 
@@ -34,7 +36,7 @@ def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bo
     for line in report.failures:
         report_failure(line)
     if not quiet:
-        for line in report.notes:
+        for line in collapsed_notes(report.notes, [str(f) for f in files]):
             click.echo(f"note: {line}", err=True)
         for path in report.written:
             click.echo(f"wrote {path}")

@@ -254,3 +254,47 @@ def test_inputs_read_again_beyond_the_memory_budget_give_the_same_products(tmp_p
     for (k1, n1, a), (k2, n2, b) in zip(kept.products, reread.products, strict=True):
         assert (k1, n1) == (k2, n2)
         xr.testing.assert_identical(a, b)
+
+
+def test_files_in_a_row_that_held_the_same_get_one_note(tmp_path):
+    """Six files of one scan each: one note names the first and last and how many; a
+    file that held something else keeps its own note, and so do the other notes."""
+    ds = synthetic_vad(n_scans=12)
+    folder = tmp_path / "in"
+    folder.mkdir()
+    per_file = 2 * 24
+    for k in range(6):
+        part = ds.isel(ray=slice(k * per_file, (k + 1) * per_file))
+        write_hpl(part, folder / f"VAD_77_20240501_10{k:02d}00.hpl")
+    res = run([folder, "-o", tmp_path / "out", "-c", "streamline"])
+    assert res.exit_code == 0, res.output
+    notes = [line for line in res.output.splitlines() if line.startswith("note: ")]
+    alike = [line for line in notes if "conical scan(s)" in line]
+    assert len(alike) == 1, notes
+    first, last = folder / "VAD_77_20240501_100000.hpl", folder / "VAD_77_20240501_100500.hpl"
+    assert (
+        alike[0]
+        == f"note: 6 files {first} .. {last}: VAD: 2 conical scan(s) -> wind (and turbulence)"
+    )
+
+
+def test_collapsed_notes_keep_other_lines_and_short_runs_in_place():
+    from cwproc.cli._common import ALIKE_FILES_MIN, collapsed_notes
+
+    paths = [f"d/f{k}.hpl" for k in range(9)]
+    same = "VAD: 1 conical scan(s) -> wind (and turbulence)"
+    notes = [f"{p}: {same}" for p in paths[:5]]
+    notes += [f"{paths[5]}: VAD: 40 vertical stare rays -> stare product"]
+    notes += [f"{p}: {same}" for p in paths[6:9]]  # a run shorter than ALIKE_FILES_MIN
+    notes += ["SNR of 9 files corrected", "d/unknown.hpl: VAD: not an input, kept"]
+    got = collapsed_notes(notes, paths)
+    assert ALIKE_FILES_MIN == 4
+    assert got == [
+        f"5 files d/f0.hpl .. d/f4.hpl: {same}",
+        notes[5],
+        *notes[6:9],
+        "SNR of 9 files corrected",
+        "d/unknown.hpl: VAD: not an input, kept",
+    ]
+    assert collapsed_notes([], paths) == []
+    assert collapsed_notes(notes[:3], paths) == notes[:3]
