@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 import warnings
 from collections.abc import Callable
@@ -181,3 +182,11 @@ def collapsed_notes(notes: list[str], paths: list[str]) -> list[str]:
             run.append(parts)
     flush()
     return out
+
+
+def noted_files(notes: list[str]) -> list[str]:
+    """The files that lines of ``notes`` begin with (``"<path>: ..."``, ``path`` an
+    existing file): the ``paths`` of :func:`collapsed_notes` where the caller has no
+    list of its inputs (``cwproc batch``, whose notes come from its units' workers)."""
+    heads = {line.split(": ", 1)[0] for line in notes if ": " in line}
+    return [head for head in heads if os.path.isfile(head)]

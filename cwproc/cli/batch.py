@@ -15,7 +15,13 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from cwproc.cli._common import config_option, load_config_or_fail, report_failure
+from cwproc.cli._common import (
+    collapsed_notes,
+    config_option,
+    load_config_or_fail,
+    noted_files,
+    report_failure,
+)
 from cwproc.errors import CwprocError
 
 if TYPE_CHECKING:  # imported when the command runs: batch --help stays light
@@ -304,7 +310,8 @@ def batch(
     for line in report.failure_lines():
         report_failure(line)
     if not quiet:
-        for line in report.notes():  # worded as cwproc retrieve words them
+        notes = report.notes()  # worded as cwproc retrieve words them
+        for line in collapsed_notes(notes, noted_files(notes)):
             click.echo(f"note: {line}", err=True)
         for line in summary_lines(report, verbose):
             click.echo(line)

@@ -190,3 +190,27 @@ def test_real_corrupt_file_is_reported_with_its_line_and_retried(real_data, tmp_
     assert ledger.failures[str(inputs / corrupt.name)]["attempts"] == 2
     file_lines = [line for line in log.read_text().splitlines() if "event=file " in line]
     assert len(file_lines) == 2 and all("status=failed" in line for line in file_lines)
+
+
+@pytest.mark.skipif(HPL_READER_MISSING, reason="the .hpl reader is not installed")
+def test_files_in_a_row_that_held_the_same_get_one_note(tmp_path):
+    """Six one-scan files of a day: batch prints one note for them, as retrieve does."""
+    from cwproc.sim.sample_data import StreamLineSpec, write_streamline_series
+
+    spec = StreamLineSpec(n_scans=6, scans_per_file=1, n_gates=24, seed=5)
+    write_streamline_series(tmp_path / "in", tmp_path / "truth.json", spec)
+    files = sorted((tmp_path / "in").glob("*.hpl"))
+    result = invoke(str(tmp_path / "in"), str(tmp_path / "out"), "--config", "streamline")
+    assert result.exit_code == 0, result.output
+    notes = [line for line in result.output.splitlines() if "conical scan(s)" in line]
+    assert len(files) == 6 and len(notes) == 1, result.output
+    assert notes[0].startswith(f"note: 6 files {files[0]} .. {files[-1]}: ")
+
+
+def test_noted_files_are_the_existing_files_notes_begin_with(tmp_path):
+    from cwproc.cli._common import noted_files
+
+    (tmp_path / "a.hpl").write_text("x")
+    notes = [f"{tmp_path / 'a.hpl'}: VAD: 1 conical scan(s)", "turbulence not computed: no block"]
+    notes.append(f"{tmp_path / 'gone.hpl'}: VAD: 1 conical scan(s)")
+    assert noted_files(notes) == [str(tmp_path / "a.hpl")]
