@@ -156,11 +156,15 @@ def collapsed_notes(notes: list[str], paths: list[str]) -> list[str]:
     Every other line is kept as it is, in its place; a file whose line differs (stares
     among the VAD scans, rays not used) ends the run and keeps its own line.
     """
-    known = sorted({str(p) for p in paths}, key=len, reverse=True)  # the longest first
+    known = {str(p) for p in paths}
 
     def split(line: str) -> tuple[str, str] | None:
-        path = next((p for p in known if line.startswith(p + ": ")), None)
-        return None if path is None else (path, line[len(path) + 2 :])
+        at = line.find(": ")
+        while at >= 0:  # the shortest path the line begins with (one set look-up a ": ")
+            if line[:at] in known:
+                return line[:at], line[at + 2 :]
+            at = line.find(": ", at + 1)
+        return None
 
     out: list[str] = []
     run: list[tuple[str, str]] = []
