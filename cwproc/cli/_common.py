@@ -143,8 +143,9 @@ def inputs_or_exit(inputs: tuple[str, ...], config: Config, quiet: bool) -> Inpu
     return found
 
 
-#: files in a row whose note lines say the same, from which ``cwproc retrieve`` prints one
-#: line for them all (a day of 1920 scan files would otherwise print 1920 alike lines)
+#: files in a row whose note lines say the same, from which ``cwproc retrieve`` and
+#: ``cwproc batch`` print one line for them all (a day of 1920 scan files would otherwise
+#: print 1920 alike lines)
 ALIKE_FILES_MIN = 4
 
 
