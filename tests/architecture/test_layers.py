@@ -3,7 +3,8 @@
 Every ``import`` / ``from ... import`` statement in ``cwproc`` is checked, including the
 ones inside functions, by reading the source (nothing is imported). Layers, bottom up:
 
-0. foundation: ``cwproc._version``, ``cwproc.errors``, ``cwproc.references``
+0. foundation: ``cwproc._version``, ``cwproc.errors``, ``cwproc.references``,
+   ``cwproc.progress``
 1. ``cwproc.physics``: numpy and scipy only (no xarray, no configuration)
 2. ``cwproc.io``: files <-> canonical datasets
 3. ``cwproc.config``: the configuration as data (TOML <-> frozen dataclasses)
@@ -28,7 +29,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[2] / "cwproc"
 
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("cwproc._version", "cwproc.errors", "cwproc.references"),
+    ("cwproc._version", "cwproc.errors", "cwproc.references", "cwproc.progress"),
     ("cwproc.physics", "cwproc.atables"),
     ("cwproc.io",),
     ("cwproc.config", "cwproc.configs"),
