@@ -62,7 +62,7 @@ def products(folder: Path) -> dict[str, xr.Dataset]:
             ["streamline_999_20240601_turbulence.nc", "streamline_999_20240601_wind.nc"],
         ),
         ("banakh1999", 1, []),
-        ("zephir300", 0, ["streamline_999_20240601_wind.nc"]),
+        ("zephir300", 1, []),
     ],
 )
 def test_retrieve_and_batch_agree(inputs, tmp_path, preset, status, made):
@@ -80,16 +80,16 @@ def test_retrieve_and_batch_agree(inputs, tmp_path, preset, status, made):
         xr.testing.assert_equal(got_r[name], got_b[name])  # values, dims and coordinates
     files = sorted(inputs.glob("*.hpl"))
     if preset == "banakh1999":  # every file named with its problem, and why nothing was done
-        assert r_notes == {
-            f"{f}: a hpl file, but the configuration reads only scan_netcdf: skipped" for f in files
-        }
+        (note,) = r_notes
+        assert note.startswith("2 files of other instruments skipped (2 hpl in ")
+        assert note.endswith("the configuration reads scan_netcdf only")
         (line,) = r_errors
         assert "none of the inputs is a scan_netcdf file" in line and "2 file(s)" in line
-    elif preset == "zephir300":
-        (note,) = [n for n in r_notes if "turbulence not computed" in n]
-        assert all(f.name in note for f in files)
-        assert "pulsed lidar" in note and "cw lidar" in note and "-c streamline" in note
-        assert r_errors == set()
+    elif preset == "zephir300":  # another instrument's configuration: each file fails
+        assert len(r_errors) == len(files)
+        for f in files:
+            (line,) = [e for e in r_errors if str(f) in e]
+            assert "pulsed lidar" in line and "ZephIR 300" in line and "-c streamline" in line
     else:
         assert r_errors == set()
         assert {f"{f}: VAD: 6 conical scan(s) -> wind (and turbulence)" for f in files} <= r_notes
@@ -101,8 +101,11 @@ def test_run_unit_reports_products_notes_and_status(inputs):
     from cwproc.pipeline import EXIT_OK, read_units, run_unit
 
     config = load_config("zephir300")
-    found = read_units(sorted(inputs.glob("*.hpl")), config)
+    refused = read_units(sorted(inputs.glob("*.hpl")), config)  # another instrument's
+    assert len(refused.failures) == 2 and refused.units == []
+    found = read_units(sorted(inputs.glob("*.hpl")), load_config("streamline"))
     assert found.failures == [] and [u.key for u in found.units] == ["streamline_999_20240601"]
+    # run_unit itself still guards the turbulence product against a cw configuration
     result = run_unit(found.units[0], config, keep_screened=True)
     assert result.ok and result.exit_status == EXIT_OK
     assert list(result.products) == ["wind"]

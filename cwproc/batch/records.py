@@ -13,7 +13,7 @@ from typing import Any
 
 from cwproc.config import Config, config_from_toml
 from cwproc.errors import CwprocError
-from cwproc.pipeline import no_input_of_format
+from cwproc.pipeline import no_input_of_format, other_formats_note
 
 #: folder inside OUTPUT_DIR that holds the ledger and the lock
 STATE_DIR = ".cwproc"
@@ -183,9 +183,19 @@ class BatchReport:
         )
 
     def notes(self) -> list[str]:
-        """What the user should know that is not a failure: files skipped for their
-        format, then the notes of every unit processed (each names its files)."""
-        skipped = [f"{info.error}: skipped" for info in self.other_format]
+        """What the user should know that is not a failure: one line for the files
+        skipped for their format, then the notes of every unit processed (each names its files)."""
+        skipped = (
+            [
+                other_formats_note(
+                    [i.path for i in self.other_format],
+                    [i.format for i in self.other_format],
+                    self.pinned_format,
+                )
+            ]
+            if self.other_format
+            else []
+        )
         return skipped + [line for o in self.processed for line in o.notes]
 
 

@@ -31,6 +31,7 @@ from cwproc.pipeline import (
     ProductUnit,
     format_mismatch,
     group_units,
+    instrument_mismatch,
     read_input,
     run_unit,
     unit_key,
@@ -139,6 +140,9 @@ def classify_file(
             format=fmt.value,
             error=f"{path}: internal error of the {fmt.value} reader {type(exc).__name__}: {exc}",
         )
+    wrong = instrument_mismatch(item, config)
+    if wrong:  # the failure cwproc retrieve reports for it
+        return replace(base, status="error", format=fmt.value, error=wrong)
     return replace(
         base,
         status="ok",

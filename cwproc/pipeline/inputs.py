@@ -8,7 +8,7 @@ from pathlib import Path
 from cwproc.config import Config
 from cwproc.errors import CwprocError
 from cwproc.io import Format, detect_format, is_cwproc_product
-from cwproc.pipeline.units import format_mismatch, no_input_of_format
+from cwproc.pipeline.units import format_mismatch, no_input_of_format, other_formats_note
 
 
 @dataclass
@@ -24,10 +24,18 @@ class Inputs:
     other_format: list[Path] = field(default_factory=list)
     #: files named on the command line of a format the configuration does not read
     mismatched: list[str] = field(default_factory=list)
-    #: one line per file of ``other_format``: the file and why it is skipped
-    skipped_notes: list[str] = field(default_factory=list)
+    #: the format of each file of ``other_format``
+    other_formats: list[str] = field(default_factory=list)
     #: the format the configuration reads ("auto": any)
     pinned: str = "auto"
+
+    @property
+    def skipped_notes(self) -> list[str]:
+        """One note for all the files of ``other_format`` (none when there is none)."""
+        if not self.other_format:
+            return []
+        paths = [str(p) for p in self.other_format]
+        return [other_formats_note(paths, self.other_formats, self.pinned)]
 
     def skipped_text(self) -> str:
         """``", 3 file(s) of no known format skipped, 2 cwproc product(s) skipped"``."""
@@ -64,8 +72,8 @@ def expand_inputs(inputs: tuple[str, ...], config: Config) -> Inputs:
     input folder, a product named by a wildcard), so that a second run over the same
     folder reads the same inputs as the first. When the configuration reads one format
     only (``[instrument] format``, e.g. ``hpl`` for the Stream Line preset), files of
-    other formats are skipped in directories (one line each in ``skipped_notes``, as
-    ``cwproc batch`` words them, :func:`cwproc.pipeline.format_mismatch`) and reported
+    other formats are skipped in directories (one line for them all in ``skipped_notes``,
+    as ``cwproc batch`` words it, :func:`cwproc.pipeline.other_formats_note`) and reported
     in ``mismatched`` when named.
     """
     found = Inputs(pinned=config.instrument.format)
@@ -94,7 +102,7 @@ def expand_inputs(inputs: tuple[str, ...], config: Config) -> Inputs:
             mismatch = format_mismatch(q, fmt, config)
             if mismatch:
                 found.other_format.append(q)
-                found.skipped_notes.append(f"{mismatch}: skipped")
+                found.other_formats.append(fmt.value)
                 continue
             found.files.append(q)
     return found

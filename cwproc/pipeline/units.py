@@ -12,6 +12,7 @@ import dataclasses
 import os
 import re
 import stat
+from collections import Counter
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -70,6 +71,64 @@ def format_mismatch(path: str | os.PathLike, fmt: Format, config: Config) -> str
     if pinned == "auto" or fmt.value == pinned:
         return ""
     return f"{os.fspath(path)}: a {fmt.value} file, but the configuration reads only {pinned}"
+
+
+#: the kind of instrument of a format whose files come from one kind only
+_FORMAT_KIND = {
+    Format.HPL: "pulsed",
+    Format.WINDCUBE_STA: "pulsed",
+    Format.ZEPHIR_CSV: "cw",
+}
+#: ``instrument_kind`` attribute of scans -> the kind of ``[instrument] kind``
+_SCAN_KIND = {"streamline": "pulsed", "pulsed": "pulsed", "cw": "cw"}
+#: a preset of each kind, named in the message
+_PRESET_OF_KIND = {"pulsed": "streamline", "cw": "zephir300"}
+
+
+def instrument_mismatch(item: InputFile, config: Config) -> str:
+    """Why ``config`` describes another instrument than the one of ``item`` ('' if not).
+
+    A lidar file (Stream Line ``.hpl``, WindCube: pulsed; ZephIR: cw; scan NetCDF: its
+    ``instrument_kind``) read with a configuration of another ``[instrument] kind``
+    (e.g. ``-c zephir300``, a cw lidar, on ``.hpl`` files) would be processed with the
+    wrong probe volume and presets: it is a failure naming the file and both
+    instruments. The defaults (no ``-c``) read every file, as do sonic logs under any
+    configuration (their analysis uses no lidar setting).
+    """
+    if config.source == "<defaults>" or KIND.get(item.format) not in ("scan", "wind_record"):
+        return ""
+    attrs = getattr(held_or_identity(item), "attrs", {}) or {}
+    declared = str(attrs.get("instrument_kind", "")).strip().lower()
+    kind = _FORMAT_KIND.get(item.format) or _SCAN_KIND.get(declared)
+    if kind is None or kind == config.instrument.kind:
+        return ""
+    made_by = str(attrs.get("instrument", "")) or item.format.value
+    preset = _PRESET_OF_KIND.get(kind, "")
+    return (
+        f"{os.fspath(item.path)}: a file of a {kind} lidar ({made_by}), but configuration "
+        f"{config.source} describes {config.instrument.name} ({config.instrument.kind}"
+        f"{' lidar' if config.instrument.kind != 'sonic' else ''}); use a configuration "
+        f"for its instrument{f' (e.g. -c {preset})' if preset else ''}"
+    )
+
+
+def other_formats_note(paths: list[str], formats: list[str], pinned: str) -> str:
+    """One note for every file skipped because the configuration reads another format.
+
+    ``"7 files of other instruments skipped (ghg, toa5 in sample_data/sonic; zephir_csv
+    in sample_data/zephir): the configuration reads hpl only"``: the formats (with their
+    count when more than one file) and the folders they were found in, in place of one
+    line per file (:func:`format_mismatch` words a file named on the command line).
+    """
+    counts = Counter(formats)
+    kinds = ", ".join(f"{n} {f}" if n > 1 else f for f, n in sorted(counts.items()))
+    folders = sorted({os.path.dirname(os.fspath(p)) or "." for p in paths})
+    shown = ", ".join(folders[:3]) + (f" and {len(folders) - 3} more" if len(folders) > 3 else "")
+    return (
+        f"{len(paths)} file{'s' if len(paths) != 1 else ''} of other instruments skipped "
+        f"({kinds} in {shown}): "
+        f"the configuration reads {pinned} only"
+    )
 
 
 def no_input_of_format(n_skipped: int, pinned: str) -> str:
