@@ -6,6 +6,7 @@ import os
 import sys
 import warnings
 from collections.abc import Callable
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import click
@@ -63,17 +64,40 @@ def usage_error(message: str) -> None:
 
 
 def require_extra(module: str, extra: str, what: str) -> None:
-    """Exit 2 with one line when the optional dependency ``module`` is not installed.
+    """Exit 2 with one line when the dependency ``module`` is missing from this install.
 
-    Called before any computing, so that a missing extra never costs a run.
+    Called before any computing, so that a missing module never costs a run. matplotlib
+    and tqdm are base dependencies of cwproc: a missing one means an install that did
+    not finish or a package removed since, mended by installing cwproc again from the
+    clone it came from (``pip install .`` at the top of the clone). ``extra`` names
+    the optional-dependency group that also lists ``module`` (kept for old scripts).
     """
     import importlib.util
 
     if importlib.util.find_spec(module) is None:
         usage_error(
-            f"{what} needs {module}, which is not installed: install the {extra} extra, "
-            f'pip install "cwproc[{extra}]"'
+            f"{what} needs {module}, which is missing from this Python environment; "
+            "install cwproc again from the top of its clone: pip install ."
         )
+
+
+def output_dir_or_exit(outdir: str) -> None:
+    """Create ``outdir`` if missing and check that a file can be written in it.
+
+    Called before any input is read: a read-only, misspelt or full product directory
+    stops the run at once (exit 2, one line naming the directory and the problem),
+    not after all the work. The check writes and removes a hidden empty file, which
+    also catches a read-only filesystem and the superuser's read-only mounts.
+    """
+    import tempfile
+
+    path = Path(outdir)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path, prefix=".cwproc-check-"):
+            pass
+    except OSError as exc:
+        usage_error(f"-o {outdir}: cannot write products there: {exc.strerror or exc}")
 
 
 def check_index(value: int | None, size: int, option: str, what: str) -> None:
@@ -195,3 +219,18 @@ def noted_files(notes: list[str]) -> list[str]:
     list of its inputs (``cwproc batch``, whose notes come from its units' workers)."""
     heads = {line.split(": ", 1)[0] for line in notes if ": " in line}
     return [head for head in heads if os.path.isfile(head)]
+
+
+#: products named in full by :func:`replaced_note` (the others are counted)
+REPLACED_SHOWN = 3
+
+
+def replaced_note(paths: list[Path]) -> str:
+    """One note for the products that replaced the files of an earlier run.
+
+    A second run into the same ``-o`` replaces its products (the new ones carry the
+    new run's provenance); the note says so, naming the first few.
+    """
+    names = ", ".join(str(p) for p in paths[:REPLACED_SHOWN])
+    more = f" and {len(paths) - REPLACED_SHOWN} more" if len(paths) > REPLACED_SHOWN else ""
+    return f"{len(paths)} product(s) of an earlier run replaced: {names}{more}"

@@ -170,7 +170,8 @@ class CwprocGroup(LazyGroup):
     """The top-level group: every usage error is one line on stderr with exit status 2.
 
     click prints a usage block, a hint and the error on four lines; cwproc prints
-    ``error: cwproc plot: --time-index ... (see cwproc plot --help)``.
+    ``error: cwproc plot: --time-index ... (see cwproc plot --help)``. Ctrl-C ends any
+    command with one line and exit status 130 (:func:`interrupted`).
 
     When the group runs as the program (``args`` read from ``sys.argv``: the ``cwproc``
     script, ``python -m cwproc``), a command not in ``dask_commands`` runs with dask
@@ -223,10 +224,29 @@ class CwprocGroup(LazyGroup):
         except click.ClickException as exc:
             click.echo(f"error: {' '.join(exc.format_message().split())}", err=True)
             sys.exit(exc.exit_code)
-        except click.Abort:
+        except click.Abort as exc:
+            if isinstance(exc.__cause__, KeyboardInterrupt):
+                interrupted()
             click.echo("Aborted!", err=True)
             sys.exit(1)
+        except KeyboardInterrupt:  # raised outside click's own handling (a callback)
+            interrupted()
         sys.exit(rv if isinstance(rv, int) else 0)
+
+
+#: exit status of a run stopped by Ctrl-C (SIGINT), the shells' 128 + 2
+EXIT_INTERRUPTED = 130
+
+
+def interrupted() -> NoReturn:
+    """Ctrl-C: one line on stderr, no traceback, exit status :data:`EXIT_INTERRUPTED`.
+
+    Products are published whole or not at all, so an interrupted run leaves the
+    products it finished and no half-written file; ``cwproc batch`` redoes the unit in
+    flight on its next run.
+    """
+    click.echo("interrupted (Ctrl-C): products finished so far are kept", err=True)
+    sys.exit(EXIT_INTERRUPTED)
 
 
 def exit_now(code: object) -> NoReturn:

@@ -9,7 +9,7 @@ import signal
 import sys
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -20,6 +20,7 @@ from cwproc.cli._common import (
     config_option,
     load_config_or_fail,
     noted_files,
+    output_dir_or_exit,
     report_failure,
 )
 from cwproc.errors import CwprocError
@@ -66,27 +67,31 @@ def batch_logging(log_file: str | None, verbose: bool) -> Iterator[None]:
 
 
 class _Progress:
-    """A click progress bar on stderr, shown only when stderr is a terminal."""
+    """Units done, on a bar of :mod:`cwproc.progress` (shown only where it is turned on:
+    a terminal, without -q or -v)."""
 
-    def __init__(self, enabled: bool) -> None:
-        self.enabled = enabled
+    def __init__(self) -> None:
+        self._open = ExitStack()
         self.bar: Any = None
 
     def start(self, n_units: int) -> None:
-        if self.enabled and n_units > 0:
-            self.bar = click.progressbar(
-                length=n_units, label="units", file=sys.stderr, show_pos=True, show_eta=True
+        """The plan is made: ``n_units`` units to process."""
+        from cwproc import progress
+
+        if n_units > 0 and self.bar is None:
+            self.bar = self._open.enter_context(
+                progress.bar(desc="units", total=n_units, unit="unit")
             )
-            self.bar.__enter__()
 
     def advance(self, _outcome: UnitOutcome) -> None:
+        """One unit is done."""
         if self.bar is not None:
             self.bar.update(1)
 
     def finish(self) -> None:
-        if self.bar is not None:
-            self.bar.__exit__(None, None, None)
-            self.bar = None
+        """Close the bar (the run ended, or was stopped)."""
+        self._open.close()
+        self.bar = None
 
 
 def _terminate(signum: int, _frame: Any) -> None:
@@ -250,6 +255,13 @@ def batch(
     Exit status: 0 all done, 1 some input or unit failed, 2 usage error,
     75 another run holds the lock.
     """
+    if workers is not None and scheduler:
+        raise click.UsageError("give --workers or --scheduler, not both")
+    if quiet and verbose:
+        raise click.UsageError("give --quiet or --verbose, not both")
+    cfg = load_config_or_fail(config)  # before the heavy imports: a typo is told at once
+    output_dir_or_exit(output_dir)
+    from cwproc import progress
     from cwproc.batch import (
         EXIT_LOCKED,
         DaskNotInstalledError,
@@ -261,11 +273,6 @@ def batch(
     )
     from cwproc.pipeline import EXIT_FAILED, EXIT_OK
 
-    if workers is not None and scheduler:
-        raise click.UsageError("give --workers or --scheduler, not both")
-    if quiet and verbose:
-        raise click.UsageError("give --quiet or --verbose, not both")
-    cfg = load_config_or_fail(config)
     client = None
     if workers is not None and not scheduler:
         client = local_pool(workers)
@@ -278,10 +285,13 @@ def batch(
         except CwprocError as exc:
             report_failure(str(exc))
             sys.exit(2)
-    progress = _Progress(enabled=not quiet and not verbose and sys.stderr.isatty())
+    units = _Progress()
     previous_sigterm = signal.signal(signal.SIGTERM, _terminate)
     try:
-        with batch_logging(log_file, verbose):
+        with (
+            batch_logging(log_file, verbose),
+            progress.reporting(progress.shown_on(quiet=quiet or verbose)),
+        ):
             report = run_batch(
                 input_dir,
                 output_dir,
@@ -291,8 +301,8 @@ def batch(
                 min_age_s=min_age_s,
                 client=client,
                 wait_s=wait_s,
-                on_plan=progress.start,
-                on_unit=progress.advance,
+                on_plan=units.start,
+                on_unit=units.advance,
             )
     except LockBusyError as exc:
         click.echo(str(exc), err=True)
@@ -302,7 +312,7 @@ def batch(
         sys.exit(1)
     finally:
         signal.signal(signal.SIGTERM, previous_sigterm)
-        progress.finish()
+        units.finish()
         if client is not None:
             close_client(client)
     if report.stale_lock and not quiet:

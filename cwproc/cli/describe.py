@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from typing import TYPE_CHECKING
 
 import numpy as np
 import xarray as xr
@@ -10,6 +11,9 @@ import xarray as xr
 from cwproc.errors import CwprocError
 from cwproc.io import KIND, Format, detect_format, is_product_layout, read
 from cwproc.io.scans import is_homodyne
+
+if TYPE_CHECKING:
+    from cwproc.config import Config
 
 #: human names of the formats
 FORMAT_NAMES: dict[Format, str] = {
@@ -182,8 +186,12 @@ def damaged_background(path: str | os.PathLike) -> None:
     read_halo_background(path)
 
 
-def describe_file(path: str | os.PathLike) -> list[str]:
+def describe_file(path: str | os.PathLike, config: Config | None = None) -> list[str]:
     """What a file is, as printable lines (the first line is the path).
+
+    ``config`` gives the reader options of the file's format (its ``[reader.<format>]``
+    table, e.g. the start time and rate of a Gill log, which has no time of its own),
+    as ``cwproc retrieve -c`` reads the file; None reads with the readers' defaults.
 
     Raises
     ------
@@ -200,7 +208,7 @@ def describe_file(path: str | os.PathLike) -> list[str]:
         if product is not None:
             return describe_product(path, product)
     try:
-        ds = read(path, fmt)
+        ds = read(path, fmt, **(dict(config.reader.get(fmt.value, {})) if config else {}))
     except ImportError:
         raise CwprocError(f"{path}: no reader for format {fmt.value} in this build") from None
     header = [f"{os.fspath(path)}", f"  format        {fmt.value} ({FORMAT_NAMES[fmt]})"]

@@ -10,13 +10,14 @@ import sys
 
 import click
 
-from cwproc.cli._common import report_failure
+from cwproc.cli._common import config_option, load_config_or_fail, report_failure
 from cwproc.errors import CwprocError
 
 
 @click.command("info")
 @click.argument("files", nargs=-1, required=True, metavar="FILES...")
-def info(files: tuple[str, ...]) -> None:
+@config_option()
+def info(files: tuple[str, ...], config: str | None) -> None:
     """What each of FILES is: format, instrument, rays, gates, time span, scans.
 
     \b
@@ -24,16 +25,19 @@ def info(files: tuple[str, ...]) -> None:
     time span, elevation(s), azimuth coverage, number of 360-degree scans.
     Stream Line background files (Background_DDMMYY-HHMMSS.txt): time, gates, layout.
     Other formats (wind records, sonic): dimensions, time span and variables.
+    -c reads the files with the reader options of a configuration ([reader.<format>]
+    tables: a Gill log's start time and rate, a logger's UTC offset), as retrieve does.
     A file that cannot be read gives one line "error: <file>:<line>: <problem>" on
     stderr; the others are still listed. Exit status 1 when any file failed.
     """
-    from cwproc.cli.describe import describe_file
+    cfg = load_config_or_fail(config) if config is not None else None
+    from cwproc.cli.describe import describe_file  # after the configuration: errors first
 
     failures = 0
     listed = 0
     for name in files:
         try:
-            lines = describe_file(name)
+            lines = describe_file(name, cfg)
         except CwprocError as exc:
             report_failure(str(exc))
             failures += 1

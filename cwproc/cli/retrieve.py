@@ -10,7 +10,9 @@ from cwproc.cli._common import (
     collapsed_notes,
     inputs_or_exit,
     load_config_or_fail,
+    output_dir_or_exit,
     product_command,
+    replaced_note,
     report_failure,
 )
 
@@ -26,18 +28,27 @@ def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bo
     sonic logs give <name>_sf.nc. Exit status 0 when every input was processed, 1
     otherwise, with one line per failed input naming the file, the line and the problem.
     A note says what each file held; files in a row that held the same get one note.
+    A product already in the output directory is replaced, with a note naming it; a
+    product whose every value would be missing is not written, with a note saying why.
+    A file of another instrument than the configuration's (-c zephir300 on .hpl files)
+    is a failure. The configuration and the output directory are checked first.
     """
-    from cwproc.pipeline import EXIT_FAILED, EXIT_OK, retrieve_files  # --help stays light
+    cfg = load_config_or_fail(config)  # before the heavy imports: a typo is told at once
+    output_dir_or_exit(outdir)
+    from cwproc import progress
+    from cwproc.pipeline import EXIT_FAILED, EXIT_OK, retrieve_files
 
-    cfg = load_config_or_fail(config)
     found = inputs_or_exit(inputs, cfg, quiet)
     files = found.files
-    report = retrieve_files(files, outdir, cfg)
+    with progress.reporting(progress.shown_on(quiet=quiet)):
+        report = retrieve_files(files, outdir, cfg)
     for line in report.failures:
         report_failure(line)
     if not quiet:
         for line in collapsed_notes(report.notes, [str(f) for f in files]):
             click.echo(f"note: {line}", err=True)
+        if report.replaced:
+            click.echo(f"note: {replaced_note(report.replaced)}", err=True)
         for path in report.written:
             click.echo(f"wrote {path}")
         click.echo(

@@ -18,7 +18,9 @@ import click
 from cwproc.cli._common import (
     inputs_or_exit,
     load_config_or_fail,
+    output_dir_or_exit,
     product_command,
+    replaced_note,
     report_failure,
 )
 
@@ -37,17 +39,21 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
     <format>_<station>_<YYYYMMDD>_sf.nc, plus
     sf_type_occurrence.csv (Table 2) and sf_parameters.csv (Tables 3-5), and prints
     both tables. Exit status 0 when every input was processed, 1 otherwise, with one
-    line per failed input naming the file, the line and the problem.
+    line per failed input naming the file, the line and the problem. Products and
+    tables already in the output directory are replaced (a note names the products).
     """
+    cfg = load_config_or_fail(config)  # before the heavy imports: a typo is told at once
+    output_dir_or_exit(outdir)
     import pandas as pd  # here, not at import: --help stays light
 
+    from cwproc import progress
     from cwproc.io.netcdf import write_bytes_atomic
     from cwproc.pipeline import EXIT_FAILED, EXIT_OK, retrieve_files, sf_summary_tables
 
-    cfg = load_config_or_fail(config)
     found = inputs_or_exit(inputs, cfg, quiet)
     files = found.files
-    report = retrieve_files(files, outdir, cfg, kinds={"sonic"}, keep_products=True)
+    with progress.reporting(progress.shown_on(quiet=quiet)):
+        report = retrieve_files(files, outdir, cfg, kinds={"sonic"}, keep_products=True)
     written, failures = report.written, report.failures
     products = [ds for _, name, ds in report.products if name == "sf"]
     for line in failures:
@@ -75,6 +81,8 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
                 click.echo("\nParameter means and medians, Tables 3-5")
                 click.echo(stats[stats["count"] > 0].round(4).to_string(index=False))
     if not quiet:
+        if report.replaced:
+            click.echo(f"note: {replaced_note(report.replaced)}", err=True)
         for path in written:
             click.echo(f"wrote {path}")
         click.echo(

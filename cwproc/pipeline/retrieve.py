@@ -12,6 +12,7 @@ from typing import NamedTuple
 
 import xarray as xr
 
+from cwproc import progress
 from cwproc.config import Config
 from cwproc.errors import CwprocError
 from cwproc.io import KIND
@@ -22,12 +23,13 @@ from cwproc.pipeline.units import (
     InputFile,
     ProductUnit,
     identify_input,
+    instrument_mismatch,
     read_input,
     split_by_day,
     unit_key,
     unit_label,
 )
-from cwproc.pipeline.write import write_unit_products
+from cwproc.pipeline.write import product_path, write_unit_products
 
 
 @dataclass
@@ -40,6 +42,8 @@ class RunReport:
     products: list[tuple[str, str, xr.Dataset]] = field(default_factory=list)
     #: things the user should know that are not failures (e.g. turbulence not computable)
     notes: list[str] = field(default_factory=list)
+    #: products of ``written`` that replaced a file of the same name (an earlier run's)
+    replaced: list[Path] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -49,6 +53,7 @@ class RunReport:
         self.written.extend(other.written)
         self.failures.extend(other.failures)
         self.notes.extend(other.notes)
+        self.replaced.extend(other.replaced)
 
 
 def retrieve_files(
@@ -77,7 +82,13 @@ def retrieve_files(
     Returns
     -------
     RunReport
-        Products written and one line per failed input or unit.
+        Products written (``replaced``: those that replaced a file of the same name) and
+        one line per failed input or unit.
+
+    Notes
+    -----
+    Reading reports its progress per file and processing per unit
+    (:mod:`cwproc.progress`: a bar on the terminal when the command line turned it on).
     """
     report = RunReport()
     for stale in remove_stale_temporaries(outdir):
@@ -85,11 +96,14 @@ def retrieve_files(
     found = read_units(paths, config, kinds=kinds)
     report.failures.extend(found.failures)
     report.notes.extend(found.notes)
-    for unit in found.units:
+    for unit in progress.track(found.units, desc="processing", unit="unit"):
         result = run_unit(unit, config)
         try:
             if result.products:
-                report.written.extend(write_unit_products(unit, result.products, outdir, config))
+                existing = [product_path(outdir, unit, n).exists() for n in result.products]
+                written = write_unit_products(unit, result.products, outdir, config)
+                report.written.extend(written)
+                report.replaced.extend(p for p, old in zip(written, existing, strict=True) if old)
         except CwprocError as exc:
             report.failures.append(f"{unit_label(unit)}: {exc}")
         except Exception as exc:  # a bug in cwproc: report it, keep processing the rest
@@ -158,6 +172,8 @@ def read_units(
     units: dict[tuple[str, str], ProductUnit] = {}
     accepted = set(kinds) if kinds is not None else None
     held = 0
+    if isinstance(paths, Sequence):
+        paths = progress.track(paths, desc="reading", unit="file")
     for p, item in read_inputs(paths, config):
         if isinstance(item, CwprocError):
             found.failures.append(str(item))
@@ -167,6 +183,10 @@ def read_units(
             continue
         if KIND[item.format] == "background":  # not a product input (see correct_background)
             found.notes.append(f"{p}: Stream Line background file, not a product input")
+            continue
+        mismatch = instrument_mismatch(item, config)
+        if mismatch:  # processed with the wrong instrument's settings it would mislead
+            found.failures.append(mismatch)
             continue
         if accepted is not None and KIND[item.format] not in accepted:
             found.failures.append(

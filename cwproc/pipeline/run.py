@@ -12,6 +12,7 @@ import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import xarray as xr
 
 from cwproc.config import Config
@@ -23,6 +24,7 @@ from cwproc.pipeline.chain import (
     process_wind_record,
 )
 from cwproc.pipeline.units import ProductUnit, concat_unit, load_item, load_unit, unit_label
+from cwproc.products.metadata import product_table
 
 #: exit status of a command whose every unit succeeded
 EXIT_OK = 0
@@ -115,6 +117,8 @@ def run_unit(unit: ProductUnit, config: Config, *, keep_screened: bool = False) 
     except Exception as exc:  # a bug in cwproc: report it, the caller goes on
         result.failures.append(f"{names}: {internal_error(exc)}")
     result.failures.extend(unit.failures)
+    for name in [n for n, ds in result.products.items() if empty_reason(n, ds, config)]:
+        notes.append(empty_reason(name, result.products.pop(name), config))
     own = tuple(f"{os.fspath(i.path)}: " for i in unit.inputs)
     result.notes = [n if n.startswith(own) else f"{names}: {n}" for n in notes]
     if kept:
@@ -167,6 +171,47 @@ def unit_products(
     if unit.kind == "wind_record":
         return process_wind_record(ds, config)
     return process_sonic(ds, config)
+
+
+#: product -> (the variable that makes it, its flag variable); a product whose variable
+#: is missing everywhere is not written (:func:`empty_reason`)
+MAIN_VARIABLES: dict[str, tuple[str, str]] = {
+    "wind": ("u", "qc_flag"),
+    "turbulence": ("epsilon", "turbulence_flag"),
+    "stare": ("w_mean", "stare_flag"),
+}
+
+
+def empty_reason(name: str, ds: xr.Dataset, config: Config) -> str:
+    """Why product ``name`` is not written: its main variable is missing everywhere.
+
+    '' when it holds at least one value (or is not a product of :data:`MAIN_VARIABLES`).
+    The note names the product, the variable and the flags that every missing value
+    carries, most frequent first (e.g. a day of stares with a VAD every 15 minutes:
+    every block of ``n_scans`` conical scans is partial, so no epsilon), so that no
+    product of nothing but missing values reaches a user without the reason.
+    """
+    variable, flag = MAIN_VARIABLES.get(name, ("", ""))
+    if variable not in ds or np.isfinite(ds[variable].values).any():
+        return ""
+    text = f"no {name} product written: every {variable} is missing"
+    meta = product_table(name).get(flag)
+    if flag in ds and meta is not None and meta.flag_meanings:
+        meanings = str(meta.flag_meanings).split()
+        values = np.nan_to_num(np.asarray(ds[flag].values, dtype=float)).astype(np.int64).ravel()
+        counts = {
+            m: int(np.sum(values & int(k) != 0))
+            for m, k in zip(meanings, meta.flag_masks, strict=False)
+        }
+        seen = sorted((m for m in counts if counts[m]), key=lambda m: -counts[m])
+        if seen:
+            text += f" ({flag}: {', '.join(f'{m} {counts[m]}/{values.size}' for m in seen)})"
+    if name == "turbulence" and "partial_block" in text:
+        text += (
+            f"; a block needs at least half of [turbulence] n_scans = "
+            f"{config.turbulence.n_scans} consecutive conical scans"
+        )
+    return text
 
 
 def internal_error(exc: BaseException) -> str:

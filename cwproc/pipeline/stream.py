@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import xarray as xr
 
+from cwproc import progress
 from cwproc.config import Config
 from cwproc.errors import CwprocError, InputFileError
 from cwproc.io import FileIdentity
@@ -551,7 +552,13 @@ def stream_scan_unit(
     reading_ahead = read_ahead_enabled(read_ahead)
     ahead = ReadAhead(ordered, read, chunk_bytes) if reading_ahead and not by_chunk else None
 
+    files_done = contextlib.ExitStack()  # a bar of the day's files (when progress is on)
+    files_bar = files_done.enter_context(
+        progress.bar(desc=f"{unit.key}", total=len(ordered), unit="file")
+    )
+
     def took(item, identity: FileIdentity, lines: list[str]) -> None:
+        files_bar.update(1)
         item.dataset = None  # the chunk holds it now; released with the chunk
         # for products; its attributes are the file's (source files, scan type) below
         item.identity = identity
@@ -594,6 +601,7 @@ def stream_scan_unit(
     except StreamMismatch:
         return None
     finally:
+        files_done.close()
         chunks.close()  # stops the reading thread of a chunk reader
         if ahead is not None:
             ahead.close()

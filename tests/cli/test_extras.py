@@ -1,5 +1,6 @@
-"""Optional extras are checked before any work: a base install (no matplotlib) gets one
-line naming the extra and exit status 2, and nothing is computed or written."""
+"""matplotlib is checked before any work: an install without it (broken, or a package
+removed since) gets one line saying to install cwproc again from its clone, exit status 2,
+and nothing is computed or written."""
 
 from __future__ import annotations
 
@@ -35,13 +36,14 @@ def test_theory_eps_ratio_png_needs_plot_extra(tmp_path, no_matplotlib):
     res = CliRunner().invoke(
         main, ["theory", "eps-ratio", "--phi", "35.3", "--png", str(tmp_path / "r.png")]
     )
-    _one_line_exit_2(res, 'pip install "cwproc[plot]"', "--png")
+    _one_line_exit_2(res, "from the top of its clone: pip install .", "--png")
+    assert "cwproc[plot]" not in res.output  # not the package index
     assert "eps1/eps2" not in res.output  # nothing computed
 
 
 def test_simulate_montecarlo_needs_plot_extra_before_the_study(tmp_path, no_matplotlib):
     res = CliRunner().invoke(main, ["simulate", "montecarlo", "-o", str(tmp_path / "mc")])
-    _one_line_exit_2(res, "plot extra", "--no-png")
+    _one_line_exit_2(res, "pip install .", "--no-png")
     assert not (tmp_path / "mc").exists()
 
 

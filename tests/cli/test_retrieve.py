@@ -196,17 +196,19 @@ def test_cw_scans_with_a_pulsed_config_get_wind_but_no_wrong_epsilon(tmp_path):
     ]
 
 
-def test_stream_line_scans_with_a_cw_config_get_no_turbulence(vad_files, tmp_path):
+def test_stream_line_scans_with_a_cw_config_are_refused(vad_files, tmp_path):
     """Stream Line files (instrument_kind "streamline") are pulsed: a cw configuration is
-    refused for the turbulence product, with the preset to use."""
+    a failure for each file, naming it, both instruments and the preset to use."""
     cfg = tmp_path / "cw.toml"
     cfg.write_text('[instrument]\nkind = "cw"\nz_r_coefficient = 0.0013\n')
     res = CliRunner().invoke(
         main, ["retrieve", str(vad_files), "-c", str(cfg), "-o", str(tmp_path / "o")]
     )
-    assert res.exit_code == 0, res.output
-    assert "pulsed lidar" in res.output and "-c streamline" in res.output
-    assert not list((tmp_path / "o").glob("*_turbulence.nc"))
+    assert res.exit_code == 1, res.output
+    errors = [x for x in res.output.splitlines() if x.startswith("error:")]
+    assert len(errors) == 2
+    assert all("pulsed lidar" in e and "cw lidar" in e and "-c streamline" in e for e in errors)
+    assert not list((tmp_path / "o").glob("*.nc"))
 
 
 @pytest.mark.parametrize(
