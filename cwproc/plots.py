@@ -23,6 +23,7 @@ import xarray as xr
 from cwproc.errors import ProductError
 from cwproc.io.netcdf import remove_stale_temporaries, umask_mode
 from cwproc.physics.geometry import radial_velocity
+from cwproc.plot_axes import epsilon_range, whole_utc_day
 
 #: figure size in inches and resolution of every quicklook
 FIGSIZE = (10.0, 6.0)
@@ -53,7 +54,7 @@ def _label(da: xr.DataArray, fallback: str) -> str:
     return str(da.attrs.get("long_name", fallback)) + _units(da)
 
 
-def _time_height_mesh(ax, ds: xr.DataArray, *, cmap: str, norm=None, label: str):
+def _time_height_mesh(ax, ds: xr.DataArray, *, cmap: str, norm=None, label: str, extend="neither"):
     """pcolormesh of a (time, height) field with at least two time steps; NaN stays blank."""
     plt = _pyplot()
     ax.set_facecolor(MISSING)
@@ -61,7 +62,7 @@ def _time_height_mesh(ax, ds: xr.DataArray, *, cmap: str, norm=None, label: str)
     mesh = ax.pcolormesh(
         ds["time"].values, ds["height"].values, data, cmap=cmap, norm=norm, shading="nearest"
     )
-    cbar = plt.colorbar(mesh, ax=ax, pad=0.01)
+    cbar = plt.colorbar(mesh, ax=ax, pad=0.01, extend=extend)
     cbar.set_label(label)
     ax.set_ylabel("height above instrument (m)")
     import matplotlib.dates as mdates
@@ -306,28 +307,27 @@ def _plot_epsilon_profiles(ds: xr.Dataset):
     return fig
 
 
-def plot_epsilon(ds: xr.Dataset):
+def plot_epsilon(ds: xr.Dataset, *, eps_range: tuple[float, float] | None = None):
     """Time-height of the dissipation rate (method 2, log scale) and of eps1/eps2.
 
-    eps1/eps2 is drawn only where method 1 has an estimate. A product of one block
-    is drawn as profiles instead.
+    The colours of epsilon span ``eps_range`` (m2 s-3; default
+    :data:`cwproc.plot_axes.EPSILON_RANGE`, the same for every file) and the time axis
+    the whole UTC day of the data. eps1/eps2 is drawn only where method 1 has an
+    estimate. A product of one block is drawn as profiles instead.
     """
     plt = _pyplot()
     from matplotlib.colors import LogNorm, TwoSlopeNorm
 
+    lo, hi = epsilon_range(eps_range)
     _refuse_empty(ds, ("epsilon",), "epsilon")
     if _one_time_step(ds):
         return _plot_epsilon_profiles(ds)
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=FIGSIZE, sharex=True, constrained_layout=True)
     eps = ds["epsilon"].where(ds["epsilon"] > 0)
     eps.attrs = {"long_name": "dissipation rate", "units": ds["epsilon"].attrs.get("units", "")}
-    finite = eps.values[np.isfinite(eps.values)]
-    lo, hi = (float(v) for v in np.percentile(finite, [2, 98]))
-    if not hi > lo:
-        lo, hi = lo / 2.0, hi * 2.0
-    cbar = _time_height_mesh(
-        ax1, eps, cmap=SEQUENTIAL_LOG, norm=LogNorm(lo, hi), label=_label(eps, "dissipation rate")
-    )
+    norm = LogNorm(lo, hi)  # values beyond the fixed range: the end colours, pointed ends
+    label = _label(eps, "dissipation rate")
+    cbar = _time_height_mesh(ax1, eps, cmap=SEQUENTIAL_LOG, norm=norm, label=label, extend="both")
     _log_ticks(cbar, lo, hi)
     ax1.set_title("dissipation rate $\\varepsilon$ (method 2: volume averaging + wind transport)")
     ratio = _ratio_shown(ds)
@@ -345,7 +345,7 @@ def plot_epsilon(ds: xr.Dataset):
     if not finite_ratio.size:
         title += " - no method-1 estimate (mu too large)"
     ax2.set_title(title)
-    ax2.set_xlabel("time (UTC)")
+    whole_utc_day(ax2, ds["time"].values)  # both panels: they share the time axis
     return fig
 
 

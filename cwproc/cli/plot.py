@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from typing import Any
 
 import click
 
@@ -60,8 +61,15 @@ KIND_CHOICES = [
 @click.option("--scan", type=int, default=None, help="vad: scan index (default: middle scan).")
 @click.option("--window", type=int, default=None, help="sf-window: window index.")
 @click.option("--component", default=None, help="sf-window: one component only.")
+@click.option(
+    "--eps-range",
+    type=(float, float),
+    default=None,
+    metavar="LO HI",
+    help="epsilon: colour range in m2 s-3 [default: 1e-5 1e-1, the same for every file].",
+)
 @config_option()
-def plot(source, out, kind, time_index, height, scan, window, component, config) -> None:
+def plot(source, out, kind, time_index, height, scan, window, component, eps_range, config) -> None:
     """Draw a quicklook of SOURCE into a PNG.
 
     \b
@@ -81,52 +89,94 @@ def plot(source, out, kind, time_index, height, scan, window, component, config)
       sf-window   sonic: one window's normalised structure function with fit and r_max
       montecarlo  simulate montecarlo: relative errors against N per height
 
+    Time-height pictures of epsilon use one log colour range for every file
+    (--eps-range, default 1e-5 .. 1e-1 m2 s-3) and span the whole UTC day of the data,
+    so that two days can be compared side by side.
     Options are checked against SOURCE before drawing: an index out of range or an
     option the kind does not use stops with one line (exit 2); a product with nothing
     to draw (every value missing) is refused with the reason (exit 1).
     """
+    cfg = load_config_or_fail(config) if config is not None else None
     require_extra("matplotlib", "plot", "cwproc plot")
-    _check_applicable(kind, time_index=time_index, scan=scan, window=window, component=component)
-    from cwproc import plots
+    _check_applicable(
+        kind, time_index=time_index, scan=scan, window=window, component=component, eps=eps_range
+    )
+    if eps_range is not None and not 0 < eps_range[0] < eps_range[1]:
+        usage_error(f"--eps-range {eps_range[0]:g} {eps_range[1]:g}: needs 0 < LO < HI")
+    from cwproc import progress
 
+    given = {
+        "time_index": time_index,
+        "height": height,
+        "scan": scan,
+        "window": window,
+        "component": component,
+        "eps_range": eps_range,
+    }
     try:
-        if kind == "vad":
-            fig = _vad_figure(source, config, scan, height)
-            path = plots.save_png(fig, out)
-        else:
-            from cwproc.io.netcdf import read_product
-
-            try:
-                ds = read_product(source)
-            except (OSError, ValueError) as exc:
-                raise CwprocError(f"{source}: not a readable NetCDF product ({exc})") from None
-            if kind is None:
-                kind = "stare" if plots.is_stare_product(ds) else plots.default_kind(ds)
-            _check_applicable(
-                kind, time_index=time_index, scan=scan, window=window, component=component
-            )
-            plots.check_variables(ds, kind, str(source))
-            options: dict[str, object] = {}
-            if kind == "structure":
-                check_index(
-                    time_index, ds.sizes.get("time", 0), "--time-index", f"time indices of {source}"
-                )
-                _check_height(height, ds["height"].values)
-                options = {"time_index": time_index or 0, "height": height}
-            elif kind == "sf-window":
-                check_index(window, ds.sizes.get("window", 0), "--window", f"windows of {source}")
-                if component is not None:
-                    names = [str(c) for c in ds["component"].values]
-                    if component not in names:
-                        usage_error(f"--component {component!r}: {source} has {', '.join(names)}")
-                options = {"window": window, "component": component}
-            elif height is not None:
-                usage_error(f"--height is used by --kind structure and vad, not {kind}")
-            path = plots.render(ds, kind, out, source=str(source), **options)
+        with (
+            progress.reporting(progress.shown_on(quiet=False)),
+            progress.bar(desc=f"plot {kind or ''}".strip(), total=2, unit="step") as steps,
+        ):
+            path = _draw(source, out, kind, cfg, steps, given)
     except CwprocError as exc:
         report_failure(str(exc))
         sys.exit(1)
     click.echo(f"wrote {path}")
+
+
+def _draw(source: str, out: str, kind: str | None, cfg, steps, given: dict[str, Any]):
+    """Read SOURCE (one step of ``steps``), check the options ``given`` against it, draw
+    the PNG ``out`` (the second step); returns its path."""
+    from cwproc import plots
+
+    time_index, height, scan = given["time_index"], given["height"], given["scan"]
+    window, component, eps_range = given["window"], given["component"], given["eps_range"]
+
+    if kind == "vad":
+        fig = _vad_figure(source, cfg, scan, height)
+        steps.update(1)
+        path = plots.save_png(fig, out)
+    else:
+        from cwproc.io.netcdf import read_product
+
+        try:
+            ds = read_product(source)
+        except (OSError, ValueError) as exc:
+            raise CwprocError(f"{source}: not a readable NetCDF product ({exc})") from None
+        if kind is None:
+            kind = "stare" if plots.is_stare_product(ds) else plots.default_kind(ds)
+        _check_applicable(
+            kind,
+            time_index=time_index,
+            scan=scan,
+            window=window,
+            component=component,
+            eps=eps_range,
+        )
+        plots.check_variables(ds, kind, str(source))
+        options: dict[str, object] = {}
+        if kind == "structure":
+            check_index(
+                time_index, ds.sizes.get("time", 0), "--time-index", f"time indices of {source}"
+            )
+            _check_height(height, ds["height"].values)
+            options = {"time_index": time_index or 0, "height": height}
+        elif kind == "sf-window":
+            check_index(window, ds.sizes.get("window", 0), "--window", f"windows of {source}")
+            if component is not None:
+                names = [str(c) for c in ds["component"].values]
+                if component not in names:
+                    usage_error(f"--component {component!r}: {source} has {', '.join(names)}")
+            options = {"window": window, "component": component}
+        elif height is not None:
+            usage_error(f"--height is used by --kind structure and vad, not {kind}")
+        if kind == "epsilon":
+            options = {"eps_range": eps_range}
+        steps.update(1)
+        path = plots.render(ds, kind, out, source=str(source), **options)
+    steps.update(1)
+    return path
 
 
 #: option -> kinds that use it
@@ -135,6 +185,7 @@ _OPTION_KINDS = {
     "--scan": ("vad",),
     "--window": ("sf-window",),
     "--component": ("sf-window",),
+    "--eps-range": ("epsilon",),
 }
 
 
@@ -143,7 +194,7 @@ def _check_applicable(kind: str | None, **values: object) -> None:
     if kind is None:
         return
     for name, value in values.items():
-        option = "--" + name.replace("_", "-")
+        option = "--eps-range" if name == "eps" else "--" + name.replace("_", "-")
         if value is not None and kind not in _OPTION_KINDS[option]:
             usage_error(
                 f"{option} is used by --kind {' and '.join(_OPTION_KINDS[option])}, not {kind}"
@@ -164,14 +215,15 @@ def _check_height(height: float | None, heights) -> None:
         )
 
 
-def _vad_figure(source: str, config: str | None, scan: int | None, height: float | None):
+def _vad_figure(source: str, cfg, scan: int | None, height: float | None):
     """Read one scan file, check --scan/--height against it, run its chain and draw the VAD."""
     import numpy as np
 
     from cwproc import plots
+    from cwproc.config import Config
     from cwproc.pipeline import group_units, read_input, run_unit
 
-    cfg = load_config_or_fail(config)
+    cfg = cfg if cfg is not None else Config()
     item = read_input(source, cfg)
     scans = item.dataset
     if "scan" not in scans.coords and "scan" not in scans:
