@@ -236,6 +236,48 @@ def test_info_output_shown_in_the_readme_is_what_cwproc_prints(monkeypatch):
     assert result.output.strip().splitlines() == shown_output(args[-1])
 
 
+def test_main_job_output_shown_in_the_readme_is_what_cwproc_prints(tmp_path, monkeypatch):
+    """Every line the README shows for the main job, notes included, in order, is what
+    ``cwproc retrieve sample_data/ -c sample_data/site.toml -o out/`` prints (run in a
+    folder holding the samples, so that the paths are the README's)."""
+    from click.testing import CliRunner
+
+    from cwproc.cli import main
+
+    (args,) = cwproc_invocations(MAIN_JOB)
+    (tmp_path / "sample_data").symlink_to(REPO / "sample_data")
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    shown = shown_output("note: ")
+    assert shown[-3].startswith("wrote out/")
+    assert result.output.strip().splitlines() == shown
+
+
+def test_readme_epsilon_of_the_first_block_is_the_products(tmp_path):
+    """The ranges of epsilon the README states for the first block of the sample."""
+    from click.testing import CliRunner
+
+    from cwproc.cli import main
+    from cwproc.io.netcdf import read_product
+
+    out = tmp_path / "out"
+    scans, site = REPO / "sample_data" / "streamline", REPO / "sample_data" / "site.toml"
+    args = ["retrieve", str(scans), "-c", str(site), "-o", str(out), "-q"]
+    assert CliRunner().invoke(main, args).exit_code == 0
+    (path,) = out.glob("*_turbulence.nc")
+    eps = read_product(path)["epsilon"].isel(time=0).to_series()
+    text = " ".join(README.read_text(encoding="utf-8").split())
+    m = re.search(r"first block is (0\.\d+)–(0\.\d+) m² s-3 from 130 m up", text)
+    assert m, "README no longer states the range of the first block"
+    up = eps[eps.index >= 130].round(4)
+    assert (float(m[1]), float(m[2])) == (up.min(), up.max())
+    m = re.search(r"lower, (0\.\d+)–(0\.\d+), below 120 m", text)
+    assert m, "README no longer states the range below 120 m"
+    low = eps[eps.index < 120].round(4)
+    assert (float(m[1]), float(m[2])) == (low.min(), low.max())
+
+
 def acdd_report(path: Path, tmp_path: Path) -> dict:
     """The ACDD-1.3 report of the IOOS compliance checker for one NetCDF file."""
     from compliance_checker.runner import CheckSuite, ComplianceChecker
