@@ -119,7 +119,8 @@ def summary_lines(report: BatchReport, verbose: bool) -> list[str]:
             if report.other_format
             else ""
         )
-        + f"{len(report.file_failures)} unreadable; {report.units_total} unit(s): "
+        + f"{len(report.file_failures)} refused (unreadable or another instrument); "
+        f"{report.units_total} unit(s): "
         f"{len(report.succeeded)} processed, {report.units_up_to_date} up to date, "
         f"{len(report.failed)} failed"
         + (f"; {report.files_too_new} file(s) too new (--min-age)" if report.files_too_new else "")

@@ -44,7 +44,7 @@ def test_unrecognised_files_are_counted_and_listed_with_verbose(tmp_path):
     result = invoke(str(inputs), str(tmp_path / "out"))
     assert result.exit_code == 0, result.output
     assert result.stdout.splitlines()[-1].startswith(
-        "2 file(s): 2 unrecognised, 0 unreadable; 0 unit(s)"
+        "2 file(s): 2 unrecognised, 0 refused (unreadable or another instrument); 0 unit(s)"
     )
     verbose = invoke(str(inputs), str(tmp_path / "out"), "--verbose")
     assert verbose.exit_code == 0
