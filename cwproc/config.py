@@ -27,11 +27,7 @@ from pathlib import Path
 from typing import Any, Literal, get_args, get_origin
 
 from cwproc.errors import ConfigError
-from cwproc.physics.constants import (
-    STREAMLINE_DELTA_P_M,
-    STREAMLINE_DELTA_R_M,
-    ZEPHIR_Z_R_COEFFICIENT,
-)
+from cwproc.physics.constants import ZEPHIR_Z_R_COEFFICIENT
 
 # --------------------------------------------------------------------------------------
 # sections
@@ -61,17 +57,21 @@ class InstrumentConfig:
     ] = "auto"
     #: laser wavelength (m)
     wavelength_m: float = 1.5e-6
-    #: pulsed lidar: Delta_p = c sigma_p / 2 (m), Smalikho (2020) eq. 19; Stream Line 15.3 m
-    delta_p_m: float = STREAMLINE_DELTA_P_M
-    #: pulsed lidar: Delta_R = c T_w / 2 (m), Smalikho (2020) eq. 19; Stream Line 18 m
-    delta_r_m: float = STREAMLINE_DELTA_R_M
+    #: pulsed lidar: Delta_p = c sigma_p / 2 (m), Smalikho (2020) eq. 19; unset: from the
+    #: instrument model (Stream Line 15.3 m, cwproc.physics.probe_lengths); set to override
+    delta_p_m: float | None = None
+    #: pulsed lidar: Delta_R = c T_w / 2 (m), Smalikho (2020) eq. 19; unset: each file's
+    #: range gate length (Stream Line header "Range gate length (m)"; 18 m when a file has
+    #: none); set to override the files
+    delta_r_m: float | None = None
     #: cw lidar: Rayleigh-range coefficient c in Z_R = c R^2 (1/m); ZephIR 0.0013
     z_r_coefficient: float = ZEPHIR_Z_R_COEFFICIENT
     #: cw lidar: beam radius a0 at the telescope (m); when set, Z_R = lambda R^2/(2 pi a0^2)
     beam_radius_m: float | None = None
 
     def __post_init__(self) -> None:
-        _positive(self, "wavelength_m", "delta_p_m", "delta_r_m", "z_r_coefficient")
+        _positive(self, "wavelength_m", "z_r_coefficient")
+        _positive(self, *(n for n in ("delta_p_m", "delta_r_m") if getattr(self, n) is not None))
         if self.beam_radius_m is not None and not self.beam_radius_m > 0:
             raise ValueError("beam_radius_m: must be > 0")
 
@@ -189,8 +189,12 @@ class StareConfig:
     #: the product window averages window_s / variance_window_s of them (their scatter
     #: gives the standard error)
     variance_window_s: float = 30.0
-    #: fewest valid rays of a product window for eps (fewer: flag bit 2)
+    #: fewest valid rays of a product window for eps (fewer: flag bit 2); a sparse stare
+    #: needs only half the rays its window holds at its ray rate (docs/stare.md)
     min_samples: int = 20
+    #: fewest rays of a variance window: T is lengthened to hold them (a ray every 25 s:
+    #: T = 100 s), keeping a whole number of variance windows per window (docs/stare.md)
+    min_rays_per_variance_window: int = 4
     #: w farther than this many scaled MADs from the median of its variance window is
     #: screened out (6: a Gaussian w of 20-40 rays keeps > 99.9 % of its rays)
     outlier_threshold: float = 6.0
@@ -206,6 +210,8 @@ class StareConfig:
         )
         if self.min_samples < 3:
             raise ValueError("min_samples: must be >= 3 (variance and skewness)")
+        if self.min_rays_per_variance_window < 3:
+            raise ValueError("min_rays_per_variance_window: must be >= 3 (a variance)")
         if self.variance_window_s > self.window_s:
             raise ValueError("variance_window_s: must not exceed window_s")
 

@@ -18,9 +18,16 @@ def test_every_preset_loads_and_round_trips(name):
 
 
 def test_defaults_are_stream_line():
+    """The probe is not fixed by the defaults: Delta_R from the file, Delta_p from the
+    model (Stream Line 15.3 m); 18 m only for data that give no gate length."""
+    from cwproc.pipeline import probe_from_config
+
     cfg = Config()
-    assert cfg.instrument.delta_p_m == 15.3
-    assert cfg.instrument.delta_r_m == 18.0
+    assert cfg.instrument.delta_p_m is None and cfg.instrument.delta_r_m is None
+    preset = load_config("streamline").instrument
+    assert (preset.delta_p_m, preset.delta_r_m) == (None, None)
+    probe = probe_from_config(cfg.instrument, data_attrs={"instrument_kind": "streamline"})
+    assert (probe.delta_p_m, probe.delta_r_m) == (15.3, 18.0)
 
 
 @pytest.mark.parametrize(

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
@@ -31,6 +31,7 @@ import xarray as xr
 
 from cwproc.config import Config, InstrumentConfig
 from cwproc.errors import CwprocError
+from cwproc.physics.probe_lengths import ProbeLengths, pulsed_probe_lengths
 from cwproc.pipeline.units import ProductUnit
 
 if TYPE_CHECKING:
@@ -42,19 +43,29 @@ if TYPE_CHECKING:
 
 
 def probe_from_config(
-    instrument: InstrumentConfig, *, pulse_transfer: Literal["physical", "printed"] = "physical"
+    instrument: InstrumentConfig,
+    *,
+    pulse_transfer: Literal["physical", "printed"] = "physical",
+    data_attrs: Mapping[str, object] | None = None,
 ) -> Probe:
-    """The probe of an instrument configuration.
+    """The probe of an instrument configuration and of the data it describes.
 
     Parameters
     ----------
     instrument : InstrumentConfig
-        ``kind == "pulsed"`` gives a ``PulsedProbe`` from ``delta_p_m`` and ``delta_r_m``;
+        ``kind == "pulsed"`` gives a ``PulsedProbe`` whose ``Delta_R`` is
+        ``delta_r_m`` when set, else the data's range gate length (``gate_length_m``,
+        the Stream Line header's ``Range gate length (m)``; 18 m when the data have
+        none), and whose ``Delta_p`` is ``delta_p_m`` when set, else the instrument
+        model's (Stream Line 15.3 m), Smalikho (2020), eq. 19
+        (:func:`cwproc.physics.probe_lengths.pulsed_probe_lengths`);
         ``kind == "cw"`` a ``CWProbe`` from ``beam_radius_m`` and ``wavelength_m`` when
         the beam radius is set, else from ``z_r_coefficient``
         (:mod:`cwproc.physics.transfer`).
     pulse_transfer : {"physical", "printed"}
         Form of the Gaussian term of a pulsed probe (see ``PulsedProbe``).
+    data_attrs : mapping, optional
+        Attributes of the scan dataset (``gate_length_m``, ``instrument_kind``).
 
     Raises
     ------
@@ -64,7 +75,8 @@ def probe_from_config(
     from cwproc.physics.transfer import CWProbe, PulsedProbe
 
     if instrument.kind == "pulsed":
-        return PulsedProbe(instrument.delta_p_m, instrument.delta_r_m, pulse_transfer)
+        lengths = pulsed_lengths(instrument, data_attrs)
+        return PulsedProbe(lengths.delta_p_m, lengths.delta_r_m, pulse_transfer)
     if instrument.kind == "cw":
         if instrument.beam_radius_m is not None:
             return CWProbe(
@@ -74,8 +86,25 @@ def probe_from_config(
     raise ValueError(f"instrument kind {instrument.kind!r} has no lidar probe volume")
 
 
-def probe_for(config: Config) -> Probe:
+def pulsed_lengths(
+    instrument: InstrumentConfig, data_attrs: Mapping[str, object] | None = None
+) -> ProbeLengths:
+    """``Delta_p``, ``Delta_R`` (m) and their sources for data with ``data_attrs``."""
+    return pulsed_probe_lengths(data_attrs or {}, instrument.delta_p_m, instrument.delta_r_m)
+
+
+def probe_attrs(config: Config, data_attrs: Mapping[str, object] | None) -> dict[str, object]:
+    """Product attributes recording the pulsed probe used (empty for a cw lidar)."""
+    if config.instrument.kind != "pulsed":
+        return {}
+    return pulsed_lengths(config.instrument, data_attrs).attrs()
+
+
+def probe_for(config: Config, data_attrs: Mapping[str, object] | None = None) -> Probe:
     """The probe-volume description of the configured instrument (physics object).
+
+    ``data_attrs``: the scan dataset's attributes, which give a pulsed probe its range
+    gate length (:func:`probe_from_config`).
 
     Raises
     ------
@@ -88,7 +117,9 @@ def probe_for(config: Config) -> Probe:
             "describes no lidar probe volume; use a lidar configuration (e.g. -c streamline "
             "or -c zephir300) for scan data"
         )
-    return probe_from_config(config.instrument, pulse_transfer=config.turbulence.pulse_transfer)
+    return probe_from_config(
+        config.instrument, pulse_transfer=config.turbulence.pulse_transfer, data_attrs=data_attrs
+    )
 
 
 def probe_mismatch(scans: xr.Dataset, config: Config) -> str:
@@ -178,10 +209,11 @@ def process_scans(
     if int(sf.sizes.get("time", 0)) >= 1:
         products["turbulence"] = epsilon.estimate_epsilon(
             sf,
-            probe=probe_for(config),
+            probe=probe_for(config, scans.attrs),
             lag_number=config.turbulence.lag_number,
             model=config.turbulence.model,
         )
+        products["turbulence"].attrs.update(probe_attrs(config, scans.attrs))
     elif notes is not None:
         notes.append("turbulence not computed: no complete block of scans")
     return products
@@ -292,14 +324,17 @@ def stare_products(
         max_wind_gap_s=config.stare.max_wind_gap_s,
         delta_p_m=config.instrument.delta_p_m,
         delta_r_m=config.instrument.delta_r_m,
+        min_rays_per_variance_window=config.stare.min_rays_per_variance_window,
     )
     product = stare_product(stares, wind if has_wind else None, options)
-    ray_s = float(product.attrs["ray_duration_s"])
-    if notes is not None and options.variance_window_s < 3 * ray_s:
+    used = float(product.attrs["variance_window_s"])
+    if notes is not None and used != options.variance_window_s:
         notes.append(
-            f"stare: [stare] variance_window_s = {options.variance_window_s:g} s holds fewer "
-            f"than 3 rays of {ray_s:.2f} s: no variance and no eps (stare_flag bit 2); "
-            "lengthen it"
+            f"stare: variance windows of {used:.3g} s instead of [stare] variance_window_s = "
+            f"{options.variance_window_s:g} s, to hold at least "
+            f"{options.min_rays_per_variance_window} rays (a ray every "
+            f"{float(product.attrs['ray_interval_s']):.3g} s) in a whole number per "
+            f"{options.window_s:g}-s window"
         )
     return product
 

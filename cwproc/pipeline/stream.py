@@ -50,6 +50,7 @@ from cwproc.pipeline.background import correct_background, find_background_files
 from cwproc.pipeline.chain import (
     describe_scan_file,
     describe_scan_inputs,
+    probe_attrs,
     probe_for,
     probe_mismatch,
     screened_wind,
@@ -405,10 +406,11 @@ def stream_products(
         with heap_returned():
             products["turbulence"] = epsilon.estimate_epsilon(
                 sf,
-                probe=probe_for(config),
+                probe=probe_for(config, attrs),
                 lag_number=config.turbulence.lag_number,
                 model=config.turbulence.model,
             )
+            products["turbulence"].attrs.update(probe_attrs(config, attrs))
     elif state.turbulence and any_wind and notes is not None:
         notes.append("turbulence not computed: no complete block of scans")
     if state.stares and config.stare.enabled:

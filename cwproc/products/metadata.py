@@ -336,9 +336,11 @@ _PRODUCT_VARIABLES: dict[str, VarMeta] = {
         "standard error of the stare dissipation rate",
         "m2 s-3",
         comment=(
-            "1.5 eps SE(sigma_v^2)/sigma_v^2 (SE: scatter of the variances of the "
-            "variance windows in the product window over the square root of their number) "
-            "and SE(U)/U combined"
+            "1.5 eps SE(sigma_v^2)/sigma_v^2 and SE(U)/U combined; SE(sigma_v^2) is the "
+            "standard deviation of the mean window variance of Gaussian rays sampled as "
+            "these were (their times, eps, U and the noise; the variance of a quadratic "
+            "form), valid for any number of variance windows. The probe used is in the "
+            "global attributes probe_delta_r_m, probe_delta_p_m and their *_source"
         ),
         coverage_content_type="qualityInformation",
     ),

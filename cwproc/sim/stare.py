@@ -232,12 +232,15 @@ def stare_covariance(
     delta_r_m: float = STREAMLINE_DELTA_R_M,
     sub_points: int = 6,
     range_step_m: float = 3.0,
+    ray_interval_s: float | None = None,
 ) -> np.ndarray:
     """Covariance per eps^(2/3) of the ray- and gate-averaged w of ``n_rays`` stare rays.
 
     ``B(i, k) = B_0 - (1/2) <D_33(U (t_i - t_k + tau - tau'), s - s')>``, averaged over
-    ``sub_points`` instants ``tau`` of each ray's dwell and the pulsed range weighting
-    ``s`` (:func:`cwproc.sim.exact_gaussian.range_nodes`); Toeplitz in ``i - k``. The
+    ``sub_points`` instants ``tau`` of each ray's dwell (``ray_duration_s``) and the
+    pulsed range weighting ``s`` (:func:`cwproc.sim.exact_gaussian.range_nodes`), rays
+    ``ray_interval_s`` apart (default: back to back, a sparse stare when longer, e.g.
+    one ray every 25 s between VADs); Toeplitz in ``i - k``. The
     constant ``B_0`` (the largest half structure function) keeps the matrix positive
     definite; the variances about a window mean do not depend on it (a pure Kolmogorov
     field has no finite variance).
@@ -248,7 +251,8 @@ def stare_covariance(
     dtau = (tau[:, None] - tau[None, :]).ravel()
     ds = (s[:, None] - s[None, :]).ravel()
     wpair = (ws[:, None] * ws[None, :]).ravel()
-    lags = np.arange(n_rays) * ray_duration_s
+    step = ray_duration_s if ray_interval_s is None else ray_interval_s
+    lags = np.arange(n_rays) * step
     half = np.empty(n_rays)
     for j, lag in enumerate(lags):  # one lag at a time: (sub^2, nodes^2) points
         rx = wind_speed_m_s * (lag + dtau)[:, None]
@@ -288,15 +292,21 @@ def stare_windows_dataset(
     window_s: float = 300.0,
     ray_s: float = 20000 / 15000.0,
     range_m: float = 300.0,
+    ray_interval_s: float | None = None,
+    gate_length_m: float = 18.0,
+    pulses_per_ray: int = 20000,
 ) -> xr.Dataset:
     """Windows of stare rays ``w`` ``(n_windows, n_rays)`` (m s-1) as a Stream Line scan
     dataset of one gate at ``range_m``: window ``k`` starts at ``k window_s``, its rays
-    are ``ray_s`` long (20000 pulses at 15 kHz), vertical, at the linear ``snr``.
+    are ``ray_s`` long (20000 pulses at 15 kHz) and ``ray_interval_s`` apart (default
+    ``ray_s``), vertical, at the linear ``snr``; the header's ``gate_length_m`` and its
+    points per gate (3 m per point).
 
     What :func:`gaussian_stares` draws, ready for :func:`cwproc.stages.stare.stare_product`.
     """
     n_win, n_ray = w.shape
-    seconds = np.arange(n_win)[:, None] * window_s + (np.arange(n_ray)[None, :] + 0.5) * ray_s
+    step = ray_s if ray_interval_s is None else ray_interval_s
+    seconds = np.arange(n_win)[:, None] * window_s + (np.arange(n_ray)[None, :] + 0.5) * step
     times = np.datetime64("2024-01-01T00:00", "ns") + np.round(seconds.ravel() * 1e9).astype(
         "timedelta64[ns]"
     )
@@ -309,10 +319,15 @@ def stare_windows_dataset(
         scan=np.full(times.size, -1),
         snr=snr,
         delta_p_m=15.3,
-        delta_r_m=18.0,
+        delta_r_m=gate_length_m,
         truth={},
     )
-    ds.attrs.update(points_per_gate=10, pulses_per_ray=20000, scan_type="Stare")
+    ds.attrs.update(
+        points_per_gate=round(gate_length_m / 3.0),
+        pulses_per_ray=int(pulses_per_ray),
+        scan_type="Stare",
+        gate_length_m=float(gate_length_m),
+    )
     return ds
 
 
@@ -428,3 +443,80 @@ def write_stare_series(
         truth["vad_every_s"] = float(vad_every_s)
     written.append(write_truth(truth_path, truth))
     return written
+
+
+def exact_stare_trial(
+    *,
+    gate_length_m: float,
+    ray_interval_s: float,
+    n_windows: int,
+    epsilon: float = 0.01,
+    wind_speed_m_s: float = 5.0,
+    snr: float = 0.05,
+    window_s: float = 300.0,
+    pulses_per_ray: int = 20000,
+    prf_hz: float = 15000.0,
+    seed: int = 29,
+    min_rays_per_variance_window: int = 4,
+) -> dict[str, np.ndarray | float]:
+    """Stare eps of ``n_windows`` independent exact-statistics windows against the truth.
+
+    The rays sample the way the instrument does: Gaussian w with the exact covariance of
+    the Kolmogorov field averaged over the pulsed weighting of a ``gate_length_m`` gate
+    (Delta_p 15.3 m) and over each ray's dwell ``pulses_per_ray / prf_hz``, carried past
+    at ``wind_speed_m_s``, a ray every ``ray_interval_s``; white noise of the sigma_e the
+    header's SNR predicts (Pearson et al. (2009), eq. 3). The file says only its gate
+    length: the retrieval (:func:`cwproc.stages.stare.stare_product`, default options)
+    takes the probe and the variance windows (at least ``min_rays_per_variance_window``
+    rays) from it.
+
+    Returns
+    -------
+    dict
+        ``ratio`` (eps_hat / eps per window), ``se_ratio`` (reported standard error /
+        eps), the product's ``variance_window_s`` and ``probe_delta_r_m``.
+    """
+    from cwproc.stages.stare import StareOptions, stare_product
+
+    ray_s = pulses_per_ray / prf_hz
+    n_rays = int(window_s // ray_interval_s)
+    noise = stare_noise_std(snr, round(gate_length_m / 3.0), pulses_per_ray)
+    w = gaussian_stares(
+        n_windows,
+        n_rays,
+        epsilon=epsilon,
+        noise_std_m_s=noise,
+        seed=seed,
+        ray_duration_s=ray_s,
+        ray_interval_s=ray_interval_s,
+        wind_speed_m_s=wind_speed_m_s,
+        delta_r_m=gate_length_m,
+    )
+    ds = stare_windows_dataset(
+        w,
+        snr,
+        window_s=window_s,
+        ray_s=ray_s,
+        ray_interval_s=ray_interval_s,
+        gate_length_m=gate_length_m,
+        pulses_per_ray=pulses_per_ray,
+    )
+    wind = xr.Dataset(
+        {"wind_speed": (("time", "height"), np.full((2, 2), wind_speed_m_s))},
+        coords={
+            "time": np.array(["2024-01-01", "2024-01-09"], dtype="datetime64[ns]"),
+            "height": [0.0, 1000.0],
+        },
+    )
+    options = StareOptions(
+        prf_hz=prf_hz,
+        window_s=window_s,
+        min_rays_per_variance_window=min_rays_per_variance_window,
+    )
+    product = stare_product(ds, wind, options)
+    return {
+        "ratio": product["epsilon_stare"].values[:, 0] / epsilon,
+        "se_ratio": product["epsilon_stare_standard_error"].values[:, 0] / epsilon,
+        "variance_window_s": float(product.attrs["variance_window_s"]),
+        "probe_delta_r_m": float(product.attrs["probe_delta_r_m"]),
+    }

@@ -11,6 +11,7 @@ made and eps is NaN with flag bit 1.
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
 
@@ -19,8 +20,8 @@ import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.physics import noise, stare
-from cwproc.physics.constants import STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M
 from cwproc.physics.geometry import height_from_range
+from cwproc.physics.probe_lengths import ProbeLengths, pulsed_probe_lengths
 from cwproc.stages.qc import snr_flags
 
 #: rays at or above this elevation (deg) are vertical stares
@@ -37,12 +38,18 @@ HALO_PRF_HZ = 15000.0
 CARRIED_ATTRS = ("snr_correction", "background_files")
 
 
+#: fewest rays of a variance window (see :func:`variance_window_length`)
+MIN_RAYS_PER_VARIANCE_WINDOW = 4
+
+
 @dataclass(frozen=True)
 class StareOptions:
     """Settings of the stare product (the ``[stare]`` configuration section).
 
     The defaults are those of the ``streamline`` preset: its ``[stare]`` section,
-    ``[qc] snr_min`` and the ``[instrument]`` pulse and gate half-widths.
+    ``[qc] snr_min`` and the ``[instrument]`` pulse and gate lengths (``None``: the
+    range gate length of the data and the pulse of the instrument model,
+    :func:`cwproc.physics.probe_lengths.pulsed_probe_lengths`).
     """
 
     window_s: float = 300.0
@@ -52,8 +59,9 @@ class StareOptions:
     outlier_threshold: float = 6.0
     prf_hz: float = HALO_PRF_HZ
     max_wind_gap_s: float = 3600.0
-    delta_p_m: float = STREAMLINE_DELTA_P_M
-    delta_r_m: float = STREAMLINE_DELTA_R_M
+    delta_p_m: float | None = None
+    delta_r_m: float | None = None
+    min_rays_per_variance_window: int = MIN_RAYS_PER_VARIANCE_WINDOW
 
 
 def stare_mask(ds: xr.Dataset) -> np.ndarray:
@@ -87,6 +95,38 @@ def ray_duration_s(ds: xr.Dataset, prf_hz: float = HALO_PRF_HZ) -> float:
     raise CwprocError(
         "stare: the ray accumulation time is unknown (no pulses_per_ray, a single ray)"
     )
+
+
+def ray_interval_s(time: np.ndarray, ray_s: float) -> float:
+    """Typical time between consecutive rays (s): the median positive step, at least a ray.
+
+    A stare interrupted by VADs keeps its own ray rate (the median ignores the gaps).
+    """
+    t = np.sort(time.astype("datetime64[ns]").astype(np.int64)) / 1e9
+    step = np.diff(t)
+    step = step[step > 0]
+    return float(max(np.median(step), ray_s)) if step.size else float(ray_s)
+
+
+def variance_window_length(
+    interval_s: float,
+    window_s: float = 300.0,
+    variance_window_s: float = 30.0,
+    min_rays_per_variance_window: int = MIN_RAYS_PER_VARIANCE_WINDOW,
+) -> float:
+    """Length T (s) of the variance windows: at least ``min_rays`` rays, a divisor of the window.
+
+    ``T = window_s / k``, ``k = max(1, floor(window_s / max(variance_window_s,
+    N x interval_s)))``, ``N = min_rays_per_variance_window``: the configured ``T``
+    where the rays are dense (1.33-s rays, 30 s: 22 rays), longer where they are sparse
+    (a ray every 25 s: 100 s, 4 rays, in 300-s windows), and always a whole number of
+    variance windows per product window.
+    With fewer than ``N`` rays a window's variance is mostly noise and sampling
+    (see docs/stare.md for the rule's measured basis).
+    """
+    needed = max(variance_window_s, min_rays_per_variance_window * interval_s)
+    k = max(1, math.floor(window_s / needed + 1e-9))
+    return window_s / k
 
 
 def window_index(
@@ -237,10 +277,90 @@ def group_mean_se(
     )
 
 
+def band_factor_per_window(
+    rays_per_sub: np.ndarray,
+    sub_window: np.ndarray,
+    n_windows: int,
+    speed: np.ndarray,
+    *,
+    ray_s: float,
+    interval_s: float,
+    lengths: ProbeLengths,
+) -> np.ndarray:
+    """Expected mean variance of a product window per eps^(2/3) (m^(4/3)), ``(window, height)``.
+
+    The mean over the window's variance windows (those of 3 rays or more) of ``G`` of
+    their ``n_s`` rays ``U interval_s`` apart, each ``U ray_s`` long, through the range
+    gate (:func:`cwproc.physics.stare.band_variance_factor` with ``n_rays``).
+    """
+    out = np.zeros(speed.shape)
+    used = rays_per_sub >= 3
+    share = np.bincount(sub_window[used], minlength=n_windows).astype(float)
+    finite = np.isfinite(speed) & (speed > 0)
+    for n in np.unique(rays_per_sub[used]):
+        weight = np.bincount(sub_window[used & (rays_per_sub == n)], minlength=n_windows)
+        g = np.full(speed.shape, np.nan)
+        u, inverse = np.unique(speed[finite], return_inverse=True)
+        if u.size > 64:  # smooth in U: a log grid and interpolation
+            grid = np.geomspace(u[0], u[-1], 64)
+            values = _band_factor(grid, int(n), ray_s, interval_s, lengths)
+            g[finite] = np.exp(np.interp(np.log(u), np.log(grid), np.log(values)))[inverse]
+        elif u.size:
+            g[finite] = _band_factor(u, int(n), ray_s, interval_s, lengths)[inverse]
+        out = out + weight[:, None] * g
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(share[:, None] > 0, out / share[:, None], np.nan)
+
+
+def _band_factor(
+    speed: np.ndarray, n: int, ray_s: float, interval_s: float, lengths: ProbeLengths
+) -> np.ndarray:
+    """``G`` of ``n`` rays at the wind speeds ``speed`` (m s-1)."""
+    return stare.band_variance_factor(
+        speed * n * interval_s,
+        speed * ray_s,
+        lengths.delta_p_m,
+        lengths.delta_r_m,
+        n_rays=n,
+        ray_spacing_m=speed * interval_s,
+    )
+
+
+def variance_se_per_window(
+    time: np.ndarray,
+    index: np.ndarray,
+    sub: np.ndarray,
+    n_windows: int,
+    epsilon: np.ndarray,
+    speed: np.ndarray,
+    noise_variance: np.ndarray,
+) -> np.ndarray:
+    """Standard error (m2 s-2) of each window's mean variance for its eps, U and noise.
+
+    The variance of a Gaussian quadratic form (:func:`cwproc.physics.stare.
+    variance_form_traces`) over the rays of the window as they were sampled; the traces
+    take every ray of the window (gates with screened rays get the same traces).
+    """
+    seconds = (time.astype("datetime64[ns]") - time.min()) / np.timedelta64(1, "s")
+    traces = np.full((3, n_windows), np.nan)
+    for j in range(n_windows):  # a few hundred windows a day, each n^2 of its rays
+        rays = np.flatnonzero(index == j)
+        traces[:, j] = stare.variance_form_traces(seconds[rays], sub[rays])
+    t0, t1, t2 = (traces[i][:, None] for i in range(3))
+    return stare.variance_standard_error(epsilon, speed, noise_variance, (t0, t1, t2))
+
+
 def stare_product(
     stares: xr.Dataset, wind: xr.Dataset | None = None, options: StareOptions | None = None
 ) -> xr.Dataset:
     """w statistics and eps per window and height from vertical stares.
+
+    Variance windows: :func:`variance_window_length` (at least
+    ``options.min_rays_per_variance_window`` rays). eps: the mean corrected variance over
+    :func:`band_factor_per_window`, its standard error from
+    :func:`variance_se_per_window` and the wind's error. Probe: ``Delta_R`` the data's
+    range gate length and ``Delta_p`` the instrument model's unless set in ``options``
+    (recorded in the attributes ``probe_*``).
 
     Parameters
     ----------
@@ -261,17 +381,23 @@ def stare_product(
     if stares.sizes.get("ray", 0) == 0:
         raise CwprocError("stare: no vertical rays")
     options = StareOptions() if options is None else options
+    lengths = pulsed_probe_lengths(stares.attrs, options.delta_p_m, options.delta_r_m)
     elevation = float(np.nanmedian(stares["elevation"].values))
     height = height_from_range(stares["range"].values.astype(float), elevation)
     flag_radial = snr_flags(stares["snr"].values, options.snr_min) if "snr" in stares else 0
     velocity = stares["radial_velocity"].values.astype(float)
     w = np.where((flag_radial == 0) & np.isfinite(velocity), velocity, np.nan)
     w = w * np.sign(np.sin(np.deg2rad(stares["elevation"].values)))[:, None]
+    time = stares["time"].values
     t_ray = ray_duration_s(stares, options.prf_hz)
-    index, centre, _ = window_index(stares["time"].values, options.window_s)
+    interval = ray_interval_s(time, t_ray)
+    t_var = variance_window_length(
+        interval, options.window_s, options.variance_window_s, options.min_rays_per_variance_window
+    )
+    index, centre, _ = window_index(time, options.window_s)
     n_win = centre.size
     # variance windows T inside each product window (O'Connor et al. (2010), eq. 4)
-    sub_raw, _, _ = window_index(stares["time"].values, options.variance_window_s)
+    sub_raw, _, _ = window_index(time, t_var)
     sub_ids, sub = np.unique(index * (1 << 32) + sub_raw, return_inverse=True)
     sub = sub.ravel()
     sub_window = (sub_ids >> 32).astype(np.int64)
@@ -279,26 +405,29 @@ def stare_product(
     count, mean, _, skew = stare.window_moments(w, index, n_win)
     sigma_e = noise_std_per_ray(stares)
     raw_sub, var_sub, noise_sub = subwindow_variances(w, sub, sub_ids.size, sigma_e**2)
-    var_corr, var_se, _ = group_mean_se(var_sub, sub_window, n_win)
+    var_corr, _, _ = group_mean_se(var_sub, sub_window, n_win)
     var, _, _ = group_mean_se(raw_sub, sub_window, n_win)
     noise_var, _, _ = group_mean_se(noise_sub, sub_window, n_win)
     speed, speed_err, far = interpolate_wind(wind, centre, height, options.max_wind_gap_s)
-    l1 = speed * options.variance_window_s
-    ln = speed * t_ray
-    factor = stare.band_variance_factor(l1, ln, options.delta_p_m, options.delta_r_m)
+    factor = band_factor_per_window(
+        np.bincount(sub, minlength=sub_ids.size),
+        sub_window,
+        n_win,
+        speed,
+        ray_s=t_ray,
+        interval_s=interval,
+        lengths=lengths,
+    )
     eps = stare.epsilon_from_variance(var_corr, factor)
+    noise_known = np.where(np.isfinite(noise_var), noise_var, 0.0)
+    var_se = variance_se_per_window(time, index, sub, n_win, eps, speed, noise_known)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        eps = eps / stare.power_bias_divisor(var_se / var_corr)
     eps_se = stare.epsilon_standard_error(eps, var_corr, var_se, speed, speed_err)
-    flag = np.zeros((n_win, height.size), dtype=np.int8)
-    flag |= np.where(~np.isfinite(speed), FLAG_NO_WIND, 0).astype(np.int8)
-    # too few rays in the window, or in every one of its variance windows (< 3 each)
-    few = (count < options.min_samples) | ~np.isfinite(var)
-    flag |= np.where(few, FLAG_TOO_FEW_SAMPLES, 0).astype(np.int8)
-    noisy = np.isfinite(var_corr) & ~(var_corr > 0)
-    flag |= np.where(noisy, FLAG_NOISE_DOMINATED, 0).astype(np.int8)
-    flag |= np.where(far & np.isfinite(speed), FLAG_WIND_FAR, 0).astype(np.int8)
+    # fewest rays: min_samples, or half of what the window holds at this ray rate
+    min_rays = min(options.min_samples, max(3, math.ceil(0.5 * options.window_s / interval)))
+    flag = stare_flags(count, var, var_corr, speed, far, min_rays)
     bad = (flag & (FLAG_NO_WIND | FLAG_TOO_FEW_SAMPLES | FLAG_NOISE_DOMINATED)) != 0
-    eps = np.where(bad, np.nan, eps)
-    eps_se = np.where(bad, np.nan, eps_se)
     return _assemble(
         stares,
         height=height,
@@ -312,17 +441,44 @@ def stare_product(
             "w_noise_variance": noise_var,
             "w_n_samples": count,
             "stare_wind_speed": speed,
-            "epsilon_stare": eps,
-            "epsilon_stare_standard_error": eps_se,
+            "epsilon_stare": np.where(bad, np.nan, eps),
+            "epsilon_stare_standard_error": np.where(bad, np.nan, eps_se),
             "stare_flag": flag,
         },
         attrs={
             "window_s": float(options.window_s),
-            "variance_window_s": float(options.variance_window_s),
+            "variance_window_s": float(t_var),
+            "variance_window_s_configured": float(options.variance_window_s),
             "ray_duration_s": float(t_ray),
+            "ray_interval_s": float(interval),
             "elevation_deg": elevation,
+            **lengths.attrs(),
         },
     )
+
+
+def stare_flags(
+    count: np.ndarray,
+    var: np.ndarray,
+    var_corr: np.ndarray,
+    speed: np.ndarray,
+    far: np.ndarray,
+    min_rays: int,
+) -> np.ndarray:
+    """``stare_flag`` bits per window and height (``cwproc.products.metadata``).
+
+    Bit 2 where a window has fewer than ``min_rays`` valid rays or no variance window of
+    3 valid rays.
+    """
+    flag = np.zeros(var.shape, dtype=np.int8)
+    flag |= np.where(~np.isfinite(speed), FLAG_NO_WIND, 0).astype(np.int8)
+    # too few rays in the window, or in every one of its variance windows (< 3 each)
+    few = (count < min_rays) | ~np.isfinite(var)
+    flag |= np.where(few, FLAG_TOO_FEW_SAMPLES, 0).astype(np.int8)
+    noisy = np.isfinite(var_corr) & ~(var_corr > 0)
+    flag |= np.where(noisy, FLAG_NOISE_DOMINATED, 0).astype(np.int8)
+    flag |= np.where(far & np.isfinite(speed), FLAG_WIND_FAR, 0).astype(np.int8)
+    return flag
 
 
 def noise_std_per_ray(ds: xr.Dataset) -> np.ndarray:

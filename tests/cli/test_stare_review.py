@@ -116,19 +116,20 @@ def test_a_stare_file_cut_mid_line_is_named_as_cut(stares, tmp_path):
     assert "Traceback" not in result.output
 
 
-def test_variance_windows_too_short_for_three_rays_are_flagged_and_named(stares, tmp_path):
-    """1-s variance windows of 1.33-s rays hold one ray: eps NaN must carry flag bit 2."""
-    from cwproc.stages.stare import FLAG_TOO_FEW_SAMPLES
-
+def test_variance_windows_too_short_for_the_ray_rate_are_lengthened_and_named(stares, tmp_path):
+    """1-s variance windows of 1.33-s rays would hold one ray: they are lengthened to hold
+    4 (a whole number per 300-s window), said in a note and in the product."""
     config = tmp_path / "short.toml"
     config.write_text("[stare]\nvariance_window_s = 1\n", encoding="utf-8")
     result = run("retrieve", stares, "-o", tmp_path / "out", "-c", config)
     assert result.exit_code == 0, result.output
-    assert "variance_window_s = 1 s holds fewer than 3 rays of 1.33 s" in result.output
+    assert "variance windows of 5.36 s instead of [stare] variance_window_s = 1 s" in (
+        result.output
+    )
     with xr.open_dataset(tmp_path / "out" / STARE) as ds:
-        assert (ds["w_n_samples"].values >= 20).any()  # enough rays in the 300-s windows
-        assert np.isnan(ds["w_variance_corrected"].values).all()
-        assert (ds["stare_flag"].values & FLAG_TOO_FEW_SAMPLES).all()
+        assert ds.attrs["variance_window_s"] == pytest.approx(300 / 56)
+        assert ds.attrs["variance_window_s"] >= 4 * ds.attrs["ray_interval_s"]
+        assert np.isfinite(ds["w_variance_corrected"].values).any()
 
 
 def test_info_names_the_line_of_a_damaged_background_file(tmp_path):

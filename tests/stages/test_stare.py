@@ -43,7 +43,7 @@ def constant_wind(speed: float) -> xr.Dataset:
 @pytest.mark.parametrize("eps", [1e-4, 1e-3, 1e-2, 1e-1])
 def test_simulated_truth_recovered(eps):
     """Median stare eps within 20 % of the truth, 200 windows of exact statistics."""
-    noise = float(velocity_noise_std(SNR, 10, 20000, bandwidth_from_resolution(0.0382)))
+    noise = float(velocity_noise_std(SNR, 6, 20000, bandwidth_from_resolution(0.0382)))
     n_ray = round(WINDOW_S / RAY_S)
     w = gaussian_stares(
         200,
@@ -64,7 +64,7 @@ def test_simulated_truth_recovered(eps):
 
 def test_pure_noise_is_flagged_not_turned_into_eps():
     """w = instrument noise only: the noise variance from the SNR takes it all away."""
-    noise = float(velocity_noise_std(SNR, 10, 20000, bandwidth_from_resolution(0.0382)))
+    noise = float(velocity_noise_std(SNR, 6, 20000, bandwidth_from_resolution(0.0382)))
     w = noise * np.random.default_rng(4).standard_normal((40, 225))
     product = stare_product(stare_dataset(w), constant_wind(5.0), StareOptions())
     flagged = (product["stare_flag"].values[:, 0] & FLAG_NOISE_DOMINATED) != 0

@@ -145,6 +145,7 @@ import xarray as xr
 
 from cwproc.config import load_config
 from cwproc.physics import spectra
+from cwproc.physics.constants import STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M
 from cwproc.physics.exact_lag import is_cw_probe
 from cwproc.physics.spectra import Model
 from cwproc.physics.transfer import Probe, PulsedProbe
@@ -158,9 +159,10 @@ from cwproc.stages.epsilon.product import describe, product_arrays, turbulence_d
 
 #: the preset whose values are the defaults of :func:`estimate_epsilon`
 PRESET = load_config("streamline")
-#: the preset's probe volume (``[instrument]`` and ``turbulence.pulse_transfer``)
+#: the preset's probe volume for data without a range gate length (the pipeline passes
+#: the probe of the file's gate, :func:`cwproc.pipeline.probe_for`)
 PRESET_PROBE: Probe = PulsedProbe(
-    PRESET.instrument.delta_p_m, PRESET.instrument.delta_r_m, PRESET.turbulence.pulse_transfer
+    STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M, PRESET.turbulence.pulse_transfer
 )
 
 
