@@ -372,6 +372,18 @@ def circulant_correlation_row(
     p2 = np.sum(s[:, None, None, :] * r_vec, axis=-1) / safe
     p12 = p1 * p2
     out = np.empty((np.size(outer_scales), lags.size))
+    if model == "exponential":  # eq. 17: r^(2/3) once, exp per scale (no power per scale)
+        x0 = np.cbrt(r * r)
+        cusp = np.cbrt(np.subtract.outer(probe.z_fine, probe.z_fine) ** 2)
+        for i, scale in enumerate(np.atleast_1d(outer_scales)):
+            x = x0 / float(scale) ** (2.0 / 3.0)
+            f = np.exp(-EXPONENTIAL_COEFFICIENT * x)
+            cx = (EXPONENTIAL_COEFFICIENT / 3.0) * x
+            val = f * ((1.0 - cx) * dot[:, None, None] + cx * p12)
+            out[i] = val.reshape(val.shape[0], -1) @ ww.ravel()
+            same = np.exp(-EXPONENTIAL_COEFFICIENT * cusp / float(scale) ** (2.0 / 3.0))
+            out[i, lags == 0] = probe.w_fine @ same @ probe.w_fine
+        return out
     for i, scale in enumerate(np.atleast_1d(outer_scales)):
         transverse_b, rb = _correlation_pair(r, 1.0, float(scale), model)
         out[i] = np.einsum("mjk,jk->m", transverse_b * dot[:, None, None] - rb * p12, ww)

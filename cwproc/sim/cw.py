@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from cwproc import progress
 from cwproc.io.scan_netcdf import write_scan_netcdf
 from cwproc.physics.correlation import (
     CorrelationModel,
@@ -400,7 +401,7 @@ def simulate_cw_scans(
     n_rays = n_scans * m
     velocity = np.empty((n_rays, heights_m.size))
     truth = np.empty_like(velocity)
-    for j, h in enumerate(heights_m):
+    for j, h in progress.track(list(enumerate(heights_m)), desc="heights", unit="height"):
         vel, vd = simulate_cw_height(
             rng,
             lidar,

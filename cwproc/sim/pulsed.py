@@ -128,49 +128,38 @@ def sample_conical_scans(
     n_scans : int
         Number of rotations.
     wind_speed_m_s, wind_direction_deg, vertical_wind_m_s : float
-        Mean horizontal wind (m s-1), the direction it blows from (deg from north) and
-        the mean vertical wind (m s-1).
-    noise_std_m_s : float
-        sigma_e, standard deviation of the white estimation noise (m s-1).
-    seed : int
-        Seed of the noise generator.
+        Mean horizontal wind (m s-1), its direction (from, deg), mean vertical wind (m s-1).
+    noise_std_m_s, seed : float, int
+        sigma_e, standard deviation of the white estimation noise (m s-1); its seed.
     delta_p_m, delta_r_m : float
         Pulse and window lengths of the range weighting (m), Smalikho (2020), eq. 19.
     start_azimuth_deg, clockwise, start_time : float, bool, str or numpy.datetime64
         Azimuth (deg) and UTC time of the start of the first ray; direction of rotation.
     sweep_points : int
-        Beam positions averaged across the azimuth step of each ray (transverse
-        averaging, Smalikho (2020), eq. 20).
+        Beam positions averaged across each ray's azimuth step (Smalikho (2020), eq. 20).
     sweep_advection : bool
         ``True`` (physical): the field moves with the wind while the beam sweeps across
         the ray. ``False``: the sweep is taken at the ray's centre time (averaged over
         the arc ``dy`` only), the model of Smalikho (2020), eq. 15.
     range_step_m : float, optional
-        Spacing of the nodes of the range weighting (m); the field spacing by default.
+        Spacing of the range weighting's nodes (m); default the field spacing.
     snr : float, optional
         Linear SNR written to the dataset (constant); by default the one at which the
         settings predict ``noise_std_m_s`` (:func:`cwproc.physics.noise.snr_for_noise_std`).
     lidar_position_m : tuple of float
         (x, y, z) of the lidar in the field (m).
-    first_scan : int
-        Number of the first scan of the series (its rays start at
-        ``first_scan * scan_period_s`` after ``start_time``): a long series made piece by
-        piece, each piece with ``first_scan`` its place in it.
-    noise_rng : numpy.random.Generator, optional
-        Generator of the noise (default: a new one from ``seed``). The pieces of one
-        series share one, so that they hold the noise of the whole series made at once.
+    first_scan, noise_rng : int, numpy.random.Generator, optional
+        A piece of a long series: its first scan and the series' noise generator.
 
     Returns
     -------
     xarray.Dataset
-        Canonical scan dataset (dims ``ray``, ``range``) with attrs of a Stream Line and
-        the simulation truth (``sim_*`` attrs).
+        Canonical scan dataset (``ray``, ``range``), Stream Line attrs, truth ``sim_*``.
     """
     ranges = np.asarray(ranges_m, dtype=float)
-    if not (rays_per_scan >= 3 and n_scans >= 1 and sweep_points >= 1 and scan_period_s > 0):
-        raise ValueError("rays_per_scan >= 3, n_scans, sweep_points >= 1, scan_period_s > 0")
-    if not (noise_std_m_s >= 0 and ranges.size >= 1):
-        raise ValueError("noise_std_m_s >= 0 and at least one range needed")
+    _check_scan_arguments(
+        rays_per_scan, n_scans, sweep_points, scan_period_s, noise_std_m_s, ranges
+    )
     step = field.spacing_m if range_step_m is None else float(range_step_m)
     mean_wind = np.array([*wind_components(wind_speed_m_s, wind_direction_deg), vertical_wind_m_s])
     sign = 1.0 if clockwise else -1.0
@@ -215,6 +204,21 @@ def sample_conical_scans(
             "sim_scan_period_s": float(scan_period_s),
         },
     )
+
+
+def _check_scan_arguments(
+    rays_per_scan: int,
+    n_scans: int,
+    sweep_points: int,
+    scan_period_s: float,
+    noise_std_m_s: float,
+    ranges: np.ndarray,
+) -> None:
+    """ValueError for arguments :func:`sample_conical_scans` cannot scan with."""
+    if not (rays_per_scan >= 3 and n_scans >= 1 and sweep_points >= 1 and scan_period_s > 0):
+        raise ValueError("rays_per_scan >= 3, n_scans, sweep_points >= 1, scan_period_s > 0")
+    if not (noise_std_m_s >= 0 and ranges.size >= 1):
+        raise ValueError("noise_std_m_s >= 0 and at least one range needed")
 
 
 def field_truth(field: FrozenField) -> dict[str, float | int]:

@@ -198,8 +198,13 @@ def test_compiled_and_numpy_sampling_agree_and_pieces_make_the_series(monkeypatc
     np.testing.assert_array_equal(
         np.concatenate([p["time"].values for p in parts]), whole["time"].values
     )
+    late = sample_conical_scans(field, n_scans=1, first_scan=4800, **kw)  # a day on: 600 km
     monkeypatch.setattr(pulsed, "_trilinear", None)
     slow = sample_conical_scans(field, n_scans=3, **kw)
     np.testing.assert_allclose(
         slow["radial_velocity"].values, whole["radial_velocity"].values, rtol=0, atol=1e-12
+    )
+    slow_late = sample_conical_scans(field, n_scans=1, first_scan=4800, **kw)
+    np.testing.assert_allclose(
+        slow_late["radial_velocity"].values, late["radial_velocity"].values, rtol=0, atol=1e-9
     )
