@@ -75,3 +75,26 @@ def test_a_series_shows_its_files_on_a_terminal(tmp_path, monkeypatch):
     with progress.reporting(progress.shown_on(quiet=True)):
         write_streamline_series(tmp_path / "d", tmp_path / "t.json", spec)
     assert quiet.getvalue() == ""
+
+
+@pytest.mark.slow
+def test_retrieve_of_a_simulated_series_recovers_wind_and_epsilon(tmp_path):
+    """``simulate lidar`` then ``retrieve``: the tolerances of the sample's test
+    (tests/cli/test_simulate.py): mean wind within 0.5 m/s, median epsilon beyond 240 m
+    within 30 % (two blocks of 10 scans, 24 gates)."""
+    import json
+
+    import xarray as xr
+
+    sim, out = tmp_path / "sim", tmp_path / "out"
+    res = run("simulate", "lidar", "-o", str(sim), "--hours", "0.2", "--seed", "3", "-q")
+    assert res.exit_code == 0, res.output
+    res = run("retrieve", str(sim / "data"), "-o", str(out), "-q")
+    assert res.exit_code == 0, res.output
+    truth = json.loads((sim / "truth" / "truth.json").read_text())
+    with xr.open_dataset(next(out.glob("*_wind.nc"))) as wind:
+        assert float(wind["u"].mean()) == pytest.approx(truth["u_m_s"], abs=0.5)
+        assert float(wind["v"].mean()) == pytest.approx(truth["v_m_s"], abs=0.5)
+    with xr.open_dataset(next(out.glob("*_turbulence.nc"))) as turb:
+        eps = turb["epsilon"].where(turb["range"] >= 240.0).values
+    assert 0.7 < np.nanmedian(eps) / truth["epsilon_m2_s3"] < 1.3
