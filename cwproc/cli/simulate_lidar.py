@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import click
 import numpy as np
 
+from cwproc import progress
 from cwproc.cli._common import fail, usage_error
 from cwproc.errors import CwprocError
 
@@ -82,7 +83,37 @@ _ZEPHIR_HEIGHTS = (40.0, 60.0, 80.0, 100.0, 150.0, 200.0)
     show_default=True,
     help="Minutes between the VADs of --scan mixed.",
 )
+@click.option(
+    "--gates",
+    type=click.IntRange(min=1),
+    default=24,
+    show_default=True,
+    help="Stream Line VADs: range gates per ray.",
+)
+@click.option(
+    "--gate-length",
+    type=click.FloatRange(min=1.0),
+    default=30.0,
+    show_default=True,
+    help="Stream Line VADs: range gate length (m); gate centres (g + 0.5) x length.",
+)
+@click.option(
+    "--scan-period",
+    type=click.FloatRange(min=1.0),
+    default=36.0,
+    show_default=True,
+    help="Stream Line VADs: seconds per 180-ray scan (a VAD every that many seconds).",
+)
+@click.option(
+    "--scans-per-file",
+    type=click.IntRange(min=1),
+    default=10,
+    show_default=True,
+    help="Stream Line VADs: scans in each .hpl file (1: one file per VAD, as the Halo "
+    "writes them).",
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 def simulate_lidar(
     outdir: str,
     instrument: str,
@@ -94,13 +125,19 @@ def simulate_lidar(
     snr: float,
     scan: str,
     vad_every: float,
+    gates: int,
+    gate_length: float,
+    scan_period: float,
+    scans_per_file: int,
     seed: int,
+    quiet: bool,
 ) -> None:
     """Files in the real formats from a virtual lidar, plus the truth that made them.
 
     \b
     Stream Line: a frozen von Karman field advected by the wind, scanned at 35.3 deg
-    (180 rays per 36 s scan, 24 gates of 30 m), written as .hpl files in DIR/data/;
+    (180 rays per --scan-period s, --gates gates of --gate-length m; default 36 s, 24
+    gates of 30 m), written as .hpl files in DIR/data/;
     --scan stare / mixed: vertical stares (20000 pulses, 1.33 s rays, noise of
     Pearson et al. (2009) at --snr) of the same field, alone or between the VADs.
     cw / zephir: Doppler spectra and centroid velocities of Banakh et al. (1999)
@@ -112,29 +149,18 @@ def simulate_lidar(
     out = Path(outdir)
     data, truth = out / "data", out / "truth" / "truth.json"
     hours = _DEFAULT_HOURS[instrument] if hours is None else hours
+    geometry = {
+        "n_gates": gates,
+        "gate_length_m": gate_length,
+        "scan_period_s": scan_period,
+        "scans_per_file": scans_per_file,
+    }
     try:
-        if instrument == "streamline" and scan != "vad":
-            written = _streamline_stares(
-                data,
-                truth,
-                scan,
-                hours,
-                vad_every,
-                wind,
-                direction,
-                epsilon,
-                outer_scale,
-                snr,
-                seed,
-            )
-        elif instrument == "streamline":
-            written = _streamline(
-                data, truth, hours, wind, direction, epsilon, outer_scale, snr, seed
-            )
-        else:
-            written = _cw(
-                data, truth, instrument, hours, wind, direction, epsilon, outer_scale, seed
-            )
+        with progress.reporting(progress.shown_on(quiet=quiet)):
+            written = _simulate(
+                instrument, scan, data, truth, hours, vad_every, geometry,
+                wind, direction, epsilon, outer_scale, snr, seed,
+            )  # fmt: skip
     except (CwprocError, OSError, ValueError) as exc:
         fail(str(exc))
         return
@@ -142,20 +168,58 @@ def simulate_lidar(
         click.echo(f"wrote {path}")
 
 
+def _simulate(
+    instrument: str,
+    scan: str,
+    data: Path,
+    truth: Path,
+    hours: float,
+    vad_every: float,
+    geometry: dict[str, float],
+    wind: float | None,
+    direction: float,
+    epsilon: float | None,
+    outer_scale: float | None,
+    snr: float,
+    seed: int,
+) -> list[Path]:
+    """Run the instrument's simulation; the files written, truth last."""
+    if instrument == "streamline" and scan != "vad":
+        return _streamline_stares(
+            data, truth, scan, hours, vad_every, wind, direction, epsilon, outer_scale, snr, seed
+        )
+    if instrument == "streamline":
+        return _streamline(
+            data, truth, hours, geometry, wind, direction, epsilon, outer_scale, snr, seed
+        )
+    return _cw(data, truth, instrument, hours, wind, direction, epsilon, outer_scale, seed)
+
+
 def _check_scan_options(instrument: str, scan: str) -> None:
-    """Exit 2 when --scan or --vad-every do not fit the instrument (they would be ignored)."""
+    """Exit 2 when an option does not fit the instrument or scan (it would be ignored)."""
     ctx = click.get_current_context()
     if instrument != "streamline" and scan != "vad":
         usage_error(f"--scan {scan} needs --instrument streamline (got --instrument {instrument})")
-    given = ctx.get_parameter_source("vad_every") is click.core.ParameterSource.COMMANDLINE
-    if given and scan != "mixed":
+
+    def given(name: str) -> bool:
+        return ctx.get_parameter_source(name) is click.core.ParameterSource.COMMANDLINE
+
+    if given("vad_every") and scan != "mixed":
         usage_error(f"--vad-every is used by --scan mixed only, not --scan {scan}")
+    vads = instrument == "streamline" and scan == "vad"
+    for name in ("gates", "gate_length", "scan_period", "scans_per_file"):
+        if given(name) and not vads:
+            option = "--" + name.replace("_", "-")
+            usage_error(
+                f"{option} is used by Stream Line VADs only (--instrument streamline --scan vad)"
+            )
 
 
 def _streamline(
     data: Path,
     truth: Path,
     hours: float,
+    geometry: dict[str, float],
     wind: float | None,
     direction: float,
     epsilon: float | None,
@@ -166,6 +230,7 @@ def _streamline(
     from cwproc.sim.sample_data import StreamLineSpec, noise_from_snr, write_streamline_series
 
     base = StreamLineSpec()
+    gate = float(geometry["gate_length_m"])
     spec = _streamline_spec(
         wind,
         direction,
@@ -173,8 +238,13 @@ def _streamline(
         outer_scale,
         snr,
         seed,
-        n_scans=max(1, round(hours * 3600.0 / base.scan_period_s)),
-        scans_per_file=10,
+        n_scans=max(1, round(hours * 3600.0 / geometry["scan_period_s"])),
+        scans_per_file=int(geometry["scans_per_file"]),
+        n_gates=int(geometry["n_gates"]),
+        gate_length_m=gate,
+        scan_period_s=float(geometry["scan_period_s"]),
+        # nodes that divide the gate (7.5 m for 30 m gates): the gates share them
+        range_step_m=gate / np.ceil(gate / base.field_spacing_m),
         noise_std=noise_from_snr(snr),
     )
     return write_streamline_series(data, truth, spec)

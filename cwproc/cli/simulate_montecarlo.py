@@ -36,8 +36,9 @@ STEM = "montecarlo_banakh1999"
     help="Also draw the errors (needs the plot extra, checked before the study runs).",
 )
 @config_option("banakh1999")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 def simulate_montecarlo(
-    outdir: str, realisations: int | None, seed: int, png: bool, config: str | None
+    outdir: str, realisations: int | None, seed: int, png: bool, config: str | None, quiet: bool
 ) -> None:
     """Relative RMS errors of epsilon, sigma_V^2 and L_V versus the number of scans.
 
@@ -50,6 +51,7 @@ def simulate_montecarlo(
     """
     if png:
         require_extra("matplotlib", "plot", f"the picture {STEM}.png (or pass --no-png)")
+    from cwproc import progress
     from cwproc.errors import CwprocError
     from cwproc.products.writer import write_product
     from cwproc.references import BANAKH_1999
@@ -64,13 +66,14 @@ def simulate_montecarlo(
         )
     written: list[Path] = []
     try:
-        study = run_study(
-            cfg.simulation,
-            wavelength_m=cfg.instrument.wavelength_m,
-            beam_radius_m=beam_radius,
-            realisations=realisations,
-            seed=seed,
-        )
+        with progress.reporting(progress.shown_on(quiet=quiet)):
+            study = run_study(
+                cfg.simulation,
+                wavelength_m=cfg.instrument.wavelength_m,
+                beam_radius_m=beam_radius,
+                realisations=realisations,
+                seed=seed,
+            )
         out = Path(outdir)
         nc = write_product(
             study,

@@ -386,12 +386,44 @@ def _attrs(path: Path, header: HplHeader) -> dict[str, object]:
 
 
 def _beta_strings(beta: np.ndarray) -> np.ndarray:
-    """Backscatter as the instrument prints it: ``1.569249E-6`` (no exponent padding)."""
-    s = np.char.mod("%.6E", beta)
+    """Backscatter as the instrument prints it: ``1.569249E-6`` (no exponent padding).
+
+    Each distinct value is formatted once (a simulated file holds one).
+    """
+    unique, inverse = np.unique(np.asarray(beta, dtype=np.float64), return_inverse=True)
+    s = np.char.mod("%.6E", unique)
     s = np.char.replace(s, "E+0", "E")
     s = np.char.replace(s, "E+", "E")
     s = np.char.replace(s, "E-0", "E-")
-    return s
+    return s[inverse].reshape(np.shape(beta))
+
+
+def _data_lines(ray: list[str], columns: list[np.ndarray], formats: list[str]) -> str:
+    """The ray and gate lines of a file, CRLF after each, by one ``%`` of the whole block.
+
+    A gate line is the gate index (``%3d``) then the ``columns`` (rays x gates) with
+    ``formats``, as ``np.char.mod`` of each field would give it. The block's format is
+    built once per file with the gate indices, and every column that holds one value
+    in the whole file (a simulated SNR or backscatter), written into it.
+    """
+    n_rays, n_gates = columns[0].shape
+    fields, varying = "", []
+    for column, fmt in zip(columns, formats, strict=True):
+        first = column.flat[0]
+        if np.all(column == first):
+            fields += " " + (fmt % first).replace("%", "%%")
+        else:
+            fields += " " + fmt
+            varying.append(column)
+    block = "%s\r\n" + "".join(f"{g:3d}{fields}\r\n" for g in range(n_gates))
+    table = np.empty((n_rays, 1 + n_gates * len(varying)), dtype=object)
+    table[:, 0] = ray
+    if varying:
+        values = np.empty((n_rays, n_gates, len(varying)), dtype=object)
+        for k, column in enumerate(varying):
+            values[:, :, k] = column
+        table[:, 1:] = values.reshape(n_rays, -1)
+    return (block * n_rays) % tuple(table.ravel().tolist())
 
 
 def hpl_text(ds: xr.Dataset, filename: str) -> str:
@@ -480,17 +512,12 @@ def hpl_text(ds: xr.Dataset, filename: str) -> str:
         ray = np.char.add(ray, np.char.mod(" %.2f", ds["pitch"].values))
         ray = np.char.add(ray, np.char.mod(" %.2f", ds["roll"].values))
     beta = ds["beta"].values if "beta" in ds else np.zeros((n_rays, n_gates))
-    index = np.char.mod("%3d", np.arange(n_gates))
-    gate = np.char.add(
-        np.broadcast_to(index, (n_rays, n_gates)),
-        np.char.mod(" %.4f", ds["radial_velocity"].values),
-    )
-    gate = np.char.add(gate, np.char.mod(" %.6f", ds["snr"].values + 1.0))
-    gate = np.char.add(gate, np.char.mod(" %12s", _beta_strings(beta)))
+    columns = [ds["radial_velocity"].values, ds["snr"].values + 1.0, _beta_strings(beta)]
+    formats = ["%.4f", "%.6f", "%12s"]
     if has_sw:
-        gate = np.char.add(gate, np.char.mod(" %.4f ", ds["spectral_width"].values))
-    block = np.concatenate([ray[:, None], gate], axis=1)
-    return "\r\n".join(header) + "\r\n" + "\r\n".join(block.ravel().tolist()) + "\r\n"
+        columns.append(ds["spectral_width"].values)
+        formats.append("%.4f ")
+    return "\r\n".join(header) + "\r\n" + _data_lines(ray.tolist(), columns, formats)
 
 
 def write_hpl(ds: xr.Dataset, path: str | os.PathLike) -> Path:

@@ -20,7 +20,7 @@ from typing import Literal
 import numpy as np
 
 from cwproc.physics.geometry import beam_unit_vector, wind_components
-from cwproc.physics.spectra import correlation_functions
+from cwproc.physics.spectra import EXPONENTIAL_COEFFICIENT, correlation_functions
 
 CorrelationModel = Literal["exponential", "von_karman"]
 
@@ -248,7 +248,7 @@ def azimuth_correlation_matrix(
     outer_scale: float,
     mean_wind: np.ndarray | None = None,
     model: CorrelationModel = "exponential",
-    chunk: int = 256,
+    chunk: int = 64,
 ) -> np.ndarray:
     """Correlation matrix B_D(theta_m, theta_l) of the probe-averaged radial velocity.
 
@@ -280,7 +280,9 @@ def azimuth_correlation_matrix(
     s = beam_vectors(geometry.azimuth_deg, geometry.elevation_deg)
     t = geometry.time_s
     z, w = probe.z, probe.w
-    ww = w[:, None] * w[None, :]
+    ww = (w[:, None] * w[None, :]).ravel()
+    z1, z2 = z[None, :, None], z[None, None, :]  # z', z''
+    zz, zz_sum = z1 * z2, z1 * z1 + z2 * z2
     m_idx, l_idx = np.triu_indices(geometry.n_azimuths)
     wind = np.zeros(3) if mean_wind is None else np.asarray(mean_wind, dtype=float)
     out = np.empty(m_idx.size)
@@ -288,20 +290,45 @@ def azimuth_correlation_matrix(
         mi, li = m_idx[start : start + chunk], l_idx[start : start + chunk]
         sm, sl = s[mi], s[li]  # (P, 3)
         shift = -wind[None, :] * (t[mi] - t[li])[:, None]  # (P, 3)
-        r_vec = (
-            z[None, :, None, None] * sm[:, None, None, :]
-            - z[None, None, :, None] * sl[:, None, None, :]
-            + shift[:, None, None, :]
-        )  # (P, n, n, 3)
-        val = projected_correlation(
-            r_vec, sm[:, None, None, :], sl[:, None, None, :], sigma2, outer_scale, model
-        )
-        out[start : start + chunk] = np.einsum("pjk,jk->p", val, ww)
+        # r = z' S_m - z'' S_l + shift with |S| = 1, from per-pair scalars, each (P, 1, 1)
+        dot = np.sum(sm * sl, axis=-1)[:, None, None]
+        a = np.sum(sm * shift, axis=-1)[:, None, None]
+        b = np.sum(sl * shift, axis=-1)[:, None, None]
+        h2 = np.sum(shift * shift, axis=-1)[:, None, None]
+        r2 = zz_sum - 2.0 * dot * zz + 2.0 * (a * z1 - b * z2) + h2
+        p1 = z1 - dot * z2 + a  # S_m . r
+        p2 = dot * z1 - z2 + b  # S_l . r
+        val = _projected_from_components(r2, dot, p1 * p2, sigma2, outer_scale, model)
+        out[start : start + chunk] = val.reshape(val.shape[0], -1) @ ww
     b = np.empty((geometry.n_azimuths, geometry.n_azimuths))
     b[m_idx, l_idx] = out
     b[l_idx, m_idx] = out
     np.fill_diagonal(b, same_beam_variance(probe, sigma2, outer_scale, model))
     return b
+
+
+def _projected_from_components(
+    r2: np.ndarray,
+    dot: np.ndarray,
+    p12: np.ndarray,
+    sigma2: float,
+    outer_scale: float,
+    model: CorrelationModel,
+) -> np.ndarray:
+    """:func:`projected_correlation` from r^2, S1.S2 and (S1.r)(S2.r) (no 1/r^2 yet).
+
+    B (S1.S2) + (r/2) B' [S1.S2 - (S1.r)(S2.r)/r^2] of eq. 16. For eq. 17 (exponential)
+    with x = (r/L)^(2/3) = cbrt(r^2/L^2): g = f (1 - 1.21 x/3) and g - f = -1.21 x f/3,
+    without a square root or a fractional power.
+    """
+    safe = np.where(r2 > 0, r2, 1.0)
+    if model == "exponential":
+        x = np.cbrt(r2 / (outer_scale * outer_scale))
+        f = np.exp(-EXPONENTIAL_COEFFICIENT * x)
+        cx = (EXPONENTIAL_COEFFICIENT / 3.0) * x
+        return sigma2 * f * ((1.0 - cx) * dot + cx * p12 / safe)
+    transverse, rb = _correlation_pair(np.sqrt(r2), sigma2, outer_scale, model)
+    return transverse * dot - rb * p12 / safe
 
 
 def circulant_correlation_row(
@@ -345,6 +372,18 @@ def circulant_correlation_row(
     p2 = np.sum(s[:, None, None, :] * r_vec, axis=-1) / safe
     p12 = p1 * p2
     out = np.empty((np.size(outer_scales), lags.size))
+    if model == "exponential":  # eq. 17: r^(2/3) once, exp per scale (no power per scale)
+        x0 = np.cbrt(r * r)
+        cusp = np.cbrt(np.subtract.outer(probe.z_fine, probe.z_fine) ** 2)
+        for i, scale in enumerate(np.atleast_1d(outer_scales)):
+            x = x0 / float(scale) ** (2.0 / 3.0)
+            f = np.exp(-EXPONENTIAL_COEFFICIENT * x)
+            cx = (EXPONENTIAL_COEFFICIENT / 3.0) * x
+            val = f * ((1.0 - cx) * dot[:, None, None] + cx * p12)
+            out[i] = val.reshape(val.shape[0], -1) @ ww.ravel()
+            same = np.exp(-EXPONENTIAL_COEFFICIENT * cusp / float(scale) ** (2.0 / 3.0))
+            out[i, lags == 0] = probe.w_fine @ same @ probe.w_fine
+        return out
     for i, scale in enumerate(np.atleast_1d(outer_scales)):
         transverse_b, rb = _correlation_pair(r, 1.0, float(scale), model)
         out[i] = np.einsum("mjk,jk->m", transverse_b * dot[:, None, None] - rb * p12, ww)

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from cwproc import progress
 from cwproc.io.scan_netcdf import write_scan_netcdf
 from cwproc.physics.correlation import (
     CorrelationModel,
@@ -41,6 +42,8 @@ from cwproc.sim.turbulence import (
 
 #: exclusion threshold of Banakh et al. (1999), section 3: spectra with k_max dV < 1 m/s
 MIN_PEAK_VELOCITY = 1.0
+#: along-beam points (scans x spectra x probe points) whose spectra are made at once
+_POINTS_PER_BLOCK = 1_000_000
 
 
 # --------------------------------------------------------------------------------------
@@ -81,10 +84,44 @@ def doppler_spectrum(
     numpy.ndarray
         Shape (..., M_D), in units of 1/(channel): sum over channels ~ 1.
     """
-    v = np.abs(radial_velocity) if homodyne else np.asarray(radial_velocity)
+    v = np.abs(radial_velocity) if homodyne else np.asarray(radial_velocity, dtype=float)
     x = (v - first_channel_velocity) / resolution  # (..., M')
-    k = np.arange(n_channels)
-    return np.einsum("...ik,i->...k", np.sinc(k - x[..., None]) ** 2, q)
+    lead, n_points = x.shape[:-1], x.shape[-1]
+    x = x.reshape(-1, n_points)
+    out = np.empty((x.shape[0], n_channels))
+    for start in range(0, x.shape[0], _SPECTRA_PER_BLOCK):
+        block = slice(start, start + _SPECTRA_PER_BLOCK)
+        out[block] = _sinc2_sum(x[block], q, n_channels)
+    return out.reshape(*lead, n_channels)
+
+
+#: spectra computed together by :func:`_sinc2_sum` (their channels stay in the cache)
+_SPECTRA_PER_BLOCK = 256
+
+
+def _sinc2_sum(x: np.ndarray, q: np.ndarray, n_channels: int) -> np.ndarray:
+    """sum_i q_i sinc^2{pi (k - x_i)} for k = 0..n_channels-1, x of shape (N, M').
+
+    For integer k, sin^2{pi (k - x)} = sin^2(pi x), so each term is
+    a_i / (k - x_i)^2 with a_i = q_i sin^2(pi x_i) / pi^2: one subtraction, product and
+    division per channel and point, the sines taken once per point, of x_i less its
+    nearest integer (Banakh et al. (1999), eq. 3). A spectrum with a point exactly on a
+    channel (0/0 there) is summed with numpy's sinc instead.
+    """
+    k = np.arange(n_channels, dtype=float)
+    a = q * (np.sin(np.pi * (x - np.round(x))) / np.pi) ** 2  # exact reduction of the sine
+    total = np.zeros((x.shape[0], n_channels))
+    term = np.empty_like(total)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for i in range(x.shape[1]):
+            np.subtract(k, x[:, i : i + 1], out=term)
+            np.multiply(term, term, out=term)
+            np.divide(a[:, i : i + 1], term, out=term)
+            total += term
+    bad = ~np.isfinite(total).all(axis=1)
+    if bad.any():
+        total[bad] = np.einsum("nik,i->nk", np.sinc(k - x[bad][..., None]) ** 2, q)
+    return total
 
 
 @dataclass(frozen=True)
@@ -312,9 +349,11 @@ def simulate_cw_height(
     mean, _ = probe_weighted_moments(series, q, offsets)
     idx = offsets[:, None] + np.arange(q.size)[None, :]
     velocity = np.empty_like(vd)
-    for scan in range(n_scans):
-        dv = series[scan][idx] - mean[scan][:, None]  # eq. 14
-        vr = vd[scan][:, None] + dv  # eq. 13
+    per_block = max(1, _POINTS_PER_BLOCK // idx.size)
+    for start in range(0, n_scans, per_block):  # all the scans of a block at once
+        scans = slice(start, start + per_block)
+        dv = series[scans][:, idx] - mean[scans][:, :, None]  # eq. 14
+        vr = vd[scans][:, :, None] + dv  # eq. 13
         spec = doppler_spectrum(
             vr,
             q,
@@ -323,7 +362,7 @@ def simulate_cw_height(
             first_channel_velocity=lidar.first_channel_velocity,
             homodyne=lidar.homodyne,
         )
-        velocity[scan] = centroid_velocity(
+        velocity[scans] = centroid_velocity(
             spec,
             resolution=lidar.velocity_resolution_m_s,
             first_channel_velocity=lidar.first_channel_velocity,
@@ -362,7 +401,7 @@ def simulate_cw_scans(
     n_rays = n_scans * m
     velocity = np.empty((n_rays, heights_m.size))
     truth = np.empty_like(velocity)
-    for j, h in enumerate(heights_m):
+    for j, h in progress.track(list(enumerate(heights_m)), desc="heights", unit="height"):
         vel, vd = simulate_cw_height(
             rng,
             lidar,

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
+from cwproc import progress
 from cwproc.config import SimulationConfig
 from cwproc.physics.correlation import (
     ProbeQuadrature,
@@ -348,7 +349,7 @@ def run_study(
     shape = (n_max, heights.size)
     out = {k: np.empty(shape) for k in ("eps", "var", "scale", "ratio", "n_valid")}
     truth_eps = np.empty(heights.size)
-    for j, h in enumerate(heights):
+    for j, h in progress.track(list(enumerate(heights)), desc="heights", unit="height"):
         sigma2 = float(sim.sigma_v_m_s[j]) ** 2
         scale = float(sim.outer_scale_m[j])
         eps = float(epsilon_from(sigma2, scale))

@@ -28,6 +28,7 @@ The result is the canonical scan dataset of ``docs/DEVELOPING.md``.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import xarray as xr
@@ -37,6 +38,11 @@ from cwproc.physics import noise
 from cwproc.physics.constants import STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M
 from cwproc.physics.geometry import beam_unit_vector, wind_components
 from cwproc.sim.field3d import FrozenField
+
+try:  # the compiled sampler (setup.py); numpy does the same without it
+    from cwproc.sim import _trilinear
+except ImportError:  # pragma: no cover - depends on the build
+    _trilinear = None
 
 #: points of the range weighting beyond the rectangular window, in units of Delta_p
 _GAUSS_TAIL = 3.0
@@ -101,6 +107,8 @@ def sample_conical_scans(
     range_step_m: float | None = None,
     snr: float | None = None,
     lidar_position_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    first_scan: int = 0,
+    noise_rng: np.random.Generator | None = None,
 ) -> xr.Dataset:
     """Conical scans of a pulsed lidar through a frozen field advected by the mean wind.
 
@@ -120,47 +128,44 @@ def sample_conical_scans(
     n_scans : int
         Number of rotations.
     wind_speed_m_s, wind_direction_deg, vertical_wind_m_s : float
-        Mean horizontal wind (m s-1), the direction it blows from (deg from north) and
-        the mean vertical wind (m s-1).
-    noise_std_m_s : float
-        sigma_e, standard deviation of the white estimation noise (m s-1).
-    seed : int
-        Seed of the noise generator.
+        Mean horizontal wind (m s-1), its direction (from, deg), mean vertical wind (m s-1).
+    noise_std_m_s, seed : float, int
+        sigma_e, standard deviation of the white estimation noise (m s-1); its seed.
     delta_p_m, delta_r_m : float
         Pulse and window lengths of the range weighting (m), Smalikho (2020), eq. 19.
     start_azimuth_deg, clockwise, start_time : float, bool, str or numpy.datetime64
         Azimuth (deg) and UTC time of the start of the first ray; direction of rotation.
     sweep_points : int
-        Beam positions averaged across the azimuth step of each ray (transverse
-        averaging, Smalikho (2020), eq. 20).
+        Beam positions averaged across each ray's azimuth step (Smalikho (2020), eq. 20).
     sweep_advection : bool
         ``True`` (physical): the field moves with the wind while the beam sweeps across
         the ray. ``False``: the sweep is taken at the ray's centre time (averaged over
         the arc ``dy`` only), the model of Smalikho (2020), eq. 15.
     range_step_m : float, optional
-        Spacing of the nodes of the range weighting (m); the field spacing by default.
+        Spacing of the range weighting's nodes (m); default the field spacing.
     snr : float, optional
         Linear SNR written to the dataset (constant); by default the one at which the
         settings predict ``noise_std_m_s`` (:func:`cwproc.physics.noise.snr_for_noise_std`).
     lidar_position_m : tuple of float
         (x, y, z) of the lidar in the field (m).
+    first_scan, noise_rng : int, numpy.random.Generator, optional
+        A piece of a long series: its first scan and the series' noise generator.
 
     Returns
     -------
     xarray.Dataset
-        Canonical scan dataset (dims ``ray``, ``range``) with attrs of a Stream Line and
-        the simulation truth (``sim_*`` attrs).
+        Canonical scan dataset (``ray``, ``range``), Stream Line attrs, truth ``sim_*``.
     """
     ranges = np.asarray(ranges_m, dtype=float)
-    if not (rays_per_scan >= 3 and n_scans >= 1 and sweep_points >= 1 and scan_period_s > 0):
-        raise ValueError("rays_per_scan >= 3, n_scans, sweep_points >= 1, scan_period_s > 0")
-    if not (noise_std_m_s >= 0 and ranges.size >= 1):
-        raise ValueError("noise_std_m_s >= 0 and at least one range needed")
+    _check_scan_arguments(
+        rays_per_scan, n_scans, sweep_points, scan_period_s, noise_std_m_s, ranges
+    )
     step = field.spacing_m if range_step_m is None else float(range_step_m)
     mean_wind = np.array([*wind_components(wind_speed_m_s, wind_direction_deg), vertical_wind_m_s])
     sign = 1.0 if clockwise else -1.0
     n_rays = rays_per_scan * n_scans
-    t_centre = (np.arange(n_rays) + 0.5) * scan_period_s / rays_per_scan
+    first_ray = first_scan * rays_per_scan
+    t_centre = (np.arange(first_ray, first_ray + n_rays) + 0.5) * scan_period_s / rays_per_scan
     sub = ((np.arange(sweep_points) + 0.5) / sweep_points - 0.5) * scan_period_s / rays_per_scan
     ray_times = t_centre[:, None] + sub[None, :]  # (rays, J): the sweep of each ray
     velocity = probe_averaged_velocity(
@@ -174,10 +179,11 @@ def sample_conical_scans(
         sweep_advection=sweep_advection,
         lidar_position_m=lidar_position_m,
     )
-    velocity += noise_std_m_s * np.random.default_rng(seed).standard_normal(velocity.shape)
+    rng = np.random.default_rng(seed) if noise_rng is None else noise_rng
+    velocity += noise_std_m_s * rng.standard_normal(velocity.shape)
     times = np.datetime64(start_time, "ns") + np.round(t_centre * 1e9).astype("timedelta64[ns]")
     azimuth = (start_azimuth_deg + sign * 360.0 * t_centre / scan_period_s) % 360.0
-    scan = (np.arange(n_rays) // rays_per_scan).astype(np.int64)
+    scan = (first_scan + np.arange(n_rays) // rays_per_scan).astype(np.int64)
     return streamline_scans(
         velocity,
         times=times,
@@ -198,6 +204,21 @@ def sample_conical_scans(
             "sim_scan_period_s": float(scan_period_s),
         },
     )
+
+
+def _check_scan_arguments(
+    rays_per_scan: int,
+    n_scans: int,
+    sweep_points: int,
+    scan_period_s: float,
+    noise_std_m_s: float,
+    ranges: np.ndarray,
+) -> None:
+    """ValueError for arguments :func:`sample_conical_scans` cannot scan with."""
+    if not (rays_per_scan >= 3 and n_scans >= 1 and sweep_points >= 1 and scan_period_s > 0):
+        raise ValueError("rays_per_scan >= 3, n_scans, sweep_points >= 1, scan_period_s > 0")
+    if not (noise_std_m_s >= 0 and ranges.size >= 1):
+        raise ValueError("noise_std_m_s >= 0 and at least one range needed")
 
 
 def field_truth(field: FrozenField) -> dict[str, float | int]:
@@ -227,8 +248,11 @@ def probe_averaged_velocity(
     The beam positions of a ray (``ray_times``, ``ray_azimuths``: shape (rays, J), J
     positions across its azimuth step) sample the frozen field moved by ``mean_wind``;
     the range weighting is the quadrature ``(nodes, weights)`` of
-    :func:`range_quadrature` (Smalikho (2020), eqs. 19-20). Computed in memory-bounded
-    chunks of rays.
+    :func:`range_quadrature` (Smalikho (2020), eqs. 19-20). The field is sampled once
+    per ray at the distinct distances of all gates' nodes (:func:`beam_distances`:
+    gates whose nodes coincide, as with a node step that divides the gate length, share
+    them) and averaged over the J positions first (:func:`sweep_mean_radial`); each
+    gate is then the weighted sum of its nodes. Memory-bounded chunks of rays.
 
     Returns
     -------
@@ -236,26 +260,80 @@ def probe_averaged_velocity(
         Shape (rays, gates).
     """
     s_nodes, s_weights = range_quadrature_nodes
+    dist, index = beam_distances(ranges_m, s_nodes)
     n_rays, sweep_points = ray_times.shape
-    pos0 = np.asarray(lidar_position_m, dtype=float)
-    dist = ranges_m[:, None] + s_nodes[None, :]  # (G, P)
-    rays_per_chunk = max(1, _CHUNK_POINTS // (sweep_points * ranges_m.size * s_nodes.size))
+    rays_per_chunk = max(1, _CHUNK_POINTS // (sweep_points * dist.size))
     velocity = np.empty((n_rays, ranges_m.size))
     for start in range(0, n_rays, rays_per_chunk):
         t = ray_times[start : start + rays_per_chunk]  # (r, J)
         beam = beam_unit_vector(ray_azimuths[start : start + rays_per_chunk], elevation_deg)
         t_adv = t if sweep_advection else np.broadcast_to(t.mean(axis=1, keepdims=True), t.shape)
-        xyz = (
-            pos0
-            + beam[:, :, None, None, :] * dist[None, None, :, :, None]
-            - mean_wind * t_adv[:, :, None, None, None]
-        )  # (r, J, G, P, 3)
-        vel = field.interpolate(xyz[..., 0], xyz[..., 1], xyz[..., 2])  # (3, r, J, G, P)
-        vr = np.einsum("crjgp,rjc->rjgp", vel, beam) + (beam @ mean_wind)[:, :, None, None]
-        velocity[start : start + rays_per_chunk] = np.einsum("rjgp,p->rg", vr, s_weights) / (
-            sweep_points
-        )
+        along = sweep_mean_radial(field, beam, t_adv, dist, mean_wind, lidar_position_m)
+        mean = np.mean(beam @ mean_wind, axis=1)  # (r,): S.<V>, averaged over the sweep
+        velocity[start : start + rays_per_chunk] = along[:, index] @ s_weights + mean[:, None]
     return velocity
+
+
+def beam_distances(ranges_m: np.ndarray, s_nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distinct distances (m) of every gate's range nodes, and each node's place among them.
+
+    Returns
+    -------
+    (distances, index) : numpy.ndarray
+        Sorted distinct ``ranges_m[g] + s_nodes[p]`` (U,), and ``index`` (G, P) with
+        ``distances[index[g, p]] == ranges_m[g] + s_nodes[p]``.
+    """
+    dist = np.asarray(ranges_m, dtype=float)[:, None] + np.asarray(s_nodes)[None, :]
+    unique, index = np.unique(dist, return_inverse=True)
+    return unique, index.reshape(dist.shape)
+
+
+def sweep_mean_radial(
+    field: FrozenField,
+    beams: np.ndarray,
+    times: np.ndarray,
+    dist_m: np.ndarray,
+    mean_wind: np.ndarray,
+    origin_m: tuple[float, float, float],
+) -> np.ndarray:
+    """The turbulent radial velocity along each ray, averaged over its sweep (m s-1).
+
+    ``(1/J) sum_j S_rj . v'(x0 + S_rj d_u - <V> t_rj)``: the frozen fluctuation field
+    carried by the mean wind (Taylor; Smalikho (2020), eq. 7), seen along the beam
+    ``S_rj`` (``beams``: (R, J, 3) east, north, up) at times ``t_rj`` (``times``: (R, J),
+    s) and distances ``d_u`` (``dist_m``: (U,), m); the sweep average of the
+    transverse averaging (Smalikho (2020), eq. 20). By the compiled
+    ``cwproc.sim._trilinear.radial`` (two threads) when built, else in numpy.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (R, U).
+    """
+    n_rays, n_sweep = times.shape
+    origin = np.asarray(origin_m, dtype=float)
+    wind = np.asarray(mean_wind, dtype=float)
+    if _trilinear is None:
+        xyz = origin + beams[:, None] * dist_m[None, :, None, None] - wind * times[:, None, :, None]
+        vel = field.interpolate_points(xyz)  # (R, U, J, 3)
+        return np.einsum("rujc,rjc->ru", vel, beams) / n_sweep
+    out = np.zeros((n_rays, dist_m.size))
+    beams = np.ascontiguousarray(beams, dtype=float)
+    times = np.ascontiguousarray(times, dtype=float)
+    dist = np.ascontiguousarray(dist_m, dtype=float)
+    for table, (nx, ny, nz), dx in field.levels:
+        part = np.empty_like(out)
+
+        def run(sl: slice, table=table, shape=(nx, ny, nz), dx=dx, part=part) -> None:
+            _trilinear.radial(
+                table, *shape, dx, origin, wind, beams[sl], times[sl], n_sweep, dist, part[sl]
+            )
+
+        half = (n_rays + 1) // 2
+        with ThreadPoolExecutor(2) as pool:
+            list(pool.map(run, [slice(0, half), slice(half, n_rays)]))
+        out += part
+    return out
 
 
 def streamline_scans(

@@ -20,12 +20,14 @@ from __future__ import annotations
 
 import os
 import sys
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
+from cwproc import progress
 from cwproc.io.halo import write_hpl
 from cwproc.io.meteo2 import write_meteo2
 from cwproc.physics.geometry import wind_components
@@ -74,6 +76,10 @@ class StreamLineSpec:
         Grid points (x, y, z) of the periodic 3-D field.
     seed : int
         Seed of the field; the noise uses ``seed + 1``.
+    range_step_m : float, optional
+        Step of the nodes of the range weighting (m); the field spacing by default. A
+        step that divides ``gate_length_m`` lets the gates share their nodes (the field
+        is then sampled once per distance along each ray: many gates cost less).
     """
 
     start: str = "2024-06-01T12:00:00"
@@ -93,6 +99,7 @@ class StreamLineSpec:
     field_spacing_m: float = 8.0
     field_shape: tuple[int, int, int] = (160, 160, 64)
     seed: int = 20240601
+    range_step_m: float | None = None
 
     @property
     def ranges_m(self) -> np.ndarray:
@@ -111,36 +118,66 @@ def streamline_field(spec: StreamLineSpec) -> FrozenField:
     )
 
 
-def simulate_streamline(spec: StreamLineSpec) -> xr.Dataset:
-    """The Stream Line VAD series of ``spec`` as one canonical scan dataset.
+def simulate_streamline(
+    spec: StreamLineSpec,
+    *,
+    field: FrozenField | None = None,
+    first_scan: int = 0,
+    n_scans: int | None = None,
+    noise_rng: np.random.Generator | None = None,
+) -> xr.Dataset:
+    """The Stream Line VAD series of ``spec`` (or scans of it) as one canonical scan dataset.
 
     Parameters
     ----------
     spec : StreamLineSpec
+    field : FrozenField, optional
+        The field of ``spec`` (:func:`streamline_field`), when already made.
+    first_scan, n_scans : int, optional
+        The scans ``first_scan .. first_scan + n_scans - 1`` of the series (default:
+        all of them).
+    noise_rng : numpy.random.Generator, optional
+        The noise generator of the series (default: a new one from ``spec.seed + 1``);
+        scans made piece by piece with one generator get the noise of the whole series.
 
     Returns
     -------
     xarray.Dataset
         Canonical scan dataset (dims ``ray``, ``range``), the truth in ``sim_*`` attrs.
     """
-    field = streamline_field(spec)
     ds = sample_conical_scans(
-        field,
+        streamline_field(spec) if field is None else field,
         elevation_deg=spec.elevation_deg,
         ranges_m=spec.ranges_m,
         rays_per_scan=spec.rays_per_scan,
         scan_period_s=spec.scan_period_s,
-        n_scans=spec.n_scans,
+        n_scans=spec.n_scans if n_scans is None else n_scans,
         wind_speed_m_s=spec.wind_speed,
         wind_direction_deg=spec.wind_direction_deg,
         noise_std_m_s=spec.noise_std,
         seed=spec.seed + 1,
         start_time=spec.start,
         snr=spec.snr,
+        range_step_m=spec.range_step_m,
+        first_scan=first_scan,
+        noise_rng=noise_rng,
     )
     ds.attrs.update(system_id="999", gate_length_m=float(spec.gate_length_m))
     ds["beta"] = (("ray", "range"), np.full(ds["radial_velocity"].shape, 1.0e-6))
     return ds
+
+
+def streamline_files(spec: StreamLineSpec) -> Iterator[xr.Dataset]:
+    """The series of ``spec`` file by file (``scans_per_file`` scans each, scans numbered
+    from 0 in each), made piece by piece from one field and one noise generator: the
+    same values as :func:`simulate_streamline` split by :func:`split_files`, in the
+    memory of one file."""
+    field = streamline_field(spec)
+    rng = np.random.default_rng(spec.seed + 1)
+    for first in range(0, spec.n_scans, spec.scans_per_file):
+        n = min(spec.scans_per_file, spec.n_scans - first)
+        ds = simulate_streamline(spec, field=field, first_scan=first, n_scans=n, noise_rng=rng)
+        yield ds.assign_coords(scan=ds["scan"] - first)
 
 
 def streamline_truth(spec: StreamLineSpec) -> dict[str, object]:
@@ -157,6 +194,8 @@ def streamline_truth(spec: StreamLineSpec) -> dict[str, object]:
     )
     spec_dict = asdict(spec)
     spec_dict["field_shape"] = list(spec.field_shape)
+    if spec.range_step_m is None:  # the field spacing: the truth reads as it always did
+        del spec_dict["range_step_m"]
     return {
         "description": "truth of a simulated Stream Line VAD series (cwproc virtual instrument)",
         "spec": spec_dict,
@@ -216,11 +255,9 @@ def write_streamline_series(
     """
 
     folder = fresh_folder(folder, "*.hpl")
-    ds = simulate_streamline(spec)
-    written = [
-        write_hpl(part, folder / hpl_file_name(part))
-        for part in split_files(ds, spec.scans_per_file)
-    ]
+    n_files = -(-spec.n_scans // spec.scans_per_file)
+    files = progress.track(streamline_files(spec), desc="scans", total=n_files, unit="file")
+    written = [write_hpl(part, folder / hpl_file_name(part)) for part in files]
     written.append(write_truth(truth_path, streamline_truth(spec)))
     return written
 

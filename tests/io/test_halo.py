@@ -572,3 +572,46 @@ def test_write_hpl_does_not_follow_a_planted_symlink(tmp_path):
     write_hpl(ds, target)
     assert victim.read_text() == "keep me"
     assert read_hpl(target).sizes == ds.sizes
+
+
+@pytest.mark.parametrize("constant", [False, True])
+def test_writer_gate_lines_are_each_field_formatted_as_the_format_line_says(
+    constant: bool,
+) -> None:
+    # the block formatter (one % per file, constant columns written into the format)
+    # must give what formatting every field on its own gives: i3 f.4 f.6 e12 [f.4]
+    import xarray as xr
+
+    from cwproc.io.halo import hpl_text
+
+    rng = np.random.default_rng(7)
+    n_rays, n_gates = 5, 12
+    shape = (n_rays, n_gates)
+    vel = rng.normal(0, 8, shape)
+    snr = np.full(shape, 0.05) if constant else rng.uniform(-0.01, 3, shape)
+    beta = np.full(shape, 1e-6) if constant else 10 ** rng.uniform(-8, -3, shape)
+    width = rng.uniform(0, 2, shape)
+    t0 = np.datetime64("2024-01-01T00:00:00", "ns")
+    ds = xr.Dataset(
+        {
+            "radial_velocity": (("ray", "range"), vel),
+            "snr": (("ray", "range"), snr),
+            "beta": (("ray", "range"), beta),
+            "spectral_width": (("ray", "range"), width),
+        },
+        coords={
+            "time": ("ray", t0 + np.arange(n_rays) * np.timedelta64(1, "s")),
+            "azimuth": ("ray", np.arange(n_rays) * 2.0),
+            "elevation": ("ray", np.full(n_rays, 35.3)),
+            "range": ("range", (np.arange(n_gates) + 0.5) * 30.0),
+        },
+        attrs={"gate_length_m": 30.0},
+    )
+    lines = hpl_text(ds, "x.hpl").split("\r\n")
+    body = lines[lines.index("****") + 1 : -1]
+    assert len(body) == n_rays * (n_gates + 1)
+    for r in range(n_rays):
+        for g in range(n_gates):
+            e = f"{beta[r, g]:.6E}".replace("E+0", "E").replace("E+", "E").replace("E-0", "E-")
+            want = f"{g:3d} {vel[r, g]:.4f} {snr[r, g] + 1:.6f} {e:>12s} {width[r, g]:.4f} "
+            assert body[r * (n_gates + 1) + 1 + g] == want

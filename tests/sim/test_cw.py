@@ -175,3 +175,22 @@ def test_centroid_moves_with_the_spectrum(mean, spread, shift, seed):
     assert res.velocity[1] - res.velocity[0] == pytest.approx(shift * 0.1, abs=0.005)
     mirrored = cw.doppler_spectrum(-vr[None, :], q, resolution=0.1, n_channels=256)
     assert mirrored[0] == pytest.approx(spec[0], abs=1e-12)
+
+
+def test_spectrum_is_the_sinc_squared_sum_of_eq_3_even_on_a_channel():
+    # the closed form a_i/(k - x_i)^2 of doppler_spectrum equals eq. 3 summed with
+    # numpy's sinc, to round-off; a velocity exactly on a channel (0/0 there) too
+    from cwproc.sim.cw import doppler_spectrum
+
+    rng = np.random.default_rng(11)
+    q = rng.uniform(0.0, 1.0, 60)
+    q /= q.sum()
+    v = rng.normal(4.0, 1.5, (300, 60))
+    v[7, 3] = 2.0  # channel 20 exactly
+    for homodyne, first in ((True, 0.0), (False, -12.8)):
+        got = doppler_spectrum(
+            v, q, resolution=0.1, n_channels=256, first_channel_velocity=first, homodyne=homodyne
+        )
+        x = ((np.abs(v) if homodyne else v) - first) / 0.1
+        want = np.einsum("nik,i->nk", np.sinc(np.arange(256) - x[..., None]) ** 2, q)
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)

@@ -153,3 +153,28 @@ def test_two_level_field_holds_the_large_scales():
     np.testing.assert_allclose(var, two, rtol=0.1)
     with pytest.raises(ValueError, match="coarse_factor"):
         von_karman_field(shape, dx, epsilon=EPS, integral_scale_m=scale, seed=0, coarse_factor=16)
+
+
+def test_interpolation_is_the_periodic_trilinear_of_scipy():
+    # map_coordinates(order=1, mode="grid-wrap") is the reference; points far outside
+    # the box (a day of advection) wrap
+    from scipy import ndimage
+
+    from cwproc.sim.field3d import trilinear_wrap_numpy
+
+    f = von_karman_field((12, 10, 8), 2.0, epsilon=EPS, integral_scale_m=SCALE, seed=1)
+    xyz = np.random.default_rng(2).uniform(-5e5, 5e5, (3000, 3))
+    want = np.stack(
+        [
+            ndimage.map_coordinates(
+                f.velocity[c], (xyz / 2.0).T, order=1, mode="grid-wrap", prefilter=False
+            )
+            for c in range(3)
+        ],
+        axis=-1,
+    )
+    np.testing.assert_allclose(f.interpolate_points(xyz), want, rtol=0, atol=1e-9)
+    table, shape, dx = f.levels[0]
+    np.testing.assert_allclose(
+        trilinear_wrap_numpy(table, shape, xyz / dx), want, rtol=0, atol=1e-9
+    )

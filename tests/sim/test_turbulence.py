@@ -159,3 +159,28 @@ def test_probe_weighted_moments_match_direct_sums():
         m = seg @ q
         assert mean[:, k] == pytest.approx(m)
         assert var[:, k] == pytest.approx((seg**2) @ q - m**2)
+
+
+def test_cholesky_factor_is_kept_on_disk_and_read_back_bit_for_bit(tmp_path, monkeypatch):
+    # the factor of eq. 15 (+ Cholesky, eq. 21) is written once and read the next run;
+    # a damaged file is computed again, never trusted
+    from cwproc.physics.correlation import ScanGeometry
+    from cwproc.physics.cw_probe import cw_probe_quadrature
+    from cwproc.sim.turbulence import scan_cholesky
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    geometry = ScanGeometry(30.0, 24, 7.0)
+    probe = cw_probe_quadrature(200.0, 10.6e-6, 0.075, 12, 60)
+    args = (geometry, probe, 150.0, (0.0, 3.0, 4.0), "exponential")
+    scan_cholesky.cache_clear()
+    first = scan_cholesky(*args)
+    files = list(tmp_path.rglob("scan-cholesky-*.npz"))
+    assert len(files) == 1
+    scan_cholesky.cache_clear()
+    np.testing.assert_array_equal(scan_cholesky(*args), first)
+    files[0].write_bytes(b"damaged")
+    scan_cholesky.cache_clear()
+    np.testing.assert_array_equal(scan_cholesky(*args), first)
+    b = first @ first.T  # unit variance on the diagonal: B_D(0)/sigma^2 < 1 (probe average)
+    assert np.all(np.diag(b) < 1.0) and np.all(np.diag(b) > 0.5)
+    scan_cholesky.cache_clear()
