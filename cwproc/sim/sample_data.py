@@ -59,7 +59,8 @@ class StreamLineSpec:
     n_gates : int
         Number of range gates.
     gate_length_m : float
-        Range gate length (m); gate centres (g + 0.5) x gate length.
+        Range gate length (m); gate centres (g + 0.5) x gate length. It is also the
+        probe's Delta_R = c T_w / 2 (Smalikho (2020), eq. 19), as in the written header.
     wind_speed, wind_direction_deg : float
         Mean horizontal wind (m s-1) and the direction it blows from (deg).
     epsilon : float
@@ -158,6 +159,7 @@ def simulate_streamline(
         seed=spec.seed + 1,
         start_time=spec.start,
         snr=spec.snr,
+        delta_r_m=spec.gate_length_m,
         range_step_m=spec.range_step_m,
         first_scan=first_scan,
         noise_rng=noise_rng,
