@@ -33,7 +33,7 @@ STEM = "montecarlo_banakh1999"
     "--png/--no-png",
     default=True,
     show_default=True,
-    help="Also draw the errors (needs the plot extra, checked before the study runs).",
+    help="Also draw the errors (matplotlib, checked before the study runs).",
 )
 @config_option("banakh1999")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
