@@ -153,6 +153,14 @@ from cwproc.stages.epsilon.cells import cell_inputs, predicted_noise, statistics
 from cwproc.stages.epsilon.cw_exact import NOISE_WINDOW_BLOCKS, apply_exact_cells, exact_cells
 from cwproc.stages.epsilon.errors import block_errors
 from cwproc.stages.epsilon.flags import turbulence_flags
+from cwproc.stages.epsilon.noise_prior import (
+    NOISE_PRIOR_REL_SE,
+    add_calibration,
+    calibrated_prior_rel_se,
+    calibration_applies,
+    cell_intercepts,
+    day_calibration,
+)
 from cwproc.stages.epsilon.outer_scale import fit_setup, retrieve
 from cwproc.stages.epsilon.product import describe, product_arrays, turbulence_dataset
 
@@ -224,11 +232,21 @@ def estimate_epsilon(
     options = table_options_for(sf, table_options)  # the A-table of all heights
     settings = (probe, lag_number, model, min_pairs, n_outer_scales, options, fit_noise)
     memo: dict = {}  # what the groups share: per distinct (dy, range) pair (fit_setup)
-    parts = [
-        _block_group(sf.isel(time=rows), *settings, noise_window_blocks, memo)
-        for rows in block_groups(sf, probe)
-    ]
+    groups = block_groups(sf, probe)
+
+    def run(prior: tuple[float, float]) -> list[tuple]:
+        return [
+            _block_group(sf.isel(time=rows), *settings, noise_window_blocks, memo, prior)
+            for rows in groups
+        ]
+
+    parts = run((1.0, NOISE_PRIOR_REL_SE))
+    calibration = day_calibration([p[4] for p in parts])
+    applied = calibration_applies(calibration, [p[0] for p in parts])
+    if applied:  # the prediction, calibrated, where the data do not determine sigma_e
+        parts = run((calibration[0], calibrated_prior_rel_se(calibration)))
     out = parts[0][0] if len(parts) == 1 else _join_blocks([p[0] for p in parts])
+    add_calibration(out, calibration, applied)
     finite_used = sum(p[1] for p in parts)
     exact_cells_n = sum(p[2] for p in parts)
     out["integral_scale"].attrs["finite_outer_scale_cells"] = finite_used
@@ -305,17 +323,22 @@ def _block_group(
     fit_noise: bool,
     noise_window_blocks: int,
     memo: dict | None = None,
-) -> tuple[xr.Dataset, int, int, float]:
+    prior: tuple[float, float] = (1.0, NOISE_PRIOR_REL_SE),
+) -> tuple[xr.Dataset, int, int, float, tuple]:
     """The turbulence product of the blocks of ``sf`` (:func:`estimate_epsilon`);
-    ``memo`` as :func:`cwproc.stages.epsilon.outer_scale.fit_setup`.
+    ``memo`` as :func:`cwproc.stages.epsilon.outer_scale.fit_setup`; ``prior``: the
+    factor of the predicted sigma_e and the relative standard error of the predicted
+    ``2 sigma_e^2`` (:mod:`cwproc.stages.epsilon.noise_prior`).
 
     Returns the product without its descriptive attributes, the numbers of
-    finite-outer-scale and exact cw cells, and ``c`` of ``L_V = c sigma_V^3 / eps``.
+    finite-outer-scale and exact cw cells, ``c`` of ``L_V = c sigma_V^3 / eps`` and the
+    inputs of the noise calibration (:func:`~cwproc.stages.epsilon.noise_prior.cell_intercepts`).
     """
     cells = cell_inputs(sf, probe)
     lag_used = int(min(lag_number, cells.n_lags))
     valid = cells.pairs >= min_pairs
-    noise_pred = predicted_noise(sf, probe)
+    noise_raw = predicted_noise(sf, probe)
+    noise_pred = noise_raw * prior[0]
     exact = exact_cells(probe, cells, model)
     a_functions = cell_a_functions(probe, cells, model, options)
     cov = statistics_covariance(sf)
@@ -331,6 +354,7 @@ def _block_group(
         n_outer_scales,
         cov,
         memo,
+        prior[1],
     )
     res = retrieve(fixed, cells.d, cells.var_raw)
     est = {**res, "sf_model_exact": np.full(cells.d.shape, np.nan)}
@@ -348,11 +372,12 @@ def _block_group(
         cells,
         arrays,
         {
-            "noise_std_predicted": noise_pred,
+            "noise_std_predicted": noise_raw,
             "epsilon_standard_error": eps_se,
             "velocity_variance_standard_error": sigma2_se,
             "integral_scale_standard_error": scale_se,
         },
         flag,
     )
-    return out, int(est["finite_used"].sum()), int(exact.sum()), fixed["c_model"]
+    intercepts = cell_intercepts(cells, est["a2"], valid, fixed, noise_raw, bad | exact)
+    return out, int(est["finite_used"].sum()), int(exact.sum()), fixed["c_model"], intercepts
