@@ -224,9 +224,8 @@ _PRODUCT_VARIABLES: dict[str, VarMeta] = {
         "functions of the day measure",
         "1",
         comment=(
-            "k = sqrt of the weighted median over the cells (block x height) of the fitted "
-            "noise intercept 2 sigma_e^2 over the predicted one (weights: inverse squared "
-            "standard errors; cells whose error is at most the median ratio); applied to "
+            "k = sqrt of the median over the cells (block x height) of the free fitted "
+            "noise intercept 2 sigma_e^2 over the predicted one; applied to "
             "noise_std_predicted where the data do not determine sigma_e (flag 32) when k "
             "differs from 1 by more than 2 standard errors and 5 % (attribute applied); NaN "
             "with fewer than 10 such cells"
@@ -238,7 +237,7 @@ _PRODUCT_VARIABLES: dict[str, VarMeta] = {
     "noise_std_calibration_standard_error": VarMeta(
         "standard error of noise_std_calibration",
         "1",
-        comment="sqrt(pi/2) / sqrt(sum of the weights), inflated by the excess scatter, over 2 k",
+        comment="that of the median ratio, sqrt(pi/2) 1.4826 MAD / sqrt(cells), over 2 k",
         coverage_content_type="qualityInformation",
     ),
     "epsilon_standard_error": VarMeta(

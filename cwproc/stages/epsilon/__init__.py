@@ -42,7 +42,12 @@ Estimates, per block of scans and height, all vectorised:
   is fixed at ``2 sigma_pred^2`` of ``noise_std_predicted``
   (:func:`cwproc.stages.epsilon.cells.predicted_noise`, Pearson et al. (2009), eq. 3;
   without a prediction: twice its standard error decides) and flag 32 is set:
-  ``noise_std`` is then the prediction, or NaN without one, never a measured 0;
+  ``noise_std`` is then the prediction, or NaN without one, never a measured 0. The
+  prediction is a prior: fit and prediction that differ by more than
+  ``NOISE_CONTRADICTS`` standard errors of their difference (both uncertainties) leave
+  the data in charge, and the day's free intercepts calibrate the prediction
+  (``noise_std_calibration``, :mod:`cwproc.stages.epsilon.noise_prior`), which is then
+  the prior where the data do not determine sigma_e;
 - ``edr = eps^(1/3)``; standard errors of eps, sigma_V^2 and L_V by the delta method
   through the whole fit (:func:`cwproc.stages.epsilon.errors.covariance_errors`, the
   covariance of ``D_L`` and the variance over the block's scans);
@@ -129,7 +134,9 @@ Flags (``turbulence_flag``, :mod:`cwproc.stages.epsilon.flags`, bits combine; bi
   with the exact eq. 17 model: 33-38 % at N = 1 against 10-12 % at N = 10), so ``L_V``
   and ``eps`` would be biased; half a block keeps the relative error within about 1.5
   times that of a full block (14-16 % at N = 5 in the same Monte Carlo);
-- 32: the noise intercept is not determined; the predicted sigma_e is used (above).
+- 32: the noise intercept is not determined; the predicted sigma_e is used (above);
+- 64: ``L_V`` below the smallest resolved separation ``dy`` (lag 1): the estimates are
+  kept but not good (:func:`cwproc.stages.epsilon.flags.unresolved_scale`).
 
 ``structure_function_model`` is the fitted ``eps_fit^(2/3) A_2(l dy) + 2 sigma_e^2``
 (with the A-functions used for the cell) for plotting against ``structure_function``.

@@ -32,7 +32,6 @@ import xarray as xr
 from cwproc.physics.noise import noise_calibration
 from cwproc.physics.structure_fit import (
     MIN_NOISE_LAGS,
-    NOISE_DETECTABLE,
     NOISE_PRIOR_REL_SE,
     free_intercept,
 )
@@ -70,15 +69,13 @@ def cell_intercepts(
     The free intercept of Smalikho (2020), eq. 4 with the cell's ``A_2``
     (:func:`cwproc.physics.structure_fit.free_intercept`, m2 s-2) and the uncalibrated
     prediction ``predicted`` (m s-1); NaN where the fit has fewer than
-    :data:`~cwproc.physics.structure_fit.MIN_NOISE_LAGS` lags, no covariance of D, the
-    predicted noise is below :data:`~cwproc.physics.structure_fit.NOISE_DETECTABLE` of
-    the smallest D (the intercept there measures the model's shape, not the noise), or
-    ``skip`` (flagged bad, exact cw cells).
+    :data:`~cwproc.physics.structure_fit.MIN_NOISE_LAGS` lags, no covariance of D, or
+    ``skip`` (flagged bad, exact cw cells). Not the detectability of the fit's decision
+    (the prediction, which may be off, against the smallest D): the calibration's own
+    precision rule (:func:`cwproc.physics.noise.noise_calibration`) selects the cells.
     """
     b, se, n = free_intercept(cells.d, a2, valid, fixed["d_cov"])
-    with np.errstate(invalid="ignore"):
-        smallest = np.nanmin(np.where(valid, cells.d, np.nan), axis=-1, initial=np.inf)
-        keep = (n >= MIN_NOISE_LAGS) & ~skip & (2.0 * predicted**2 >= NOISE_DETECTABLE * smallest)
+    keep = (n >= MIN_NOISE_LAGS) & ~skip
     nan = np.full(b.shape, np.nan)
     return np.where(keep, b, nan), np.where(keep, se, nan), np.where(keep, predicted, nan)
 
