@@ -135,16 +135,10 @@ def _intercept_se(
     return np.sqrt(np.where(var >= 0, var, np.nan))
 
 
-def free_intercept(
-    d: np.ndarray, a: np.ndarray, valid: np.ndarray, d_cov: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The intercept ``2 sigma_e^2`` of the least squares of Smalikho (2020), eq. 4, free.
+def _line_fit(d: np.ndarray, a: np.ndarray, valid: np.ndarray) -> dict[str, np.ndarray]:
+    """Sums and the least-squares line ``D = slope A + intercept`` over the valid lags.
 
-    The fit of :func:`fit_structure_function` before any decision: intercept (m2 s-2),
-    its standard error from the covariance of D (:func:`intercept_standard_error`; NaN
-    without ``d_cov``) and the number of lags in the fit. The data of a whole day give the
-    SNR calibration of the predicted noise from these
-    (:func:`cwproc.physics.noise.noise_calibration`).
+    ``w`` the lags used, ``x``/``y`` A and D there (0 elsewhere), their sums, ``det``.
     """
     w = valid & np.isfinite(d) & np.isfinite(a)
     n = _lag_sum(w.astype(float))
@@ -156,10 +150,38 @@ def free_intercept(
         det = n * sxx - sx**2
         slope = (n * sxy - sx * sy) / det
         intercept = (sy - slope * sx) / n
+    return {
+        "w": w,
+        "n": n,
+        "x": x,
+        "y": y,
+        "sx": sx,
+        "sy": sy,
+        "sxx": sxx,
+        "sxy": sxy,
+        "det": det,
+        "slope": slope,
+        "intercept": intercept,
+    }
+
+
+def free_intercept(
+    d: np.ndarray, a: np.ndarray, valid: np.ndarray, d_cov: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The intercept ``2 sigma_e^2`` of the least squares of Smalikho (2020), eq. 4, free.
+
+    The fit of :func:`fit_structure_function` before any decision: intercept (m2 s-2),
+    its standard error from the covariance of D (:func:`intercept_standard_error`; NaN
+    without ``d_cov``) and the number of lags in the fit. The data of a whole day give the
+    SNR calibration of the predicted noise from these
+    (:func:`cwproc.physics.noise.noise_calibration`).
+    """
+    f = _line_fit(d, a, valid)
+    intercept = f["intercept"]
     se = np.full(intercept.shape, np.nan)
     if d_cov is not None:
-        se = _intercept_se(x, w, sx, sxx, det, d_cov)
-    return intercept, se, n
+        se = _intercept_se(f["x"], f["w"], f["sx"], f["sxx"], f["det"], d_cov)
+    return intercept, se, f["n"]
 
 
 def fit_structure_function(
@@ -188,11 +210,9 @@ def fit_structure_function(
       or the data contradict the prediction, or the prediction leaves no turbulence (the
       slope with the intercept fixed at ``2 sigma_pred^2`` is not positive): a
       prediction from a wrong SNR or wrong settings does not overrule the noise the data
-      measure. The test of the prediction uses both uncertainties: with ``b`` the
-      intercept, ``s_b`` its standard error and ``s_p = prior_rel_se 2 sigma_pred^2`` that
-      of the prediction, the two contradict where
-      ``|b - 2 sigma_pred^2| > NOISE_CONTRADICTS sqrt(s_b^2 + s_p^2)`` (a two-sided
-      z-test of the difference of two independent estimates, :data:`NOISE_CONTRADICTS`);
+      measure. The test takes both uncertainties (``b`` the intercept, ``s_b`` its error,
+      ``s_p = prior_rel_se 2 sigma_pred^2``): they contradict where ``|b - 2
+      sigma_pred^2| > NOISE_CONTRADICTS sqrt(s_b^2 + s_p^2)`` (a two-sided z-test);
     - otherwise: the intercept exceeds twice its standard error (``d_cov``'s, or the
       residual form ``s sqrt(sum x^2 / (n sum x^2 - (sum x)^2))``, ``s^2`` the residual
       variance with ``n - 2`` degrees of freedom), or, with a prediction, that error is
@@ -226,16 +246,10 @@ def fit_structure_function(
         eps (m2 s-3), sigma_e (m s-1), and whether sigma_e is the fitted one; NaN where
         fewer than two lags are valid.
     """
-    w = valid & np.isfinite(d) & np.isfinite(a)
-    n = _lag_sum(w.astype(float))
-    x = np.where(w, a, 0.0)
-    y = np.where(w, d, 0.0)
-    sx, sy = _lag_sum(x), _lag_sum(y)
-    sxx, sxy = _lag_sum(x * x), _lag_sum(x * y)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        det = n * sxx - sx**2
-        slope = (n * sxy - sx * sy) / det
-        intercept = (sy - slope * sx) / n
+    f = _line_fit(d, a, valid)
+    w, n, x, y, det = f["w"], f["n"], f["x"], f["y"], f["det"]
+    sx, sxx, sxy = f["sx"], f["sxx"], f["sxy"]
+    slope, intercept = f["slope"], f["intercept"]
     prior = np.full(slope.shape, np.nan) if noise_prior is None else np.asarray(noise_prior)
     has_prior = np.isfinite(prior)
     se = np.full(slope.shape, np.nan)
