@@ -67,10 +67,19 @@ def _lag_sum(x: np.ndarray) -> np.ndarray:
 NOISE_PRECISION = 0.5
 
 
-#: ... or where the intercept exceeds the predicted ``2 sigma_pred^2`` by more than this
-#: many standard errors (a prediction too low does not overrule a measured noise; few
-#: enough where the prediction is right: 4 errors kept 0.15 % of such blocks)
+#: ... or where the intercept and the predicted ``2 sigma_pred^2`` differ by more than
+#: this many standard errors of their difference (both uncertainties: the intercept's and
+#: the prediction's, :data:`NOISE_PRIOR_REL_SE`): a prediction too low or too high does
+#: not overrule a measured noise; few enough where the prediction is right (4 errors of
+#: the intercept alone kept 0.15 % of such blocks)
 NOISE_CONTRADICTS = 4.0
+
+
+#: relative standard error of a predicted ``2 sigma_pred^2`` that no data have calibrated
+#: (Pearson et al. (2009), eq. 3 with an assumed signal width 1-2 m s-1: sigma_e to about
+#: 25 %); a prediction calibrated on the day's blocks carries its calibration's error
+#: (:func:`cwproc.physics.noise.noise_calibration`)
+NOISE_PRIOR_REL_SE = 0.5
 
 
 def intercept_standard_error(a: np.ndarray, w: np.ndarray, d_cov: np.ndarray) -> np.ndarray:
@@ -126,12 +135,62 @@ def _intercept_se(
     return np.sqrt(np.where(var >= 0, var, np.nan))
 
 
+def _line_fit(d: np.ndarray, a: np.ndarray, valid: np.ndarray) -> dict[str, np.ndarray]:
+    """Sums and the least-squares line ``D = slope A + intercept`` over the valid lags.
+
+    ``w`` the lags used, ``x``/``y`` A and D there (0 elsewhere), their sums, ``det``.
+    """
+    w = valid & np.isfinite(d) & np.isfinite(a)
+    n = _lag_sum(w.astype(float))
+    x = np.where(w, a, 0.0)
+    y = np.where(w, d, 0.0)
+    sx, sy = _lag_sum(x), _lag_sum(y)
+    sxx, sxy = _lag_sum(x * x), _lag_sum(x * y)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        det = n * sxx - sx**2
+        slope = (n * sxy - sx * sy) / det
+        intercept = (sy - slope * sx) / n
+    return {
+        "w": w,
+        "n": n,
+        "x": x,
+        "y": y,
+        "sx": sx,
+        "sy": sy,
+        "sxx": sxx,
+        "sxy": sxy,
+        "det": det,
+        "slope": slope,
+        "intercept": intercept,
+    }
+
+
+def free_intercept(
+    d: np.ndarray, a: np.ndarray, valid: np.ndarray, d_cov: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The intercept ``2 sigma_e^2`` of the least squares of Smalikho (2020), eq. 4, free.
+
+    The fit of :func:`fit_structure_function` before any decision: intercept (m2 s-2),
+    its standard error from the covariance of D (:func:`intercept_standard_error`; NaN
+    without ``d_cov``) and the number of lags in the fit. The data of a whole day give the
+    SNR calibration of the predicted noise from these
+    (:func:`cwproc.physics.noise.noise_calibration`).
+    """
+    f = _line_fit(d, a, valid)
+    intercept = f["intercept"]
+    se = np.full(intercept.shape, np.nan)
+    if d_cov is not None:
+        se = _intercept_se(f["x"], f["w"], f["sx"], f["sxx"], f["det"], d_cov)
+    return intercept, se, f["n"]
+
+
 def fit_structure_function(
     d: np.ndarray,
     a: np.ndarray,
     valid: np.ndarray,
     noise_prior: np.ndarray | None = None,
     d_cov: np.ndarray | None = None,
+    prior_rel_se: np.ndarray | float = NOISE_PRIOR_REL_SE,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Least squares of ``D = eps^(2/3) A + 2 sigma_e^2`` over the lags (last axis).
 
@@ -148,10 +207,12 @@ def fit_structure_function(
       ``2 sigma_pred^2`` and the fitted sigma_e at least the prediction over
       :data:`NOISE_PLAUSIBLE` -- a rule on the precision, not on the value, so the kept
       noise is unbiased but for that floor (1.5 errors or more below the prediction) --
-      or the intercept exceeds ``2 sigma_pred^2`` by more than :data:`NOISE_CONTRADICTS`
-      standard errors, or the prediction leaves no turbulence (the slope with the
-      intercept fixed at ``2 sigma_pred^2`` is not positive): a prediction from a wrong
-      SNR or wrong settings does not overrule the noise the data measure;
+      or the data contradict the prediction, or the prediction leaves no turbulence (the
+      slope with the intercept fixed at ``2 sigma_pred^2`` is not positive): a
+      prediction from a wrong SNR or wrong settings does not overrule the noise the data
+      measure. The test takes both uncertainties (``b`` the intercept, ``s_b`` its error,
+      ``s_p = prior_rel_se 2 sigma_pred^2``): they contradict where ``|b - 2
+      sigma_pred^2| > NOISE_CONTRADICTS sqrt(s_b^2 + s_p^2)`` (a two-sided z-test);
     - otherwise: the intercept exceeds twice its standard error (``d_cov``'s, or the
       residual form ``s sqrt(sum x^2 / (n sum x^2 - (sum x)^2))``, ``s^2`` the residual
       variance with ``n - 2`` degrees of freedom), or, with a prediction, that error is
@@ -175,6 +236,9 @@ def fit_structure_function(
     d_cov : numpy.ndarray, optional
         Covariance of the block-mean D over the lags (m4 s-4), shape of ``d`` plus one
         more lag axis (broadcastable); NaN cells fall back to the residual form.
+    prior_rel_se : numpy.ndarray or float
+        Relative standard error of the predicted ``2 sigma_pred^2`` (default
+        :data:`NOISE_PRIOR_REL_SE`; that of a calibrated prediction is smaller).
 
     Returns
     -------
@@ -182,16 +246,10 @@ def fit_structure_function(
         eps (m2 s-3), sigma_e (m s-1), and whether sigma_e is the fitted one; NaN where
         fewer than two lags are valid.
     """
-    w = valid & np.isfinite(d) & np.isfinite(a)
-    n = _lag_sum(w.astype(float))
-    x = np.where(w, a, 0.0)
-    y = np.where(w, d, 0.0)
-    sx, sy = _lag_sum(x), _lag_sum(y)
-    sxx, sxy = _lag_sum(x * x), _lag_sum(x * y)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        det = n * sxx - sx**2
-        slope = (n * sxy - sx * sy) / det
-        intercept = (sy - slope * sx) / n
+    f = _line_fit(d, a, valid)
+    w, n, x, y, det = f["w"], f["n"], f["x"], f["y"], f["det"]
+    sx, sxx, sxy = f["sx"], f["sxx"], f["sxy"]
+    slope, intercept = f["slope"], f["intercept"]
     prior = np.full(slope.shape, np.nan) if noise_prior is None else np.asarray(noise_prior)
     has_prior = np.isfinite(prior)
     se = np.full(slope.shape, np.nan)
@@ -214,7 +272,8 @@ def fit_structure_function(
         # too low does not overrule the noise the data measure), or where the prediction
         # leaves no turbulence (slope <= 0: the data measure less noise than predicted)
         precise_cov = (se <= NOISE_PRECISION * pred2) & (intercept >= pred2 / NOISE_PLAUSIBLE**2)
-        contradicts = intercept - pred2 > NOISE_CONTRADICTS * se
+        prior_se = np.asarray(prior_rel_se) * pred2
+        contradicts = np.abs(intercept - pred2) > NOISE_CONTRADICTS * np.hypot(se, prior_se)
         untenable = ~(fixed_slope > 0)
         significant = np.where(
             has_prior, precise_cov | contradicts | untenable, intercept > 2.0 * se

@@ -173,19 +173,23 @@ _PRODUCT_VARIABLES: dict[str, VarMeta] = {
     "turbulence_flag": VarMeta(
         "dissipation-rate quality flag (bits combine)",
         "1",
-        flag_masks=(1, 2, 4, 8, 16, 32),
+        flag_masks=(1, 2, 4, 8, 16, 32, 64),
         flag_meanings=(
             "too_few_pairs lag_beyond_inertial_range mu_beyond_method1 fit_failed "
-            "partial_block noise_predicted"
+            "partial_block noise_predicted integral_scale_unresolved"
         ),
         comment=(
             "0 good; bit 1 too few pairs; bit 2 lag beyond the inertial range; "
             "bit 4 mu beyond method 1 validity (epsilon_method1 is kept); bit 8 fit failed; "
             "bit 16 partial block (fewer than half the requested scans per block); bit 32 "
             "the fitted noise intercept is not determined (its standard error above half "
-            "the predicted 2 sigma_e^2 or sigma_e below half the predicted one, and the fit "
-            "not above the prediction by 4 standard errors; or negative): noise_std is the "
-            "prediction from the SNR, used in the fit"
+            "the predicted 2 sigma_e^2 or sigma_e below half the predicted one, and fit "
+            "and prediction not 4 standard errors of their difference apart (both "
+            "uncertainties); or negative): noise_std is the prediction from the SNR times "
+            "noise_std_calibration where that was applied, used in the fit; bit 64 the "
+            "integral scale is below the smallest resolved separation (transverse "
+            "sampling dy at lag 1): epsilon, velocity_variance and integral_scale are "
+            "kept but not good"
         ),
     ),
     # ------------------------------------------- turbulence product: issue-12 additions
@@ -214,6 +218,27 @@ _PRODUCT_VARIABLES: dict[str, VarMeta] = {
             "240-250; Rye B.J., Hardesty R.M. (1993), IEEE Trans. Geosci. Remote Sens. 31, "
             "16-27"
         ),
+    ),
+    "noise_std_calibration": VarMeta(
+        "factor of the SNR-predicted instrumental error sigma_e that the structure "
+        "functions of the day measure",
+        "1",
+        comment=(
+            "k = sqrt of the median over the cells (block x height) of the free fitted "
+            "noise intercept 2 sigma_e^2 over the predicted one; applied to "
+            "noise_std_predicted where the data do not determine sigma_e (flag 32) when k "
+            "differs from 1 by more than 2 standard errors and 5 % (attribute applied); NaN "
+            "with fewer than 10 such cells"
+        ),
+        references=SMALIKHO_2020 + ", eq. 4; Pearson G., Davies F., Collier C. (2009), "
+        "J. Atmos. Oceanic Technol. 26, 240-250, eq. 3",
+        coverage_content_type="qualityInformation",
+    ),
+    "noise_std_calibration_standard_error": VarMeta(
+        "standard error of noise_std_calibration",
+        "1",
+        comment="that of the median ratio, sqrt(pi/2) 1.4826 MAD / sqrt(cells), over 2 k",
+        coverage_content_type="qualityInformation",
     ),
     "epsilon_standard_error": VarMeta(
         "standard error of the turbulent kinetic energy dissipation rate",

@@ -55,7 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from cwproc.physics import spectra
+from cwproc.physics import noise, spectra
 from cwproc.physics.constants import STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M
 from cwproc.physics.geometry import beam_unit_vector
 
@@ -468,6 +468,7 @@ def gaussian_scans(
     snr: float | None = None,
     start_time: str = "2024-06-01T00:00:00",
     block_gap_s: float = 60.0,
+    noise_factor: float = 1.0,
 ) -> xr.Dataset:
     """Independent blocks of scans with the exact covariance, as a canonical scan dataset.
 
@@ -475,6 +476,14 @@ def gaussian_scans(
     consecutive scans (:func:`block_covariance`); gates are independent of each other
     (the estimates are made per gate). White noise of ``noise_std_m_s`` is added to every
     estimate (Smalikho (2020), eq. 4), and the mean wind projected on the beam.
+
+    ``noise_factor``: the white noise drawn has ``noise_factor x noise_std_m_s``, while
+    the SNR column (``snr`` None) still predicts ``noise_std_m_s`` (Pearson et al.
+    (2009), eq. 3, :func:`cwproc.physics.noise.snr_for_noise_std`): a lidar whose noise
+    the SNR misstates (a wrong spectral width, a degraded detector), the case where the
+    noise must be decided by the structure function (Smalikho (2020), eq. 4).
+    ``sim_noise_std`` is the noise drawn, ``sim_noise_std_predicted`` the one the SNR
+    predicts.
 
     Returns
     -------
@@ -510,7 +519,8 @@ def gaussian_scans(
         velocity[:, :, g] = rng.standard_normal((n_blocks, n)) @ factor.T
     beams = beam_unit_vector(np.asarray(pattern.azimuth_deg), elevation_deg)
     velocity += np.tile(beams @ wind, n_scans)[None, :, None]
-    velocity += noise_std_m_s * rng.standard_normal(velocity.shape)
+    drawn = float(noise_std_m_s) * float(noise_factor)
+    velocity += drawn * rng.standard_normal(velocity.shape)
 
     scan_t = np.arange(n_scans)[:, None] * pattern.period_s + np.asarray(pattern.time_s)
     block_len = n_scans * pattern.period_s + block_gap_s
@@ -535,7 +545,8 @@ def gaussian_scans(
             "sim_epsilon": float(epsilon),
             "sim_integral_scale_m": float(outer_scale_m),
             "sim_model": model,
-            "sim_noise_std": float(noise_std_m_s),
+            "sim_noise_std": drawn,
+            "sim_noise_std_predicted": float(noise_std_m_s),
             "sim_seed": int(seed),
             "sim_wind_speed": float(wind_speed_m_s),
             "sim_wind_direction_deg": float(wind_direction_deg),
@@ -544,6 +555,13 @@ def gaussian_scans(
             "sim_velocity_variance": float(spectra.variance_from(epsilon, outer_scale_m, model)),
         },
     )
+    if snr is None:  # the SNR at which the file's settings predict noise_std_m_s
+        ds["snr"][:] = noise.snr_for_noise_std(
+            float(noise_std_m_s),
+            ds.attrs["points_per_gate"],
+            ds.attrs["pulses_per_ray"],
+            noise.bandwidth_from_resolution(ds.attrs["velocity_resolution_m_s"]),
+        )
     ds["qc_flag_radial"] = (("ray", "range"), np.zeros((n_rays, ranges.size), np.int8))
     return ds
 

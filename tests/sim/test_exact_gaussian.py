@@ -188,3 +188,39 @@ def test_coarse_continuous_sweep_converges():
     six = eg.block_covariance(pattern, 1, sweep_nodes=6, **kwargs)
     twelve = eg.block_covariance(pattern, 1, sweep_nodes=9, **kwargs)
     assert np.abs(six - twelve).max() < 2e-4 * twelve[0, 0]
+
+
+def test_noise_factor_draws_other_noise_than_the_snr_predicts():
+    """noise_factor 2: the white noise drawn has twice the sigma_e that the SNR column
+    predicts (Pearson et al. (2009), eq. 3); the variance added is 4 times as large."""
+    from cwproc.physics import noise
+
+    kwargs = dict(
+        pattern=eg.conical_pattern(6, 6.0, continuous=False),
+        n_scans=1,
+        n_blocks=3000,
+        elevation_deg=PHI,
+        ranges_m=[RANGE],
+        epsilon=1e-2,
+        outer_scale_m=L_V,
+        wind_speed_m_s=0.0,
+        wind_direction_deg=270.0,
+        noise_std_m_s=0.1,
+        seed=5,
+    )
+    plain = eg.gaussian_scans(**kwargs)
+    doubled = eg.gaussian_scans(**kwargs, noise_factor=2.0)
+    attrs = doubled.attrs
+    predicted = noise.velocity_noise_std(
+        doubled["snr"].values[0, 0],
+        attrs["points_per_gate"],
+        attrs["pulses_per_ray"],
+        noise.bandwidth_from_resolution(attrs["velocity_resolution_m_s"]),
+    )
+    assert float(predicted) == pytest.approx(0.1, rel=1e-6)
+    assert np.all(doubled["snr"].values == plain["snr"].values)
+    assert attrs["sim_noise_std"] == pytest.approx(0.2)
+    assert attrs["sim_noise_std_predicted"] == pytest.approx(0.1)
+    # the same seed: the turbulence is the same draw, the difference is noise 0.1 more
+    diff = doubled["radial_velocity"].values - plain["radial_velocity"].values
+    assert diff.std() == pytest.approx(0.1, rel=0.03)

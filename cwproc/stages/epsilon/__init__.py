@@ -42,7 +42,12 @@ Estimates, per block of scans and height, all vectorised:
   is fixed at ``2 sigma_pred^2`` of ``noise_std_predicted``
   (:func:`cwproc.stages.epsilon.cells.predicted_noise`, Pearson et al. (2009), eq. 3;
   without a prediction: twice its standard error decides) and flag 32 is set:
-  ``noise_std`` is then the prediction, or NaN without one, never a measured 0;
+  ``noise_std`` is then the prediction, or NaN without one, never a measured 0. The
+  prediction is a prior: fit and prediction that differ by more than
+  ``NOISE_CONTRADICTS`` standard errors of their difference (both uncertainties) leave
+  the data in charge, and the day's free intercepts calibrate the prediction
+  (``noise_std_calibration``, :mod:`cwproc.stages.epsilon.noise_prior`), which is then
+  the prior where the data do not determine sigma_e;
 - ``edr = eps^(1/3)``; standard errors of eps, sigma_V^2 and L_V by the delta method
   through the whole fit (:func:`cwproc.stages.epsilon.errors.covariance_errors`, the
   covariance of ``D_L`` and the variance over the block's scans);
@@ -129,7 +134,9 @@ Flags (``turbulence_flag``, :mod:`cwproc.stages.epsilon.flags`, bits combine; bi
   with the exact eq. 17 model: 33-38 % at N = 1 against 10-12 % at N = 10), so ``L_V``
   and ``eps`` would be biased; half a block keeps the relative error within about 1.5
   times that of a full block (14-16 % at N = 5 in the same Monte Carlo);
-- 32: the noise intercept is not determined; the predicted sigma_e is used (above).
+- 32: the noise intercept is not determined; the predicted sigma_e is used (above);
+- 64: ``L_V`` below the smallest resolved separation ``dy`` (lag 1): the estimates are
+  kept but not good (:func:`cwproc.stages.epsilon.flags.unresolved_scale`).
 
 ``structure_function_model`` is the fitted ``eps_fit^(2/3) A_2(l dy) + 2 sigma_e^2``
 (with the A-functions used for the cell) for plotting against ``structure_function``.
@@ -154,6 +161,14 @@ from cwproc.stages.epsilon.cells import cell_inputs, predicted_noise, statistics
 from cwproc.stages.epsilon.cw_exact import NOISE_WINDOW_BLOCKS, apply_exact_cells, exact_cells
 from cwproc.stages.epsilon.errors import block_errors
 from cwproc.stages.epsilon.flags import turbulence_flags
+from cwproc.stages.epsilon.noise_prior import (
+    NOISE_PRIOR_REL_SE,
+    add_calibration,
+    calibrated_prior_rel_se,
+    calibration_applies,
+    cell_intercepts,
+    day_calibration,
+)
 from cwproc.stages.epsilon.outer_scale import fit_setup, retrieve
 from cwproc.stages.epsilon.product import describe, product_arrays, turbulence_dataset
 
@@ -226,11 +241,21 @@ def estimate_epsilon(
     options = table_options_for(sf, table_options)  # the A-table of all heights
     settings = (probe, lag_number, model, min_pairs, n_outer_scales, options, fit_noise)
     memo: dict = {}  # what the groups share: per distinct (dy, range) pair (fit_setup)
-    parts = [
-        _block_group(sf.isel(time=rows), *settings, noise_window_blocks, memo)
-        for rows in block_groups(sf, probe)
-    ]
+    groups = block_groups(sf, probe)
+
+    def run(prior: tuple[float, float]) -> list[tuple]:
+        return [
+            _block_group(sf.isel(time=rows), *settings, noise_window_blocks, memo, prior)
+            for rows in groups
+        ]
+
+    parts = run((1.0, NOISE_PRIOR_REL_SE))
+    calibration = day_calibration([p[4] for p in parts])
+    applied = calibration_applies(calibration, [p[0] for p in parts])
+    if applied:  # the prediction, calibrated, where the data do not determine sigma_e
+        parts = run((calibration[0], calibrated_prior_rel_se(calibration)))
     out = parts[0][0] if len(parts) == 1 else _join_blocks([p[0] for p in parts])
+    add_calibration(out, calibration, applied)
     finite_used = sum(p[1] for p in parts)
     exact_cells_n = sum(p[2] for p in parts)
     out["integral_scale"].attrs["finite_outer_scale_cells"] = finite_used
@@ -307,17 +332,22 @@ def _block_group(
     fit_noise: bool,
     noise_window_blocks: int,
     memo: dict | None = None,
-) -> tuple[xr.Dataset, int, int, float]:
+    prior: tuple[float, float] = (1.0, NOISE_PRIOR_REL_SE),
+) -> tuple[xr.Dataset, int, int, float, tuple]:
     """The turbulence product of the blocks of ``sf`` (:func:`estimate_epsilon`);
-    ``memo`` as :func:`cwproc.stages.epsilon.outer_scale.fit_setup`.
+    ``memo`` as :func:`cwproc.stages.epsilon.outer_scale.fit_setup`; ``prior``: the
+    factor of the predicted sigma_e and the relative standard error of the predicted
+    ``2 sigma_e^2`` (:mod:`cwproc.stages.epsilon.noise_prior`).
 
     Returns the product without its descriptive attributes, the numbers of
-    finite-outer-scale and exact cw cells, and ``c`` of ``L_V = c sigma_V^3 / eps``.
+    finite-outer-scale and exact cw cells, ``c`` of ``L_V = c sigma_V^3 / eps`` and the
+    inputs of the noise calibration (:func:`~cwproc.stages.epsilon.noise_prior.cell_intercepts`).
     """
     cells = cell_inputs(sf, probe)
     lag_used = int(min(lag_number, cells.n_lags))
     valid = cells.pairs >= min_pairs
-    noise_pred = predicted_noise(sf, probe)
+    noise_raw = predicted_noise(sf, probe)
+    noise_pred = noise_raw * prior[0]
     exact = exact_cells(probe, cells, model)
     a_functions = cell_a_functions(probe, cells, model, options)
     cov = statistics_covariance(sf)
@@ -333,6 +363,7 @@ def _block_group(
         n_outer_scales,
         cov,
         memo,
+        prior[1],
     )
     res = retrieve(fixed, cells.d, cells.var_raw)
     est = {**res, "sf_model_exact": np.full(cells.d.shape, np.nan)}
@@ -350,11 +381,12 @@ def _block_group(
         cells,
         arrays,
         {
-            "noise_std_predicted": noise_pred,
+            "noise_std_predicted": noise_raw,
             "epsilon_standard_error": eps_se,
             "velocity_variance_standard_error": sigma2_se,
             "integral_scale_standard_error": scale_se,
         },
         flag,
     )
-    return out, int(est["finite_used"].sum()), int(exact.sum()), fixed["c_model"]
+    intercepts = cell_intercepts(cells, est["a2"], valid, fixed, noise_raw, bad | exact)
+    return out, int(est["finite_used"].sum()), int(exact.sum()), fixed["c_model"], intercepts

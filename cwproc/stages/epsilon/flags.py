@@ -1,7 +1,7 @@
 """Flag bits of ``turbulence_flag`` and the rules that set them (stage ``epsilon``).
 
 Bits combine; 1, 2, 8 and 16 make the estimates NaN (the list is in the docstring of
-:mod:`cwproc.stages.epsilon`).
+:mod:`cwproc.stages.epsilon`); 64 keeps them but marks them not good.
 """
 
 from __future__ import annotations
@@ -17,6 +17,8 @@ FLAG_METHOD1_INVALID = 4
 FLAG_FIT_FAILED = 8
 FLAG_PARTIAL_BLOCK = 16
 FLAG_NOISE_PREDICTED = 32
+#: L_V below the smallest resolved separation (dy at lag 1), or a fit that needs it
+FLAG_UNRESOLVED_SCALE = 64
 #: the bits that make the estimates NaN
 FLAGS_BAD = FLAG_TOO_FEW_PAIRS | FLAG_BEYOND_INERTIAL | FLAG_FIT_FAILED | FLAG_PARTIAL_BLOCK
 
@@ -80,4 +82,20 @@ def turbulence_flags(
     flag |= _bit(~(ratio <= METHOD1_RATIO_LIMIT) & ~bad, FLAG_METHOD1_INVALID)
     few_fit = valid.sum(axis=-1) < 2
     flag |= _bit(~est["fitted"] & ~few_fit & ~bad, FLAG_NOISE_PREDICTED)
+    flag |= _bit(unresolved_scale(l_v, cells.dy) & ~bad, FLAG_UNRESOLVED_SCALE)
     return flag, bad, few_fit
+
+
+def unresolved_scale(l_v: np.ndarray, dy: np.ndarray, smallest_lag: int = 1) -> np.ndarray:
+    """Cells whose L_V (m) lies below the smallest separation the scan resolves (flag 64).
+
+    The smallest separation of the structure function is ``smallest_lag dy`` (``dy =
+    dtheta R'``, Smalikho (2020), eq. 3): an eddy scale below it is not sampled, so an
+    ``L_V = c sigma_V^3 / eps`` (Banakh et al. (1999), eq. 19) there is an extrapolation
+    of the model beyond its data -- the heavy upper tail of eps on coarse scans (single
+    24-ray blocks 12 times the truth with L_V of 20-80 m). The estimates are kept (a
+    limit that drops them biases the mean eps low, see :func:`turbulence_flags`) but are
+    not good.
+    """
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(l_v) & np.isfinite(dy) & (l_v < smallest_lag * np.abs(dy))

@@ -29,7 +29,7 @@ from cwproc.physics.removed_share import (
     sector_removed_share,
     transport_mu,
 )
-from cwproc.physics.structure_fit import fit_structure_function
+from cwproc.physics.structure_fit import NOISE_PRIOR_REL_SE, fit_structure_function
 from cwproc.stages.epsilon.atable_fit import EVALUATION_CELLS, outer_scale_sector_factor
 from cwproc.stages.epsilon.cells import Cells
 from cwproc.stages.epsilon.root_search import Residual, bracket_root, replayed_root
@@ -134,6 +134,7 @@ def variance_residual(
     var_c: np.ndarray,
     prior: np.ndarray,
     d_cov: np.ndarray | None = None,
+    prior_rel_se: float = NOISE_PRIOR_REL_SE,
 ) -> Residual:
     """The variance condition of cells ``(n,)``, a function of ``L_V`` ``(n, k)`` (m).
 
@@ -145,7 +146,8 @@ def variance_residual(
     ratio, rising through 0 at the root. ``table`` is the model's table at fixed cells
     (:meth:`cwproc.physics.atable_interp.ATable.at_cells`), ``table_rows`` the cells'
     rows of it; ``d_cov`` the covariance of D of the cells (``(n, lag, lag)``) that
-    decides whether sigma_e is fitted.
+    decides whether sigma_e is fitted, ``prior_rel_se`` the relative standard error of
+    the predicted ``2 sigma_e^2``.
     """
     scale_grid = finite["scale_grid"]
     cov = None if d_cov is None else d_cov[:, None]
@@ -154,7 +156,9 @@ def variance_residual(
         k = big_l.shape[1]
         _, f2 = table.evaluate(np.broadcast_to(big_l, (dc.shape[0], k)), table_rows, a1=False)
         f2 = f2 * cell_sector[:, None, :]
-        eps_l, noise_l, _ = fit_structure_function(dc[:, None, :], f2, vc[:, None, :], prior, cov)
+        eps_l, noise_l, _ = fit_structure_function(
+            dc[:, None, :], f2, vc[:, None, :], prior, cov, prior_rel_se
+        )
         through = interp_log_scale(scale_grid, passed, np.broadcast_to(big_l, (dc.shape[0], k)))
         with np.errstate(invalid="ignore", divide="ignore"):
             model_var = np.log(eps_l ** (2 / 3) * through)
@@ -171,10 +175,11 @@ def _cells_residual(
 
     ``cells``: time and height indices, table rows and passed variances of the cells;
     ``statistics``: the ``(time, height, ...)`` arrays sector factor, D, valid lags,
-    variance, noise prediction and covariance of D (or None) of :func:`retrieve`.
+    variance, noise prediction, covariance of D (or None) and the prediction's relative
+    standard error of :func:`retrieve`.
     """
     ti, hi_, rows, passed = (c[index] for c in cells)
-    sector, d, valid, var_raw, prior, d_cov = statistics
+    sector, d, valid, var_raw, prior, d_cov, rel_se = statistics
     return variance_residual(
         table,
         rows,
@@ -186,6 +191,7 @@ def _cells_residual(
         var_raw[ti, hi_],
         prior[ti, hi_][:, None],
         None if d_cov is None else d_cov[ti, hi_],
+        rel_se,
     )
 
 
@@ -246,14 +252,14 @@ def retrieve(
     """
     a1, a2 = fixed["a1"].copy(), fixed["a2"].copy()
     valid, prior, c_model = fixed["valid"], fixed["noise_pred"], fixed["c_model"]
-    d_cov = fixed["d_cov"]
+    d_cov, rel_se = fixed["d_cov"], fixed.get("prior_rel_se", NOISE_PRIOR_REL_SE)
     shape = d.shape[:2]
 
     def solve() -> tuple:
         e1 = np.full(shape, np.nan)
         if method1:
-            e1, _, _ = fit_structure_function(d, a1, valid, prior, d_cov)
-        efit, noise, fitted = fit_structure_function(d, a2, valid, prior, d_cov)
+            e1, _, _ = fit_structure_function(d, a1, valid, prior, d_cov, rel_se)
+        efit, noise, fitted = fit_structure_function(d, a2, valid, prior, d_cov, rel_se)
         return e1, efit, noise, fitted
 
     too_small = np.zeros(shape, dtype=bool)
@@ -289,7 +295,7 @@ def retrieve(
                     cells=(t_, h_, cells[at], passed[at]),
                     table=table,
                     finite=finite,
-                    statistics=(sector, d, valid, var_raw, prior, d_cov),
+                    statistics=(sector, d, valid, var_raw, prior, d_cov, rel_se),
                 )
                 root[at], use[at], below[at], slope[t_, h_] = outer_scale_root(
                     residual_of,
@@ -358,8 +364,12 @@ def fit_setup(
     n_outer_scales: int,
     cov: np.ndarray | None = None,
     memo: dict | None = None,
+    prior_rel_se: float = NOISE_PRIOR_REL_SE,
 ) -> dict:
     """Everything :func:`retrieve` needs besides ``D`` and the variance of ``V'_L``.
+
+    ``prior_rel_se``: the relative standard error of the predicted ``2 sigma_e^2``
+    (:func:`cwproc.physics.structure_fit.fit_structure_function`).
 
     The A-functions of the cells (``a_functions`` of
     :func:`cwproc.stages.epsilon.atable_fit.cell_a_functions`), the valid lags, the
@@ -408,6 +418,7 @@ def fit_setup(
         "sector": sector,
         "valid": valid,
         "noise_pred": noise_pred,
+        "prior_rel_se": prior_rel_se,
         "d_cov": None if cov is None else cov[..., :-1, :-1],
         "loss": loss,
         "c_model": spectra.integral_scale_coefficient(

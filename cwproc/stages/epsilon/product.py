@@ -115,11 +115,12 @@ def describe(out: xr.Dataset, common: dict[str, Any], c_model: float, model: str
         method="intercept 2 sigma_e^2 of the least-squares fit, Smalikho (2020), eq. 4, "
         "where its standard error (from the covariance of D over the block's scans) is at "
         f"most {NOISE_PRECISION:g} of the predicted 2 sigma_pred^2 and sigma_e at least "
-        f"1/{NOISE_PLAUSIBLE:g} of the predicted one, where it exceeds 2 sigma_pred^2 by "
-        f"more than {NOISE_CONTRADICTS:g} standard errors, or where the prediction leaves "
+        f"1/{NOISE_PLAUSIBLE:g} of the predicted one, where it and 2 sigma_pred^2 differ "
+        f"by more than {NOISE_CONTRADICTS:g} standard errors of their difference (the "
+        "intercept's and the prediction's combined), or where the prediction leaves "
         "no turbulence (without a prediction: where it exceeds twice its standard error); "
-        "elsewhere (flag 32) the prediction noise_std_predicted, used "
-        "in the fit; NaN when neither exists"
+        "elsewhere (flag 32) the prediction noise_std_predicted times "
+        "noise_std_calibration (where applied), used in the fit; NaN when neither exists"
     )
     out["velocity_variance"].attrs.update(
         method="variance of V'_L minus sigma_e^2 divided by the probe-passed share of "

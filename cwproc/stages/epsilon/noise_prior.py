@@ -1,0 +1,126 @@
+"""The predicted noise as a prior, calibrated on the day's data (stage ``epsilon``).
+
+The noise term ``2 sigma_e^2`` of Smalikho (2020), eq. 4 is the intercept of the least
+squares of ``D_L``; the SNR gives a prediction of it (Pearson et al. (2009), eq. 3,
+:func:`cwproc.physics.noise.velocity_noise_std`) whose absolute level rests on assumed
+settings (the signal's spectral width) and can be off by a factor. The data decide:
+
+1. every cell is fitted with the prediction as a prior
+   (:func:`cwproc.physics.structure_fit.fit_structure_function`): the intercept is kept
+   where it is precise or where it contradicts the prediction (both uncertainties),
+   the prediction is used elsewhere (flag 32);
+2. the free intercepts of all cells of the instrument and day
+   (:func:`cell_intercepts`) give the factor ``k`` that the SNR prediction is off by,
+   with its standard error (:func:`cwproc.physics.noise.noise_calibration`);
+3. where ``k`` differs from 1 by more than :data:`CALIBRATION_SIGNIFICANT` standard
+   errors (and by more than :data:`CALIBRATION_RELEVANT`) and some cells took the
+   prediction, the cells are fitted again with the prediction times ``k`` and the
+   prior's relative error of ``2 sigma_e^2`` from that of ``k``
+   (:func:`calibrated_prior_rel_se`).
+
+``noise_std_calibration`` of the product holds ``k`` and its standard error
+(:func:`add_calibration`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import xarray as xr
+
+from cwproc.physics.noise import noise_calibration
+from cwproc.physics.structure_fit import (
+    MIN_NOISE_LAGS,
+    NOISE_PRIOR_REL_SE,
+    free_intercept,
+)
+from cwproc.stages.epsilon.cells import Cells
+from cwproc.stages.epsilon.flags import FLAG_NOISE_PREDICTED
+
+__all__ = [
+    "NOISE_PRIOR_REL_SE",
+    "add_calibration",
+    "calibrated_prior_rel_se",
+    "calibration_applies",
+    "cell_intercepts",
+    "day_calibration",
+]
+
+#: the calibration is applied where it differs from 1 by more than this many standard errors
+CALIBRATION_SIGNIFICANT = 2.0
+#: ... and by more than this share (a smaller one moves eps by well under 1 %)
+CALIBRATION_RELEVANT = 0.05
+#: least relative standard error of a calibrated ``2 sigma_e^2`` of one block: the
+#: block's SNR varies about the day's, and the calibration is one factor for all SNRs
+CALIBRATED_PRIOR_FLOOR = 0.1
+
+
+def cell_intercepts(
+    cells: Cells,
+    a2: np.ndarray,
+    valid: np.ndarray,
+    fixed: dict,
+    predicted: np.ndarray,
+    skip: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(intercept, standard error, predicted sigma_e)`` of the cells that can calibrate.
+
+    The free intercept of Smalikho (2020), eq. 4 with the cell's ``A_2``
+    (:func:`cwproc.physics.structure_fit.free_intercept`, m2 s-2) and the uncalibrated
+    prediction ``predicted`` (m s-1); NaN where the fit has fewer than
+    :data:`~cwproc.physics.structure_fit.MIN_NOISE_LAGS` lags, no covariance of D, or
+    ``skip`` (flagged bad, exact cw cells). Not the detectability of the fit's decision
+    (the prediction, which may be off, against the smallest D): the calibration's own
+    precision rule (:func:`cwproc.physics.noise.noise_calibration`) selects the cells.
+    """
+    b, se, n = free_intercept(cells.d, a2, valid, fixed["d_cov"])
+    keep = (n >= MIN_NOISE_LAGS) & ~skip
+    nan = np.full(b.shape, np.nan)
+    return np.where(keep, b, nan), np.where(keep, se, nan), np.where(keep, predicted, nan)
+
+
+def day_calibration(intercepts: list[tuple]) -> tuple[float, float, int]:
+    """``(k, SE(k), cells)`` over all groups of blocks (:func:`cell_intercepts` of each).
+
+    :func:`cwproc.physics.noise.noise_calibration` of the cells of all groups.
+    """
+    if not intercepts:
+        return math.nan, math.nan, 0
+    b, se, pred = (np.concatenate([np.ravel(p[i]) for p in intercepts]) for i in range(3))
+    return noise_calibration(b, se, pred)
+
+
+def calibration_applies(calibration: tuple[float, float, int], products: list[xr.Dataset]) -> bool:
+    """Whether the cells are fitted again with the calibrated prediction (module doc, 3)."""
+    k, se_k, _ = calibration
+    if not (math.isfinite(k) and math.isfinite(se_k)):
+        return False
+    if abs(k - 1.0) <= max(CALIBRATION_SIGNIFICANT * se_k, CALIBRATION_RELEVANT):
+        return False
+    return any(
+        bool(np.any((p["turbulence_flag"].values.astype(int) & FLAG_NOISE_PREDICTED) > 0))
+        for p in products
+    )
+
+
+def calibrated_prior_rel_se(calibration: tuple[float, float, int]) -> float:
+    """Relative standard error of a calibrated ``2 sigma_e^2``: ``2 SE(k) / k``, at least
+    :data:`CALIBRATED_PRIOR_FLOOR`."""
+    k, se_k, _ = calibration
+    return max(2.0 * se_k / k, CALIBRATED_PRIOR_FLOOR)
+
+
+def add_calibration(out: xr.Dataset, calibration: tuple[float, float, int], applied: bool) -> None:
+    """``noise_std_calibration`` and its standard error in the product (in place)."""
+    k, se_k, n = calibration
+    out["noise_std_calibration"] = ((), float(k))
+    out["noise_std_calibration_standard_error"] = ((), float(se_k))
+    out["noise_std_calibration"].attrs.update(
+        cells=int(n),
+        applied=int(applied),
+        method="weighted median over the cells of sigma_e^2 fitted / predicted "
+        "(cwproc.physics.noise.noise_calibration); applied to the prediction where the "
+        f"data do not determine sigma_e when it differs from 1 by more than "
+        f"{CALIBRATION_SIGNIFICANT:g} standard errors and {CALIBRATION_RELEVANT:g}",
+    )
