@@ -39,6 +39,24 @@ def test_calibration_resists_a_few_wild_intercepts_and_needs_enough_cells():
     assert np.isnan(few[0])
 
 
+def test_a_calibration_of_few_blocks_is_reported_not_applied():
+    """k far from 1 and precise, some cells on the prediction: applied with 10 blocks,
+    not with 2 (the cells of a block share its turbulence across heights)."""
+    import xarray as xr
+
+    from cwproc.stages.epsilon.noise_prior import CALIBRATION_MIN_BLOCKS, calibration_applies
+
+    def product(blocks: int) -> xr.Dataset:
+        flag = np.full((blocks, 3), 32, dtype=np.int32)  # noise predicted from the SNR
+        return xr.Dataset({"turbulence_flag": (("time", "height"), flag)})
+
+    calibration = (0.5, 0.05, 400)
+    assert calibration_applies(calibration, [product(CALIBRATION_MIN_BLOCKS)])
+    assert calibration_applies(calibration, [product(4), product(CALIBRATION_MIN_BLOCKS - 4)])
+    assert not calibration_applies(calibration, [product(2)])
+    assert not calibration_applies((1.02, 0.05, 400), [product(CALIBRATION_MIN_BLOCKS)])
+
+
 def test_the_data_overrule_a_prediction_that_is_too_high():
     """D = eps^(2/3) A + 2 sigma_e^2 with sigma_e 0.1, the prediction 0.2 (x2 too high),
     the intercept measured to 5 %: the test with both errors keeps the data."""
