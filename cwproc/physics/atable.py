@@ -36,8 +36,10 @@ from pathlib import Path
 
 import numpy as np
 
+from cwproc import progress
 from cwproc.physics import afunctions, atable_swept, spectra, two_beam
 from cwproc.physics.atable_interp import N_BINS, ATable, azimuth_nodes
+from cwproc.physics.curve_kernel import CurveKernel, CurveStack, shared_plane
 from cwproc.physics.disk_cache import cache_path, load_arrays, parameter_key, save_arrays
 from cwproc.physics.spectra import MODELS, Model
 from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
@@ -293,6 +295,35 @@ def _geometry_terms(
     return same, g1, g2, uniform_mode(phi, params["delta_theta_deg"], n_lags, swept)
 
 
+#: the swept pairs of the last tables built (:func:`_memo_swept_pairs`)
+_PAIRS_MEMO: dict[str, list[np.ndarray]] = {}
+
+
+def _memo_swept_pairs(
+    probe: Probe,
+    params: dict,
+    ranges: np.ndarray,
+    dys: np.ndarray,
+    mu: np.ndarray,
+    same: np.ndarray,
+) -> list[np.ndarray]:
+    """:func:`_swept_pairs`, kept in memory for the next table of the same geometry.
+
+    The inertial pairs do not depend on the spectrum model, and a retrieval asks for the
+    inertial table and then the finite-outer-scale one of the same geometry: the second
+    reuses the pairs of the first (the last two geometries are kept).
+    """
+    key = parameter_key(
+        {k: v for k, v in params.items() if k not in ("model", "outer_scale_range_m")}
+        | {"ranges": ranges.tolist(), "mu": mu.tolist()}
+    )
+    if key not in _PAIRS_MEMO:
+        while len(_PAIRS_MEMO) >= 2:
+            _PAIRS_MEMO.pop(next(iter(_PAIRS_MEMO)))
+        _PAIRS_MEMO[key] = _swept_pairs(probe, params, ranges, dys, mu, same)
+    return _PAIRS_MEMO[key]
+
+
 def _swept_pairs(
     probe: Probe,
     params: dict,
@@ -343,24 +374,6 @@ def _swept_pairs(
             )
         )
     return out
-
-
-def _inertial_curves(
-    probe: Probe, rho: tuple[np.ndarray, np.ndarray], perp_size: np.ndarray, ranges: np.ndarray
-) -> list:
-    """Inertial :class:`cwproc.physics.afunctions.ACurves` per height (as the table's)."""
-    rho_lo, rho_hi = rho
-    limits = [
-        afunctions.panel_limits(lo, hi, probe=probe, dy=float(ps), range_m=rng)
-        for lo, hi, ps, rng in zip(rho_lo, rho_hi, perp_size, ranges, strict=True)
-    ]
-    plane = afunctions.PlaneMatrix(min(lim[0] for lim in limits), max(lim[1] for lim in limits))
-    return [
-        afunctions.a_curve_splines(
-            float(lo), float(hi), probe=probe, dy=float(ps), range_m=float(rng), plane=plane
-        )
-        for lo, hi, ps, rng in zip(rho_lo, rho_hi, perp_size, ranges, strict=True)
-    ]
 
 
 def _height_cell(
@@ -460,56 +473,59 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
     rho_hi = n_lags * dys * (1.0 + params["mu_max"]) * 1.01
     swept_pairs: list = [None] * heights.size
     inertial: list = [None] * heights.size
+    largest = None if model == "inertial" else float(scales.max())
+    kernels = [
+        CurveKernel(
+            float(rho_lo[j]),
+            float(rho_hi[j]),
+            probe=probe,
+            dy=float(perp_size[j]),
+            range_m=float(ranges[j]),
+            outer_scale_m=largest,
+        )
+        for j in range(heights.size)
+    ]
     # pulsed step-stare rays take the plane A-function too (Stream Line gate: eq. 15's
     # mix was 1.9 % low on the circle at lag 1, mu = 1, and down to 0.82 per azimuth)
     plane_pairs = np.any(perp_size > 0) or isinstance(probe, PulsedProbe)
     if params.get("geometry", "two_beam") == "two_beam" and plane_pairs:
-        swept_pairs = _swept_pairs(probe, params, ranges, dys, mu, same)
+        swept_pairs = _memo_swept_pairs(probe, params, ranges, dys, mu, same)
         if model != "inertial":
-            inertial = _inertial_curves(probe, (rho_lo, rho_hi), perp_size, ranges)
-    for i, big_l in enumerate(scales):
-        outer = None if model == "inertial" else float(big_l)
-        sigma2 = 0.0 if outer is None else spectra.variance_per_eps23(model, outer)
-        # one spectrum matrix over the wavenumbers of all heights (the costliest part)
-        limits = [
-            afunctions.panel_limits(
-                lo, hi, probe=probe, dy=float(ps), range_m=rng, model=model, outer_scale_m=outer
-            )
-            for lo, hi, ps, rng in zip(rho_lo, rho_hi, perp_size, ranges, strict=True)
-        ]
-        plane = afunctions.PlaneMatrix(
-            min(lim[0] for lim in limits), max(lim[1] for lim in limits), model, outer
+            flat = shared_plane(kernels, "inertial", None)
+            inertial = [kernel.curves(flat) for kernel in kernels]
+    # the curves of every L_V node and height: one spectrum matrix per L_V, shared
+    per_scale = []
+    with progress.bar(desc=f"A-table ({model})", total=scales.size + heights.size) as shown:
+        for big_l in scales:
+            outer = None if model == "inertial" else float(big_l)
+            plane = shared_plane(kernels, model, outer)
+            per_scale.append([kernel.curves(plane) for kernel in kernels])
+            shown.update(1)
+        sigma2 = np.array(
+            [0.0 if model == "inertial" else spectra.variance_per_eps23(model, s) for s in scales]
         )
+        j_ref = heights.size // 2
         for j in range(heights.size):
-            curves = afunctions.a_curve_splines(
-                float(rho_lo[j]),
-                float(rho_hi[j]),
-                probe=probe,
-                dy=float(perp_size[j]),
-                range_m=float(ranges[j]),
-                model=model,
-                outer_scale_m=outer,
-                plane=plane,
-            )
             a1, per_theta = _height_cell(
-                curves,
+                CurveStack.of([curves[j] for curves in per_scale]),
                 (inertial[j], swept_pairs[j]),
                 (same[j], g1, g2),
                 lags * float(dys[j]),
                 mu,
                 phi,
             )
-            a1 = a1 + sigma2 * unif
-            per_theta = per_theta + sigma2 * unif[:, None, None]
+            a1 = a1 + sigma2[:, None] * unif
+            per_theta = per_theta + sigma2[:, None, None, None] * unif[:, None, None]
             c0 = per_theta.mean(axis=-1)
-            log_a1[i, j] = np.log(a1)
-            log_a2[i, j] = np.log(c0)
-            bins_a2[i, j] = (per_theta @ to_nodes) / c0[..., None]
+            log_a1[:, j] = np.log(a1)
+            log_a2[:, j] = np.log(c0)
+            if model == "inertial" or j == j_ref:  # finite tables keep one height's bins
+                bins_a2[:, j] = (per_theta @ to_nodes) / c0[..., None]
+            shown.update(1)
     keep = bins_a2 if model == "inertial" else None
     scale_bins = None
     if model != "inertial" and swept_pairs[0] is not None:
         # per-node ratio over the inertial one at the middle height (ATable.scale_ratio)
-        j_ref = heights.size // 2
         pairs = swept_pairs[j_ref]
         inert = (pairs @ to_nodes) / pairs.mean(axis=-1)[..., None]
         scale_bins = bins_a2[:, j_ref] / inert[None]

@@ -240,8 +240,14 @@ def geometry_ratio(
     radius ``1 + v/R`` over :func:`_point_eq15` of its separation (chord less transport,
     :func:`_across`). What is left is the projection of the angle between the beams on
     the structure tensor, ``1 - O((x dtheta)^2)``, finite also where the wind cancels the
-    scan (``a = b = 0``).
+    scan (``a = b = 0``). Even in ``cos th`` (both depend on ``sin th`` and ``b^2`` only):
+    ``theta`` of :func:`cwproc.physics.atable.full_circle` (a half circle and its mirror)
+    is computed on its first half and repeated.
     """
+    n_half = theta.size // 2
+    if n_half and np.allclose(np.sin(theta[n_half:]), np.sin(theta[:n_half])):
+        half = geometry_ratio(phi_deg, delta_theta_deg, x, mu, theta[:n_half], offsets)
+        return np.concatenate([half, half], axis=-1)
     a, b = _components(mu, theta)
     step = math.radians(delta_theta_deg)
     exact = np.zeros((x.size, *a.shape))
@@ -275,7 +281,8 @@ def swept_a2(
     and ``cos^2 th`` only); ``dy``: the azimuth step on the probe's circle (m).
     """
     x, weights = kernel
-    half = theta[: theta.size // 2]  # the probe part is even in cos(theta)
+    n_half = theta.size // 2
+    half = theta[:n_half]  # the integrand is even in cos(theta): the mirror half repeats it
     _, b = _components(mu, half)
     step = math.radians(delta_theta_deg)
     cphi, sphi = math.cos(math.radians(phi_deg)), math.sin(math.radians(phi_deg))
@@ -285,6 +292,6 @@ def swept_a2(
     for shift, w in zip(*offsets, strict=True):
         across = xs * np.sqrt(_across(x, mu, half, shift, step) ** 2 + (b * sphi)[None] ** 2)
         probe_mean += w * plane(np.broadcast_to(along, across.shape), across)
-    probe_mean = np.concatenate([probe_mean, probe_mean], axis=-1)
-    d0 = (probe_mean + same) * ratio - same
-    return np.einsum("lx,xmt->lmt", weights, d0)
+    d0 = (probe_mean + same) * ratio[..., :n_half] - same
+    out = np.einsum("lx,xmt->lmt", weights, d0)
+    return np.concatenate([out, out], axis=-1)
