@@ -30,8 +30,6 @@ from __future__ import annotations
 
 import math
 import os
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -40,12 +38,19 @@ from cwproc import progress
 from cwproc.physics import afunctions, atable_swept, spectra, two_beam
 from cwproc.physics.atable_interp import N_BINS, ATable, azimuth_nodes
 from cwproc.physics.curve_kernel import CurveKernel, CurveStack, shared_plane
-from cwproc.physics.disk_cache import cache_path, load_arrays, parameter_key, save_arrays
+from cwproc.physics.disk_cache import (
+    cache_path,
+    code_digest,
+    load_arrays,
+    parameter_key,
+    save_arrays,
+)
 from cwproc.physics.spectra import MODELS, Model
 from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
 
-#: bump when the numerics or the grid change: old cache files are then ignored
-TABLE_VERSION = 9
+#: the modules whose code a table depends on: their source is hashed into the cache key
+#: (:func:`cwproc.physics.disk_cache.code_digest`, the closure of this module's imports)
+CODE_ROOT = "cwproc.physics.atable"
 #: sub-beams of a swept ray in :func:`uniform_mode`
 N_SWEEP = 8
 #: geometry models of a table
@@ -54,6 +59,11 @@ GEOMETRIES = ("two_beam", "small_angle")
 HEIGHT_RATIO = 1.2
 #: geometric ratio of the outer-scale nodes
 OUTER_SCALE_RATIO = 1.3
+#: the swept pairs are computed at every PAIRS_STRIDE-th height node and interpolated
+#: in between (:func:`cwproc.physics.atable_swept.by_height`)
+PAIRS_STRIDE = 2
+#: ... except where the probe's range offsets ``sqrt(3) sigma_v / R`` exceed this (1)
+PAIRS_DIRECT_OFFSET = 0.25
 
 
 def default_mu_grid(mu_max: float = 10.0) -> np.ndarray:
@@ -89,6 +99,34 @@ def _probe_params(probe: Probe) -> dict:
             "transverse_averaging": bool(probe.transverse_averaging),
         }
     raise TypeError(f"unknown probe {probe!r}")
+
+
+def code_version() -> str:
+    """Hash of the code the tables depend on (the ``"code"`` entry of their parameters).
+
+    :func:`cwproc.physics.disk_cache.code_digest` of this module and the physics
+    modules it uses: any change of them gives every table a new cache key, so that a
+    cached or shipped table never outlives the code that computed it.
+    """
+    return code_digest(CODE_ROOT)
+
+
+def probe_from_params(probe: dict) -> Probe:
+    """The probe of a table's ``params["probe"]`` (:func:`table_parameters`)."""
+    if probe["kind"] == "pulsed":
+        return PulsedProbe(probe["delta_p_m"], probe["delta_r_m"], probe["gaussian"])
+    averaging = bool(probe["transverse_averaging"])
+    z_d = probe["focal_parameter_m"]
+    if z_d is None:
+        return CWProbe(probe["z_r_coefficient_per_m"], transverse_averaging=averaging)
+    # a beam radius of 1 m and the wavelength of z_d = 2 pi a0^2 / lambda, to the last bit
+    wavelength = 2.0 * math.pi / z_d
+    for _ in range(64):
+        made = CWProbe(wavelength_m=wavelength, beam_radius_m=1.0, transverse_averaging=averaging)
+        if made.focal_parameter_m == z_d:
+            break
+        wavelength = math.nextafter(wavelength, 0.0 if made.focal_parameter_m < z_d else math.inf)
+    return made
 
 
 def table_parameters(
@@ -140,7 +178,7 @@ def table_parameters(
     return {
         "swept": bool(swept),
         "geometry": geometry,
-        "version": TABLE_VERSION,
+        "code": code_version(),
         "probe": _probe_params(probe),
         "phi_deg": float(phi_deg),
         "delta_theta_deg": float(delta_theta_deg),
@@ -354,26 +392,30 @@ def _swept_pairs(
     plane = None
     if isinstance(probe, PulsedProbe):
         plane = atable_swept.plane_curves(probe, float(ranges[0]), *span)
-    out = []
-    for rng, dy, s2 in zip(ranges, dys, same, strict=True):
-        offsets = atable_swept.offset_rule(probe, float(rng))
+
+    def pairs_at(j: int) -> np.ndarray:
+        offsets = atable_swept.offset_rule(probe, float(ranges[j]))
         ratio = atable_swept.geometry_ratio(phi, step, kernel[0], mu, theta, offsets)
-        here = plane or atable_swept.plane_curves(probe, float(rng), 1e-3 * dy, top * dy)
-        out.append(
-            atable_swept.swept_a2(
-                here,
-                ratio,
-                kernel,
-                phi_deg=phi,
-                delta_theta_deg=step,
-                dy=float(dy),
-                offsets=offsets,
-                same=float(s2),
-                mu=mu,
-                theta=theta,
-            )
+        here = plane or atable_swept.plane_curves(
+            probe, float(ranges[j]), 1e-3 * dys[j], top * dys[j]
         )
-    return out
+        return atable_swept.swept_a2(
+            here,
+            ratio,
+            kernel,
+            phi_deg=phi,
+            delta_theta_deg=step,
+            dy=float(dys[j]),
+            offsets=offsets,
+            same=float(same[j]),
+            mu=mu,
+            theta=theta,
+        )
+
+    with progress.bar(desc="A-table (swept pairs)", total=ranges.size) as shown:
+        offset = [atable_swept.offset_rule(probe, float(r))[0][-1] for r in ranges]
+        direct = np.asarray(offset) > PAIRS_DIRECT_OFFSET
+        return atable_swept.by_height(pairs_at, ranges, PAIRS_STRIDE, direct, shown.update)
 
 
 def _height_cell(
@@ -661,13 +703,7 @@ def get_a_table(
         table = _load(shipped_path(key), key, params)
         if table is not None:
             return table
-    started = time.monotonic()
-    _progress(
-        f"cwproc: building the A-function table of this configuration ({model}), once; "
-        f"cached in {path.parent} ..."
-    )
     table = build_a_table(probe, params)
-    _progress(f" done in {time.monotonic() - started:.0f} s\n")
     _save(table, path, key)
     return table
 
@@ -681,10 +717,3 @@ def shipped_path(key: str) -> Path:
     from importlib import resources
 
     return Path(str(resources.files(SHIPPED_PACKAGE).joinpath(f"atable-{key}.npz")))
-
-
-def _progress(text: str) -> None:
-    """A note on stderr when it is a terminal (a table build takes tens of seconds)."""
-    if sys.stderr is not None and sys.stderr.isatty():
-        sys.stderr.write(text)
-        sys.stderr.flush()

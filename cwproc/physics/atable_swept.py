@@ -37,6 +37,7 @@ averaged over ``v``.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -295,3 +296,57 @@ def swept_a2(
     d0 = (probe_mean + same) * ratio[..., :n_half] - same
     out = np.einsum("lx,xmt->lmt", weights, d0)
     return np.concatenate([out, out], axis=-1)
+
+
+def by_height(
+    compute: Callable[[int], np.ndarray],
+    ranges: np.ndarray,
+    stride: int,
+    direct: np.ndarray,
+    advance: Callable[[int], Any] = lambda n: None,
+) -> list[np.ndarray]:
+    """``compute(j)`` at every ``stride``-th range, log-cubic in between.
+
+    The pairs of a pulsed probe vary slowly with the range on the table's geometric
+    nodes (through ``dy`` relative to the probe lengths and the offsets ``v / R``):
+    ``log D`` is interpolated with 4-point Lagrange weights in ``log R`` from the nodes
+    computed (the two nearest on each side, fewer at the ends). The ranges where
+    ``direct`` holds (short ranges, where ``v / R`` is large) and the last two are
+    always computed; where a value computed is not positive, every range is.
+    ``advance(n)``: progress of ``n`` ranges. With the table's nodes (ratio 1.2) and
+    stride 2 the interpolation error is below 1e-4 relative (30 m gate, 2 deg steps).
+    """
+    n = ranges.size
+    nodes = set(range(0, n, max(1, stride))) | {n - 2, n - 1} | set(np.flatnonzero(direct))
+    nodes = sorted(j for j in nodes if 0 <= j < n)
+    done = {}
+    for j in nodes:
+        done[j] = compute(j)
+        advance(1)
+    if len(nodes) == n or any(np.any(done[j] <= 0) for j in nodes):
+        out = [done[j] if j in done else compute(j) for j in range(n)]
+        advance(n - len(nodes))
+        return out
+    x = np.log(ranges[nodes])
+    logs = np.log(np.stack([done[j] for j in nodes]))
+    out = []
+    for j in range(n):
+        if j in done:
+            out.append(done[j])
+            continue
+        k = int(np.searchsorted(x, math.log(ranges[j])))
+        window = np.arange(max(0, k - 2), min(len(nodes), k + 2))
+        weights = _lagrange(x[window], math.log(ranges[j]))
+        out.append(np.exp(np.tensordot(weights, logs[window], axes=1)))
+        advance(1)
+    return out
+
+
+def _lagrange(nodes: np.ndarray, at: float) -> np.ndarray:
+    """Lagrange interpolation weights of ``nodes`` at ``at``."""
+    weights = np.ones(nodes.size)
+    for i in range(nodes.size):
+        for m in range(nodes.size):
+            if m != i:
+                weights[i] *= (at - nodes[m]) / (nodes[i] - nodes[m])
+    return weights
