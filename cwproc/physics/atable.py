@@ -16,14 +16,23 @@ against direct evaluation at points between the nodes). Outside the grid ``evalu
 returns NaN.
 
 Cache. Files ``atable-<sha256>.npz`` in ``platformdirs.user_cache_dir("cwproc")`` (or
-``cache_dir``), keyed by a hash of every parameter and of :data:`TABLE_VERSION`; written
+``cache_dir``), keyed by a hash of every parameter and of the code of the physics
+modules the build uses (:func:`code_version`, so a change of the code is never served
+an old table); written
 atomically (temporary file, then rename). A cache file that cannot be read, has the wrong
 key or shapes, or holds non-finite values is rebuilt, never trusted. An unwritable cache
 directory only costs the rebuild next time. With the default cache, a table missing
 there is looked up next among the prebuilt tables shipped in the package
 (``cwproc/atables/``, made at release by ``tools/build_atables.py`` for the shipped
 presets and samples), so that a new user never waits; a table that must be built
-announces itself on stderr when that is a terminal.
+shows a :mod:`cwproc.progress` bar (only when the command line turned progress on).
+
+Speed. The spectrum-independent quadrature weights of each height
+(:class:`cwproc.physics.curve_kernel.CurveKernel`) serve every ``L_V`` node; the
+inertial swept pairs of a geometry serve its finite-outer-scale table; the pairs are
+computed at every :data:`PAIRS_STRIDE`-th height node and interpolated in ``log R``
+between them (:func:`cwproc.physics.atable_swept.by_height`, within 2e-4 of direct
+evaluation, tested).
 """
 
 from __future__ import annotations
