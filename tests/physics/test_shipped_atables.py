@@ -86,6 +86,7 @@ def test_shipped_tables_equal_a_rebuild(tmp_path, monkeypatch):
         shipped = SHIPPED / path.name
         assert shipped.exists(), f"{path.name} is not shipped: run tools/build_atables.py"
         with np.load(path) as new, np.load(shipped) as old:
-            assert sorted(new.files) == sorted(old.files)
+            # the shipped file also holds the table's parameters (tools/build_atables.py)
+            assert sorted(new.files) == sorted(set(old.files) - {"params"})
             for name in new.files:
                 np.testing.assert_array_equal(new[name], old[name], err_msg=name)
