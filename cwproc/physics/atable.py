@@ -317,13 +317,19 @@ def _azimuth_to_nodes(theta: np.ndarray) -> np.ndarray:
 
 
 def _geometry_terms(
-    probe: Probe, params: dict, ranges: np.ndarray, mu: np.ndarray, swept: bool
+    probe: Probe,
+    params: dict,
+    ranges: np.ndarray,
+    mu: np.ndarray,
+    swept: bool,
+    ratios: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(same, g1, g2, unif)`` of the exact pair geometry, or neutral with small angles.
 
     ``same``: twice the same-beam term per height
     (:func:`cwproc.physics.two_beam.same_beam_term`); ``g1``, ``g2``: the point-probe
-    ratios of :func:`geometry_correction`; ``unif``: :func:`uniform_mode`.
+    ratios of :func:`geometry_correction` (ones when not ``ratios``: the inertial tables
+    of pairs do not use them); ``unif``: :func:`uniform_mode`.
     """
     phi, n_lags = params["phi_deg"], params["n_lags"]
     if params.get("geometry", "two_beam") != "two_beam":
@@ -338,7 +344,10 @@ def _geometry_terms(
     same = np.array(
         [2.0 * two_beam.same_beam_term(two_beam.beam_quadrature(probe, rng), phi) for rng in ranges]
     )
-    g1, g2 = geometry_correction(phi, params["delta_theta_deg"], n_lags, mu)
+    if ratios:
+        g1, g2 = geometry_correction(phi, params["delta_theta_deg"], n_lags, mu)
+    else:  # not used (inertial tables of pairs)
+        g1, g2 = np.ones(n_lags), np.ones((n_lags, mu.size, full_circle().size))
     return same, g1, g2, uniform_mode(phi, params["delta_theta_deg"], n_lags, swept)
 
 
@@ -428,7 +437,7 @@ def _swept_pairs(
 
 
 def _height_cell(
-    curves: afunctions.ACurves,
+    curves: afunctions.ACurves | CurveStack | None,
     swept: tuple[afunctions.ACurves | None, np.ndarray | None],
     geometry: tuple[float, np.ndarray, np.ndarray],
     lag_m: np.ndarray,
@@ -519,27 +528,34 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
     radius = np.asarray(probe.centre_range(ranges), float) * math.cos(math.radians(phi))
     dys = math.radians(params["delta_theta_deg"]) * radius
     perp_size = np.asarray(probe.transverse_size(dys), float) if swept else np.zeros_like(dys)
-    same, g1, g2, unif = _geometry_terms(probe, params, ranges, mu, swept)
+    # pulsed step-stare rays take the plane A-function too (Stream Line gate: eq. 15's
+    # mix was 1.9 % low on the circle at lag 1, mu = 1, and down to 0.82 per azimuth)
+    plane_pairs = np.any(perp_size > 0) or isinstance(probe, PulsedProbe)
+    plane_pairs = plane_pairs and params.get("geometry", "two_beam") == "two_beam"
+    # an inertial table of pairs is the pairs alone: no eq.-15 curves, no point ratios
+    pairs_only = plane_pairs and model == "inertial"
+    same, g1, g2, unif = _geometry_terms(probe, params, ranges, mu, swept, not pairs_only)
     rho_lo = 0.02 * dys
     rho_hi = n_lags * dys * (1.0 + params["mu_max"]) * 1.01
     swept_pairs: list = [None] * heights.size
     inertial: list = [None] * heights.size
     largest = None if model == "inertial" else float(scales.max())
-    kernels = [
-        CurveKernel(
-            float(rho_lo[j]),
-            float(rho_hi[j]),
-            probe=probe,
-            dy=float(perp_size[j]),
-            range_m=float(ranges[j]),
-            outer_scale_m=largest,
-        )
-        for j in range(heights.size)
-    ]
-    # pulsed step-stare rays take the plane A-function too (Stream Line gate: eq. 15's
-    # mix was 1.9 % low on the circle at lag 1, mu = 1, and down to 0.82 per azimuth)
-    plane_pairs = np.any(perp_size > 0) or isinstance(probe, PulsedProbe)
-    if params.get("geometry", "two_beam") == "two_beam" and plane_pairs:
+    kernels = (
+        []
+        if pairs_only
+        else [
+            CurveKernel(
+                float(rho_lo[j]),
+                float(rho_hi[j]),
+                probe=probe,
+                dy=float(perp_size[j]),
+                range_m=float(ranges[j]),
+                outer_scale_m=largest,
+            )
+            for j in range(heights.size)
+        ]
+    )
+    if plane_pairs:
         swept_pairs = _memo_swept_pairs(probe, params, ranges, dys, mu, same)
         if model != "inertial":
             flat = shared_plane(kernels, "inertial", None)
@@ -547,7 +563,7 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
     # the curves of every L_V node and height: one spectrum matrix per L_V, shared
     per_scale = []
     with progress.bar(desc=f"A-table ({model})", total=scales.size + heights.size) as shown:
-        for big_l in scales:
+        for big_l in scales if kernels else []:
             outer = None if model == "inertial" else float(big_l)
             plane = shared_plane(kernels, model, outer)
             per_scale.append([kernel.curves(plane) for kernel in kernels])
@@ -558,7 +574,7 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
         j_ref = heights.size // 2
         for j in range(heights.size):
             a1, per_theta = _height_cell(
-                CurveStack.of([curves[j] for curves in per_scale]),
+                CurveStack.of([curves[j] for curves in per_scale]) if kernels else None,
                 (inertial[j], swept_pairs[j]),
                 (same[j], g1, g2),
                 lags * float(dys[j]),
