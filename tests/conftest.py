@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +17,23 @@ from hypothesis import settings
 settings.register_profile("ci", derandomize=True, deadline=None, print_blob=True)
 if os.environ.get("CI"):
     settings.load_profile("ci")
+
+#: the one temporary cache folder of a test session (tables, removed-share curves): set
+#: at import by the controller, inherited by pytest-xdist workers (spawned later), so
+#: that no test reads or writes the user's ~/.cache/cwproc
+TEST_CACHE_VARIABLE = "CWPROC_TEST_CACHE"
+_OWN_CACHE: str | None = None
+if not os.environ.get(TEST_CACHE_VARIABLE):
+    _OWN_CACHE = tempfile.mkdtemp(prefix="cwproc-test-cache-")
+    os.environ[TEST_CACHE_VARIABLE] = _OWN_CACHE
+os.environ["XDG_CACHE_HOME"] = os.environ[TEST_CACHE_VARIABLE]
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """The controller (the process that made the folder) removes the session's cache."""
+    if _OWN_CACHE is not None and not hasattr(session.config, "workerinput"):
+        shutil.rmtree(_OWN_CACHE, ignore_errors=True)
+
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("CWPROC_SHARED", REPO.parent / "shared"))

@@ -16,34 +16,50 @@ against direct evaluation at points between the nodes). Outside the grid ``evalu
 returns NaN.
 
 Cache. Files ``atable-<sha256>.npz`` in ``platformdirs.user_cache_dir("cwproc")`` (or
-``cache_dir``), keyed by a hash of every parameter and of :data:`TABLE_VERSION`; written
+``cache_dir``), keyed by a hash of every parameter and of the code of the physics
+modules the build uses (:func:`code_version`, so a change of the code is never served
+an old table); written
 atomically (temporary file, then rename). A cache file that cannot be read, has the wrong
 key or shapes, or holds non-finite values is rebuilt, never trusted. An unwritable cache
 directory only costs the rebuild next time. With the default cache, a table missing
 there is looked up next among the prebuilt tables shipped in the package
 (``cwproc/atables/``, made at release by ``tools/build_atables.py`` for the shipped
 presets and samples), so that a new user never waits; a table that must be built
-announces itself on stderr when that is a terminal.
+shows a :mod:`cwproc.progress` bar (only when the command line turned progress on).
+
+Speed. The spectrum-independent quadrature weights of each height
+(:class:`cwproc.physics.curve_kernel.CurveKernel`) serve every ``L_V`` node; the
+inertial swept pairs of a geometry serve its finite-outer-scale table; the pairs are
+computed at every :data:`PAIRS_STRIDE`-th height node and interpolated in ``log R``
+between them (:func:`cwproc.physics.atable_swept.by_height`, within 2e-4 of direct
+evaluation, tested).
 """
 
 from __future__ import annotations
 
 import math
 import os
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
+from cwproc import progress
 from cwproc.physics import afunctions, atable_swept, spectra, two_beam
 from cwproc.physics.atable_interp import N_BINS, ATable, azimuth_nodes
-from cwproc.physics.disk_cache import cache_path, load_arrays, parameter_key, save_arrays
+from cwproc.physics.curve_kernel import CurveKernel, CurveStack, shared_plane
+from cwproc.physics.disk_cache import (
+    cache_path,
+    code_digest,
+    load_arrays,
+    parameter_key,
+    save_arrays,
+)
 from cwproc.physics.spectra import MODELS, Model
 from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
 
-#: bump when the numerics or the grid change: old cache files are then ignored
-TABLE_VERSION = 9
+#: the modules whose code a table depends on: their source is hashed into the cache key
+#: (:func:`cwproc.physics.disk_cache.code_digest`, the closure of this module's imports)
+CODE_ROOT = "cwproc.physics.atable"
 #: sub-beams of a swept ray in :func:`uniform_mode`
 N_SWEEP = 8
 #: geometry models of a table
@@ -52,6 +68,11 @@ GEOMETRIES = ("two_beam", "small_angle")
 HEIGHT_RATIO = 1.2
 #: geometric ratio of the outer-scale nodes
 OUTER_SCALE_RATIO = 1.3
+#: the swept pairs are computed at every PAIRS_STRIDE-th height node and interpolated
+#: in between (:func:`cwproc.physics.atable_swept.by_height`)
+PAIRS_STRIDE = 2
+#: ... except where the probe's range offsets ``sqrt(3) sigma_v / R`` exceed this (1)
+PAIRS_DIRECT_OFFSET = 0.25
 
 
 def default_mu_grid(mu_max: float = 10.0) -> np.ndarray:
@@ -87,6 +108,34 @@ def _probe_params(probe: Probe) -> dict:
             "transverse_averaging": bool(probe.transverse_averaging),
         }
     raise TypeError(f"unknown probe {probe!r}")
+
+
+def code_version() -> str:
+    """Hash of the code the tables depend on (the ``"code"`` entry of their parameters).
+
+    :func:`cwproc.physics.disk_cache.code_digest` of this module and the physics
+    modules it uses: any change of them gives every table a new cache key, so that a
+    cached or shipped table never outlives the code that computed it.
+    """
+    return code_digest(CODE_ROOT)
+
+
+def probe_from_params(probe: dict) -> Probe:
+    """The probe of a table's ``params["probe"]`` (:func:`table_parameters`)."""
+    if probe["kind"] == "pulsed":
+        return PulsedProbe(probe["delta_p_m"], probe["delta_r_m"], probe["gaussian"])
+    averaging = bool(probe["transverse_averaging"])
+    z_d = probe["focal_parameter_m"]
+    if z_d is None:
+        return CWProbe(probe["z_r_coefficient_per_m"], transverse_averaging=averaging)
+    # a beam radius of 1 m and the wavelength of z_d = 2 pi a0^2 / lambda, to the last bit
+    wavelength = 2.0 * math.pi / z_d
+    for _ in range(64):
+        made = CWProbe(wavelength_m=wavelength, beam_radius_m=1.0, transverse_averaging=averaging)
+        if made.focal_parameter_m == z_d:
+            break
+        wavelength = math.nextafter(wavelength, 0.0 if made.focal_parameter_m < z_d else math.inf)
+    return made
 
 
 def table_parameters(
@@ -138,7 +187,7 @@ def table_parameters(
     return {
         "swept": bool(swept),
         "geometry": geometry,
-        "version": TABLE_VERSION,
+        "code": code_version(),
         "probe": _probe_params(probe),
         "phi_deg": float(phi_deg),
         "delta_theta_deg": float(delta_theta_deg),
@@ -268,13 +317,19 @@ def _azimuth_to_nodes(theta: np.ndarray) -> np.ndarray:
 
 
 def _geometry_terms(
-    probe: Probe, params: dict, ranges: np.ndarray, mu: np.ndarray, swept: bool
+    probe: Probe,
+    params: dict,
+    ranges: np.ndarray,
+    mu: np.ndarray,
+    swept: bool,
+    ratios: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(same, g1, g2, unif)`` of the exact pair geometry, or neutral with small angles.
 
     ``same``: twice the same-beam term per height
     (:func:`cwproc.physics.two_beam.same_beam_term`); ``g1``, ``g2``: the point-probe
-    ratios of :func:`geometry_correction`; ``unif``: :func:`uniform_mode`.
+    ratios of :func:`geometry_correction` (ones when not ``ratios``: the inertial tables
+    of pairs do not use them); ``unif``: :func:`uniform_mode`.
     """
     phi, n_lags = params["phi_deg"], params["n_lags"]
     if params.get("geometry", "two_beam") != "two_beam":
@@ -289,8 +344,40 @@ def _geometry_terms(
     same = np.array(
         [2.0 * two_beam.same_beam_term(two_beam.beam_quadrature(probe, rng), phi) for rng in ranges]
     )
-    g1, g2 = geometry_correction(phi, params["delta_theta_deg"], n_lags, mu)
+    if ratios:
+        g1, g2 = geometry_correction(phi, params["delta_theta_deg"], n_lags, mu)
+    else:  # not used (inertial tables of pairs)
+        g1, g2 = np.ones(n_lags), np.ones((n_lags, mu.size, full_circle().size))
     return same, g1, g2, uniform_mode(phi, params["delta_theta_deg"], n_lags, swept)
+
+
+#: the swept pairs of the last tables built (:func:`_memo_swept_pairs`)
+_PAIRS_MEMO: dict[str, list[np.ndarray]] = {}
+
+
+def _memo_swept_pairs(
+    probe: Probe,
+    params: dict,
+    ranges: np.ndarray,
+    dys: np.ndarray,
+    mu: np.ndarray,
+    same: np.ndarray,
+) -> list[np.ndarray]:
+    """:func:`_swept_pairs`, kept in memory for the next table of the same geometry.
+
+    The inertial pairs do not depend on the spectrum model, and a retrieval asks for the
+    inertial table and then the finite-outer-scale one of the same geometry: the second
+    reuses the pairs of the first (the last two geometries are kept).
+    """
+    key = parameter_key(
+        {k: v for k, v in params.items() if k not in ("model", "outer_scale_range_m")}
+        | {"ranges": ranges.tolist(), "mu": mu.tolist()}
+    )
+    if key not in _PAIRS_MEMO:
+        while len(_PAIRS_MEMO) >= 2:
+            _PAIRS_MEMO.pop(next(iter(_PAIRS_MEMO)))
+        _PAIRS_MEMO[key] = _swept_pairs(probe, params, ranges, dys, mu, same)
+    return _PAIRS_MEMO[key]
 
 
 def _swept_pairs(
@@ -323,48 +410,34 @@ def _swept_pairs(
     plane = None
     if isinstance(probe, PulsedProbe):
         plane = atable_swept.plane_curves(probe, float(ranges[0]), *span)
-    out = []
-    for rng, dy, s2 in zip(ranges, dys, same, strict=True):
-        offsets = atable_swept.offset_rule(probe, float(rng))
+
+    def pairs_at(j: int) -> np.ndarray:
+        offsets = atable_swept.offset_rule(probe, float(ranges[j]))
         ratio = atable_swept.geometry_ratio(phi, step, kernel[0], mu, theta, offsets)
-        here = plane or atable_swept.plane_curves(probe, float(rng), 1e-3 * dy, top * dy)
-        out.append(
-            atable_swept.swept_a2(
-                here,
-                ratio,
-                kernel,
-                phi_deg=phi,
-                delta_theta_deg=step,
-                dy=float(dy),
-                offsets=offsets,
-                same=float(s2),
-                mu=mu,
-                theta=theta,
-            )
+        here = plane or atable_swept.plane_curves(
+            probe, float(ranges[j]), 1e-3 * dys[j], top * dys[j]
         )
-    return out
-
-
-def _inertial_curves(
-    probe: Probe, rho: tuple[np.ndarray, np.ndarray], perp_size: np.ndarray, ranges: np.ndarray
-) -> list:
-    """Inertial :class:`cwproc.physics.afunctions.ACurves` per height (as the table's)."""
-    rho_lo, rho_hi = rho
-    limits = [
-        afunctions.panel_limits(lo, hi, probe=probe, dy=float(ps), range_m=rng)
-        for lo, hi, ps, rng in zip(rho_lo, rho_hi, perp_size, ranges, strict=True)
-    ]
-    plane = afunctions.PlaneMatrix(min(lim[0] for lim in limits), max(lim[1] for lim in limits))
-    return [
-        afunctions.a_curve_splines(
-            float(lo), float(hi), probe=probe, dy=float(ps), range_m=float(rng), plane=plane
+        return atable_swept.swept_a2(
+            here,
+            ratio,
+            kernel,
+            phi_deg=phi,
+            delta_theta_deg=step,
+            dy=float(dys[j]),
+            offsets=offsets,
+            same=float(same[j]),
+            mu=mu,
+            theta=theta,
         )
-        for lo, hi, ps, rng in zip(rho_lo, rho_hi, perp_size, ranges, strict=True)
-    ]
+
+    with progress.bar(desc="A-table (swept pairs)", total=ranges.size) as shown:
+        offset = [atable_swept.offset_rule(probe, float(r))[0][-1] for r in ranges]
+        direct = np.asarray(offset) > PAIRS_DIRECT_OFFSET
+        return atable_swept.by_height(pairs_at, ranges, PAIRS_STRIDE, direct, shown.update)
 
 
 def _height_cell(
-    curves: afunctions.ACurves,
+    curves: afunctions.ACurves | CurveStack | None,
     swept: tuple[afunctions.ACurves | None, np.ndarray | None],
     geometry: tuple[float, np.ndarray, np.ndarray],
     lag_m: np.ndarray,
@@ -455,61 +528,71 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
     radius = np.asarray(probe.centre_range(ranges), float) * math.cos(math.radians(phi))
     dys = math.radians(params["delta_theta_deg"]) * radius
     perp_size = np.asarray(probe.transverse_size(dys), float) if swept else np.zeros_like(dys)
-    same, g1, g2, unif = _geometry_terms(probe, params, ranges, mu, swept)
+    # pulsed step-stare rays take the plane A-function too (Stream Line gate: eq. 15's
+    # mix was 1.9 % low on the circle at lag 1, mu = 1, and down to 0.82 per azimuth)
+    plane_pairs = np.any(perp_size > 0) or isinstance(probe, PulsedProbe)
+    plane_pairs = plane_pairs and params.get("geometry", "two_beam") == "two_beam"
+    # an inertial table of pairs is the pairs alone: no eq.-15 curves, no point ratios
+    pairs_only = plane_pairs and model == "inertial"
+    same, g1, g2, unif = _geometry_terms(probe, params, ranges, mu, swept, not pairs_only)
     rho_lo = 0.02 * dys
     rho_hi = n_lags * dys * (1.0 + params["mu_max"]) * 1.01
     swept_pairs: list = [None] * heights.size
     inertial: list = [None] * heights.size
-    # pulsed step-stare rays take the plane A-function too (Stream Line gate: eq. 15's
-    # mix was 1.9 % low on the circle at lag 1, mu = 1, and down to 0.82 per azimuth)
-    plane_pairs = np.any(perp_size > 0) or isinstance(probe, PulsedProbe)
-    if params.get("geometry", "two_beam") == "two_beam" and plane_pairs:
-        swept_pairs = _swept_pairs(probe, params, ranges, dys, mu, same)
-        if model != "inertial":
-            inertial = _inertial_curves(probe, (rho_lo, rho_hi), perp_size, ranges)
-    for i, big_l in enumerate(scales):
-        outer = None if model == "inertial" else float(big_l)
-        sigma2 = 0.0 if outer is None else spectra.variance_per_eps23(model, outer)
-        # one spectrum matrix over the wavenumbers of all heights (the costliest part)
-        limits = [
-            afunctions.panel_limits(
-                lo, hi, probe=probe, dy=float(ps), range_m=rng, model=model, outer_scale_m=outer
-            )
-            for lo, hi, ps, rng in zip(rho_lo, rho_hi, perp_size, ranges, strict=True)
-        ]
-        plane = afunctions.PlaneMatrix(
-            min(lim[0] for lim in limits), max(lim[1] for lim in limits), model, outer
-        )
-        for j in range(heights.size):
-            curves = afunctions.a_curve_splines(
+    largest = None if model == "inertial" else float(scales.max())
+    kernels = (
+        []
+        if pairs_only
+        else [
+            CurveKernel(
                 float(rho_lo[j]),
                 float(rho_hi[j]),
                 probe=probe,
                 dy=float(perp_size[j]),
                 range_m=float(ranges[j]),
-                model=model,
-                outer_scale_m=outer,
-                plane=plane,
+                outer_scale_m=largest,
             )
+            for j in range(heights.size)
+        ]
+    )
+    if plane_pairs:
+        swept_pairs = _memo_swept_pairs(probe, params, ranges, dys, mu, same)
+        if model != "inertial":
+            flat = shared_plane(kernels, "inertial", None)
+            inertial = [kernel.curves(flat) for kernel in kernels]
+    # the curves of every L_V node and height: one spectrum matrix per L_V, shared
+    per_scale = []
+    with progress.bar(desc=f"A-table ({model})", total=scales.size + heights.size) as shown:
+        for big_l in scales if kernels else []:
+            outer = None if model == "inertial" else float(big_l)
+            plane = shared_plane(kernels, model, outer)
+            per_scale.append([kernel.curves(plane) for kernel in kernels])
+            shown.update(1)
+        sigma2 = np.array(
+            [0.0 if model == "inertial" else spectra.variance_per_eps23(model, s) for s in scales]
+        )
+        j_ref = heights.size // 2
+        for j in range(heights.size):
             a1, per_theta = _height_cell(
-                curves,
+                CurveStack.of([curves[j] for curves in per_scale]) if kernels else None,
                 (inertial[j], swept_pairs[j]),
                 (same[j], g1, g2),
                 lags * float(dys[j]),
                 mu,
                 phi,
             )
-            a1 = a1 + sigma2 * unif
-            per_theta = per_theta + sigma2 * unif[:, None, None]
+            a1 = a1 + sigma2[:, None] * unif
+            per_theta = per_theta + sigma2[:, None, None, None] * unif[:, None, None]
             c0 = per_theta.mean(axis=-1)
-            log_a1[i, j] = np.log(a1)
-            log_a2[i, j] = np.log(c0)
-            bins_a2[i, j] = (per_theta @ to_nodes) / c0[..., None]
+            log_a1[:, j] = np.log(a1)
+            log_a2[:, j] = np.log(c0)
+            if model == "inertial" or j == j_ref:  # finite tables keep one height's bins
+                bins_a2[:, j] = (per_theta @ to_nodes) / c0[..., None]
+            shown.update(1)
     keep = bins_a2 if model == "inertial" else None
     scale_bins = None
     if model != "inertial" and swept_pairs[0] is not None:
         # per-node ratio over the inertial one at the middle height (ATable.scale_ratio)
-        j_ref = heights.size // 2
         pairs = swept_pairs[j_ref]
         inert = (pairs @ to_nodes) / pairs.mean(axis=-1)[..., None]
         scale_bins = bins_a2[:, j_ref] / inert[None]
@@ -645,13 +728,7 @@ def get_a_table(
         table = _load(shipped_path(key), key, params)
         if table is not None:
             return table
-    started = time.monotonic()
-    _progress(
-        f"cwproc: building the A-function table of this configuration ({model}), once; "
-        f"cached in {path.parent} ..."
-    )
     table = build_a_table(probe, params)
-    _progress(f" done in {time.monotonic() - started:.0f} s\n")
     _save(table, path, key)
     return table
 
@@ -665,10 +742,3 @@ def shipped_path(key: str) -> Path:
     from importlib import resources
 
     return Path(str(resources.files(SHIPPED_PACKAGE).joinpath(f"atable-{key}.npz")))
-
-
-def _progress(text: str) -> None:
-    """A note on stderr when it is a terminal (a table build takes tens of seconds)."""
-    if sys.stderr is not None and sys.stderr.isatty():
-        sys.stderr.write(text)
-        sys.stderr.flush()

@@ -37,6 +37,7 @@ averaged over ``v``.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -99,7 +100,10 @@ def plane_curves(probe: Any, range_m: float, s_min: float, s_max: float) -> Plan
     angle = np.linspace(0.0, 1.0, N_ANGLE)
     beta = 0.5 * np.pi * (1.0 - (1.0 - angle) ** 2)  # inverse of _angle_coordinate
     ss, bb = np.meshgrid(s, beta, indexing="ij")
-    values = afunctions.a_plane(ss * np.sin(bb), ss * np.cos(bb), probe=probe, range_m=range_m)
+    # along the beam exactly (cos(pi/2) = 6e-17 in floating point would stretch the
+    # wavenumber panels of a_plane to 1e20 per metre and double its cost: 4e-7 relative)
+    across = np.where(bb == 0.5 * np.pi, 0.0, np.cos(bb))
+    values = afunctions.a_plane(ss * np.sin(bb), ss * across, probe=probe, range_m=range_m)
     return PlaneCurves(np.log(s), angle, np.log(values))
 
 
@@ -240,8 +244,14 @@ def geometry_ratio(
     radius ``1 + v/R`` over :func:`_point_eq15` of its separation (chord less transport,
     :func:`_across`). What is left is the projection of the angle between the beams on
     the structure tensor, ``1 - O((x dtheta)^2)``, finite also where the wind cancels the
-    scan (``a = b = 0``).
+    scan (``a = b = 0``). Even in ``cos th`` (both depend on ``sin th`` and ``b^2`` only):
+    ``theta`` of :func:`cwproc.physics.atable.full_circle` (a half circle and its mirror)
+    is computed on its first half and repeated.
     """
+    n_half = theta.size // 2
+    if n_half and np.allclose(np.sin(theta[n_half:]), np.sin(theta[:n_half])):
+        half = geometry_ratio(phi_deg, delta_theta_deg, x, mu, theta[:n_half], offsets)
+        return np.concatenate([half, half], axis=-1)
     a, b = _components(mu, theta)
     step = math.radians(delta_theta_deg)
     exact = np.zeros((x.size, *a.shape))
@@ -275,7 +285,8 @@ def swept_a2(
     and ``cos^2 th`` only); ``dy``: the azimuth step on the probe's circle (m).
     """
     x, weights = kernel
-    half = theta[: theta.size // 2]  # the probe part is even in cos(theta)
+    n_half = theta.size // 2
+    half = theta[:n_half]  # the integrand is even in cos(theta): the mirror half repeats it
     _, b = _components(mu, half)
     step = math.radians(delta_theta_deg)
     cphi, sphi = math.cos(math.radians(phi_deg)), math.sin(math.radians(phi_deg))
@@ -285,6 +296,60 @@ def swept_a2(
     for shift, w in zip(*offsets, strict=True):
         across = xs * np.sqrt(_across(x, mu, half, shift, step) ** 2 + (b * sphi)[None] ** 2)
         probe_mean += w * plane(np.broadcast_to(along, across.shape), across)
-    probe_mean = np.concatenate([probe_mean, probe_mean], axis=-1)
-    d0 = (probe_mean + same) * ratio - same
-    return np.einsum("lx,xmt->lmt", weights, d0)
+    d0 = (probe_mean + same) * ratio[..., :n_half] - same
+    out = np.einsum("lx,xmt->lmt", weights, d0)
+    return np.concatenate([out, out], axis=-1)
+
+
+def by_height(
+    compute: Callable[[int], np.ndarray],
+    ranges: np.ndarray,
+    stride: int,
+    direct: np.ndarray,
+    advance: Callable[[int], Any] = lambda n: None,
+) -> list[np.ndarray]:
+    """``compute(j)`` at every ``stride``-th range, log-cubic in between.
+
+    The pairs of a pulsed probe vary slowly with the range on the table's geometric
+    nodes (through ``dy`` relative to the probe lengths and the offsets ``v / R``):
+    ``log D`` is interpolated with 4-point Lagrange weights in ``log R`` from the nodes
+    computed (the two nearest on each side, fewer at the ends). The ranges where
+    ``direct`` holds (short ranges, where ``v / R`` is large) and the last two are
+    always computed; where a value computed is not positive, every range is.
+    ``advance(n)``: progress of ``n`` ranges. With the table's nodes (ratio 1.2) and
+    stride 2 the interpolation error is below 1e-4 relative (30 m gate, 2 deg steps).
+    """
+    n = ranges.size
+    nodes = set(range(0, n, max(1, stride))) | {n - 2, n - 1} | set(np.flatnonzero(direct))
+    nodes = sorted(j for j in nodes if 0 <= j < n)
+    done = {}
+    for j in nodes:
+        done[j] = compute(j)
+        advance(1)
+    if len(nodes) == n or any(np.any(done[j] <= 0) for j in nodes):
+        out = [done[j] if j in done else compute(j) for j in range(n)]
+        advance(n - len(nodes))
+        return out
+    x = np.log(ranges[nodes])
+    logs = np.log(np.stack([done[j] for j in nodes]))
+    out = []
+    for j in range(n):
+        if j in done:
+            out.append(done[j])
+            continue
+        k = int(np.searchsorted(x, math.log(ranges[j])))
+        window = np.arange(max(0, k - 2), min(len(nodes), k + 2))
+        weights = _lagrange(x[window], math.log(ranges[j]))
+        out.append(np.exp(np.tensordot(weights, logs[window], axes=1)))
+        advance(1)
+    return out
+
+
+def _lagrange(nodes: np.ndarray, at: float) -> np.ndarray:
+    """Lagrange interpolation weights of ``nodes`` at ``at``."""
+    weights = np.ones(nodes.size)
+    for i in range(nodes.size):
+        for m in range(nodes.size):
+            if m != i:
+                weights[i] *= (at - nodes[m]) / (nodes[i] - nodes[m])
+    return weights

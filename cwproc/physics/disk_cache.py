@@ -13,9 +13,11 @@ an unwritable folder only costs the computation next time. Stored as ``.npz``
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
+import re
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -98,3 +100,48 @@ def cached_arrays(
     arrays = compute()
     save_arrays(path, {"key": np.array(key), **arrays})
     return arrays
+
+
+#: ``from cwproc.physics.X import``, ``import cwproc.physics.X``
+_SUBMODULE = re.compile(r"^\s*(?:from|import)\s+cwproc\.physics\.(\w+)", re.MULTILINE)
+#: ``from cwproc.physics import a, b`` (one line or parenthesised)
+_NAMES = re.compile(r"^\s*from\s+cwproc\.physics\s+import\s+(\([^)]*\)|[^\n]*)", re.MULTILINE)
+
+
+def _physics_imports(text: str) -> set[str]:
+    """The ``cwproc.physics`` modules the source ``text`` imports (any depth, any form)."""
+    found = {f"cwproc.physics.{m}" for m in _SUBMODULE.findall(text)}
+    for group in _NAMES.findall(text):
+        for item in group.strip("()").replace("\n", ",").split(","):
+            name = item.split("#")[0].split(" as ")[0].strip()
+            if name:
+                found.add(f"cwproc.physics.{name}")
+    return found
+
+
+@functools.lru_cache(maxsize=8)
+def code_digest(module: str, folder: str | None = None) -> str:
+    """SHA-256 (hex) of the code of ``module`` and every ``cwproc.physics`` module it uses.
+
+    The modules are followed through their imports (closure within ``cwproc.physics``)
+    and their source texts hashed, so that any change of the code that computes cached
+    arrays gives them a new key (a change of a docstring too: a rebuild, never a stale
+    result). Computed once per process and module (a few tens of ms). ``folder``: where
+    the modules are (default: this package's folder).
+    """
+    root = Path(folder) if folder is not None else Path(__file__).resolve().parent
+    seen: dict[str, str] = {}
+    todo = [module]
+    while todo:
+        name = todo.pop()
+        if name in seen:
+            continue
+        path = root / (name.removeprefix("cwproc.physics.") + ".py")
+        if not path.is_file():  # a package attribute, not a module of its own
+            seen[name] = ""
+            continue
+        text = path.read_text(encoding="utf-8")
+        todo.extend(_physics_imports(text))
+        seen[name] = text
+    text = "\n".join(f"{name}\n{seen[name]}" for name in sorted(seen))
+    return hashlib.sha256(text.encode()).hexdigest()

@@ -18,7 +18,7 @@ import numpy as np
 
 from cwproc.physics import spectra
 from cwproc.physics.atable_interp import N_BINS, azimuth_nodes
-from cwproc.physics.disk_cache import cached_arrays
+from cwproc.physics.disk_cache import cached_arrays, code_digest
 
 #: nodes of mu = U/V_s of :func:`mean_removed_share` (linear interpolation between them)
 REMOVED_SHARE_MU = np.array([0.0, 0.5, 1.0, 2.0, 3.0, 5.0, 10.0])
@@ -28,9 +28,6 @@ REMOVED_SHARE_MU = np.array([0.0, 0.5, 1.0, 2.0, 3.0, 5.0, 10.0])
 _REMOVED_SHARE_DIRECTIONS = 4
 
 
-#: bump when the numerics of :func:`removed_share_curve` change: cached curves are then
-#: computed again
-REMOVED_SHARE_VERSION = 1
 #: nodes of ``x = R'/L_V`` of :func:`removed_share_curve`
 _CURVE_X = np.geomspace(1e-2, 1e2, 25)
 #: point beams of the full circle of :func:`removed_share_curve`
@@ -44,7 +41,8 @@ def _removed_share_curve(
     """:func:`removed_share_curve`, computed once per elevation and model and kept on
     disk (:func:`cwproc.physics.disk_cache.cached_arrays`, folder ``cache_dir``): about
     0.6 s of correlation functions, otherwise paid by every run."""
-    params = {"phi_deg": phi_deg, "model": model, "version": REMOVED_SHARE_VERSION}
+    # the code of this module and of what it uses: a change computes the curves again
+    params = {"phi_deg": phi_deg, "model": model, "code": code_digest(__name__)}
     params |= {"x": _CURVE_X.tolist(), "mu": REMOVED_SHARE_MU.tolist(), "n_az": _CURVE_BEAMS}
     shape = (REMOVED_SHARE_MU.size, _CURVE_X.size)
 

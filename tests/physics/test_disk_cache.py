@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -110,3 +112,22 @@ def test_the_removed_share_curve_from_the_cache_is_the_computed_one(tmp_path, mo
     with_cache = removed_share.mean_removed_share(ratio, 75.0, model, mu, tmp_path)
     without = removed_share.mean_removed_share(ratio, 75.0, model, mu)
     assert with_cache.tobytes() == without.tobytes()
+
+
+def test_the_code_digest_follows_the_modules_a_table_uses(tmp_path):
+    """The cache key holds a hash of the code of the physics modules the build uses
+    (the closure of its imports): a change of one of them gives a new key, a change of
+    a module the tables do not use does not."""
+    src = Path(disk_cache.__file__).parent
+    folder = tmp_path / "physics"
+    shutil.copytree(src, folder, ignore=shutil.ignore_patterns("__pycache__"))
+    before = disk_cache.code_digest("cwproc.physics.atable", str(folder))
+    assert before == disk_cache.code_digest("cwproc.physics.atable", str(src))
+    with (folder / "vad_errors.py").open("a") as fh:  # not used by the tables
+        fh.write("\n# unrelated\n")
+    assert disk_cache.code_digest.__wrapped__("cwproc.physics.atable", str(folder)) == before
+    with (folder / "spectra.py").open("a") as fh:  # used through afunctions and others
+        fh.write("\n# changed\n")
+    assert disk_cache.code_digest.__wrapped__("cwproc.physics.atable", str(folder)) != before
+    share = disk_cache.code_digest.__wrapped__("cwproc.physics.removed_share", str(folder))
+    assert share != disk_cache.code_digest("cwproc.physics.removed_share", str(src))

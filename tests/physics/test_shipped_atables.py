@@ -3,6 +3,7 @@ job with an empty user cache (no build), and equal to a rebuild."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +37,38 @@ def test_every_shipped_table_is_listed_and_loads_under_its_key():
             assert np.isfinite(data["log_a2"]).all()
 
 
+def test_every_shipped_table_is_the_one_the_current_code_requests():
+    """A shipped table's key holds the hash of the physics code (``params["code"]``): a
+    change of that code without ``python tools/build_atables.py --rebuild`` leaves
+    tables no request finds, and fails here (cheaply, without a retrieval)."""
+    entries = [
+        line.split()[0]
+        for line in (SHIPPED / "MANIFEST.txt").read_text().splitlines()
+        if line.strip() and not line.startswith("#")
+    ]
+    assert entries
+    for name in entries:
+        with np.load(SHIPPED / name) as data:
+            params = json.loads(str(data["params"]))
+        assert params["code"] == atable.code_version(), (
+            f"{name} was built by other code: run python tools/build_atables.py --rebuild"
+        )
+        requested = atable.table_parameters(
+            atable.probe_from_params(params["probe"]),
+            **{k: params[k] for k in ("phi_deg", "delta_theta_deg", "n_lags", "model")},
+            height_range_m=tuple(params["height_range_m"]),
+            mu_max=params["mu_max"],
+            swept=params["swept"],
+            geometry=params["geometry"],
+            **(
+                {}
+                if params["outer_scale_range_m"] is None
+                else {"outer_scale_range_m": tuple(params["outer_scale_range_m"])}
+            ),
+        )
+        assert name == f"atable-{atable.table_key(requested)}.npz"
+
+
 def test_main_job_uses_the_shipped_tables(tmp_path, monkeypatch):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     _main_job(tmp_path)
@@ -53,6 +86,7 @@ def test_shipped_tables_equal_a_rebuild(tmp_path, monkeypatch):
         shipped = SHIPPED / path.name
         assert shipped.exists(), f"{path.name} is not shipped: run tools/build_atables.py"
         with np.load(path) as new, np.load(shipped) as old:
-            assert sorted(new.files) == sorted(old.files)
+            # the shipped file also holds the table's parameters (tools/build_atables.py)
+            assert sorted(new.files) == sorted(set(old.files) - {"params"})
             for name in new.files:
                 np.testing.assert_array_equal(new[name], old[name], err_msg=name)

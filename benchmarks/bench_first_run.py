@@ -1,0 +1,145 @@
+"""Seconds of A-table work of the first retrieve of a new geometry (issue 30, item 1).
+
+The first ``retrieve`` of an instrument geometry (gate length, pulse, elevation, ray
+count, range) builds every table the ε stage requests: the inertial A-table and the
+table of the preset's spectrum model (:func:`cwproc.stages.epsilon.atable_fit.a_tables`,
+with the lags of :func:`cwproc.stages.structure.lag_count` and the height range of
+:func:`cwproc.stages.epsilon.atable_fit.table_height_range`) and the removed-share
+curve of the elevation (:func:`cwproc.physics.removed_share.mean_removed_share`). This
+script times them in a cold temporary cache (``XDG_CACHE_HOME``) for five geometries
+that are not shipped in ``cwproc/atables/``, one process, one core:
+
+    python benchmarks/bench_first_run.py                 # all five
+    python benchmarks/bench_first_run.py --only 0 3      # some of them
+
+Printed: wall and CPU seconds per geometry, wall seconds per table. Target (issue 30): at
+most 10 s each on one core.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """One instrument geometry: preset, probe lengths, elevation, rays and gates."""
+
+    name: str
+    preset: str
+    phi_deg: float
+    rays: int
+    heights_m: np.ndarray
+    swept: bool = True
+    delta_r_m: float | None = None  # gate length of a pulsed probe (m); preset's if None
+
+
+def _gates(length: float, n: int, phi: float) -> np.ndarray:
+    return (np.arange(n) + 0.5) * length * np.sin(np.radians(phi)) + 3 * length
+
+
+GEOMETRIES = [
+    Geometry(
+        "Stream Line 30 m gates, 180 rays, phi 35.3",
+        "streamline",
+        35.3,
+        180,
+        _gates(30.0, 100, 35.3),
+        True,
+        30.0,
+    ),
+    Geometry(
+        "Stream Line 48 m gates, 72 rays, phi 60",
+        "streamline",
+        60.0,
+        72,
+        _gates(48.0, 60, 60.0),
+        True,
+        48.0,
+    ),
+    Geometry(
+        "Stream Line step-stare, 24 rays, phi 75",
+        "streamline",
+        75.0,
+        24,
+        _gates(18.0, 100, 75.0),
+        False,
+    ),
+    Geometry(
+        "cw (Banakh-like) focus 50-300 m, 100 rays, phi 45",
+        "banakh1999",
+        45.0,
+        100,
+        np.geomspace(50.0, 300.0, 8),
+        True,
+    ),
+    Geometry(
+        "ZephIR 300, 36 rays, phi 60",
+        "zephir300",
+        60.0,
+        36,
+        np.array([10.0, 20, 40, 60, 80, 100, 150, 200]),
+        True,
+    ),
+]
+
+
+def time_geometry(geo: Geometry) -> tuple[float, float, list[str]]:
+    """Wall and CPU seconds of the tables a retrieve of ``geo`` requests (current cache).
+
+    The CPU seconds (this process, all its threads) are the figure to compare on a
+    shared machine: the wall clock also counts the other users' jobs.
+    """
+    import dataclasses
+
+    from cwproc.config import load_config
+    from cwproc.physics.removed_share import mean_removed_share
+    from cwproc.pipeline import probe_from_config
+    from cwproc.stages.epsilon.atable_fit import a_tables, table_height_range
+    from cwproc.stages.structure import lag_count
+
+    cfg = load_config(geo.preset)
+    instrument = cfg.instrument
+    if geo.delta_r_m is not None:
+        instrument = dataclasses.replace(instrument, delta_r_m=geo.delta_r_m)
+    probe = probe_from_config(instrument, pulse_transfer=cfg.turbulence.pulse_transfer)
+    dtheta = 360.0 / geo.rays
+    n_lags = max(2, lag_count(dtheta, 9.0))
+    model = cfg.turbulence.model
+    options = {"height_range_m": table_height_range(geo.heights_m), "swept": geo.swept}
+    parts = []
+    started, cpu = time.perf_counter(), time.process_time()
+    t0 = time.perf_counter()
+    a_tables(probe, geo.phi_deg, dtheta, n_lags, model, options)
+    parts.append(f"A-tables (inertial + {model}, {n_lags} lags) {time.perf_counter() - t0:.1f} s")
+    if model != "inertial":
+        t0 = time.perf_counter()
+        mean_removed_share(np.array([0.5]), round(geo.phi_deg, 2), model)
+        parts.append(f"removed share {time.perf_counter() - t0:.1f} s")
+    return time.perf_counter() - started, time.process_time() - cpu, parts
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", type=int, nargs="+", help="indices of the geometries")
+    args = parser.parse_args()
+    chosen = args.only if args.only else range(len(GEOMETRIES))
+    with tempfile.TemporaryDirectory(prefix="cwproc-bench-first-run-") as cache:
+        os.environ["XDG_CACHE_HOME"] = cache  # cold: nothing cached, nothing shipped found
+        for k in chosen:
+            geo = GEOMETRIES[k]
+            seconds, cpu, parts = time_geometry(geo)
+            print(
+                f"{geo.name}: {seconds:6.1f} s wall, {cpu:6.1f} s CPU  ({'; '.join(parts)})",
+                flush=True,
+            )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,241 @@
+"""``A_perp`` and ``A_par`` of one probe and lag range for many spectra at once.
+
+:func:`cwproc.physics.afunctions.a_curves` computes the double integrals of Smalikho
+(2020), eqs. 16-17 as an inner integral of the 2-D spectrum ``Phi`` (eq. 18 or a
+finite-outer-scale spectrum) against one transfer function and an outer Filon-type
+integral against the other and ``1 - cos(2 pi rho kappa)``. Everything but ``Phi`` depends
+only on the panels, the probe, ``dy`` and the lags: the quadrature weights of the inner
+integrals and the cosine weights of the outer ones (spherical Bessel moments, the
+costliest part after ``Phi``). A table with an outer-scale axis (``L_V``) needs the same
+curves for every ``L_V`` node at each height, so :class:`CurveKernel` prepares these
+weights once per height and :meth:`CurveKernel.curves` applies them to the spectrum
+matrix of each ``L_V`` (a :class:`cwproc.physics.afunctions.PlaneMatrix` whose panels
+cover the kernel's): two matrix products per curve instead of a full
+:func:`~cwproc.physics.afunctions.a_curves` call. The arithmetic is that of
+:func:`~cwproc.physics.afunctions.a_curves` (same panels, heads, tails and pruning of
+negligible panels), so the results agree to rounding (1e-12 relative, tested).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from cwproc.physics import afunctions
+from cwproc.physics.afunctions import (
+    _ORDER,
+    ACurves,
+    PlaneMatrix,
+    _cos_weights,
+    _integral_weights,
+    _longitudinal_factor,
+    _Panels,
+    _panels,
+    _sinc2,
+    panel_limits,
+)
+from cwproc.physics.transfer import Probe
+
+
+@dataclass(frozen=True)
+class _Outer:
+    """Weights of the outer integral ``int smooth sinc^2(pi L k) [1 - cos(2 pi rho k)] dk``.
+
+    ``direct`` ``(R, n)`` acts on ``f = smooth sinc^2`` at the nodes of panels below
+    ``1/L``, ``trig`` ``(R, n)`` on ``g = smooth / (2 pi^2 L^2 k^2)`` beyond (zero
+    columns elsewhere): the split of ``afunctions._structure_integral``.
+    """
+
+    direct: np.ndarray
+    trig: np.ndarray
+    is_trig: np.ndarray
+    sinc2: np.ndarray
+    inv: np.ndarray
+    rho: np.ndarray
+
+
+def _outer(p: _Panels, length: float, rho: np.ndarray, wr: np.ndarray) -> _Outer:
+    """:class:`_Outer` of the panels ``p``, the probe length ``length`` (m) and lags ``rho``."""
+    w0 = p.gl
+    n = p.kappa.size
+    if length > 0:
+        is_trig = p.left * length >= 1.0
+        sinc2 = _sinc2(length * p.kappa)
+    else:
+        is_trig = np.zeros(n, bool)
+        sinc2 = np.ones(n)
+    direct = np.where(~is_trig[None, :], w0[None, :] - wr, 0.0)
+    trig = np.zeros_like(direct)
+    inv = np.zeros(n)
+    if is_trig.any():
+        kt = p.kappa[is_trig]
+        wl = _cos_weights(p, np.array([length]), is_trig)
+        wm = _cos_weights(p, np.abs(rho - length), is_trig)
+        wp = _cos_weights(p, rho + length, is_trig)
+        trig[:, is_trig] = w0[None, is_trig] - wl - wr[:, is_trig] + 0.5 * wm + 0.5 * wp
+        inv[is_trig] = 1.0 / (2.0 * np.pi**2 * length**2 * kt**2)
+    return _Outer(direct, trig, is_trig, sinc2, inv, rho)
+
+
+def _apply_outer(p: _Panels, o: _Outer, smooth: np.ndarray, tail_power: float | None) -> np.ndarray:
+    """``afunctions._structure_integral`` with the prepared weights ``o`` (one ``smooth``)."""
+    f = smooth * o.sinc2
+    contrib = p.gl * np.abs(f)
+    significant = np.flatnonzero(contrib > 1e-17 * contrib.sum())
+    cut = p.kappa.size
+    if significant.size:
+        cut = min(cut, (significant[-1] // _ORDER + 1) * _ORDER)
+    pruned = cut < p.kappa.size
+    g = smooth * o.inv
+    # einsum, not BLAS: matrix-vector products this small lose to the threads of a
+    # multi-threaded BLAS on a busy machine (6x slower under load average 9)
+    out = np.einsum("rk,k->r", o.direct[:, :cut], f[:cut])
+    out = out + np.einsum("rk,k->r", o.trig[:, :cut], g[:cut])
+    rho = o.rho
+    k0, k1 = p.kappa[0], p.kappa[1]
+    f0, f1 = f[0], f[1]
+    if f0 > 0 and f1 > 0:
+        s = min(-math.log(f1 / f0) / math.log(k1 / k0), 2.9)
+        out = out + f0 * k0**s * 2 * np.pi**2 * rho**2 * p.lo ** (3 - s) / (3 - s)
+    env = g if o.is_trig[-1] else f
+    kn, en = p.kappa[-1], env[-1]
+    if en > 0 and not pruned:
+        t = tail_power
+        if t is None:
+            t = -math.log(env[-1] / env[-2]) / math.log(kn / p.kappa[-2])
+        if t > 1.05:
+            out = out + en * kn**t * p.hi ** (1 - t) / (t - 1)
+    return out
+
+
+class CurveKernel:
+    """The spectrum-independent part of :func:`cwproc.physics.afunctions.a_curve_splines`.
+
+    Parameters
+    ----------
+    rho_min, rho_max : float
+        Lag range (m) of the splines (at least 61 and 14 per decade geometric lags, as
+        :func:`~cwproc.physics.afunctions.a_curve_splines`).
+    probe : PulsedProbe or CWProbe or None
+        Longitudinal weighting (Smalikho (2020), eq. 19, or the cw Lorentzian).
+    dy : float
+        Transverse size (m) of ``H_perp`` (Smalikho (2020), eq. 20), 0 for none.
+    range_m : float, optional
+        Focus distance (m) of a cw probe.
+    outer_scale_m : float, optional
+        Largest ``L_V`` (m) the kernel serves: the panels start below ``1e-5 / L_V``.
+    """
+
+    def __init__(
+        self,
+        rho_min: float,
+        rho_max: float,
+        *,
+        probe: Probe | None,
+        dy: float,
+        range_m: float | None = None,
+        outer_scale_m: float | None = None,
+        n: int = 61,
+    ) -> None:
+        n = max(n, math.ceil(14 * math.log10(rho_max / rho_min)) + 1)
+        self.rho = np.geomspace(rho_min, rho_max, n)
+        model = "inertial" if outer_scale_m is None else "von_karman"
+        k_lo, k_hi, self.has_par = panel_limits(
+            rho_min,
+            rho_max,
+            probe=probe,
+            dy=dy,
+            range_m=range_m,
+            model=model,
+            outer_scale_m=outer_scale_m,
+        )
+        self.panels = p = _panels(k_lo, k_hi)
+        self.dy = dy
+        self.fac_par, self.len_par = _longitudinal_factor(probe, p, range_m)
+        self.u_par = _integral_weights(p, self.len_par, self.fac_par)
+        self.u_perp = _integral_weights(p, dy, np.ones_like(p.kappa))
+        wr = _cos_weights(p, self.rho)
+        self.perp_outer = _outer(p, dy, self.rho, wr)
+        self.par_outer = _outer(p, self.len_par, self.rho, wr)
+
+    def limits(self) -> tuple[float, float]:
+        """Wavenumber range (cycles m-1) a :class:`PlaneMatrix` must cover for this kernel."""
+        return self.panels.lo, self.panels.hi
+
+    def curves(self, plane: PlaneMatrix) -> ACurves:
+        """:class:`~cwproc.physics.afunctions.ACurves` of the spectrum of ``plane``.
+
+        Equals ``a_curve_splines(rho_min, rho_max, probe=..., dy=..., model=...,
+        outer_scale_m=..., plane=plane)`` on the kernel's panels.
+        """
+        p = self.panels
+        phi = plane.block(p)
+        if phi is None:
+            raise ValueError("the plane matrix does not cover the kernel's wavenumbers")
+        g_perp = np.einsum("k,km->m", self.u_par, phi) + phi[0, :] * self.fac_par[0] * p.lo
+        g_par = np.einsum("km,m->k", phi, self.u_perp) + phi[:, 0] * p.lo
+        if not self.has_par:
+            g_perp = g_perp + phi[-1, :] * p.kappa[-1] ** (8 / 3) * p.hi ** (-5 / 3) * 0.6
+        if self.dy == 0:
+            g_par = g_par + phi[:, -1] * p.kappa[-1] ** (8 / 3) * p.hi ** (-5 / 3) * 0.6
+        tail = 5.0 / 3.0 if (not self.has_par and self.dy == 0) else None
+        perp = _apply_outer(p, self.perp_outer, 2.0 * g_perp, tail)
+        par = _apply_outer(p, self.par_outer, 2.0 * g_par * self.fac_par, tail)
+        return ACurves(np.log(self.rho), np.log(perp), np.log(par))
+
+
+def shared_plane(
+    kernels: list[CurveKernel], model: afunctions.spectra.Model, outer_scale_m: float | None
+) -> PlaneMatrix:
+    """One :class:`PlaneMatrix` of ``model`` covering the panels of all ``kernels``."""
+    lo = min(k.limits()[0] for k in kernels)
+    hi = max(k.limits()[1] for k in kernels)
+    return PlaneMatrix(lo * (1 + 1e-12), hi * (1 - 1e-12), model, outer_scale_m)
+
+
+@dataclass(frozen=True)
+class CurveStack:
+    """``A_perp`` and ``A_par`` of several spectra (one per ``L_V``) on the same lags.
+
+    The stacked form of :class:`~cwproc.physics.afunctions.ACurves` (same cubic log-log
+    spline and power-law continuation): ``perp(rho)`` and ``par(rho)`` return
+    ``(n_curves, *rho.shape)``, one spline evaluation for all curves.
+    """
+
+    log_rho: np.ndarray
+    log_perp: np.ndarray  # (n_curves, n)
+    log_par: np.ndarray  # (n_curves, n)
+
+    @classmethod
+    def of(cls, curves: list[ACurves]) -> CurveStack:
+        """The stack of ``curves`` (all on the same lags)."""
+        return cls(
+            curves[0].log_rho,
+            np.stack([c.log_perp for c in curves]),
+            np.stack([c.log_par for c in curves]),
+        )
+
+    def _eval(self, logv: np.ndarray, rho: np.ndarray) -> np.ndarray:
+        from scipy import interpolate  # here: with scipy.optimize, 0.1 s of imports
+
+        rho = np.asarray(rho, dtype=float)
+        spline = interpolate.CubicSpline(self.log_rho, logv.T)
+        lr = np.log(np.maximum(rho, 1e-300))
+        lo, hi = self.log_rho[0], self.log_rho[-1]
+        val = np.moveaxis(spline(np.clip(lr, lo, hi)), -1, 0)
+        extra = (slice(None),) + (None,) * rho.ndim
+        s_lo = ((logv[:, 1] - logv[:, 0]) / (self.log_rho[1] - lo))[extra]
+        s_hi = ((logv[:, -1] - logv[:, -2]) / (hi - self.log_rho[-2]))[extra]
+        val = np.where(lr < lo, logv[:, 0][extra] + s_lo * (lr - lo), val)
+        val = np.where(lr > hi, logv[:, -1][extra] + s_hi * (lr - hi), val)
+        return np.where(rho > 0, np.exp(val), 0.0)
+
+    def perp(self, rho: np.ndarray) -> np.ndarray:
+        """``A_perp(rho)`` (m^(2/3)) of every curve, ``(n_curves, *rho.shape)``."""
+        return self._eval(self.log_perp, rho)
+
+    def par(self, rho: np.ndarray) -> np.ndarray:
+        """``A_par(rho)`` (m^(2/3)) of every curve, ``(n_curves, *rho.shape)``."""
+        return self._eval(self.log_par, rho)
