@@ -72,3 +72,28 @@ def test_a_plane_equals_the_per_separation_loop(probe, range_m, model, outer):
     direct = _a_plane_loop(s_par, s_perp, **options)
     assert fast[10] == 0.0 and direct[10] == 0.0
     np.testing.assert_allclose(fast, direct, rtol=1e-12, atol=0)
+
+
+def test_plane_curves_pieces_equal_the_fitpack_spline():
+    from scipy import interpolate
+
+    from cwproc.physics import atable_swept
+
+    curves = atable_swept.plane_curves(PulsedProbe(15.3, 30.0), 120.0, 0.02, 150.0)
+    spline = interpolate.RectBivariateSpline(curves.log_s, curves.angle, curves.log_a)
+    rng = np.random.default_rng(5)
+    x = rng.uniform(curves.log_s[0], curves.log_s[-1], 20000)
+    y = rng.uniform(0.0, 1.0, x.size)
+    x[:4] = curves.log_s[[0, -1, 2, 7]]  # the ends and knots
+    y[:4] = curves.angle[[0, -1, 3, 16]]
+    np.testing.assert_allclose(curves.pieces()(x, y), spline.ev(x, y), rtol=0, atol=1e-12)
+    # the power law below the grid, as the former evaluation by ev
+    s_par, s_perp = np.array([1e-3, 5e-3, 0.0]), np.array([2e-3, 0.0, 4e-3])
+    ls, beta = (
+        np.log(np.hypot(s_par, s_perp)),
+        atable_swept._angle_coordinate(np.arctan2(s_par, s_perp)),
+    )
+    lo, l1 = curves.log_s[0], curves.log_s[1]
+    first, second = spline.ev(np.full(3, lo), beta), spline.ev(np.full(3, l1), beta)
+    expected = np.exp(first + (second - first) / (l1 - lo) * (ls - lo))
+    np.testing.assert_allclose(curves(s_par, s_perp), expected, rtol=1e-12)
