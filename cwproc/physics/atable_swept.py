@@ -70,10 +70,10 @@ class PlaneCurves:
 
     def __call__(self, s_par: np.ndarray, s_perp: np.ndarray) -> np.ndarray:
         """``A`` (m^(2/3)) at separations ``s_par`` along and ``s_perp`` across the beam."""
-        s = np.hypot(s_par, s_perp)
-        beta = _angle_coordinate(np.arctan2(np.abs(s_par), np.abs(s_perp)))
+        s_par, s_perp = np.abs(s_par), np.abs(s_perp)
+        beta = _angle_coordinate(np.arctan2(s_par, s_perp))
         spline = self.pieces()
-        ls = np.log(np.maximum(s, 1e-300))
+        ls = 0.5 * np.log(np.maximum(s_par * s_par + s_perp * s_perp, 1e-300))
         lo = self.log_s[0]
         val = spline(np.clip(ls, lo, self.log_s[-1]), beta)
         below = ls < lo
@@ -83,7 +83,11 @@ class PlaneCurves:
             second = spline(np.full(beta_b.shape, self.log_s[1]), beta_b)
             slope = (second - first) / (self.log_s[1] - lo)
             val[below] = first + slope * (ls[below] - lo)
-        return np.where(s > 0, np.exp(val), 0.0)
+        out = np.exp(val)
+        zero = (s_par == 0) & (s_perp == 0)
+        if zero.any():
+            out[zero] = 0.0
+        return out
 
     def pieces(self) -> BicubicPieces:
         """The interpolating bicubic spline of ``log_a`` as :class:`BicubicPieces` (kept)."""
@@ -324,14 +328,47 @@ def geometry_ratio(
     if n_half and np.allclose(np.sin(theta[n_half:]), np.sin(theta[:n_half])):
         half = geometry_ratio(phi_deg, delta_theta_deg, x, mu, theta[:n_half], offsets)
         return np.concatenate([half, half], axis=-1)
+    exact = np.zeros((x.size, np.size(mu), theta.size))
+    small = np.zeros_like(exact)
+    for shift, w in zip(*offsets, strict=True):
+        pair, eq15 = _offset_terms(phi_deg, delta_theta_deg, x, mu, theta, float(shift))
+        exact += w * pair
+        small += w * eq15
+    step = math.radians(delta_theta_deg)
+    return exact / ((x * step)[:, None, None] ** (2.0 / 3.0) * small)
+
+
+#: the terms of the zero range offset of the last geometry (the same at every height)
+_CENTRE_MEMO: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _offset_terms(
+    phi_deg: float,
+    delta_theta_deg: float,
+    x: np.ndarray,
+    mu: np.ndarray,
+    theta: np.ndarray,
+    shift: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`point_pair` and :func:`_point_eq15` of one range offset, ``(x, mu, theta)``.
+
+    The zero offset does not depend on the height: its terms are kept for the next
+    height of the same geometry (one geometry kept).
+    """
+    key = b""
+    if shift == 0.0:
+        parts = (np.array([phi_deg, delta_theta_deg]), x, np.asarray(mu, float), theta)
+        key = b"|".join(np.ascontiguousarray(p, dtype=float).tobytes() for p in parts)
+        if key in _CENTRE_MEMO:
+            return _CENTRE_MEMO[key]
     a, b = _components(mu, theta)
     step = math.radians(delta_theta_deg)
-    exact = np.zeros((x.size, *a.shape))
-    small = np.zeros((x.size, *a.shape))
-    for shift, w in zip(*offsets, strict=True):
-        exact += w * point_pair(phi_deg, delta_theta_deg, x, a, b, 1.0 + shift)
-        small += w * _point_eq15(_across(x, mu, theta, shift, step), b[None], phi_deg)
-    return exact / ((x * step)[:, None, None] ** (2.0 / 3.0) * small)
+    pair = point_pair(phi_deg, delta_theta_deg, x, a, b, 1.0 + shift)
+    eq15 = _point_eq15(_across(x, mu, theta, shift, step), b[None], phi_deg)
+    if key:
+        _CENTRE_MEMO.clear()
+        _CENTRE_MEMO[key] = (pair, eq15)
+    return pair, eq15
 
 
 def swept_a2(

@@ -68,7 +68,10 @@ def _block(p: afunctions._Panels, smooth: np.ndarray, length: float, rho: np.nda
     cut = np.where(significant.any(axis=0), np.minimum(n, (last // order + 1) * order), n)
     pruned = cut < n
     inside = np.arange(n)[:, None] < cut[None, :]  # (nodes, n)
-    wr = afunctions._cos_weights(p, rho)  # (n, nodes)
+    # the cosine weights only on the nodes inside some column's cut (the rest weigh 0)
+    used = np.arange(n) < cut.max()
+    wr = np.zeros((rho.size, n))
+    wr[:, used] = afunctions._cos_weights(p, rho, used)  # (n, nodes)
     fd = np.where(direct[:, None] & inside, f, 0.0)
     out = np.einsum("ik,ki->i", w0[None, :] - wr, fd)
     trig = ~direct
@@ -76,10 +79,14 @@ def _block(p: afunctions._Panels, smooth: np.ndarray, length: float, rho: np.nda
     if trig.any():
         kt = kappa[trig]
         g_all = smooth[trig] / (2.0 * np.pi**2 * length**2 * kt**2)[:, None]  # (nt, n)
-        wl = afunctions._cos_weights(p, np.array([length]), trig)
-        wm = afunctions._cos_weights(p, np.abs(rho - length), trig)
-        wp = afunctions._cos_weights(p, rho + length, trig)
-        kern = w0[None, trig] - wl - wr[:, trig] + 0.5 * wm + 0.5 * wp  # (n, nt)
+        kern = np.zeros((rho.size, kt.size))
+        live = used[trig]
+        if live.any():
+            sub = trig & used
+            wl = afunctions._cos_weights(p, np.array([length]), sub)
+            wm = afunctions._cos_weights(p, np.abs(rho - length), sub)
+            wp = afunctions._cos_weights(p, rho + length, sub)
+            kern[:, live] = w0[None, sub] - wl - wr[:, sub] + 0.5 * wm + 0.5 * wp
         g = np.where(inside[trig], g_all, 0.0)
         out = out + np.einsum("ik,ki->i", kern, g)
     # head: f ~ f0 (k/k0)^(-s) below the first node, 1 - cos ~ 2 pi^2 rho^2 k^2
