@@ -4,6 +4,9 @@
   separations at once (:mod:`cwproc.physics.plane_integral`); the former loop, one
   :func:`cwproc.physics.afunctions._structure_integral` per separation, is rebuilt here
   as the reference: equal within 1e-12 relative.
+- :class:`cwproc.physics.atable_swept.PlaneCurves` evaluates its spline per cell in numpy
+  (:class:`cwproc.physics.atable_swept.BicubicPieces`): equal to
+  ``RectBivariateSpline.ev`` of the same data within 1e-12 on ``log A``.
 """
 
 from __future__ import annotations
