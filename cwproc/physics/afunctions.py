@@ -498,20 +498,20 @@ def a_plane(
     a_perp_v = np.concatenate(
         [a_curves(perps[i : i + 64], plane=shared, **options)[0] for i in range(0, perps.size, 64)]
     )
-    along = np.flatnonzero(perps == 0)
     # C(k1) per transverse length, in chunks (the cosine weights are (lengths, nodes))
     cross = np.concatenate(
         [phi @ _cos_weights(p, perps[i : i + 64]).T for i in range(0, perps.size, 64)], axis=1
     )
     cross = cross + phi[:, [0]] * p.lo  # (n, perps)
-    for j in range(perps.size):
-        sel = np.flatnonzero((which == j) & (s1 > 0))
-        if sel.size == 0:
-            continue
-        if along.size and j == along[0]:  # no transverse part: eq. 17 itself
-            out[sel] = a_curves(s1[sel], plane=shared, **options)[1]
-            continue
-        out[sel] = _structure_integral(p, 2.0 * cross[:, j] * fac_par, len_par, s1[sel], None)
+    sel = np.flatnonzero((st == 0) & (s1 > 0))
+    if sel.size:  # no transverse part: eq. 17 itself
+        out[sel] = a_curves(s1[sel], plane=shared, **options)[1]
+    sel = np.flatnonzero((st > 0) & (s1 > 0))
+    if sel.size:  # all separations at once (plane_integral: the loop's rule in matrix form)
+        from cwproc.physics import plane_integral
+
+        smooth = 2.0 * cross[:, which[sel]] * fac_par[:, None]
+        out[sel] = plane_integral.structure_integrals(p, smooth, len_par, s1[sel])
     out = out + a_perp_v[which]
     return out.reshape(shape)
 

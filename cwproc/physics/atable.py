@@ -472,7 +472,9 @@ def _height_cell(
     a1_out = _outer_scale_blend(
         a1, curves.perp(lag_m) - inert.perp(lag_m), g1, curves.perp(lag_m) / inert.perp(lag_m)
     )
-    return a1_out, _outer_scale_blend(pairs, model15 - inert15, g2, model15 / inert15)
+    for k in range(model15.shape[0]):  # per L_V: arrays that stay in cache (4x faster)
+        model15[k] = _outer_scale_blend(pairs, model15[k] - inert15, g2, model15[k] / inert15)
+    return a1_out, model15
 
 
 def _outer_scale_blend(
@@ -582,7 +584,10 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
                 phi,
             )
             a1 = a1 + sigma2[:, None] * unif
-            per_theta = per_theta + sigma2[:, None, None, None] * unif[:, None, None]
+            if model == "inertial":  # (the pairs themselves: kept for the next table)
+                per_theta = per_theta + sigma2[:, None, None, None] * unif[:, None, None]
+            else:  # a new array of _height_cell
+                per_theta += sigma2[:, None, None, None] * unif[:, None, None]
             c0 = per_theta.mean(axis=-1)
             log_a1[:, j] = np.log(a1)
             log_a2[:, j] = np.log(c0)

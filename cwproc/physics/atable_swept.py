@@ -70,22 +70,101 @@ class PlaneCurves:
 
     def __call__(self, s_par: np.ndarray, s_perp: np.ndarray) -> np.ndarray:
         """``A`` (m^(2/3)) at separations ``s_par`` along and ``s_perp`` across the beam."""
-        s = np.hypot(s_par, s_perp)
-        beta = _angle_coordinate(np.arctan2(np.abs(s_par), np.abs(s_perp)))
-        from scipy import interpolate  # here: with scipy.optimize, 0.1 s of imports
-
-        spline = interpolate.RectBivariateSpline(self.log_s, self.angle, self.log_a)
-        ls = np.log(np.maximum(s, 1e-300))
+        s_par, s_perp = np.abs(s_par), np.abs(s_perp)
+        beta = _angle_coordinate(np.arctan2(s_par, s_perp))
+        spline = self.pieces()
+        ls = 0.5 * np.log(np.maximum(s_par * s_par + s_perp * s_perp, 1e-300))
         lo = self.log_s[0]
-        val = spline.ev(np.clip(ls, lo, self.log_s[-1]), beta)
+        val = spline(np.clip(ls, lo, self.log_s[-1]), beta)
         below = ls < lo
         if below.any():
             beta_b = beta[below]
-            first = spline.ev(np.full(beta_b.shape, lo), beta_b)
-            second = spline.ev(np.full(beta_b.shape, self.log_s[1]), beta_b)
+            first = spline(np.full(beta_b.shape, lo), beta_b)
+            second = spline(np.full(beta_b.shape, self.log_s[1]), beta_b)
             slope = (second - first) / (self.log_s[1] - lo)
             val[below] = first + slope * (ls[below] - lo)
-        return np.where(s > 0, np.exp(val), 0.0)
+        out = np.exp(val)
+        zero = (s_par == 0) & (s_perp == 0)
+        if zero.any():
+            out[zero] = 0.0
+        return out
+
+    def pieces(self) -> BicubicPieces:
+        """The interpolating bicubic spline of ``log_a`` as :class:`BicubicPieces` (kept)."""
+        cached = self.__dict__.get("_pieces")
+        if cached is None:
+            cached = BicubicPieces.of(self.log_s, self.angle, self.log_a)
+            object.__setattr__(self, "_pieces", cached)
+        return cached
+
+
+@dataclass(frozen=True)
+class BicubicPieces:
+    """A bicubic spline as polynomials per cell, evaluated at scattered points with numpy.
+
+    The interpolating spline of :class:`scipy.interpolate.RectBivariateSpline` (``s = 0``,
+    not-a-knot ends) in the local power basis: ``sum_pq c[i, j, p, q] du^p dv^q`` on cell
+    ``(i, j)`` between the distinct knots ``u[i]``, ``v[j]``. Equal to its ``ev`` within
+    rounding (1e-13 relative on ``log A``, tested) and about 5x faster on the 3e5 points
+    of a height of swept pairs (``ev`` calls FITPACK point by point).
+    """
+
+    u: np.ndarray
+    v: np.ndarray
+    coef: np.ndarray  # (4, 4, cells): power of du, power of dv, cell i * (v.size - 1) + j
+    grid_x: np.ndarray  # the uniform data grids (the knots are among their nodes)
+    grid_y: np.ndarray
+
+    @classmethod
+    def of(cls, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> BicubicPieces:
+        """The pieces of the interpolating spline of ``z`` on the grid ``(x, y)``."""
+        from scipy import interpolate  # here: with scipy.optimize, 0.1 s of imports
+
+        for grid in (x, y):  # the cells are found by the grid step (_cell)
+            if not np.allclose(np.diff(grid), grid[1] - grid[0], rtol=1e-9, atol=0):
+                raise ValueError("BicubicPieces needs uniform grids")
+        spline = interpolate.RectBivariateSpline(x, y, z)
+        tx, ty, c = spline.tck  # full knot vectors (ends repeated 4 times)
+        c = c.reshape(tx.size - 4, ty.size - 4)
+        u, cu = _power_basis(tx, interpolate)
+        v, cv = _power_basis(ty, interpolate)
+        coef = np.einsum("api,ij,bqj->pqab", cu, c, cv)
+        return cls(u, v, np.ascontiguousarray(coef.reshape(4, 4, -1)), x, y)
+
+    def __call__(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """The spline at the points ``(x, y)`` (any shape, inside the grid)."""
+        i, j = _cell(self.u, self.grid_x, x), _cell(self.v, self.grid_y, y)
+        du, dv = x - self.u[i], y - self.v[j]
+        cell = i * (self.v.size - 1) + j
+        out = None
+        for q in (3, 2, 1, 0):  # Horner in dv of the Horner sums in du
+            c = self.coef[:, q]
+            row = ((c[3].take(cell) * du + c[2].take(cell)) * du + c[1].take(cell)) * du
+            row += c[0].take(cell)
+            out = row if out is None else out * dv + row
+        return out
+
+
+def _cell(knots: np.ndarray, grid: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Index of the knot interval of ``at`` (clipped to the ends) via the uniform ``grid``.
+
+    Arithmetic on the grid step (a binary search per point cost 40 % of the evaluation);
+    at a knot, rounding may pick the neighbouring interval, whose polynomial agrees
+    there to rounding (the spline is C2).
+    """
+    k = np.floor((at - grid[0]) * ((grid.size - 1) / (grid[-1] - grid[0])))
+    k = np.clip(k, 0, grid.size - 2).astype(np.intp)
+    lookup = np.clip(np.searchsorted(knots, grid[:-1], side="right") - 1, 0, knots.size - 2)
+    return lookup.take(k)
+
+
+def _power_basis(t: np.ndarray, interpolate: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Distinct knots ``u`` and ``B_i^(p)(u_m) / p!``, ``(cells, 4, basis)``, of cubic B-splines."""
+    u = np.unique(t)
+    basis = interpolate.BSpline(t, np.eye(t.size - 4), 3)
+    left = u[:-1]
+    parts = [basis(left)] + [basis.derivative(p)(left) / math.factorial(p) for p in (1, 2, 3)]
+    return u, np.stack(parts, axis=1)
 
 
 def plane_curves(probe: Any, range_m: float, s_min: float, s_max: float) -> PlaneCurves:
@@ -252,14 +331,47 @@ def geometry_ratio(
     if n_half and np.allclose(np.sin(theta[n_half:]), np.sin(theta[:n_half])):
         half = geometry_ratio(phi_deg, delta_theta_deg, x, mu, theta[:n_half], offsets)
         return np.concatenate([half, half], axis=-1)
+    exact = np.zeros((x.size, np.size(mu), theta.size))
+    small = np.zeros_like(exact)
+    for shift, w in zip(*offsets, strict=True):
+        pair, eq15 = _offset_terms(phi_deg, delta_theta_deg, x, mu, theta, float(shift))
+        exact += w * pair
+        small += w * eq15
+    step = math.radians(delta_theta_deg)
+    return exact / ((x * step)[:, None, None] ** (2.0 / 3.0) * small)
+
+
+#: the terms of the zero range offset of the last geometry (the same at every height)
+_CENTRE_MEMO: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _offset_terms(
+    phi_deg: float,
+    delta_theta_deg: float,
+    x: np.ndarray,
+    mu: np.ndarray,
+    theta: np.ndarray,
+    shift: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`point_pair` and :func:`_point_eq15` of one range offset, ``(x, mu, theta)``.
+
+    The zero offset does not depend on the height: its terms are kept for the next
+    height of the same geometry (one geometry kept).
+    """
+    key = b""
+    if shift == 0.0:
+        parts = (np.array([phi_deg, delta_theta_deg]), x, np.asarray(mu, float), theta)
+        key = b"|".join(np.ascontiguousarray(p, dtype=float).tobytes() for p in parts)
+        if key in _CENTRE_MEMO:
+            return _CENTRE_MEMO[key]
     a, b = _components(mu, theta)
     step = math.radians(delta_theta_deg)
-    exact = np.zeros((x.size, *a.shape))
-    small = np.zeros((x.size, *a.shape))
-    for shift, w in zip(*offsets, strict=True):
-        exact += w * point_pair(phi_deg, delta_theta_deg, x, a, b, 1.0 + shift)
-        small += w * _point_eq15(_across(x, mu, theta, shift, step), b[None], phi_deg)
-    return exact / ((x * step)[:, None, None] ** (2.0 / 3.0) * small)
+    pair = point_pair(phi_deg, delta_theta_deg, x, a, b, 1.0 + shift)
+    eq15 = _point_eq15(_across(x, mu, theta, shift, step), b[None], phi_deg)
+    if key:
+        _CENTRE_MEMO.clear()
+        _CENTRE_MEMO[key] = (pair, eq15)
+    return pair, eq15
 
 
 def swept_a2(

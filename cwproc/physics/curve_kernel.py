@@ -228,9 +228,14 @@ class CurveStack:
         extra = (slice(None),) + (None,) * rho.ndim
         s_lo = ((logv[:, 1] - logv[:, 0]) / (self.log_rho[1] - lo))[extra]
         s_hi = ((logv[:, -1] - logv[:, -2]) / (hi - self.log_rho[-2]))[extra]
-        val = np.where(lr < lo, logv[:, 0][extra] + s_lo * (lr - lo), val)
-        val = np.where(lr > hi, logv[:, -1][extra] + s_hi * (lr - hi), val)
-        return np.where(rho > 0, np.exp(val), 0.0)
+        if lr.size and lr.min() < lo:  # (the power laws only where needed: same values)
+            val = np.where(lr < lo, logv[:, 0][extra] + s_lo * (lr - lo), val)
+        if lr.size and lr.max() > hi:
+            val = np.where(lr > hi, logv[:, -1][extra] + s_hi * (lr - hi), val)
+        out = np.exp(val)
+        if np.any(rho <= 0):
+            out = np.where(rho > 0, out, 0.0)
+        return out
 
     def perp(self, rho: np.ndarray) -> np.ndarray:
         """``A_perp(rho)`` (m^(2/3)) of every curve, ``(n_curves, *rho.shape)``."""
