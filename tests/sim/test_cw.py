@@ -208,3 +208,17 @@ def test_compiled_spectra_equal_the_numpy_sums(monkeypatch):
     monkeypatch.setattr(cw, "_use_extension", False)
     assert np.array_equal(compiled, cw._sinc2_sum(x, q, 256))
     assert np.isfinite(compiled).all()
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 40, 600])
+def test_gauss_legendre_nodes_and_weights_are_scipys(n):
+    """The numpy Newton nodes of the probe quadrature (no scipy.special import)."""
+    from scipy import special
+
+    x, w = cw_probe.gauss_legendre(n)
+    xs, ws = special.roots_legendre(n)
+    np.testing.assert_allclose(x, xs, rtol=0, atol=5e-16)
+    np.testing.assert_allclose(w, ws, rtol=5e-9)
+    # exact for polynomials of degree 2n - 1: int_{-1}^{1} x^(2j) dx = 2 / (2j + 1)
+    j = min(n - 1, 20)
+    assert w @ x ** (2 * j) == pytest.approx(2.0 / (2 * j + 1), rel=1e-13)
