@@ -46,6 +46,11 @@ DASK_COMMANDS = frozenset({"batch"})
 #: run with freed arrays kept for reuse (``keep_freed_arrays``: their temporaries are
 #: allocated again and again) and OpenBLAS on one thread (``one_blas_thread``)
 ARRAY_COMMANDS = frozenset({"sf-type"})
+#: the commands run with OpenBLAS on one thread (``one_blas_thread``): besides
+#: ``sf-type``, ``simulate``, whose linear algebra is small (Cholesky factors of 140 x 140
+#: B_D, matrix-vector products of quadrature weights): on two busy cores a second BLAS
+#: thread made a 140 x 140 Cholesky 60 ms instead of 0.3 ms
+ONE_BLAS_THREAD_COMMANDS = frozenset({"sf-type", "simulate"})
 
 
 @click.group(
@@ -53,6 +58,7 @@ ARRAY_COMMANDS = frozenset({"sf-type"})
     lazy=COMMANDS,
     dask_commands=DASK_COMMANDS,
     array_commands=ARRAY_COMMANDS,
+    one_blas_thread_commands=ONE_BLAS_THREAD_COMMANDS,
     context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
 )
 @click.version_option(__version__, "-V", "--version", prog_name="cwproc")

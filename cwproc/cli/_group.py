@@ -177,9 +177,9 @@ class CwprocGroup(LazyGroup):
     script, ``python -m cwproc``), a command not in ``dask_commands`` runs with dask
     kept out of the process (:func:`keep_dask_out`) and the process ends without the
     interpreter's teardown (:func:`exit_now`); a command in ``array_commands`` also runs
-    with freed arrays kept for reuse (:func:`keep_freed_arrays`) and OpenBLAS on one
-    thread (:func:`one_blas_thread`). Called with explicit arguments (a test, a
-    notebook) the process is left as it is.
+    with freed arrays kept for reuse (:func:`keep_freed_arrays`), and one in
+    ``one_blas_thread_commands`` with OpenBLAS on one thread (:func:`one_blas_thread`).
+    Called with explicit arguments (a test, a notebook) the process is left as it is.
     """
 
     def __init__(
@@ -187,11 +187,13 @@ class CwprocGroup(LazyGroup):
         *args: Any,
         dask_commands: frozenset[str],
         array_commands: frozenset[str] = frozenset(),
+        one_blas_thread_commands: frozenset[str] = frozenset(),
         **kwargs: Any,
     ) -> None:
         super().__init__(*args, **kwargs)
         self.dask_commands = dask_commands
         self.array_commands = array_commands
+        self.one_blas_thread_commands = one_blas_thread_commands
 
     def main(
         self, args: list[str] | None = None, *rest: Any, standalone_mode: bool = True, **kwargs: Any
@@ -202,6 +204,7 @@ class CwprocGroup(LazyGroup):
             keep_dask_out()
             if name in self.array_commands:
                 keep_freed_arrays()
+            if name in self.one_blas_thread_commands:
                 one_blas_thread()
         if not standalone_mode:
             return super().main(args, *rest, standalone_mode=False, **kwargs)

@@ -10,7 +10,6 @@ from __future__ import annotations
 import functools
 
 import numpy as np
-from scipy import special
 
 from cwproc.physics.correlation import ProbeQuadrature
 
@@ -73,16 +72,39 @@ def fraction_behind_lidar(focus_range: float, wavelength: float, beam_radius: fl
 
 @functools.lru_cache(maxsize=8)
 def gauss_legendre(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss-Legendre nodes and weights on [-1, 1] (cached).
+    """Gauss-Legendre nodes (ascending) and weights on [-1, 1] (cached).
 
-    :func:`scipy.special.roots_legendre` (asymptotic formulas for large n: 0.1 s for
-    n = 600, where numpy's ``leggauss``, an eigenvalue problem, took 1.5 s; the same
-    nodes to 1e-16 and weights to 4e-14).
+    Newton's iteration on P_n from the guesses x_i = cos(pi (i + 3/4) / (n + 1/2)), P_n
+    and P_(n-1) by Bonnet's recurrence (vectorised over the nodes), until the step is
+    below 1e-16; w_i = 2 / [(1 - x_i^2) P_n'(x_i)^2], made symmetric. numpy only (scipy's
+    ``roots_legendre`` costs 0.2-0.4 s of imports of scipy.special): 1.4 ms for n = 40,
+    47 ms for n = 600; the nodes equal scipy's to 1.1e-16 and the weights to 3.6e-13
+    (n = 40) and 1.8e-9 (n = 600) relative, and integrate cos(k x) to 1.6e-15 where
+    scipy's give 5e-14.
     """
-    x, w = special.roots_legendre(n)
+    x = np.cos(np.pi * (np.arange(n) + 0.75) / (n + 0.5))
+    for _ in range(100):
+        p_prev, p_n = _legendre_pair(x, n)
+        step = p_n / (n * (x * p_n - p_prev) / (x * x - 1.0))
+        x = x - step
+        if np.max(np.abs(step)) < 1e-16:
+            break
+    p_prev, p_n = _legendre_pair(x, n)
+    derivative = n * (x * p_n - p_prev) / (x * x - 1.0)
+    w = 2.0 / ((1.0 - x * x) * derivative * derivative)
+    x, w = x[::-1], w[::-1]
+    x, w = 0.5 * (x - x[::-1]), 0.5 * (w + w[::-1])
     x.setflags(write=False)
     w.setflags(write=False)
     return x, w
+
+
+def _legendre_pair(x: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """P_(n-1)(x) and P_n(x) by Bonnet's recurrence j P_j = (2j - 1) x P_(j-1) - (j - 1) P_(j-2)."""
+    p_prev, p = np.ones_like(x), x.copy()
+    for j in range(2, n + 1):
+        p_prev, p = p, ((2 * j - 1) * x * p - (j - 1) * p_prev) / j
+    return p_prev, p
 
 
 def lorentzian_quadrature(

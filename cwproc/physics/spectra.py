@@ -36,7 +36,6 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import special
 
 if TYPE_CHECKING:
     from scipy.interpolate import CubicSpline
@@ -51,7 +50,13 @@ PRINTED_PLANE_CONSTANT = 0.0652
 #: coefficient 1.21 of Banakh et al. (1999), eq. 17
 EXPONENTIAL_COEFFICIENT = 1.21
 
-_B1 = special.beta(0.5, 4.0 / 3.0)  # int_{-inf}^{inf} (1+t^2)^(-11/6) dt = B(1/2, 4/3)
+#: int_{-inf}^{inf} (1+t^2)^(-11/6) dt = B(1/2, 4/3) = Gamma(1/2) Gamma(4/3) / Gamma(11/6)
+_B1 = math.gamma(0.5) * math.gamma(4.0 / 3.0) / math.gamma(11.0 / 6.0)
+
+
+def _beta(a: float, b: float) -> float:
+    """Euler's beta function B(a, b) = Gamma(a) Gamma(b) / Gamma(a + b) (scalars)."""
+    return math.gamma(a) * math.gamma(b) / math.gamma(a + b)
 
 
 def spectral_constant() -> float:
@@ -60,7 +65,7 @@ def spectral_constant() -> float:
     Chosen so that ``D_par = C_K eps^(2/3) r^(2/3)`` with ``C_K = 2`` (Smalikho (2020),
     eq. 12): ``C_K = (27/55) Gamma(1/3) alpha`` (Pope (2000), eq. 6.243), ``alpha = 1.5208``.
     """
-    return KOLMOGOROV_CONSTANT / (27.0 / 55.0 * special.gamma(1.0 / 3.0))
+    return KOLMOGOROV_CONSTANT / (27.0 / 55.0 * math.gamma(1.0 / 3.0))
 
 
 def _beta_cycles() -> float:
@@ -85,7 +90,7 @@ def exact_plane_constant() -> float:
 
 def _von_karman_k0(outer_scale_m: float) -> float:
     """Angular ``k0`` (rad m-1) of von Karman for the integral scale ``L_V`` (m)."""
-    return math.sqrt(math.pi) * special.gamma(5.0 / 6.0) / special.gamma(1.0 / 3.0) / outer_scale_m
+    return math.sqrt(math.pi) * math.gamma(5.0 / 6.0) / math.gamma(1.0 / 3.0) / outer_scale_m
 
 
 def variance_per_eps23(model: Model, outer_scale_m: float) -> float:
@@ -99,7 +104,7 @@ def variance_per_eps23(model: Model, outer_scale_m: float) -> float:
         return (outer_scale_m / integral_scale_coefficient("exponential")) ** (2.0 / 3.0)
     if model == "von_karman":
         k0 = _von_karman_k0(outer_scale_m)
-        return spectral_constant() / 3.0 * special.beta(2.5, 1.0 / 3.0) * k0 ** (-2.0 / 3.0)
+        return spectral_constant() / 3.0 * _beta(2.5, 1.0 / 3.0) * k0 ** (-2.0 / 3.0)
     raise ValueError("the inertial (Kolmogorov) model has no finite variance")
 
 
@@ -181,8 +186,10 @@ def correlation_functions(
         x = (r / outer_scale_m) ** (2.0 / 3.0)
         f = np.exp(-EXPONENTIAL_COEFFICIENT * x)
         return f, f * (1.0 - EXPONENTIAL_COEFFICIENT / 3.0 * x)
+    from scipy import special  # here: 0.2 s of imports only von Karman needs
+
     x = r * _von_karman_k0(outer_scale_m)
-    norm = 2.0 ** (2.0 / 3.0) / special.gamma(1.0 / 3.0)
+    norm = 2.0 ** (2.0 / 3.0) / math.gamma(1.0 / 3.0)
     with np.errstate(invalid="ignore"):
         f = norm * x ** (1.0 / 3.0) * special.kv(1.0 / 3.0, x)
         g = f - 0.5 * norm * x ** (4.0 / 3.0) * special.kv(2.0 / 3.0, x)
@@ -234,6 +241,8 @@ def _exponential_series(q: np.ndarray, n_terms: int = 90) -> np.ndarray:
     ``sigma_V^2 L_V``); the series converges for every ``q > 0`` and agrees with direct
     quadrature to 3e-7 at ``q >= 0.6`` (cancellation grows below).
     """
+    from scipy import special  # here: 0.2 s of imports only the spectrum needs
+
     n = np.arange(n_terms)
     b = 2.0 * n / 3.0
     logc = n * math.log(EXPONENTIAL_COEFFICIENT) - special.gammaln(n + 1.0)
@@ -282,7 +291,7 @@ def _exponential_dimensionless(q: np.ndarray) -> np.ndarray:
     out[mid] = np.exp(_exponential_low_q()(np.log(q[mid])))
     lo = q < 1e-3
     # E ~ q^4 Gamma(15/2) / (2 pi a^(15/2)) as q -> 0 (small-q Taylor expansion)
-    out[lo] = q[lo] ** 4 * special.gamma(7.5) / (2 * np.pi * EXPONENTIAL_COEFFICIENT**7.5)
+    out[lo] = q[lo] ** 4 * math.gamma(7.5) / (2 * np.pi * EXPONENTIAL_COEFFICIENT**7.5)
     return out
 
 

@@ -214,13 +214,14 @@ def test_freed_arrays_are_reused_without_new_pages():
 
 def test_sf_type_program_keeps_freed_arrays_and_one_blas_thread_only_there():
     """The program runs ``sf-type`` with freed arrays kept for reuse and OpenBLAS on one
-    thread (a count the user set is kept); other commands and explicit calls leave the
-    allocator and the environment alone."""
+    thread (a count the user set is kept), ``simulate`` with one BLAS thread only; other
+    commands and explicit calls leave the allocator and the environment alone."""
     import os
 
-    from cwproc.cli import ARRAY_COMMANDS
+    from cwproc.cli import ARRAY_COMMANDS, ONE_BLAS_THREAD_COMMANDS
 
     assert ARRAY_COMMANDS == frozenset({"sf-type"})
+    assert ONE_BLAS_THREAD_COMMANDS == frozenset({"sf-type", "simulate"})
     code = (
         "import os, sys\n"
         "import cwproc.cli._group as group\n"
@@ -234,6 +235,7 @@ def test_sf_type_program_keeps_freed_arrays_and_one_blas_thread_only_there():
     cases = [
         (["sf-type", "--help"], env, "1 1"),
         (["info", "--help"], env, "0 None"),
+        (["simulate", "--help"], env, "0 1"),  # one BLAS thread, the allocator as it is
         (["sf-type", "--help"], {**env, "OPENBLAS_NUM_THREADS": "2"}, "1 2"),
     ]
     for argv, environment, expected in cases:

@@ -194,3 +194,31 @@ def test_spectrum_is_the_sinc_squared_sum_of_eq_3_even_on_a_channel():
         x = ((np.abs(v) if homodyne else v) - first) / 0.1
         want = np.einsum("nik,i->nk", np.sinc(np.arange(256) - x[..., None]) ** 2, q)
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.skipif(cw._sinc2 is None, reason="C extension cwproc.sim._sinc2 not built")
+def test_compiled_spectra_equal_the_numpy_sums(monkeypatch):
+    """The C sums of eq. 3 (Banakh et al. (1999)) are numpy's, bit for bit, on a channel too."""
+    rng = np.random.default_rng(3)
+    x = rng.uniform(-5.0, 300.0, (300, 37))
+    x[7, 4] = 40.0  # a point exactly on a channel: the sinc fallback of that spectrum
+    q = rng.random(37)
+    q /= q.sum()
+    compiled = cw._sinc2_sum(x, q, 256)
+    monkeypatch.setattr(cw, "_use_extension", False)
+    assert np.array_equal(compiled, cw._sinc2_sum(x, q, 256))
+    assert np.isfinite(compiled).all()
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 40, 600])
+def test_gauss_legendre_nodes_and_weights_are_scipys(n):
+    """The numpy Newton nodes of the probe quadrature (no scipy.special import)."""
+    from scipy import special
+
+    x, w = cw_probe.gauss_legendre(n)
+    xs, ws = special.roots_legendre(n)
+    np.testing.assert_allclose(x, xs, rtol=0, atol=5e-16)
+    np.testing.assert_allclose(w, ws, rtol=5e-9)
+    # exact for polynomials of degree 2n - 1: int_{-1}^{1} x^(2j) dx = 2 / (2j + 1)
+    j = min(n - 1, 20)
+    assert w @ x ** (2 * j) == pytest.approx(2.0 / (2 * j + 1), rel=1e-13)
