@@ -116,15 +116,15 @@ def test_python_config_is_validated_like_a_toml_file():
         cwproc.VADConfig(min_rays=2)
 
 
-def test_cw_config_on_pulsed_scans_notes_the_missing_turbulence():
-    result = cwproc.retrieve(
-        STREAMLINE, cwproc.Config.preset("streamline").replace(instrument={"kind": "cw"})
-    )
-    (unit,) = result.units.values()
-    assert sorted(unit.products) == ["wind"]
-    assert any("turbulence not computed" in n for n in unit.notes)
-    with pytest.raises(KeyError, match="no unit made a 'turbulence' product"):
-        result["turbulence"]
+def test_cw_config_on_pulsed_scans_is_an_error_naming_both_instruments():
+    """Issue 30.5: a configuration of another kind of lidar than the files' is refused
+    (it used to give a wind product and a note on the missing turbulence)."""
+    config = cwproc.Config.preset("streamline").replace(instrument={"kind": "cw"})
+    with pytest.raises(CwprocError, match=r"VAD_999_.*\.hpl: a file of a pulsed lidar.*cw lidar"):
+        cwproc.retrieve(STREAMLINE, config)
+    result = cwproc.retrieve(STREAMLINE, config, errors="collect")
+    assert not result.ok and not result.units
+    assert len(result.failures) == 2
 
 
 def test_a_bad_input_raises_or_is_collected(tmp_path):

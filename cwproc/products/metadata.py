@@ -227,17 +227,13 @@ _PRODUCT_VARIABLES: dict[str, VarMeta] = {
             "k = sqrt of the median over the cells (block x height) of the free fitted "
             "noise intercept 2 sigma_e^2 over the predicted one; applied to "
             "noise_std_predicted where the data do not determine sigma_e (flag 32) when k "
-            "differs from 1 by more than 2 standard errors and 5 % (attribute applied); NaN "
-            "with fewer than 10 such cells"
+            "differs from 1 by more than 2 standard errors and 5 % and was learnt from at "
+            "least 10 blocks (attribute applied); NaN with fewer than 10 such cells; "
+            "attribute standard_error: that of the median ratio, sqrt(pi/2) 1.4826 MAD / "
+            "sqrt(cells), over 2 k"
         ),
         references=SMALIKHO_2020 + ", eq. 4; Pearson G., Davies F., Collier C. (2009), "
         "J. Atmos. Oceanic Technol. 26, 240-250, eq. 3",
-        coverage_content_type="qualityInformation",
-    ),
-    "noise_std_calibration_standard_error": VarMeta(
-        "standard error of noise_std_calibration",
-        "1",
-        comment="that of the median ratio, sqrt(pi/2) 1.4826 MAD / sqrt(cells), over 2 k",
         coverage_content_type="qualityInformation",
     ),
     "epsilon_standard_error": VarMeta(

@@ -122,11 +122,15 @@ def calibrated_prior_rel_se(calibration: tuple[float, float, int]) -> float:
 
 
 def add_calibration(out: xr.Dataset, calibration: tuple[float, float, int], applied: bool) -> None:
-    """``noise_std_calibration`` and its standard error in the product (in place)."""
+    """``noise_std_calibration`` in the product (in place), its standard error an attribute.
+
+    One scalar: a separate standard-error variable would be one more variable without a
+    CF standard name (the ACDD score of the turbulence product counts them).
+    """
     k, se_k, n = calibration
     out["noise_std_calibration"] = ((), float(k))
-    out["noise_std_calibration_standard_error"] = ((), float(se_k))
     out["noise_std_calibration"].attrs.update(
+        standard_error=float(se_k),
         cells=int(n),
         applied=int(applied),
         method="median over the cells of sigma_e^2 fitted / predicted "
