@@ -179,7 +179,9 @@ def read_scan_netcdf(path: str | os.PathLike, **options: object) -> xr.Dataset:
             ds = handle.load()
     except FileNotFoundError:
         raise InputFileError(path, "cannot read: no such file") from None
-    except (OSError, ValueError, RuntimeError, KeyError) as exc:
+    except (OSError, ValueError, RuntimeError, KeyError, AttributeError) as exc:
+        # netCDF4 raises AttributeError ("NetCDF: Can't open HDF5 attribute") on a
+        # damaged attribute block: a damaged file, named as such
         raise InputFileError(path, f"not a readable NetCDF scan file ({exc})") from None
     validate_scan_schema(ds, path)
     ds = ds.set_coords([c for c in _COORDS if c in ds.variables])
