@@ -55,6 +55,8 @@ def test_a_calibration_of_few_blocks_is_reported_not_applied():
     assert calibration_applies(calibration, [product(4), product(CALIBRATION_MIN_BLOCKS - 4)])
     assert not calibration_applies(calibration, [product(2)])
     assert not calibration_applies((1.02, 0.05, 400), [product(CALIBRATION_MIN_BLOCKS)])
+    # far from 1 by five of its errors, but imprecise (24-ray step-stare, mu 1, truth 1)
+    assert not calibration_applies((3.6, 0.7, 200), [product(200)])
 
 
 def test_the_data_overrule_a_prediction_that_is_too_high():
