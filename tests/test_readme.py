@@ -449,8 +449,8 @@ def test_new_user_follows_the_readme(tmp_path):
         )
         if command == MAIN_JOB:
             # what the README shows the main job printing
-            printed = result.stdout.splitlines()
-            for line in shown_output("wrote out/"):
+            printed = (result.stdout + result.stderr).splitlines()  # notes go to stderr
+            for line in shown_output("note: "):
                 assert line in printed, f"main job did not print {line!r}"
     # the commands ran the virtual environment's cwproc, not another installation
     assert shutil.which("cwproc", path=env["PATH"]) == str(venv / "bin" / "cwproc")
