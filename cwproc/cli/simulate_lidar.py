@@ -164,8 +164,22 @@ def simulate_lidar(
     except (CwprocError, OSError, ValueError) as exc:
         fail(str(exc))
         return
-    for path in written:
-        click.echo(f"wrote {path}")
+    for line in written_lines(written):
+        click.echo(line)
+
+
+#: more data files than this are named by their first and last, in one line
+_FILES_NAMED = 4
+
+
+def written_lines(written: list[Path]) -> list[str]:
+    """``wrote`` lines of a simulation: each data file, or one line for a long series
+    (``wrote 1920 files DIR/FIRST .. LAST``; a day would print 1920 lines), then the truth.
+    """
+    *data, truth = written
+    if len(data) <= _FILES_NAMED:
+        return [f"wrote {path}" for path in written]
+    return [f"wrote {len(data)} files {data[0]} .. {data[-1].name}", f"wrote {truth}"]
 
 
 def _simulate(

@@ -98,3 +98,26 @@ def test_retrieve_of_a_simulated_series_recovers_wind_and_epsilon(tmp_path):
     with xr.open_dataset(next(out.glob("*_turbulence.nc"))) as turb:
         eps = turb["epsilon"].where(turb["range"] >= 240.0).values
     assert 0.7 < np.nanmedian(eps) / truth["epsilon_m2_s3"] < 1.3
+
+
+def test_a_long_series_is_named_in_one_line(tmp_path):
+    """A day of one-scan files would print 1920 ``wrote`` lines: a series of more than four
+    files prints its count, first and last, then the truth."""
+    from pathlib import Path
+
+    from cwproc.cli.simulate_lidar import written_lines
+
+    res = run(
+        "simulate", "lidar", "-o", str(tmp_path), "--hours", "0.0625", "--gates", "4",
+        "--scan-period", "45", "--scans-per-file", "1", "-q",
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    files = sorted((tmp_path / "data").glob("*.hpl"))
+    assert len(files) == 5
+    lines = res.output.strip().splitlines()
+    assert lines == [
+        f"wrote 5 files {tmp_path / 'data' / files[0].name} .. {files[-1].name}",
+        f"wrote {tmp_path / 'truth' / 'truth.json'}",
+    ]
+    few = [Path("a.hpl"), Path("b.hpl"), Path("truth.json")]
+    assert written_lines(few) == ["wrote a.hpl", "wrote b.hpl", "wrote truth.json"]
