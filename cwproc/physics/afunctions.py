@@ -280,17 +280,31 @@ def _structure_integral(
         wp = _cos_weights(p, rho + length, trig)
         kern = w0[None, trig] - wl - wr[:, trig] + 0.5 * wm + 0.5 * wp
         out = out + kern @ g
-    # head: f ~ f0 (k/k0)^(-s) below the first node, 1 - cos ~ 2 pi^2 rho^2 k^2
+    return add_end_corrections(out, p, f, g if trig[-1] else f, rho, pruned, tail_power)
+
+
+def add_end_corrections(
+    out: np.ndarray,
+    p: _Panels,
+    f: np.ndarray,
+    env: np.ndarray,
+    rho: np.ndarray,
+    pruned: bool,
+    tail_power: float | None,
+) -> np.ndarray:
+    """``out`` plus the integral below the first and beyond the last wavenumber node.
+
+    Head: ``f ~ f0 (k/k0)^(-s)`` below the first node, ``1 - cos ~ 2 pi^2 rho^2 k^2``.
+    Tail: the envelope ``env ~ e_n (k/k_n)^(-t)`` beyond the last node (its
+    non-oscillating part; ``t`` from the last two nodes unless ``tail_power`` is given),
+    left out when the panels were ``pruned``.
+    """
     k0, k1 = p.kappa[0], p.kappa[1]
     f0, f1 = f[0], f[1]
     if f0 > 0 and f1 > 0:
-        s = -math.log(f1 / f0) / math.log(k1 / k0)
-        s = min(s, 2.9)
+        s = min(-math.log(f1 / f0) / math.log(k1 / k0), 2.9)
         out = out + f0 * k0**s * 2 * np.pi**2 * rho**2 * p.lo ** (3 - s) / (3 - s)
-    # tail: envelope ~ e_n (k/k_n)^(-t) beyond the last node (non-oscillating part)
-    env = g if trig[-1] else f
-    kn = p.kappa[-1]
-    en = env[-1]
+    kn, en = p.kappa[-1], env[-1]
     if en > 0 and not pruned:
         t = tail_power
         if t is None:

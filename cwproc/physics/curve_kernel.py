@@ -93,21 +93,9 @@ def _apply_outer(p: _Panels, o: _Outer, smooth: np.ndarray, tail_power: float | 
     # multi-threaded BLAS on a busy machine (6x slower under load average 9)
     out = np.einsum("rk,k->r", o.direct[:, :cut], f[:cut])
     out = out + np.einsum("rk,k->r", o.trig[:, :cut], g[:cut])
-    rho = o.rho
-    k0, k1 = p.kappa[0], p.kappa[1]
-    f0, f1 = f[0], f[1]
-    if f0 > 0 and f1 > 0:
-        s = min(-math.log(f1 / f0) / math.log(k1 / k0), 2.9)
-        out = out + f0 * k0**s * 2 * np.pi**2 * rho**2 * p.lo ** (3 - s) / (3 - s)
-    env = g if o.is_trig[-1] else f
-    kn, en = p.kappa[-1], env[-1]
-    if en > 0 and not pruned:
-        t = tail_power
-        if t is None:
-            t = -math.log(env[-1] / env[-2]) / math.log(kn / p.kappa[-2])
-        if t > 1.05:
-            out = out + en * kn**t * p.hi ** (1 - t) / (t - 1)
-    return out
+    return afunctions.add_end_corrections(
+        out, p, f, g if o.is_trig[-1] else f, o.rho, pruned, tail_power
+    )
 
 
 class CurveKernel:
