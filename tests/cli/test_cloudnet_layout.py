@@ -206,3 +206,20 @@ def test_cloudnetpy_reads_the_cloudnet_files(day):
     assert got["valid"] > 0.3 * 270 * 24  # epsilon where the layer is
     assert got["beta_shape"] == [270, 24]
     assert got["wavelength"] == pytest.approx(1.565e-6)
+
+
+def test_batch_writes_the_l1_product_and_quality_reports_from_the_configuration(day, tmp_path):
+    """cwproc batch (cron) reads the same options from the configuration file."""
+    cfg = tmp_path / "site.toml"
+    text = SITE.read_text().replace(
+        "\n[output]\n", '\n[output]\nlayout = "cloudnet"\nqc_report = true\n'
+    )
+    cfg.write_text(text + f'\n[doppler_lidar]\nenabled = true\ncross_folder = "{day / "cross"}"\n')
+    out = tmp_path / "out"
+    res = run("batch", day / "data", out, "--min-age", "0", "-c", cfg)
+    assert res.exit_code == 0, res.output
+    names = {p.name for p in out.glob("*")}
+    for product in ("doppler_lidar", "doppler-lidar", "doppler-lidar-wind", "wind"):
+        assert f"{KEY}_{product}.nc" in names and f"{KEY}_{product}.qc.json" in names
+    with xr.open_dataset(out / f"{KEY}_doppler_lidar.nc") as l1:
+        assert np.nanmedian(l1["depolarisation_screened"].values) == pytest.approx(DELTA, abs=0.01)
