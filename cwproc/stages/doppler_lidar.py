@@ -294,6 +294,11 @@ def doppler_lidar_product(
     out = xr.Dataset(data, coords=coords)
     out.attrs = {k: stares.attrs[k] for k in CARRIED_ATTRS if k in stares.attrs}
     out.attrs.update(_method_attrs(options, focus))
+    if cross is not None:  # the cross-polarised files and the backgrounds that corrected them
+        out.attrs["cross_files"] = list(
+            cross.attrs.get("cross_files", cross.attrs.get("source_files", []))
+        )
+        out.attrs["cross_background_files"] = list(cross.attrs.get("background_files", []))
     return out
 
 

@@ -119,7 +119,10 @@ def test_depolarisation_of_a_simulated_pair_is_the_truth_within_its_error():
     within +-1 stated SE on 60-76 % of the gates (68 % for Gaussian errors)."""
     co = layered()
     x = cross_polarised(co, 0.2, SD, lag_s=0.5, seed=5)
+    x.attrs.update(source_files=["Stare_x.hpl"], background_files=["Background_x.txt"])
     p = doppler_lidar_product(co, x)
+    assert p.attrs["cross_files"] == ["Stare_x.hpl"]
+    assert p.attrs["cross_background_files"] == ["Background_x.txt"]
     d = p["depolarisation_screened"].values
     ok = np.isfinite(d) & (p["snr"].values > 10 * SD)
     assert ok.sum() > 5000
