@@ -7,7 +7,14 @@ apart for its size; :data:`L1_VARIABLES` is merged into its ``VARIABLES``.
 from __future__ import annotations
 
 from cwproc.io.schema import VarMeta
-from cwproc.references import DOPPY, MANNINEN_2016, PENTIKAINEN_2020, VAD_WIND, VAKKARI_2021
+from cwproc.references import (
+    DOPPY,
+    MANNINEN_2016,
+    PEARSON_2009,
+    PENTIKAINEN_2020,
+    VAD_WIND,
+    VAKKARI_2021,
+)
 
 #: CF standard name of the attenuated backscatter (m-1 sr-1)
 BETA_STANDARD_NAME = "volume_attenuated_backwards_scattering_function_in_air"
@@ -25,6 +32,13 @@ L1_VARIABLES: dict[str, VarMeta] = {
         "m s-1",
         "radial_velocity_of_scatterers_away_from_instrument",
         comment="NaN where doppler_lidar_flag says noise (see screening_method)",
+    ),
+    "radial_velocity_error": VarMeta(
+        "standard deviation of the radial velocity estimate predicted from the SNR",
+        "m s-1",
+        "radial_velocity_of_scatterers_away_from_instrument standard_error",
+        comment="NaN where the SNR is not positive",
+        references=PEARSON_2009 + ", eq. 3",
     ),
     "beta_error": VarMeta(
         "standard error of the attenuated backscatter coefficient from the SNR noise",

@@ -39,6 +39,7 @@ from cwproc.physics.backscatter import (
     attenuated_backscatter,
     depolarisation_ratio,
 )
+from cwproc.stages.stare import noise_std_per_ray
 
 #: flag bits of ``doppler_lidar_flag``
 FLAG_NEAR_RANGE = 1
@@ -248,7 +249,8 @@ def doppler_lidar_product(
     -------
     xarray.Dataset
         dims ``(time, range)``: ``snr``, ``snr_uncorrected``, ``snr_error``,
-        ``radial_velocity``, ``beta``, ``beta_error``, ``beta_screened``,
+        ``radial_velocity``, ``radial_velocity_error`` (Pearson et al. (2009), eq. 3, from
+        the SNR; NaN where it is not positive), ``beta``, ``beta_error``, ``beta_screened``,
         ``radial_velocity_screened``, ``doppler_lidar_flag``; with ``cross``:
         ``snr_cross``, ``beta_cross``, ``depolarisation``, ``depolarisation_error``,
         ``depolarisation_screened``; coords ``height(range)``, ``elevation(time)``,
@@ -273,6 +275,7 @@ def doppler_lidar_product(
         "snr_error": ("time", noise),
         "radial_velocity": (dims, vel),
         "radial_velocity_screened": (dims, np.where(vel_mask, np.nan, vel)),
+        "radial_velocity_error": (dims, noise_std_per_ray(stares)),
         "beta": (dims, beta),
         "beta_screened": (dims, np.where(beta_mask, np.nan, beta)),
         "beta_error": (dims, np.broadcast_to(beta_err, beta.shape).copy()),

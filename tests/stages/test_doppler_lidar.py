@@ -157,6 +157,19 @@ def test_a_single_ray_pairs_within_its_accumulation_time():
     assert np.isnat(p["cross_time"].values).all()
 
 
+def test_velocity_error_is_pearsons_sigma_e_of_the_snr():
+    """Pearson et al. (2009), eq. 3 at SNR 0.05, 10 points per gate, 30000 pulses:
+    the same as physics.noise gives; NaN where the SNR is not positive."""
+    from cwproc.physics.noise import velocity_noise_std
+
+    co = layered()
+    co.attrs.update(points_per_gate=10)
+    p = doppler_lidar_product(co)
+    err = p["radial_velocity_error"].values
+    np.testing.assert_allclose(err, velocity_noise_std(co["snr"].values, 10, 30000))
+    assert np.isnan(err[co["snr"].values <= 0]).all() and np.isfinite(err[:, 0]).all()
+
+
 def test_product_keeps_the_uncorrected_snr_and_the_beta_error():
     co = layered()
     co["snr_uncorrected"] = co["snr"] + 0.001
