@@ -1,7 +1,8 @@
 """The quicklook of docs/doppler-lidar.md: two hours of the network cycle (a VAD every
 15 min, stares between them) from the virtual instrument, the stares given an aerosol
-layer (SNR 1, beta about 1e-6 m-1 sr-1) that grows from 300 to 550 m over noise, and cross-polarised pairs in the real
-layout (depolarisation 0.05 in the layer, 0.3 above 400 m: a dust layer on top); then
+layer (SNR 1, beta about 1e-6 m-1 sr-1) that grows from 300 to 550 m over noise, and
+cross-polarised pairs in the real layout (depolarisation 0.05 in the layer, 0.3 above
+400 m: a dust layer on top); then
 ``cwproc retrieve --l1 --cross`` and ``cwproc plot --kind doppler-lidar``.
 
     python docs/examples/doppler_lidar_day.py docs/images/doppler_lidar.png
