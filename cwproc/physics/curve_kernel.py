@@ -218,6 +218,19 @@ class CurveStack:
             np.stack([c.log_par for c in curves]),
         )
 
+    @property
+    def n_curves(self) -> int:
+        """Number of curves (``L_V`` nodes) in the stack."""
+        return self.log_perp.shape[0]
+
+    def one(self, k: int) -> CurveStack:
+        """The stack of curve ``k`` alone (its spline pieces: those of this stack)."""
+        single = CurveStack(self.log_rho, self.log_perp[k : k + 1], self.log_par[k : k + 1])
+        for name in ("perp", "par"):
+            coef, ends = self._pieces(name)
+            object.__setattr__(single, f"_{name}", (coef[k : k + 1], ends[k : k + 1]))
+        return single
+
     def _pieces(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """``(coef (n_curves, cells, 4), ends (n_curves, 4))`` of ``log_perp`` or ``log_par``.
 

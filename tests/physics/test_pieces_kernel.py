@@ -99,3 +99,27 @@ def test_curve_stack_refuses_lags_off_a_uniform_log_grid():
     stack = CurveStack(np.log([1.0, 2.0, 5.0, 9.0]), np.zeros((1, 4)), np.zeros((1, 4)))
     with pytest.raises(ValueError, match="uniform"):
         stack.perp(np.array([3.0]))
+
+
+def test_tables_do_not_depend_on_the_build(monkeypatch):
+    """A swept pulsed table and its von Karman table, built with the C kernels and with
+    numpy alone: the same arrays, bit for bit."""
+    from cwproc.physics import atable
+
+    probe = PulsedProbe(15.3, 30.0)
+    options = dict(phi_deg=30.0, delta_theta_deg=4.0, n_lags=3, height_range_m=(80.0, 200.0))
+    finite = dict(model="von_karman", outer_scale_range_m=(50.0, 200.0))
+    tables = []
+    for flag in (True, False):
+        monkeypatch.setattr(atable_swept, "_use_extension", flag)
+        monkeypatch.setattr(curve_kernel, "_use_extension", flag)
+        atable._PAIRS_MEMO.clear()
+        inertial = atable.build_a_table(probe, atable.table_parameters(probe, **options))
+        outer = atable.build_a_table(probe, atable.table_parameters(probe, **options, **finite))
+        tables.append((inertial, outer))
+    for compiled, numpy in zip(*tables, strict=True):
+        for name in ("log_a1", "log_a2", "bins_a2", "scale_bins"):
+            a, b = getattr(compiled, name), getattr(numpy, name)
+            assert (a is None) == (b is None), name
+            if a is not None:
+                np.testing.assert_array_equal(a, b, err_msg=name)
