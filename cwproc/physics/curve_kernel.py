@@ -269,9 +269,9 @@ class CurveStack:
         val = np.where(log_rho < first, e[0] + e[1] * (log_rho - first), val)
         return np.where(log_rho > last, e[2] + e[3] * (log_rho - last), val)
 
-    def _eval(self, name: str, rho: np.ndarray) -> np.ndarray:
+    def _eval(self, name: str, rho: np.ndarray, log_rho: np.ndarray | None) -> np.ndarray:
         rho = np.asarray(rho, dtype=float)
-        lr = np.log(np.maximum(rho, 1e-300))
+        lr = np.log(np.maximum(rho, 1e-300)) if log_rho is None else log_rho
         if _pieces is None or not _use_extension:
             val = self.numpy_log(name, lr)
         else:
@@ -286,10 +286,13 @@ class CurveStack:
             out = np.where(rho > 0, out, 0.0)
         return out
 
-    def perp(self, rho: np.ndarray) -> np.ndarray:
-        """``A_perp(rho)`` (m^(2/3)) of every curve, ``(n_curves, *rho.shape)``."""
-        return self._eval("perp", rho)
+    def perp(self, rho: np.ndarray, log_rho: np.ndarray | None = None) -> np.ndarray:
+        """``A_perp(rho)`` (m^(2/3)) of every curve, ``(n_curves, *rho.shape)``.
 
-    def par(self, rho: np.ndarray) -> np.ndarray:
+        ``log_rho``: ``log(max(rho, 1e-300))`` when already computed.
+        """
+        return self._eval("perp", rho, log_rho)
+
+    def par(self, rho: np.ndarray, log_rho: np.ndarray | None = None) -> np.ndarray:
         """``A_par(rho)`` (m^(2/3)) of every curve, ``(n_curves, *rho.shape)``."""
-        return self._eval("par", rho)
+        return self._eval("par", rho, log_rho)
