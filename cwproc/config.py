@@ -49,6 +49,7 @@ class InstrumentConfig:
         "scan_netcdf",
         "zephir_csv",
         "windcube_sta",
+        "windcube_rtd",
         "toa5",
         "tob1",
         "ghg",

@@ -77,6 +77,7 @@ def format_mismatch(path: str | os.PathLike, fmt: Format, config: Config) -> str
 _FORMAT_KIND = {
     Format.HPL: "pulsed",
     Format.WINDCUBE_STA: "pulsed",
+    Format.WINDCUBE_RTD: "pulsed",
     Format.ZEPHIR_CSV: "cw",
 }
 #: ``instrument_kind`` attribute of scans -> the kind of ``[instrument] kind``

@@ -335,12 +335,21 @@ def _decimal_comma(value: float, decimals: int) -> str:
     return f"{value:.{decimals}f}".replace(".", ",")
 
 
-def write_zephir_csv(spec: WindRecordSpec, path: str | os.PathLike) -> Path:
-    """A ZephIR 300 Waltz "CSV Converter" 10-min export (Wind10_*.ZPH.csv layout).
+def write_zephir_csv(
+    spec: WindRecordSpec,
+    path: str | os.PathLike,
+    *,
+    interval_s: int = 600,
+    line_end: str = "\r\n",
+) -> Path:
+    """A ZephIR 300 Waltz "CSV Converter" export: 10-min (``Wind10_*.ZPH.csv``) or 1-s.
 
-    Semicolon-separated, decimal commas, CRLF; the header items, the column names and
+    Semicolon-separated, decimal commas; the header items, the column names and
     the trailing ``Checksum`` field of the real exports (FORMATS.md section 2), with
-    heights from the top down as the instrument writes them.
+    heights from the top down as the instrument writes them. ``interval_s = 1`` writes
+    the 1-s layout (FORMATS.md section 2.2: ``Raining`` 0/1 in place of the rain
+    proportion, and ``Packets in Average at MET``); ``line_end`` may be CRLF, LF or CR
+    alone (exports edited on old Macs end lines with CR).
     """
     rec = _wind_records(spec)
     order = np.argsort(spec.heights_m)[::-1]
@@ -362,8 +371,10 @@ def write_zephir_csv(spec: WindRecordSpec, path: str | os.PathLike) -> Path:
         "Air Temp. (C)",
         "Pressure (mbar)",
         "Humidity (%)",
-        "Proportion Of Packets With Rain (%)",
+        "Proportion Of Packets With Rain (%)" if interval_s > 1 else "Raining",
     ]
+    if interval_s == 1:
+        names.append("Packets in Average at MET")
     per_height = [
         "Packets in Average",
         "Wind Direction (deg)",
@@ -380,7 +391,7 @@ def write_zephir_csv(spec: WindRecordSpec, path: str | os.PathLike) -> Path:
     t0 = np.datetime64(spec.start, "s")
     lines = [header, ";".join(names)]
     for r in range(spec.n_records):
-        t = t0 + np.timedelta64(600 * r, "s")
+        t = t0 + np.timedelta64(interval_s * r, "s")
         stamp = str(t.astype(object).strftime("%d.%m.%Y %H:%M:%S"))
         row = [
             str(22000000 + r),
@@ -394,6 +405,8 @@ def write_zephir_csv(spec: WindRecordSpec, path: str | os.PathLike) -> Path:
             "60,000",
             "0",
         ]
+        if interval_s == 1:
+            row.append("1")
         for k in order:
             sp = rec["speed"][r, k]
             row += [
@@ -410,7 +423,7 @@ def write_zephir_csv(spec: WindRecordSpec, path: str | os.PathLike) -> Path:
         lines.append(";".join(row))
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_bytes(("\r\n".join(lines) + "\r\n").encode("latin-1"))
+    path.write_bytes((line_end.join(lines) + line_end).encode("latin-1"))
     return path
 
 
@@ -490,6 +503,117 @@ def write_windcube_sta(spec: WindRecordSpec, path: str | os.PathLike) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_bytes(("\r\n".join(lines) + "\r\n").encode("latin-1"))
     return path
+
+
+def wind_record_statistics(spec: WindRecordSpec, interval_s: int = 600) -> dict[str, np.ndarray]:
+    """The records of ``spec`` as the statistics :func:`cwproc.sim.windcube.write_sta`
+    writes (stamps at the end of each interval of ``interval_s``)."""
+    rec = _wind_records(spec)
+    heights = np.asarray(spec.heights_m)
+    shape = rec["speed"].shape
+    t0 = np.datetime64(spec.start, "s")
+    return {
+        "time": t0 + np.timedelta64(interval_s, "s") * (np.arange(shape[0]) + 1),
+        "speed": rec["speed"],
+        "std": rec["std"],
+        "min": np.maximum(rec["min"], 0.0),
+        "max": rec["max"],
+        "direction": rec["direction"],
+        "w": rec["w"],
+        "w_std": np.full(shape, 0.1),
+        "cnr": np.broadcast_to(-12.0 - 0.02 * heights, shape),
+        "cnr_min": np.broadcast_to(-14.0 - 0.02 * heights, shape),
+        "availability": np.full(shape, 100.0),
+    }
+
+
+def with_missing_values(stats: dict[str, np.ndarray], every: int = 7) -> dict[str, np.ndarray]:
+    """``stats`` with every ``every``-th value of each per-height variable missing (NaN),
+    at shifting heights: the gaps a WF 2.x ``.sta`` writes as ``NA``, ``-`` or nothing."""
+    out = dict(stats)
+    for j, key in enumerate(k for k in stats if k != "time"):
+        values = np.array(stats[key], dtype=float)
+        flat = values.reshape(-1)
+        flat[(j + 3) % every :: every * 5] = np.nan
+        out[key] = values
+    return out
+
+
+def write_windcube_variants(spec: WindRecordSpec, folder: str | os.PathLike) -> list[Path]:
+    """The records of ``spec`` as the other WindCube ``.sta`` generations: v1 (software
+    3.x, ``HeaderLength``, short names), v2.1 (WF 2.x: ``ScanAngle (°)=NA`` and missing
+    values written ``NA``, ``-`` or nothing) and v2.1 one-minute statistics (``.stdsta``)."""
+    from cwproc.sim.windcube import write_sta
+
+    folder = Path(folder)
+    day = "_".join(spec.start[:10].split("-"))
+    heights = np.asarray(spec.heights_m)
+    ten = wind_record_statistics(spec)
+    return [
+        write_sta(
+            ten, heights, folder / f"WLS7-099_{day}__00_00_00.sta", "v1", scan_angle_deg=30.0
+        ),
+        write_sta(
+            with_missing_values(ten),
+            heights,
+            folder / f"WLS71999_{day}__00_00_00.sta",
+            "v2.1",
+            missing_tokens=("NA", "-", ""),
+        ),
+        write_sta(
+            wind_record_statistics(spec, interval_s=60),
+            heights,
+            folder / f"WLS71999_{day}__06_00_00.stdsta",
+            "v2.1",
+        ),
+    ]
+
+
+def write_windcube_rtd_samples(
+    folder: str | os.PathLike, truth_path: str | os.PathLike
+) -> list[Path]:
+    """Simulated WindCube ``.rtd`` files in the v2.1, v2 and v1 layouts, the v2.1 ``.sta``
+    of the same 10 min (the virtual instrument's own statistics) and the truth JSON."""
+    from cwproc.sim.windcube import (
+        WindCubeSpec,
+        instrument_statistics,
+        rtd_truth,
+        simulate_dbs,
+        windcube_field,
+        write_rtd,
+        write_sta,
+    )
+
+    folder = fresh_folder(folder, "*.rtd")
+    spec = WindCubeSpec()
+    field = windcube_field(spec)
+    ds = simulate_dbs(spec, field=field)
+    written = [write_rtd(ds, spec, folder / "WLS71999_2024_06_01__00_00_00.rtd", "v2.1")]
+    written.append(
+        write_sta(
+            instrument_statistics(ds, 600.0),
+            ds["height"].values,
+            folder / "WLS71999_2024_06_01__00_00_00.sta",
+            "v2.1",
+        )
+    )
+    short = WindCubeSpec(start="2024-06-01T00:10:00", duration_s=120.0)
+    written.append(
+        write_rtd(
+            simulate_dbs(short, field=field),
+            short,
+            folder / "WLS7-999_2024_06_01__00_10_00.rtd",
+            "v2",
+        )
+    )
+    v1 = WindCubeSpec(start="2024-06-01T00:12:00", duration_s=120.0, vertical_beam=False)
+    written.append(
+        write_rtd(
+            simulate_dbs(v1, field=field), v1, folder / "WLS7-099_2024_06_01__00_12_00.rtd", "v1"
+        )
+    )
+    written.append(write_truth(truth_path, rtd_truth(spec, field, ds)))
+    return written
 
 
 def wind_records_truth(spec: WindRecordSpec) -> dict[str, object]:
@@ -700,7 +824,19 @@ def write_sample_data(outdir: str | os.PathLike) -> list[Path]:
     written.append(
         write_windcube_sta(records, outdir / "windcube" / f"WLS7-999_{'_'.join(day)}__00_00_00.sta")
     )
+    written += write_windcube_variants(records, outdir / "windcube")
+    written.append(
+        write_zephir_csv(
+            records,
+            outdir / "zephir" / f"Wind_999@Y{day[0]}_M{day[1]}_D{day[2]}.ZPH.csv",
+            interval_s=1,
+            line_end="\r",
+        )
+    )
     written.append(write_truth(outdir / "wind_records_truth.json", wind_records_truth(records)))
+    written += write_windcube_rtd_samples(
+        outdir / "windcube_rtd", outdir / "windcube_rtd_truth.json"
+    )
     sonic = SonicSpec()
     written += write_sonic_samples(outdir / "sonic", sonic)
     written.append(write_truth(outdir / "sonic_truth.json", {"spec": asdict(sonic)}))
