@@ -68,9 +68,13 @@ class WindCubeSpec:
     pulses_per_los, points_per_gate : int
         Accumulation behind one line of sight, for the noise of the CNR.
     field_spacing_m : float
-        Grid spacing of the 3-D field (m).
+        Grid spacing of the 3-D field (m): fine enough (2.5 m) for the field to hold the
+        scales the probe averages out, so that the volume averaging is real.
     field_shape : tuple of int
         Grid points (x, y, z) of the periodic field.
+    coarse_factor : int
+        The large scales on a second grid this many times coarser (a 2.56 km box: the
+        10-min path of 4.8 km at 8 m/s crosses it diagonally without retracing itself).
     seed : int
         Seed of the field; the noise uses ``seed + 1``.
     """
@@ -91,8 +95,9 @@ class WindCubeSpec:
     cnr_db_per_100m: float = -3.0
     pulses_per_los: int = 10000
     points_per_gate: int = 10
-    field_spacing_m: float = 10.0
-    field_shape: tuple[int, int, int] = (256, 256, 32)
+    field_spacing_m: float = 2.5
+    field_shape: tuple[int, int, int] = (128, 128, 128)
+    coarse_factor: int = 8
     seed: int = 20240602
 
     @property
@@ -114,6 +119,7 @@ def windcube_field(spec: WindCubeSpec) -> FrozenField:
         epsilon=spec.epsilon,
         integral_scale_m=spec.integral_scale_m,
         seed=spec.seed,
+        coarse_factor=spec.coarse_factor,
     )
 
 
@@ -606,3 +612,89 @@ def rtd_truth(spec: WindCubeSpec, field: FrozenField, ds: xr.Dataset) -> dict[st
         "mast_speed_std_m_s": r(speed.std(axis=0, ddof=1)),
         "mast_turbulence_intensity": r(speed.std(axis=0, ddof=1) / speed.mean(axis=0)),
     }
+
+
+def along_wind_truth(mast: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mean speed, along-wind standard deviation and TI of a virtual mast's series
+    (per height): the truth of :func:`cwproc.stages.dbs.dbs_statistics`."""
+    um, vm = mast["u"].mean(axis=0), mast["v"].mean(axis=0)
+    speed = np.hypot(um, vm)
+    along = (mast["u"] * um + mast["v"] * vm) / speed
+    std = along.std(axis=0, ddof=1)
+    return speed, std, std / speed
+
+
+#: the TI estimates compared with the truth by :func:`ti_trials`
+TI_ESTIMATES = (
+    "turbulence_intensity",
+    "turbulence_intensity_noise",
+    "turbulence_intensity_volume",
+    "turbulence_intensity_cross",
+    "turbulence_intensity_corrected",
+)
+
+
+def ti_trials(
+    spec: WindCubeSpec, seeds: list[int], origins: list[tuple[float, float, float]]
+) -> dict[str, np.ndarray]:
+    """Many realisations of one 10-min DBS series: TI and mean wind, estimated and true.
+
+    Each seed makes a field; each origin puts the lidar elsewhere in it (origins a few
+    integral scales apart across the wind are nearly independent realisations). Per
+    realisation and height: the TI of every estimate of :data:`TI_ESTIMATES` (from the
+    lines of sight, :func:`cwproc.stages.dbs.dbs_statistics` with the spec's probe and
+    integral scale), the TI and mean speed of the instrument's own statistics
+    (:func:`instrument_statistics`, what its ``.sta`` holds) and of the virtual mast.
+
+    Returns
+    -------
+    dict
+        arrays of shape (realisations, heights): the estimates' names, ``sta_ti``,
+        ``sta_speed``, ``rtd_speed``, ``truth_ti``, ``truth_speed``.
+    """
+    from dataclasses import replace
+
+    from cwproc.stages.dbs import dbs_statistics
+
+    rows: dict[str, list[np.ndarray]] = {}
+    for seed in seeds:
+        run = replace(spec, seed=seed)
+        field = windcube_field(run)
+        for origin in origins:
+            ds = simulate_dbs(run, field=field, origin_m=origin)
+            stats = dbs_statistics(
+                ds,
+                window_s=spec.duration_s,
+                delta_p_m=spec.delta_p_m,
+                delta_r_m=spec.delta_r_m,
+                points_per_gate=spec.points_per_gate,
+                pulses_per_los=spec.pulses_per_los,
+                integral_scale_m=spec.integral_scale_m,
+            ).isel(time=0)
+            sta = instrument_statistics(ds, spec.duration_s)
+            speed, _, ti = along_wind_truth(mast_truth(run, field, ds, origin))
+            values = {name: stats[name].values for name in TI_ESTIMATES}
+            values.update(
+                sta_ti=sta["std"][0] / sta["speed"][0],
+                sta_speed=sta["speed"][0],
+                rtd_speed=stats["wind_speed"].values,
+                truth_ti=ti,
+                truth_speed=speed,
+            )
+            for name, value in values.items():
+                rows.setdefault(name, []).append(np.asarray(value, dtype=float))
+    return {name: np.array(value) for name, value in rows.items()}
+
+
+def bias_table(trials: dict[str, np.ndarray]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per estimate: mean (estimate - truth) and its standard error over realisations,
+    per height (TI estimates against ``truth_ti``, speeds against ``truth_speed``)."""
+    out = {}
+    n = trials["truth_ti"].shape[0]
+    for name, values in trials.items():
+        if name.startswith("truth"):
+            continue
+        truth = trials["truth_speed"] if name.endswith("speed") else trials["truth_ti"]
+        diff = values - truth
+        out[name] = (diff.mean(axis=0), diff.std(axis=0, ddof=1) / np.sqrt(n))
+    return out
