@@ -204,8 +204,11 @@ def _long_layout(
             columns[(LONG_BEAM_COLUMNS[m.group("suffix")], h)] = i
     if not heights:
         raise InputFileError(path, "no per-altitude columns ('<H>m Radial Wind Speed')", line)
+    present = {
+        suffix for suffix, var in LONG_BEAM_COLUMNS.items() if any(v == var for v, _ in columns)
+    }
     for h in heights:
-        for need in ("CNR (dB)", "Radial Wind Speed (m/s)"):
+        for need in sorted(present | {"CNR (dB)", "Radial Wind Speed (m/s)"}):
             if (LONG_BEAM_COLUMNS[need], h) not in columns:
                 raise InputFileError(path, f"altitude {h:g} m lacks the column {need}", line)
     return heights, columns

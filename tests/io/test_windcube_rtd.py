@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from cwproc.errors import ConfigError, InputFileError
 from cwproc.io import Format, detect_format
@@ -162,3 +164,44 @@ def test_reader_options_are_validated(real_data):
 def test_sta_reader_is_not_confused_with_rtd():
     sta = SAMPLE / "WLS71999_2024_06_01__00_00_00.sta"
     assert detect_format(sta) is Format.WINDCUBE_STA
+
+
+@settings(
+    max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    ops=st.lists(
+        st.tuples(
+            st.sampled_from(["replace", "delete", "insert", "truncate"]),
+            st.floats(0, 1, allow_nan=False),
+            st.sampled_from(list(b"\t\n.=0123456789 xNAV-/:\xb0m")),
+        ),
+        min_size=1,
+        max_size=4,
+    ),
+    name=st.sampled_from(
+        ["WLS71999_2024_06_01__00_00_00.rtd", "WLS7-099_2024_06_01__00_12_00.rtd"]
+    ),
+)
+def test_mutated_files_give_a_dataset_or_input_file_error(tmp_path_factory, ops, name):
+    lines = (SAMPLE / name).read_bytes().split(b"\n")
+    data = bytearray(b"\n".join(lines[:40]) + b"\n")
+    for op, where, byte in ops:
+        i = min(int(where * len(data)), max(len(data) - 1, 0))
+        if op == "replace" and data:
+            data[i] = byte
+        elif op == "delete" and data:
+            del data[i]
+        elif op == "insert":
+            data.insert(i, byte)
+        else:
+            del data[i:]
+    path = tmp_path_factory.mktemp("mut") / "m.rtd"
+    path.write_bytes(bytes(data))
+    try:
+        ds = read_windcube_rtd(path)
+    except InputFileError as err:
+        assert err.path == str(path) and err.problem
+    else:
+        assert set(ds.dims) == {"time", "height"}
+        assert np.all(np.diff(ds["time"].values) > np.timedelta64(0, "ns"))

@@ -97,3 +97,30 @@ def test_corrected_ti_is_unbiased_and_the_measured_one_is_not():
     # paired: the mean of the scalar speeds exceeds the speed of the mean wind
     diff = trials["sta_speed"] - trials["rtd_speed"]
     assert np.all(diff.mean(axis=0) > 3 * diff.std(axis=0, ddof=1) / np.sqrt(diff.shape[0]))
+
+
+def test_retrieve_writes_the_rtd_and_the_sta_of_one_period_side_by_side(tmp_path):
+    """``retrieve -c windcube`` on the .rtd sample folder: one product per file, the .rtd
+    product (DBS, corrected TI) beside the instrument's .sta of the same 10 min."""
+    import xarray as xr
+    from click.testing import CliRunner
+
+    from cwproc.cli import main
+
+    res = CliRunner().invoke(
+        main, ["retrieve", "-c", "windcube", str(SAMPLE / "windcube_rtd"), "-o", str(tmp_path)]
+    )
+    assert res.exit_code == 0, res.output
+    assert "4 input(s), 4 product(s) written, 0 failure(s)" in res.output
+    stem = "windcube_rtd_WLS71999_2024_06_01__00_00_00"
+    rtd = xr.open_dataset(tmp_path / f"{stem}_rtd_wind.nc")
+    sta = xr.open_dataset(tmp_path / f"{stem}_wind.nc")
+    np.testing.assert_array_equal(rtd["time"].values, sta["time"].values)  # 00:10, end
+    truth = json.loads((SAMPLE / "windcube_rtd_truth.json").read_text())
+    # the two mean winds agree within the .sta's scalar averaging (+0.1 to +0.15 m/s)
+    diff = sta["wind_speed"].values[0] - rtd["wind_speed"].values[0]
+    assert np.all((diff > 0) & (diff < 0.3))
+    assert np.all(rtd["dbs_flag"].values == 0)
+    corrected = rtd["turbulence_intensity_corrected"].values[0]
+    np.testing.assert_allclose(corrected, truth["mast_turbulence_intensity"], rtol=0.25)
+    assert "noise" in rtd["turbulence_intensity_corrected"].attrs["method"]
