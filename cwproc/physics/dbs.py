@@ -30,7 +30,7 @@ is computed exactly (quadrature) with the isotropic correlation tensor ``B`` of
 von Karman turbulence (Banakh et al. (1999), eq. 16; :mod:`cwproc.physics.correlation`),
 ``r_kl`` the separation of the two gates in the frozen field carried by the mean wind
 (``p_l - p_k - U (t_l - t_k)``, Taylor's hypothesis) and ``Q`` the pulsed range
-weighting (:func:`cwproc.sim.pulsed.pulsed_range_weight`). ``rho`` with point probes is
+weighting (:func:`range_nodes`). ``rho`` with point probes is
 the cross-contamination alone; ``rho`` of one beam with itself is the volume averaging
 alone (the pulsed analogue of the cw correction of :mod:`cwproc.physics.volume_averaging`).
 
@@ -56,6 +56,7 @@ import numpy as np
 
 from cwproc.physics.correlation import correlation_tensor
 from cwproc.physics.geometry import beam_unit_vector
+from cwproc.physics.two_beam import pulsed_weighting
 from cwproc.references import SATHE_2011, SATHE_MANN_2013
 
 __all__ = [
@@ -66,6 +67,7 @@ __all__ = [
     "estimator_coefficients",
     "estimator_variance_ratio",
     "noise_variance",
+    "range_nodes",
 ]
 
 
@@ -140,7 +142,7 @@ def estimator_variance_ratio(
         Longitudinal integral scale L_V of the von Karman model (m).
     range_nodes : (nodes, weights), optional
         Quadrature of the range weighting along the beam (m, weights summing to 1),
-        :func:`cwproc.sim.pulsed.range_quadrature`; None: point probes.
+        :func:`range_nodes`; None: point probes.
     component : ndarray, optional
         Unit vector of the wind component the estimate stands for (its variance is the
         denominator); by isotropy every component has the variance ``sigma^2``, so it
@@ -172,6 +174,17 @@ def estimator_variance_ratio(
             proj = np.einsum("i,abij,j->ab", vectors[k], tensor, vectors[m])
             total += coefficients[k] * coefficients[m] * float(weights @ proj @ weights)
     return total
+
+
+def range_nodes(delta_p_m: float, delta_r_m: float, step_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes (m from the gate centre) and weights (sum 1) of the pulsed range weighting
+    (:func:`cwproc.physics.two_beam.pulsed_weighting`), out to 3 ``Delta_p`` past the
+    range window."""
+    half = delta_r_m / 2 + 3.0 * delta_p_m
+    n = int(np.ceil(half / step_m))
+    s = np.arange(-n, n + 1) * step_m
+    w = pulsed_weighting(s, delta_p_m, delta_r_m)
+    return s, w / w.sum()
 
 
 def noise_variance(

@@ -85,9 +85,7 @@ def _ratios(
     vertical: bool,
 ) -> dict[str, float]:
     """Volume, cross and combined ratios of the along-wind and w estimates (cached)."""
-    from cwproc.sim.pulsed import range_quadrature
-
-    nodes = range_quadrature(delta_p, delta_r, max(min(delta_p, delta_r) / 6.0, 0.5))
+    nodes = dbs.range_nodes(delta_p, delta_r, max(min(delta_p, delta_r) / 6.0, 0.5))
     beam_time = dict(times)
     mean_wind = np.array([wind[0], wind[1], 0.0])
     along = dbs.along_wind_coefficients(wind[0], wind[1], scan_angle)

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from cwproc.physics import dbs
-from cwproc.sim.pulsed import range_quadrature
 
 TIMES = {"0": 0.0, "90": 0.8, "180": 1.6, "270": 2.4, "V": 3.2}
 STILL = np.zeros(3)
@@ -45,17 +44,17 @@ def test_cross_contamination_grows_with_height_and_volume_averaging_lowers_varia
     coef = dbs.estimator_coefficients("u", 28.0)
     ratios = [_ratio(coef, h, 100.0) for h in (20.0, 60.0, 120.0, 200.0)]
     assert np.all(np.diff(ratios) > 0) and ratios[0] > 1.0
-    nodes = range_quadrature(15.0, 20.0, 2.5)
+    nodes = dbs.range_nodes(15.0, 20.0, 2.5)
     volume = _ratio({"V": 1.0}, 100.0, 100.0, nodes)
     assert 0.0 < volume < 1.0
     # a longer probe averages more; a larger integral scale less
-    assert _ratio({"V": 1.0}, 100.0, 100.0, range_quadrature(30.0, 40.0, 2.5)) < volume
+    assert _ratio({"V": 1.0}, 100.0, 100.0, dbs.range_nodes(30.0, 40.0, 2.5)) < volume
     assert _ratio({"V": 1.0}, 100.0, 400.0, nodes) > volume
 
 
 def test_volume_ratio_is_the_same_for_every_beam_direction():
     """Isotropy: the probe-averaged radial variance does not depend on the beam."""
-    nodes = range_quadrature(15.0, 20.0, 2.5)
+    nodes = dbs.range_nodes(15.0, 20.0, 2.5)
     values = [_ratio({b: 1.0}, 100.0, 80.0, nodes) for b in ("0", "90", "180", "270", "V")]
     np.testing.assert_allclose(values, values[0], rtol=1e-9)
 
@@ -74,3 +73,13 @@ def test_noise_variance_of_an_estimate():
     coef = dbs.estimator_coefficients("u", 28.0)
     var = dbs.noise_variance(coef, {"90": 0.01, "270": 0.01})
     assert var == pytest.approx(0.02 / (4 * np.sin(np.radians(28.0)) ** 2))
+
+
+def test_range_nodes_are_the_virtual_instruments_weighting():
+    """The quadrature of the correction is the range weighting the simulator samples with."""
+    from cwproc.sim.pulsed import range_quadrature
+
+    nodes, weights = dbs.range_nodes(15.0, 20.0, 2.5)
+    ref_nodes, ref_weights = range_quadrature(15.0, 20.0, 2.5)
+    np.testing.assert_allclose(nodes, ref_nodes)
+    np.testing.assert_allclose(weights, ref_weights, rtol=1e-12)
