@@ -249,7 +249,10 @@ def _refuse_statistics_header(path: str | os.PathLike, cols: Mapping[str, str]) 
         return
     if not head[0].startswith('"TOA5"') or not head[3].strip():
         return
-    rows = list(csv.reader(line.strip() for line in head[1:4]))
+    try:
+        rows = list(csv.reader(line.strip() for line in head[1:4]))
+    except csv.Error:  # a damaged header: the reader words it
+        return
     if len(rows) < 3:
         return
     names, processing = rows[0], rows[2]
@@ -689,7 +692,10 @@ def read_tob1(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     units = _header_fields(path, header[2], 3)
     types = _header_fields(path, header[4], 5)
     wind = [cols[k] for k in ("u", "v", "w") if cols[k] in names]
-    processing = _header_fields(path, header[3], 4)
+    try:
+        processing = _header_fields(path, header[3], 4)
+    except InputFileError:  # line 4 is not read otherwise: its damage is no refusal
+        processing = []
     refuse_averaged_table(
         path, averaged_table_reason(names=names, processing=processing, wind_fields=wind)
     )
