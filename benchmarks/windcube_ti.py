@@ -30,6 +30,9 @@ def main(argv: list[str]) -> None:
     )
     print("truth TI  ", "  ".join(f"{x:.4f}" for x in trials["truth_ti"].mean(axis=0)))
     print("truth U   ", "  ".join(f"{x:.3f}" for x in trials["truth_speed"].mean(axis=0)))
+    for c in "uvw":
+        truth = trials[f"truth_{c}_variance"].mean(axis=0)
+        print(f"truth var {c}", "  ".join(f"{x:.3f}" for x in truth))
     for name, (bias, se) in bias_table(trials).items():
         cells = "  ".join(f"{b:+.4f} +- {s:.4f}" for b, s in zip(bias, se, strict=True))
         print(f"{name:32s} {cells}")

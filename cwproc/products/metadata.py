@@ -492,6 +492,19 @@ _PRODUCT_VARIABLES: dict[str, VarMeta] = {
         "1",
         references=WAGNER_DTU + ", eqs. 9-11 (cw); " + SATHE_2011 + " (DBS)",
     ),
+    **{
+        f"{c}_variance_dbs": VarMeta(
+            f"variance of the {what} over the interval from the DBS lines of sight, corrected "
+            "for noise, pulsed-probe averaging and DBS cross-contamination",
+            "m2 s-2",
+            references=SATHE_2011,
+        )
+        for c, what in (
+            ("u", "eastward wind"),
+            ("v", "northward wind"),
+            ("w", "upward air velocity"),
+        )
+    },
     "dbs_flag": VarMeta(
         "quality of the DBS statistics of WindCube lines of sight (bits combine)",
         "1",

@@ -672,8 +672,13 @@ def ti_trials(
                 integral_scale_m=spec.integral_scale_m,
             ).isel(time=0)
             sta = instrument_statistics(ds, spec.duration_s)
-            speed, _, ti = along_wind_truth(mast_truth(run, field, ds, origin))
+            mast = mast_truth(run, field, ds, origin)
+            speed, _, ti = along_wind_truth(mast)
             values = {name: stats[name].values for name in TI_ESTIMATES}
+            for c in "uvw":
+                values[f"{c}_variance_measured"] = stats[f"{c}_variance_measured"].values
+                values[f"{c}_variance"] = stats[f"{c}_variance"].values
+                values[f"truth_{c}_variance"] = mast[c].var(axis=0, ddof=1)
             values.update(
                 sta_ti=sta["std"][0] / sta["speed"][0],
                 sta_speed=sta["speed"][0],
@@ -688,13 +693,19 @@ def ti_trials(
 
 def bias_table(trials: dict[str, np.ndarray]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Per estimate: mean (estimate - truth) and its standard error over realisations,
-    per height (TI estimates against ``truth_ti``, speeds against ``truth_speed``)."""
+    per height (TI estimates against ``truth_ti``, speeds against ``truth_speed``, the
+    variances of ``u``, ``v``, ``w`` against ``truth_<c>_variance``)."""
     out = {}
     n = trials["truth_ti"].shape[0]
     for name, values in trials.items():
         if name.startswith("truth"):
             continue
-        truth = trials["truth_speed"] if name.endswith("speed") else trials["truth_ti"]
+        if name.endswith("speed"):
+            truth = trials["truth_speed"]
+        elif "_variance" in name:
+            truth = trials[f"truth_{name[0]}_variance"]
+        else:
+            truth = trials["truth_ti"]
         diff = values - truth
         out[name] = (diff.mean(axis=0), diff.std(axis=0, ddof=1) / np.sqrt(n))
     return out

@@ -43,6 +43,9 @@ from cwproc.physics import dbs
 from cwproc.physics.geometry import speed_and_direction
 from cwproc.physics.noise import velocity_noise_std
 
+#: the DBS estimates whose variances are reported: along-wind (TI), u (east), v (north), w
+COMPONENTS = ("along", "u", "v", "w")
+
 #: flag bits of the DBS statistics
 FLAG_FEW_CYCLES = 1
 FLAG_LOW_CNR = 2
@@ -100,7 +103,9 @@ def _ratios(
     # one beam with itself: the same for every beam direction in isotropic turbulence
     volume = dbs.estimator_variance_ratio({"0": 1.0}, range_nodes=nodes, **common)
     out = {"volume": volume}
-    for name, coef in (("along", along), ("w", w)):
+    u = dbs.estimator_coefficients("u", scan_angle, vertical)
+    v = dbs.estimator_coefficients("v", scan_angle, vertical)
+    for name, coef in (("along", along), ("u", u), ("v", v), ("w", w)):
         out[f"cross_{name}"] = dbs.estimator_variance_ratio(coef, **common)
         out[f"full_{name}"] = dbs.estimator_variance_ratio(coef, range_nodes=nodes, **common)
     return out
@@ -145,10 +150,11 @@ def dbs_statistics(
     -------
     xarray.Dataset
         dims ``(time, height)``, time = end of interval: ``wind_speed``,
-        ``wind_direction``, ``w``, ``u_mean``, ``v_mean``, ``n_cycles``,
-        ``along_variance_measured``, ``w_variance_measured``, ``along_noise_variance``,
-        ``w_noise_variance``, ``volume_ratio``, ``along_cross_ratio``, ``w_cross_ratio``,
-        ``along_full_ratio``, ``w_full_ratio``, ``wind_speed_std`` (measured along-wind),
+        ``wind_direction``, ``w``, ``u_mean``, ``v_mean``, ``n_cycles``, ``volume_ratio``;
+        for each of ``along`` (the along-wind component), ``u`` (east), ``v`` (north)
+        and ``w``: ``<c>_variance_measured``, ``<c>_noise_variance``,
+        ``<c>_cross_ratio``, ``<c>_full_ratio`` and ``<c>_variance`` (all corrections,
+        m2 s-2); ``wind_speed_std`` (measured along-wind),
         ``turbulence_intensity`` (measured), ``turbulence_intensity_noise``,
         ``turbulence_intensity_volume``, ``turbulence_intensity_cross`` (one correction
         each), ``turbulence_intensity_corrected`` (all three), ``w_std``,
@@ -186,11 +192,12 @@ def dbs_statistics(
     heights = rtd["height"].values
     nh = heights.size
     names = (
-        "wind_speed wind_direction w u_mean v_mean n_cycles along_variance_measured "
-        "w_variance_measured along_noise_variance w_noise_variance volume_ratio "
-        "along_cross_ratio w_cross_ratio along_full_ratio w_full_ratio cnr "
+        "wind_speed wind_direction w u_mean v_mean n_cycles volume_ratio cnr "
         "data_availability w_mismatch"
     ).split()
+    for c in COMPONENTS:
+        names += [f"{c}_variance_measured", f"{c}_noise_variance"]
+        names += [f"{c}_cross_ratio", f"{c}_full_ratio"]
     out = {n: np.full((keys.size, nh), np.nan) for n in names}
     for i, key in enumerate(keys):
         rows = window == key
@@ -238,6 +245,8 @@ def _interval(
             out["wind_speed"][i, k], out["wind_direction"][i, k] = speed, direction
             along = (u[ok, k] * um + v[ok, k] * vm) / speed
             out["along_variance_measured"][i, k] = along.var(ddof=1)
+            out["u_variance_measured"][i, k] = u[ok, k].var(ddof=1)
+            out["v_variance_measured"][i, k] = v[ok, k].var(ddof=1)
             wk = w[:, k][np.isfinite(w[:, k])]
             out["w"][i, k] = wk.mean() if wk.size else np.nan
             out["w_variance_measured"][i, k] = wk.var(ddof=1) if wk.size > 2 else np.nan
@@ -248,10 +257,12 @@ def _interval(
                                                  pulses) ** 2)
                 for b in beam_cnr
             }  # fmt: skip
-            coef = dbs.along_wind_coefficients(um, vm, angle)
-            out["along_noise_variance"][i, k] = dbs.noise_variance(coef, sigma2)
-            wcoef = dbs.estimator_coefficients("w", angle, vertical)
-            out["w_noise_variance"][i, k] = dbs.noise_variance(wcoef, sigma2)
+            coefficients = {
+                "along": dbs.along_wind_coefficients(um, vm, angle),
+                **{c: dbs.estimator_coefficients(c, angle, vertical) for c in ("u", "v", "w")},
+            }
+            for c, coef in coefficients.items():
+                out[f"{c}_noise_variance"][i, k] = dbs.noise_variance(coef, sigma2)
             wind = (round(float(um) * 2) / 2, round(float(vm) * 2) / 2)
             ratios = _ratios(
                 float(h), angle, beam_time, wind,
@@ -259,7 +270,7 @@ def _interval(
                 float(delta_p), float(delta_r), vertical,
             )  # fmt: skip
             out["volume_ratio"][i, k] = ratios["volume"]
-            for name in ("along", "w"):
+            for name in COMPONENTS:
                 out[f"{name}_cross_ratio"][i, k] = ratios[f"cross_{name}"]
                 out[f"{name}_full_ratio"][i, k] = ratios[f"full_{name}"]
 
@@ -293,8 +304,15 @@ def _assemble(
             ds[name] = np.sqrt(variance.where(variance > 0)) / speed
         ds["wind_speed_std"] = np.sqrt(measured)
         ds["w_std"] = np.sqrt(ds["w_variance_measured"])
-        w_corr = (ds["w_variance_measured"] - ds["w_noise_variance"]) / ds["w_full_ratio"]
-        ds["w_std_corrected"] = np.sqrt(w_corr.where(w_corr > 0))
+        for c in COMPONENTS:
+            corrected = (ds[f"{c}_variance_measured"] - ds[f"{c}_noise_variance"]) / ds[
+                f"{c}_full_ratio"
+            ]
+            ds[f"{c}_variance"] = corrected.where(corrected > 0)
+            ds[f"{c}_variance"].attrs["method"] = (
+                "(measured - noise variance) / combined DBS and probe ratio"
+            )
+        ds["w_std_corrected"] = np.sqrt(ds["w_variance"])
     flag = xr.where(ds["data_availability"] < min_cycles_percent, dbs_flag_bit(1), 0)
     flag = flag | xr.where(ds["cnr"] < min_cnr_db + 3.0, FLAG_LOW_CNR, 0)
     flag = flag | xr.where(np.abs(ds["w_mismatch"]) > max_w_mismatch, FLAG_INHOMOGENEOUS, 0)

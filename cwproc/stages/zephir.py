@@ -196,6 +196,9 @@ def wind_record_product(
         out["turbulence_intensity_corrected"] = record["turbulence_intensity_corrected"]
         for name in ("turbulence_intensity", "turbulence_intensity_corrected"):
             out[name].attrs["method"] = record[name].attrs.get("method", "")
+        for c in "uvw":
+            if f"{c}_variance" in record:
+                out[f"{c}_variance_dbs"] = record[f"{c}_variance"]
         if "dbs_flag" in record:
             out["dbs_flag"] = record["dbs_flag"]
     else:
