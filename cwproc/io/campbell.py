@@ -262,6 +262,20 @@ def _refuse_statistics_header(path: str | os.PathLike, cols: Mapping[str, str]) 
     )
 
 
+def _refuse_statistics_tob1(
+    path: str | os.PathLike, line4: str, names: list[str], cols: Mapping[str, str]
+) -> None:
+    """Refuse a TOB1 table of statistics from its processing line and field names."""
+    wind = [cols[k] for k in ("u", "v", "w") if cols[k] in names]
+    try:
+        processing = _header_fields(path, line4, 4)
+    except InputFileError:  # line 4 is not read otherwise: its damage is no refusal
+        processing = []
+    refuse_averaged_table(
+        path, averaged_table_reason(names=names, processing=processing, wind_fields=wind)
+    )
+
+
 def _toa5_header(
     path: str | os.PathLike, lines: Sequence[str], cols: Mapping[str, str], n_lines: int
 ) -> tuple[list[str], list[str], list[str]]:
@@ -691,14 +705,7 @@ def read_tob1(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     names = _header_fields(path, header[1], 2)
     units = _header_fields(path, header[2], 3)
     types = _header_fields(path, header[4], 5)
-    wind = [cols[k] for k in ("u", "v", "w") if cols[k] in names]
-    try:
-        processing = _header_fields(path, header[3], 4)
-    except InputFileError:  # line 4 is not read otherwise: its damage is no refusal
-        processing = []
-    refuse_averaged_table(
-        path, averaged_table_reason(names=names, processing=processing, wind_fields=wind)
-    )
+    _refuse_statistics_tob1(path, header[3], names, cols)
     dtype = tob1_dtype(path, names, types)
     for key in ("SECONDS", "NANOSECONDS"):
         if key not in names:
