@@ -49,6 +49,7 @@ class InstrumentConfig:
         "scan_netcdf",
         "zephir_csv",
         "windcube_sta",
+        "windcube_rtd",
         "toa5",
         "tob1",
         "ghg",
@@ -339,6 +340,43 @@ class ZephirConfig:
 
 
 @dataclass(frozen=True)
+class DbsConfig:
+    """Turbulence intensity from WindCube ``.rtd`` lines of sight (docs/windcube.md)."""
+
+    #: interval of the statistics (s)
+    window_s: float = 600.0
+    #: lines of sight with a lower CNR (dB) are missing (the WindCube's CNRThreshold)
+    min_cnr_db: float = -23.0
+    #: pulsed range weighting of the volume-averaging model: Delta_p = c sigma_p / 2 and
+    #: the range window Delta_R (m); defaults of cwproc's virtual WindCube (assumed)
+    delta_p_m: float = 15.0
+    delta_r_m: float = 20.0
+    #: accumulation behind one line of sight, for the noise variance from the CNR
+    #: (Pearson et al. (2009), eq. 3); assumed (WF 2.x files write NA)
+    points_per_gate: float = 10.0
+    pulses_per_los: float = 10000.0
+    #: integral scale L_V (m) of the isotropic von Karman model of the corrections;
+    #: unset: 2 x 0.7 min(h, 60 m) (the IEC 61400-1 Kaimal scale L_u / 4)
+    integral_scale_m: float | None = None
+    #: fewer complete beam cycles than this share (%) flags an interval
+    min_cycles_percent: float = 80.0
+    #: largest difference of w from the inclined and the vertical beams (m s-1) before an
+    #: interval is flagged inhomogeneous (complex terrain)
+    max_w_mismatch: float = 0.3
+
+    def __post_init__(self) -> None:
+        if not self.window_s > 0:
+            raise ValueError("window_s: must be > 0")
+        for name in ("delta_p_m", "delta_r_m", "points_per_gate", "pulses_per_los"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name}: must be > 0")
+        if self.integral_scale_m is not None and not self.integral_scale_m > 0:
+            raise ValueError("integral_scale_m: must be > 0")
+        if not 0 <= self.min_cycles_percent <= 100:
+            raise ValueError("min_cycles_percent: must be in [0, 100]")
+
+
+@dataclass(frozen=True)
 class OutputConfig:
     """Global attributes of the products (ACDD-1.3)."""
 
@@ -464,6 +502,7 @@ class Config:
     doppler_lidar: DopplerLidarConfig = field(default_factory=DopplerLidarConfig)
     sonic: SonicConfig = field(default_factory=SonicConfig)
     zephir: ZephirConfig = field(default_factory=ZephirConfig)
+    dbs: DbsConfig = field(default_factory=DbsConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
     simulation: SimulationConfig = field(default_factory=SimulationConfig)
     #: reader options per format (free-form tables, validated by the reader), e.g.

@@ -22,6 +22,15 @@ WAGNER_DTU = (
     "with a continuous wave, conically scanning lidar, Risoe-R report."
 )
 
+SATHE_2011 = (
+    "Sathe A., Mann J., Gottschall J., Courtney M.S. (2011), Can wind lidars measure "
+    "turbulence?, J. Atmos. Oceanic Technol. 28, 853-868"
+)
+SATHE_MANN_2013 = (
+    "Sathe A., Mann J. (2013), A review of turbulence measurements using ground-based "
+    "wind lidars, Atmos. Meas. Tech. 6, 3147-3167"
+)
+
 OCONNOR_2010 = (
     "O'Connor E.J., Illingworth A.J., Brooks I.M., Westbrook C.D., Hogan R.J., Davies F., "
     "Brooks B.J. (2010), A method for estimating the turbulent kinetic energy dissipation "

@@ -20,7 +20,8 @@ FORMAT_NAMES: dict[Format, str] = {
     Format.HPL: "Halo Photonics Stream Line .hpl",
     Format.SCAN_NETCDF: "cwproc scan dataset (NetCDF)",
     Format.ZEPHIR_CSV: "ZephIR 300 CSV export",
-    Format.WINDCUBE_STA: "WindCube .sta 10-min statistics",
+    Format.WINDCUBE_STA: "WindCube .sta/.stdsta statistics",
+    Format.WINDCUBE_RTD: "WindCube .rtd real-time lines of sight",
     Format.TOA5: "Campbell Scientific TOA5",
     Format.TOB1: "Campbell Scientific TOB1",
     Format.GHG: "LI-COR GHG .data",
@@ -144,8 +145,38 @@ def describe_dataset(ds: xr.Dataset) -> list[str]:
     for key in ("instrument", "sampling_rate_hz", "frame"):
         if key in ds.attrs:
             lines.append(f"  {key:<13} {ds.attrs[key]}")
+    lines += describe_wind_record(ds)
     names = sorted(str(v) for v in ds.data_vars)
     lines.append(f"  variables     {len(names)}: {', '.join(names)}")
+    return lines
+
+
+def describe_wind_record(ds: xr.Dataset) -> list[str]:
+    """The averaging of instrument statistics, and a WindCube's beams and scan angle."""
+    lines = []
+    attrs = ds.attrs
+    if "averaging_interval_s" in attrs:
+        lines.append(f"  averaging     {float(attrs['averaging_interval_s']):g} s statistics")
+    if attrs.get("format") == "windcube_sta":
+        angle = attrs.get("scan_angle_deg")
+        shown = f"{float(angle):g} deg" if angle is not None else "not reported in the header"
+        lines.append(f"  scan angle    {shown}")
+    if attrs.get("format") == "windcube_rtd" and "beam" in ds:
+        labels, counts = np.unique(ds["beam"].values, return_counts=True)
+        order = sorted(
+            range(labels.size),
+            key=lambda i: (labels[i] == "V", float(labels[i]) if labels[i] != "V" else 0.0),
+        )
+        beams = ", ".join(f"{labels[i]}: {counts[i]}" for i in order)
+        lines.append(
+            f"  beams         {beams} (a line of sight every "
+            f"{float(attrs.get('line_of_sight_interval_s', np.nan)):.3g} s; "
+            f"{attrs.get('rtd_layout', '?')} layout)"
+        )
+        lines.append(
+            f"  scan angle    {float(attrs['scan_angle_deg']):g} deg from the zenith "
+            f"({attrs.get('scan_angle_source', '?')})"
+        )
     return lines
 
 

@@ -35,7 +35,8 @@ class Format(StrEnum):
     HPL = "hpl"  # Halo Photonics Stream Line
     SCAN_NETCDF = "scan_netcdf"  # cwproc canonical scan dataset (e.g. cw line of sight)
     ZEPHIR_CSV = "zephir_csv"  # ZephIR 300 Waltz / CSV Converter export
-    WINDCUBE_STA = "windcube_sta"  # Leosphere WindCube v1 10-min statistics
+    WINDCUBE_STA = "windcube_sta"  # Leosphere WindCube .sta/.stdsta statistics
+    WINDCUBE_RTD = "windcube_rtd"  # Leosphere WindCube .rtd real-time lines of sight
     TOA5 = "toa5"  # Campbell Scientific ASCII
     TOB1 = "tob1"  # Campbell Scientific binary
     GHG = "ghg"  # LI-COR GHG .data text
@@ -50,6 +51,7 @@ READERS: dict[Format, str] = {
     Format.SCAN_NETCDF: "cwproc.io.scan_netcdf:read_scan_netcdf",
     Format.ZEPHIR_CSV: "cwproc.io.zephir:read_zephir_csv",
     Format.WINDCUBE_STA: "cwproc.io.windcube:read_windcube_sta",
+    Format.WINDCUBE_RTD: "cwproc.io.windcube_rtd:read_windcube_rtd",
     Format.TOA5: "cwproc.io.campbell:read_toa5",
     Format.TOB1: "cwproc.io.campbell:read_tob1",
     Format.GHG: "cwproc.io.licor:read_ghg",
@@ -88,6 +90,7 @@ KIND: dict[Format, str] = {
     Format.SCAN_NETCDF: "scan",
     Format.ZEPHIR_CSV: "wind_record",
     Format.WINDCUBE_STA: "wind_record",
+    Format.WINDCUBE_RTD: "wind_record",
     Format.TOA5: "sonic",
     Format.TOB1: "sonic",
     Format.GHG: "sonic",
@@ -118,6 +121,11 @@ def sniff_format(head: bytes) -> Format | None:
     if first.startswith('"TOB1"'):
         return Format.TOB1
     if first.startswith(("HeaderSize=", "HeaderLength=")):
+        if any(
+            line.startswith(("Timestamp\tPosition\t", "Date\tPosition\t"))
+            for line in text.split("\n")
+        ):
+            return Format.WINDCUBE_RTD
         return Format.WINDCUBE_STA
     if "CSV Converter" in first or ("Time and Date" in text and ";" in text):
         return Format.ZEPHIR_CSV

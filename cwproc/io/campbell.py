@@ -36,6 +36,7 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import InputFileError
+from cwproc.io.averaged import averaged_table_reason, refuse_averaged_table
 from cwproc.io.meteo2 import (
     NA_TEXT,
     SONIC_FIELDS,
@@ -200,6 +201,7 @@ def read_toa5(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     check_options(path, options, OPTIONS)
     cols = column_map(path, options, DEFAULT_COLUMNS)
     offset_h = option_number(path, options, "utc_offset_hours", 0.0)
+    _refuse_statistics_header(path, cols)
     try:
         with open(path, "rb") as fh:
             parsed = toa5_fast(path, fh, cols)
@@ -233,6 +235,45 @@ def read_toa5(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         "time_reference": f"logger time minus {offset_h:g} h",
     }
     return _campbell_dataset(path, options, env, times, vals, temp, diag, attrs, notes)
+
+
+def _refuse_statistics_header(path: str | os.PathLike, cols: Mapping[str, str]) -> None:
+    """Refuse a TOA5 table of statistics (averages, fluxes) from its four header lines.
+
+    See :mod:`cwproc.io.averaged`; a header that cannot be read is left to the reader.
+    """
+    try:
+        with open(path, "rb") as fh:
+            head = [fh.readline().decode("latin-1") for _ in range(4)]
+    except OSError:
+        return
+    if not head[0].startswith('"TOA5"') or not head[3].strip():
+        return
+    try:
+        rows = list(csv.reader(line.strip() for line in head[1:4]))
+    except csv.Error:  # a damaged header: the reader words it
+        return
+    if len(rows) < 3:
+        return
+    names, processing = rows[0], rows[2]
+    wind = [cols[k] for k in ("u", "v", "w") if cols[k] in names]
+    refuse_averaged_table(
+        path, averaged_table_reason(names=names, processing=processing, wind_fields=wind)
+    )
+
+
+def _refuse_statistics_tob1(
+    path: str | os.PathLike, line4: str, names: list[str], cols: Mapping[str, str]
+) -> None:
+    """Refuse a TOB1 table of statistics from its processing line and field names."""
+    wind = [cols[k] for k in ("u", "v", "w") if cols[k] in names]
+    try:
+        processing = _header_fields(path, line4, 4)
+    except InputFileError:  # line 4 is not read otherwise: its damage is no refusal
+        processing = []
+    refuse_averaged_table(
+        path, averaged_table_reason(names=names, processing=processing, wind_fields=wind)
+    )
 
 
 def _toa5_header(
@@ -664,6 +705,7 @@ def read_tob1(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     names = _header_fields(path, header[1], 2)
     units = _header_fields(path, header[2], 3)
     types = _header_fields(path, header[4], 5)
+    _refuse_statistics_tob1(path, header[3], names, cols)
     dtype = tob1_dtype(path, names, types)
     for key in ("SECONDS", "NANOSECONDS"):
         if key not in names:

@@ -333,6 +333,9 @@ def sonic_dataset(
     InputFileError
         No samples, or fewer than two distinct time stamps.
     """
+    from cwproc.io.averaged import averaged_table_reason, refuse_averaged_table
+
+    refuse_averaged_table(path, averaged_table_reason(times=time))
     t = np.asarray(time).astype("datetime64[ns]")
     if t.size == 0:
         raise InputFileError(path, "no data records")

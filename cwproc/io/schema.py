@@ -195,6 +195,16 @@ WIND_RECORD_VARIABLES: dict[str, VarMeta] = {
         "horizontal wind component vm of the instrument (sign convention not stated)", "m s-1"
     ),
     "v_instrument_std": _std("instrument's component vm", "m s-1"),
+    # WindCube .rtd lines of sight (cwproc.io.windcube_rtd)
+    "radial_velocity": SCAN_VARIABLES["radial_velocity"],
+    "radial_velocity_dispersion": VarMeta(
+        "dispersion of the radial velocity written by the instrument for one line of sight",
+        "m s-1",
+    ),
+    "beam": VarMeta("line of sight: azimuth of the inclined beam (deg) or V (vertical)", "1"),
+    "beam_azimuth": VarMeta("azimuth of the beam, clockwise from north", "degree"),
+    "beam_elevation": VarMeta("elevation of the beam above the horizon", "degree"),
+    "wiper_on": VarMeta("wiper running during the line of sight (0 no, 1 yes)", "1"),
 }
 
 #: sonic dataset (readers of anemometer samples); u, v, w in the instrument frame

@@ -1,10 +1,26 @@
-"""Leosphere WindCube v1 (WLS7) ``.sta`` 10-min statistics -> wind record.
+"""Leosphere WindCube (WLS7: v1, v2, v2.1) ``.sta``/``.stdsta`` statistics -> wind record.
 
 Layout (``real_data/FORMATS.md`` §3): Latin-1 text (``°`` is byte 0xB0), TAB-separated.
-Line 1 gives the header length ``N`` (``HeaderSize=40`` in software 1.x,
+Line 1 gives the header length ``N`` (``HeaderSize=40`` in software 1.x and WF 2.x,
 ``HeaderLength=55`` in 3.x); lines 2..N+1 hold ``Key=value`` items and ``****``
 section lines; line ``N + 2`` holds the column names and the records follow it.
-Every height block ends with an empty column (trailing TABs).
+Every height block ends with an empty column (trailing TABs). ``.stdsta`` files have
+the layout of ``.sta`` files (both are read by one reader in public WindCube code,
+e.g. pablosaa/WindCube ``V2LidarSTA``); statistics over 1 min or 10 min are read
+alike, the interval taken from the stamps (``attrs["averaging_interval_s"]``).
+
+Missing values: ``NaN``, ``NA``, ``-`` or an empty field in the body are missing
+(NaN, counted in ``attrs["n_missing"]``); a header value written ``NA``, ``-`` or
+nothing (WF 2.x writes ``ScanAngle (°)=NA`` and ``NA`` for the pulse settings) is a
+missing attribute, not an error.
+
+Model (:func:`instrument_model`): the header generation and software version tell the
+WindCube generation. ``HeaderLength=`` files with short column names (software 3.x)
+are WindCube v1, the layout that e-WindLidar/Lidaco's ``Windcubev1`` reader reads;
+``HeaderSize=`` files with long column names are WindCube v2 (software 1.x/2.x,
+Lidaco's ``Windcubev2``) or, with software ``WF 2.x`` or a five-digit serial
+``WLS71xxx``, WindCube v2.1 [inferred from the serials and versions of the real
+files: WLS7-72 3.1.66, WLS7-164 1.1.13, WLS71460 WF 2.2.1].
 
 Two generations of column names:
 
@@ -147,15 +163,49 @@ def parse_header(path: str | os.PathLike, lines: list[str]) -> tuple[int, dict[s
     return column_line, items
 
 
+#: header values that mean "not reported" (WF 2.x writes NA for settings it hides)
+MISSING_HEADER_VALUES = frozenset({"", "NA", "N/A", "-", "NaN", "nan"})
+#: body fields that are missing values (NaN of every generation, NA/empty/- of WF 2.x)
+MISSING_FIELDS = frozenset({"NaN", "nan", "NA", "N/A", "-", ""})
+
+
 def _header_value(items: dict[str, str], *keys: str) -> str | None:
+    """The first of ``keys`` in the header, stripped; None when absent or missing."""
     for key in keys:
         if key in items:
-            return items[key].strip()
+            value = items[key].strip()
+            return None if value in MISSING_HEADER_VALUES else value
     return None
 
 
+def instrument_model(version: str, system_id: str, generation: str) -> str:
+    """The WindCube generation of a file from its software version, serial and layout.
+
+    Parameters
+    ----------
+    version : str
+        ``Version=`` of the header (``"1.1.13"``, ``"3.1.66"``, ``"WF 2.2.1.17474"``).
+    system_id : str
+        ``ID System=`` (``"WLS7-164"``, ``"WLS71460"``).
+    generation : str
+        Column generation: ``"3.x"`` (``HeaderLength=``, short names) or ``"1.x"``
+        (``HeaderSize=``, long names).
+
+    Returns
+    -------
+    str
+        ``"WindCube v1"``, ``"WindCube v2"`` or ``"WindCube v2.1"`` (see the module notes:
+        the rule is inferred from the real files' serials and versions).
+    """
+    if generation == "3.x":
+        return "WindCube v1"
+    if version.upper().startswith("WF") or re.fullmatch(r"WLS71\d{3}", system_id.strip()):
+        return "WindCube v2.1"
+    return "WindCube v2"
+
+
 def _altitudes(path: str | os.PathLike, items: dict[str, str]) -> np.ndarray | None:
-    value = _header_value(items, "Altitudes (m)", "Altitudes(m)")
+    value = _header_value(items, "Altitudes (m)", "Altitudes(m)", "Altitudes AGL (m)")
     if value is None:
         return None
     try:
@@ -232,15 +282,12 @@ def _numbers(path: str | os.PathLike, table: pd.DataFrame, first_line: int) -> n
     text = table.apply(lambda col: col.str.strip())
     values = text.apply(pd.to_numeric, errors="coerce").to_numpy(dtype=float)
     raw = text.to_numpy()
-    bad = np.isnan(values) & (raw != "NaN")
+    bad = np.isnan(values) & ~np.isin(raw, list(MISSING_FIELDS))
     if bad.any():
         row, col = np.argwhere(bad)[0]
         shown = raw[row, col]
-        problem = "is empty" if shown == "" else f"{shown!r} is not a number"
         raise InputFileError(
-            path,
-            f"column {table.columns[col]!r}: {problem}".replace(": is", " is"),
-            first_line + int(row),
+            path, f"column {table.columns[col]!r}: {shown!r} is not a number", first_line + int(row)
         )
     return values
 
@@ -248,7 +295,7 @@ def _numbers(path: str | os.PathLike, table: pd.DataFrame, first_line: int) -> n
 def read_windcube_sta(
     path: str | os.PathLike, *, utc_offset_hours: float | None = None, **options: Any
 ) -> xr.Dataset:
-    """Read a WindCube v1 ``.sta`` file (software 1.x or 3.x) into a wind-record dataset.
+    """Read a WindCube ``.sta``/``.stdsta`` file (v1, v2, v2.1) into a wind-record dataset.
 
     Parameters
     ----------
@@ -267,8 +314,10 @@ def read_windcube_sta(
         ascending); per height ``wind_speed``, ``wind_speed_std``, ``wind_speed_min``,
         ``wind_speed_max``, ``wind_direction``, ``w``, ``w_std``, ``cnr``,
         ``spectral_broadening``, ``data_availability`` (%) (+ 3.x extras); per time the
-        met columns. attrs: ``averaging_interval_s``, ``time_stamp_position`` "end",
-        ``utc_offset_applied_h``, ``system_id``, ``scan_angle_deg``, ``n_missing``.
+        met columns. attrs: ``averaging_interval_s`` (600 s or 60 s statistics, from the
+        stamps), ``time_stamp_position`` "end", ``utc_offset_applied_h``, ``system_id``,
+        ``instrument`` (model and software), ``scan_angle_deg`` (absent when the header
+        says ``NA``), ``n_missing``.
 
     Raises
     ------
@@ -393,16 +442,24 @@ def _variables(
 def _attrs(path: Path, items: dict[str, str], generation: str) -> dict[str, Any]:
     """Dataset attributes from the header: instrument, system, scan angle, location."""
     version = _header_value(items, "Version") or ""
+    system_id = _header_value(items, "ID System") or ""
+    model = instrument_model(version, system_id, generation)
+    software = f" (software {version})" if version else ""
     attrs: dict[str, Any] = {
-        "instrument": f"Leosphere WindCube v1 (software {version})".strip(),
+        "instrument": f"Leosphere {model}{software}",
+        "instrument_model": model,
+        "software_version": version,
         "instrument_kind": "pulsed",
         "format": "windcube_sta",
         "column_generation": generation,
         "source_files": [path.name],
         "homodyne": 0,
         "time_stamp_position": "end",
-        "system_id": _header_value(items, "ID System") or "",
+        "system_id": system_id,
     }
+    missing = sorted(k for k, v in items.items() if v.strip() in MISSING_HEADER_VALUES - {""})
+    if missing:
+        attrs["header_items_not_reported"] = missing
     angle = _header_value(items, "ScanAngle (°)", "ScanAngle(°)")
     if angle:
         try:

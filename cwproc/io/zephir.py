@@ -107,7 +107,7 @@ def with_range_screen(ds: xr.Dataset) -> xr.Dataset:
 
 
 def read_latin1_lines(path: Path) -> list[str]:
-    """The lines of a Latin-1 text file (CRLF or LF ends), the last one possibly empty.
+    """The lines of a Latin-1 text file (CRLF, LF or CR-only ends), the last one possibly empty.
 
     Raises
     ------
@@ -120,7 +120,7 @@ def read_latin1_lines(path: Path) -> list[str]:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
     if not raw.strip():
         raise InputFileError(path, "file is empty")
-    return raw.decode("latin-1").replace("\r\n", "\n").split("\n")
+    return raw.decode("latin-1").replace("\r\n", "\n").replace("\r", "\n").split("\n")
 
 
 def increasing_utc_times(

@@ -383,8 +383,18 @@ def stare_products(
 
 
 def process_wind_record(record: xr.Dataset, config: Config) -> dict[str, xr.Dataset]:
-    """Wind product from an instrument's own 10-min/1-s wind records (ZephIR, WindCube)."""
+    """Wind product from an instrument's own 10-min/1-s wind records (ZephIR, WindCube).
+
+    The lines of sight of a WindCube ``.rtd`` file are first turned into interval
+    statistics by DBS (:func:`cwproc.stages.dbs.dbs_statistics`, ``[dbs]``): mean wind
+    and turbulence intensity measured and corrected.
+    """
     from cwproc.stages import zephir
+
+    if record.attrs.get("format") == "windcube_rtd":
+        from cwproc.stages.dbs import dbs_statistics
+
+        record = dbs_statistics(record, **dataclasses.asdict(config.dbs))
 
     return {
         "wind": zephir.wind_record_product(

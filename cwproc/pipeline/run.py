@@ -24,6 +24,7 @@ from cwproc.pipeline.chain import (
     process_wind_record,
 )
 from cwproc.pipeline.units import ProductUnit, concat_unit, load_item, load_unit, unit_label
+from cwproc.products.catalogue import product_kind
 from cwproc.products.metadata import product_table
 
 #: exit status of a command whose every unit succeeded
@@ -119,8 +120,12 @@ def run_unit(unit: ProductUnit, config: Config, *, keep_screened: bool = False) 
     except Exception as exc:  # a bug in cwproc: report it, the caller goes on
         result.failures.append(f"{names}: {internal_error(exc)}")
     result.failures.extend(unit.failures)
-    for name in [n for n, ds in result.products.items() if empty_reason(n, ds, config)]:
-        notes.append(empty_reason(name, result.products.pop(name), config))
+    empty = {
+        n: empty_reason(n, ds, config, unit_kind=unit.kind) for n, ds in result.products.items()
+    }
+    for name in [n for n, reason in empty.items() if reason]:
+        result.products.pop(name)
+        notes.append(empty[name])
     own = tuple(f"{os.fspath(i.path)}: " for i in unit.inputs)
     result.notes = [n if n.startswith(own) else f"{names}: {n}" for n in notes]
     if kept:
@@ -206,20 +211,25 @@ MAIN_VARIABLES: dict[str, tuple[str, str]] = {
 }
 
 
-def empty_reason(name: str, ds: xr.Dataset, config: Config) -> str:
+def empty_reason(name: str, ds: xr.Dataset, config: Config, *, unit_kind: str = "") -> str:
     """Why product ``name`` is not written: its main variable is missing everywhere.
 
     '' when it holds at least one value (or is not a product of :data:`MAIN_VARIABLES`).
     The note names the product, the variable and the flags that every missing value
     carries, most frequent first (e.g. a day of stares with a VAD every 15 minutes:
     every block of ``n_scans`` conical scans is partial, so no epsilon), so that no
-    product of nothing but missing values reaches a user without the reason.
+    product of nothing but missing values reaches a user without the reason. The flags
+    are read with the meanings of the unit's product (``unit_kind`` "wind_record": the
+    wind-record bits, and the DBS flags of a WindCube ``.rtd`` file).
     """
     variable, flag = MAIN_VARIABLES.get(name, ("", ""))
     if variable not in ds or np.isfinite(ds[variable].values).any():
         return ""
     text = f"no {name} product written: every {variable} is missing"
-    meta = product_table(name).get(flag)
+    table = product_table(product_kind(name, unit_kind) if unit_kind else name)
+    if "dbs_flag" in ds:
+        flag = "dbs_flag"
+    meta = table.get(flag)
     if flag in ds and meta is not None and meta.flag_meanings:
         meanings = str(meta.flag_meanings).split()
         values = np.nan_to_num(np.asarray(ds[flag].values, dtype=float)).astype(np.int64).ravel()

@@ -77,6 +77,7 @@ def format_mismatch(path: str | os.PathLike, fmt: Format, config: Config) -> str
 _FORMAT_KIND = {
     Format.HPL: "pulsed",
     Format.WINDCUBE_STA: "pulsed",
+    Format.WINDCUBE_RTD: "pulsed",
     Format.ZEPHIR_CSV: "cw",
 }
 #: ``instrument_kind`` attribute of scans -> the kind of ``[instrument] kind``
@@ -358,7 +359,9 @@ def unit_key(item: InputFile) -> tuple[str, str]:
         station = _sonic_station(ds)
         where = name_part(station) if station else folder
         return kind, f"{item.format.value}_{where}_{_day(ds)}"
-    return kind, f"{folder}_{name_part(Path(item.path).stem)}"
+    # a WindCube's .rtd and the .sta of the same period share the stem: two units
+    rtd = "_rtd" if item.format is Format.WINDCUBE_RTD else ""
+    return kind, f"{folder}_{name_part(Path(item.path).stem)}{rtd}"
 
 
 def split_by_day(item: InputFile) -> list[InputFile]:

@@ -36,6 +36,7 @@ from cwproc.references import (
     GLADKIKH_2014,
     OCONNOR_2010,
     PENTIKAINEN_2020,
+    SATHE_2011,
     SMALIKHO_2020,
     VAD_ACCURACY,
     VAD_WIND,
@@ -488,10 +489,35 @@ _PRODUCT_VARIABLES: dict[str, VarMeta] = {
         references=WAGNER_DTU + ", eqs. 9-11",
     ),
     "turbulence_intensity_corrected": VarMeta(
-        "turbulence intensity corrected for the volume averaging of the conically scanning "
-        "cw lidar",
+        "turbulence intensity corrected for the lidar's measurement: volume averaging of the "
+        "conically scanning cw lidar, or noise, pulsed-probe averaging and DBS "
+        "cross-contamination of a WindCube's lines of sight (see method)",
         "1",
-        references=WAGNER_DTU + ", eqs. 9-11",
+        references=WAGNER_DTU + ", eqs. 9-11 (cw); " + SATHE_2011 + " (DBS)",
+    ),
+    **{
+        f"{c}_variance_dbs": VarMeta(
+            f"variance of the {what} over the interval from the DBS lines of sight, corrected "
+            "for noise, pulsed-probe averaging and DBS cross-contamination",
+            "m2 s-2",
+            references=SATHE_2011,
+        )
+        for c, what in (
+            ("u", "eastward wind"),
+            ("v", "northward wind"),
+            ("w", "upward air velocity"),
+        )
+    },
+    "dbs_flag": VarMeta(
+        "quality of the DBS statistics of WindCube lines of sight (bits combine)",
+        "1",
+        flag_masks=(1, 2, 4),
+        flag_meanings="few_beam_cycles low_cnr inhomogeneous_flow",
+        comment="0 good; bit 1 fewer complete beam cycles than [dbs] min_cycles_percent; "
+        "bit 2 median CNR within 3 dB of the threshold (the noise law does not hold); bit 4 "
+        "w of the inclined beams differs from the vertical beam's by more than [dbs] "
+        "max_w_mismatch (inhomogeneous flow, complex terrain: DBS does not hold)",
+        coverage_content_type="qualityInformation",
     ),
     "turbulence_parameter": VarMeta(
         "turbulence parameter TP: standard deviation of the radial-velocity residuals about "

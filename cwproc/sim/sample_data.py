@@ -36,6 +36,7 @@ from cwproc.sim.field3d import FrozenField, grid_variance, von_karman_field
 from cwproc.sim.output import fresh_folder, write_truth
 from cwproc.sim.pulsed import sample_conical_scans
 from cwproc.sim.sonic import simulate_sonic_dataset
+from cwproc.sim.windcube_samples import write_windcube_rtd_samples, write_windcube_variants
 
 
 @dataclass(frozen=True)
@@ -335,12 +336,21 @@ def _decimal_comma(value: float, decimals: int) -> str:
     return f"{value:.{decimals}f}".replace(".", ",")
 
 
-def write_zephir_csv(spec: WindRecordSpec, path: str | os.PathLike) -> Path:
-    """A ZephIR 300 Waltz "CSV Converter" 10-min export (Wind10_*.ZPH.csv layout).
+def write_zephir_csv(
+    spec: WindRecordSpec,
+    path: str | os.PathLike,
+    *,
+    interval_s: int = 600,
+    line_end: str = "\r\n",
+) -> Path:
+    """A ZephIR 300 Waltz "CSV Converter" export: 10-min (``Wind10_*.ZPH.csv``) or 1-s.
 
-    Semicolon-separated, decimal commas, CRLF; the header items, the column names and
+    Semicolon-separated, decimal commas; the header items, the column names and
     the trailing ``Checksum`` field of the real exports (FORMATS.md section 2), with
-    heights from the top down as the instrument writes them.
+    heights from the top down as the instrument writes them. ``interval_s = 1`` writes
+    the 1-s layout (FORMATS.md section 2.2: ``Raining`` 0/1 in place of the rain
+    proportion, and ``Packets in Average at MET``); ``line_end`` may be CRLF, LF or CR
+    alone (exports edited on old Macs end lines with CR).
     """
     rec = _wind_records(spec)
     order = np.argsort(spec.heights_m)[::-1]
@@ -362,8 +372,10 @@ def write_zephir_csv(spec: WindRecordSpec, path: str | os.PathLike) -> Path:
         "Air Temp. (C)",
         "Pressure (mbar)",
         "Humidity (%)",
-        "Proportion Of Packets With Rain (%)",
+        "Proportion Of Packets With Rain (%)" if interval_s > 1 else "Raining",
     ]
+    if interval_s == 1:
+        names.append("Packets in Average at MET")
     per_height = [
         "Packets in Average",
         "Wind Direction (deg)",
@@ -380,7 +392,7 @@ def write_zephir_csv(spec: WindRecordSpec, path: str | os.PathLike) -> Path:
     t0 = np.datetime64(spec.start, "s")
     lines = [header, ";".join(names)]
     for r in range(spec.n_records):
-        t = t0 + np.timedelta64(600 * r, "s")
+        t = t0 + np.timedelta64(interval_s * r, "s")
         stamp = str(t.astype(object).strftime("%d.%m.%Y %H:%M:%S"))
         row = [
             str(22000000 + r),
@@ -394,6 +406,8 @@ def write_zephir_csv(spec: WindRecordSpec, path: str | os.PathLike) -> Path:
             "60,000",
             "0",
         ]
+        if interval_s == 1:
+            row.append("1")
         for k in order:
             sp = rec["speed"][r, k]
             row += [
@@ -410,7 +424,7 @@ def write_zephir_csv(spec: WindRecordSpec, path: str | os.PathLike) -> Path:
         lines.append(";".join(row))
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_bytes(("\r\n".join(lines) + "\r\n").encode("latin-1"))
+    path.write_bytes((line_end.join(lines) + line_end).encode("latin-1"))
     return path
 
 
@@ -700,7 +714,19 @@ def write_sample_data(outdir: str | os.PathLike) -> list[Path]:
     written.append(
         write_windcube_sta(records, outdir / "windcube" / f"WLS7-999_{'_'.join(day)}__00_00_00.sta")
     )
+    written += write_windcube_variants(records, _wind_records(records), outdir / "windcube")
+    written.append(
+        write_zephir_csv(
+            records,
+            outdir / "zephir" / f"Wind_999@Y{day[0]}_M{day[1]}_D{day[2]}.ZPH.csv",
+            interval_s=1,
+            line_end="\r",
+        )
+    )
     written.append(write_truth(outdir / "wind_records_truth.json", wind_records_truth(records)))
+    written += write_windcube_rtd_samples(
+        outdir / "windcube_rtd", outdir / "windcube_rtd_truth.json"
+    )
     sonic = SonicSpec()
     written += write_sonic_samples(outdir / "sonic", sonic)
     written.append(write_truth(outdir / "sonic_truth.json", {"spec": asdict(sonic)}))

@@ -192,10 +192,20 @@ def wind_record_product(
     )
     out["volume_averaging_ratio"] = ratio
     out["volume_averaging_ratio"].attrs["method"] = note
-    out["turbulence_intensity_corrected"] = ti / out["volume_averaging_ratio"]
-    out["turbulence_intensity_corrected"].attrs["method"] = (
-        "turbulence_intensity / volume_averaging_ratio; " + note
-    )
+    if "turbulence_intensity_corrected" in record:  # DBS statistics of .rtd beams
+        out["turbulence_intensity_corrected"] = record["turbulence_intensity_corrected"]
+        for name in ("turbulence_intensity", "turbulence_intensity_corrected"):
+            out[name].attrs["method"] = record[name].attrs.get("method", "")
+        for c in "uvw":
+            if f"{c}_variance" in record:
+                out[f"{c}_variance_dbs"] = record[f"{c}_variance"]
+        if "dbs_flag" in record:
+            out["dbs_flag"] = record["dbs_flag"]
+    else:
+        out["turbulence_intensity_corrected"] = ti / out["volume_averaging_ratio"]
+        out["turbulence_intensity_corrected"].attrs["method"] = (
+            "turbulence_intensity / volume_averaging_ratio; " + note
+        )
     out["qc_flag"] = _flags(
         record,
         min_packets=min_packets,
@@ -224,6 +234,8 @@ _KEPT_ATTRS = (
     "reference_height_m",
     "window_height_m",
     "scan_angle_deg",
+    "dbs_references",
+    "dbs_flag_meanings",
 )
 
 

@@ -169,8 +169,17 @@ def test_the_other_instruments_files_get_one_note(tmp_path):
     assert res.exit_code == 0, res.output
     skipped = [x for x in res.output.splitlines() if "other instruments" in x]
     assert len(skipped) == 1
-    assert skipped[0].startswith("note: 7 files of other instruments skipped")
-    for fmt in ("ghg", "gill", "meteo2", "toa5", "tob1", "windcube_sta", "zephir_csv"):
+    assert skipped[0].startswith("note: 15 files of other instruments skipped")
+    for fmt in (
+        "ghg",
+        "gill",
+        "meteo2",
+        "toa5",
+        "tob1",
+        "windcube_rtd",
+        "windcube_sta",
+        "zephir_csv",
+    ):
         assert fmt in skipped[0]
 
 

@@ -15,8 +15,8 @@ SAMPLE = Path(__file__).parents[2] / "sample_data"
 @pytest.mark.parametrize(
     ("args", "products"),
     [
-        (["retrieve", "-c", "zephir300", str(SAMPLE / "zephir")], 1),
-        (["retrieve", "-c", "windcube", str(SAMPLE / "windcube")], 1),
+        (["retrieve", "-c", "zephir300", str(SAMPLE / "zephir")], 2),  # 10-min and 1-s
+        (["retrieve", "-c", "windcube", str(SAMPLE / "windcube")], 4),  # v1, v2, v2.1, 1-min
         (["sf-type", "-c", str(SAMPLE / "sonic.toml"), str(SAMPLE / "sonic")], 5),
     ],
     ids=["zephir", "windcube", "sonic"],
@@ -35,7 +35,7 @@ def test_main_job_skips_the_other_formats_and_says_so(tmp_path):
     )
     assert res.exit_code == 0, res.output
     assert "2 input(s), 2 product(s) written, 0 failure(s)" in res.output
-    assert "7 file(s) of other formats skipped (the configuration reads hpl only)" in res.output
+    assert "15 file(s) of other formats skipped (the configuration reads hpl only)" in res.output
 
 
 def test_a_named_file_of_another_format_is_a_clear_failure(tmp_path):

@@ -229,3 +229,84 @@ def test_reader_options_are_validated(real_data):
 
     with pytest.raises(ConfigError, match=r"\[reader.windcube_sta\]: decimal: unknown"):
         read_windcube_sta(real_data / V1, decimal=",")
+
+
+# --- WindCube v2/v2.1 generations, missing values, one-minute statistics (issue 32) ---
+
+V21 = "windcube/WLS71460_2022_01_11__21_20_00.sta"
+SAMPLE = Path(__file__).resolve().parents[2] / "sample_data"
+
+
+@pytest.mark.parametrize(
+    ("name", "model"),
+    [(V1, "WindCube v2"), (V3, "WindCube v1"), (V21, "WindCube v2.1")],
+)
+def test_model_is_named_from_the_header_generation_and_software(real_data, name, model):
+    """HeaderLength/short names = v1 (Lidaco's Windcubev1), HeaderSize = v2, WF 2.x = v2.1."""
+    ds = read_windcube_sta(real_data / name)
+    assert ds.attrs["instrument_model"] == model
+    assert ds.attrs["instrument"].startswith(f"Leosphere {model} (software ")
+
+
+def test_wf_2_file_with_scan_angle_na_reads(real_data):
+    """ScanAngle (°)=NA is a missing attribute; every wind of this day is NaN in the file."""
+    ds = read_windcube_sta(real_data / V21)
+    assert ds.sizes == {"time": 3, "height": 9}
+    np.testing.assert_array_equal(ds["height"], [40, 60, 80, 100, 120, 140, 160, 180, 200])
+    assert "scan_angle_deg" not in ds.attrs
+    assert "ScanAngle (°)" in ds.attrs["header_items_not_reported"]
+    assert ds["time"].values[0] == np.datetime64("2022-01-11T21:20")
+    assert bool(np.isnan(ds["wind_speed"]).all())
+    # line 43, 40 m: CNR -32.31, CNR min -97.92, availability 0.00
+    assert ds["cnr"].isel(time=0).sel(height=40.0) == pytest.approx(-32.31)
+    assert ds["data_availability"].isel(time=0).sel(height=40.0) == 0.0
+
+
+def test_na_header_value_with_a_good_file_body_reads_and_retrieves(tmp_path, real_data):
+    """The v1.1.13 day with only its ScanAngle set to NA gives the same winds."""
+    text = (real_data / V1).read_bytes().decode("latin-1")
+    assert "ScanAngle (°)=28.000" in text
+    path = tmp_path / "na.sta"
+    path.write_bytes(text.replace("ScanAngle (°)=28.000", "ScanAngle (°)=NA").encode("latin-1"))
+    ds, ref = read_windcube_sta(path), read_windcube_sta(real_data / V1)
+    assert "scan_angle_deg" not in ds.attrs
+    np.testing.assert_array_equal(ds["wind_speed"].values, ref["wind_speed"].values)
+    from cwproc.stages.zephir import wind_record_product
+
+    product = wind_record_product(ds)
+    assert np.isfinite(product["u"].values).sum() == np.isfinite(ref["wind_speed"].values).sum()
+
+
+@pytest.mark.parametrize("token", ["NA", "-", "", "nan"])
+def test_missing_value_tokens_in_the_body_are_missing(tmp_path, real_data, token):
+    def edit(lines):
+        fields = lines[42].split("\t")
+        fields[7] = token  # 40m Wind Speed (m/s) of the first record
+        lines[42] = "\t".join(fields)
+
+    ref = read_windcube_sta(real_data / V1)
+    ds = read_windcube_sta(_damaged(tmp_path, real_data, V1, _lines(edit)))
+    assert np.isnan(ds["wind_speed"].isel(time=0).sel(height=40.0))
+    assert ds.attrs["n_missing"] == ref.attrs["n_missing"] + 1
+
+
+def test_samples_of_every_generation(tmp_path):
+    """The shipped samples: v1 (3.x), v2 (1.x), v2.1 with NA and gaps, one-minute .stdsta."""
+    folder = SAMPLE / "windcube"
+    models = {
+        "WLS7-099_2024_06_01__00_00_00.sta": ("WindCube v1", 600.0),
+        "WLS7-999_2024_06_01__00_00_00.sta": ("WindCube v2", 600.0),
+        "WLS71999_2024_06_01__00_00_00.sta": ("WindCube v2.1", 600.0),
+        "WLS71999_2024_06_01__06_00_00.stdsta": ("WindCube v2.1", 60.0),
+    }
+    for name, (model, interval) in models.items():
+        ds = read_windcube_sta(folder / name)
+        assert ds.attrs["instrument_model"] == model, name
+        assert ds.attrs["averaging_interval_s"] == interval, name
+    gaps = read_windcube_sta(folder / "WLS71999_2024_06_01__00_00_00.sta")
+    text = (folder / "WLS71999_2024_06_01__00_00_00.sta").read_bytes().decode("latin-1")
+    body = [f for line in text.split("\n")[17:] for f in line.split("\t")]
+    # the gaps are written NA, - and nothing (besides the empty column ending each block)
+    assert "NA" in body and "-" in body
+    assert gaps.attrs["n_missing"] > 0
+    assert "scan_angle_deg" not in gaps.attrs

@@ -324,3 +324,26 @@ def test_reader_options_are_validated(tmp_path):
         read_zephir_csv(path, utc_offset_hours="+1")
     with pytest.raises(ConfigError, match=r"in \[-14, 14\]"):
         read_zephir_csv(path, utc_offset_hours=30)
+
+
+@pytest.mark.parametrize("line_end", [b"\r", b"\r\n"])
+def test_any_line_ends_read_the_same(tmp_path, real_data, real, line_end):
+    """CR-only (classic Mac) and CRLF exports read as the LF original, not 'truncated'."""
+    raw = (real_data / REAL).read_bytes()
+    assert b"\r" not in raw
+    path = tmp_path / "Wind10_317@Y2016_M12_D13.ZPH.csv"
+    path.write_bytes(raw.replace(b"\n", line_end))
+    ds = read_zephir_csv(path)
+    np.testing.assert_array_equal(ds["wind_speed"].values, real["wind_speed"].values)
+    np.testing.assert_array_equal(ds["time"].values, real["time"].values)
+
+
+def test_one_second_sample_with_cr_line_ends():
+    sample = Path(__file__).resolve().parents[2] / "sample_data" / "zephir"
+    path = sample / "Wind_999@Y2024_M06_D01.ZPH.csv"
+    raw = path.read_bytes()
+    assert b"\r" in raw and b"\n" not in raw
+    ds = read_zephir_csv(path)
+    assert ds.attrs["file_variant"] == "1s" and ds.attrs["averaging_interval_s"] == 1.0
+    assert {"raining", "met_packets"} <= set(ds.data_vars)
+    assert ds.sizes["time"] == 36
