@@ -15,6 +15,7 @@ typed keyword arguments.
 from __future__ import annotations
 
 import dataclasses
+import datetime
 import math
 import os
 import tomllib
@@ -68,8 +69,17 @@ class InstrumentConfig:
     z_r_coefficient: float = ZEPHIR_Z_R_COEFFICIENT
     #: cw lidar: beam radius a0 at the telescope (m); when set, Z_R = lambda R^2/(2 pi a0^2)
     beam_radius_m: float | None = None
+    #: plausible window of the times in input files (ISO dates, UTC): a time outside is
+    #: an error naming the file and line, never a product for a bogus day (issue 34.1).
+    #: "" = 1995-01-01 (no file cwproc reads is older); set earlier for old archives
+    earliest_date: str = ""
+    #: end of that window; "" = the present plus two days (clocks a little ahead); set
+    #: a later date for simulated or re-dated files. Both within 1678-01-01..2261-12-31
+    #: (the span of the products' nanosecond times)
+    latest_date: str = ""
 
     def __post_init__(self) -> None:
+        _iso_dates(self, "earliest_date", "latest_date")
         _positive(self, "wavelength_m", "z_r_coefficient")
         _positive(self, *(n for n in ("delta_p_m", "delta_r_m") if getattr(self, n) is not None))
         if self.beam_radius_m is not None and not self.beam_radius_m > 0:
@@ -459,6 +469,25 @@ class Config:
             The first wrong key, named with its dotted path.
         """
         return config_from_dict(dataclasses.asdict(self), source=self.source)
+
+
+def _iso_dates(obj: Any, *names: str) -> None:
+    """Each named key empty or an ISO date (yyyy-mm-dd) within 1678-01-01..2261-12-31."""
+    for name in names:
+        value = getattr(obj, name)
+        if value == "":
+            continue
+        ok = isinstance(value, str) and len(value) == 10 and value[4] == "-"
+        if ok:
+            try:
+                ok = "1678-01-01" <= datetime.date.fromisoformat(value).isoformat() <= "2261-12-31"
+            except ValueError:
+                ok = False
+        if not ok:
+            raise ValueError(
+                f"{name}: must be an ISO date yyyy-mm-dd within 1678-01-01..2261-12-31, "
+                f"got {value!r}"
+            )
 
 
 def _positive(obj: Any, *names: str) -> None:

@@ -51,7 +51,7 @@ from cwproc.io.meteo2 import (
     read_table,
     sonic_dataset,
 )
-from cwproc.io.timecheck import check_times, epoch_seconds_to_times
+from cwproc.io.timecheck import check_times, epoch_seconds_to_times, plausible_years
 
 INSTRUMENT = "Campbell Scientific CSAT3 (logger {logger}, table {table})"
 FRAME = "CSAT3 instrument frame: Ux along the boom into the array, Uy to its left, Uz up"
@@ -576,6 +576,9 @@ def _minute_ns(w: np.ndarray) -> np.ndarray | None:
         return None
     year, month, day = _number(w, 1, 4), _number(w, 6, 2), _number(w, 9, 2)
     hour, minute = _number(w, 12, 2), _number(w, 15, 2)
+    low, high = plausible_years()
+    if np.any((year < low) | (year > high)):  # as integers: 2590 in nanoseconds wraps
+        return None
     leap = (year % 4 == 0) & ((year % 100 != 0) | (year % 400 == 0))
     if np.any((month < 1) | (month > 12) | (hour > 23) | (minute > 59)):
         return None

@@ -50,7 +50,7 @@ from cwproc.errors import CwprocError, InputFileError
 from cwproc.io.netcdf import write_bytes_atomic
 from cwproc.io.ranges import outside_physical_range
 from cwproc.io.schema import with_canonical_attrs
-from cwproc.io.timecheck import check_times
+from cwproc.io.timecheck import check_times, epoch_seconds_to_times
 
 INSTRUMENT = "Meteo-2 ultrasonic weather station (IAO SB RAS)"
 MAGIC = "# cwproc meteo2"
@@ -546,7 +546,7 @@ def parse_times(
             i = int(missing[bad[0]])
             raise InputFileError(path, f"bad time stamp {raw.iloc[i]!r}", first_line + i)
         parsed.iloc[missing] = retry.to_numpy()
-    return check_times(path, parsed.to_numpy(dtype="datetime64[ns]"), first_line)
+    return check_times(path, parsed.to_numpy(), first_line, written=raw.astype(str).to_numpy())
 
 
 def _to_utc(raw: pd.Series, fmt: str) -> pd.Series:
@@ -689,7 +689,10 @@ def read_meteo2(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         bad = np.flatnonzero(~np.isfinite(secs))
         if bad.size:
             raise InputFileError(path, "missing time stamp", first + int(bad[0]))
-        times = (np.rint(secs * 1e9).astype(np.int64)).astype("datetime64[ns]")
+        whole = np.floor(secs)
+        times = epoch_seconds_to_times(
+            path, whole, np.rint((secs - whole) * 1e9), np.datetime64(0, "ns"), first
+        )
     times = times - np.timedelta64(round(offset_h * 3600e9), "ns")
     vals = {k: numeric_column(path, frame, cols[k], first) for k in ("u", "v", "w")}
     n = len(frame)

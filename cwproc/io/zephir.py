@@ -326,7 +326,7 @@ def _parse_times(path: str | os.PathLike, stamps: pd.Series, first_line: int) ->
     for fmt in _TIME_FORMATS:
         times = pd.to_datetime(stamps, format=fmt, errors="coerce")
         if not times.isna().any():
-            return check_times(path, times.to_numpy(dtype="datetime64[ns]"), first_line)
+            return check_times(path, times.to_numpy(), first_line, written=stamps.to_numpy())
     times = pd.to_datetime(stamps, format=_TIME_FORMATS[0], errors="coerce")
     row = int(np.flatnonzero(times.isna().to_numpy())[0])
     raise InputFileError(

@@ -26,6 +26,7 @@ from cwproc.errors import CwprocError, InputFileError
 from cwproc.io import KIND, FileIdentity, Format, detect_format, get_identifier, get_reader
 from cwproc.io.netcdf import sha256_file
 from cwproc.io.scans import concat_scans
+from cwproc.io.timecheck import set_plausible_window
 
 
 @dataclass
@@ -145,6 +146,17 @@ def reader_options(config: Config, fmt: Format) -> dict:
     return dict(config.reader.get(fmt.value, {}))
 
 
+def apply_time_window(config: Config) -> None:
+    """Make the configuration's plausible window of input times the readers' (issue 34.1).
+
+    ``[instrument] earliest_date`` and ``latest_date`` (see
+    :func:`cwproc.io.timecheck.set_plausible_window`); called before each file is
+    examined or read, so that every reader in this process (batch workers included)
+    checks its times against the configuration being run.
+    """
+    set_plausible_window(config.instrument.earliest_date, config.instrument.latest_date)
+
+
 def read_input(
     path: str | os.PathLike,
     config: Config,
@@ -216,6 +228,7 @@ def identify_input(path: str | os.PathLike, config: Config) -> InputFile | Exami
 
 def _examined(path: Path, config: Config) -> Examined:
     """The format of a regular file (detected unless pinned) and its :func:`file_signature`."""
+    apply_time_window(config)
     try:
         mode = path.stat().st_mode
     except OSError as exc:
@@ -525,6 +538,7 @@ def unchanged_read(item: InputFile, config: Config) -> xr.Dataset | None:
             return None
     except OSError:
         return None  # vanished: read_input words it
+    apply_time_window(config)
     ds = get_reader(item.format)(item.path, **reader_options(config, item.format))
     try:
         return ds if file_signature(item.path) == item.signature else None

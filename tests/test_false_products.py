@@ -1,0 +1,79 @@
+"""The eight ways a good-looking product could be false (issue 34), each on a generated file.
+
+Every input here is made by the test from the shipped (simulated) samples or from
+scratch; no real instrument file is copied into the project.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from cwproc.errors import InputFileError
+from cwproc.io import read
+from cwproc.io.timecheck import set_plausible_window
+
+SAMPLE = Path(__file__).resolve().parents[1] / "sample_data"
+
+#: sample, and how its time stamps write the year 2024 (replaced by another year)
+DATED = {
+    "hpl": (SAMPLE / "streamline" / "VAD_999_20240601_120000.hpl", [b"Start time:\t2024"]),
+    "zephir": (SAMPLE / "zephir" / "Wind10_999@Y2024_M06_D01.ZPH.csv", [b".2024 "]),
+    "windcube": (SAMPLE / "windcube" / "WLS7-999_2024_06_01__00_00_00.sta", [b"\n2024/"]),
+    "toa5": (SAMPLE / "sonic" / "TOA5_999.ts_data_2024_06_01_1200.dat", [b'"2024-']),
+    "meteo2": (SAMPLE / "sonic" / "meteo2_2024_06_01_1200.txt", [b"\n2024-"]),
+}
+
+
+@pytest.fixture(autouse=True)
+def _default_window():
+    set_plausible_window()
+    yield
+    set_plausible_window()
+
+
+def redated(name: str, year: int, tmp_path: Path) -> Path:
+    """The sample ``name`` with the year of every time stamp replaced by ``year``."""
+    path, patterns = DATED[name]
+    raw = path.read_bytes()
+    for p in patterns:
+        raw = raw.replace(p, p.replace(b"2024", str(year).encode()))
+    out = tmp_path / path.name
+    out.write_bytes(raw)
+    return out
+
+
+# -- 34.1 dates checked as written, before any conversion -----------------------------
+
+
+@pytest.mark.parametrize("name", sorted(DATED))
+@pytest.mark.parametrize("year", [1430, 1600, 2300, 2590])
+def test_a_year_beyond_the_nanosecond_range_is_refused_as_written(tmp_path, name, year):
+    """Years 1410-1441 and 2580-2610 wrapped to 2004-2005 through datetime64[ns]
+    (``.hpl`` starting in 2590 gave ``..._20051111_wind.nc``); 1600 and 2300 were
+    refused with the wrapped date in the message. Now: refused, the year as written."""
+    with pytest.raises(InputFileError, match="outside the plausible range") as err:
+        read(redated(name, year, tmp_path))
+    assert str(year) in str(err.value)
+    assert "2005" not in str(err.value) and "2004" not in str(err.value)
+
+
+def test_the_configuration_widens_the_window(tmp_path):
+    """A 1990 file is refused by default and read once the configuration widens it."""
+    old = redated("toa5", 1990, tmp_path)
+    with pytest.raises(InputFileError, match="'1990-06-01 12:00:00'"):
+        read(old)
+    set_plausible_window("1985-01-01")
+    ds = read(old)
+    assert str(ds["time"].values[0]).startswith("1990-06-01T12:00")
+
+
+def test_the_window_keys_are_validated():
+    from cwproc.config import Config
+    from cwproc.errors import ConfigError
+
+    assert Config().replace(instrument={"earliest_date": "1980-01-01"}).instrument
+    for bad in ("1980", "2590-01-01", "1600-01-01", "1980-02-30"):
+        with pytest.raises(ConfigError, match="earliest_date"):
+            Config().replace(instrument={"earliest_date": bad})
