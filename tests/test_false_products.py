@@ -97,7 +97,47 @@ def test_a_sparse_2gb_file_behind_a_valid_header_is_refused_unread(tmp_path, dat
         f.truncate(2 << 30)
     before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     start = time.process_time()
-    with pytest.raises(InputFileError, match="NUL byte at byte .* refused unread"):
+    with pytest.raises(InputFileError, match=r"NUL byte at byte \d+ .* refused unread"):
         read(path)
     assert time.process_time() - start < 5.0
     assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 200_000  # kB
+
+
+# -- 34.6 one rule for the summary and the exit status --------------------------------
+
+
+def _failures_said(stdout: str) -> int:
+    import re
+
+    return int(re.search(r"(\d+) failure\(s\)", stdout).group(1))
+
+
+@pytest.mark.parametrize(
+    "extra, failures",
+    [
+        ("background", 0),  # goes with the .hpl beside it: a note, not an error
+        ("zephir", 1),  # another instrument's file named on the command line
+        ("garbage", 1),  # pinned .hpl, not a .hpl
+    ],
+)
+def test_the_summary_and_the_exit_status_agree(tmp_path, extra, failures):
+    """A background file given with a configuration that reads only ``.hpl`` printed an
+    error, "0 failure(s)" and exited 1. Now every error line printed is counted in the
+    summary, and the exit status is 1 exactly when that count is not 0."""
+    from click.testing import CliRunner
+
+    from cwproc.cli import main
+
+    other = {
+        "background": ("Background_010624-120005.txt", b"1000.0\r\n" * 200),
+        "zephir": ("w.csv", (SAMPLE / "zephir" / "Wind10_999@Y2024_M06_D01.ZPH.csv").read_bytes()),
+        "garbage": ("g.hpl", b"not a lidar file\n"),
+    }[extra]
+    path = tmp_path / other[0]
+    path.write_bytes(other[1])
+    args = ["retrieve", str(path), str(DATED["hpl"][0]), "-c", "streamline", "-o"]
+    result = CliRunner().invoke(main, [*args, str(tmp_path / "out")])
+    assert _failures_said(result.stdout) == failures
+    assert result.stderr.count("error: ") == failures
+    assert result.exit_code == (1 if failures else 0)
+    assert "2 input(s), 2 product(s) written" in result.stdout

@@ -14,6 +14,7 @@ from cwproc.cli._common import (
     product_command,
     replaced_note,
     report_failure,
+    run_outcome,
 )
 
 
@@ -36,7 +37,7 @@ def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bo
     cfg = load_config_or_fail(config)  # before the heavy imports: a typo is told at once
     output_dir_or_exit(outdir)
     from cwproc import progress
-    from cwproc.pipeline import EXIT_FAILED, EXIT_OK, retrieve_files
+    from cwproc.pipeline import retrieve_files
 
     found = inputs_or_exit(inputs, cfg, quiet)
     files = found.files
@@ -51,8 +52,7 @@ def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bo
             click.echo(f"note: {replaced_note(report.replaced)}", err=True)
         for path in report.written:
             click.echo(f"wrote {path}")
-        click.echo(
-            f"{len(files)} input(s), {len(report.written)} product(s) written, "
-            f"{len(report.failures)} failure(s){found.skipped_text()}"
-        )
-    sys.exit(EXIT_OK if report.ok and not found.mismatched else EXIT_FAILED)
+    summary, status = run_outcome(found, len(report.written), report.failures)
+    if not quiet:
+        click.echo(summary)
+    sys.exit(status)

@@ -22,6 +22,7 @@ from cwproc.cli._common import (
     product_command,
     replaced_note,
     report_failure,
+    run_outcome,
 )
 
 
@@ -48,7 +49,7 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
 
     from cwproc import progress
     from cwproc.io.netcdf import write_bytes_atomic
-    from cwproc.pipeline import EXIT_FAILED, EXIT_OK, retrieve_files, sf_summary_tables
+    from cwproc.pipeline import retrieve_files, sf_summary_tables
 
     found = inputs_or_exit(inputs, cfg, quiet)
     files = found.files
@@ -85,8 +86,7 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
             click.echo(f"note: {replaced_note(report.replaced)}", err=True)
         for path in written:
             click.echo(f"wrote {path}")
-        click.echo(
-            f"{len(files)} input(s), {len(written)} product(s) written, "
-            f"{len(failures)} failure(s){found.skipped_text()}"
-        )
-    sys.exit(EXIT_OK if not failures and not found.mismatched else EXIT_FAILED)
+    summary, status = run_outcome(found, len(written), failures)
+    if not quiet:
+        click.echo(summary)
+    sys.exit(status)

@@ -66,11 +66,14 @@ def format_mismatch(path: str | os.PathLike, fmt: Format, config: Config) -> str
 
     A configuration that pins ``[instrument] format`` (a preset for one instrument)
     reads files of that format only; ``cwproc retrieve`` and ``cwproc batch`` skip the
-    others with this line, naming the file and the format.
+    others with this line, naming the file and the format. A Stream Line background
+    file belongs to a configuration that reads ``.hpl`` files.
     """
     pinned = config.instrument.format
     if pinned == "auto" or fmt.value == pinned:
         return ""
+    if fmt is Format.HALO_BACKGROUND and pinned == Format.HPL.value:
+        return ""  # read with the .hpl files beside it (stage background), never refused
     return f"{os.fspath(path)}: a {fmt.value} file, but the configuration reads only {pinned}"
 
 
@@ -239,13 +242,25 @@ def _examined(path: Path, config: Config) -> Examined:
     fmt = (
         detect_format(path)
         if config.instrument.format == "auto"
-        else Format(config.instrument.format)
+        else _pinned_format(path, Format(config.instrument.format))
     )
     try:
         signature = file_signature(path)
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
     return Examined(fmt, signature)
+
+
+def _pinned_format(path: Path, pinned: Format) -> Format:
+    """``pinned``, except a Stream Line background file under a configuration that
+    reads ``.hpl`` (it goes with the scans beside it; read as a ``.hpl`` it failed)."""
+    if pinned is not Format.HPL:
+        return pinned
+    try:
+        fmt = detect_format(path)
+    except InputFileError:
+        return pinned  # the .hpl reader words what is wrong
+    return Format.HALO_BACKGROUND if fmt is Format.HALO_BACKGROUND else pinned
 
 
 def _identified(
