@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from cwproc.errors import InputFileError
@@ -141,3 +142,79 @@ def test_the_summary_and_the_exit_status_agree(tmp_path, extra, failures):
     assert result.stderr.count("error: ") == failures
     assert result.exit_code == (1 if failures else 0)
     assert "2 input(s), 2 product(s) written" in result.stdout
+
+
+# -- 34.2 a logger is everything that identifies it -----------------------------------
+
+TOA5 = SAMPLE / "sonic" / "TOA5_999.ts_data_2024_06_01_1200.dat"
+
+
+def other_logger(serial: str = "999", shift: float = 1.0) -> bytes:
+    """The TOA5 sample as another logger would write it: serial ``serial``, and ``Ux``
+    (third field) ``shift`` m/s higher over the same times (overlapping, other data)."""
+    lines = TOA5.read_bytes().split(b"\n")
+    lines[0] = lines[0].replace(b'"CR3000","999"', f'"CR3000","{serial}"'.encode())
+    for i in range(4, len(lines)):
+        fields = lines[i].split(b",")
+        if len(fields) > 2:
+            fields[2] = f"{float(fields[2]) + shift:.4f}".encode()
+            lines[i] = b",".join(fields)
+    return b"\n".join(lines)
+
+
+def _retrieve(tmp_path, *inputs):
+    from click.testing import CliRunner
+
+    from cwproc.cli import main
+
+    out = tmp_path / "out"
+    args = ["retrieve", *map(str, inputs), "-c", str(SAMPLE / "sonic.toml"), "-o", str(out)]
+    return CliRunner().invoke(main, args), out
+
+
+@pytest.mark.parametrize("layout", ["two serials, one folder", "one header, two folders"])
+def test_two_loggers_of_one_station_name_are_never_merged(tmp_path, layout):
+    """Two loggers with the station name of their header in common, overlapping in time
+    with different data, were merged into one product marked good."""
+    import xarray as xr
+
+    a, b = tmp_path / "a" / "x.dat", tmp_path / ("a" if "serial" in layout else "b") / "y.dat"
+    for p in (a, b):
+        p.parent.mkdir(exist_ok=True)
+    a.write_bytes(TOA5.read_bytes())
+    b.write_bytes(other_logger("1234" if "serial" in layout else "999"))
+    result, out = _retrieve(tmp_path, a, b)
+    assert result.exit_code == 0, result.output
+    products = sorted(out.glob("*_sf.nc"))
+    assert len(products) == 2
+    assert "loggers share the unit toa5_999_20240601" in result.stderr
+    assert ("serial" if "serial" in layout else "folder") in result.stderr
+    _retrieve(tmp_path / "alone", a)
+    (single,) = (tmp_path / "alone" / "out").glob("*_sf.nc")
+    own = out / (
+        "toa5_999-999_20240601_sf.nc" if "serial" in layout else "toa5_999-a_20240601_sf.nc"
+    )
+    with xr.open_dataset(single) as one, xr.open_dataset(own) as kept:
+        # the first logger's product is what its file alone gives: nothing of the other
+        np.testing.assert_array_equal(
+            kept["mean_horizontal_wind"].values, one["mean_horizontal_wind"].values
+        )
+    (other,) = set(products) - {own}
+    with xr.open_dataset(other) as moved, xr.open_dataset(own) as kept:
+        shift = moved["mean_horizontal_wind"].values - kept["mean_horizontal_wind"].values
+        assert np.nanmean(shift) > 0.3  # Ux + 1 m/s of the second logger, its own product
+
+
+def test_batch_keeps_two_loggers_apart_and_notes_it(tmp_path):
+    from cwproc.batch import run_batch
+    from cwproc.config import load_config
+
+    inputs = tmp_path / "in"
+    inputs.mkdir()
+    (inputs / "x.dat").write_bytes(TOA5.read_bytes())
+    (inputs / "y.dat").write_bytes(other_logger("1234"))
+    report = run_batch(inputs, tmp_path / "out", load_config(str(SAMPLE / "sonic.toml")))
+    assert report.ok, report.failure_lines()
+    keys = sorted(o.key for o in report.processed)
+    assert keys == ["toa5_999-1234_20240601", "toa5_999-999_20240601"]
+    assert any("differ in serial (1234; 999)" in n for n in report.notes())

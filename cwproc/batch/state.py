@@ -69,7 +69,8 @@ class Ledger:
 
     On disk: a snapshot (``ledger.json``) and an append-only journal of the changes since
     (``ledger.json.journal``, one JSON line per changed entry), so that saving after a
-    unit costs the size of the change, not of the ledger (:func:`save_ledger`).
+    unit, or at the end of a run, costs the size of the change, not of the ledger; the
+    snapshot is compacted when the journal outgrows it (:func:`save_ledger`).
     """
 
     files: dict[str, dict[str, Any]] = field(default_factory=dict)
@@ -91,7 +92,7 @@ class Ledger:
             "units": self.units,
             "failures": self.failures,
         }
-        return json.dumps(doc, indent=1, sort_keys=True)
+        return json.dumps(doc, separators=(",", ":"))
 
     def changes(self) -> list[dict[str, Any]]:
         """The journal entries of the changes since the last save (sorted, JSON-ready)."""
@@ -191,14 +192,29 @@ def _fsync_folder(folder: Path) -> None:
         os.close(dir_fd)
 
 
+#: journal lines below which the snapshot is never rewritten (see :func:`save_ledger`)
+COMPACT_MIN_LINES = 1000
+
+
+def needs_compaction(ledger: Ledger) -> bool:
+    """Whether the journal has outgrown the ledger (and :data:`COMPACT_MIN_LINES`).
+
+    Then the snapshot is rewritten: each rewrite of ``n`` entries follows at least ``n``
+    appended changes, so saving costs O(1) per change amortised, and the journal a load
+    replays is never longer than the snapshot (issue 34.7).
+    """
+    return ledger.journal_lines > max(COMPACT_MIN_LINES, ledger.size())
+
+
 def save_ledger(ledger: Ledger, path: str | os.PathLike, *, compact: bool = False) -> None:
     """Save the changes since the last save: appended to the journal, fsynced.
 
-    The cost is that of the change (a unit, a file), not of the ledger, so a first run
-    over 50,000 files does not rewrite the ledger 50,000 times. The snapshot is
-    rewritten (temporary file, fsync, rename; the journal then removed) when there is
-    none yet, when ``compact`` is asked (the end of a run) or when the journal has grown
-    longer than the ledger (amortised O(1) per change).
+    The cost is that of the change (a unit, a file), not of the ledger, so neither a
+    first run over 50,000 files nor the end of a run rewrites the ledger (it was
+    rewritten whole once per run: 6 s at 10,000 files, 15 s at 50,000 on a busy disk).
+    The snapshot (compact JSON) is rewritten (temporary file, fsync, rename; the journal
+    then removed) when there is none yet, when ``compact`` is asked, or periodically
+    when :func:`needs_compaction`.
 
     Raises
     ------
@@ -208,7 +224,7 @@ def save_ledger(ledger: Ledger, path: str | os.PathLike, *, compact: bool = Fals
     path = Path(path)
     journal = journal_path(path)
     try:
-        if compact or not path.exists() or ledger.journal_lines > max(1000, ledger.size()):
+        if compact or not path.exists() or needs_compaction(ledger):
             _write_snapshot(ledger, path)
             journal.unlink(missing_ok=True)
             _fsync_folder(path.parent)
@@ -252,6 +268,8 @@ def cached_file_info(
         info = FileInfo(**entry)
     except TypeError:  # written by another version of cwproc: classify again
         return None
+    if info.kind == "sonic" and "identity" not in entry:
+        return None  # classified before loggers were told apart by identity (34.2)
     if (
         info.size != size
         or info.mtime_ns != mtime_ns

@@ -9,6 +9,7 @@ the line and the problem); :func:`unit_key` names the unit and its products.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import os
 import re
 import stat
@@ -364,6 +365,80 @@ def _sonic_station(ds: xr.Dataset) -> str:
     return str(ds.attrs.get("meteo2_station", "")).strip()
 
 
+#: attributes that identify the logger of a sonic file, per identity field (issue 34.2)
+_SONIC_IDENTITY_ATTRS: dict[str, tuple[str, ...]] = {
+    "serial": ("toa5_serial", "tob1_serial", "ghg_serial_number", "meteo2_serial"),
+    "program": ("toa5_program", "tob1_program", "ghg_software_version", "meteo2_program"),
+    "table": ("toa5_table", "tob1_table", "meteo2_table"),
+}
+
+
+def sonic_identity(item: InputFile) -> tuple[tuple[str, str], ...]:
+    """Everything that identifies the logger of a sonic input, as ``(field, value)`` pairs.
+
+    The station (TOA5/TOB1 station name, GHG instrument, Meteo-2 ``# station:``), the
+    logger's serial number, its program, the data table, and the folder the file is in:
+    two loggers that share a station name (or one header in two folders) are two
+    instruments, never one (issue 34.2). Empty for other kinds of input.
+    """
+    ds = held_or_identity(item)
+    if KIND[item.format] != "sonic" or ds is None:
+        return ()
+    parts = [("station", _sonic_station(ds))]
+    for name, keys in _SONIC_IDENTITY_ATTRS.items():
+        values = (str(ds.attrs.get(k, "")).strip() for k in keys)
+        parts.append((name, next((v for v in values if v), "")))
+    parts.append(("folder", os.fspath(Path(item.path).absolute().parent)))
+    return tuple(parts)
+
+
+def identity_text(identity: tuple[tuple[str, str], ...]) -> str:
+    """An identity as one line of text (stored in the batch ledger, compared as is)."""
+    return ", ".join(f"{k}={v}" for k, v in identity if v)
+
+
+def distinct_keys(
+    base: str, identities: Sequence[tuple[tuple[str, str], ...]]
+) -> tuple[dict[tuple[tuple[str, str], ...], str], str]:
+    """Unit keys that keep loggers apart when several share the key ``base``.
+
+    With one identity the key is ``base``. With several, each gets ``base`` with the
+    station part followed by ``-`` and the value of the first identity field in which
+    they differ (serial, then table, program, folder name; a short hash of the whole
+    identity when even that is the same), and a note says so.
+
+    Returns
+    -------
+    (dict, str)
+        Identity -> key, and the note ('' with one identity).
+    """
+    unique = sorted(set(identities))
+    if len(unique) <= 1:
+        return {i: base for i in unique}, ""
+    fields = [k for k, _ in unique[0]]
+    differing = [f for f in fields if len({dict(i)[f] for i in unique}) > 1]
+    field_name = next((f for f in ("serial", "table", "program", "folder") if f in differing), "")
+
+    def token(identity: tuple[tuple[str, str], ...]) -> str:
+        value = dict(identity).get(field_name, "")
+        if field_name == "folder":
+            value = Path(value).name
+        return name_part(value, "none")
+
+    tokens = [token(i) for i in unique]
+    if len(set(tokens)) < len(tokens):  # not told apart by one field: a hash of all
+        tokens = [hashlib.sha256(repr(i).encode()).hexdigest()[:8] for i in unique]
+    head, _, day = base.rpartition("_")
+    keys = {i: f"{head}-{t}_{day}" for i, t in zip(unique, tokens, strict=True)}
+    what = ", ".join(differing) or "identity"
+    told = "; ".join(", ".join(dict(i)[f] or "none" for f in differing) for i in unique)
+    note = (
+        f"{len(unique)} loggers share the unit {base} but differ in {what} ({told}): "
+        f"kept apart as {', '.join(keys[i] for i in unique)}"
+    )
+    return keys, note
+
+
 def unit_key(item: InputFile) -> tuple[str, str]:
     """(kind, key) of the product unit an input belongs to; the key names the products.
 
@@ -409,14 +484,42 @@ def split_by_day(item: InputFile) -> list[InputFile]:
     ]
 
 
-def group_units(items: Iterable[InputFile]) -> list[ProductUnit]:
+def group_units(items: Iterable[InputFile], notes: list[str] | None = None) -> list[ProductUnit]:
     """Group read inputs into product units (scans and sonic data: per instrument and
-    UTC day; wind records: per file), in a stable order."""
+    UTC day; wind records: per file), in a stable order.
+
+    Sonic inputs that share a key but not their logger's identity
+    (:func:`sonic_identity`) are kept apart (:func:`distinct_keys`); the note saying so
+    is appended to ``notes`` when given.
+    """
+    parts = [unit_part(item) for whole in items for item in split_by_day(whole)]
+    return units_of(parts, notes)
+
+
+#: an input with its kind, key and :func:`sonic_identity`
+UnitPart = tuple[InputFile, str, str, tuple[tuple[str, str], ...]]
+
+
+def unit_part(item: InputFile) -> UnitPart:
+    """``(item, kind, key, identity)`` of an input, taken while its data are held."""
+    return (item, *unit_key(item), sonic_identity(item))
+
+
+def units_of(parts: Iterable[UnitPart], notes: list[str] | None = None) -> list[ProductUnit]:
+    """Product units of :func:`unit_part` tuples, loggers of one key kept apart."""
+    groups: dict[tuple[str, str], list[tuple[InputFile, tuple]]] = {}
+    for item, kind, key, identity in parts:
+        groups.setdefault((kind, key), []).append((item, identity))
     units: dict[tuple[str, str], ProductUnit] = {}
-    for whole in items:
-        for item in split_by_day(whole):
-            kind, key = unit_key(item)
-            units.setdefault((kind, key), ProductUnit(key=key, kind=kind)).inputs.append(item)
+    for (kind, key), pairs in groups.items():
+        members = [m for m, _ in pairs]
+        identities = [i for _, i in pairs]
+        keys, note = distinct_keys(key, identities)
+        if note and notes is not None:
+            notes.append(note)
+        for member, identity in zip(members, identities, strict=True):
+            final = keys.get(identity, key)
+            units.setdefault((kind, final), ProductUnit(key=final, kind=kind)).inputs.append(member)
     return [units[k] for k in sorted(units)]
 
 
