@@ -218,3 +218,69 @@ def test_batch_keeps_two_loggers_apart_and_notes_it(tmp_path):
     keys = sorted(o.key for o in report.processed)
     assert keys == ["toa5_999-1234_20240601", "toa5_999-999_20240601"]
     assert any("differ in serial (1234; 999)" in n for n in report.notes())
+
+
+# -- 34.3 records out of the file's sequence or span are refused, counted -------------
+
+TOB1 = SAMPLE / "sonic" / "TOB1_999.ts_data_2024_06_01_1200.dat"
+
+
+def tob1_parts() -> tuple[bytes, np.ndarray]:
+    """The TOB1 sample's header bytes and its records (their dtype from the header)."""
+    from cwproc.io.campbell import tob1_dtype
+
+    raw = TOB1.read_bytes()
+    lines = raw.split(b"\n", 5)
+    header = b"\n".join(lines[:5]) + b"\n"
+    fields = [f.strip('"') for f in lines[1].decode().strip().split(",")]
+    types = [f.strip('"') for f in lines[4].decode().strip().split(",")]
+    records = np.frombuffer(raw[len(header) :], dtype=tob1_dtype("x", fields, types)).copy()
+    return header, records
+
+
+@pytest.mark.parametrize("where", ["end", "middle"])
+def test_garbage_records_with_believable_times_invent_no_day(tmp_path, where):
+    """Ten garbage records of a TOB1 file, each with a believable time on another day,
+    made ten extra day products (exit 0). Now they are refused, with a count."""
+    from click.testing import CliRunner
+
+    from cwproc.cli import main
+
+    header, records = tob1_parts()
+    garbage = records[:10].copy()
+    garbage["SECONDS"] = records["SECONDS"][0] + 86_400 * np.arange(1, 11)
+    garbage["RECORD"] = records["RECORD"][-1] + 1 + np.arange(10)
+    body = (
+        np.concatenate([records, garbage])
+        if where == "end"
+        else np.concatenate([records[:3000], garbage, records[3000:]])
+    )
+    path = tmp_path / "TOB1_garbage.dat"
+    path.write_bytes(header + body.tobytes())
+    ds = read(path)
+    assert ds.sizes["time"] == records.size
+    assert np.unique(ds["time"].values.astype("datetime64[D]")).tolist() == [
+        np.datetime64("2024-06-01", "D")
+    ]
+    assert any(w.startswith("10 record(s) whose time breaks") for w in ds.attrs["warnings"])
+    out = tmp_path / "out"
+    args = ["retrieve", str(path), "-c", str(SAMPLE / "sonic.toml"), "-o", str(out)]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    assert [p.name for p in out.glob("*_sf.nc")] == ["tob1_999_20240601_sf.nc"]
+
+
+@pytest.mark.parametrize("n_bytes", [1, 3, 31])
+def test_bytes_inserted_mid_file_do_not_drop_the_rest(tmp_path, n_bytes):
+    """Three bytes inserted mid-file dropped the rest of a TOB1 file without a note; now
+    the record that holds them is lost and reading resumes, with a note."""
+    raw = TOB1.read_bytes()
+    header, records = tob1_parts()
+    at = len(header) + 32 * 2000 + 17  # inside record 2001
+    path = tmp_path / "TOB1_inserted.dat"
+    path.write_bytes(raw[:at] + b"\xa5" * n_bytes + raw[at:])
+    ds = read(path)
+    assert ds.sizes["time"] == records.size - 1
+    assert any(
+        f"{32 + n_bytes} byte(s) skipped, 1 record(s) lost" in w for w in ds.attrs["warnings"]
+    )

@@ -124,6 +124,86 @@ def misaligned_from(record: np.ndarray) -> int | None:
     return int(broken[0])
 
 
+#: records read at a candidate boundary to tell whether it is one (RECORD counting up)
+RESYNC_PROBE = 32
+#: damaged places a TOB1 body is read past; beyond, the rest is dropped (with a note)
+MAX_RESYNCS = 100
+
+
+def realigned_records(
+    path: str | os.PathLike, data: bytes, dtype: np.dtype, offset: int, notes: list[str]
+) -> tuple[np.ndarray, int]:
+    """The records of a TOB1 body, read again on their boundaries after bytes inserted
+    or lost (issue 34.3), and the bytes of a partial last record.
+
+    Where the RECORD numbers stop counting up (:func:`misaligned_from`), the record
+    there may hold the damage: it is dropped, and the next position (up to two record
+    lengths on) from which :data:`RESYNC_PROBE` records count up by one, continuing the
+    numbers before the damage (up to two records lost), is where reading resumes. Each
+    resumption is a note naming the byte, the bytes skipped and the records lost; only
+    when no boundary is found are the remaining records dropped, with a note too (three
+    bytes inserted mid-file dropped the rest of the file).
+
+    Raises
+    ------
+    InputFileError
+        The RECORD numbers never count up from the first record: not TOB1 records.
+    """
+    size = dtype.itemsize
+    pieces: list[np.ndarray] = []
+    start = 0
+    while True:
+        n = (len(data) - start) // size
+        records = np.frombuffer(data, dtype=dtype, count=n, offset=start)
+        shifted = misaligned_from(records["RECORD"]) if n else None
+        if shifted is None:
+            pieces.append(records)
+            extra = len(data) - start - n * size
+            break
+        if shifted == 0 and not pieces:
+            raise InputFileError(
+                path, "RECORD numbers never count up: not TOB1 records", 1, unit="record"
+            )
+        pieces.append(records[:shifted])
+        bad_at = start + shifted * size
+        last = int(records["RECORD"][shifted - 1]) if shifted else None
+        resume = _next_boundary(data, dtype, bad_at, last) if len(pieces) <= MAX_RESYNCS else None
+        done = sum(p.size for p in pieces)
+        if resume is None:
+            notes.append(
+                f"records {done + 1}-{done + n - shifted} dropped: from byte "
+                f"{offset + bad_at} the RECORD numbers stop counting up and no record "
+                "boundary was found again (bytes inserted or lost)"
+            )
+            extra = 0
+            break
+        first = int(np.frombuffer(data, dtype=dtype, count=1, offset=resume)["RECORD"][0])
+        lost = first - last - 1 if last is not None else 0
+        notes.append(
+            f"bytes inserted or lost near byte {offset + bad_at}: {resume - bad_at} byte(s) "
+            f"skipped, {lost} record(s) lost, reading resumed on the record boundaries "
+            f"(RECORD {first})"
+        )
+        start = resume
+    return np.concatenate(pieces) if len(pieces) > 1 else pieces[0], extra
+
+
+def _next_boundary(data: bytes, dtype: np.dtype, bad_at: int, last: int | None) -> int | None:
+    """The first byte after ``bad_at`` where records count up again from ``last``."""
+    size = dtype.itemsize
+    for skip in range(1, 2 * size + 1):
+        at = bad_at + skip
+        m = min(RESYNC_PROBE, (len(data) - at) // size)
+        if m < 2:
+            return None
+        probe = np.frombuffer(data, dtype=dtype, count=m, offset=at)["RECORD"].astype(np.int64)
+        if last is not None and not 0 < probe[0] - last <= 3:
+            continue
+        if np.all(np.diff(probe) == 1):
+            return at
+    return None
+
+
 def record_warnings(record: np.ndarray) -> list[str]:
     """Describe RECORD numbers that do not step by one (lost records, restarts)."""
     step = np.diff(np.asarray(record, dtype=float))
@@ -678,26 +758,16 @@ def read_tob1(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     n_rec, extra = divmod(len(data), dtype.itemsize)
     if n_rec == 0:
         raise InputFileError(path, "no complete data record", 1, unit="record")
-    records = np.frombuffer(data[: n_rec * dtype.itemsize], dtype=dtype)
-    notes = []
+    notes: list[str] = []
+    if "RECORD" in names and dtype["RECORD"].kind in "iu":
+        records, extra = realigned_records(path, data, dtype, pos, notes)
+        n_rec = records.size
+    else:
+        records = np.frombuffer(data[: n_rec * dtype.itemsize], dtype=dtype)
     if extra:
         notes.append(
             f"partial trailing record ({extra} of {dtype.itemsize} bytes) ignored: the file was cut"
         )
-    if "RECORD" in names and records["RECORD"].dtype.kind in "iu":
-        shifted = misaligned_from(records["RECORD"])
-        if shifted is not None:
-            if shifted == 0:
-                raise InputFileError(
-                    path, "RECORD numbers never count up: not TOB1 records", 1, unit="record"
-                )
-            notes.append(
-                f"records {shifted + 1}-{n_rec} dropped: from record {shifted + 1} the RECORD "
-                "numbers stop counting up (bytes inserted or lost: the records are off their "
-                "boundaries)"
-            )
-            records = records[:shifted]
-            n_rec = shifted
     typ = dict(zip(names, types, strict=True))
     for key in ("SECONDS", "NANOSECONDS"):
         field = records[key]

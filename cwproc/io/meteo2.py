@@ -387,21 +387,86 @@ def sonic_dataset(
     return with_canonical_attrs(ds, "sonic")
 
 
+#: records in the running median of :func:`out_of_sequence`: bursts of up to half as
+#: many damaged records in a row are told from the sequence around them
+SEQUENCE_WINDOW = 51
+#: a gap longer than this (s) separates runs of records; a run shorter than
+#: :data:`SEQUENCE_WINDOW` apart from the file's main run lies outside its span
+SPAN_GAP_S = 3600.0
+
+
+def out_of_sequence(time_ns: np.ndarray) -> np.ndarray:
+    """Records whose time breaks the file's sequence or lies outside its own span.
+
+    A logger writes its records in time order. A record is out of sequence when its
+    time is more than ``max(2 s, SEQUENCE_WINDOW typical intervals)`` from the running
+    median of the :data:`SEQUENCE_WINDOW` record times around it (in a sequence that runs
+    forward the median is the record's own time, gaps or not: only records that break
+    it differ). Of the rest, records further than :data:`SPAN_GAP_S` from the file's
+    main run (its longest) in runs of fewer than :data:`SEQUENCE_WINDOW` records lie
+    outside the file's span: garbage with believable times (ten such records of a
+    TOB1 file made ten day products, issue 34.3). A file whose times run forward
+    without such a gap is not examined further (the usual case costs one ``diff``).
+
+    Parameters
+    ----------
+    time_ns : ndarray of int64
+        Time stamps (ns), file order.
+
+    Returns
+    -------
+    ndarray of bool
+    """
+    t = np.asarray(time_ns, dtype=np.int64)
+    out = np.zeros(t.size, dtype=bool)
+    if t.size < 3:
+        return out
+    dt = np.diff(t)
+    if np.all((dt >= 0) & (dt <= SPAN_GAP_S * 1e9)):
+        return out
+    from scipy.ndimage import median_filter
+
+    positive = dt[dt > 0]
+    step_s = float(np.median(positive)) * 1e-9 if positive.size else 0.0
+    secs = (t - np.median(t)).astype(np.float64) * 1e-9
+    med = median_filter(secs, size=SEQUENCE_WINDOW, mode="nearest")
+    out = np.abs(secs - med) > max(2.0, SEQUENCE_WINDOW * step_s)
+    good = np.flatnonzero(~out)
+    if good.size == 0:
+        return out
+    breaks = np.flatnonzero(np.abs(np.diff(secs[good])) > SPAN_GAP_S) + 1
+    runs = np.split(good, breaks)
+    main = max(range(len(runs)), key=lambda k: runs[k].size)
+    for k, run in enumerate(runs):
+        if k != main and run.size < SEQUENCE_WINDOW:
+            out[run] = True
+    return out
+
+
 def _time_order(t_ns: np.ndarray, notes: list[str]) -> tuple[np.ndarray, dict[str, int]]:
     """Indices of the samples to keep, in time order, and the counts of what was found.
 
-    Stray stamps (far from both neighbours, which agree) are dropped, the rest put in
-    time order, exact duplicates dropped (first kept); each finding is described in
+    Records out of the file's sequence or span (:func:`out_of_sequence`) and stray
+    stamps (far from both neighbours, which agree) are dropped, the rest put in time
+    order, exact duplicates dropped (first kept); each finding is described in
     ``notes``.
     """
-    stray = stray_stamps(t_ns)
+    refused = out_of_sequence(t_ns)
+    if refused.any():
+        first = int(np.argmax(refused))
+        stamp = np.datetime_as_string(np.datetime64(int(t_ns[first]), "ns"), unit="s")
+        notes.append(
+            f"{int(refused.sum())} record(s) whose time breaks the file's sequence or lies "
+            f"outside its span refused (first: record {first + 1}, {stamp})"
+        )
+    stray = stray_stamps(t_ns) & ~refused
     if stray.any():
         notes.append(
             f"{int(stray.sum())} time stamp(s) far from both neighbours, which agree with "
             f"each other (a damaged record; first at record {int(np.argmax(stray)) + 1}): "
             "dropped"
         )
-    valid = np.flatnonzero(~stray)
+    valid = np.flatnonzero(~stray & ~refused)
     n_back = int(np.sum(np.diff(t_ns[valid]) < 0))
     order = valid[np.argsort(t_ns[valid], kind="stable")]
     dup = np.concatenate([[False], np.diff(t_ns[order]) == 0])
@@ -410,7 +475,11 @@ def _time_order(t_ns: np.ndarray, notes: list[str]) -> tuple[np.ndarray, dict[st
         notes.append(f"{n_back} time stamp(s) out of order: samples put in time order")
     if n_dup:
         notes.append(f"{n_dup} duplicated time stamp(s): later copies dropped")
-    return order[~dup], {"n_out_of_order": n_back, "n_duplicates": n_dup}
+    return order[~dup], {
+        "n_out_of_order": n_back,
+        "n_duplicates": n_dup,
+        "n_out_of_sequence": int(refused.sum()),
+    }
 
 
 def _within_physical_range(data: dict[str, np.ndarray], notes: list[str]) -> dict[str, np.ndarray]:
