@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from cwproc.errors import InputFileError
 from cwproc.io import read
@@ -284,3 +286,81 @@ def test_bytes_inserted_mid_file_do_not_drop_the_rest(tmp_path, n_bytes):
     assert any(
         f"{32 + n_bytes} byte(s) skipped, 1 record(s) lost" in w for w in ds.attrs["warnings"]
     )
+
+
+# -- 34.5 physical ranges per quantity and instrument; missing cells; inf --------------
+
+#: wind-record samples: (path, separator, first data line index, the column of w at the
+#: first height, the column of the horizontal speed at the first height)
+RECORDS = {
+    "zephir": (DATED["zephir"][0], b";", 2, 16, 12),
+    "windcube": (DATED["windcube"][0], b"\t", 17, 12, 7),
+}
+
+
+def edited_record(name: str, tmp_path: Path, column: int, text: bytes, row: int = 3) -> Path:
+    """The wind-record sample ``name`` with field ``column`` of data row ``row`` set to
+    ``text`` (0-based field; rows counted from the first data line)."""
+    path, sep, first, _, _ = RECORDS[name]
+    lines = path.read_bytes().split(b"\n")
+    fields = lines[first + row].split(sep)
+    fields[column] = text
+    lines[first + row] = sep.join(fields)
+    out = tmp_path / path.name
+    out.write_bytes(b"\n".join(lines))
+    return out
+
+
+def _decimal(name: str, value: str) -> bytes:
+    return (value.replace(".", ",") if name == "zephir" else value).encode()
+
+
+@pytest.mark.parametrize("name", sorted(RECORDS))
+def test_an_impossible_mean_vertical_wind_is_missing_not_good(tmp_path, name):
+    """w = -50 m s-1 (within the +-60 of single sonic samples) was written as good by the
+    ZephIR and WindCube readers; a 10-min mean is bounded by +-10 m s-1."""
+    from cwproc.io.ranges import ranges_for
+
+    assert ranges_for("wind_record")["w"] == (-10.0, 10.0)
+    whole = read(RECORDS[name][0])
+    ds = read(edited_record(name, tmp_path, RECORDS[name][3], _decimal(name, "-50.0")))
+    w = ds["w"].values
+    assert np.count_nonzero(np.isnan(w)) == np.count_nonzero(np.isnan(whole["w"].values)) + 1
+    assert np.nanmax(np.abs(w)) <= 10.0
+    assert any("value(s) of w outside -10..10" in m for m in ds.attrs["warnings"])
+
+
+@pytest.mark.parametrize("name", sorted(RECORDS))
+@pytest.mark.parametrize("cell", [b"", b"inf", b"-inf"])
+def test_one_missing_or_infinite_cell_is_one_missing_value(tmp_path, name, cell):
+    """One empty cell made the ZephIR reader refuse a whole day; ``inf`` was an error for
+    one reader and a value for the other. Now both: that value missing, the rest read."""
+    whole = read(RECORDS[name][0])
+    ds = read(edited_record(name, tmp_path, RECORDS[name][4], cell))
+    speed = ds["wind_speed"].values
+    assert speed.shape == whole["wind_speed"].values.shape
+    assert (
+        np.count_nonzero(np.isnan(speed))
+        == np.count_nonzero(np.isnan(whole["wind_speed"].values)) + 1
+    )
+    assert np.all(np.isfinite(speed) | np.isnan(speed))
+    if cell:
+        assert any("wind_speed" in m and "not finite" in m for m in ds.attrs["warnings"])
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(
+    name=st.sampled_from(sorted(DATED)),
+    year=st.one_of(st.integers(1000, 1994), st.integers(2100, 9999)),
+)
+def test_any_year_outside_the_window_is_refused_as_written(name, year):
+    """Property of 34.1 over every text reader: a year outside the plausible window is
+    refused, the message quoting the year as written, wrapped or not through 64-bit
+    nanoseconds (their range is 1677-2262, the wrap period 584 years)."""
+    import tempfile
+
+    set_plausible_window()
+    with tempfile.TemporaryDirectory() as tmp:
+        with pytest.raises(InputFileError, match="outside the plausible range") as err:
+            read(redated(name, year, Path(tmp)))
+    assert str(year) in str(err.value)

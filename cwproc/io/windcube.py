@@ -232,7 +232,7 @@ def _numbers(path: str | os.PathLike, table: pd.DataFrame, first_line: int) -> n
     text = table.apply(lambda col: col.str.strip())
     values = text.apply(pd.to_numeric, errors="coerce").to_numpy(dtype=float)
     raw = text.to_numpy()
-    bad = np.isnan(values) & (raw != "NaN")
+    bad = np.isnan(values) & (raw != "NaN") & (raw != "")  # empty: missing, as NaN
     if bad.any():
         row, col = np.argwhere(bad)[0]
         shown = raw[row, col]
