@@ -1,7 +1,8 @@
 """Fuzz every reader with mutated copies of the shipped (simulated) samples (issue 34).
 
-Each mutation is generated here from the samples in ``sample_data/`` (no real file is
-copied into the project) and read with the reader of its format. Counted:
+Each mutation is generated here from the samples in ``sample_data/`` and from a scan
+NetCDF and a background file made from them (no real file is copied into the
+project), and read with the reader of its format (all ten). Counted:
 
 - **tracebacks**: anything but :class:`cwproc.errors.CwprocError` escaping a reader, or
   an error message that says "internal error", holds a line break or a Python
@@ -18,7 +19,7 @@ copied into the project) and read with the reader of its format. Counted:
 
 All four must be zero. Run::
 
-    python tools/fuzz_readers.py                      # 1,200 mutations (150 per format)
+    python tools/fuzz_readers.py                      # 1,500 mutations (150 per format)
     python tools/fuzz_readers.py --per-format 20 --seed 3
 
 Exit status 0 when every count is zero, 1 otherwise (the offending cases are printed).
@@ -93,6 +94,22 @@ def _alarm(signum, frame):
     raise Hang
 
 
+def generated_samples(folder: Path) -> dict[str, tuple[Path, dict, str]]:
+    """The two formats no sample ships, made here: a scan NetCDF of the Stream Line
+    sample and a Stream Line background file (one value per gate, as the instrument
+    writes them)."""
+    from cwproc.io.halo import read_hpl
+    from cwproc.io.scan_netcdf import write_scan_netcdf
+
+    scan = write_scan_netcdf(read_hpl(SAMPLES["hpl"][0]), folder / "sample_scan.nc")
+    background = folder / "Background_010624-120005.txt"
+    background.write_text("".join(f"{16_800_000 + 37 * i}.125000\r\n" for i in range(200)))
+    return {
+        "scan_netcdf": (scan, {}, "scan"),
+        "halo_background": (background, {}, "background"),
+    }
+
+
 def mutate(raw: bytes, name: str, rng: np.random.Generator, binary: bool) -> bytes:
     """One mutation ``name`` of ``raw`` at a random place (``rng``)."""
     at = int(rng.integers(0, max(len(raw), 1)))
@@ -157,8 +174,8 @@ def mutate(raw: bytes, name: str, rng: np.random.Generator, binary: bool) -> byt
     return raw[: m.start()] + value + raw[m.end() :]
 
 
-def own_span(fmt: str) -> tuple[np.datetime64, np.datetime64]:
-    path, options, _ = SAMPLES[fmt]
+def own_span(path: Path, options: dict) -> tuple[np.datetime64, np.datetime64]:
+    """First and last time of the undamaged file."""
     t = read(path, **options)["time"].values
     return t.min(), t.max()
 
@@ -235,18 +252,24 @@ def run(per_format: int, seed: int, timeout_s: int, retrieve_every: int) -> Coun
     presets = {"hpl": "streamline", "zephir": "zephir300", "windcube": "windcube"}
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        for fmt, (path, options, kind) in SAMPLES.items():
+        formats = {**SAMPLES, **generated_samples(folder)}
+        for fmt, (path, sample_options, kind) in formats.items():
             raw = path.read_bytes()
-            binary = fmt == "tob1"
+            counts["formats"] += 1
+            binary = fmt in ("tob1", "scan_netcdf")
             if not binary:
                 raw = raw[:KEEP]
-            span = own_span(fmt)
+            span = own_span(path, sample_options)
             for k in range(per_format):
                 mutation = names[k % len(names)]
-                options = SAMPLES[fmt][1]
-                if mutation.startswith("year_") and fmt == "tob1":
+                options = sample_options
+                if mutation.startswith("year_") and fmt in (
+                    "tob1",
+                    "scan_netcdf",
+                    "halo_background",
+                ):
                     mutation = "flip"  # 1990 + an unsigned 32-bit count: 2126 at most
-                bad = folder / f"{fmt}_{k}{path.suffix}"
+                bad = folder / f"{k}_{path.name}"
                 if mutation.startswith("year_") and fmt == "gill":  # its time is an option
                     options = {**options, "start_time": f"{mutation[-4:]}-06-01T12:00:00"}
                     bad.write_bytes(raw)
@@ -307,7 +330,7 @@ def main() -> None:
     counts = run(args.per_format, args.seed, args.timeout, args.retrieve_every)
     zero = ("tracebacks", "hangs", "products for broken input", "impossible values marked good")
     print(
-        f"{counts['mutations']} mutations of {len(SAMPLES)} formats "
+        f"{counts['mutations']} mutations of {counts['formats']} formats "
         f"({counts['read']} read, {counts['refused']} refused with a clear error, "
         f"{counts['retrieved']} through cwproc retrieve) in {time.process_time() - t0:.0f} s CPU: "
         + ", ".join(f"{k} {counts[k]}" for k in zero)

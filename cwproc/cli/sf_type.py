@@ -37,7 +37,9 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
     transverse, vertical) the normalised structure function is typed 1 (line),
     2 (parabola) or 3 (parabola then line) in lg-lg axes. Writes one product per
     file format, station (from the file's header, else its folder) and UTC day,
-    <format>_<station>_<YYYYMMDD>_sf.nc, plus
+    <format>_<station>_<YYYYMMDD>_sf.nc (loggers sharing a station name but not
+    their serial, table, program or folder are kept apart:
+    <format>_<station>-<serial>_<YYYYMMDD>_sf.nc, with a note), plus
     sf_type_occurrence.csv (Table 2) and sf_parameters.csv (Tables 3-5), and prints
     both tables. Exit status 0 when every input was processed, 1 otherwise, with one
     line per failed input naming the file, the line and the problem. Products and
