@@ -207,6 +207,27 @@ def test_two_loggers_of_one_station_name_are_never_merged(tmp_path, layout):
         assert np.nanmean(shift) > 0.3  # Ux + 1 m/s of the second logger, its own product
 
 
+def test_one_logger_in_daily_folders_stays_one_unit(tmp_path):
+    """Folders alone tell loggers apart only where their times overlap: one logger's
+    files kept one folder a day (the file that crosses midnight in the day before's)
+    make one unit a day, as before."""
+    from cwproc.config import Config
+    from cwproc.pipeline import group_units, read_input
+
+    header, records = tob1_parts()
+    half = records.size // 2
+    first, second = tmp_path / "d1" / "a.dat", tmp_path / "d2" / "b.dat"
+    for path, part in ((first, records[:half]), (second, records[half:])):
+        path.parent.mkdir()
+        path.write_bytes(header + part.tobytes())
+    notes: list[str] = []
+    units = group_units([read_input(p, Config()) for p in (first, second)], notes)
+    assert [u.key for u in units] == ["tob1_999_20240601"] and notes == []
+    (tmp_path / "d2" / "c.dat").write_bytes(header + records[half - 10 :].tobytes())
+    items = [read_input(p, Config()) for p in (first, tmp_path / "d2" / "c.dat")]
+    assert len(group_units(items, notes)) == 2 and "differ in folder" in notes[0]
+
+
 def test_batch_keeps_two_loggers_apart_and_notes_it(tmp_path):
     from cwproc.batch import run_batch
     from cwproc.config import load_config

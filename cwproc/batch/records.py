@@ -76,8 +76,9 @@ class FileInfo:
     error: str = ""
     #: hash of the configuration the file was classified with (reader options matter)
     config_hash: str = ""
-    #: what identifies a sonic file's logger, JSON ``[[field, value], ...]`` (station,
-    #: serial, program, table, folder; ``cwproc.pipeline.sonic_identity``); "" else
+    #: what identifies a sonic file's logger, JSON ``{"fields": [[field, value], ...],
+    #: "span": [first, last]}`` (station, serial, program, table, folder:
+    #: ``cwproc.pipeline.sonic_identity``; its times: ``sonic_span``); "" else
     identity: str = ""
 
 

@@ -120,8 +120,8 @@ def plan_units(
             by_key.setdefault((info.kind, info.unit), []).append(info)
     groups: dict[tuple[str, str, str], list[FileInfo]] = {}
     for (kind, key), members in by_key.items():
-        identities = [_identity(i) for i in members]
-        keys, note = distinct_keys(key, identities)
+        identities = [_identity(i)[0] for i in members]
+        keys, note = distinct_keys(key, identities, [_identity(i)[1] for i in members])
         if note and notes is not None:
             notes.append(note)
         for info, identity in zip(members, identities, strict=True):
@@ -147,11 +147,13 @@ def plan_units(
     return out
 
 
-def _identity(info: FileInfo) -> tuple[tuple[str, str], ...]:
-    """The logger identity a classification stored (empty when none)."""
+def _identity(info: FileInfo) -> tuple[tuple[tuple[str, str], ...], tuple[str, str]]:
+    """The logger identity and time span a classification stored (empty when none)."""
     if not info.identity:
-        return ()
-    return tuple((str(k), str(v)) for k, v in json.loads(info.identity))
+        return (), ("", "")
+    stored = json.loads(info.identity)
+    first, last = stored["span"]
+    return tuple((str(k), str(v)) for k, v in stored["fields"]), (str(first), str(last))
 
 
 def before_since(start: str, since: _dt.date | None) -> bool:

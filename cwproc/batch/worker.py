@@ -36,6 +36,7 @@ from cwproc.pipeline import (
     read_input,
     run_unit,
     sonic_identity,
+    sonic_span,
     unit_key,
     write_unit_products,
 )
@@ -154,7 +155,7 @@ def classify_file(
         kind=kind,
         unit=key,
         start=_first_time_iso(item),
-        identity=json.dumps(identity) if identity else "",
+        identity=json.dumps({"fields": identity, "span": sonic_span(item)}) if identity else "",
     )
 
 

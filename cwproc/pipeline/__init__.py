@@ -52,6 +52,7 @@ from cwproc.pipeline.units import (
     other_formats_note,
     read_input,
     sonic_identity,
+    sonic_span,
     unit_key,
     unit_label,
 )
@@ -88,6 +89,7 @@ __all__ = [
     "screened_wind",
     "sf_summary_tables",
     "sonic_identity",
+    "sonic_span",
     "unit_key",
     "unit_label",
     "write_unit_products",

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import itertools
 import os
 import re
 import stat
@@ -392,20 +393,46 @@ def sonic_identity(item: InputFile) -> tuple[tuple[str, str], ...]:
     return tuple(parts)
 
 
-def identity_text(identity: tuple[tuple[str, str], ...]) -> str:
-    """An identity as one line of text (stored in the batch ledger, compared as is)."""
-    return ", ".join(f"{k}={v}" for k, v in identity if v)
+def sonic_span(item: InputFile) -> tuple[str, str]:
+    """First and last time of a sonic input's held data (ISO, UTC; '' when unknown)."""
+    ds = item.dataset
+    if KIND[item.format] != "sonic" or ds is None or "time" not in ds.variables:
+        return "", ""
+    t = np.asarray(ds["time"].values)
+    t = t[~np.isnat(t)] if np.issubdtype(t.dtype, np.datetime64) else t[:0]
+    if t.size == 0:
+        return "", ""
+    return tuple(str(np.datetime_as_string(x, unit="ms")) for x in (t.min(), t.max()))
+
+
+def _apart_in_time(
+    identities: Sequence[tuple[tuple[str, str], ...]], spans: Sequence[tuple[str, str]]
+) -> bool:
+    """Whether the inputs of each identity cover times no other identity's do."""
+    cover: dict[tuple, list[str]] = {}
+    for identity, (first, last) in zip(identities, spans, strict=True):
+        if not first or not last:
+            return False
+        lo, hi = cover.setdefault(identity, [first, last])
+        cover[identity] = [min(lo, first), max(hi, last)]
+    ordered = sorted(cover.values())
+    return all(a[1] < b[0] for a, b in itertools.pairwise(ordered))
 
 
 def distinct_keys(
-    base: str, identities: Sequence[tuple[tuple[str, str], ...]]
+    base: str,
+    identities: Sequence[tuple[tuple[str, str], ...]],
+    spans: Sequence[tuple[str, str]] | None = None,
 ) -> tuple[dict[tuple[tuple[str, str], ...], str], str]:
     """Unit keys that keep loggers apart when several share the key ``base``.
 
     With one identity the key is ``base``. With several, each gets ``base`` with the
     station part followed by ``-`` and the value of the first identity field in which
     they differ (serial, then table, program, folder name; a short hash of the whole
-    identity when even that is the same), and a note says so.
+    identity when even that is the same), and a note says so. Inputs that differ in
+    their folder alone and whose times do not overlap (``spans``: first and last time
+    of each input) are one logger's files kept in several folders (one a day: the file
+    that crosses midnight is in the day before's): one unit.
 
     Returns
     -------
@@ -417,6 +444,8 @@ def distinct_keys(
         return {i: base for i in unique}, ""
     fields = [k for k, _ in unique[0]]
     differing = [f for f in fields if len({dict(i)[f] for i in unique}) > 1]
+    if differing == ["folder"] and spans is not None and _apart_in_time(identities, spans):
+        return {i: base for i in unique}, ""
     field_name = next((f for f in ("serial", "table", "program", "folder") if f in differing), "")
 
     def token(identity: tuple[tuple[str, str], ...]) -> str:
@@ -496,25 +525,25 @@ def group_units(items: Iterable[InputFile], notes: list[str] | None = None) -> l
     return units_of(parts, notes)
 
 
-#: an input with its kind, key and :func:`sonic_identity`
-UnitPart = tuple[InputFile, str, str, tuple[tuple[str, str], ...]]
+#: an input with its kind, key, :func:`sonic_identity` and :func:`sonic_span`
+UnitPart = tuple[InputFile, str, str, tuple[tuple[str, str], ...], tuple[str, str]]
 
 
 def unit_part(item: InputFile) -> UnitPart:
-    """``(item, kind, key, identity)`` of an input, taken while its data are held."""
-    return (item, *unit_key(item), sonic_identity(item))
+    """``(item, kind, key, identity, span)`` of an input, taken while its data are held."""
+    return (item, *unit_key(item), sonic_identity(item), sonic_span(item))
 
 
 def units_of(parts: Iterable[UnitPart], notes: list[str] | None = None) -> list[ProductUnit]:
     """Product units of :func:`unit_part` tuples, loggers of one key kept apart."""
-    groups: dict[tuple[str, str], list[tuple[InputFile, tuple]]] = {}
-    for item, kind, key, identity in parts:
-        groups.setdefault((kind, key), []).append((item, identity))
+    groups: dict[tuple[str, str], list[tuple[InputFile, tuple, tuple]]] = {}
+    for item, kind, key, identity, span in parts:
+        groups.setdefault((kind, key), []).append((item, identity, span))
     units: dict[tuple[str, str], ProductUnit] = {}
-    for (kind, key), pairs in groups.items():
-        members = [m for m, _ in pairs]
-        identities = [i for _, i in pairs]
-        keys, note = distinct_keys(key, identities)
+    for (kind, key), triples in groups.items():
+        members = [m for m, _, _ in triples]
+        identities = [i for _, i, _ in triples]
+        keys, note = distinct_keys(key, identities, [s for _, _, s in triples])
         if note and notes is not None:
             notes.append(note)
         for member, identity in zip(members, identities, strict=True):
