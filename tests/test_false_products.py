@@ -146,6 +146,26 @@ def test_the_summary_and_the_exit_status_agree(tmp_path, extra, failures):
     assert "2 input(s), 2 product(s) written" in result.stdout
 
 
+@pytest.mark.parametrize("damaged", [False, True])
+def test_batch_counts_every_error_line_in_its_summary(tmp_path, damaged):
+    """The same rule for ``cwproc batch``: its summary ends with the count of the
+    ``error:`` lines printed, and the exit status is 1 exactly when it is not 0."""
+    from click.testing import CliRunner
+
+    from cwproc.cli import main
+
+    inputs = tmp_path / "in"
+    inputs.mkdir()
+    (inputs / DATED["hpl"][0].name).write_bytes(DATED["hpl"][0].read_bytes())
+    if damaged:
+        (inputs / "VAD_999_20240602_120000.hpl").write_bytes(b"Filename:\tcut\n")
+    args = ["batch", str(inputs), str(tmp_path / "out"), "-c", "streamline"]
+    result = CliRunner().invoke(main, args)
+    said = _failures_said(result.stdout)
+    assert said == result.stderr.count("error: ") == int(damaged)
+    assert result.exit_code == (1 if said else 0)
+
+
 # -- 34.2 a logger is everything that identifies it -----------------------------------
 
 TOA5 = SAMPLE / "sonic" / "TOA5_999.ts_data_2024_06_01_1200.dat"
