@@ -222,15 +222,16 @@ COMPACT_MIN_LINES = 1000
 COMPACT_SHARE = 0.25
 
 
-def needs_compaction(ledger: Ledger) -> bool:
-    """Whether the journal has outgrown :data:`COMPACT_SHARE` of the ledger (and
-    :data:`COMPACT_MIN_LINES`).
+def needs_compaction(ledger: Ledger, pending: int = 0) -> bool:
+    """Whether the journal, with ``pending`` more lines, would outgrow
+    :data:`COMPACT_SHARE` of the ledger (and :data:`COMPACT_MIN_LINES`).
 
     Then the snapshot is rewritten: each rewrite of ``n`` entries follows at least
     ``n / 4`` appended changes, so saving costs O(1) per change amortised, and a load
     replays at most a quarter of the ledger's entries on top of the snapshot (34.7).
     """
-    return ledger.journal_lines > max(COMPACT_MIN_LINES, COMPACT_SHARE * ledger.size())
+    lines = ledger.journal_lines + pending
+    return lines > max(COMPACT_MIN_LINES, COMPACT_SHARE * ledger.size())
 
 
 def save_ledger(ledger: Ledger, path: str | os.PathLike, *, compact: bool = False) -> None:
@@ -251,13 +252,13 @@ def save_ledger(ledger: Ledger, path: str | os.PathLike, *, compact: bool = Fals
     path = Path(path)
     journal = journal_path(path)
     try:
-        if compact or not path.exists() or needs_compaction(ledger):
+        entries = ledger.changes()
+        if compact or not path.exists() or needs_compaction(ledger, len(entries)):
             _write_snapshot(ledger, path)
             journal.unlink(missing_ok=True)
             _fsync_folder(path.parent)
             ledger.journal_lines = 0
         else:
-            entries = ledger.changes()
             if entries:
                 data = "".join(json.dumps(e, sort_keys=True) + "\n" for e in entries)
                 new = not journal.exists()
