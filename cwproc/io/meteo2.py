@@ -49,6 +49,7 @@ import xarray as xr
 from cwproc.errors import CwprocError, InputFileError
 from cwproc.io.netcdf import write_bytes_atomic
 from cwproc.io.ranges import outside_physical_range
+from cwproc.io.records import out_of_sequence
 from cwproc.io.schema import with_canonical_attrs
 from cwproc.io.timecheck import check_times, epoch_seconds_to_times
 
@@ -385,62 +386,6 @@ def sonic_dataset(
         }
     )
     return with_canonical_attrs(ds, "sonic")
-
-
-#: records in the running median of :func:`out_of_sequence`: bursts of up to half as
-#: many damaged records in a row are told from the sequence around them
-SEQUENCE_WINDOW = 51
-#: a gap longer than this (s) separates runs of records; a run shorter than
-#: :data:`SEQUENCE_WINDOW` apart from the file's main run lies outside its span
-SPAN_GAP_S = 3600.0
-
-
-def out_of_sequence(time_ns: np.ndarray) -> np.ndarray:
-    """Records whose time breaks the file's sequence or lies outside its own span.
-
-    A logger writes its records in time order. A record is out of sequence when its
-    time is more than ``max(2 s, SEQUENCE_WINDOW typical intervals)`` from the running
-    median of the :data:`SEQUENCE_WINDOW` record times around it (in a sequence that runs
-    forward the median is the record's own time, gaps or not: only records that break
-    it differ). Of the rest, records further than :data:`SPAN_GAP_S` from the file's
-    main run (its longest) in runs of fewer than :data:`SEQUENCE_WINDOW` records lie
-    outside the file's span: garbage with believable times (ten such records of a
-    TOB1 file made ten day products, issue 34.3). A file whose times run forward
-    without such a gap is not examined further (the usual case costs one ``diff``).
-
-    Parameters
-    ----------
-    time_ns : ndarray of int64
-        Time stamps (ns), file order.
-
-    Returns
-    -------
-    ndarray of bool
-    """
-    t = np.asarray(time_ns, dtype=np.int64)
-    out = np.zeros(t.size, dtype=bool)
-    if t.size < 3:
-        return out
-    dt = np.diff(t)
-    if np.all((dt >= 0) & (dt <= SPAN_GAP_S * 1e9)):
-        return out
-    from scipy.ndimage import median_filter
-
-    positive = dt[dt > 0]
-    step_s = float(np.median(positive)) * 1e-9 if positive.size else 0.0
-    secs = (t - np.median(t)).astype(np.float64) * 1e-9
-    med = median_filter(secs, size=SEQUENCE_WINDOW, mode="nearest")
-    out = np.abs(secs - med) > max(2.0, SEQUENCE_WINDOW * step_s)
-    good = np.flatnonzero(~out)
-    if good.size == 0:
-        return out
-    breaks = np.flatnonzero(np.abs(np.diff(secs[good])) > SPAN_GAP_S) + 1
-    runs = np.split(good, breaks)
-    main = max(range(len(runs)), key=lambda k: runs[k].size)
-    for k, run in enumerate(runs):
-        if k != main and run.size < SEQUENCE_WINDOW:
-            out[run] = True
-    return out
 
 
 def _time_order(t_ns: np.ndarray, notes: list[str]) -> tuple[np.ndarray, dict[str, int]]:

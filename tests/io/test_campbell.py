@@ -278,7 +278,7 @@ def test_tob1_records_shifted_by_inserted_bytes_are_read_again_on_their_boundari
 
 
 def test_misaligned_from_tells_garbage_from_lost_records_and_restarts():
-    from cwproc.io.campbell import misaligned_from
+    from cwproc.io.records import misaligned_from
 
     r = np.arange(200)
     assert misaligned_from(r) is None
