@@ -7,7 +7,9 @@ with the lags of :func:`cwproc.stages.structure.lag_count` and the height range 
 :func:`cwproc.stages.epsilon.atable_fit.table_height_range`) and the removed-share
 curve of the elevation (:func:`cwproc.physics.removed_share.mean_removed_share`). This
 script times them in a cold temporary cache (``XDG_CACHE_HOME``) for five geometries
-that are not shipped in ``cwproc/atables/``, one process, one core:
+that are not shipped in ``cwproc/atables/`` (checked: the script stops if one is; the
+samples' 30 m / 180-ray scans at 35.3 deg ship, so that geometry is timed at another
+site's elevation, 30 deg), one process, one core:
 
     python benchmarks/bench_first_run.py                 # all five
     python benchmarks/bench_first_run.py --only 0 3      # some of them
@@ -45,12 +47,12 @@ def _gates(length: float, n: int, phi: float) -> np.ndarray:
 
 
 GEOMETRIES = [
-    Geometry(
-        "Stream Line 30 m gates, 180 rays, phi 35.3",
+    Geometry(  # the samples' 30 m / 180-ray scans at another site's elevation
+        "Stream Line 30 m gates, 180 rays, phi 30",
         "streamline",
-        35.3,
+        30.0,
         180,
-        _gates(30.0, 100, 35.3),
+        _gates(30.0, 100, 30.0),
         True,
         30.0,
     ),
@@ -90,18 +92,13 @@ GEOMETRIES = [
 ]
 
 
-def time_geometry(geo: Geometry) -> tuple[float, float, list[str]]:
-    """Wall and CPU seconds of the tables a retrieve of ``geo`` requests (current cache).
-
-    The CPU seconds (this process, all its threads) are the figure to compare on a
-    shared machine: the wall clock also counts the other users' jobs.
-    """
+def _request(geo: Geometry) -> tuple:
+    """``(probe, phi, dtheta, n_lags, model, options)`` of the tables a retrieve requests."""
     import dataclasses
 
     from cwproc.config import load_config
-    from cwproc.physics.removed_share import mean_removed_share
     from cwproc.pipeline import probe_from_config
-    from cwproc.stages.epsilon.atable_fit import a_tables, table_height_range
+    from cwproc.stages.epsilon.atable_fit import table_height_range
     from cwproc.stages.structure import lag_count
 
     cfg = load_config(geo.preset)
@@ -111,12 +108,40 @@ def time_geometry(geo: Geometry) -> tuple[float, float, list[str]]:
     probe = probe_from_config(instrument, pulse_transfer=cfg.turbulence.pulse_transfer)
     dtheta = 360.0 / geo.rays
     n_lags = max(2, lag_count(dtheta, 9.0))
-    model = cfg.turbulence.model
     options = {"height_range_m": table_height_range(geo.heights_m), "swept": geo.swept}
+    return probe, geo.phi_deg, dtheta, n_lags, cfg.turbulence.model, options
+
+
+def shipped_tables(geo: Geometry) -> list[str]:
+    """The tables of ``geo`` that ship in ``cwproc/atables/`` (none, for a fair timing)."""
+    from cwproc.physics import atable
+
+    probe, phi, dtheta, n_lags, model, options = _request(geo)
+    found = []
+    for name in dict.fromkeys(["inertial", model]):
+        params = atable.table_parameters(
+            probe, phi_deg=phi, delta_theta_deg=dtheta, n_lags=n_lags, model=name, **options
+        )
+        path = atable.shipped_path(atable.table_key(params))
+        if path.exists():
+            found.append(path.name)
+    return found
+
+
+def time_geometry(geo: Geometry) -> tuple[float, float, list[str]]:
+    """Wall and CPU seconds of the tables a retrieve of ``geo`` requests (current cache).
+
+    The CPU seconds (this process, all its threads) are the figure to compare on a
+    shared machine: the wall clock also counts the other users' jobs.
+    """
+    from cwproc.physics.removed_share import mean_removed_share
+    from cwproc.stages.epsilon.atable_fit import a_tables
+
+    probe, phi, dtheta, n_lags, model, options = _request(geo)
     parts = []
     started, cpu = time.perf_counter(), time.process_time()
     t0 = time.perf_counter()
-    a_tables(probe, geo.phi_deg, dtheta, n_lags, model, options)
+    a_tables(probe, phi, dtheta, n_lags, model, options)
     parts.append(f"A-tables (inertial + {model}, {n_lags} lags) {time.perf_counter() - t0:.1f} s")
     if model != "inertial":
         t0 = time.perf_counter()
@@ -130,6 +155,9 @@ def main() -> None:
     parser.add_argument("--only", type=int, nargs="+", help="indices of the geometries")
     args = parser.parse_args()
     chosen = args.only if args.only else range(len(GEOMETRIES))
+    for k in chosen:
+        if shipped := shipped_tables(GEOMETRIES[k]):
+            raise SystemExit(f"{GEOMETRIES[k].name}: shipped ({shipped}), not a new site")
     with tempfile.TemporaryDirectory(prefix="cwproc-bench-first-run-") as cache:
         os.environ["XDG_CACHE_HOME"] = cache  # cold: nothing cached, nothing shipped found
         for k in chosen:

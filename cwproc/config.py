@@ -227,6 +227,59 @@ class StareConfig:
 
 
 @dataclass(frozen=True)
+class DopplerLidarConfig:
+    """The Level-1 stare product ``<unit>_doppler_lidar.nc`` (stage ``doppler_lidar``).
+
+    Attenuated backscatter beta from the background-corrected SNR with the telescope
+    focus function (Pentikäinen et al. (2020)), the depolarisation ratio from paired
+    co/cross-polarised rays (Vakkari et al. (2021)), and a screening flag on intensity
+    and velocity texture together (docs/doppler-lidar.md). Off by default: a day of
+    1.3-s rays is a large file; ``cwproc retrieve --l1`` or ``--layout cloudnet`` turns
+    it on.
+    """
+
+    enabled: bool = False
+    #: folder of the cross-polarised .hpl files (same names as the co files, with their own
+    #: Background_*.txt beside them, as Cloudnet sites upload them tagged "cross"); "" = none
+    cross_folder: str = ""
+    #: lidar-equation constants (Pentikäinen et al. (2020), uncalibrated Stream Line values)
+    wavelength_m: float = 1.565e-6
+    receiver_bandwidth_hz: float = 50e6
+    pulse_energy_j: float = 1e-5
+    effective_diameter_m: float = 25e-3
+    quantum_efficiency: float = 1.0
+    #: polariser bleed-through b of delta = beta_x / beta_co - b
+    bleed_through: float = 0.0
+    #: gates nearer than this (m) are noise (three pulse lengths)
+    near_range_m: float = 90.0
+    #: box of the screening statistics: rays x gates
+    box_rays: int = 5
+    box_gates: int = 3
+    #: box-mean SNR above this many noise standard errors is signal
+    snr_sigma: float = 5.0
+    #: velocity texture (box median absolute deviation, m s-1) of a coherent signal
+    texture_max_m_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        _positive(
+            self,
+            "wavelength_m",
+            "receiver_bandwidth_hz",
+            "pulse_energy_j",
+            "effective_diameter_m",
+            "quantum_efficiency",
+            "snr_sigma",
+            "texture_max_m_s",
+            "box_rays",
+            "box_gates",
+        )
+        if not (math.isfinite(self.near_range_m) and self.near_range_m >= 0):
+            raise ValueError("near_range_m: must be a finite number >= 0")
+        if not (math.isfinite(self.bleed_through) and 0 <= self.bleed_through < 1):
+            raise ValueError("bleed_through: must be in [0, 1)")
+
+
+@dataclass(frozen=True)
 class SonicConfig:
     """Structure-function typing of sonic data (stage ``sonic_sf``), Gladkikh et al. (2014).
 
@@ -320,6 +373,12 @@ class OutputConfig:
     instrument_serial_number: str = ""
     #: zlib compression level of the NetCDF variables (0 = none)
     compression_level: int = 4
+    #: "cwproc": cwproc's products only; "cloudnet": also the ACTRIS Cloudnet files
+    #: <unit>_doppler-lidar.nc and <unit>_doppler-lidar-wind.nc in the variable names
+    #: cloudnetpy reads (``v``, ``beta``, ``uwind``, ...; docs/cloudnet.md)
+    layout: Literal["cwproc", "cloudnet"] = "cwproc"
+    #: write <product>.qc.json beside every product (coverage, flags, CF/ACDD, inputs refused)
+    qc_report: bool = False
 
     def __post_init__(self) -> None:
         if not 0 <= self.compression_level <= 9:
@@ -412,6 +471,7 @@ class Config:
     vad: VADConfig = field(default_factory=VADConfig)
     turbulence: TurbulenceConfig = field(default_factory=TurbulenceConfig)
     stare: StareConfig = field(default_factory=StareConfig)
+    doppler_lidar: DopplerLidarConfig = field(default_factory=DopplerLidarConfig)
     sonic: SonicConfig = field(default_factory=SonicConfig)
     zephir: ZephirConfig = field(default_factory=ZephirConfig)
     output: OutputConfig = field(default_factory=OutputConfig)

@@ -54,3 +54,25 @@ VAD_WIND = (
 EFRON_STEIN_1981 = (
     "Efron, B. and Stein, C. (1981), The jackknife estimate of variance, Ann. Statist. 9, 586-596"
 )
+
+PENTIKAINEN_2020 = (
+    "Pentikäinen, P., O'Connor, E. J., Manninen, A. J. and Ortiz-Amezcua, P. (2020), "
+    "Methodology for deriving the telescope focus function and its uncertainty for a "
+    "heterodyne pulsed Doppler lidar, Atmos. Meas. Tech. 13, 2849-2863, "
+    "doi:10.5194/amt-13-2849-2020"
+)
+VAKKARI_2021 = (
+    "Vakkari, V., Baars, H., Bohlmann, S., Bühl, J., Komppula, M., Mamouri, R.-E. and "
+    "O'Connor, E. J. (2021), Aerosol particle depolarization ratio at 1565 nm measured "
+    "with a Halo Doppler lidar, Atmos. Chem. Phys. 21, 5807-5820, doi:10.5194/acp-21-5807-2021"
+)
+MANNINEN_2016 = (
+    "Manninen, A. J., O'Connor, E. J., Vakkari, V. and Petäjä, T. (2016), A generalised "
+    "background correction algorithm for a Halo Doppler lidar and its application to data "
+    "from Finland, Atmos. Meas. Tech. 9, 817-827, doi:10.5194/amt-9-817-2016"
+)
+#: the ACTRIS Cloudnet Doppler lidar processing (its noise mask on intensity and velocity)
+DOPPY = (
+    "doppy, the ACTRIS Cloudnet Doppler lidar processing, version 0.5 "
+    "(https://github.com/actris-cloudnet/doppy), product/stare.py noise mask"
+)

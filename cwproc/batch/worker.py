@@ -256,6 +256,8 @@ def _process_unit_task(task: UnitTask, outcome: Callable[..., UnitOutcome]) -> U
             if result.products
             else []
         )
+        if written and config.output.qc_report:
+            result.notes.extend(quality_reports(written, result.failures, result.notes))
     except (InputFileError, ProductError) as exc:
         return outcome(error=str(exc))  # already names the file
     except CwprocError as exc:
@@ -276,6 +278,20 @@ def _process_unit_task(task: UnitTask, outcome: Callable[..., UnitOutcome]) -> U
         failures=failures,
         dropped=dropped,
     )
+
+
+def quality_reports(
+    written: Sequence[Path], failures: Sequence[str], notes: Sequence[str]
+) -> list[str]:
+    """Write ``<product>.qc.json`` beside the products (``[output] qc_report``); a report
+    that cannot be written is a note, not a failure of the unit whose products are."""
+    from cwproc.pipeline.quality import write_quality_reports
+
+    try:
+        write_quality_reports(written, failures, notes)
+    except (OSError, CwprocError) as exc:
+        return [f"quality report not written: {exc}"]
+    return []
 
 
 def dropped_inputs(task: UnitTask, unit: ProductUnit) -> list[tuple[str, str]]:

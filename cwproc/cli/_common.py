@@ -47,6 +47,35 @@ def load_config_or_fail(value: str | None) -> Config:
     return cfg
 
 
+def with_product_options(
+    cfg: Config, *, l1: bool, cross: str | None, layout: str | None, qc_report: bool
+) -> Config:
+    """``cfg`` with the product options of the command line (``--l1``, ``--cross``,
+    ``--layout``, ``--qc-report``) over its ``[doppler_lidar]`` and ``[output]`` tables.
+
+    ``--cross`` and ``--layout cloudnet`` need the L1 product and turn it on. A cross
+    folder that is not a folder is a usage error (exit 2) naming it.
+    """
+    if cross is not None and not Path(cross).is_dir():
+        raise click.UsageError(f"--cross {cross}: not a folder")
+    dl: dict[str, object] = {}
+    out: dict[str, object] = {}
+    if l1 or cross is not None or layout == "cloudnet":
+        dl["enabled"] = True
+    if cross is not None:
+        dl["cross_folder"] = str(cross)
+    if layout is not None:
+        out["layout"] = layout
+    if qc_report:
+        out["qc_report"] = True
+    if not dl and not out:
+        return cfg
+    try:
+        return cfg.replace(doppler_lidar=dl, output=out)
+    except CwprocError as exc:
+        raise click.UsageError(str(exc)) from None
+
+
 def report_failure(message: str) -> None:
     """Print one failure line on stderr (``error: <file>:<line>: <problem>``)."""
     click.echo(f"error: {message}", err=True)

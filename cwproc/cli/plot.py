@@ -23,6 +23,7 @@ KIND_CHOICES = [
     "structure",
     "vad",
     "stare",
+    "doppler-lidar",
     "sf-types",
     "sf-window",
     "montecarlo",
@@ -85,6 +86,8 @@ def plot(source, out, kind, time_index, height, scan, window, component, eps_ran
       vad         one scan: radial velocity against azimuth, fit and residuals
       stare       vertical stares: time-height of w (every ray), sigma_w^2 and
                   eps_stare (log scales; profiles for a product of one window)
+      doppler-lidar  the L1 product (retrieve --l1): beta (fixed log range
+                  1e-7 .. 1e-4 m-1 sr-1), depolarisation (0 .. 0.5), velocity
       sf-types    sonic: occurrence of each structure-function type per component
       sf-window   sonic: one window's normalised structure function with fit and r_max
       montecarlo  simulate montecarlo: relative errors against N per height
@@ -144,8 +147,15 @@ def _draw(source: str, out: str, kind: str | None, cfg, steps, given: dict[str, 
             ds = read_product(source)
         except (OSError, ValueError) as exc:
             raise CwprocError(f"{source}: not a readable NetCDF product ({exc})") from None
+        from cwproc import plots_l1  # registers the kind "doppler-lidar"
+
         if kind is None:
-            kind = "stare" if plots.is_stare_product(ds) else plots.default_kind(ds)
+            if plots.is_stare_product(ds):
+                kind = "stare"
+            elif plots_l1.is_l1_product(ds):
+                kind = "doppler-lidar"
+            else:
+                kind = plots.default_kind(ds)
         _check_applicable(
             kind,
             time_index=time_index,

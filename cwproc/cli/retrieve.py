@@ -15,11 +15,48 @@ from cwproc.cli._common import (
     replaced_note,
     report_failure,
     run_outcome,
+    with_product_options,
 )
 
 
 @product_command("retrieve", "Directory for the NetCDF products (created if missing).")
-def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bool) -> None:
+@click.option(
+    "--l1",
+    is_flag=True,
+    help="Also write the Level-1 stare product <unit>_doppler_lidar.nc (beta, "
+    "depolarisation, screened velocity; [doppler_lidar] enabled).",
+)
+@click.option(
+    "--cross",
+    "cross",
+    type=click.Path(file_okay=False),
+    default=None,
+    help="Folder of the cross-polarised .hpl files (and their Background_*.txt) for the "
+    "depolarisation ratio; implies --l1.",
+)
+@click.option(
+    "--layout",
+    type=click.Choice(["cwproc", "cloudnet"]),
+    default=None,
+    help="cloudnet: also write <unit>_doppler-lidar.nc and <unit>_doppler-lidar-wind.nc "
+    "in the variable names cloudnetpy reads (implies --l1). Default: [output] layout.",
+)
+@click.option(
+    "--qc-report",
+    is_flag=True,
+    help="Write <product>.qc.json beside every product: coverage, flagged fractions by "
+    "bit, CF/ACDD check, inputs refused.",
+)
+def retrieve(
+    inputs: tuple[str, ...],
+    outdir: str,
+    config: str | None,
+    quiet: bool,
+    l1: bool,
+    cross: str | None,
+    layout: str | None,
+    qc_report: bool,
+) -> None:
     """Wind profile and turbulence products from lidar or sonic FILES (or directories).
 
     \b
@@ -35,6 +72,7 @@ def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bo
     is a failure. The configuration and the output directory are checked first.
     """
     cfg = load_config_or_fail(config)  # before the heavy imports: a typo is told at once
+    cfg = with_product_options(cfg, l1=l1, cross=cross, layout=layout, qc_report=qc_report)
     output_dir_or_exit(outdir)
     from cwproc import progress
     from cwproc.pipeline import retrieve_files
@@ -51,6 +89,8 @@ def retrieve(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bo
         if report.replaced:
             click.echo(f"note: {replaced_note(report.replaced)}", err=True)
         for path in report.written:
+            click.echo(f"wrote {path}")
+        for path in report.quality_reports:
             click.echo(f"wrote {path}")
     summary, status = run_outcome(found, len(report.written), report.failures)
     if not quiet:

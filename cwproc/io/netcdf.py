@@ -53,7 +53,8 @@ def encoding_for(ds: xr.Dataset, compression_level: int = 4) -> dict[str, dict[s
     for name, var in ds.variables.items():
         e: dict[str, object] = {}
         if np.issubdtype(var.dtype, np.datetime64):
-            e["units"] = "seconds since 1970-01-01 00:00:00"
+            # a product may ask for its own time unit (Cloudnet: hours since midnight)
+            e["units"] = var.encoding.get("units", "seconds since 1970-01-01 00:00:00")
             e["calendar"] = "standard"
             e["dtype"] = "float64"
             if name in ds.coords:

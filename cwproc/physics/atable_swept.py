@@ -46,6 +46,14 @@ from numpy.polynomial import legendre
 
 from cwproc.physics import afunctions, two_beam
 
+try:  # optional C extension (setup.py): the splines' sums, the same numbers bit for bit
+    from cwproc.physics import _pieces
+except ImportError:  # pragma: no cover - depends on the build
+    _pieces = None
+
+#: whether the splines use the C extension when it is built (tests compare both)
+_use_extension = True
+
 #: Gauss-Legendre nodes of the sweep kernel per unit of fractional lag
 SWEEP_NODES = 6
 #: angle nodes (0 to 90 deg from across the beam) of :func:`plane_curves`
@@ -71,19 +79,9 @@ class PlaneCurves:
     def __call__(self, s_par: np.ndarray, s_perp: np.ndarray) -> np.ndarray:
         """``A`` (m^(2/3)) at separations ``s_par`` along and ``s_perp`` across the beam."""
         s_par, s_perp = np.abs(s_par), np.abs(s_perp)
-        beta = _angle_coordinate(np.arctan2(s_par, s_perp))
-        spline = self.pieces()
+        angle = np.arctan2(s_par, s_perp)
         ls = 0.5 * np.log(np.maximum(s_par * s_par + s_perp * s_perp, 1e-300))
-        lo = self.log_s[0]
-        val = spline(np.clip(ls, lo, self.log_s[-1]), beta)
-        below = ls < lo
-        if below.any():
-            beta_b = beta[below]
-            first = spline(np.full(beta_b.shape, lo), beta_b)
-            second = spline(np.full(beta_b.shape, self.log_s[1]), beta_b)
-            slope = (second - first) / (self.log_s[1] - lo)
-            val[below] = first + slope * (ls[below] - lo)
-        out = np.exp(val)
+        out = np.exp(self.pieces().plane(ls, angle, self.log_s[1]))
         zero = (s_par == 0) & (s_perp == 0)
         if zero.any():
             out[zero] = 0.0
@@ -100,13 +98,15 @@ class PlaneCurves:
 
 @dataclass(frozen=True)
 class BicubicPieces:
-    """A bicubic spline as polynomials per cell, evaluated at scattered points with numpy.
+    """A bicubic spline as polynomials per cell, evaluated at scattered points.
 
     The interpolating spline of :class:`scipy.interpolate.RectBivariateSpline` (``s = 0``,
     not-a-knot ends) in the local power basis: ``sum_pq c[i, j, p, q] du^p dv^q`` on cell
     ``(i, j)`` between the distinct knots ``u[i]``, ``v[j]``. Equal to its ``ev`` within
-    rounding (1e-13 relative on ``log A``, tested) and about 5x faster on the 3e5 points
-    of a height of swept pairs (``ev`` calls FITPACK point by point).
+    rounding (1e-13 relative on ``log A``, tested); in numpy about 5x faster on the 3e5
+    points of a height of swept pairs (``ev`` calls FITPACK point by point), by the
+    optional C extension ``cwproc.physics._pieces`` another 5x (the same numbers, bit
+    for bit).
     """
 
     u: np.ndarray
@@ -132,7 +132,60 @@ class BicubicPieces:
         return cls(u, v, np.ascontiguousarray(coef.reshape(4, 4, -1)), x, y)
 
     def __call__(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """The spline at the points ``(x, y)`` (any shape, inside the grid)."""
+        """The spline at the points ``(x, y)`` (any shape, inside the grid).
+
+        By the C extension ``cwproc.physics._pieces`` when it is built (same operations
+        in the same order: the same numbers, bit for bit, tested), else :meth:`numpy_at`.
+        """
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+        if _pieces is None or not _use_extension:
+            return self.numpy_at(x, y)
+        out = np.empty(x.shape)
+        x, y = np.ascontiguousarray(x), np.ascontiguousarray(y)
+        _pieces.bicubic(*self._compiled(), x, y, out)
+        return out
+
+    def plane(self, log_s: np.ndarray, angle: np.ndarray, log_s1: float) -> np.ndarray:
+        """``log A`` of :class:`PlaneCurves` at ``log s`` and ``arctan2(s_par, s_perp)``.
+
+        The spline at ``(clip(log_s), c)`` (``c`` of :func:`_angle_coordinate`) and below
+        the first grid node the straight line through its values there and at ``log_s1``
+        (the second node): a power law in ``s``. By the C extension when built (bit for
+        bit the numpy path, tested).
+        """
+        log_s, angle = np.broadcast_arrays(
+            np.asarray(log_s, dtype=float), np.asarray(angle, dtype=float)
+        )
+        lo, hi = float(self.grid_x[0]), float(self.grid_x[-1])
+        if _pieces is None or not _use_extension:
+            beta = _angle_coordinate(angle)
+            val = self.numpy_at(np.clip(log_s, lo, hi), beta)
+            below = log_s < lo
+            if below.any():
+                first = val[below]
+                second = self.numpy_at(np.full(first.shape, log_s1), beta[below])
+                slope = (second - first) / (log_s1 - lo)
+                val[below] = first + slope * (log_s[below] - lo)
+            return val
+        out = np.empty(log_s.shape)
+        log_s, angle = np.ascontiguousarray(log_s), np.ascontiguousarray(angle)
+        _pieces.plane(*self._compiled(), (lo, hi, float(log_s1)), log_s, angle, out)
+        return out
+
+    def _compiled(self) -> tuple:
+        """The arguments of the C kernels that describe the spline (kept)."""
+        cached = self.__dict__.get("_args")
+        if cached is None:
+            cells = np.ascontiguousarray(self.coef.reshape(16, -1).T)  # (cells, p * 4 + q)
+            grid = tuple(float(v) for v in (*_grid_scale(self.grid_x), *_grid_scale(self.grid_y)))
+            lookup_x = np.ascontiguousarray(_lookup(self.u, self.grid_x), dtype=np.intp)
+            lookup_y = np.ascontiguousarray(_lookup(self.v, self.grid_y), dtype=np.intp)
+            cached = (cells, self.u, self.v, lookup_x, lookup_y, grid)
+            object.__setattr__(self, "_args", cached)
+        return cached
+
+    def numpy_at(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """The spline at the points ``(x, y)`` in numpy (the reference of the C kernel)."""
         i, j = _cell(self.u, self.grid_x, x), _cell(self.v, self.grid_y, y)
         du, dv = x - self.u[i], y - self.v[j]
         cell = i * (self.v.size - 1) + j
@@ -145,6 +198,16 @@ class BicubicPieces:
         return out
 
 
+def _grid_scale(grid: np.ndarray) -> tuple[float, float]:
+    """First node and ``(nodes - 1) / (last - first)`` of a uniform grid."""
+    return grid[0], (grid.size - 1) / (grid[-1] - grid[0])
+
+
+def _lookup(knots: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """The knot interval of each interval of the uniform ``grid`` (the knots are nodes)."""
+    return np.clip(np.searchsorted(knots, grid[:-1], side="right") - 1, 0, knots.size - 2)
+
+
 def _cell(knots: np.ndarray, grid: np.ndarray, at: np.ndarray) -> np.ndarray:
     """Index of the knot interval of ``at`` (clipped to the ends) via the uniform ``grid``.
 
@@ -152,10 +215,10 @@ def _cell(knots: np.ndarray, grid: np.ndarray, at: np.ndarray) -> np.ndarray:
     at a knot, rounding may pick the neighbouring interval, whose polynomial agrees
     there to rounding (the spline is C2).
     """
-    k = np.floor((at - grid[0]) * ((grid.size - 1) / (grid[-1] - grid[0])))
+    first, scale = _grid_scale(grid)
+    k = np.floor((at - first) * scale)
     k = np.clip(k, 0, grid.size - 2).astype(np.intp)
-    lookup = np.clip(np.searchsorted(knots, grid[:-1], side="right") - 1, 0, knots.size - 2)
-    return lookup.take(k)
+    return _lookup(knots, grid).take(k)
 
 
 def _power_basis(t: np.ndarray, interpolate: Any) -> tuple[np.ndarray, np.ndarray]:

@@ -38,6 +38,14 @@ from cwproc.physics.afunctions import (
 )
 from cwproc.physics.transfer import Probe
 
+try:  # optional C extension (setup.py): the splines' sums, the same numbers bit for bit
+    from cwproc.physics import _pieces
+except ImportError:  # pragma: no cover - depends on the build
+    _pieces = None
+
+#: whether :class:`CurveStack` uses the C extension when it is built (tests compare both)
+_use_extension = True
+
 
 @dataclass(frozen=True)
 class _Outer:
@@ -187,9 +195,14 @@ def shared_plane(
 class CurveStack:
     """``A_perp`` and ``A_par`` of several spectra (one per ``L_V``) on the same lags.
 
-    The stacked form of :class:`~cwproc.physics.afunctions.ACurves` (same cubic log-log
-    spline and power-law continuation): ``perp(rho)`` and ``par(rho)`` return
-    ``(n_curves, *rho.shape)``, one spline evaluation for all curves.
+    The stacked form of :class:`~cwproc.physics.afunctions.ACurves` (the same cubic
+    log-log spline, :class:`scipy.interpolate.CubicSpline`, and power-law continuation):
+    ``perp(rho)`` and ``par(rho)`` return ``(n_curves, *rho.shape)``. The splines are
+    kept as polynomials per cell of the uniform ``log rho`` grid and summed by Horner's
+    rule, the cell found by arithmetic on the grid step, in the optional C extension
+    ``cwproc.physics._pieces`` when it is built (the same operations in the same order:
+    the same numbers, bit for bit, tested), else in numpy (:meth:`numpy_log`). Equal to
+    ``CubicSpline.__call__`` within rounding (2e-15 relative, tested).
     """
 
     log_rho: np.ndarray
@@ -205,30 +218,81 @@ class CurveStack:
             np.stack([c.log_par for c in curves]),
         )
 
-    def _eval(self, logv: np.ndarray, rho: np.ndarray) -> np.ndarray:
-        from scipy import interpolate  # here: with scipy.optimize, 0.1 s of imports
+    @property
+    def n_curves(self) -> int:
+        """Number of curves (``L_V`` nodes) in the stack."""
+        return self.log_perp.shape[0]
 
+    def one(self, k: int) -> CurveStack:
+        """The stack of curve ``k`` alone (its spline pieces: those of this stack)."""
+        single = CurveStack(self.log_rho, self.log_perp[k : k + 1], self.log_par[k : k + 1])
+        for name in ("perp", "par"):
+            coef, ends = self._pieces(name)
+            object.__setattr__(single, f"_{name}", (coef[k : k + 1], ends[k : k + 1]))
+        return single
+
+    def _pieces(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """``(coef (n_curves, cells, 4), ends (n_curves, 4))`` of ``log_perp`` or ``log_par``.
+
+        ``coef``: powers 3, 2, 1, 0 of the offset from the cell's left knot; ``ends``:
+        value and slope of the straight lines below the first and beyond the last knot.
+        """
+        cached = self.__dict__.get(f"_{name}")
+        if cached is None:
+            from scipy import interpolate  # here: with scipy.optimize, 0.1 s of imports
+
+            x = self.log_rho
+            if x.size < 3 or not np.allclose(np.diff(x), x[1] - x[0], rtol=1e-9, atol=0):
+                raise ValueError("CurveStack needs at least three uniform log-lags")
+            logv = getattr(self, f"log_{name}")
+            spline = interpolate.CubicSpline(x, logv.T)
+            coef = np.ascontiguousarray(np.transpose(spline.c, (2, 1, 0)))
+            s_lo = (logv[:, 1] - logv[:, 0]) / (x[1] - x[0])
+            s_hi = (logv[:, -1] - logv[:, -2]) / (x[-1] - x[-2])
+            ends = np.ascontiguousarray(np.stack([logv[:, 0], s_lo, logv[:, -1], s_hi], axis=1))
+            cached = (coef, ends)
+            object.__setattr__(self, f"_{name}", cached)
+        return cached
+
+    def numpy_log(self, name: str, log_rho: np.ndarray) -> np.ndarray:
+        """``log A`` of every curve at ``log_rho`` in numpy (the reference of the C kernel)."""
+        coef, ends = self._pieces(name)
+        x = self.log_rho
+        first, last = x[0], x[-1]
+        cell = np.floor((log_rho - first) * ((x.size - 1) / (last - first)))
+        cell = np.clip(cell, 0, x.size - 2).astype(np.intp)
+        d = log_rho - x.take(cell)
+        c = [coef[:, :, p].take(cell, axis=1) for p in range(4)]  # (n_curves, *shape)
+        val = ((c[0] * d + c[1]) * d + c[2]) * d + c[3]
+        extra = (slice(None),) + (None,) * log_rho.ndim
+        e = [ends[:, p][extra] for p in range(4)]
+        val = np.where(log_rho < first, e[0] + e[1] * (log_rho - first), val)
+        return np.where(log_rho > last, e[2] + e[3] * (log_rho - last), val)
+
+    def _eval(self, name: str, rho: np.ndarray, log_rho: np.ndarray | None) -> np.ndarray:
         rho = np.asarray(rho, dtype=float)
-        spline = interpolate.CubicSpline(self.log_rho, logv.T)
-        lr = np.log(np.maximum(rho, 1e-300))
-        lo, hi = self.log_rho[0], self.log_rho[-1]
-        val = np.moveaxis(spline(np.clip(lr, lo, hi)), -1, 0)
-        extra = (slice(None),) + (None,) * rho.ndim
-        s_lo = ((logv[:, 1] - logv[:, 0]) / (self.log_rho[1] - lo))[extra]
-        s_hi = ((logv[:, -1] - logv[:, -2]) / (hi - self.log_rho[-2]))[extra]
-        if lr.size and lr.min() < lo:  # (the power laws only where needed: same values)
-            val = np.where(lr < lo, logv[:, 0][extra] + s_lo * (lr - lo), val)
-        if lr.size and lr.max() > hi:
-            val = np.where(lr > hi, logv[:, -1][extra] + s_hi * (lr - hi), val)
+        lr = np.log(np.maximum(rho, 1e-300)) if log_rho is None else log_rho
+        if _pieces is None or not _use_extension:
+            val = self.numpy_log(name, lr)
+        else:
+            coef, ends = self._pieces(name)
+            x = self.log_rho
+            scale = (x.size - 1) / (x[-1] - x[0])
+            val = np.empty((coef.shape[0], *lr.shape))
+            lr_c = np.ascontiguousarray(lr)
+            _pieces.cubic_stack(coef, x, float(scale), coef.shape[0], ends, lr_c, val)
         out = np.exp(val)
         if np.any(rho <= 0):
             out = np.where(rho > 0, out, 0.0)
         return out
 
-    def perp(self, rho: np.ndarray) -> np.ndarray:
-        """``A_perp(rho)`` (m^(2/3)) of every curve, ``(n_curves, *rho.shape)``."""
-        return self._eval(self.log_perp, rho)
+    def perp(self, rho: np.ndarray, log_rho: np.ndarray | None = None) -> np.ndarray:
+        """``A_perp(rho)`` (m^(2/3)) of every curve, ``(n_curves, *rho.shape)``.
 
-    def par(self, rho: np.ndarray) -> np.ndarray:
+        ``log_rho``: ``log(max(rho, 1e-300))`` when already computed.
+        """
+        return self._eval("perp", rho, log_rho)
+
+    def par(self, rho: np.ndarray, log_rho: np.ndarray | None = None) -> np.ndarray:
         """``A_par(rho)`` (m^(2/3)) of every curve, ``(n_curves, *rho.shape)``."""
-        return self._eval(self.log_par, rho)
+        return self._eval("par", rho, log_rho)

@@ -36,6 +36,7 @@ from cwproc.pipeline.units import ProductUnit
 
 if TYPE_CHECKING:
     from cwproc.physics.transfer import Probe
+    from cwproc.stages.doppler_lidar import DopplerLidarOptions
 
 # The stages are imported by the functions that run them: a command imports the chain
 # of its own kind of data only (the lidar chain's scipy.integrate, optimize and special
@@ -273,6 +274,7 @@ def process_scan_day(
     config: Config,
     notes: list[str] | None = None,
     kept: dict[str, xr.Dataset] | None = None,
+    cross: xr.Dataset | None = None,
 ) -> dict[str, xr.Dataset]:
     """Products of the scans of one instrument-day: wind/turbulence and stare.
 
@@ -280,7 +282,9 @@ def process_scan_day(
     eps of O'Connor et al. (2010), the wind speed from this day's VADs); the other rays
     to :func:`process_scans` (which fills ``kept``). A day of stares only gives the
     stare product (eps NaN, flag bit 1, and a note); a day without stares gives what it
-    gave before.
+    gave before. With ``[doppler_lidar] enabled`` the stares also give the L1 product
+    ``doppler_lidar`` (beta, and the depolarisation ratio with the ``cross``-polarised
+    stare rays of the day when given).
     """
     from cwproc.stages.stare import split_stares
 
@@ -298,7 +302,46 @@ def process_scan_day(
         return process_scans(scans, config, notes, kept)
     if stares is not None and config.stare.enabled:
         products["stare"] = stare_products(stares, products.get("wind"), config, notes)
+    if stares is not None and config.doppler_lidar.enabled:
+        products["doppler_lidar"] = doppler_lidar_products(stares, cross, config, notes)
     return products
+
+
+def doppler_lidar_options(config: Config) -> DopplerLidarOptions:
+    """The options of the L1 stage from the ``[doppler_lidar]`` and ``[stare]`` sections."""
+    from cwproc.physics.backscatter import LidarConstants
+    from cwproc.stages.doppler_lidar import DopplerLidarOptions
+
+    c = config.doppler_lidar
+    return DopplerLidarOptions(
+        constants=LidarConstants(
+            wavelength_m=c.wavelength_m,
+            receiver_bandwidth_hz=c.receiver_bandwidth_hz,
+            pulse_energy_j=c.pulse_energy_j,
+            effective_diameter_m=c.effective_diameter_m,
+            quantum_efficiency=c.quantum_efficiency,
+        ),
+        near_range_m=c.near_range_m,
+        box_rays=c.box_rays,
+        box_gates=c.box_gates,
+        snr_sigma=c.snr_sigma,
+        texture_max_m_s=c.texture_max_m_s,
+        bleed_through=c.bleed_through,
+        prf_hz=config.stare.prf_hz,
+    )
+
+
+def doppler_lidar_products(
+    stares: xr.Dataset, cross: xr.Dataset | None, config: Config, notes: list[str] | None
+) -> xr.Dataset:
+    """The L1 product of the vertical stares (and of their cross-polarised rays)."""
+    from cwproc.stages.doppler_lidar import doppler_lidar_product
+    from cwproc.stages.stare import split_stares
+
+    cross_stares = split_stares(cross)[0] if cross is not None else None
+    if cross is not None and cross_stares is None and notes is not None:
+        notes.append("depolarisation not computed: the cross-polarised files hold no stare rays")
+    return doppler_lidar_product(stares, cross_stares, doppler_lidar_options(config), notes)
 
 
 def stare_products(

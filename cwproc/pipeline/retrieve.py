@@ -46,6 +46,8 @@ class RunReport:
     notes: list[str] = field(default_factory=list)
     #: products of ``written`` that replaced a file of the same name (an earlier run's)
     replaced: list[Path] = field(default_factory=list)
+    #: quality reports written beside the products (``[output] qc_report``)
+    quality_reports: list[Path] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -56,6 +58,7 @@ class RunReport:
         self.failures.extend(other.failures)
         self.notes.extend(other.notes)
         self.replaced.extend(other.replaced)
+        self.quality_reports.extend(other.quality_reports)
 
 
 def retrieve_files(
@@ -106,6 +109,13 @@ def retrieve_files(
                 written = write_unit_products(unit, result.products, outdir, config)
                 report.written.extend(written)
                 report.replaced.extend(p for p, old in zip(written, existing, strict=True) if old)
+                if config.output.qc_report:
+                    from cwproc.pipeline.quality import write_quality_reports
+
+                    refused = [*found_failures_of(found.failures, unit), *result.failures]
+                    report.quality_reports.extend(
+                        write_quality_reports(written, refused, result.notes)
+                    )
         except CwprocError as exc:
             report.failures.append(f"{unit_label(unit)}: {exc}")
         except Exception as exc:  # a bug in cwproc: report it, keep processing the rest
@@ -117,6 +127,13 @@ def retrieve_files(
         for item in unit.inputs:  # processed: its data may go
             item.dataset = None
     return report
+
+
+def found_failures_of(failures: Sequence[str], unit: ProductUnit) -> list[str]:
+    """The read failures of the run that name a folder of ``unit``'s inputs (the files
+    refused there: unreadable, of another instrument), for its quality reports."""
+    folders = {os.fspath(Path(i.path).parent) for i in unit.inputs}
+    return [f for f in failures if any(f.startswith(d + os.sep) for d in folders)]
 
 
 #: input data ``retrieve`` keeps in memory between reading and processing (bytes);

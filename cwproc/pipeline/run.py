@@ -112,6 +112,8 @@ def run_unit(unit: ProductUnit, config: Config, *, keep_screened: bool = False) 
     kept: dict[str, xr.Dataset] | None = {} if keep_screened else None
     try:
         result.products = unit_products(unit, config, notes, kept=kept)
+        if config.output.layout == "cloudnet" and unit.kind == "scan":
+            result.products.update(cloudnet_layout(unit, result.products, config))
     except CwprocError as exc:
         result.failures.append(f"{names}: {exc}")
     except Exception as exc:  # a bug in cwproc: report it, the caller goes on
@@ -124,6 +126,24 @@ def run_unit(unit: ProductUnit, config: Config, *, keep_screened: bool = False) 
     if kept:
         result.screened = kept.get("screened")
     return result
+
+
+def cloudnet_layout(
+    unit: ProductUnit, products: dict[str, xr.Dataset], config: Config
+) -> dict[str, xr.Dataset]:
+    """The ACTRIS Cloudnet files of a scan unit's products (:mod:`cwproc.products.cloudnet`)."""
+    from cwproc.pipeline.units import held_or_identity
+    from cwproc.products.cloudnet import cloudnet_products
+
+    first = held_or_identity(unit.inputs[0]) if unit.inputs else None
+    source = str(first.attrs.get("instrument", "")) if first is not None else ""
+    return cloudnet_products(
+        products,
+        altitude_m=config.output.altitude_m,
+        site=config.output.site,
+        source=source or "Doppler lidar",
+        near_range_m=config.doppler_lidar.near_range_m,
+    )
 
 
 def unit_products(
@@ -151,7 +171,8 @@ def unit_products(
         # the lidar stream, here: a sonic or wind-record command does not import it
         from cwproc.pipeline.background import correct_background
         from cwproc.pipeline.stream import STREAM_CHUNK_BYTES, stream_scan_unit
-    if unit.kind == "scan" and kept is None:
+    # the L1 product keeps every stare ray and gate of the day: the day runs whole
+    if unit.kind == "scan" and kept is None and not config.doppler_lidar.enabled:
         products = stream_scan_unit(
             unit,
             config,
@@ -167,7 +188,9 @@ def unit_products(
         if notes is not None:
             notes.extend(describe_scan_inputs(unit))
         ds = correct_background(ds, unit, config, notes)
-        return process_scan_day(ds, config, notes, kept)
+        from cwproc.pipeline.cross import cross_scans
+
+        return process_scan_day(ds, config, notes, kept, cross=cross_scans(unit, config, notes))
     if unit.kind == "wind_record":
         return process_wind_record(ds, config)
     return process_sonic(ds, config)
@@ -179,6 +202,7 @@ MAIN_VARIABLES: dict[str, tuple[str, str]] = {
     "wind": ("u", "qc_flag"),
     "turbulence": ("epsilon", "turbulence_flag"),
     "stare": ("w_mean", "stare_flag"),
+    "doppler_lidar": ("snr", "doppler_lidar_flag"),
 }
 
 

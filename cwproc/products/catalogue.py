@@ -11,10 +11,13 @@ from dataclasses import dataclass
 from cwproc.references import (
     BANAKH_1999,
     GLADKIKH_2014,
+    MANNINEN_2016,
     OCONNOR_2010,
     PEARSON_2009,
+    PENTIKAINEN_2020,
     SMALIKHO_2020,
     VAD_ACCURACY,
+    VAKKARI_2021,
     WAGNER_DTU,
 )
 
@@ -41,6 +44,23 @@ _TITLES = {
         "Mean, variance and skewness of w per window, the noise variance from the SNR, and "
         "the dissipation rate from the variance of w and the VAD wind speed",
     ),
+    "doppler_lidar": (
+        "Doppler lidar Level 1: backscatter, depolarisation and velocity of vertical stares",
+        "Background-corrected SNR, attenuated backscatter with the telescope focus function, "
+        "linear depolarisation ratio from paired co- and cross-polarised rays, radial "
+        "velocity, their standard errors and a screening flag on intensity and velocity "
+        "texture",
+    ),
+    "doppler-lidar": (
+        "Doppler lidar (ACTRIS Cloudnet layout)",
+        "Attenuated backscatter, depolarisation ratio and Doppler velocity of vertical "
+        "stares in the variable names of Cloudnet's doppler-lidar files",
+    ),
+    "doppler-lidar-wind": (
+        "Doppler lidar wind (ACTRIS Cloudnet layout)",
+        "Horizontal wind from VAD fits in the variable names of Cloudnet's "
+        "doppler-lidar-wind files",
+    ),
     "sf": (
         "Structure-function types of sonic anemometer data",
         "Types (1 line, 2 parabola, 3 parabola then line in lg-lg axes) and fitted "
@@ -53,12 +73,18 @@ _KEYWORDS = {
     "turbulence": "Doppler lidar, turbulence, dissipation rate, structure function",
     "sf": "sonic anemometer, structure function, turbulence, surface layer",
     "stare": "Doppler lidar, vertical stare, vertical velocity, turbulence, dissipation rate",
+    "doppler_lidar": "Doppler lidar, attenuated backscatter, depolarisation ratio, vertical stare",
+    "doppler-lidar": "Doppler lidar, attenuated backscatter, depolarisation ratio, Cloudnet",
+    "doppler-lidar-wind": "Doppler lidar, VAD, wind profile, Cloudnet",
 }
 _REFERENCES = {
     "wind": SMALIKHO_2020 + "; " + VAD_ACCURACY,
     "turbulence": SMALIKHO_2020 + "; " + BANAKH_1999,
     "sf": GLADKIKH_2014,
     "stare": OCONNOR_2010 + "; " + PEARSON_2009,
+    "doppler_lidar": f"{PENTIKAINEN_2020}; {VAKKARI_2021}; {MANNINEN_2016}",
+    "doppler-lidar": f"{PENTIKAINEN_2020}; {VAKKARI_2021}; {MANNINEN_2016}",
+    "doppler-lidar-wind": SMALIKHO_2020 + "; " + VAD_ACCURACY,
 }
 
 _WIND_RECORD = ProductDescription(

@@ -30,10 +30,12 @@ from cwproc.io.schema import (
     VarMeta,
     attach_attrs,
 )
+from cwproc.products.metadata_l1 import BETA_STANDARD_NAME, L1_VARIABLES
 from cwproc.references import (
     BANAKH_1999,
     GLADKIKH_2014,
     OCONNOR_2010,
+    PENTIKAINEN_2020,
     SMALIKHO_2020,
     VAD_ACCURACY,
     VAD_WIND,
@@ -89,6 +91,7 @@ _PRODUCT_VARIABLES: dict[str, VarMeta] = {
     "background_time": VarMeta(
         "time of the background measurement that corrected the ray (UTC)", None, "time"
     ),
+    **L1_VARIABLES,  # the Doppler lidar L1 product and the Cloudnet layout
     # ---------------------------------------------------------------- wind product
     "u": VarMeta("eastward wind", "m s-1", "eastward_wind"),
     "v": VarMeta("northward wind", "m s-1", "northward_wind"),
@@ -558,10 +561,53 @@ PRODUCT_VARIABLES: dict[str, dict[str, VarMeta]] = {
     },
 }
 
+_ASL_HEIGHT = VarMeta(
+    "height above mean sea level",
+    "m",
+    "altitude",
+    positive="up",
+    axis="Z",
+    coverage_content_type="coordinate",
+)
+_CLOUDNET_REFERENCES = "ACTRIS Cloudnet file conventions (https://docs.cloudnet.fmi.fi)"
+#: the Cloudnet layout's files (:mod:`cwproc.products.cloudnet`): their names, not cwproc's
+PRODUCT_VARIABLES["doppler_lidar"] = {
+    "beta": replace(
+        VARIABLES["beta"], standard_name=BETA_STANDARD_NAME, references=PENTIKAINEN_2020
+    ),
+}
+PRODUCT_VARIABLES["doppler-lidar"] = {
+    "height": replace(_ASL_HEIGHT, axis=None),
+    "v": VarMeta(
+        "Doppler velocity of the gates screened as signal (positive away from the lidar)",
+        "m s-1",
+        "radial_velocity_of_scatterers_away_from_instrument",
+        comment="cwproc radial_velocity_screened",
+    ),
+    "beta": replace(VARIABLES["beta_screened"], comment="cwproc beta_screened"),
+    "depolarisation": VARIABLES["depolarisation_screened"],
+    "beta_cross": replace(VARIABLES["beta_cross"], comment="screened as beta"),
+}
+PRODUCT_VARIABLES["doppler-lidar-wind"] = {"height": _ASL_HEIGHT}
+for _table in (PRODUCT_VARIABLES["doppler-lidar"], PRODUCT_VARIABLES["doppler-lidar-wind"]):
+    for _name, _meta in list(_table.items()):
+        if _meta.references is None:
+            _table[_name] = replace(_meta, references=_CLOUDNET_REFERENCES)
+
 #: every product cwproc writes: the VAD wind, the wind of instrument wind records, the
 #: turbulence of conical scans, the vertical-stare statistics, the sonic structure-function
 #: types and the Monte-Carlo error study
-PRODUCTS: tuple[str, ...] = ("wind", "wind_record", "turbulence", "stare", "sf", "montecarlo")
+PRODUCTS: tuple[str, ...] = (
+    "wind",
+    "wind_record",
+    "turbulence",
+    "stare",
+    "doppler_lidar",
+    "doppler-lidar",
+    "doppler-lidar-wind",
+    "sf",
+    "montecarlo",
+)
 
 
 def product_table(product: str) -> dict[str, VarMeta]:

@@ -131,7 +131,7 @@ def global_attributes(
             if len(t) > 1:
                 step = np.median(np.diff(np.sort(t))) / np.timedelta64(1, "s")
                 attrs["time_coverage_resolution"] = f"PT{float(step):g}S"
-    if "height" in ds.coords and ds.sizes.get("height", 0) > 0:
+    if "height" in ds.coords and ds["height"].size > 0:
         h = np.asarray(ds["height"].values, dtype=float)
         attrs["geospatial_vertical_min"] = float(np.nanmin(h))
         attrs["geospatial_vertical_max"] = float(np.nanmax(h))
