@@ -15,7 +15,6 @@ typed keyword arguments.
 from __future__ import annotations
 
 import dataclasses
-import datetime
 import math
 import os
 import tomllib
@@ -27,6 +26,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Literal, get_args, get_origin
 
+from cwproc.dates import check_iso_dates
 from cwproc.errors import ConfigError
 from cwproc.physics.constants import ZEPHIR_Z_R_COEFFICIENT
 
@@ -79,7 +79,7 @@ class InstrumentConfig:
     latest_date: str = ""
 
     def __post_init__(self) -> None:
-        _iso_dates(self, "earliest_date", "latest_date")
+        check_iso_dates(self, "earliest_date", "latest_date")
         _positive(self, "wavelength_m", "z_r_coefficient")
         _positive(self, *(n for n in ("delta_p_m", "delta_r_m") if getattr(self, n) is not None))
         if self.beam_radius_m is not None and not self.beam_radius_m > 0:
@@ -529,25 +529,6 @@ class Config:
             The first wrong key, named with its dotted path.
         """
         return config_from_dict(dataclasses.asdict(self), source=self.source)
-
-
-def _iso_dates(obj: Any, *names: str) -> None:
-    """Each named key empty or an ISO date (yyyy-mm-dd) within 1678-01-01..2261-12-31."""
-    for name in names:
-        value = getattr(obj, name)
-        if value == "":
-            continue
-        ok = isinstance(value, str) and len(value) == 10 and value[4] == "-"
-        if ok:
-            try:
-                ok = "1678-01-01" <= datetime.date.fromisoformat(value).isoformat() <= "2261-12-31"
-            except ValueError:
-                ok = False
-        if not ok:
-            raise ValueError(
-                f"{name}: must be an ISO date yyyy-mm-dd within 1678-01-01..2261-12-31, "
-                f"got {value!r}"
-            )
 
 
 def _positive(obj: Any, *names: str) -> None:
