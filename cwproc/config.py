@@ -26,6 +26,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Literal, get_args, get_origin
 
+from cwproc.dates import check_iso_dates
 from cwproc.errors import ConfigError
 from cwproc.physics.constants import ZEPHIR_Z_R_COEFFICIENT
 
@@ -69,8 +70,17 @@ class InstrumentConfig:
     z_r_coefficient: float = ZEPHIR_Z_R_COEFFICIENT
     #: cw lidar: beam radius a0 at the telescope (m); when set, Z_R = lambda R^2/(2 pi a0^2)
     beam_radius_m: float | None = None
+    #: plausible window of the times in input files (ISO dates, UTC): a time outside is
+    #: an error naming the file and line, never a product for a bogus day (issue 34.1).
+    #: "" = 1995-01-01 (no file cwproc reads is older); set earlier for old archives
+    earliest_date: str = ""
+    #: end of that window; "" = the present plus two days (clocks a little ahead); set
+    #: a later date for simulated or re-dated files. Both within 1678-01-01..2261-12-31
+    #: (the span of the products' nanosecond times)
+    latest_date: str = ""
 
     def __post_init__(self) -> None:
+        check_iso_dates(self, "earliest_date", "latest_date")
         _positive(self, "wavelength_m", "z_r_coefficient")
         _positive(self, *(n for n in ("delta_p_m", "delta_r_m") if getattr(self, n) is not None))
         if self.beam_radius_m is not None and not self.beam_radius_m > 0:

@@ -785,16 +785,34 @@ def test_torn_journal_line_of_a_killed_run_is_ignored(tmp_path):
     assert set(load_ledger(path).units) == {"a", "b"}
 
 
-def test_a_run_leaves_a_complete_snapshot(tmp_path):
+def test_a_run_appends_its_changes_and_the_journal_never_outgrows_the_ledger(tmp_path):
+    """The end of a run no longer rewrites the snapshot (issue 34.7): a second run that
+    redoes one unit leaves ``ledger.json`` byte for byte and appends its change; the
+    ledger loads complete, and compaction keeps the journal no longer than the ledger."""
     from cwproc.batch import journal_path
+    from cwproc.batch.state import COMPACT_MIN_LINES, needs_compaction
 
     toy_archive(tmp_path / "in", n_days=3)
     out = tmp_path / "out"
     report = run_toy(tmp_path / "in", out)
     assert report.ok
     ledger_path = out / STATE_DIR / "ledger.json"
-    assert not journal_path(ledger_path).exists()
-    assert len(json.loads(ledger_path.read_text())["units"]) == len(report.processed)
+    snapshot = ledger_path.read_bytes()
+    ledger = load_ledger(ledger_path)
+    assert len(ledger.units) == len(report.processed)
+    product = Path(next(iter(ledger.units.values()))["products"][0])
+    product.unlink()  # made again by the next run
+    again = run_toy(tmp_path / "in", out)
+    assert again.ok and len(again.processed) == 1
+    assert ledger_path.read_bytes() == snapshot
+    assert journal_path(ledger_path).exists()
+    assert load_ledger(ledger_path).units.keys() == ledger.units.keys()
+    big = load_ledger(tmp_path / "big.json")
+    for i in range(3 * COMPACT_MIN_LINES):
+        big.files[f"/f{i}"] = {"size": i}
+        save_ledger(big, tmp_path / "big.json")
+        assert big.journal_lines <= max(COMPACT_MIN_LINES, big.size() / 4)
+    assert not needs_compaction(big)
 
 
 def test_two_loggers_of_one_day_are_two_units_and_same_named_records_too(tmp_path):
@@ -808,9 +826,16 @@ def test_two_loggers_of_one_day_are_two_units_and_same_named_records_too(tmp_pat
         ds = xr.Dataset(coords={"time": t}, attrs={"toa5_station": station})
         return InputFile(Path(tmp_path / folder / "TOA5_x.dat"), Format.TOA5, "0", ds)
 
-    units = group_units([sonic("6843", "a"), sonic("7777", "a"), sonic("6843", "b")])
-    assert sorted(u.key for u in units) == ["toa5_6843_20120607", "toa5_7777_20120607"]
-    assert [len(u.inputs) for u in sorted(units, key=lambda u: u.key)] == [2, 1]
+    notes: list[str] = []
+    units = group_units([sonic("6843", "a"), sonic("7777", "a"), sonic("6843", "b")], notes)
+    # one station name in two folders: two loggers (issue 34.2), kept apart and noted
+    assert sorted(u.key for u in units) == [
+        "toa5_6843-a_20120607",
+        "toa5_6843-b_20120607",
+        "toa5_7777_20120607",
+    ]
+    assert [len(u.inputs) for u in units] == [1, 1, 1]
+    assert len(notes) == 1 and "differ in folder" in notes[0]
     rec = xr.Dataset(coords={"time": t})
     records = [
         InputFile(Path(tmp_path / f / "Wind10_1.ZPH.csv"), Format.ZEPHIR_CSV, "0", rec)

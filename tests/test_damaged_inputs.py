@@ -2,11 +2,12 @@
 
 The damage is generated here (committed generators, never committed damaged files):
 cut at any byte, bytes flipped, a line duplicated or deleted, a number replaced by an
-absurd one, junk appended. Whatever the damage, reading a file
+absurd one, junk appended or inserted. Whatever the damage, reading a file
 
 - raises :class:`cwproc.errors.CwprocError` (one line naming the file) or succeeds;
 - never raises anything else (a traceback) and never says "internal error";
-- when it succeeds, gives no value outside :data:`cwproc.io.ranges.PHYSICAL_RANGES`,
+- when it succeeds, gives no value outside the physical ranges of its kind
+  (:func:`cwproc.io.ranges.ranges_for`),
   no time outside the plausible window of :mod:`cwproc.io.timecheck` and no time
   outside the undamaged file's own time span (junk after the data made products of
   1990-01-01 and other days the file never held);
@@ -31,7 +32,7 @@ from hypothesis import strategies as st
 from cwproc.cli import main
 from cwproc.errors import CwprocError
 from cwproc.io import read
-from cwproc.io.ranges import PHYSICAL_RANGES
+from cwproc.io.ranges import ranges_for
 from cwproc.io.timecheck import first_implausible
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data"
@@ -83,6 +84,8 @@ def damage(raw: bytes, kind: int, where: float, junk: bytes) -> bytes:
         end = raw.find(b"\n", at)
         line = raw[start : end + 1] if end >= 0 else raw[start:]
         return raw[:start] + line + raw[start:]
+    if kind == 6:  # bytes inserted (a TOB1 file written by two programs at once)
+        return raw[:at] + junk + raw[at:]
     if kind == 4:  # a number replaced by an absurd one
         numbers = list(NUMBER.finditer(raw))
         if not numbers:
@@ -113,8 +116,12 @@ def own_time_span(name: str) -> tuple[np.datetime64, np.datetime64]:
     return times.min(), times.max()
 
 
+#: the dataset kind of each sample (its physical ranges: :func:`ranges_for`)
+KINDS = {"hpl": "scan", "scan_netcdf": "scan", "zephir": "wind_record", "windcube": "wind_record"}
+
+
 def check_dataset(ds, name: str) -> None:
-    for var, (low, high) in PHYSICAL_RANGES.items():
+    for var, (low, high) in ranges_for(KINDS.get(name, "sonic")).items():
         if var in ds and ds[var].dtype.kind == "f":
             values = ds[var].values
             finite = values[np.isfinite(values)]
@@ -137,7 +144,7 @@ def check_dataset(ds, name: str) -> None:
     suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
 @given(
-    kind=st.integers(0, 5),
+    kind=st.integers(0, 6),
     where=st.floats(0.0, 1.0),
     junk=st.binary(min_size=1, max_size=64),
 )

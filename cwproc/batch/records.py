@@ -76,6 +76,10 @@ class FileInfo:
     error: str = ""
     #: hash of the configuration the file was classified with (reader options matter)
     config_hash: str = ""
+    #: what identifies a sonic file's logger, JSON ``{"fields": [[field, value], ...],
+    #: "span": [first, last]}`` (station, serial, program, table, folder:
+    #: ``cwproc.pipeline.sonic_identity``; its times: ``sonic_span``); "" else
+    identity: str = ""
 
 
 @dataclass(frozen=True)
@@ -90,6 +94,9 @@ class UnitTask:
     config_toml: str
     config_source: str
     outdir: str
+    #: the key its inputs group under alone (:func:`cwproc.pipeline.group_units`) when
+    #: ``key`` keeps it apart from another logger of that key; "" when the same
+    group_key: str = ""
 
 
 @dataclass(frozen=True)
@@ -144,6 +151,8 @@ class BatchReport:
     processed: list[UnitOutcome] = field(default_factory=list)
     stale_lock: str = ""
     seconds: float = 0.0
+    #: notes of the plan (loggers that share a unit key kept apart)
+    plan_notes: list[str] = field(default_factory=list)
 
     @property
     def failed(self) -> list[UnitOutcome]:
@@ -196,7 +205,7 @@ class BatchReport:
             if self.other_format
             else []
         )
-        return skipped + [line for o in self.processed for line in o.notes]
+        return skipped + self.plan_notes + [line for o in self.processed for line in o.notes]
 
 
 #: ``FileInfo.format`` of a cwproc product found among the inputs (status unrecognised)

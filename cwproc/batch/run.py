@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import datetime as _dt
+import json
 import logging
 import os
 import time
@@ -45,6 +46,7 @@ from cwproc.batch.worker import (
 )
 from cwproc.config import Config
 from cwproc.errors import CwprocError
+from cwproc.pipeline.units import distinct_keys
 
 log = logging.getLogger("cwproc.batch")
 log.addHandler(logging.NullHandler())  # a library: the application decides where logs go
@@ -100,24 +102,38 @@ def discover_files(
 
 
 def plan_units(
-    infos: Iterable[FileInfo], config: Config, outdir: str | os.PathLike
+    infos: Iterable[FileInfo],
+    config: Config,
+    outdir: str | os.PathLike,
+    notes: list[str] | None = None,
 ) -> list[tuple[UnitTask, str]]:
     """Group classified files into unit tasks, in a stable order.
 
     Returns ``(task, start)`` pairs; ``start`` is the first sample time of the unit
-    (ISO 8601, "" when unknown). Inputs within a unit are sorted by path.
+    (ISO 8601, "" when unknown). Inputs within a unit are sorted by path. Sonic files
+    that share a unit key but not their logger's identity are kept apart as
+    :func:`cwproc.pipeline.group_units` keeps them (the note in ``notes``).
     """
-    groups: dict[tuple[str, str], list[FileInfo]] = {}
+    by_key: dict[tuple[str, str], list[FileInfo]] = {}
     for info in infos:
         if info.status == "ok":
-            groups.setdefault((info.kind, info.unit), []).append(info)
+            by_key.setdefault((info.kind, info.unit), []).append(info)
+    groups: dict[tuple[str, str, str], list[FileInfo]] = {}
+    for (kind, key), members in by_key.items():
+        identities = [_identity(i)[0] for i in members]
+        keys, note = distinct_keys(key, identities, [_identity(i)[1] for i in members])
+        if note and notes is not None:
+            notes.append(note)
+        for info, identity in zip(members, identities, strict=True):
+            groups.setdefault((kind, keys.get(identity, key), key), []).append(info)
     cfg_hash = config_hash(config)
     toml = config.to_toml()
     out = []
-    for (kind, key), members in sorted(groups.items()):
+    for (kind, key, group_key), members in sorted(groups.items()):
         members = sorted(members, key=lambda i: i.path)
         task = UnitTask(
             key=key,
+            group_key="" if group_key == key else group_key,
             kind=kind,
             paths=tuple(i.path for i in members),
             sha256=tuple(i.sha256 for i in members),
@@ -129,6 +145,15 @@ def plan_units(
         starts = [i.start for i in members if i.start]
         out.append((task, min(starts) if starts else ""))
     return out
+
+
+def _identity(info: FileInfo) -> tuple[tuple[tuple[str, str], ...], tuple[str, str]]:
+    """The logger identity and time span a classification stored (empty when none)."""
+    if not info.identity:
+        return (), ("", "")
+    stored = json.loads(info.identity)
+    first, last = stored["span"]
+    return tuple((str(k), str(v)) for k, v in stored["fields"]), (str(first), str(last))
 
 
 def before_since(start: str, since: _dt.date | None) -> bool:
@@ -229,7 +254,7 @@ def run_batch(
         if forget_vanished_files(ledger) or to_classify:
             save_ledger(ledger, ledger_path)
         _sort_files(infos, report)
-        planned = plan_units(infos, config, outdir)
+        planned = plan_units(infos, config, outdir, report.plan_notes)
         todo = _units_to_do(planned, ledger, since, report)
         if on_plan is not None:
             on_plan(len(todo))
@@ -257,8 +282,7 @@ def run_batch(
             _log_outcome(task, outcome)
             if on_unit is not None:
                 on_unit(outcome)
-        if ledger.journal_lines:  # one snapshot per run: ledger.json complete between runs
-            save_ledger(ledger, ledger_path, compact=True)
+        save_ledger(ledger, ledger_path)  # the last changes; compacted only periodically
     report.seconds = time.perf_counter() - t0
     return report
 

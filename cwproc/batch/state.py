@@ -69,7 +69,8 @@ class Ledger:
 
     On disk: a snapshot (``ledger.json``) and an append-only journal of the changes since
     (``ledger.json.journal``, one JSON line per changed entry), so that saving after a
-    unit costs the size of the change, not of the ledger (:func:`save_ledger`).
+    unit, or at the end of a run, costs the size of the change, not of the ledger; the
+    snapshot is compacted when the journal outgrows a quarter of it (:func:`save_ledger`).
     """
 
     files: dict[str, dict[str, Any]] = field(default_factory=dict)
@@ -91,7 +92,7 @@ class Ledger:
             "units": self.units,
             "failures": self.failures,
         }
-        return json.dumps(doc, indent=1, sort_keys=True)
+        return json.dumps(doc, separators=(",", ":"))
 
     def changes(self) -> list[dict[str, Any]]:
         """The journal entries of the changes since the last save (sorted, JSON-ready)."""
@@ -165,6 +166,17 @@ def _replay_journal(ledger: Ledger, journal: Path) -> None:
     except OSError as exc:
         raise CwprocError(f"{journal}: cannot read the ledger: {exc.strerror or exc}") from None
     complete = lines[:-1]  # the part after the last newline was never confirmed
+    try:  # one parse of all the lines (C speed); line by line only to name a bad one
+        entries = json.loads(b"[" + b",".join(complete) + b"]") if complete else []
+    except ValueError:
+        entries = None
+    if entries is not None and len(entries) == len(complete):
+        try:
+            _apply_entries(ledger, entries)
+            ledger.journal_lines = len(complete)
+            return
+        except (ValueError, KeyError, TypeError, AttributeError):
+            pass  # named below, line by line
     for number, line in enumerate(complete, start=1):
         try:
             entry = json.loads(line)
@@ -183,6 +195,17 @@ def _replay_journal(ledger: Ledger, journal: Path) -> None:
     ledger.journal_lines = len(complete)
 
 
+def _apply_entries(ledger: Ledger, entries: list[Any]) -> None:
+    """Apply journal entries in order (ValueError/KeyError/TypeError on a bad one)."""
+    tables = {name: getattr(ledger, name) for name in _TABLES}
+    for entry in entries:
+        table = tables[entry["table"]]
+        if entry.get("deleted"):
+            table.pop(entry["key"], None)
+        else:
+            table[entry["key"]] = entry["value"]
+
+
 def _fsync_folder(folder: Path) -> None:
     dir_fd = os.open(folder, os.O_RDONLY)
     try:
@@ -191,14 +214,35 @@ def _fsync_folder(folder: Path) -> None:
         os.close(dir_fd)
 
 
+#: journal lines below which the snapshot is never rewritten (see :func:`save_ledger`)
+COMPACT_MIN_LINES = 1000
+
+
+#: the journal is compacted when longer than this share of the ledger's entries
+COMPACT_SHARE = 0.25
+
+
+def needs_compaction(ledger: Ledger, pending: int = 0) -> bool:
+    """Whether the journal, with ``pending`` more lines, would outgrow
+    :data:`COMPACT_SHARE` of the ledger (and :data:`COMPACT_MIN_LINES`).
+
+    Then the snapshot is rewritten: each rewrite of ``n`` entries follows at least
+    ``n / 4`` appended changes, so saving costs O(1) per change amortised, and a load
+    replays at most a quarter of the ledger's entries on top of the snapshot (34.7).
+    """
+    lines = ledger.journal_lines + pending
+    return lines > max(COMPACT_MIN_LINES, COMPACT_SHARE * ledger.size())
+
+
 def save_ledger(ledger: Ledger, path: str | os.PathLike, *, compact: bool = False) -> None:
     """Save the changes since the last save: appended to the journal, fsynced.
 
-    The cost is that of the change (a unit, a file), not of the ledger, so a first run
-    over 50,000 files does not rewrite the ledger 50,000 times. The snapshot is
-    rewritten (temporary file, fsync, rename; the journal then removed) when there is
-    none yet, when ``compact`` is asked (the end of a run) or when the journal has grown
-    longer than the ledger (amortised O(1) per change).
+    The cost is that of the change (a unit, a file), not of the ledger, so neither a
+    first run over 50,000 files nor the end of a run rewrites the ledger (it was
+    rewritten whole once per run: 6 s at 10,000 files, 15 s at 50,000 on a busy disk).
+    The snapshot (compact JSON) is rewritten (temporary file, fsync, rename; the journal
+    then removed) when there is none yet, when ``compact`` is asked, or periodically
+    when :func:`needs_compaction`.
 
     Raises
     ------
@@ -208,13 +252,13 @@ def save_ledger(ledger: Ledger, path: str | os.PathLike, *, compact: bool = Fals
     path = Path(path)
     journal = journal_path(path)
     try:
-        if compact or not path.exists() or ledger.journal_lines > max(1000, ledger.size()):
+        entries = ledger.changes()
+        if compact or not path.exists() or needs_compaction(ledger, len(entries)):
             _write_snapshot(ledger, path)
             journal.unlink(missing_ok=True)
             _fsync_folder(path.parent)
             ledger.journal_lines = 0
         else:
-            entries = ledger.changes()
             if entries:
                 data = "".join(json.dumps(e, sort_keys=True) + "\n" for e in entries)
                 new = not journal.exists()
@@ -252,6 +296,8 @@ def cached_file_info(
         info = FileInfo(**entry)
     except TypeError:  # written by another version of cwproc: classify again
         return None
+    if info.kind == "sonic" and "identity" not in entry:
+        return None  # classified before loggers were told apart by identity (34.2)
     if (
         info.size != size
         or info.mtime_ns != mtime_ns

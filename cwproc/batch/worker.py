@@ -5,6 +5,7 @@ driver or on Dask workers): classify one file, process one unit.
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import socket
 import sys
@@ -34,6 +35,8 @@ from cwproc.pipeline import (
     instrument_mismatch,
     read_input,
     run_unit,
+    sonic_identity,
+    sonic_span,
     unit_key,
     write_unit_products,
 )
@@ -143,6 +146,7 @@ def classify_file(
     wrong = instrument_mismatch(item, config)
     if wrong:  # the failure cwproc retrieve reports for it
         return replace(base, status="error", format=fmt.value, error=wrong)
+    identity = sonic_identity(item)
     return replace(
         base,
         status="ok",
@@ -151,6 +155,7 @@ def classify_file(
         kind=kind,
         unit=key,
         start=_first_time_iso(item),
+        identity=json.dumps({"fields": identity, "span": sonic_span(item)}) if identity else "",
     )
 
 
@@ -241,9 +246,10 @@ def _process_unit_task(task: UnitTask, outcome: Callable[..., UnitOutcome]) -> U
                     f"unit {task.key} will be redone by the next run"
                 )
         units = group_units(items)
-        if len(units) != 1 or units[0].key != task.key:
+        if len(units) != 1 or units[0].key != (task.group_key or task.key):
             found = ", ".join(u.key for u in units)
             return outcome(error=f"{unit_label(task)}: its inputs now group as {found}")
+        units[0].key = task.key  # a logger kept apart from another of its key (34.2)
         result = run_unit(units[0], config)
         written = (
             write_unit_products(units[0], result.products, task.outdir, config)

@@ -196,6 +196,28 @@ def inputs_or_exit(inputs: tuple[str, ...], config: Config, quiet: bool) -> Inpu
     return found
 
 
+def run_outcome(found: Inputs, n_written: int, failures: list[str]) -> tuple[str, int]:
+    """The summary line of a product command and its exit status, by one rule (34.6).
+
+    Every failure line printed is counted, those of inputs named on the command line
+    that the configuration does not read (``found.mismatched``) included, and the exit
+    status is 1 exactly when that count is not 0: the summary and the status never
+    disagree (a file refused before the run said "0 failure(s)" and exited 1).
+
+    Returns
+    -------
+    (str, int)
+        ``"N input(s), M product(s) written, K failure(s)..."`` and 0 or 1.
+    """
+    n_failed = len(failures) + len(found.mismatched)
+    n_inputs = len(found.files) + len(found.mismatched)
+    line = (
+        f"{n_inputs} input(s), {n_written} product(s) written, "
+        f"{n_failed} failure(s){found.skipped_text()}"
+    )
+    return line, (1 if n_failed else 0)
+
+
 #: files in a row whose note lines say the same, from which ``cwproc retrieve`` and
 #: ``cwproc batch`` print one line for them all (a day of 1920 scan files would otherwise
 #: print 1920 alike lines)

@@ -103,7 +103,12 @@ def _terminate(signum: int, _frame: Any) -> None:
 
 
 def summary_lines(report: BatchReport, verbose: bool) -> list[str]:
-    """The human summary printed at the end of a run."""
+    """The human summary printed at the end of a run.
+
+    It ends with the count of the ``error:`` lines printed (unlisted folders, refused
+    files, failed units, nothing readable): the exit status is 1 exactly when that count
+    is not 0, the rule of every product command (issue 34.6).
+    """
     from cwproc.batch import PRODUCT_FORMAT
 
     lines = []
@@ -130,6 +135,12 @@ def summary_lines(report: BatchReport, verbose: bool) -> list[str]:
             if report.files_before_since or report.units_before_since
             else ""
         )
+        + (
+            f"; {len(report.listing_failures)} folder(s) could not be listed"
+            if report.listing_failures
+            else ""
+        )
+        + f"; {len(report.failure_lines())} failure(s)"
         + f" [{report.seconds:.1f} s]"
     )
     return lines

@@ -14,6 +14,7 @@ from cwproc.cli._common import (
     product_command,
     replaced_note,
     report_failure,
+    run_outcome,
     with_product_options,
 )
 
@@ -74,7 +75,7 @@ def retrieve(
     cfg = with_product_options(cfg, l1=l1, cross=cross, layout=layout, qc_report=qc_report)
     output_dir_or_exit(outdir)
     from cwproc import progress
-    from cwproc.pipeline import EXIT_FAILED, EXIT_OK, retrieve_files
+    from cwproc.pipeline import retrieve_files
 
     found = inputs_or_exit(inputs, cfg, quiet)
     files = found.files
@@ -91,8 +92,7 @@ def retrieve(
             click.echo(f"wrote {path}")
         for path in report.quality_reports:
             click.echo(f"wrote {path}")
-        click.echo(
-            f"{len(files)} input(s), {len(report.written)} product(s) written, "
-            f"{len(report.failures)} failure(s){found.skipped_text()}"
-        )
-    sys.exit(EXIT_OK if report.ok and not found.mismatched else EXIT_FAILED)
+    summary, status = run_outcome(found, len(report.written), report.failures)
+    if not quiet:
+        click.echo(summary)
+    sys.exit(status)

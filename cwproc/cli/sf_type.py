@@ -22,6 +22,7 @@ from cwproc.cli._common import (
     product_command,
     replaced_note,
     report_failure,
+    run_outcome,
 )
 
 
@@ -36,7 +37,9 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
     transverse, vertical) the normalised structure function is typed 1 (line),
     2 (parabola) or 3 (parabola then line) in lg-lg axes. Writes one product per
     file format, station (from the file's header, else its folder) and UTC day,
-    <format>_<station>_<YYYYMMDD>_sf.nc, plus
+    <format>_<station>_<YYYYMMDD>_sf.nc (loggers sharing a station name but not
+    their serial, table, program or folder are kept apart:
+    <format>_<station>-<serial>_<YYYYMMDD>_sf.nc, with a note), plus
     sf_type_occurrence.csv (Table 2) and sf_parameters.csv (Tables 3-5), and prints
     both tables. Exit status 0 when every input was processed, 1 otherwise, with one
     line per failed input naming the file, the line and the problem. Products and
@@ -48,7 +51,7 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
 
     from cwproc import progress
     from cwproc.io.netcdf import write_bytes_atomic
-    from cwproc.pipeline import EXIT_FAILED, EXIT_OK, retrieve_files, sf_summary_tables
+    from cwproc.pipeline import retrieve_files, sf_summary_tables
 
     found = inputs_or_exit(inputs, cfg, quiet)
     files = found.files
@@ -85,8 +88,7 @@ def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: boo
             click.echo(f"note: {replaced_note(report.replaced)}", err=True)
         for path in written:
             click.echo(f"wrote {path}")
-        click.echo(
-            f"{len(files)} input(s), {len(written)} product(s) written, "
-            f"{len(failures)} failure(s){found.skipped_text()}"
-        )
-    sys.exit(EXIT_OK if not failures and not found.mismatched else EXIT_FAILED)
+    summary, status = run_outcome(found, len(written), failures)
+    if not quiet:
+        click.echo(summary)
+    sys.exit(status)

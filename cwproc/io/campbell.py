@@ -52,7 +52,8 @@ from cwproc.io.meteo2 import (
     read_table,
     sonic_dataset,
 )
-from cwproc.io.timecheck import check_times, epoch_seconds_to_times
+from cwproc.io.records import realigned_records
+from cwproc.io.timecheck import check_times, epoch_seconds_to_times, plausible_years
 
 INSTRUMENT = "Campbell Scientific CSAT3 (logger {logger}, table {table})"
 FRAME = "CSAT3 instrument frame: Ux along the boom into the array, Uy to its left, Uz up"
@@ -95,34 +96,6 @@ def _header_fields(path: str | os.PathLike, line: str, number: int) -> list[str]
     except (csv.Error, StopIteration):
         raise InputFileError(path, "unreadable header line", number) from None
     return [f.strip() for f in fields]
-
-
-def misaligned_from(record: np.ndarray) -> int | None:
-    """Index of the first record read off its boundary in a binary file, or ``None``.
-
-    Bytes inserted into or lost from a TOB1 file shift every later record: its fields
-    become garbage, the RECORD counter included, whose steps are then no longer 1 except
-    by chance. Lost records and logger restarts break the counting once and it resumes
-    (step 1 again); garbage never resumes. The data are off their boundaries from the
-    first break after which fewer than half of the steps are 1; the record before that
-    break is counted in, as the shift may start inside it, after its RECORD field.
-
-    Parameters
-    ----------
-    record : ndarray of int
-        The RECORD field, file order.
-    """
-    step = np.diff(np.asarray(record, dtype=np.int64))
-    if step.size == 0:
-        return None
-    ok = (step == 1).astype(float)
-    # share of unit steps from each step to the end
-    tail_share = np.cumsum(ok[::-1])[::-1] / np.arange(ok.size, 0, -1)
-    broken = np.flatnonzero((ok == 0) & (tail_share < 0.5))
-    if broken.size == 0:
-        return None
-    # the record before the break may hold the inserted bytes after its RECORD field
-    return int(broken[0])
 
 
 def record_warnings(record: np.ndarray) -> list[str]:
@@ -617,6 +590,9 @@ def _minute_ns(w: np.ndarray) -> np.ndarray | None:
         return None
     year, month, day = _number(w, 1, 4), _number(w, 6, 2), _number(w, 9, 2)
     hour, minute = _number(w, 12, 2), _number(w, 15, 2)
+    low, high = plausible_years()
+    if np.any((year < low) | (year > high)):  # as integers: 2590 in nanoseconds wraps
+        return None
     leap = (year % 4 == 0) & ((year % 100 != 0) | (year % 400 == 0))
     if np.any((month < 1) | (month > 12) | (hour > 23) | (minute > 59)):
         return None
@@ -717,26 +693,16 @@ def read_tob1(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     n_rec, extra = divmod(len(data), dtype.itemsize)
     if n_rec == 0:
         raise InputFileError(path, "no complete data record", 1, unit="record")
-    records = np.frombuffer(data[: n_rec * dtype.itemsize], dtype=dtype)
-    notes = []
+    notes: list[str] = []
+    if "RECORD" in names and dtype["RECORD"].kind in "iu":
+        records, extra = realigned_records(path, data, dtype, pos, notes)
+        n_rec = records.size
+    else:
+        records = np.frombuffer(data[: n_rec * dtype.itemsize], dtype=dtype)
     if extra:
         notes.append(
             f"partial trailing record ({extra} of {dtype.itemsize} bytes) ignored: the file was cut"
         )
-    if "RECORD" in names and records["RECORD"].dtype.kind in "iu":
-        shifted = misaligned_from(records["RECORD"])
-        if shifted is not None:
-            if shifted == 0:
-                raise InputFileError(
-                    path, "RECORD numbers never count up: not TOB1 records", 1, unit="record"
-                )
-            notes.append(
-                f"records {shifted + 1}-{n_rec} dropped: from record {shifted + 1} the RECORD "
-                "numbers stop counting up (bytes inserted or lost: the records are off their "
-                "boundaries)"
-            )
-            records = records[:shifted]
-            n_rec = shifted
     typ = dict(zip(names, types, strict=True))
     for key in ("SECONDS", "NANOSECONDS"):
         field = records[key]

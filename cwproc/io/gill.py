@@ -140,11 +140,12 @@ def _timing_and_axes(
             path,
             "Gill UVW lines carry no time: set [reader.gill] start_time and sampling_rate_hz",
         )
-    try:
-        start = np.datetime64(str(options["start_time"]).replace("Z", ""), "ns")
+    written = str(options["start_time"])
+    try:  # parsed in its own unit (not nanoseconds: a year beyond 2262 would wrap)
+        start = np.datetime64(written.replace("Z", ""))
     except ValueError:
         raise InputFileError(path, "reader option start_time is not an ISO time") from None
-    check_times(path, np.array([start]), None)
+    start = check_times(path, np.array([start]), None, written=[written])[0]
     rate = option_number(path, options, "sampling_rate_hz", 0.0)
     if rate <= 0:
         raise InputFileError(path, "reader option sampling_rate_hz must be > 0")

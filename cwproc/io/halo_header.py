@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cwproc.errors import InputFileError
-from cwproc.io.timecheck import check_times
+from cwproc.io.timecheck import check_times, check_year
 
 #: number of header lines of every .hpl file
 HEADER_LINES = 17
@@ -173,8 +173,11 @@ def parse_header(path: str | os.PathLike, lines: list[str]) -> HplHeader:
     pulses = field(5, _integer, "a whole number")
     rays = field(6, _integer, "a whole number")
     focus = field(8, _number, "a number")
+    m = _START_TIME.match(values[9])
+    if m is not None:  # the year as an integer, before any date is built from it
+        check_year(path, int(m.group(1)), 10, values[9])
     start = field(9, parse_start_time, "a time 'yyyymmdd HH:MM:SS.ss'")
-    check_times(path, np.array([start]), 10)
+    check_times(path, np.array([start]), 10, written=[values[9]])
     resolution = field(10, _number, "a number")
 
     formula = lines[11].strip()

@@ -49,8 +49,9 @@ import xarray as xr
 from cwproc.errors import CwprocError, InputFileError
 from cwproc.io.netcdf import write_bytes_atomic
 from cwproc.io.ranges import outside_physical_range
+from cwproc.io.records import out_of_sequence
 from cwproc.io.schema import with_canonical_attrs
-from cwproc.io.timecheck import check_times
+from cwproc.io.timecheck import check_times, epoch_seconds_to_times
 
 INSTRUMENT = "Meteo-2 ultrasonic weather station (IAO SB RAS)"
 MAGIC = "# cwproc meteo2"
@@ -393,18 +394,27 @@ def sonic_dataset(
 def _time_order(t_ns: np.ndarray, notes: list[str]) -> tuple[np.ndarray, dict[str, int]]:
     """Indices of the samples to keep, in time order, and the counts of what was found.
 
-    Stray stamps (far from both neighbours, which agree) are dropped, the rest put in
-    time order, exact duplicates dropped (first kept); each finding is described in
+    Records out of the file's sequence or span (:func:`out_of_sequence`) and stray
+    stamps (far from both neighbours, which agree) are dropped, the rest put in time
+    order, exact duplicates dropped (first kept); each finding is described in
     ``notes``.
     """
-    stray = stray_stamps(t_ns)
+    refused = out_of_sequence(t_ns)
+    if refused.any():
+        first = int(np.argmax(refused))
+        stamp = np.datetime_as_string(np.datetime64(int(t_ns[first]), "ns"), unit="s")
+        notes.append(
+            f"{int(refused.sum())} record(s) whose time breaks the file's sequence or lies "
+            f"outside its span refused (first: record {first + 1}, {stamp})"
+        )
+    stray = stray_stamps(t_ns) & ~refused
     if stray.any():
         notes.append(
             f"{int(stray.sum())} time stamp(s) far from both neighbours, which agree with "
             f"each other (a damaged record; first at record {int(np.argmax(stray)) + 1}): "
             "dropped"
         )
-    valid = np.flatnonzero(~stray)
+    valid = np.flatnonzero(~stray & ~refused)
     n_back = int(np.sum(np.diff(t_ns[valid]) < 0))
     order = valid[np.argsort(t_ns[valid], kind="stable")]
     dup = np.concatenate([[False], np.diff(t_ns[order]) == 0])
@@ -413,7 +423,11 @@ def _time_order(t_ns: np.ndarray, notes: list[str]) -> tuple[np.ndarray, dict[st
         notes.append(f"{n_back} time stamp(s) out of order: samples put in time order")
     if n_dup:
         notes.append(f"{n_dup} duplicated time stamp(s): later copies dropped")
-    return order[~dup], {"n_out_of_order": n_back, "n_duplicates": n_dup}
+    return order[~dup], {
+        "n_out_of_order": n_back,
+        "n_duplicates": n_dup,
+        "n_out_of_sequence": int(refused.sum()),
+    }
 
 
 def _within_physical_range(data: dict[str, np.ndarray], notes: list[str]) -> dict[str, np.ndarray]:
@@ -549,7 +563,7 @@ def parse_times(
             i = int(missing[bad[0]])
             raise InputFileError(path, f"bad time stamp {raw.iloc[i]!r}", first_line + i)
         parsed.iloc[missing] = retry.to_numpy()
-    return check_times(path, parsed.to_numpy(dtype="datetime64[ns]"), first_line)
+    return check_times(path, parsed.to_numpy(), first_line, written=raw.astype(str).to_numpy())
 
 
 def _to_utc(raw: pd.Series, fmt: str) -> pd.Series:
@@ -692,7 +706,10 @@ def read_meteo2(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         bad = np.flatnonzero(~np.isfinite(secs))
         if bad.size:
             raise InputFileError(path, "missing time stamp", first + int(bad[0]))
-        times = (np.rint(secs * 1e9).astype(np.int64)).astype("datetime64[ns]")
+        whole = np.floor(secs)
+        times = epoch_seconds_to_times(
+            path, whole, np.rint((secs - whole) * 1e9), np.datetime64(0, "ns"), first
+        )
     times = times - np.timedelta64(round(offset_h * 3600e9), "ns")
     vals = {k: numeric_column(path, frame, cols[k], first) for k in ("u", "v", "w")}
     n = len(frame)

@@ -30,30 +30,66 @@ PHYSICAL_RANGES: dict[str, tuple[float, float]] = {
 }
 
 
-def outside_physical_range(name: str, values: np.ndarray) -> np.ndarray:
+#: narrower ranges of some quantities for one kind of dataset (issue 34.5). Wind
+#: records (ZephIR 300 and WindCube v1 exports) are 10-min means: a mean vertical wind
+#: beyond +-10 m s-1 over ten minutes is not atmospheric (the strongest convective
+#: updraughts of the boundary layer average a few m s-1 over such a period; +-60 m s-1,
+#: the bound of single sonic samples, let w = -50 m s-1 through as good), nor a mean
+#: horizontal speed beyond 90 m s-1 (the strongest 10-min sustained winds measured, in
+#: tropical cyclones, stay below it)
+KIND_RANGES: dict[str, dict[str, tuple[float, float]]] = {
+    "wind_record": {
+        "w": (-10.0, 10.0),
+        "wind_speed": (0.0, 90.0),
+    },
+}
+
+
+def ranges_for(kind: str | None = None) -> dict[str, tuple[float, float]]:
+    """The physical ranges of a kind of dataset: :data:`PHYSICAL_RANGES` narrowed by
+    :data:`KIND_RANGES` (``None``: the general ones)."""
+    return {**PHYSICAL_RANGES, **KIND_RANGES.get(kind or "", {})}
+
+
+def outside_physical_range(name: str, values: np.ndarray, kind: str | None = None) -> np.ndarray:
     """Where ``values`` of variable ``name`` are finite but impossible, or infinite.
 
     NaN is left alone (already missing); variables without a declared range give all
-    False.
+    False. ``kind``: the dataset's kind (its narrower ranges, :func:`ranges_for`).
     """
     values = np.asarray(values, dtype=float)
-    if name not in PHYSICAL_RANGES:
+    ranges = ranges_for(kind)
+    if name not in ranges:
         return np.zeros(values.shape, dtype=bool)
-    low, high = PHYSICAL_RANGES[name]
+    low, high = ranges[name]
     with np.errstate(invalid="ignore"):
         return ~np.isnan(values) & (~np.isfinite(values) | (values < low) | (values > high))
 
 
-def screen_physical_range(ds: xr.Dataset) -> tuple[xr.Dataset, dict[str, int]]:
-    """Replace values outside :data:`PHYSICAL_RANGES` (or not finite) by NaN.
+def screen_physical_range(
+    ds: xr.Dataset, kind: str | None = None
+) -> tuple[xr.Dataset, dict[str, int]]:
+    """Replace values outside the ranges of ``kind`` (:func:`ranges_for`), and every
+    infinite value of any float variable, by NaN.
 
-    Applied by the readers to what they take from a file. Returns the screened dataset
-    and, per variable, how many values were replaced (only variables with any); a
-    reader reports the counts in ``attrs["warnings"]``.
+    Applied by the readers to what they take from a file, so that every reader treats
+    ``inf`` alike: missing, counted (the ZephIR reader refused a file for one ``inf``,
+    the WindCube reader kept it). Returns the screened dataset and, per variable, how
+    many values were replaced (only variables with any); a reader reports the counts in
+    ``attrs["warnings"]``.
     """
     out = ds.copy()
     counts: dict[str, int] = {}
-    for name, (low, high) in PHYSICAL_RANGES.items():
+    ranges = ranges_for(kind)
+    for name in out.data_vars:
+        if name in ranges or out[name].dtype.kind != "f":
+            continue
+        values = out[name].values
+        infinite = np.isinf(values)
+        if infinite.any():
+            counts[str(name)] = int(np.count_nonzero(infinite))
+            out[name] = out[name].copy(data=np.where(infinite, np.nan, values))
+    for name, (low, high) in ranges.items():
         if name not in out or out[name].dtype.kind not in "fiu":
             continue
         values = out[name].values.astype(float)
@@ -67,10 +103,13 @@ def screen_physical_range(ds: xr.Dataset) -> tuple[xr.Dataset, dict[str, int]]:
     return out, counts
 
 
-def range_warnings(counts: Mapping[str, int]) -> list[str]:
+def range_warnings(counts: Mapping[str, int], kind: str | None = None) -> list[str]:
     """One line per variable of :func:`screen_physical_range`'s counts."""
+    ranges = ranges_for(kind)
     return [
-        f"{n} value(s) of {name} outside {PHYSICAL_RANGES[name][0]:g}.."
-        f"{PHYSICAL_RANGES[name][1]:g} or not finite: set to missing"
+        f"{n} value(s) of {name} outside {ranges[name][0]:g}..{ranges[name][1]:g} or not "
+        "finite: set to missing"
+        if name in ranges
+        else f"{n} infinite value(s) of {name}: set to missing"
         for name, n in counts.items()
     ]

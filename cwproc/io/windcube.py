@@ -271,7 +271,7 @@ def _parse_times(path: str | os.PathLike, stamps: pd.Series, first_line: int) ->
     for fmt in _TIME_FORMATS:
         times = pd.to_datetime(stamps, format=fmt, errors="coerce")
         if not times.isna().any():
-            return check_times(path, times.to_numpy(dtype="datetime64[ns]"), first_line)
+            return check_times(path, times.to_numpy(), first_line, written=stamps.to_numpy())
     ok = [pd.to_datetime(stamps, format=f, errors="coerce").notna().sum() for f in _TIME_FORMATS]
     times = pd.to_datetime(stamps, format=_TIME_FORMATS[int(np.argmax(ok))], errors="coerce")
     row = int(np.flatnonzero(times.isna().to_numpy())[0])

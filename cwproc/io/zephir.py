@@ -99,10 +99,14 @@ _HEADER_LINES = 2
 
 
 def with_range_screen(ds: xr.Dataset) -> xr.Dataset:
-    """Impossible values (:data:`cwproc.io.ranges.PHYSICAL_RANGES`) as missing, reported."""
-    screened, counts = screen_physical_range(ds)
+    """Impossible values of a wind record (:func:`cwproc.io.ranges.ranges_for`
+    ``"wind_record"``: 10-min means) and infinite ones as missing, reported."""
+    screened, counts = screen_physical_range(ds, "wind_record")
     if counts:
-        screened.attrs["warnings"] = [*ds.attrs.get("warnings", []), *range_warnings(counts)]
+        screened.attrs["warnings"] = [
+            *ds.attrs.get("warnings", []),
+            *range_warnings(counts, "wind_record"),
+        ]
     return screened
 
 
@@ -303,7 +307,7 @@ def parse_header_line(path: str | os.PathLike, line: str) -> dict[str, Any]:
 
 
 def _to_numbers(path: str | os.PathLike, table: pd.DataFrame, first_line: int) -> np.ndarray:
-    """Decimal-comma strings -> floats; an empty field or a non-number is an error."""
+    """Decimal-comma strings -> floats (empty fields NaN); a non-number is an error."""
     text = table.apply(lambda col: col.str.strip().str.replace(",", ".", regex=False))
     values = text.apply(pd.to_numeric, errors="coerce")
     bad = values.isna().to_numpy() & (text.to_numpy() != "")
@@ -314,10 +318,7 @@ def _to_numbers(path: str | os.PathLike, table: pd.DataFrame, first_line: int) -
             f"column {table.columns[col]!r}: {table.iat[row, col]!r} is not a number",
             first_line + int(row),
         )
-    empty = text.to_numpy() == ""
-    if empty.any():
-        row, col = np.argwhere(empty)[0]
-        raise InputFileError(path, f"column {table.columns[col]!r} is empty", first_line + int(row))
+    # an empty field is a missing value (NaN): one empty cell refused the whole day
     return values.to_numpy(dtype=float)
 
 
@@ -326,7 +327,7 @@ def _parse_times(path: str | os.PathLike, stamps: pd.Series, first_line: int) ->
     for fmt in _TIME_FORMATS:
         times = pd.to_datetime(stamps, format=fmt, errors="coerce")
         if not times.isna().any():
-            return check_times(path, times.to_numpy(dtype="datetime64[ns]"), first_line)
+            return check_times(path, times.to_numpy(), first_line, written=stamps.to_numpy())
     times = pd.to_datetime(stamps, format=_TIME_FORMATS[0], errors="coerce")
     row = int(np.flatnonzero(times.isna().to_numpy())[0])
     raise InputFileError(
@@ -366,7 +367,7 @@ def _read_columns(text: str, columns: list[int], *, numeric: bool) -> pd.DataFra
 def _numeric_values(
     path: str | os.PathLike, text: str, columns: list[int], names: list[str], first_line: int
 ) -> np.ndarray:
-    """The numeric columns as floats; a field that is no finite number is an error."""
+    """The numeric columns as floats (empty: NaN); a field that is no number is an error."""
     try:
         values = _read_columns(text, columns, numeric=True).to_numpy(dtype=float)
     except (ValueError, pd.errors.ParserError):
@@ -374,13 +375,7 @@ def _numeric_values(
         table = _read_columns(text, columns, numeric=False)
         table.columns = [names[c] for c in columns]
         values = _to_numbers(path, table, first_line)
-    bad = np.argwhere(np.isinf(values))
-    if bad.size:
-        row, col = bad[0]
-        raise InputFileError(
-            path, f"column {names[columns[col]]!r} is not a finite number", first_line + int(row)
-        )
-    return values
+    return values  # inf: set to missing and counted by the range screen, as every reader
 
 
 def _variant(names: list[str], path: str | os.PathLike) -> tuple[str, float]:

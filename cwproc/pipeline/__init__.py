@@ -51,6 +51,8 @@ from cwproc.pipeline.units import (
     no_input_of_format,
     other_formats_note,
     read_input,
+    sonic_identity,
+    sonic_span,
     unit_key,
     unit_label,
 )
@@ -86,6 +88,8 @@ __all__ = [
     "run_unit",
     "screened_wind",
     "sf_summary_tables",
+    "sonic_identity",
+    "sonic_span",
     "unit_key",
     "unit_label",
     "write_unit_products",

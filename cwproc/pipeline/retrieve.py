@@ -22,12 +22,14 @@ from cwproc.pipeline.units import (
     Examined,
     InputFile,
     ProductUnit,
+    UnitPart,
     identify_input,
     instrument_mismatch,
     read_input,
     split_by_day,
-    unit_key,
     unit_label,
+    unit_part,
+    units_of,
 )
 from cwproc.pipeline.write import product_path, write_unit_products
 
@@ -186,7 +188,7 @@ def read_units(
         ``(units, failures, notes)``.
     """
     found = FoundUnits([], [], [])
-    units: dict[tuple[str, str], ProductUnit] = {}
+    parts: list[UnitPart] = []
     accepted = set(kinds) if kinds is not None else None
     held = 0
     if isinstance(paths, Sequence):
@@ -212,13 +214,12 @@ def read_units(
             )
             continue
         for part in split_by_day(item):
-            kind, key = unit_key(part)
-            units.setdefault((kind, key), ProductUnit(key=key, kind=kind)).inputs.append(part)
+            parts.append(unit_part(part))
             held += _nbytes(part.dataset)
             if held > RETRIEVE_MEMORY_BYTES:  # keep only what the budget allows
                 held -= _nbytes(part.dataset)
                 part.dataset = None
-    found.units.extend(units[k] for k in sorted(units))
+    found.units.extend(units_of(parts, found.notes))
     return found
 
 

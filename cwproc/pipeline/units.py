@@ -9,6 +9,8 @@ the line and the problem); :func:`unit_key` names the unit and its products.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import itertools
 import os
 import re
 import stat
@@ -26,6 +28,7 @@ from cwproc.errors import CwprocError, InputFileError
 from cwproc.io import KIND, FileIdentity, Format, detect_format, get_identifier, get_reader
 from cwproc.io.netcdf import sha256_file
 from cwproc.io.scans import concat_scans
+from cwproc.io.timecheck import set_plausible_window
 
 
 @dataclass
@@ -65,11 +68,14 @@ def format_mismatch(path: str | os.PathLike, fmt: Format, config: Config) -> str
 
     A configuration that pins ``[instrument] format`` (a preset for one instrument)
     reads files of that format only; ``cwproc retrieve`` and ``cwproc batch`` skip the
-    others with this line, naming the file and the format.
+    others with this line, naming the file and the format. A Stream Line background
+    file belongs to a configuration that reads ``.hpl`` files.
     """
     pinned = config.instrument.format
     if pinned == "auto" or fmt.value == pinned:
         return ""
+    if fmt is Format.HALO_BACKGROUND and pinned == Format.HPL.value:
+        return ""  # read with the .hpl files beside it (stage background), never refused
     return f"{os.fspath(path)}: a {fmt.value} file, but the configuration reads only {pinned}"
 
 
@@ -146,6 +152,17 @@ def reader_options(config: Config, fmt: Format) -> dict:
     return dict(config.reader.get(fmt.value, {}))
 
 
+def apply_time_window(config: Config) -> None:
+    """Make the configuration's plausible window of input times the readers' (issue 34.1).
+
+    ``[instrument] earliest_date`` and ``latest_date`` (see
+    :func:`cwproc.io.timecheck.set_plausible_window`); called before each file is
+    examined or read, so that every reader in this process (batch workers included)
+    checks its times against the configuration being run.
+    """
+    set_plausible_window(config.instrument.earliest_date, config.instrument.latest_date)
+
+
 def read_input(
     path: str | os.PathLike,
     config: Config,
@@ -217,6 +234,7 @@ def identify_input(path: str | os.PathLike, config: Config) -> InputFile | Exami
 
 def _examined(path: Path, config: Config) -> Examined:
     """The format of a regular file (detected unless pinned) and its :func:`file_signature`."""
+    apply_time_window(config)
     try:
         mode = path.stat().st_mode
     except OSError as exc:
@@ -227,13 +245,25 @@ def _examined(path: Path, config: Config) -> Examined:
     fmt = (
         detect_format(path)
         if config.instrument.format == "auto"
-        else Format(config.instrument.format)
+        else _pinned_format(path, Format(config.instrument.format))
     )
     try:
         signature = file_signature(path)
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
     return Examined(fmt, signature)
+
+
+def _pinned_format(path: Path, pinned: Format) -> Format:
+    """``pinned``, except a Stream Line background file under a configuration that
+    reads ``.hpl`` (it goes with the scans beside it; read as a ``.hpl`` it failed)."""
+    if pinned is not Format.HPL:
+        return pinned
+    try:
+        fmt = detect_format(path)
+    except InputFileError:
+        return pinned  # the .hpl reader words what is wrong
+    return Format.HALO_BACKGROUND if fmt is Format.HALO_BACKGROUND else pinned
 
 
 def _identified(
@@ -337,6 +367,108 @@ def _sonic_station(ds: xr.Dataset) -> str:
     return str(ds.attrs.get("meteo2_station", "")).strip()
 
 
+#: attributes that identify the logger of a sonic file, per identity field (issue 34.2)
+_SONIC_IDENTITY_ATTRS: dict[str, tuple[str, ...]] = {
+    "serial": ("toa5_serial", "tob1_serial", "ghg_serial_number", "meteo2_serial"),
+    "program": ("toa5_program", "tob1_program", "ghg_software_version", "meteo2_program"),
+    "table": ("toa5_table", "tob1_table", "meteo2_table"),
+}
+
+
+def sonic_identity(item: InputFile) -> tuple[tuple[str, str], ...]:
+    """Everything that identifies the logger of a sonic input, as ``(field, value)`` pairs.
+
+    The station (TOA5/TOB1 station name, GHG instrument, Meteo-2 ``# station:``), the
+    logger's serial number, its program, the data table, and the folder the file is in:
+    two loggers that share a station name (or one header in two folders) are two
+    instruments, never one (issue 34.2). Empty for other kinds of input.
+    """
+    ds = held_or_identity(item)
+    if KIND[item.format] != "sonic" or ds is None:
+        return ()
+    parts = [("station", _sonic_station(ds))]
+    for name, keys in _SONIC_IDENTITY_ATTRS.items():
+        values = (str(ds.attrs.get(k, "")).strip() for k in keys)
+        parts.append((name, next((v for v in values if v), "")))
+    parts.append(("folder", os.fspath(Path(item.path).absolute().parent)))
+    return tuple(parts)
+
+
+def sonic_span(item: InputFile) -> tuple[str, str]:
+    """First and last time of a sonic input's held data (ISO, UTC; '' when unknown)."""
+    ds = item.dataset
+    if KIND[item.format] != "sonic" or ds is None or "time" not in ds.variables:
+        return "", ""
+    t = np.asarray(ds["time"].values)
+    t = t[~np.isnat(t)] if np.issubdtype(t.dtype, np.datetime64) else t[:0]
+    if t.size == 0:
+        return "", ""
+    return tuple(str(np.datetime_as_string(x, unit="ms")) for x in (t.min(), t.max()))
+
+
+def _apart_in_time(
+    identities: Sequence[tuple[tuple[str, str], ...]], spans: Sequence[tuple[str, str]]
+) -> bool:
+    """Whether the inputs of each identity cover times no other identity's do."""
+    cover: dict[tuple, list[str]] = {}
+    for identity, (first, last) in zip(identities, spans, strict=True):
+        if not first or not last:
+            return False
+        lo, hi = cover.setdefault(identity, [first, last])
+        cover[identity] = [min(lo, first), max(hi, last)]
+    ordered = sorted(cover.values())
+    return all(a[1] < b[0] for a, b in itertools.pairwise(ordered))
+
+
+def distinct_keys(
+    base: str,
+    identities: Sequence[tuple[tuple[str, str], ...]],
+    spans: Sequence[tuple[str, str]] | None = None,
+) -> tuple[dict[tuple[tuple[str, str], ...], str], str]:
+    """Unit keys that keep loggers apart when several share the key ``base``.
+
+    With one identity the key is ``base``. With several, each gets ``base`` with the
+    station part followed by ``-`` and the value of the first identity field in which
+    they differ (serial, then table, program, folder name; a short hash of the whole
+    identity when even that is the same), and a note says so. Inputs that differ in
+    their folder alone and whose times do not overlap (``spans``: first and last time
+    of each input) are one logger's files kept in several folders (one a day: the file
+    that crosses midnight is in the day before's): one unit.
+
+    Returns
+    -------
+    (dict, str)
+        Identity -> key, and the note ('' with one identity).
+    """
+    unique = sorted(set(identities))
+    if len(unique) <= 1:
+        return {i: base for i in unique}, ""
+    fields = [k for k, _ in unique[0]]
+    differing = [f for f in fields if len({dict(i)[f] for i in unique}) > 1]
+    if differing == ["folder"] and spans is not None and _apart_in_time(identities, spans):
+        return {i: base for i in unique}, ""
+    field_name = next((f for f in ("serial", "table", "program", "folder") if f in differing), "")
+
+    def token(identity: tuple[tuple[str, str], ...]) -> str:
+        value = dict(identity).get(field_name, "")
+        if field_name == "folder":
+            value = Path(value).name
+        return name_part(value, "none")
+
+    tokens = [token(i) for i in unique]
+    if len(set(tokens)) < len(tokens):  # not told apart by one field: a hash of all
+        tokens = [hashlib.sha256(repr(i).encode()).hexdigest()[:8] for i in unique]
+    head, _, day = base.rpartition("_")
+    keys = {i: f"{head}-{t}_{day}" for i, t in zip(unique, tokens, strict=True)}
+    what = ", ".join(differing) or "identity"
+    told = "; ".join(", ".join(dict(i)[f] or "none" for f in differing) for i in unique)
+    note = (
+        f"{len(unique)} loggers share the unit {base} but differ in {what} ({told}): "
+        f"kept apart as {', '.join(keys[i] for i in unique)}"
+    )
+    return keys, note
+
+
 def unit_key(item: InputFile) -> tuple[str, str]:
     """(kind, key) of the product unit an input belongs to; the key names the products.
 
@@ -384,14 +516,42 @@ def split_by_day(item: InputFile) -> list[InputFile]:
     ]
 
 
-def group_units(items: Iterable[InputFile]) -> list[ProductUnit]:
+def group_units(items: Iterable[InputFile], notes: list[str] | None = None) -> list[ProductUnit]:
     """Group read inputs into product units (scans and sonic data: per instrument and
-    UTC day; wind records: per file), in a stable order."""
+    UTC day; wind records: per file), in a stable order.
+
+    Sonic inputs that share a key but not their logger's identity
+    (:func:`sonic_identity`) are kept apart (:func:`distinct_keys`); the note saying so
+    is appended to ``notes`` when given.
+    """
+    parts = [unit_part(item) for whole in items for item in split_by_day(whole)]
+    return units_of(parts, notes)
+
+
+#: an input with its kind, key, :func:`sonic_identity` and :func:`sonic_span`
+UnitPart = tuple[InputFile, str, str, tuple[tuple[str, str], ...], tuple[str, str]]
+
+
+def unit_part(item: InputFile) -> UnitPart:
+    """``(item, kind, key, identity, span)`` of an input, taken while its data are held."""
+    return (item, *unit_key(item), sonic_identity(item), sonic_span(item))
+
+
+def units_of(parts: Iterable[UnitPart], notes: list[str] | None = None) -> list[ProductUnit]:
+    """Product units of :func:`unit_part` tuples, loggers of one key kept apart."""
+    groups: dict[tuple[str, str], list[tuple[InputFile, tuple, tuple]]] = {}
+    for item, kind, key, identity, span in parts:
+        groups.setdefault((kind, key), []).append((item, identity, span))
     units: dict[tuple[str, str], ProductUnit] = {}
-    for whole in items:
-        for item in split_by_day(whole):
-            kind, key = unit_key(item)
-            units.setdefault((kind, key), ProductUnit(key=key, kind=kind)).inputs.append(item)
+    for (kind, key), triples in groups.items():
+        members = [m for m, _, _ in triples]
+        identities = [i for _, i, _ in triples]
+        keys, note = distinct_keys(key, identities, [s for _, _, s in triples])
+        if note and notes is not None:
+            notes.append(note)
+        for member, identity in zip(members, identities, strict=True):
+            final = keys.get(identity, key)
+            units.setdefault((kind, final), ProductUnit(key=final, kind=kind)).inputs.append(member)
     return [units[k] for k in sorted(units)]
 
 
@@ -528,6 +688,7 @@ def unchanged_read(item: InputFile, config: Config) -> xr.Dataset | None:
             return None
     except OSError:
         return None  # vanished: read_input words it
+    apply_time_window(config)
     ds = get_reader(item.format)(item.path, **reader_options(config, item.format))
     try:
         return ds if file_signature(item.path) == item.signature else None

@@ -29,7 +29,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[2] / "cwproc"
 
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("cwproc._version", "cwproc.errors", "cwproc.references", "cwproc.progress"),
+    ("cwproc._version", "cwproc.errors", "cwproc.references", "cwproc.progress", "cwproc.dates"),
     ("cwproc.physics", "cwproc.atables"),
     ("cwproc.io",),
     ("cwproc.config", "cwproc.configs"),

@@ -249,10 +249,12 @@ def test_every_real_sonic_file_reads_through_format_detection(real_data):
         assert np.all((ds["temperature"].values > -40) & (ds["temperature"].values < 50))
 
 
-def test_tob1_records_shifted_by_inserted_bytes_are_dropped(tmp_path):
+def test_tob1_records_shifted_by_inserted_bytes_are_read_again_on_their_boundaries(tmp_path):
     """A "line" duplicated inside TOB1 binary data shifted every later record off its
     boundary; their garbage SECONDS fields gave samples of foreign days (2024-10-23 in a
-    file of 2024-06-01, found by tests/test_damaged_inputs.py)."""
+    file of 2024-06-01, found by tests/test_damaged_inputs.py). Then the rest of the
+    file was dropped (issue 34.3): now the record holding the inserted bytes is lost
+    and reading resumes on the boundaries, with a note."""
     from pathlib import Path
 
     sample = Path(__file__).parents[2] / "sample_data/sonic/TOB1_999.ts_data_2024_06_01_1200.dat"
@@ -267,13 +269,16 @@ def test_tob1_records_shifted_by_inserted_bytes_are_dropped(tmp_path):
     ds = read_tob1(damaged)
     assert ds["time"].values.min() >= whole["time"].values.min()
     assert ds["time"].values.max() <= whole["time"].values.max()
-    assert 0.3 * whole.sizes["time"] <= ds.sizes["time"] < 0.34 * whole.sizes["time"]
-    assert any("RECORD numbers stop counting up" in w for w in ds.attrs["warnings"])
-    np.testing.assert_array_equal(ds["u"].values, whole["u"].values[: ds.sizes["time"]])
+    assert ds.sizes["time"] == whole.sizes["time"] - 1  # the damaged record alone lost
+    assert any("3 byte(s) skipped" in w or "byte(s) skipped, 1 record(s) lost" in w
+               for w in ds.attrs["warnings"])  # fmt: skip
+    kept = np.isin(whole["time"].values, ds["time"].values)
+    assert np.count_nonzero(~kept) == 1
+    np.testing.assert_array_equal(ds["u"].values, whole["u"].values[kept])
 
 
 def test_misaligned_from_tells_garbage_from_lost_records_and_restarts():
-    from cwproc.io.campbell import misaligned_from
+    from cwproc.io.records import misaligned_from
 
     r = np.arange(200)
     assert misaligned_from(r) is None
