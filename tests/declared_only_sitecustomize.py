@@ -1,10 +1,11 @@
 """``sitecustomize`` of the new user's environment (tests/test_readme.py): only what
 cwproc declares.
 
-The environment is made with ``--system-site-packages``, so that the test does not unpack
-half a gigabyte of wheels; this module, copied into it as ``sitecustomize.py``, makes it
-behave as the fresh environment of ``pip install .`` would. The base interpreter's
-site-packages (and what their ``.pth`` files added) leave ``sys.path``; a finder at the
+The environment sees the site-packages of the interpreter that runs the tests (a ``.pth``
+file adds them), so that the test does not unpack half a gigabyte of wheels; this
+module, copied into it as ``sitecustomize.py``, makes it behave as the fresh environment
+of ``pip install .`` would. Those site-packages (and what their ``.pth`` files added)
+leave ``sys.path``; a finder at the
 end of ``sys.meta_path`` finds a top-level module there only when it belongs to a
 distribution that cwproc's installed metadata requires, directly or through its
 requirements (extras left out, environment markers evaluated), and
@@ -26,18 +27,26 @@ import importlib.machinery
 import importlib.metadata
 import os
 import sys
+import sysconfig
 
 _ENVIRONMENT = os.path.realpath(sys.prefix) + os.sep
-_BASE = os.path.realpath(sys.base_prefix) + os.sep
+_STDLIB = tuple(
+    os.path.realpath(sysconfig.get_path(name, vars={"base": sys.base_prefix})) + os.sep
+    for name in ("stdlib", "platstdlib")
+)
 
 
 def _hidden(entry: str) -> bool:
-    """Whether a ``sys.path`` entry is the base interpreter's (site-packages or added by
-    their ``.pth`` files), not the environment's or the standard library's."""
-    real = os.path.realpath(entry or os.curdir) + os.sep
-    if real.startswith(_ENVIRONMENT) or not entry:
+    """Whether a ``sys.path`` entry is outside the environment and the standard library
+    (a site-packages folder of another interpreter or environment, or what its ``.pth``
+    files added)."""
+    if not entry:
+        return False  # the current folder
+    real = os.path.realpath(entry) + os.sep
+    if real.startswith(_ENVIRONMENT):
         return False
-    return not (real.startswith(_BASE) and "site-packages" not in real)
+    site_folder = "site-packages" in real or "dist-packages" in real
+    return site_folder or not real.startswith(_STDLIB)
 
 
 def _top_level(dist: importlib.metadata.Distribution) -> set[str]:
@@ -110,7 +119,8 @@ class DeclaredOnly(importlib.abc.MetaPathFinder):
     def find_spec(self, name, path=None, target=None):
         if path is not None or "." in name:
             return None  # submodules go through their package
-        if not self._reading and name not in self._closure()[0]:
+        free = self._reading or name in sys.stdlib_module_names
+        if not free and name not in self._closure()[0]:
             spec = importlib.machinery.PathFinder.find_spec(name, self.hidden)
             if spec is not None:
                 log = os.environ.get("CWPROC_TEST_REFUSED_IMPORTS")

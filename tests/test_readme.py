@@ -428,31 +428,32 @@ def venv_environment(venv: Path) -> dict[str, str]:
     env["PIP_NO_COMPILE"] = "1"
     # `pip install .` builds and installs cwproc (build isolation kept: the build
     # requirements of pyproject.toml are installed as for a user) but not its
-    # dependencies: the environment takes them from the system site-packages, limited by
-    # declared_only_sitecustomize.py to what cwproc declares (unpacking them again cost
-    # about 500 MB and most of the test's minute and a half)
+    # dependencies: the environment takes them from the site-packages of the tests'
+    # interpreter, limited by declared_only_sitecustomize.py to what cwproc declares
+    # (unpacking them again cost about 500 MB and most of the test's minute and a half)
     env["PIP_NO_DEPS"] = "1"
     env["MPLBACKEND"] = "Agg"
     return env
 
 
 def declared_only_venv(venv: Path) -> None:
-    """A virtual environment that sees the system site-packages, but of them only the
-    distributions cwproc's metadata requires (``declared_only_sitecustomize.py``)."""
-    subprocess.run(
-        [sys.executable, "-m", "venv", "--system-site-packages", str(venv)],
-        check=True,
-        timeout=300,
-    )
+    """A virtual environment that sees the site-packages of the interpreter running the
+    tests (a venv's or the system's), but of them only the distributions cwproc's
+    metadata requires (``declared_only_sitecustomize.py``)."""
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
     (site_packages,) = (venv / "lib").glob("python3*/site-packages")
+    outer = [p for p in sys.path if Path(p).name in ("site-packages", "dist-packages")]
+    # site.addsitedir also runs their .pth files (editable installs), as Python would
+    lines = [f"import site; site.addsitedir({p!r})" for p in outer]
+    (site_packages / "zz_outer_site_packages.pth").write_text("\n".join(lines) + "\n")
     shutil.copy(DECLARED_ONLY, site_packages / "sitecustomize.py")
 
 
 @pytest.mark.slow
 def test_environment_sees_only_the_declared_dependencies(tmp_path):
-    """The guard of the new user's environment refuses a system module cwproc does not
+    """The guard of the new user's environment refuses an installed module cwproc does not
     declare (pytest is installed here, no requirement of cwproc brings it) and lets the
-    declared ones through, from the base interpreter's site-packages."""
+    declared ones through, from the site-packages of the tests' interpreter."""
     venv = tmp_path / "venv"
     declared_only_venv(venv)
     env = venv_environment(venv)
