@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import shutil
@@ -27,6 +28,91 @@ if not os.environ.get(TEST_CACHE_VARIABLE):
     _OWN_CACHE = tempfile.mkdtemp(prefix="cwproc-test-cache-")
     os.environ[TEST_CACHE_VARIABLE] = _OWN_CACHE
 os.environ["XDG_CACHE_HOME"] = os.environ[TEST_CACHE_VARIABLE]
+
+
+#: BLAS/OpenMP thread pools of each pytest-xdist worker: one thread, as many workers as
+#: cores already keep every core busy; two workers with a pool of two threads each on two
+#: cores would make the pools' threads wait for each other (OpenBLAS spins while it waits)
+WORKER_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def pytest_configure(config):
+    """The controller of a parallel run (``-n``) sets the workers' thread pools to one
+    thread before it spawns them (they inherit its environment); a setting of the user's
+    own is kept."""
+    if getattr(config.option, "numprocesses", None) and not hasattr(config, "workerinput"):
+        for name in WORKER_THREAD_VARIABLES:
+            os.environ.setdefault(name, "1")
+
+
+#: CPU seconds (one core) of the tests that take more than about 5 s, by test function
+#: (the most costly of its parameters): a scheduling hint only (:func:`_heaviest_first`),
+#: a test not named here runs where it falls. The fresh-environment test spends as much
+#: again waiting for the disk and its subprocesses, hence early in the run.
+HEAVY_TESTS = {
+    "test_zephir300_preset_reads_the_simulated_zephir_scans": 44.0,
+    "test_new_user_follows_the_readme": 40.0,
+    "test_exact_statistics_eps_is_unbiased_and_its_error_bar_calibrated": 33.0,
+    "test_swept_von_karman_table_matches_exact_pairs": 26.0,
+    "test_von_karman_coarse_scans_recover_eps_and_outer_scale": 12.0,
+    "test_swept_table_matches_exact_pairs_on_the_circle_and_per_node": 7.0,
+    "test_coarse_continuous_sweep_converges": 7.0,
+    "test_swept_rays_seen_at_their_own_times": 5.0,
+    "test_eps_and_noise_hold_when_the_snr_misstates_the_noise": 4.0,
+}
+
+
+def _heaviest_first(items: list, workers: int, chunk: int) -> list:
+    """``items`` reordered so that pytest-xdist's ``load`` schedule starts the heavy
+    tests first, spread over the workers.
+
+    The schedule sends each of the ``workers`` its first ``chunk`` items (in collection
+    order) and the rest on demand, so a test collected late (the fresh-environment test of
+    ``test_readme.py``) would start last and keep one worker busy alone at the end. Here
+    the heavy tests (:data:`HEAVY_TESTS`) are dealt longest first to the worker with the
+    least heavy work so far, and each worker's first chunk starts with its share.
+    """
+    heavy = [i for i in items if getattr(i, "originalname", i.name) in HEAVY_TESTS]
+    if not heavy or workers < 2:
+        return items
+    heavy.sort(key=lambda i: -HEAVY_TESTS[getattr(i, "originalname", i.name)])
+    loads, shares = [0.0] * workers, [[] for _ in range(workers)]
+    for item in heavy:
+        k = loads.index(min(loads))
+        shares[k].append(item)
+        loads[k] += HEAVY_TESTS[getattr(item, "originalname", item.name)]
+    chosen = {id(i) for i in heavy}
+    rest = iter([i for i in items if id(i) not in chosen])
+    ordered = []
+    for share in shares:
+        ordered += share
+        ordered += itertools.islice(rest, max(chunk - len(share), 0))
+    return ordered + list(rest)
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_configure_node(node):
+    """pytest-xdist: tell each worker the controller's schedule (a worker's own ``dist``
+    option is ``no``)."""
+    node.workerinput["cwproc_dist"] = node.config.getoption("dist")
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_collection_modifyitems(config, items):
+    """The tests of ``../shared`` deselected when it is absent (:func:`_deselect_shared`);
+    then, in a pytest-xdist worker of a ``load`` run, the heavy tests first
+    (:func:`_heaviest_first`), after every deselection (``-m`` too), so that the chunks
+    are those of the schedule."""
+    _deselect_shared(config, items)
+    worker = getattr(config, "workerinput", None)
+    if worker is None or worker.get("cwproc_dist") != "load":
+        return
+    workers = int(worker["workercount"])
+    # the first chunk of each worker, as xdist.scheduler.LoadScheduling.schedule makes it
+    chunk = len(items) // workers // 4
+    if config.getoption("maxschedchunk", None):
+        chunk = min(chunk, config.getoption("maxschedchunk"))
+    items[:] = _heaviest_first(items, workers, max(chunk, 2))
 
 
 def pytest_sessionfinish(session, exitstatus):
@@ -61,7 +147,7 @@ def reference_dir() -> Path:
 SHARED_FIXTURES = {"real_data": REAL_DATA, "reference_dir": REFERENCE}
 
 
-def pytest_collection_modifyitems(config, items):
+def _deselect_shared(config, items):
     """Without ../shared (every user's case) its tests are deselected, not skipped one by
     one: the readers are covered by the shipped samples (tests/sim/test_sample_data.py)."""
     missing = {name for name, path in SHARED_FIXTURES.items() if not path.is_dir()}

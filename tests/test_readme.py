@@ -2,10 +2,11 @@
 
 The fast tests check the README's text against the code (the first code block, the CI
 command, every ``cwproc`` command and option named in a shell block, the links and
-pictures). The slow test follows the README in a fresh virtual environment: it copies the
+pictures). The slow test follows the README in a new virtual environment: it copies the
 tracked files of the repository, installs cwproc from the copy, and runs the main-job line
 and every block of the tour marked ``<!-- tested -->`` exactly as written (the blocks
-not marked need the user's own files under ``/data/`` or take minutes).
+not marked need the user's own files under ``/data/`` or take minutes). The environment
+sees only the dependencies cwproc declares (``declared_only_sitecustomize.py``).
 """
 
 from __future__ import annotations
@@ -413,6 +414,10 @@ def tour_commands() -> list[str]:
     return commands
 
 
+#: the environment's ``sitecustomize``: only the dependencies cwproc declares
+DECLARED_ONLY = Path(__file__).with_name("declared_only_sitecustomize.py")
+
+
 def venv_environment(venv: Path) -> dict[str, str]:
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
     env["VIRTUAL_ENV"] = str(venv)
@@ -421,8 +426,64 @@ def venv_environment(venv: Path) -> dict[str, str]:
     # no byte-compilation of the installed packages: saves a minute on a loaded machine,
     # and Python compiles what it imports anyway
     env["PIP_NO_COMPILE"] = "1"
+    # `pip install .` builds and installs cwproc (build isolation kept: the build
+    # requirements of pyproject.toml are installed as for a user) but not its
+    # dependencies: the environment takes them from the site-packages of the tests'
+    # interpreter, limited by declared_only_sitecustomize.py to what cwproc declares
+    # (unpacking them again cost about 500 MB and most of the test's minute and a half)
+    env["PIP_NO_DEPS"] = "1"
     env["MPLBACKEND"] = "Agg"
     return env
+
+
+def declared_only_venv(venv: Path) -> None:
+    """A virtual environment that sees the site-packages of the interpreter running the
+    tests (a venv's or the system's), but of them only the distributions cwproc's
+    metadata requires (``declared_only_sitecustomize.py``)."""
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
+    (site_packages,) = (venv / "lib").glob("python3*/site-packages")
+    outer = [p for p in sys.path if Path(p).name in ("site-packages", "dist-packages")]
+    # site.addsitedir also runs their .pth files (editable installs), as Python would
+    lines = [f"import site; site.addsitedir({p!r})" for p in outer]
+    (site_packages / "zz_outer_site_packages.pth").write_text("\n".join(lines) + "\n")
+    shutil.copy(DECLARED_ONLY, site_packages / "sitecustomize.py")
+
+
+@pytest.mark.slow
+def test_environment_sees_only_the_declared_dependencies(tmp_path):
+    """The guard of the new user's environment refuses an installed module cwproc does not
+    declare (pytest is installed here, no requirement of cwproc brings it) and lets the
+    declared ones through, from the site-packages of the tests' interpreter."""
+    venv = tmp_path / "venv"
+    declared_only_venv(venv)
+    env = venv_environment(venv)
+    env["CWPROC_TEST_REFUSED_IMPORTS"] = str(tmp_path / "refused.txt")
+    python = str(venv / "bin" / "python")
+    # a stand-in for cwproc in the environment (its metadata only): the guard reads its
+    # requirements
+    (site_packages,) = (venv / "lib").glob("python3*/site-packages")
+    info = site_packages / "cwproc-0.0.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text(
+        "Metadata-Version: 2.1\nName: cwproc\nVersion: 0.0.0\nRequires-Dist: xarray\n"
+        'Requires-Dist: pytest; extra == "test"\n',
+        encoding="utf-8",
+    )
+    (info / "RECORD").write_text("cwproc-0.0.0.dist-info/METADATA,,\n", encoding="utf-8")
+    probe = "import importlib.util as u; import xarray, numpy; print(u.find_spec('{}'))"
+    ok = subprocess.run(
+        [python, "-c", probe.format("pandas")], env=env, capture_output=True, text=True
+    )
+    assert ok.returncode == 0, ok.stderr  # xarray and what it requires (numpy, pandas)
+    assert "ModuleSpec(name='pandas'" in ok.stdout
+    refused = subprocess.run(
+        [python, "-c", "import pytest"], env=env, capture_output=True, text=True
+    )
+    assert refused.returncode == 1
+    assert "No module named 'pytest'" in refused.stderr
+    refused_names = (tmp_path / "refused.txt").read_text().split()
+    assert "pytest" in refused_names
+    assert not {"xarray", "numpy", "pandas"} & set(refused_names)
 
 
 @pytest.mark.slow
@@ -430,8 +491,10 @@ def test_new_user_follows_the_readme(tmp_path):
     copy = tmp_path / "cwproc"
     copy_tracked(REPO, copy)
     venv = tmp_path / "venv"
-    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
+    declared_only_venv(venv)
     env = venv_environment(venv)
+    refused = tmp_path / "refused_imports.txt"
+    env["CWPROC_TEST_REFUSED_IMPORTS"] = str(refused)
 
     commands = tour_commands()
     for command in commands:
@@ -454,6 +517,19 @@ def test_new_user_follows_the_readme(tmp_path):
                 assert line in printed, f"main job did not print {line!r}"
     # the commands ran the virtual environment's cwproc, not another installation
     assert shutil.which("cwproc", path=env["PATH"]) == str(venv / "bin" / "cwproc")
+    where = subprocess.run(
+        ["python", "-c", "import cwproc; print(cwproc.__file__)"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
+    assert Path(where).resolve().is_relative_to(venv.resolve()), where
+    # what the commands tried to import but cwproc does not declare (the optional
+    # imports of its dependencies, e.g. xarray's of dask, find nothing, as in an
+    # environment where only cwproc's requirements were installed)
+    print("refused imports:", sorted(set(refused.read_text().split())) if refused.exists() else [])
 
     import xarray as xr
 

@@ -648,7 +648,11 @@ def test_von_karman_coarse_scans_recover_eps_and_outer_scale(tmp_path, n_rays, t
     """Exact two-beam von Karman data (L_V = 300 m, eps 5e-3, sigma_e 0.05, U = 10 m/s).
 
     24-ray step-stare VAD and 72-ray continuous scan (each ray swept over 5 deg and seen
-    at its own times): eps within 2 %, L_V within 3 %, sigma_e within 15 %.
+    at its own times): eps within 2 %, L_V within 3 %, sigma_e within 15 %. The pairs
+    are taken at 12 azimuths 30 deg apart, weighted as the structure stage weights its
+    pairs: the 72-ray case gives eps, L_V, sigma_e 1.000893, 0.994525, 1.05236 of the
+    truth, as with 36 azimuths 10 deg apart (1.000893, 0.994524, 1.05234) at a third of
+    the cost (the exact swept pairs take most of it).
     """
     import math
 
@@ -662,7 +666,7 @@ def test_von_karman_coarse_scans_recover_eps_and_outer_scale(tmp_path, n_rays, t
     a = math.radians(70.0)
     wind = speed * np.array([0.0, math.cos(a), math.sin(a)])
     sweep = {"sweep_deg": dtheta, "n_sweep": 8} if swept else {}
-    mids = np.arange(0.0, 360.0, 10.0)
+    mids = np.arange(0.0, 360.0, 30.0)
     vk = {"model": "von_karman", "epsilon": eps, "outer_scale_m": big_l, "quadrature": q}
     d = np.array(
         [
