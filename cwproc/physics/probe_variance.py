@@ -155,8 +155,8 @@ def segment_loss(
     phi_deg: float,
     swept: bool,
     dwell: float = 0.0,
-    n_angle: int = 32,
-    n_radius: int = 200,
+    n_along: int = 42,
+    n_across: int = 64,
     n_theta: int = 6,
 ) -> np.ndarray:
     """Variance a ray loses to the transport during its accumulation, per eps^(2/3) (m^(2/3)).
@@ -170,8 +170,12 @@ def segment_loss(
 
     ``int int Phi(k1, k2) H_par(k1) [H_0(k2) - F(k1, k2)] dk1 dk2``
 
-    with the inertial spectrum of Smalikho (2020), eq. 18 (the segment is short against
-    ``L_V``), averaged over the wind's azimuth to the scan. Zero at ``mu = 0``.
+    with the inertial spectrum of Smalikho (2020), eq. 18, ``Phi = C (1 + (8/3) k2^2 /
+    k^2) k^(-8/3)`` (the segment is short against ``L_V``), averaged over the wind's
+    azimuth to the scan. Zero at ``mu = 0``. Trapezoids in ``log k1`` (``1e-6 .. 1``
+    cycles m-1: the pulsed ``H_par`` vanishes above) and ``log k2`` (``1e-6 .. 1e3``),
+    ``n_along`` x ``n_across`` nodes: within 0.5 % of four times as many (Stream Line
+    probe, 5-100 m steps, ``mu`` 0.5-6, swept and step-stare).
 
     Returns
     -------
@@ -181,22 +185,22 @@ def segment_loss(
     dy = np.atleast_1d(np.asarray(dy, dtype=float))
     rng = np.broadcast_to(np.asarray(range_m, dtype=float), dy.shape)
     mu = np.atleast_1d(np.asarray(mu, dtype=float))
-    alpha = (np.arange(n_angle) + 0.5) * (np.pi / 2) / n_angle
-    t = np.linspace(np.log(1e-6), np.log(1e3), n_radius)
-    rho = np.exp(t)[None, :]
-    k1, k2 = rho * np.cos(alpha)[:, None], rho * np.sin(alpha)[:, None]
-    c = spectra.exact_plane_constant()
-    weight = c * (1 + (8 / 3) * np.sin(alpha)[:, None] ** 2) * rho ** (-2 / 3)
-    weight = weight * np.gradient(t)[None, :] * (np.pi / 2) / n_angle
+    t1 = np.linspace(np.log(1e-6), 0.0, n_along)
+    t2 = np.linspace(np.log(1e-6), np.log(1e3), n_across)
+    k1, k2 = (g.ravel() for g in np.meshgrid(np.exp(t1), np.exp(t2), indexing="ij"))
+    w1, w2 = np.gradient(t1), np.gradient(t2)
+    w1[[0, -1]] *= 0.5
+    w2[[0, -1]] *= 0.5
+    rho2 = k1 * k1 + k2 * k2
+    spectrum = spectra.exact_plane_constant() * (1 + (8 / 3) * k2 * k2 / rho2) * rho2 ** (-4 / 3)
+    weight = spectrum * k1 * k2 * np.outer(w1, w2).ravel()
     out = np.zeros((dy.size, mu.size))
     for i in range(dy.size):
         h_par = probe.longitudinal(k1, rng[i])
         base = transverse(k2, probe.transverse_size(dy[i])) if swept else 1.0
-        s1, s2 = _segments(float(dy[i]), mu, phi_deg, dwell, swept, n_theta)
-        for m in range(mu.size):
-            f = np.zeros_like(k1)
-            for a, b in zip(s1[m], s2[m], strict=True):
-                f += np.sinc(k1 * a + k2 * b) ** 2 + np.sinc(k1 * a - k2 * b) ** 2
-            f *= 0.5 / n_theta
-            out[i, m] = np.sum(weight * h_par * (base - f))
+        s1, s2 = _segments(float(dy[i]), mu, phi_deg, dwell, swept, n_theta)  # (mu, theta)
+        along = s1[..., None] * k1
+        across = s2[..., None] * k2
+        f = (np.sinc(along + across) ** 2 + np.sinc(along - across) ** 2).mean(axis=1) * 0.5
+        out[i] = (base - f) @ (weight * h_par)
     return out

@@ -171,3 +171,35 @@ def test_variance_of_swept_rays_in_strong_wind_matches_the_reference():
         probe, dy_r, rng, np.array([0.0, 1.0, 3.0]), phi_deg=35.3, swept=False, dwell=0.5
     )[0]
     assert abs(stare[0]) < 1e-10 * stare[1] and 0 < stare[1] < stare[2]
+
+
+@pytest.mark.parametrize(("swept", "dwell"), [(True, 1.0), (False, 0.45)])
+def test_transport_loss_interpolates_the_segment_loss(swept, dwell):
+    # per cell: dy and mu nodes of the day, loss dy^(-2/3) linear in log dy and mu,
+    # against segment_loss at the cells themselves: within 0.5 %, or 0.1 m^(2/3) where
+    # the loss is small (0.2 % of sigma_V^2 / eps^(2/3) = 43.5 m^(2/3) at L_V = 200 m)
+    from types import SimpleNamespace
+
+    from cwproc.physics.probe_variance import segment_loss
+    from cwproc.stages.epsilon.outer_scale import transport_loss
+
+    rng = np.random.default_rng(5)
+    heights = np.geomspace(50.0, 2000.0, 12)
+    dy = (math.radians(15.0) * heights / math.tan(math.radians(60.0)))[None, :]
+    mu = rng.uniform(0.2, 7.0, (3, heights.size))
+    cells = SimpleNamespace(
+        dy=np.broadcast_to(dy, mu.shape),
+        range_m=np.broadcast_to(heights / math.sin(math.radians(60.0)), mu.shape),
+        phi=np.full(3, 60.0),
+        mu_eval=mu,
+    )
+    got = transport_loss(PROBE, cells, {"swept": swept, "dwell": dwell}, {})
+    direct = np.array(
+        [
+            segment_loss(PROBE, [d], [300.0], [m], phi_deg=60.0, swept=swept, dwell=dwell)[0, 0]
+            for d, m in zip(cells.dy.ravel(), mu.ravel(), strict=True)
+        ]
+    ).reshape(mu.shape)
+    np.testing.assert_allclose(got, direct, rtol=5e-3, atol=0.1)
+    none = transport_loss(PROBE, cells, {"swept": False, "dwell": 0.0}, {})
+    assert np.all(none == 0.0)
