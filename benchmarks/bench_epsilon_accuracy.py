@@ -21,7 +21,9 @@ on ``--blocks`` independent blocks of ``n_scans`` scans and prints, per retrieva
 
 Cases: 24- and 36-ray step-stare VADs, 72- and 180-ray continuous scans, mu = U/V_s
 (Smalikho (2020), eq. 3) from 0 to 3, a 180-ray scan with a 60 deg gap and a 90 deg
-continuous sector scan.
+continuous sector scan; last, step-stare VADs of 12, 24 and 36 rays whose rays dwell 1 s
+and 3 s (pulses per ray / PRF, the beam moving 1 s between rays) at mu 0, 1, 3
+(``--case dwell``).
 
 Run (about 10-20 min on 2 cores; the 180-ray covariances take most of it)::
 
@@ -29,6 +31,7 @@ Run (about 10-20 min on 2 cores; the 180-ray covariances take most of it)::
     python benchmarks/bench_epsilon_accuracy.py --quick    # 24/72 rays, mu 0 and 1
     python benchmarks/bench_epsilon_accuracy.py --case "72 rays" --mu 1 --model von_karman
     python benchmarks/bench_epsilon_accuracy.py --case "180 rays cont" --noise 0.3  # fitted
+    python benchmarks/bench_epsilon_accuracy.py --case dwell --mu 1 --blocks 20
 
 ``--case`` and ``--mu`` select cases of the full list; every case keeps the seed it has
 in the full run (``--seed`` plus its index), so a selected case repeats its row.
@@ -69,7 +72,12 @@ def cases(quick: bool) -> list[dict]:
             out.append(
                 {
                     "label": f"{rays:3d} rays {kind}",
-                    "pattern": eg.conical_pattern(rays, period, continuous=continuous),
+                    "pattern": eg.conical_pattern(
+                        rays,
+                        period,
+                        continuous=continuous,
+                        pulses_per_ray=None if continuous else 10000,
+                    ),
                     "mu": mu,
                 }
             )
@@ -89,6 +97,41 @@ def cases(quick: bool) -> list[dict]:
                     "mu": mu,
                 }
             )
+        out += dwell_cases()
+    return out
+
+
+#: time the beam takes from one azimuth of a step-stare VAD to the next (s)
+MOVE_S = 1.0
+#: pulse repetition frequency of the simulated Stream Line (Hz)
+PRF_HZ = 15000.0
+
+
+def dwell_cases() -> list[dict]:
+    """Step-stare VADs whose rays dwell 1 s and 3 s (issue 29): 12, 24, 36 rays, mu 0-3.
+
+    Each ray accumulates ``dwell x PRF`` pulses at its azimuth while the wind carries the
+    field (the generator averages over the dwell, the header says the pulses), then the
+    beam moves for :data:`MOVE_S`: ray period ``dwell + 1 s``, dwell fraction 0.5 / 0.75.
+    The 12-ray VADs (30 deg steps) take 20 scans per block; they get no eps (3 lags
+    would reach 90 deg, beyond the 60 deg limit of the structure function).
+    """
+    out = []
+    for rays in (12, 24, 36):
+        for dwell in (1.0, 3.0):
+            period = rays * (dwell + MOVE_S)
+            pattern = eg.conical_pattern(
+                rays,
+                period,
+                continuous=False,
+                pulses_per_ray=round(dwell * PRF_HZ),
+                prf_hz=PRF_HZ,
+            )
+            for mu in (0.0, 1.0, 3.0):
+                label = f"{rays:3d} rays step {dwell:g}s dwell"
+                # a 12-ray VAD has 12 pairs per lag and scan: 20 scans for min_pairs 100
+                scans = 20 if rays == 12 else N_SCANS
+                out.append({"label": label, "pattern": pattern, "mu": mu, "n_scans": scans})
     return out
 
 
@@ -171,10 +214,11 @@ def main() -> None:
         if args.mu and not any(abs(mu - m) < 1e-9 for m in args.mu):
             continue
         speed = mu * scan_speed(pattern)
+        n_scans = case.get("n_scans", N_SCANS)
         t0 = time.perf_counter()
         scans = eg.gaussian_scans(
             pattern=pattern,
-            n_scans=N_SCANS,
+            n_scans=n_scans,
             n_blocks=args.blocks,
             elevation_deg=PHI,
             ranges_m=[HEIGHT / np.sin(np.deg2rad(PHI))],
@@ -188,7 +232,7 @@ def main() -> None:
         for model in models:
             config = dataclasses.replace(
                 base,
-                turbulence=dataclasses.replace(base.turbulence, model=model, n_scans=N_SCANS),
+                turbulence=dataclasses.replace(base.turbulence, model=model, n_scans=n_scans),
             )
             notes: list[str] = []
             with warnings.catch_warnings():

@@ -66,6 +66,10 @@ class InstrumentConfig:
     #: range gate length (Stream Line header "Range gate length (m)"; 18 m when a file has
     #: none); set to override the files
     delta_r_m: float | None = None
+    #: pulsed lidar: pulse repetition frequency (Hz) for the dwell of a step-stare ray,
+    #: pulses per ray / PRF; unset: from the instrument model (Stream Line 15 kHz,
+    #: cwproc.physics.probe_lengths); set for another (Stream Line XR: 10000)
+    prf_hz: float | None = None
     #: cw lidar: Rayleigh-range coefficient c in Z_R = c R^2 (1/m); ZephIR 0.0013
     z_r_coefficient: float = ZEPHIR_Z_R_COEFFICIENT
     #: cw lidar: beam radius a0 at the telescope (m); when set, Z_R = lambda R^2/(2 pi a0^2)
@@ -82,7 +86,8 @@ class InstrumentConfig:
     def __post_init__(self) -> None:
         check_iso_dates(self, "earliest_date", "latest_date")
         _positive(self, "wavelength_m", "z_r_coefficient")
-        _positive(self, *(n for n in ("delta_p_m", "delta_r_m") if getattr(self, n) is not None))
+        optional = ("delta_p_m", "delta_r_m", "prf_hz")
+        _positive(self, *(n for n in optional if getattr(self, n) is not None))
         if self.beam_radius_m is not None and not self.beam_radius_m > 0:
             raise ValueError("beam_radius_m: must be > 0")
 

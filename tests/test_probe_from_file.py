@@ -95,3 +95,83 @@ def test_conical_turbulence_gets_the_file_gate_unless_configured(
     attrs = products["turbulence"].attrs
     assert (attrs["probe_delta_r_m"], attrs["probe_delta_r_source"]) == (expected, source)
     assert attrs["probe_delta_p_source"] == "instrument model"
+
+
+def test_pulse_rate_from_configuration_model_or_fallback():
+    from cwproc.physics.probe_lengths import pulse_rate
+
+    assert pulse_rate(STREAMLINE) == pulse_rate(STREAMLINE, None)
+    assert (pulse_rate(STREAMLINE).prf_hz, pulse_rate(STREAMLINE).source) == (
+        15000.0,
+        "instrument model",
+    )
+    assert pulse_rate(STREAMLINE, 10000.0).attrs() == {
+        "probe_prf_hz": 10000.0,
+        "probe_prf_source": "configuration",
+    }
+    assert pulse_rate({}).source == "fallback"
+    with pytest.raises(ValueError, match="prf_hz"):
+        InstrumentConfig(prf_hz=0.0)
+
+
+def test_dwell_is_pulses_over_prf_as_a_fraction_of_the_ray_period():
+    from cwproc.physics.probe_lengths import dwell_fraction, ray_dwell_s
+
+    assert ray_dwell_s(15000, 15000.0) == 1.0
+    assert ray_dwell_s(None, 15000.0) is None and ray_dwell_s(0, 15000.0) is None
+    assert dwell_fraction(1.0, 2.0) == 0.5
+    assert dwell_fraction(3.0, 2.0) == 1.0  # rays cannot overlap: the whole period
+    assert dwell_fraction(None, 2.0) == 0.0 and dwell_fraction(1.0, float("nan")) == 0.0
+
+
+def _stare_sf(pulses: int | None) -> xr.Dataset:
+    """A structure function's attributes and sampling of a 24-ray step-stare VAD."""
+    attrs = {"swept_rays": 0} | ({} if pulses is None else {"pulses_per_ray": pulses})
+    return xr.Dataset(
+        {
+            "scan_period": ("time", np.array([48.0, 48.0, 52.0])),
+            "azimuth_step": ("time", np.full(3, 15.0)),
+        },
+        coords={"height": [100.0, 200.0]},
+        attrs=attrs,
+    )
+
+
+@pytest.mark.parametrize(
+    ("pulses", "prf", "fraction"), [(15000, None, 0.5), (15000, 10000.0, 0.75), (None, None, 0.0)]
+)
+def test_step_stare_tables_get_the_dwell_of_the_header(pulses, prf, fraction):
+    """The dwell pulses / PRF over the ray period T_scan dtheta / 360 (2 s) goes to the
+    A-tables of step-stare rays; swept rays do not take one."""
+    from cwproc.stages.epsilon.atable_fit import stare_dwell, table_options_for
+
+    sf = _stare_sf(pulses)
+    options = table_options_for(sf, None, prf)
+    assert options["swept"] is False and options["dwell"] == pytest.approx(fraction)
+    assert stare_dwell(sf, prf)[2] == pytest.approx(2.0)
+    swept = sf.assign_attrs(swept_rays=1)
+    assert "dwell" not in table_options_for(swept, None, prf)
+
+
+def test_turbulence_product_records_the_dwell_and_the_prf(monkeypatch):
+    """The chain passes the instrument model's PRF; the product records it and its source."""
+    from cwproc.stages import epsilon, structure
+
+    seen = {}
+
+    def fake_sf(screened, wind, **kwargs):
+        return xr.Dataset(coords={"time": wind["time"].values[:1]})
+
+    def fake_eps(sf, *, probe, prf_hz=None, **kwargs):
+        seen["prf_hz"] = prf_hz
+        return xr.Dataset()
+
+    monkeypatch.setattr(structure, "azimuth_structure_function", fake_sf)
+    monkeypatch.setattr(epsilon, "estimate_epsilon", fake_eps)
+    products = chain.process_scans(_vad_scans(30.0), Config())
+    assert seen["prf_hz"] == 15000.0
+    attrs = products["turbulence"].attrs
+    assert (attrs["probe_prf_hz"], attrs["probe_prf_source"]) == (15000.0, "instrument model")
+    xr_config = Config().replace(instrument={"prf_hz": 10000.0})
+    chain.process_scans(_vad_scans(30.0), xr_config)
+    assert seen["prf_hz"] == 10000.0

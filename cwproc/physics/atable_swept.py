@@ -289,6 +289,62 @@ def stare_kernel(lags: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return lags.copy(), np.eye(lags.size)
 
 
+def dwell_kernel(lags: np.ndarray, dwell: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Nodes ``(x_scan, x_wind)`` and weights ``K (lags, nodes)`` of step-stare rays with dwell.
+
+    A step-stare ray holds its azimuth for the dwell ``T_d = d tau`` (pulses per ray
+    over the pulse repetition rate; ``tau`` the ray period) while the wind carries the
+    frozen field: sub-beam ``f`` in ``[0, d)`` of ray ``l`` sees the field at ``l dy e_scan
+    - (l + f) mu dy e_wind``. Two sub-beams are then the pair of beams ``x_scan = l``
+    steps apart whose field moved ``x_wind = l + f_a - f_b`` ray periods, and
+
+    ``D(l) = int tri_d(u) D0(l, l + u) du - int tri_d(u) D0(0, u) du``,
+
+    ``tri_d(u) = (d - |u|) / d^2`` on ``[-d, d]`` (the density of ``u = f_a - f_b``; the
+    second term is the rays' own averaging, as in :func:`sweep_kernel`, where ``x_scan =
+    x_wind``). Gauss-Legendre, :data:`SWEEP_NODES` on each half of ``u`` per lag (the
+    kink of ``tri_d`` at 0 is a node boundary), graded as ``u = d t^3`` for the own term
+    whose ``D0(0, u) ~ u^(2/3)`` has its cusp at 0 (even in ``u``: one half, doubled).
+    ``d = 0`` is :func:`stare_kernel` (instantaneous rays) exactly.
+
+    Returns
+    -------
+    x_scan, x_wind, weights : numpy.ndarray
+        ``(nodes,)``, ``(nodes,)``, ``(lags, nodes)``.
+    """
+    lags = np.asarray(lags, dtype=float)
+    dwell = float(dwell)
+    if not 0.0 <= dwell <= 1.0:
+        raise ValueError(f"the dwell fraction must be in [0, 1], got {dwell!r}")
+    if dwell == 0.0:
+        x, weights = stare_kernel(lags)
+        return x, x.copy(), weights
+    t, w = legendre.leggauss(SWEEP_NODES)
+    t, w = 0.5 * (t + 1.0), 0.5 * w
+    half = np.concatenate([-dwell * t, dwell * t])  # u on [-d, 0] and [0, d]
+    tri = np.concatenate([w, w]) * (dwell - np.abs(half)) / dwell  # du tri_d(u)
+    own_u = dwell * t**3
+    own = -2.0 * (dwell - own_u) / dwell * 3.0 * t**2 * w
+    n, k = lags.size, half.size
+    x_scan = np.concatenate([np.repeat(lags, k), np.zeros(t.size)])
+    x_wind = np.concatenate([(lags[:, None] + half[None, :]).ravel(), own_u])
+    weights = np.zeros((n, x_scan.size))
+    for i in range(n):
+        weights[i, i * k : (i + 1) * k] = tri
+    weights[:, n * k :] = own[None, :]
+    return x_scan, x_wind, weights
+
+
+def kernel_nodes(
+    kernel: tuple[np.ndarray, ...],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(x_scan, x_wind, weights)`` of a kernel: a swept or stare one has ``x_wind = x``."""
+    if len(kernel) == 2:
+        x, weights = kernel
+        return x, x, weights
+    return kernel[0], kernel[1], kernel[2]
+
+
 def offset_rule(probe: Any, range_m: float) -> tuple[np.ndarray, np.ndarray]:
     """Nodes ``v / R`` and weights of the mean range offset ``v`` of a pair of probe points.
 
@@ -329,25 +385,29 @@ def point_pair(
     a: np.ndarray,
     b: np.ndarray,
     radius: float,
+    x_wind: np.ndarray | None = None,
 ) -> np.ndarray:
     """Exact inertial point pair (per eps^(2/3)) on the circle ``R' = 1``, ``(x, mu, theta)``.
 
     Points at ``radius`` (relative to ``R'``) on beams ``x dtheta`` apart, centred on north
     and scanning towards east, the transport ``(a, b)``: ``a = 1 - mu sin th`` across,
-    ``b = mu cos th`` along the horizontal beam (ray period ``dtheta``, ``V_s = 1``).
+    ``b = mu cos th`` along the horizontal beam, over ``x_wind`` ray periods (``x`` when
+    ``None``: a swept pair; ray period ``dtheta``, ``V_s = 1``).
     ``D = r^(2/3) [(8/3) S_a.S_b - (2/3) (S_a.r)(S_b.r)/r^2]`` (the inertial structure
     tensor, Banakh et al. (1999), eq. 16; as
     :func:`cwproc.physics.two_beam.cross_term` for a point).
     """
+    x_wind = x if x_wind is None else x_wind
     step = math.radians(delta_theta_deg)
     cphi, sphi = math.cos(math.radians(phi_deg)), math.sin(math.radians(phi_deg))
     half = 0.5 * x * step
     # unit beams (up, north, east) at azimuths -half (a, earlier) and +half (b)
     sa = (sphi, cphi * np.cos(half), -cphi * np.sin(half))
     sb = (sphi, cphi * np.cos(half), cphi * np.sin(half))
-    # separation x_a - x_b + U x dtheta: across (east) and along (north) the beam
-    east = (-2.0 * radius * np.sin(half))[:, None, None] + (x * step)[:, None, None] * (1.0 - a)
-    north = (x * step)[:, None, None] * b[None]
+    # separation x_a - x_b + U x_wind dtheta: across (east) and along (north) the beam
+    moved = (x_wind * step)[:, None, None]
+    east = (-2.0 * radius * np.sin(half))[:, None, None] + moved * (1.0 - a)
+    north = moved * b[None]
     r2 = east**2 + north**2
     dot = (sphi * sphi + (cphi * cphi) * np.cos(2.0 * half))[:, None, None]
     pa = sa[1][:, None, None] * north + sa[2][:, None, None] * east
@@ -358,16 +418,22 @@ def point_pair(
 
 
 def _across(
-    x: np.ndarray, mu: np.ndarray, theta: np.ndarray, shift: float, step: float
+    x: np.ndarray,
+    mu: np.ndarray,
+    theta: np.ndarray,
+    shift: float,
+    step: float,
+    x_wind: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Horizontal separation across the beam per ``x dy``, ``(x, mu, theta)``.
+    """Horizontal separation across the beam per ``dy``, ``(x, mu, theta)``.
 
-    The chord of the pair at radius ``1 + shift`` (``2 sin(x dtheta/2)``, relative to
-    ``R'``) less the wind's component along the scan, ``mu sin th`` per ``dy`` of time.
+    The chord of beams ``x`` steps apart at radius ``1 + shift`` (``2 sin(x dtheta/2)``,
+    relative to ``R'``) less the wind's component along the scan over ``x_wind`` ray
+    periods (``x`` when ``None``), ``x_wind mu sin th`` steps.
     """
-    half = 0.5 * x * step
-    chord = np.sin(half) / half
-    return (1.0 + shift) * chord[:, None, None] - (
+    x_wind = x if x_wind is None else x_wind
+    chord = x * np.sinc(0.5 * x * step / np.pi)  # x sin(h)/h, h = x dtheta/2; 0 at x = 0
+    return (1.0 + shift) * chord[:, None, None] - x_wind[:, None, None] * (
         np.asarray(mu, float)[:, None] * np.sin(theta)[None, :]
     )[None]
 
@@ -379,6 +445,7 @@ def geometry_ratio(
     mu: np.ndarray,
     theta: np.ndarray,
     offsets: tuple[np.ndarray, np.ndarray],
+    x_wind: np.ndarray | None = None,
 ) -> np.ndarray:
     """Exact point pair over eq. 15 of the point at the same separation, ``(x, mu, theta)``.
 
@@ -386,22 +453,26 @@ def geometry_ratio(
     radius ``1 + v/R`` over :func:`_point_eq15` of its separation (chord less transport,
     :func:`_across`). What is left is the projection of the angle between the beams on
     the structure tensor, ``1 - O((x dtheta)^2)``, finite also where the wind cancels the
-    scan (``a = b = 0``). Even in ``cos th`` (both depend on ``sin th`` and ``b^2`` only):
-    ``theta`` of :func:`cwproc.physics.atable.full_circle` (a half circle and its mirror)
-    is computed on its first half and repeated.
+    scan (``a = b = 0``). Beam angle from ``x`` (steps), transport from ``x_wind`` (ray
+    periods; ``x`` when ``None``, a swept pair): parallel beams (``x = 0``, a
+    step-stare ray and itself later) have the ratio 1 exactly. Even in ``cos th`` (both
+    depend on ``sin th`` and ``b^2`` only): ``theta`` of
+    :func:`cwproc.physics.atable.full_circle` (a half circle and its mirror) is computed
+    on its first half and repeated.
     """
+    x_wind = x if x_wind is None else x_wind
     n_half = theta.size // 2
     if n_half and np.allclose(np.sin(theta[n_half:]), np.sin(theta[:n_half])):
-        half = geometry_ratio(phi_deg, delta_theta_deg, x, mu, theta[:n_half], offsets)
+        half = geometry_ratio(phi_deg, delta_theta_deg, x, mu, theta[:n_half], offsets, x_wind)
         return np.concatenate([half, half], axis=-1)
     exact = np.zeros((x.size, np.size(mu), theta.size))
     small = np.zeros_like(exact)
     for shift, w in zip(*offsets, strict=True):
-        pair, eq15 = _offset_terms(phi_deg, delta_theta_deg, x, mu, theta, float(shift))
+        pair, eq15 = _offset_terms(phi_deg, delta_theta_deg, x, x_wind, mu, theta, float(shift))
         exact += w * pair
         small += w * eq15
-    step = math.radians(delta_theta_deg)
-    return exact / ((x * step)[:, None, None] ** (2.0 / 3.0) * small)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(small > 0, exact / np.where(small > 0, small, 1.0), 1.0)
 
 
 #: the terms of the zero range offset of the last geometry (the same at every height)
@@ -412,25 +483,28 @@ def _offset_terms(
     phi_deg: float,
     delta_theta_deg: float,
     x: np.ndarray,
+    x_wind: np.ndarray,
     mu: np.ndarray,
     theta: np.ndarray,
     shift: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`point_pair` and :func:`_point_eq15` of one range offset, ``(x, mu, theta)``.
 
-    The zero offset does not depend on the height: its terms are kept for the next
-    height of the same geometry (one geometry kept).
+    Both per ``eps^(2/3)`` on the circle ``R' = 1`` (eq. 15 is homogeneous of degree 2/3
+    in the separation). The zero offset does not depend on the height: its terms are
+    kept for the next height of the same geometry (one geometry kept).
     """
     key = b""
     if shift == 0.0:
-        parts = (np.array([phi_deg, delta_theta_deg]), x, np.asarray(mu, float), theta)
+        parts = (np.array([phi_deg, delta_theta_deg]), x, x_wind, np.asarray(mu, float), theta)
         key = b"|".join(np.ascontiguousarray(p, dtype=float).tobytes() for p in parts)
         if key in _CENTRE_MEMO:
             return _CENTRE_MEMO[key]
     a, b = _components(mu, theta)
     step = math.radians(delta_theta_deg)
-    pair = point_pair(phi_deg, delta_theta_deg, x, a, b, 1.0 + shift)
-    eq15 = _point_eq15(_across(x, mu, theta, shift, step), b[None], phi_deg)
+    pair = point_pair(phi_deg, delta_theta_deg, x, a, b, 1.0 + shift, x_wind)
+    across = step * _across(x, mu, theta, shift, step, x_wind)
+    eq15 = _point_eq15(across, (step * x_wind)[:, None, None] * b[None], phi_deg)
     if key:
         _CENTRE_MEMO.clear()
         _CENTRE_MEMO[key] = (pair, eq15)
@@ -440,7 +514,7 @@ def _offset_terms(
 def swept_a2(
     plane: PlaneCurves,
     ratio: np.ndarray,
-    kernel: tuple[np.ndarray, np.ndarray],
+    kernel: tuple[np.ndarray, ...],
     *,
     phi_deg: float,
     delta_theta_deg: float,
@@ -450,26 +524,28 @@ def swept_a2(
     mu: np.ndarray,
     theta: np.ndarray,
 ) -> np.ndarray:
-    """A_2 integrand ``(lags, mu, theta)`` (m^(2/3)) of swept rays seen at their own times.
+    """A_2 integrand ``(lags, mu, theta)`` (m^(2/3)) of rays seen at their own times.
 
-    The module's model: ``D0(x) = (E_v A(x dy b cos phi, x dy sqrt(a_v^2 + b^2 sin^2
-    phi)) + 2S) ratio - 2S`` with ``a_v`` of :func:`_across`, ``ratio`` of
-    :func:`geometry_ratio` and ``2S = same``, then the sweep kernel (:func:`sweep_kernel`).
+    The module's model: ``D0(x) = (E_v A(x_w dy b cos phi, dy sqrt(a_v^2 + (x_w b sin
+    phi)^2)) + 2S) ratio - 2S`` with ``a_v`` of :func:`_across`, ``ratio`` of
+    :func:`geometry_ratio` and ``2S = same``, then the kernel: :func:`sweep_kernel`
+    (swept rays, ``x_w = x``), :func:`stare_kernel` or :func:`dwell_kernel` (step-stare
+    rays, nodes ``(x, x_w)``; :func:`kernel_nodes`).
     ``theta``: azimuths of the wind from the scan's direction of motion (rad), a half
     circle ``th`` followed by its mirror ``pi - th`` (the probe part depends on ``sin th``
     and ``cos^2 th`` only); ``dy``: the azimuth step on the probe's circle (m).
     """
-    x, weights = kernel
+    x, x_wind, weights = kernel_nodes(kernel)
     n_half = theta.size // 2
     half = theta[:n_half]  # the integrand is even in cos(theta): the mirror half repeats it
     _, b = _components(mu, half)
     step = math.radians(delta_theta_deg)
     cphi, sphi = math.cos(math.radians(phi_deg)), math.sin(math.radians(phi_deg))
-    xs = x[:, None, None] * dy
-    along = xs * np.abs(b)[None] * cphi
+    moved = (x_wind * dy)[:, None, None] * np.abs(b)[None]  # transport along the beam
+    along = moved * cphi
     probe_mean = np.zeros((x.size, *b.shape))
     for shift, w in zip(*offsets, strict=True):
-        across = xs * np.sqrt(_across(x, mu, half, shift, step) ** 2 + (b * sphi)[None] ** 2)
+        across = dy * np.hypot(_across(x, mu, half, shift, step, x_wind), moved * sphi / dy)
         probe_mean += w * plane(np.broadcast_to(along, across.shape), across)
     d0 = (probe_mean + same) * ratio[..., :n_half] - same
     out = np.einsum("lx,xmt->lmt", weights, d0)

@@ -14,6 +14,13 @@ comes from the instrument model (:data:`PULSE_HALF_WIDTH_M`).
 Precedence: a value set in the configuration, then the file (``Delta_R``) or the
 instrument model (``Delta_p``), then the Stream Line values of Smalikho (2020) as a
 fallback, recorded as such.
+
+A step-stare ray holds its azimuth while it accumulates its pulses: it dwells ``T_d =
+pulses per ray / PRF`` (:func:`ray_dwell_s`; the Stream Line header has ``Pulses/ray``,
+the pulse repetition frequency is a setting of the instrument model,
+:data:`PULSE_REPETITION_HZ`, with the same precedence), a fraction ``d = T_d / tau`` of
+the ray period ``tau`` (:func:`dwell_fraction`), while the mean wind carries the field
+past (:func:`cwproc.physics.atable_swept.dwell_kernel`).
 """
 
 from __future__ import annotations
@@ -30,6 +37,11 @@ PULSE_HALF_WIDTH_M: dict[str, float] = {"streamline": STREAMLINE_DELTA_P_M}
 #: Delta_R (m) when neither the configuration nor the file gives it: the 18 m gate of the
 #: measurements of Smalikho (2020)
 FALLBACK_DELTA_R_M = STREAMLINE_DELTA_R_M
+#: pulse repetition frequency (Hz) per instrument model: the Stream Line's 15 kHz (Halo
+#: Photonics; the long-range Stream Line XR fires at 10 kHz: set ``[instrument] prf_hz``)
+PULSE_REPETITION_HZ: dict[str, float] = {"streamline": 15000.0}
+#: the PRF when neither the configuration nor the instrument model gives it (Stream Line)
+FALLBACK_PRF_HZ = 15000.0
 
 SOURCE_CONFIG = "configuration"
 SOURCE_FILE = "file"
@@ -107,3 +119,44 @@ def pulsed_probe_lengths(
     else:
         dp, dp_source = STREAMLINE_DELTA_P_M, SOURCE_FALLBACK
     return ProbeLengths(dp, dp_source, dr, dr_source)
+
+
+@dataclass(frozen=True)
+class PulseRate:
+    """Pulse repetition frequency (Hz) of a pulsed lidar and its source (:class:`ProbeLengths`)."""
+
+    prf_hz: float
+    source: str
+
+    def attrs(self, prefix: str = "probe_") -> dict[str, float | str]:
+        """The product attributes (``probe_prf_hz``, ``probe_prf_source``)."""
+        return {f"{prefix}prf_hz": float(self.prf_hz), f"{prefix}prf_source": self.source}
+
+
+def pulse_rate(attrs: Mapping[str, object], prf_hz: float | None = None) -> PulseRate:
+    """The PRF of the data: ``prf_hz`` if set, else the instrument model's, else 15 kHz."""
+    if prf_hz is not None:
+        return PulseRate(float(prf_hz), SOURCE_CONFIG)
+    kind = str(attrs.get("instrument_kind", "")).strip().lower()
+    if kind in PULSE_REPETITION_HZ:
+        return PulseRate(PULSE_REPETITION_HZ[kind], SOURCE_MODEL)
+    return PulseRate(FALLBACK_PRF_HZ, SOURCE_FALLBACK)
+
+
+def ray_dwell_s(pulses_per_ray: object, prf_hz: float) -> float | None:
+    """Dwell ``T_d = pulses / PRF`` (s) of a ray; None when the pulses per ray are unknown."""
+    pulses = _positive(pulses_per_ray)
+    rate = _positive(prf_hz)
+    return None if pulses is None or rate is None else pulses / rate
+
+
+def dwell_fraction(dwell_s: float | None, ray_period_s: float) -> float:
+    """``d = T_d / tau`` in ``[0, 1]``: 0 when either is unknown (instantaneous rays).
+
+    A dwell longer than the ray period (timestamps of a file whose rays overlap, or a
+    wrong PRF) is the whole period.
+    """
+    period = _positive(ray_period_s)
+    if dwell_s is None or period is None or not math.isfinite(dwell_s):
+        return 0.0
+    return float(min(1.0, max(0.0, dwell_s / period)))

@@ -466,6 +466,71 @@ def two_beam_structure_function(
     return float(epsilon) ** (2.0 / 3.0) * out
 
 
+def dwell_structure_function(
+    azimuth_a_deg: ArrayLike,
+    azimuth_b_deg: ArrayLike,
+    elevation_deg: float,
+    range_m: float,
+    *,
+    dwell_s: float,
+    n_dwell: int = 16,
+    time_separation_s: ArrayLike = 0.0,
+    mean_wind: ArrayLike | None = None,
+    probe: Any = None,
+    quadrature: BeamQuadrature | None = None,
+    model: str = "inertial",
+    epsilon: float = 1.0,
+    outer_scale_m: float | None = None,
+) -> np.ndarray:
+    """``<[V_a - V_b]^2>`` (m2 s-2) of two step-stare rays that each dwell ``dwell_s``.
+
+    A step-stare ray holds its azimuth while it accumulates pulses (``T_d`` = pulses per
+    ray / pulse repetition rate) and the mean wind carries the frozen field past: the ray
+    is the mean of ``n_dwell`` point-in-time rays at offsets ``o_j`` (midpoints of
+    ``[0, T_d)``). Directly, by :func:`cross_term` over all sub-ray pairs,
+
+    ``D = mean_jk C(a, b; U (t_a - t_b + o_j - o_k)) - (1/2) mean_jk [C(a, a; U (o_j -
+    o_k)) + C(b, b; U (o_j - o_k))]``
+
+    (``C`` the cross term; plus ``sigma_V^2 |S_a - S_b|^2`` for finite outer scales), the
+    reference of :func:`cwproc.physics.atable_swept.dwell_kernel`. ``time_separation_s``
+    is ``t_a - t_b`` of the rays' starts; other parameters as
+    :func:`two_beam_structure_function` (``elevation_deg`` a scalar).
+    """
+    spectra._check_model(model, outer_scale_m)
+    q = quadrature if quadrature is not None else beam_quadrature(probe, range_m)
+    az_a, az_b, t = np.broadcast_arrays(
+        np.asarray(azimuth_a_deg, float),
+        np.asarray(azimuth_b_deg, float),
+        np.asarray(time_separation_s, float),
+    )
+    wind = np.zeros(3) if mean_wind is None else np.asarray(mean_wind, dtype=float)
+    offsets = (np.arange(n_dwell) + 0.5) / n_dwell * float(dwell_s)
+    lag = (offsets[:, None] - offsets[None, :]).ravel()  # o_j - o_k
+    turbulence = dict(model=model, outer_scale_m=outer_scale_m)
+
+    def averaged(first: np.ndarray, second: np.ndarray, dt: np.ndarray) -> np.ndarray:
+        shift = wind * (dt[..., None] + lag)[..., None]  # (..., n_dwell^2, 3)
+        shape = (*first.shape, lag.size)
+        c = cross_term(
+            np.broadcast_to(first[..., None], shape),
+            np.broadcast_to(second[..., None], shape),
+            elevation_deg,
+            q,
+            separation_m=shift,
+            **turbulence,
+        )
+        return c.mean(axis=-1)
+
+    zero = np.zeros_like(t)
+    out = averaged(az_a, az_b, t) - 0.5 * (averaged(az_a, az_a, zero) + averaged(az_b, az_b, zero))
+    if model != "inertial":
+        sigma2 = spectra.variance_per_eps23(model, float(outer_scale_m))
+        diff = beam_vector(az_a, elevation_deg) - beam_vector(az_b, elevation_deg)
+        out = out + sigma2 * np.sum(diff * diff, axis=-1)
+    return float(epsilon) ** (2.0 / 3.0) * out
+
+
 def two_beam_covariance(
     azimuth_a_deg: ArrayLike,
     azimuth_b_deg: ArrayLike,

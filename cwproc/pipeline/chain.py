@@ -31,7 +31,7 @@ import xarray as xr
 
 from cwproc.config import Config, InstrumentConfig
 from cwproc.errors import CwprocError
-from cwproc.physics.probe_lengths import ProbeLengths, pulsed_probe_lengths
+from cwproc.physics.probe_lengths import ProbeLengths, pulse_rate, pulsed_probe_lengths
 from cwproc.pipeline.units import ProductUnit
 
 if TYPE_CHECKING:
@@ -95,10 +95,26 @@ def pulsed_lengths(
 
 
 def probe_attrs(config: Config, data_attrs: Mapping[str, object] | None) -> dict[str, object]:
-    """Product attributes recording the pulsed probe used (empty for a cw lidar)."""
+    """Product attributes recording the pulsed probe used (empty for a cw lidar).
+
+    The lengths (:func:`pulsed_lengths`) and the pulse repetition frequency
+    (:func:`pulse_rate_hz`) with their sources.
+    """
     if config.instrument.kind != "pulsed":
         return {}
-    return pulsed_lengths(config.instrument, data_attrs).attrs()
+    rate = pulse_rate(data_attrs or {}, config.instrument.prf_hz)
+    return {**pulsed_lengths(config.instrument, data_attrs).attrs(), **rate.attrs()}
+
+
+def pulse_rate_hz(config: Config, data_attrs: Mapping[str, object] | None) -> float | None:
+    """The PRF (Hz) of a pulsed lidar's data: ``[instrument] prf_hz``, else the model's.
+
+    :func:`cwproc.physics.probe_lengths.pulse_rate`; None for other instruments (their
+    rays have no pulses to count).
+    """
+    if config.instrument.kind != "pulsed":
+        return None
+    return pulse_rate(data_attrs or {}, config.instrument.prf_hz).prf_hz
 
 
 def probe_for(config: Config, data_attrs: Mapping[str, object] | None = None) -> Probe:
@@ -213,6 +229,7 @@ def process_scans(
             probe=probe_for(config, scans.attrs),
             lag_number=config.turbulence.lag_number,
             model=config.turbulence.model,
+            prf_hz=pulse_rate_hz(config, scans.attrs),
         )
         products["turbulence"].attrs.update(probe_attrs(config, scans.attrs))
     elif notes is not None:

@@ -53,6 +53,7 @@ from cwproc.pipeline.chain import (
     probe_attrs,
     probe_for,
     probe_mismatch,
+    pulse_rate_hz,
     screened_wind,
     stare_products,
 )
@@ -409,6 +410,7 @@ def stream_products(
                 probe=probe_for(config, attrs),
                 lag_number=config.turbulence.lag_number,
                 model=config.turbulence.model,
+                prf_hz=pulse_rate_hz(config, attrs),
             )
             products["turbulence"].attrs.update(probe_attrs(config, attrs))
     elif state.turbulence and any_wind and notes is not None:

@@ -21,7 +21,10 @@ of the frozen field by the mean wind ``U`` (Taylor's hypothesis, Smalikho (2020)
 A ray of a continuous scan also averages across the azimuths its beam sweeps while the
 spectra accumulate (Smalikho (2020), eq. 20): the covariance of two such rays is the
 average over pairs of point beams spread over the two rays' dwells, each at its own time
-(:func:`sweep_offsets`). To keep the small
+(:func:`sweep_offsets`). A step-stare ray holds its azimuth while it accumulates its
+pulses, for ``T_d`` = pulses per ray / PRF (:attr:`ScanPattern.stare_s`), and the wind
+carries the field past meanwhile: its point beams share the ray's azimuth and spread
+over ``T_d`` in time (the same double average). To keep the small
 differences between neighbouring rays accurate, the tensor is written through the
 structure functions, ``B_ab(r) = sigma_V^2 delta_ab - D_ab(r)/2`` with
 ``D_ab = D_perp delta_ab + (D_par - D_perp) r_a r_b / r^2``:
@@ -58,6 +61,7 @@ import xarray as xr
 from cwproc.physics import noise, spectra
 from cwproc.physics.constants import STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M
 from cwproc.physics.geometry import beam_unit_vector
+from cwproc.physics.probe_lengths import FALLBACK_PRF_HZ as STREAMLINE_PRF_HZ
 
 __all__ = [
     "ScanPattern",
@@ -83,6 +87,8 @@ _STEPS_M = (
     (4.0, 250.0, False),
     (12.0, np.inf, False),
 )
+#: pulses per ray of the simulated Stream Line header (streamline_scans)
+STREAMLINE_PULSES_PER_RAY = 10000
 #: the sweep offsets (Delta, m) of a ray represented by its centre
 _POINT = (np.zeros(1), np.zeros(1))
 #: size of the separation table of D_par, D_perp (log-spaced, m)
@@ -104,9 +110,15 @@ class ScanPattern:
     sweep_deg : float
         Azimuth swept by the beam during one ray (0 for a step-stare VAD) (deg).
     dwell_s : float
-        Duration of one ray (s).
+        Ray period: time from one ray to the next (s); a swept ray accumulates over all
+        of it.
     period_s : float
         Time between the starts of consecutive scans (s).
+    stare_s : float
+        Step-stare rays: the time the beam holds each azimuth while the pulses accumulate,
+        pulses per ray / PRF (s), centred on ``time_s``; 0: instantaneous rays.
+    pulses_per_ray : int
+        Pulses accumulated per ray (the Stream Line header's ``Pulses/ray``).
     """
 
     azimuth_deg: tuple[float, ...]
@@ -114,10 +126,22 @@ class ScanPattern:
     sweep_deg: float
     dwell_s: float
     period_s: float
+    stare_s: float = 0.0
+    pulses_per_ray: int = STREAMLINE_PULSES_PER_RAY
 
     @property
     def n_rays(self) -> int:
         return len(self.azimuth_deg)
+
+    @property
+    def averaged(self) -> bool:
+        """Whether a ray averages over point beams (swept, or a stare with a dwell)."""
+        return self.sweep_deg > 0 or self.stare_s > 0
+
+    @property
+    def accumulation_s(self) -> float:
+        """Time over which a ray's point beams are spread (s): sweep or stare dwell."""
+        return self.dwell_s if self.sweep_deg > 0 else self.stare_s
 
 
 def conical_pattern(
@@ -129,6 +153,8 @@ def conical_pattern(
     gap: tuple[float, float] | None = None,
     continuous: bool = True,
     return_s: float = 0.0,
+    pulses_per_ray: int | None = None,
+    prf_hz: float = STREAMLINE_PRF_HZ,
 ) -> ScanPattern:
     """Pattern of a conical (PPI) scan: full circle, sector, or circle with a gap.
 
@@ -151,11 +177,26 @@ def conical_pattern(
     return_s : float
         Time between the end of a scan and the start of the next (sector scans that
         fly back) (s).
+    pulses_per_ray : int, optional
+        Pulses per ray. Step-stare: each ray dwells ``pulses_per_ray / prf_hz`` at its
+        azimuth (the rest of its ``scan_period_s / M`` the beam moves to the next);
+        ``None``: instantaneous rays (the Stream Line's 10000 pulses in the header).
+        Continuous scans accumulate over the whole ray whatever the pulses.
+    prf_hz : float
+        Pulse repetition frequency (Hz), the Stream Line's 15 kHz.
     """
     if rays_per_scan < 3 or not scan_period_s > 0 or not 0 < sector_deg <= 360:
         raise ValueError("rays_per_scan >= 3, scan_period_s > 0, 0 < sector_deg <= 360 needed")
     step = sector_deg / rays_per_scan
     dwell = scan_period_s / rays_per_scan
+    stare = 0.0
+    if pulses_per_ray is not None and not continuous:
+        stare = pulses_per_ray / prf_hz
+        if not 0 < stare <= dwell * (1 + 1e-9):
+            raise ValueError(
+                f"a dwell of {pulses_per_ray} pulses at {prf_hz:g} Hz ({stare:g} s) does not "
+                f"fit the ray period of {dwell:g} s"
+            )
     centre = (np.arange(rays_per_scan) + 0.5) * step
     azimuth = (start_azimuth_deg + centre) % 360.0
     time = (np.arange(rays_per_scan) + 0.5) * dwell
@@ -169,6 +210,8 @@ def conical_pattern(
         sweep_deg=step if continuous else 0.0,
         dwell_s=dwell,
         period_s=scan_period_s + return_s,
+        stare_s=stare,
+        pulses_per_ray=STREAMLINE_PULSES_PER_RAY if pulses_per_ray is None else int(pulses_per_ray),
     )
 
 
@@ -308,7 +351,8 @@ def _point_beams(
     u_k = (mean - 0.5 * delta)[None, :]
     beams_i = beam_unit_vector(az[ii][:, None] + u_i * pattern.sweep_deg, elevation_deg)
     beams_k = beam_unit_vector(az[kk][:, None] + u_k * pattern.sweep_deg, elevation_deg)
-    dt = (t[ii] - t[kk])[:, None] + (u_i - u_k) * pattern.dwell_s - scan_lag * pattern.period_s
+    spread = pattern.accumulation_s
+    dt = (t[ii] - t[kk])[:, None] + (u_i - u_k) * spread - scan_lag * pattern.period_s
     return beams_i, beams_k, dt
 
 
@@ -368,7 +412,7 @@ def block_covariance(
     ii, kk = (a.ravel() for a in np.meshgrid(np.arange(m), np.arange(m), indexing="ij"))
     for scan_lag in range(n_scans) if frozen else range(1):
         # the ray's mean beam (sweep average of the unit vectors) and the centre separation
-        sweep = pattern.sweep_deg > 0
+        sweep = pattern.averaged
         delta, mean, weight = sweep_offsets(0, sweep_nodes) if sweep else (*_POINT, np.ones(1))
         beams_i, _, _ = _point_beams(
             pattern, elevation_deg, np.arange(m), np.arange(m), (delta, mean), 0
@@ -380,11 +424,14 @@ def block_covariance(
         sep = np.linalg.norm(
             range_m * (mean_beam[ii] - mean_beam[kk]) - wind * dt_c[:, None], axis=-1
         )
-        # azimuth steps between the rays: their sweeps touch where |lag| <= 1
+        # azimuth steps between the rays: their sweeps touch where |lag| <= 1 (a stare's
+        # point beams meet only within the same ray)
         lag_rays = np.full(ii.size, m + 2)
-        if sweep and scan_lag == 0:
+        if pattern.sweep_deg > 0 and scan_lag == 0:
             lag_rays = np.rint(((az[kk] - az[ii] + 180.0) % 360.0 - 180.0) / pattern.sweep_deg)
             lag_rays = lag_rays.astype(int)
+        elif sweep and scan_lag == 0:
+            lag_rays = np.where(ii == kk, 0, m + 2)
         if scan_lag == 0:  # B_D(i, k) = B_D(k, i) within a scan: the upper triangle suffices
             sep = np.where(ii <= kk, sep, np.nan)
             # the same or touching rays: the r^(2/3) cusp where the point beams meet
@@ -392,16 +439,20 @@ def block_covariance(
             sep[(ii == kk) | ((np.abs(lag_rays) <= 1) & (ii <= kk))] = -1.0
         value = np.full(ii.size, np.nan)
         lower = -np.inf
-        # the sweep of a ray (its arc, m) matters where it is not small against the
-        # separation; beyond 20 arcs (and 100 m) the ray's mean beam stands for it
+        # the sweep of a ray (its arc, m) and the transport during it matter where they
+        # are not small against the separation; beyond 20 of them (and 100 m) the ray's
+        # mean beam at its centre time stands for it
         arc = range_m * np.cos(np.deg2rad(elevation_deg)) * np.deg2rad(pattern.sweep_deg)
+        arc += float(np.linalg.norm(wind)) * pattern.accumulation_s
         for step, upper, sub in _STEPS_M:
             sel = np.flatnonzero((sep >= lower) & (sep < upper))
             lower = upper
             if sel.size == 0:
                 continue
             nodes = range_nodes(delta_p_m, delta_r_m, step)
-            use_sub = sweep & (sub | (sep[sel] < 20.0 * arc))
+            # (not beyond 5 L_V, where the covariance has decayed: a stare's transport
+            # in a strong wind would otherwise resolve every pair of the block)
+            use_sub = sweep & (sub | ((sep[sel] < 20.0 * arc) & (sep[sel] < 5.0 * outer_scale_m)))
             key = np.where(use_sub, lag_rays[sel], np.iinfo(np.int64).min)
             for lag in np.unique(key):
                 grp = sel[key == lag]
@@ -540,6 +591,7 @@ def gaussian_scans(
         delta_p_m=delta_p_m,
         delta_r_m=delta_r_m,
         stepped=pattern.sweep_deg == 0,
+        pulses_per_ray=pattern.pulses_per_ray,
         truth={
             "sim_generator": "exact Gaussian (cwproc.sim.exact_gaussian)",
             "sim_epsilon": float(epsilon),

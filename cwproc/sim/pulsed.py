@@ -349,13 +349,15 @@ def streamline_scans(
     delta_r_m: float,
     truth: dict[str, object],
     stepped: bool = False,
+    pulses_per_ray: int = 10000,
 ) -> xr.Dataset:
     """The canonical scan dataset of simulated Stream Line rays (``velocity``: ray x gate).
 
     Attributes are those of a Stream Line (gate length, points per gate, pulses per ray,
     velocity resolution, the range weighting's Delta_p and Delta_R) plus the simulation
     truth ``truth`` (``sim_*`` attributes); ``stepped``: a step-stare VAD (the beam still
-    during each ray), named as the Halo names it (``Scan type: VAD - stepped``).
+    during each ray), named as the Halo names it (``Scan type: VAD - stepped``);
+    ``pulses_per_ray``: the header's ``Pulses/ray`` (a stare ray dwells pulses / PRF).
     ``snr`` None: the SNR at which these settings predict the noise of the truth
     (``sim_noise_std``; Pearson et al. (2009), eq. 3,
     :func:`cwproc.physics.noise.snr_for_noise_std`).
@@ -363,7 +365,7 @@ def streamline_scans(
     n_rays = velocity.shape[0]
     settings = {
         "points_per_gate": max(1, round(delta_r_m / 3.0)),
-        "pulses_per_ray": 10000,
+        "pulses_per_ray": int(pulses_per_ray),
         "velocity_resolution_m_s": 0.0382,
     }
     if snr is None:

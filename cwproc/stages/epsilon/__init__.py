@@ -147,6 +147,8 @@ sampling geometry and regime of each cell and are auxiliary coordinates
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import xarray as xr
 
@@ -156,7 +158,11 @@ from cwproc.physics.constants import STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M
 from cwproc.physics.exact_lag import is_cw_probe
 from cwproc.physics.spectra import Model
 from cwproc.physics.transfer import Probe, PulsedProbe
-from cwproc.stages.epsilon.atable_fit import cell_a_functions, table_options_for
+from cwproc.stages.epsilon.atable_fit import (
+    cell_a_functions,
+    stare_dwell,
+    table_options_for,
+)
 from cwproc.stages.epsilon.cells import cell_inputs, predicted_noise, statistics_covariance
 from cwproc.stages.epsilon.cw_exact import NOISE_WINDOW_BLOCKS, apply_exact_cells, exact_cells
 from cwproc.stages.epsilon.errors import block_errors
@@ -192,6 +198,7 @@ def estimate_epsilon(
     table_options: dict | None = None,
     fit_noise: bool = True,
     noise_window_blocks: int = NOISE_WINDOW_BLOCKS,
+    prf_hz: float | None = None,
 ) -> xr.Dataset:
     """Dissipation rate (methods 1 and 2), noise, variance and integral scale.
 
@@ -228,6 +235,11 @@ def estimate_epsilon(
         many neighbouring blocks at the same height
         (:func:`cwproc.physics.exact_lag.running_nanmedian`), and each block refitted
         with it fixed; 1 keeps each block's own estimate.
+    prf_hz : float, optional
+        Pulse repetition frequency (Hz) of a pulsed lidar: a step-stare ray dwells
+        ``pulses_per_ray / prf_hz`` while the wind carries the field, which the A-tables
+        average over (:func:`cwproc.stages.epsilon.atable_fit.stare_dwell`); None: the
+        Stream Line's 15 kHz. Recorded as ``ray_dwell_s`` and ``ray_dwell_fraction``.
 
     Returns
     -------
@@ -238,7 +250,7 @@ def estimate_epsilon(
         raise ValueError(f"unknown model {model!r}; choose one of {', '.join(spectra.MODELS)}")
     if lag_number < 2:
         raise ValueError("lag_number must be >= 2 (Smalikho (2020), eq. 5)")
-    options = table_options_for(sf, table_options)  # the A-table of all heights
+    options = table_options_for(sf, table_options, prf_hz)  # the A-table of all heights
     settings = (probe, lag_number, model, min_pairs, n_outer_scales, options, fit_noise)
     memo: dict = {}  # what the groups share: per distinct (dy, range) pair (fit_setup)
     groups = block_groups(sf, probe)
@@ -268,7 +280,29 @@ def estimate_epsilon(
         "probe": repr(probe),
     }
     describe(out, common, parts[0][3], model)
+    out.attrs.update(dwell_attrs(sf, options, prf_hz))
     return out
+
+
+def dwell_attrs(sf: xr.Dataset, options: dict, prf_hz: float | None) -> dict[str, Any]:
+    """Product attributes of the rays' accumulation: swept, or step-stare with a dwell.
+
+    ``ray_dwell_fraction`` is the dwell over the ray period that the A-tables averaged
+    over (rounded to :data:`cwproc.physics.atable.DWELL_STEP`; 1 for swept rays, whose
+    rays last their whole period), ``ray_dwell_s`` the dwell pulses per ray / PRF (NaN
+    unknown), ``ray_period_s`` the ray period.
+    """
+    from cwproc.physics.atable import dwell_fraction
+
+    dwell_s, fraction, tau = stare_dwell(sf, prf_hz)
+    if options.get("swept", True):
+        return {"swept_rays": 1, "ray_dwell_fraction": 1.0, "ray_period_s": tau}
+    return {
+        "swept_rays": 0,
+        "ray_dwell_s": dwell_s,
+        "ray_dwell_fraction": dwell_fraction(float(options.get("dwell", fraction))),
+        "ray_period_s": tau,
+    }
 
 
 #: cells (block x height) estimated at once where :func:`block_groups` allows it: the

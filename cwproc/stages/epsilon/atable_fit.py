@@ -16,6 +16,7 @@ import xarray as xr
 
 from cwproc.physics.atable import HEIGHT_RATIO, get_a_table
 from cwproc.physics.atable_interp import N_BINS
+from cwproc.physics.probe_lengths import FALLBACK_PRF_HZ, dwell_fraction, ray_dwell_s
 from cwproc.stages.epsilon.cells import Cells
 
 #: cells (block, height) whose A-functions or passed variances are evaluated at once:
@@ -189,17 +190,46 @@ def outer_scale_sector_factor(
     return np.where(np.isfinite(out) & (out > 0), out, 1.0)
 
 
-def table_options_for(sf: xr.Dataset, table_options: dict | None) -> dict:
+def table_options_for(
+    sf: xr.Dataset, table_options: dict | None, prf_hz: float | None = None
+) -> dict:
     """Keyword arguments of :func:`cwproc.physics.atable.get_a_table` for ``sf``.
 
     ``table_options`` completed with the height range of the data
-    (:func:`table_height_range`) and whether the rays are swept (``swept_rays``).
+    (:func:`table_height_range`), whether the rays are swept (``swept_rays``) and, for
+    step-stare rays, their dwell fraction (:func:`stare_dwell`).
     """
     options = dict(table_options or {})
     if "height_range_m" not in options:
         options["height_range_m"] = table_height_range(sf["height"].values)
     options.setdefault("swept", bool(int(sf.attrs.get("swept_rays", 1))))
+    if not options["swept"]:
+        options.setdefault("dwell", stare_dwell(sf, prf_hz)[1])
     return options
+
+
+def stare_dwell(sf: xr.Dataset, prf_hz: float | None = None) -> tuple[float, float, float]:
+    """``(T_d, d, tau)``: dwell (s), dwell fraction and ray period (s) of the step-stare rays.
+
+    ``T_d`` = pulses per ray (``pulses_per_ray``, the Stream Line header) / ``prf_hz``
+    (:func:`cwproc.physics.probe_lengths.ray_dwell_s`; None: the Stream Line's 15 kHz),
+    ``tau`` the median over the blocks of ``scan_period dtheta / 360`` (the period of
+    ``V_s = 2 pi R' / T_scan = dy / tau``, :mod:`cwproc.stages.epsilon.cells`), ``d =
+    T_d / tau`` in ``[0, 1]`` (:func:`cwproc.physics.probe_lengths.dwell_fraction`; 0
+    and ``T_d`` NaN when the pulses per ray are unknown: instantaneous rays).
+    """
+    rate = FALLBACK_PRF_HZ if prf_hz is None else float(prf_hz)
+    dwell = ray_dwell_s(sf.attrs.get("pulses_per_ray"), rate)
+    tau = np.nan
+    if "scan_period" in sf and "azimuth_step" in sf:
+        with np.errstate(invalid="ignore"):
+            per_block = sf["scan_period"].values.astype(float) * (
+                sf["azimuth_step"].values.astype(float) / 360.0
+            )
+        per_block = per_block[np.isfinite(per_block) & (per_block > 0)]
+        tau = float(np.median(per_block)) if per_block.size else np.nan
+    fraction = dwell_fraction(dwell, tau)
+    return (np.nan if dwell is None else float(dwell)), fraction, tau
 
 
 def cell_a_functions(probe: Any, cells: Cells, model: str, options: dict) -> tuple:
