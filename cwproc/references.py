@@ -54,3 +54,8 @@ VAD_WIND = (
 EFRON_STEIN_1981 = (
     "Efron, B. and Stein, C. (1981), The jackknife estimate of variance, Ann. Statist. 9, 586-596"
 )
+
+BAYLEY_HAMMERSLEY_1946 = (
+    'Bayley, G. V. and Hammersley, J. M. (1946), The "effective" number of independent '
+    "observations in an autocorrelated time series, J. R. Stat. Soc. Suppl. 8, 185-197"
+)

@@ -374,7 +374,7 @@ def _block_group(
     flag, bad, few_fit = turbulence_flags(cells, valid, lag_used, est, model)
     arrays = product_arrays(est, bad, few_fit, exact)
     eps_se, sigma2_se, scale_se = block_errors(
-        sf, lag_used, fixed, cells.d, cells.var_raw, arrays, est["noise"], res, cov
+        sf, lag_used, fixed, cells.d, cells.var_raw, arrays, est["noise"], res, cov, cells, model
     )
     out = turbulence_dataset(
         sf,
