@@ -230,7 +230,7 @@ def weighted_intercept(
     0.45-0.65 of the true ``2 sigma_e^2``; on 90- and 180-ray sectors from 0.55-0.64 to
     0.22). The weights are the height's, not the block's: weights from a block's own
     scatter would correlate with its intercept. The standard error is ``sqrt(c^T C c)``
-    with ``c`` the intercept's row of the GLS and ``C`` the cell's ``d_cov``.
+    with ``c`` the intercept's row of the GLS and ``C`` the covariance given.
 
     Parameters
     ----------
@@ -300,8 +300,6 @@ def fit_structure_function(
     noise_prior: np.ndarray | None = None,
     d_cov: np.ndarray | None = None,
     prior_rel_se: np.ndarray | float = NOISE_PRIOR_REL_SE,
-    noise_inv: np.ndarray | None = None,
-    noise_cov: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Least squares of ``D = eps^(2/3) A + 2 sigma_e^2`` over the lags (last axis).
 
@@ -329,18 +327,6 @@ def fit_structure_function(
       variance with ``n - 2`` degrees of freedom), or, with a prediction, that error is
       below half of ``2 sigma_pred^2`` and sigma_e within :data:`NOISE_PLAUSIBLE` of it.
 
-    With ``noise_inv`` and ``noise_cov`` (the covariance of D pooled over the height's
-    blocks, :func:`pooled_covariance`, and its inverse, :func:`inverse_weight`) the
-    intercept that is tested and kept is that of the generalised least squares
-    (:func:`gls_intercept`: two to three times as precise as the equal weights' and less
-    moved by the model's shape at the first lags; exact 90- and 180-ray sector
-    statistics read ``2 sigma_e^2`` 1.05-1.06 of the truth against 1.09-1.20), its
-    standard error that of the pooled covariance, and the slope is refitted with it
-    fixed. The error is the height's, not the block's: the jackknife error of a block's
-    ten scans, and even the pooled shape scaled by the block's own D, correlate with its
-    intercept (the precision rule then kept blocks whose sigma_e read 1.3-1.7 times the
-    truth).
-
     Elsewhere the slope is refitted with the intercept fixed at ``2 sigma_pred^2`` from
     ``noise_prior`` (the noise predicted from the SNR, :mod:`cwproc.physics.noise`), or
     at 0 without a prediction; ``sigma_e`` is then the prediction, or NaN -- never a
@@ -362,9 +348,6 @@ def fit_structure_function(
     prior_rel_se : numpy.ndarray or float
         Relative standard error of the predicted ``2 sigma_pred^2`` (default
         :data:`NOISE_PRIOR_REL_SE`; that of a calibrated prediction is smaller).
-    noise_inv, noise_cov : numpy.ndarray, optional
-        ``(..., lag, lag)`` inverse pooled covariance of D (m-4 s4; NaN where none: the
-        equal weights there) and the pooled covariance (m4 s4).
 
     Returns
     -------
@@ -381,11 +364,6 @@ def fit_structure_function(
     se = np.full(slope.shape, np.nan)
     if d_cov is not None:
         se = _intercept_se(x, w, sx, sxx, det, d_cov)
-    if noise_inv is not None and noise_cov is not None:
-        b_gls, se_gls = gls_intercept(d, a, noise_inv, noise_cov)
-        use_gls = np.isfinite(b_gls) & np.isfinite(se_gls) & (n == d.shape[-1])
-        intercept = np.where(use_gls, b_gls, intercept)
-        se = np.where(use_gls, se_gls, se)
     by_cov = np.isfinite(se)
     if not by_cov.all():  # the residual form where the covariance is missing
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -428,9 +406,7 @@ def fit_structure_function(
         )
         detectable = ~has_prior | (2.0 * prior**2 >= NOISE_DETECTABLE * smallest)
     determined = determined & detectable
-    with np.errstate(invalid="ignore", divide="ignore"):
-        kept_slope = (sxy - intercept * sx) / sxx  # the OLS slope at the OLS intercept
-    slope = np.where(determined, kept_slope, fixed_slope)
+    slope = np.where(determined, slope, fixed_slope)
     intercept = np.where(determined, intercept, fixed)
     ok = (n >= 2) & (slope > 0) & np.isfinite(slope)
     eps = np.where(ok, np.where(ok, slope, 1.0) ** 1.5, np.nan)

@@ -32,10 +32,8 @@ Estimates, per block of scans and height, all vectorised:
   and 1) scattered 68 % per block against 34 % for the least squares, and its heavy
   tail moved the mean by +8 %; ``epsilon_ratio`` is ``epsilon_method1 / epsilon`` (the
   observed counterpart of eq. 21);
-- ``noise_std``: the intercept of that fit (by generalised least squares with the
-  covariance of ``D_L`` pooled over the height's blocks where there are enough,
-  :func:`cwproc.physics.structure_fit.gls_intercept`), kept where its standard error
-  (from that pooled covariance, else the block's) is at most ``NOISE_PRECISION`` of the
+- ``noise_std``: the intercept of that fit, kept where its standard error (from the
+  covariance of ``D_L`` over the block's scans) is at most ``NOISE_PRECISION`` of the
   predicted ``2 sigma_pred^2`` and it is at least the prediction over
   ``NOISE_PLAUSIBLE`` squared, where it exceeds the prediction by ``NOISE_CONTRADICTS``
   standard errors, or where the prediction leaves no turbulence
@@ -52,8 +50,7 @@ Estimates, per block of scans and height, all vectorised:
   the prior where the data do not determine sigma_e;
 - ``edr = eps^(1/3)``; standard errors of eps, sigma_V^2 and L_V by the delta method
   through the whole fit (:func:`cwproc.stages.epsilon.errors.covariance_errors`, the
-  covariance of ``D_L`` and the variance over the block's scans, scaled for the
-  correlation of the scans of sectors, :func:`cwproc.stages.epsilon.errors.correlated_scans`);
+  covariance of ``D_L`` and the variance over the block's scans);
 - ``A_1`` and ``A_2`` come from tables of the exact two-beam geometry (any azimuth step,
   :mod:`cwproc.physics.two_beam`, :func:`cwproc.physics.atable.geometry_correction`),
   ``A_2`` averaged over the azimuths of the pairs present (``pair_azimuth_weights``:
@@ -377,7 +374,7 @@ def _block_group(
     flag, bad, few_fit = turbulence_flags(cells, valid, lag_used, est, model)
     arrays = product_arrays(est, bad, few_fit, exact)
     eps_se, sigma2_se, scale_se = block_errors(
-        sf, lag_used, fixed, cells.d, cells.var_raw, arrays, est["noise"], res, cov, cells, model
+        sf, lag_used, fixed, cells.d, cells.var_raw, arrays, est["noise"], res, cov
     )
     out = turbulence_dataset(
         sf,

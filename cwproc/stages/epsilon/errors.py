@@ -11,9 +11,6 @@ import numpy as np
 import xarray as xr
 
 from cwproc.physics.delta_method import delta_method_errors
-from cwproc.physics.removed_share import partial_circle
-from cwproc.physics.scan_correlation import cell_inflation
-from cwproc.stages.epsilon.cells import Cells
 from cwproc.stages.epsilon.outer_scale import retrieve
 
 
@@ -76,8 +73,22 @@ def covariance_errors(
     ``N`` scans, so the correlation of the lags within a scan (sectors included) is in
     it as measured, and ``N_eff = N / (1 + 2 sum_k (1 - k/N) rho_k)`` (the variance of a
     mean of correlated samples, Bayley and Hammersley (1946)) with ``rho_k`` the
-    correlation of the scans ``k`` apart: :func:`correlated_scans` scales ``C`` by it
-    where the scans see the same eddies (sectors and gaps).
+    correlation of the per-scan statistics ``k`` scans apart, which the jackknife takes
+    as 0. The scan geometry gives ``rho_k`` exactly
+    (:func:`cwproc.physics.scan_correlation.correlation_inflation`, checked against the
+    exact covariance of the generator's swept, probe-averaged rays): in 90 and 180 deg
+    sectors at mu 0.5-1, with and without fly-back, the scans are carried 1-3 ``L_V``
+    apart, the ``D_L`` factor is 1.000-1.01 (the differences of close rays decorrelate
+    within tens of metres) and only the variance's, 1.04-1.6 of the per-scan scatter,
+    matters; the variance's jackknife refits the block-mean wind without each scan and
+    is already that conservative (scaled by the factor, se/sd of sigma_V^2 and L_V of the
+    90 deg sector at mu 0.5 went from 1.16-1.24 to 1.30-1.34), so ``C`` is kept. Measured
+    se/sd (eps / sigma_V^2 / L_V, 100 blocks, exact statistics): 90 deg sector at mu 0.5,
+    1, 2 with a 3 s fly-back 1.10/1.17/1.24, 0.91/0.91/0.87, 0.97/1.02/0.95, back to back
+    1.01/1.18/1.19, 0.94/0.98/0.94, 0.97/1.04/1.01 (``bench_epsilon_accuracy.py --case
+    sector [--sector-fly-back 0]``); at mu 1 on two more seeds each of 90 and 180 deg,
+    with and without fly-back, 0.78-1.11 / 0.91-1.14 / 0.81-1.10
+    (``bench_epsilon_noise.py --row sector``).
     """
     n_l = d.shape[-1]
     stats = np.concatenate([d, var_raw[..., None]], axis=-1)
@@ -98,8 +109,6 @@ def block_errors(
     noise: np.ndarray,
     base: dict,
     cov: np.ndarray | None,
-    cells: Cells | None = None,
-    model: str = "von_karman",
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Standard errors of eps, sigma_V^2 and L_V (m2 s-3, m2 s-2, m) of the product.
 
@@ -108,9 +117,7 @@ def block_errors(
     in the exact cw cells (``fixed["exact"]``) and where an estimate is NaN, which keep
     :func:`standard_errors`. ``base`` is the result of
     :func:`cwproc.stages.epsilon.outer_scale.retrieve` at the measured statistics,
-    ``noise`` the sigma_e of the product (m s-1). With the ``cells``
-    (:class:`cwproc.stages.epsilon.cells.Cells`), ``cov`` is first scaled for the
-    correlation of the scans (:func:`correlated_scans`, spectrum ``model``).
+    ``noise`` the sigma_e of the product (m s-1).
     """
     values = (arrays["epsilon"], arrays["velocity_variance"], arrays["integral_scale"])
     first = standard_errors(
@@ -124,62 +131,8 @@ def block_errors(
     )
     if cov is None:
         return first
-    if cells is not None:
-        cov = correlated_scans(cov, cells, arrays, noise, var_raw, model)
     delta = covariance_errors(fixed, d, var_raw, cov, base)
     return tuple(
         np.where(fixed["exact"] | ~np.isfinite(v), old, new)
         for old, new, v in zip(first, delta, values, strict=True)
     )
-
-
-def correlated_scans(
-    cov: np.ndarray,
-    cells: Cells,
-    arrays: dict[str, np.ndarray],
-    noise: np.ndarray,
-    var_raw: np.ndarray,
-    model: str,
-) -> np.ndarray:
-    """``cov`` of the block-mean ``(D_L(1..L), variance)`` with the scans' correlation.
-
-    The jackknife counts the block's ``N`` scans as independent samples. Where they see
-    the same eddies carried by the wind, the variance of each block-mean statistic is
-    ``f`` times larger than the expected jackknife's
-    (:func:`cwproc.physics.scan_correlation.correlation_inflation`: the exact fourth
-    moments of the Gaussian field at the scan's rays in their time order, ``N / N_eff``
-    of Bayley and Hammersley (1946) together with the scatter's own shortfall), so
-    ``C_ab`` becomes ``C_ab sqrt(f_a f_b)``. Evaluated for sectors and gappy scans
-    (:func:`cwproc.physics.removed_share.partial_circle`) at the cell's ``mu``, fitted
-    ``L_V`` and ``sigma_e^2 / var(V'_L)``; full circles keep ``C`` (a circle is carried
-    three diameters per scan at ``mu`` 1, and their errors are calibrated as they are).
-    Exact statistics, 90 deg sector scanned back to back (45 rays, 9 s, mu 1): the
-    block-mean statistics scatter up to 1.4 times the jackknife's variance.
-    """
-    n_t, n_h = var_raw.shape
-    weights = cells.weights.reshape(n_t * n_h, -1)
-    dtheta = np.repeat(cells.dtheta, n_h)
-    with np.errstate(invalid="ignore"):
-        sector = partial_circle(weights, dtheta) & np.isfinite(arrays["integral_scale"]).ravel()
-    at = np.nonzero(sector)[0]
-    if at.size == 0:
-        return cov
-    scale = arrays["integral_scale"].ravel()[at]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        noise_ratio = np.nan_to_num(noise, nan=0.0).ravel()[at] ** 2 / var_raw.ravel()[at]
-    factor = cell_inflation(
-        weights[at],
-        np.radians(dtheta[at]),
-        cells.mu_eval.ravel()[at],
-        np.repeat(cells.interval, n_h)[at],
-        np.repeat(cells.scans, n_h)[at],
-        cells.radius.ravel()[at] / scale,
-        noise_ratio,
-        cov.shape[-1] - 1,
-        float(np.nanmedian(cells.phi)),
-        model,
-    )
-    root = np.sqrt(factor)
-    out = cov.reshape(n_t * n_h, *cov.shape[-2:]).copy()
-    out[at] *= root[:, :, None] * root[:, None, :]
-    return out.reshape(cov.shape)

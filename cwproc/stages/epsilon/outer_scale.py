@@ -29,12 +29,7 @@ from cwproc.physics.removed_share import (
     sector_removed_share,
     transport_mu,
 )
-from cwproc.physics.structure_fit import (
-    NOISE_PRIOR_REL_SE,
-    fit_structure_function,
-    inverse_weight,
-    pooled_covariance,
-)
+from cwproc.physics.structure_fit import NOISE_PRIOR_REL_SE, fit_structure_function
 from cwproc.stages.epsilon.atable_fit import EVALUATION_CELLS, outer_scale_sector_factor
 from cwproc.stages.epsilon.cells import Cells
 from cwproc.stages.epsilon.root_search import Residual, bracket_root, replayed_root
@@ -140,7 +135,6 @@ def variance_residual(
     prior: np.ndarray,
     d_cov: np.ndarray | None = None,
     prior_rel_se: float = NOISE_PRIOR_REL_SE,
-    noise_gls: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Residual:
     """The variance condition of cells ``(n,)``, a function of ``L_V`` ``(n, k)`` (m).
 
@@ -153,20 +147,17 @@ def variance_residual(
     (:meth:`cwproc.physics.atable_interp.ATable.at_cells`), ``table_rows`` the cells'
     rows of it; ``d_cov`` the covariance of D of the cells (``(n, lag, lag)``) that
     decides whether sigma_e is fitted, ``prior_rel_se`` the relative standard error of
-    the predicted ``2 sigma_e^2``, ``noise_gls`` the inverse and the pooled covariance of
-    D (``noise_inv``, ``noise_cov`` of
-    :func:`cwproc.physics.structure_fit.fit_structure_function`).
+    the predicted ``2 sigma_e^2``.
     """
     scale_grid = finite["scale_grid"]
     cov = None if d_cov is None else d_cov[:, None]
-    gls = (None, None) if noise_gls is None else (noise_gls[0][:, None], noise_gls[1][:, None])
 
     def residual(big_l: np.ndarray) -> np.ndarray:
         k = big_l.shape[1]
         _, f2 = table.evaluate(np.broadcast_to(big_l, (dc.shape[0], k)), table_rows, a1=False)
         f2 = f2 * cell_sector[:, None, :]
         eps_l, noise_l, _ = fit_structure_function(
-            dc[:, None, :], f2, vc[:, None, :], prior, cov, prior_rel_se, *gls
+            dc[:, None, :], f2, vc[:, None, :], prior, cov, prior_rel_se
         )
         through = interp_log_scale(scale_grid, passed, np.broadcast_to(big_l, (dc.shape[0], k)))
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -188,7 +179,7 @@ def _cells_residual(
     standard error of :func:`retrieve`.
     """
     ti, hi_, rows, passed = (c[index] for c in cells)
-    sector, d, valid, var_raw, prior, d_cov, rel_se, (noise_inv, noise_cov) = statistics
+    sector, d, valid, var_raw, prior, d_cov, rel_se = statistics
     return variance_residual(
         table,
         rows,
@@ -201,7 +192,6 @@ def _cells_residual(
         prior[ti, hi_][:, None],
         None if d_cov is None else d_cov[ti, hi_],
         rel_se,
-        None if noise_inv is None else (noise_inv[ti, hi_], noise_cov[ti, hi_]),
     )
 
 
@@ -263,14 +253,13 @@ def retrieve(
     a1, a2 = fixed["a1"].copy(), fixed["a2"].copy()
     valid, prior, c_model = fixed["valid"], fixed["noise_pred"], fixed["c_model"]
     d_cov, rel_se = fixed["d_cov"], fixed.get("prior_rel_se", NOISE_PRIOR_REL_SE)
-    gls_noise = (fixed.get("noise_inv"), fixed.get("noise_cov"))
     shape = d.shape[:2]
 
     def solve() -> tuple:
         e1 = np.full(shape, np.nan)
         if method1:
-            e1, _, _ = fit_structure_function(d, a1, valid, prior, d_cov, rel_se, *gls_noise)
-        efit, noise, fitted = fit_structure_function(d, a2, valid, prior, d_cov, rel_se, *gls_noise)
+            e1, _, _ = fit_structure_function(d, a1, valid, prior, d_cov, rel_se)
+        efit, noise, fitted = fit_structure_function(d, a2, valid, prior, d_cov, rel_se)
         return e1, efit, noise, fitted
 
     too_small = np.zeros(shape, dtype=bool)
@@ -306,7 +295,7 @@ def retrieve(
                     cells=(t_, h_, cells[at], passed[at]),
                     table=table,
                     finite=finite,
-                    statistics=(sector, d, valid, var_raw, prior, d_cov, rel_se, gls_noise),
+                    statistics=(sector, d, valid, var_raw, prior, d_cov, rel_se),
                 )
                 root[at], use[at], below[at], slope[t_, h_] = outer_scale_root(
                     residual_of,
@@ -423,12 +412,6 @@ def fit_setup(
         probe_len = np.broadcast_to(probe_len, (n_t, n_h))
         finite["longest"] = np.maximum(n_l * dy * (1 + mu_eval), probe_len)
     lags = np.arange(1, n_l + 1, dtype=float)
-    noise_inv, noise_cov = None, None
-    if cov is not None:
-        every = np.all(valid & np.isfinite(cells.d) & (cells.d > 0), axis=-1)
-        shared = pooled_covariance(cells.d, cov[..., :-1, :-1], every)  # (height, lag, lag)
-        noise_inv = np.where(every[..., None, None], inverse_weight(shared)[None], np.nan)
-        noise_cov = np.broadcast_to(shared[None], noise_inv.shape)
     return {
         "a1": a1,
         "a2": a2,
@@ -437,11 +420,6 @@ def fit_setup(
         "noise_pred": noise_pred,
         "prior_rel_se": prior_rel_se,
         "d_cov": None if cov is None else cov[..., :-1, :-1],
-        # the noise is decided by the intercept of the generalised least squares with the
-        # covariance of D its height's blocks share, and its error by that covariance
-        # (:func:`cwproc.physics.structure_fit.fit_structure_function`)
-        "noise_inv": noise_inv,
-        "noise_cov": noise_cov,
         "loss": loss,
         "c_model": spectra.integral_scale_coefficient(
             "exponential" if model == "inertial" else model
