@@ -32,6 +32,7 @@ Run (about 10-20 min on 2 cores; the 180-ray covariances take most of it)::
     python benchmarks/bench_epsilon_accuracy.py --case "72 rays" --mu 1 --model von_karman
     python benchmarks/bench_epsilon_accuracy.py --case "180 rays cont" --noise 0.3  # fitted
     python benchmarks/bench_epsilon_accuracy.py --case dwell --mu 1 --blocks 20
+    python benchmarks/bench_epsilon_accuracy.py --case sector --sector-fly-back 0  # back to back
 
 ``--case`` and ``--mu`` select cases of the full list; every case keeps the seed it has
 in the full run (``--seed`` plus its index), so a selected case repeats its row.
@@ -60,8 +61,9 @@ NOISE = 0.05
 N_SCANS = 10
 
 
-def cases(quick: bool) -> list[dict]:
-    """(label, pattern, mu) of every case."""
+def cases(quick: bool, fly_back_s: float = 3.0) -> list[dict]:
+    """(label, pattern, mu) of every case; ``fly_back_s``: the 90 deg sector's return time
+    (0: swept back to back, the scans correlated)."""
     out = []
     scans = [(24, False, 48.0), (72, True, 36.0)]
     if not quick:
@@ -93,7 +95,7 @@ def cases(quick: bool) -> list[dict]:
             out.append(
                 {
                     "label": " 45 rays, 90° sector",
-                    "pattern": eg.conical_pattern(45, 9.0, sector_deg=90.0, return_s=3.0),
+                    "pattern": eg.conical_pattern(45, 9.0, sector_deg=90.0, return_s=fly_back_s),
                     "mu": mu,
                 }
             )
@@ -192,6 +194,12 @@ def main() -> None:
     parser.add_argument(
         "--noise", type=float, default=NOISE, help=f"sigma_e of the scans, m/s ({NOISE})"
     )
+    parser.add_argument(
+        "--sector-fly-back",
+        type=float,
+        default=3.0,
+        help="return time of the 90 deg sector between sweeps, s (3; 0: back to back)",
+    )
     args = parser.parse_args()
     base = load_config("streamline")
     truth_var = float(spectra.variance_from(EPS, L_V, "von_karman"))
@@ -207,7 +215,7 @@ def main() -> None:
     header += f" {'sig_e':>6s} {'var':>6s} {'L_V':>6s} {'L_med':>6s} {'se/sd':>6s} {'var_se':>6s}"
     header += f" {'L_se':>6s} {'fit':>5s} {'sig_fit':>7s} {'ok':>5s} {'s':>5s}"
     print(header)
-    for i, case in enumerate(cases(args.quick)):
+    for i, case in enumerate(cases(args.quick, args.sector_fly_back)):
         pattern, mu = case["pattern"], case["mu"]
         if args.case and not any(c in case["label"] for c in args.case):
             continue

@@ -84,6 +84,10 @@ def rows() -> list[Row]:
     c72 = eg.conical_pattern(72, 36.0)
     s90 = eg.conical_pattern(45, 9.0, sector_deg=90.0, return_s=3.0)
     s180 = eg.conical_pattern(90, 18.0, sector_deg=180.0, return_s=6.0)
+    # the next sweep starts as the last one ends (no fly-back time): consecutive scans see
+    # the field that the last one saw carried by the wind, so they are correlated
+    s90_back_to_back = eg.conical_pattern(45, 9.0, sector_deg=90.0)
+    s180_back_to_back = eg.conical_pattern(90, 18.0, sector_deg=180.0)
     return [
         Row("180 rays, pred x0.5", c180, 1.0, 0.5),
         Row("180 rays, pred x1.0", c180, 1.0, 1.0),
@@ -95,6 +99,9 @@ def rows() -> list[Row]:
         Row(" 72 rays, pred x1.0", c72, 1.0, 1.0),
         Row(" 72 rays, mu 0, x0.5", c72, 0.0, 0.5),
         Row(" 72 rays, mu 0, x1.5", c72, 0.0, 1.5),
+        Row(" 90° sector, no fly-back", s90_back_to_back, 1.0),
+        Row("180° sector, no fly-back", s180_back_to_back, 1.0),
+        Row(" 72 rays, mu 0, x1.0", c72, 0.0, 1.0),
     ]
 
 

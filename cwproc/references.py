@@ -85,3 +85,7 @@ DOPPY = (
     "doppy, the ACTRIS Cloudnet Doppler lidar processing, version 0.5 "
     "(https://github.com/actris-cloudnet/doppy), product/stare.py noise mask"
 )
+BAYLEY_HAMMERSLEY_1946 = (
+    'Bayley, G. V. and Hammersley, J. M. (1946), The "effective" number of independent '
+    "observations in an autocorrelated time series, J. R. Stat. Soc. Suppl. 8, 185-197"
+)

@@ -184,6 +184,115 @@ def free_intercept(
     return intercept, se, f["n"]
 
 
+#: fewest cells of a height whose covariances of D are pooled into the weights of
+#: :func:`weighted_intercept` (fewer: the equal weights of :func:`free_intercept`)
+MIN_POOLED_CELLS = 5
+
+
+def pooled_covariance(d: np.ndarray, d_cov: np.ndarray, usable: np.ndarray) -> np.ndarray:
+    """``(height, lag, lag)`` shape of the covariance of D shared by the blocks of a height.
+
+    The mean over the usable blocks (axis 0) of the relative covariance
+    ``C_ij / (D_i D_j)``, times ``<D_i> <D_j>`` (the blocks' mean D): weights that do not
+    depend on one block's own scatter. NaN for a height with fewer than
+    :data:`MIN_POOLED_CELLS` usable blocks.
+
+    Parameters
+    ----------
+    d : numpy.ndarray
+        ``(time, height, lag)`` structure function (m2 s-2).
+    d_cov : numpy.ndarray
+        ``(time, height, lag, lag)`` covariance of the block-mean D over its scans (m4 s-4).
+    usable : numpy.ndarray of bool
+        ``(time, height)`` blocks to pool (every lag valid, finite and positive).
+    """
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rel = d_cov / (d[..., :, None] * d[..., None, :])
+    ok = usable & np.all(np.isfinite(rel), axis=(-1, -2))
+    count = ok.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean_rel = np.where(ok[..., None, None], rel, 0.0).sum(axis=0) / count[:, None, None]
+        mean_d = np.where(ok[..., None], d, 0.0).sum(axis=0) / count[:, None]
+    out = mean_rel * mean_d[:, :, None] * mean_d[:, None, :]
+    return np.where((count >= MIN_POOLED_CELLS)[:, None, None], out, np.nan)
+
+
+def weighted_intercept(
+    d: np.ndarray, a: np.ndarray, weight: np.ndarray, d_cov: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Intercept ``2 sigma_e^2`` of the generalised least squares of Smalikho (2020), eq. 4.
+
+    ``beta = (X^T W^-1 X)^-1 X^T W^-1 D`` with ``X = (A, 1)`` over all lags and ``W``
+    the pooled covariance of D of the cell's height (:func:`pooled_covariance`): the
+    lags weighted by their errors and correlation, so that the noise term is measured
+    about twice as precisely as by equal weights (on exact 72-ray statistics at mu 0 and
+    1, 100 blocks, the scatter of the intercepts over blocks fell from 0.8-1.25 to
+    0.45-0.65 of the true ``2 sigma_e^2``; on 90- and 180-ray sectors from 0.55-0.64 to
+    0.22). The weights are the height's, not the block's: weights from a block's own
+    scatter would correlate with its intercept. The standard error is ``sqrt(c^T C c)``
+    with ``c`` the intercept's row of the GLS and ``C`` the covariance given.
+
+    Parameters
+    ----------
+    d, a : numpy.ndarray
+        ``(..., lag)`` structure function (m2 s-2) and A-function (m^(2/3)).
+    weight : numpy.ndarray
+        ``(..., lag, lag)`` (broadcastable) pooled covariance of D (m4 s-4).
+    d_cov : numpy.ndarray
+        ``(..., lag, lag)`` the cell's covariance of D (m4 s-4).
+
+    Returns
+    -------
+    (intercept, standard error) : numpy.ndarray
+        m2 s-2; NaN where ``weight`` is not finite or singular.
+    """
+    return gls_intercept(d, a, inverse_weight(weight), d_cov)
+
+
+def inverse_weight(weight: np.ndarray) -> np.ndarray:
+    """``W^-1`` of :func:`weighted_intercept` (``(..., lag, lag)``), NaN where ``W`` is not
+    finite or not invertible."""
+    good = np.all(np.isfinite(weight), axis=(-1, -2))
+    eye = np.eye(weight.shape[-1])
+    w_safe = np.where(good[..., None, None], weight, eye)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        try:
+            inv = np.linalg.inv(w_safe)
+        except np.linalg.LinAlgError:
+            inv = np.linalg.pinv(w_safe)
+    return np.where(good[..., None, None], inv, np.nan)
+
+
+def gls_intercept(
+    d: np.ndarray, a: np.ndarray, inv: np.ndarray, d_cov: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`weighted_intercept` with the inverse weight ``inv`` (:func:`inverse_weight`).
+
+    Term by term over the few lags (``inv`` and ``d_cov`` broadcast over the leading
+    axes, not copied), as :func:`_intercept_se`; NaN wherever an input is.
+    """
+    n_l = d.shape[-1]
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        wa = [_lag_sum(inv[..., i, :] * a) for i in range(n_l)]  # W^-1 A
+        w1 = [_lag_sum(inv[..., i, :]) for i in range(n_l)]  # W^-1 1
+        saa = functools.reduce(np.add, (a[..., i] * wa[i] for i in range(n_l)))
+        sa1 = functools.reduce(np.add, wa)
+        s11 = functools.reduce(np.add, w1)
+        det = saa * s11 - sa1**2
+        # the intercept's row of (X^T W^-1 X)^-1 X^T W^-1, X = (A, 1)
+        c = [(saa * w1[i] - sa1 * wa[i]) / det for i in range(n_l)]
+        intercept = functools.reduce(np.add, (c[i] * d[..., i] for i in range(n_l)))
+        var = 0.0
+        for i in range(n_l):
+            row = d_cov[..., i, i] * c[i]
+            for j in range(i + 1, n_l):
+                row = row + 2.0 * d_cov[..., i, j] * c[j]
+            var = var + c[i] * row
+    ok = np.isfinite(intercept) & (det > 0)
+    se = np.sqrt(np.where(ok & (var >= 0), var, np.nan))
+    return np.where(ok, intercept, np.nan), se
+
+
 def fit_structure_function(
     d: np.ndarray,
     a: np.ndarray,

@@ -229,10 +229,13 @@ _PRODUCT_VARIABLES: dict[str, VarMeta] = {
         "1",
         comment=(
             "k = sqrt of the median over the cells (block x height) of the free fitted "
-            "noise intercept 2 sigma_e^2 over the predicted one; applied to "
+            "noise intercept 2 sigma_e^2 (generalised least squares with the covariance of "
+            "D pooled over the height's blocks) over the predicted one; applied to "
             "noise_std_predicted where the data do not determine sigma_e (flag 32) when k "
-            "differs from 1 by more than 2 standard errors and 5 % and was learnt from at "
-            "least 10 blocks to 10 % (attribute applied); NaN with fewer than 10 such cells; "
+            "differs from 1 by more than 2 standard errors and 5 %, explains the cells (robust "
+            "spread of their intercepts about k^2 at most 3 of their errors) and was learnt "
+            "from at least 10 blocks to 10 % (attribute applied); NaN with fewer than 10 "
+            "such cells; "
             "attribute standard_error: that of the median ratio, sqrt(pi/2) 1.4826 MAD / "
             "sqrt(cells), over 2 k"
         ),

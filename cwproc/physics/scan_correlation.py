@@ -1,0 +1,292 @@
+"""How much the scans of a block are one sample: the errors of its means with correlated scans.
+
+The standard errors of the block's statistics ``s = (D_L(1), ..., D_L(L), variance of
+V'_L)`` come from the scatter of their per-scan values over the block's ``N`` scans
+(the jackknife of :func:`cwproc.stages.block_stats.jackknife_covariance`), which counts
+the scans as independent. Scans that see the same eddies are not: in the field the wind
+carries (Taylor's hypothesis, Smalikho (2020), eq. 7) scan ``n + m`` sees the air the
+scan ``n`` saw ``m U T_int`` upstream. A full circle at ``mu = U/V_s`` of 1 is carried
+``2 pi R'`` per scan, three circle diameters; a sector scanned back to back is carried
+only its own width, so its scans share their large eddies. The variance of a mean of
+correlated samples is that of ``N_eff = N / (1 + 2 sum_k (1 - k/N) rho_k)`` independent
+ones (Bayley and Hammersley (1946)), and the scatter about the block mean then
+underestimates even the per-scan variance, by ``(N - N/N_eff) / (N - 1)``.
+
+Both follow exactly from the covariance of the radial velocities, because every
+statistic of the block is a quadratic form of a Gaussian vector: with ``V' = (I - P) V``
+(``P`` the block-mean VAD fit, the same hat ``H`` of the scan's azimuths for every scan),
+``s_n^a = V'_n^T K_a^T K_a V'_n`` (``K_a`` the ray differences ``l`` apart over the root
+of their number for ``D_L(l)``, the identity over ``sqrt(M)`` for the variance) and the
+covariance ``G`` of ``V'``,
+
+.. math:: \\mathrm{cov}(s_n^a, s_{n'}^b) = 2 \\, \\| K_a G_{nn'} K_b^T \\|_F^2 .
+
+:func:`correlation_inflation` compares the variance of the block mean with the
+expectation of the scatter-based estimate, once with the scans' cross-covariance and
+once with the scans independent (``G`` built with the cross-scan blocks of the
+velocity covariance set to zero), and returns their ratio per statistic: the factor by
+which the scatter-based variance of each block-mean statistic must grow. It is 1 where
+the scans are independent, whatever the approximations of the model, which only enter
+through the correlation between scans.
+
+The velocity covariance is that of point beams in the frozen field (Banakh et al.
+(1999), eqs. 15-16, the isotropic tensor of the model at ``r/L_V``) plus white noise of
+``sigma_e^2`` on the diagonal: ray ``i`` of scan ``n`` at ``R' e(beta_i) - U t``, ``t``
+its time (``R' theta / V_s`` within a scan from the scan's first ray, plus ``n T_int``),
+as :mod:`cwproc.physics.removed_share` places them. Without transport (``U = 0``) the
+field renews between scans (the no-transport limit of Smalikho (2020), also that of the
+exact-statistics generator :mod:`cwproc.sim.exact_gaussian`); below
+:data:`MU_FROZEN` the frozen correlation is weighted in linearly from that limit.
+
+Reference: Bayley, G. V. and Hammersley, J. M. (1946), The "effective" number of
+independent observations in an autocorrelated time series, J. R. Stat. Soc. Suppl. 8,
+185-197 (``cwproc.references.BAYLEY_HAMMERSLEY_1946``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from cwproc.physics.removed_share import _correlation_curve
+
+#: ``mu = U/V_s`` from which the scans are the frozen field carried by the wind; below it
+#: the frozen cross-scan correlation is scaled by ``mu / MU_FROZEN`` (at 0 the scans are
+#: independent: the no-transport limit), as the removal of the block-mean wind from D
+#: (:data:`cwproc.physics.removed_share.REMOVED_D_MU`, first node 0.05)
+MU_FROZEN = 0.05
+
+#: correlation model of the cross-scan covariance for spectrum models without one
+#: (``inertial``: the von Karman field of the fitted L_V)
+FALLBACK_MODEL = "von_karman"
+
+
+def scan_positions(
+    phase: np.ndarray, offset: float, mu: float, phi_deg: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (units of ``R'``) in the frozen field and beam unit vectors of a scan's rays.
+
+    Parameters
+    ----------
+    phase : numpy.ndarray
+        ``(M,)`` scan angle of each ray from the scan's first ray (rad), in time order.
+    offset : float
+        Azimuth of the first ray from the direction the wind blows towards (rad).
+    mu : float
+        ``U/V_s`` (Smalikho (2020), eq. 3): the field moves ``mu R'`` per radian scanned.
+    phi_deg : float
+        Elevation (deg).
+
+    Returns
+    -------
+    (pos, beam) : numpy.ndarray
+        ``(M, 3)`` each; x along the wind.
+    """
+    beta = offset + np.asarray(phase, float)
+    ph = math.radians(phi_deg)
+    pos = np.stack([np.cos(beta), np.sin(beta), np.zeros(beta.shape)], -1)
+    pos[:, 0] -= mu * np.asarray(phase, float)
+    beam = np.stack(
+        [
+            math.cos(ph) * np.cos(beta),
+            math.cos(ph) * np.sin(beta),
+            np.full(beta.shape, math.sin(ph)),
+        ],
+        -1,
+    )
+    return pos, beam
+
+
+def cross_scan_correlation(
+    pos: np.ndarray,
+    beam: np.ndarray,
+    shift: np.ndarray,
+    ratio: float,
+    model: str,
+) -> np.ndarray:
+    """``(m, M, M)``: correlation (over ``sigma_V^2``) of ray ``i`` of scan ``n + m`` and ray
+    ``j`` of scan ``n``.
+
+    ``g(r) s_i.s_j + [f(r) - g(r)] (s_i.e)(s_j.e)`` (Banakh et al. (1999), eq. 16) at
+    ``r = |p_i - p_j + shift_m e_x| ratio`` in units of ``L_V`` (``ratio = R'/L_V``),
+    ``f, g`` of ``model`` by interpolation in ``ln r``.
+
+    Parameters
+    ----------
+    pos, beam : numpy.ndarray
+        ``(M, 3)`` of :func:`scan_positions`.
+    shift : numpy.ndarray
+        ``(m,)`` transport between the scans (units of ``R'``).
+    ratio : float
+        ``R'/L_V``.
+    model : str
+        ``"von_karman"`` or ``"exponential"``.
+    """
+    log_r, f_c, g_c = _correlation_curve(model)
+    r_vec = pos[None, :, None, :] - pos[None, None, :, :]
+    r_vec = r_vec + np.asarray(shift, float)[:, None, None, None] * np.array([1.0, 0.0, 0.0])
+    r = np.linalg.norm(r_vec, axis=-1)
+    unit = r_vec / np.where(r > 0, r, 1.0)[..., None]
+    proj = np.einsum("mijc,ic->mij", unit, beam) * np.einsum("mijc,jc->mij", unit, beam)
+    dot = (beam @ beam.T)[None]
+    with np.errstate(divide="ignore"):
+        lr = np.log(np.maximum(r * ratio, 1e-300))
+    f = np.interp(lr, log_r, f_c, left=1.0)
+    g = np.interp(lr, log_r, g_c, left=1.0)
+    return g * dot + (f - g) * proj
+
+
+def _vad_hat(phase: np.ndarray, offset: float) -> np.ndarray:
+    """``(M, M)`` hat matrix of the least-squares VAD fit ``(1, cos beta, sin beta)``."""
+    beta = offset + np.asarray(phase, float)
+    design = np.stack([np.ones(beta.size), np.cos(beta), np.sin(beta)], -1)
+    return design @ np.linalg.pinv(design.T @ design) @ design.T
+
+
+def _residual_covariance(blocks: np.ndarray, hat: np.ndarray) -> np.ndarray:
+    """``(N, N, M, M)`` covariance of ``V' = (I - J x H) V`` from that of ``V`` (same shape).
+
+    ``J = 1 1^T / N``: the block-mean VAD wind is the mean of the scans' fits (the same
+    azimuths in every scan).
+    """
+    row_mean = blocks.mean(axis=0)  # (N', M, M): (1/N) sum_n G_{n n'}
+    col_mean = blocks.mean(axis=1)  # (N, M, M): (1/N) sum_n' G_{n n'}
+    all_mean = row_mean.mean(axis=0)  # (M, M)
+    left = np.einsum("ij,njk->nik", hat, row_mean)  # H (1/N sum_n G_{n n'}) -> rows any n
+    right = np.einsum("nij,kj->nik", col_mean, hat)  # (1/N sum_n' G_{n n'}) H^T
+    both = hat @ all_mean @ hat.T
+    return blocks - left[None, :, :, :] - right[:, None, :, :] + both[None, None]
+
+
+def _difference_rows(g: np.ndarray, lag: int) -> np.ndarray:
+    """``K_a g`` over the second-to-last axis: differences ``lag`` apart over the root of
+    their number, or the identity over ``sqrt(M)`` for ``lag`` 0."""
+    m = g.shape[-2]
+    if lag == 0:
+        return g / math.sqrt(m)
+    return (g[..., lag:, :] - g[..., :-lag, :]) / math.sqrt(m - lag)
+
+
+def statistic_terms(residual: np.ndarray, n_lags: int) -> np.ndarray:
+    """``(L + 1, L + 1, N, N)``: ``||K_a G_{nn'} K_b^T||_F^2`` for the lags 1..L and the variance.
+
+    Half the covariance of the per-scan statistics ``a`` of scan ``n`` and ``b`` of
+    scan ``n'`` (module doc).
+    """
+    lags = [*range(1, n_lags + 1), 0]
+    n = residual.shape[0]
+    out = np.empty((len(lags), len(lags), n, n))
+    rows = [_difference_rows(residual, lag) for lag in lags]
+    for a, ra in enumerate(rows):
+        ra_t = np.swapaxes(ra, -1, -2)
+        for b in range(a, len(lags)):
+            both = _difference_rows(ra_t, lags[b])  # (K_b (K_a G)^T) = (K_a G K_b^T)^T
+            out[a, b] = out[b, a] = np.einsum("nkij,nkij->nk", both, both)
+    return out
+
+
+def statistic_means(residual: np.ndarray, n_lags: int) -> np.ndarray:
+    """``(L + 1, N)`` expectations ``tr(K_a G_nn K_a^T)`` of the per-scan statistics."""
+    lags = [*range(1, n_lags + 1), 0]
+    idx = np.arange(residual.shape[0])
+    own = residual[idx, idx]  # (N, M, M)
+    out = np.empty((len(lags), idx.size))
+    for a, lag in enumerate(lags):
+        both = _difference_rows(np.swapaxes(_difference_rows(own, lag), -1, -2), lag)
+        out[a] = np.trace(both, axis1=-2, axis2=-1)
+    return out
+
+
+def _mean_and_scatter(terms: np.ndarray, means: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Diagonals of the variance of the block means and of the expected scatter estimate.
+
+    ``var(s_mean) = (2/N^2) sum_{n n'} T``; the scatter ``sum_n (s_n - s_mean)^2 / (N (N -
+    1))`` has the expectation ``[(2/N) sum_n T_nn + (1/N) sum_n (E s_n - E s_mean)^2 -
+    var(s_mean)] / (N - 1)`` (``means``: the ``E s_n``, which the block-mean wind makes
+    differ a little between the first, middle and last scans).
+    """
+    diag = np.einsum("aann->an", terms)  # (L + 1, N)
+    n = terms.shape[-1]
+    total = 2.0 * np.einsum("aank->a", terms) / n**2
+    spread = np.mean((means - means.mean(-1, keepdims=True)) ** 2, axis=-1)
+    scatter = (2.0 * diag.sum(-1) / n + spread - total) / (n - 1)
+    return total, scatter
+
+
+def correlation_inflation(
+    phase: np.ndarray,
+    offset: float,
+    mu: float,
+    interval: float,
+    n_scans: int,
+    ratio: float,
+    noise_ratio: float,
+    n_lags: int,
+    phi_deg: float,
+    model: str,
+) -> np.ndarray:
+    """``(L + 1,)`` factor of the scatter-based variance of ``D_L(1..L)`` and the variance.
+
+    The variance of each block-mean statistic over the expectation of its estimate from
+    the scatter of the scans (the jackknife), with the scans' correlation in the frozen
+    field, relative to the same ratio for independent scans (module doc): 1 for
+    independent scans, larger where the scans see the same eddies.
+
+    Parameters
+    ----------
+    phase : numpy.ndarray
+        ``(M,)`` scan angle of each ray from the first (rad), in time order.
+    offset : float
+        Azimuth of the first ray from the direction the wind blows towards (rad).
+    mu : float
+        ``U/V_s`` of the transport (Smalikho (2020), eq. 3).
+    interval : float
+        Time between scan starts over ``T_scan`` (``2 pi R'/V_s``).
+    n_scans : int
+        Scans per block N (>= 2).
+    ratio : float
+        ``R'/L_V``.
+    noise_ratio : float
+        ``sigma_e^2 / sigma_V^2``.
+    n_lags : int
+        Lags ``l = 1..L``.
+    phi_deg : float
+        Elevation (deg).
+    model : str
+        Correlation model (:data:`FALLBACK_MODEL` for one without a correlation).
+    """
+    out = np.ones(n_lags + 1)
+    if n_scans < 2 or not (math.isfinite(mu) and math.isfinite(ratio) and ratio > 0):
+        return out
+    model = model if model in ("von_karman", "exponential") else FALLBACK_MODEL
+    frozen = min(max(mu, 0.0), 1e6)
+    weight = min(frozen / MU_FROZEN, 1.0)
+    if weight <= 0.0:
+        return out
+    mu_c = max(frozen, MU_FROZEN)
+    pos, beam = scan_positions(phase, offset, mu_c, phi_deg)
+    shift = -mu_c * 2.0 * math.pi * interval * np.arange(n_scans)
+    rho = cross_scan_correlation(pos, beam, shift, ratio, model)  # (m, M, M)
+    m_rays = pos.shape[0]
+    blocks = np.zeros((n_scans, n_scans, m_rays, m_rays))
+    noise = max(float(noise_ratio), 0.0) * np.eye(m_rays)
+    for n in range(n_scans):
+        for k in range(n, n_scans):
+            blocks[n, k] = weight * rho[k - n].T if k > n else rho[0] + noise
+            blocks[k, n] = blocks[n, k].T
+    independent = np.zeros_like(blocks)
+    idx = np.arange(n_scans)
+    independent[idx, idx] = blocks[idx, idx]
+    hat = _vad_hat(phase, offset)
+    ratios = []
+    for cov in (blocks, independent):
+        residual = _residual_covariance(cov, hat)
+        total, scatter = _mean_and_scatter(
+            statistic_terms(residual, n_lags), statistic_means(residual, n_lags)
+        )
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratios.append(total / scatter)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        factor = ratios[0] / ratios[1]
+    return np.where(np.isfinite(factor) & (factor > 0), factor, 1.0)
