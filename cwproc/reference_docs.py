@@ -185,11 +185,11 @@ def commands_markdown() -> str:
     return "\n".join(lines + _command_sections(main, "cwproc", ctx))
 
 
-#: sections of the API page: title and the module whose public names it lists
+#: sections of the API page: title and the modules whose public names it lists
 API_SECTIONS = (
-    ("Reading, retrieving and writing", "cwproc.api"),
-    ("Configuration", "cwproc.config"),
-    ("Errors", "cwproc.errors"),
+    ("Reading, retrieving and writing", ("cwproc.api",)),
+    ("Configuration", ("cwproc.config", "cwproc.config_products")),
+    ("Errors", ("cwproc.errors",)),
 )
 
 
@@ -291,11 +291,11 @@ def api_markdown() -> str:
         "",
     ]
     public = [n for n in cwproc.__all__ if n not in ("__version__", "stages")]
-    for title, module in API_SECTIONS:
+    for title, modules in API_SECTIONS:
         lines += [f"## {title}", ""]
         for name in public:
             obj = getattr(cwproc, name)
-            if getattr(obj, "__module__", None) == module:
+            if getattr(obj, "__module__", None) in modules:
                 lines += _api_entry(f"cwproc.{name}", obj)
     lines += [
         "## Stages",

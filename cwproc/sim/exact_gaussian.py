@@ -356,6 +356,24 @@ def _point_beams(
     return beams_i, beams_k, dt
 
 
+def _ray_lags(pattern: ScanPattern, ii: np.ndarray, kk: np.ndarray, scan_lag: int) -> np.ndarray:
+    """Azimuth steps between rays ``ii`` and ``kk`` of one scan (``m + 2``: apart).
+
+    The sweeps of two rays touch where ``|lag| <= 1``; a stare's point beams meet only
+    within the same ray; rays of different scans never touch.
+    """
+    m = pattern.n_rays
+    if scan_lag != 0:
+        return np.full(ii.size, m + 2)
+    if pattern.sweep_deg > 0:
+        az = np.asarray(pattern.azimuth_deg)
+        lags = np.rint(((az[kk] - az[ii] + 180.0) % 360.0 - 180.0) / pattern.sweep_deg)
+        return lags.astype(int)
+    if pattern.averaged:
+        return np.where(ii == kk, 0, m + 2)
+    return np.full(ii.size, m + 2)
+
+
 def block_covariance(
     pattern: ScanPattern,
     n_scans: int,
@@ -408,7 +426,6 @@ def block_covariance(
     m = pattern.n_rays
     frozen = bool(np.any(wind != 0))
     blocks: dict[int, np.ndarray] = {}
-    az = np.asarray(pattern.azimuth_deg)
     ii, kk = (a.ravel() for a in np.meshgrid(np.arange(m), np.arange(m), indexing="ij"))
     for scan_lag in range(n_scans) if frozen else range(1):
         # the ray's mean beam (sweep average of the unit vectors) and the centre separation
@@ -424,14 +441,7 @@ def block_covariance(
         sep = np.linalg.norm(
             range_m * (mean_beam[ii] - mean_beam[kk]) - wind * dt_c[:, None], axis=-1
         )
-        # azimuth steps between the rays: their sweeps touch where |lag| <= 1 (a stare's
-        # point beams meet only within the same ray)
-        lag_rays = np.full(ii.size, m + 2)
-        if pattern.sweep_deg > 0 and scan_lag == 0:
-            lag_rays = np.rint(((az[kk] - az[ii] + 180.0) % 360.0 - 180.0) / pattern.sweep_deg)
-            lag_rays = lag_rays.astype(int)
-        elif sweep and scan_lag == 0:
-            lag_rays = np.where(ii == kk, 0, m + 2)
+        lag_rays = _ray_lags(pattern, ii, kk, scan_lag)
         if scan_lag == 0:  # B_D(i, k) = B_D(k, i) within a scan: the upper triangle suffices
             sep = np.where(ii <= kk, sep, np.nan)
             # the same or touching rays: the r^(2/3) cusp where the point beams meet

@@ -32,7 +32,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("cwproc._version", "cwproc.errors", "cwproc.references", "cwproc.progress", "cwproc.dates"),
     ("cwproc.physics", "cwproc.atables"),
     ("cwproc.io",),
-    ("cwproc.config", "cwproc.configs"),
+    ("cwproc.config", "cwproc.config_products", "cwproc.configs"),
     ("cwproc.stages",),
     ("cwproc.products",),
     ("cwproc.pipeline",),
