@@ -196,3 +196,63 @@ def test_real_stare_with_its_background_gives_beta_in_the_boundary_layer(real_da
     assert 0.0018 < np.median(p["snr_error"].values) < 0.0026
     assert np.isfinite(p["beta_screened"].values).sum() > 20
     assert p.attrs["background_files"] == ["eriswil-Background_141222-000013.txt"]
+
+
+def _real_layout_depolarisation(real_data, tmp_path, delta: float, n: int = 40):
+    """``n`` co/cross pairs re-measured from the Eriswil stare (:func:`polarised_pair`),
+    written and read back as ``.hpl`` and background files, each channel corrected with
+    its own background, through the L1 stage: (delta estimates, their SE, true co SNR)
+    of the screened gates with true signal."""
+    from cwproc.io.halo import read_hpl, write_hpl
+    from cwproc.io.halo_background import read_halo_background
+    from cwproc.sim.depol import polarised_pair, write_background
+    from cwproc.stages.background import correct_snr
+
+    hpl = Path(real_data) / "hpl" / "eriswil-2022-12-14-Stare_91_20221214_11.hpl"
+    bg = read_halo_background(
+        Path(real_data) / "hpl" / "background" / "eriswil-Background_141222-000013.txt"
+    )
+    co = read_hpl(hpl)
+    real = doppler_lidar_product(correct_snr(co, [bg], max_age_h=None))
+    signal = np.where(np.isfinite(real["beta_screened"].values), real["snr"].values, 0.0)
+    sd = float(np.median(real["snr_error"].values))
+    est, se, truth = [], [], []
+    for seed in range(n):
+        c, x, bc, bx = polarised_pair(
+            co, bg["background"].values, signal, delta, noise_std=sd, seed=seed
+        )
+        read = []
+        for tag, ds, b in (("co", c, bc), ("cross", x, bx)):
+            (tmp_path / tag).mkdir(exist_ok=True)
+            scans = read_hpl(write_hpl(ds, tmp_path / tag / hpl.name))
+            back = read_halo_background(
+                write_background(b, tmp_path / tag / "Background_141222-000013.txt")
+            )
+            read.append(correct_snr(scans, [back], max_age_h=None))
+        p = doppler_lidar_product(*read)
+        d = p["depolarisation_screened"].values
+        ok = np.isfinite(d) & (signal > 0)
+        est.append(d[ok])
+        se.append(p["depolarisation_error"].values[ok])
+        truth.append(signal[ok])
+    return np.concatenate(est), np.concatenate(se), np.concatenate(truth), sd
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("delta", [0.1, 0.3])
+def test_depolarisation_of_real_layout_pairs_is_the_truth_within_its_error(
+    real_data, tmp_path, delta
+):
+    """Pairs re-measured from the real Eriswil stare, each channel with its own noise,
+    background file and noise-floor drift, corrected with its own background (40
+    realisations x ~100 signal gates): the median delta/truth within 5 % of 1 (measured
+    0.966; the cross files built from the co file's uncorrected SNR gave 0.81 and 0.90),
+    the truth within +-1 SE on 60-76 % of the gates whose true co SNR is >= 5 noise sd
+    (68 % for Gaussian errors; the first-order SE is evaluated at the measured co SNR,
+    so on the weak gates it covers more)."""
+    d, se, s, sd = _real_layout_depolarisation(real_data, tmp_path, delta)
+    assert d.size > 2000
+    assert np.median(d / delta) == pytest.approx(1.0, abs=0.05)
+    strong = s >= 5 * sd
+    assert strong.sum() > 300
+    assert 0.60 < np.mean(np.abs(d[strong] - delta) <= se[strong]) < 0.76
