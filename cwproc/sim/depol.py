@@ -28,9 +28,11 @@ Cloudnet sites upload them (tags ``co`` and ``cross``), each with its background
 An earlier version scaled the cross SNR from the co file's *uncorrected* SNR with no
 background of its own, and then corrected both with the co background: the cross file then
 carried the co channel's correction pattern (``B_m / (B_f F) - 1``, -0.001 on the Eriswil
-signal gates) with weight 1 instead of ``delta``, and the clipped co noise as a floor of its
-own, which biased ``delta`` by ``(1 - delta)(k - 1) / SNR`` (median 0.81 and 0.90 of the
-truth at 0.1 and 0.3 on the Eriswil file); the estimator was not at fault.
+signal gates) with weight 1 instead of ``delta``, its clipped co noise as a floor of its
+own, and the co noise in both channels (``SNR_x - delta SNR_co`` -4 and -12 standard
+errors at delta 0.1 and 0.3 on the Eriswil signal gates). With this construction a
+method bias remained, and is fixed in the L1 stage
+(:func:`cwproc.stages.doppler_lidar.refit_cross_floor`).
 """
 
 from __future__ import annotations
