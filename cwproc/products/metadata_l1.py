@@ -92,6 +92,12 @@ L1_VARIABLES: dict[str, VarMeta] = {
         references=VAKKARI_2021 + ", eq. 1",
     ),
     "cross_time": VarMeta("time of the paired cross-polarised ray (UTC)", None, "time"),
+    "cross_floor_refit": VarMeta(
+        "noise floor of the paired cross-polarised ray refitted on the co ray's noise gates "
+        "(median over range; NaN: not refitted)",
+        "1",
+        references=MANNINEN_2016,
+    ),
     # ----------------------- names of the Cloudnet layout (products/cloudnet.py)
     "beta_raw": VarMeta(
         "attenuated backscatter coefficient, not screened",

@@ -23,6 +23,10 @@ only noise and a few tenths where there is signal. A gate is signal when
 and it is not in the near range (the first ``near_range_m``, three pulse lengths, as
 Cloudnet). Velocity is kept where the gate is signal and the texture is below the
 threshold.
+
+Depolarisation: the paired cross ray's background-corrected SNR gets its noise floor
+refitted on the co ray's noise gates (:func:`refit_cross_floor`), since the cross ray's
+own signal-free-gate search takes its weak (delta times the co) layer for floor.
 """
 
 from __future__ import annotations
@@ -32,8 +36,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import xarray as xr
-from scipy.ndimage import median_filter, uniform_filter
+from scipy.ndimage import maximum_filter1d, median_filter, uniform_filter
 
+from cwproc.physics.background import fit_noise_floor
 from cwproc.physics.backscatter import (
     LidarConstants,
     attenuated_backscatter,
@@ -199,6 +204,86 @@ def pair_rays(
     return np.where(close & same, idx, -1)
 
 
+def refit_cross_floor(
+    snr_cross: np.ndarray,
+    snr_co: np.ndarray,
+    co_signal: np.ndarray,
+    range_m: np.ndarray,
+    options: DopplerLidarOptions = DopplerLidarOptions(),
+    *,
+    widen_gates: int = 2,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Background-corrected cross SNR with its noise floor refitted on gates free of
+    co-polarised signal.
+
+    The cross channel's signal is ``delta`` times the co channel's (Vakkari et al.
+    (2021), eq. 1), so it is weaker by ``delta`` and its own per-gate search for
+    signal-free gates (Manninen et al. (2016), step 2) takes much of it for noise floor:
+    the floor comes out high and the cross SNR, hence ``delta``, low (on pairs
+    re-measured from the Eriswil stare, ``SNR_x - delta SNR_co`` was -4 and -8 standard
+    errors at delta 0.1 and 0.3). A gate without co signal has no cross signal either,
+    so the floor ``F = a + b r`` of Manninen et al. (2016) is fitted again to
+    ``1 + SNR_x`` on the gates where the co ray shows no signal: not signal by the
+    screening (``co_signal``), widened by ``widen_gates`` on each side, and a box-mean co
+    SNR (the screening's box) not above 0, which also leaves out the weak co signal
+    below the screening's threshold (the co and cross noise are independent, so
+    choosing gates by the co SNR does not bias the cross noise there); beyond
+    ``near_range_m``. Then ``SNR_x' = (1 + SNR_x) / F - 1``. Rays with fewer than
+    ``MIN_NOISE_GATES`` such gates keep their SNR.
+
+    Parameters
+    ----------
+    snr_cross, snr_co : numpy.ndarray
+        (rays, range) corrected cross SNR on the co rays' grid and the co SNR.
+    co_signal : numpy.ndarray of bool
+        (rays, range) the co gates the screening calls signal.
+    range_m : numpy.ndarray
+        Gate distances (m).
+    options : DopplerLidarOptions
+        The screening box and ``near_range_m``.
+
+    Returns
+    -------
+    snr : numpy.ndarray
+        The refitted cross SNR.
+    floor : numpy.ndarray
+        (rays,) median of the refitted floor over range (NaN: not refitted).
+    floor_se : numpy.ndarray
+        (rays, range) standard error of the refitted floor (0: not refitted), an error
+        common to the gates of a ray that the cross SNR's noise sd does not hold (large
+        where the floor is extrapolated, e.g. a layer filling most of the ray).
+    """
+    x = np.asarray(snr_cross, dtype=float)
+    co = np.asarray(snr_co, dtype=float)
+    r = np.asarray(range_m, dtype=float)
+    box = (int(options.box_rays), int(options.box_gates))
+    box_mean = uniform_filter(np.where(np.isfinite(co), co, 0.0), size=box, mode="nearest")
+    signal = maximum_filter1d(
+        np.asarray(co_signal, dtype=bool).astype(np.uint8), 2 * widen_gates + 1, axis=1
+    ).astype(bool) | ~(box_mean <= 0.0)
+    noise = ~signal & (r >= options.near_range_m)[None, :] & np.isfinite(x)
+    floor, _ = fit_noise_floor(1.0 + x, r, noise)
+    fitted = np.isfinite(floor).all(axis=1)
+    out = np.where(fitted[:, None], (1.0 + x) / floor - 1.0, x)
+    return out, np.where(fitted, np.median(floor, axis=1), np.nan), _line_se(x, r, noise, floor)
+
+
+def _line_se(x: np.ndarray, r: np.ndarray, noise: np.ndarray, floor: np.ndarray) -> np.ndarray:
+    """Standard error of a least-squares line at every gate, ``s sqrt(1/n + (r -
+    r_mean)^2 / S_rr)`` with ``s`` the residual sd over the ``noise`` gates (0 where
+    the line was not fitted)."""
+    n = noise.sum(axis=1).astype(float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        resid = np.where(noise, 1.0 + x - floor, 0.0)
+        s = np.sqrt((resid**2).sum(axis=1) / (n - 2.0))
+        r_mean = (noise * r).sum(axis=1) / n
+        s_rr = (noise * (r[None, :] - r_mean[:, None]) ** 2).sum(axis=1)
+        se = s[:, None] * np.sqrt(
+            1.0 / n[:, None] + (r[None, :] - r_mean[:, None]) ** 2 / s_rr[:, None]
+        )
+    return np.where(np.isfinite(se), se, 0.0)
+
+
 def _corrected(ds: xr.Dataset) -> bool:
     """Whether every ray's SNR was background-corrected (its noise centred on 0)."""
     if "background_time" not in ds:
@@ -321,7 +406,9 @@ def _cross_variables(
     n_rays, n_gates = snr.shape
     x_rng = np.asarray(cross["range"].values, dtype=float)
     snr_x = np.full(snr.shape, np.nan)
-    noise_x = np.full(n_rays, np.nan)
+    noise_x = np.full((n_rays, 1), np.nan)
+    floor_x = np.full(n_rays, np.nan)
+    floor_se = np.zeros(snr.shape)
     idx = np.full(n_rays, -1)
     if x_rng.shape == rng.shape and np.allclose(x_rng, rng, atol=1.0):
         max_dt = pair_tolerance(co, options)
@@ -336,15 +423,19 @@ def _cross_variables(
         got = idx >= 0
         x_snr = np.asarray(cross["snr"].values, dtype=float)
         snr_x[got] = x_snr[idx[got]]
-        x_noise = ray_noise_std(x_snr, rng, options.near_range_m, centred=_corrected(cross))
-        noise_x[got] = x_noise[idx[got]]
+        centred = _corrected(cross)
+        if centred and got.any():  # the co channel's noise gates are the cross channel's
+            refit, floor, floor_se = refit_cross_floor(snr_x, snr, ~beta_mask, rng, options)
+            snr_x[got], floor_x[got] = refit[got], floor[got]
+        noise_x = ray_noise_std(snr_x, rng, options.near_range_m, centred=centred)[:, None]
+        noise_x = np.sqrt(noise_x**2 + floor_se**2)
     elif notes is not None:
         notes.append(
             f"depolarisation not computed: the cross-polarised rays have {x_rng.size} gates "
             f"(or other ranges), the co-polarised {n_gates}"
         )
     delta, delta_se = depolarisation_ratio(
-        snr, snr_x, noise[:, None], noise_x[:, None], options.bleed_through
+        snr, snr_x, noise[:, None], noise_x, options.bleed_through
     )
     unpaired = idx < 0
     flags = np.zeros((n_rays, n_gates), dtype=np.int16)
@@ -362,6 +453,7 @@ def _cross_variables(
         "depolarisation_error": (dims, delta_se),
         "depolarisation_screened": (dims, np.where(beta_mask | unpaired[:, None], np.nan, delta)),
         "cross_time": ("time", _paired_times(cross, idx)),
+        "cross_floor_refit": ("time", floor_x),
         "doppler_lidar_flag": (dims, flags),
     }
 
