@@ -67,6 +67,35 @@ def test_a_calibration_of_few_blocks_is_reported_not_applied():
     assert not calibration_applies((3.6, 0.7, 200), [product(200)])
 
 
+def test_the_model_error_of_the_intercept_keeps_a_small_noise_uncalibrated():
+    """sigma_e 0.05 (2 sigma_e^2 = 0.005) under D(1) = 0.25: a model shape 1.3 % of D(1)
+    off at the first lags moves every intercept by 0.0033 (k^2 1.65, k 1.29), a shift
+    shared by all cells that no number of cells averages away. The model error
+    (2 % of D(1)) makes k = 1.29 insignificant; the same day with sigma_e 0.1 (the
+    prediction x1.5 too high, k 0.67) is still calibrated."""
+    import xarray as xr
+
+    from cwproc.stages.epsilon.noise_prior import calibration_applies, day_calibration
+
+    rng = np.random.default_rng(3)
+    flag = np.full((100, 3), 32, dtype=np.int32)
+    products = [xr.Dataset({"turbulence_flag": (("time", "height"), flag)})]
+    first = np.full(300, 0.25)
+
+    def day(sigma_e: float, predicted: float) -> tuple:
+        b = 2 * sigma_e**2 + 0.013 * 0.25 + rng.normal(0.0, 0.1 * 2 * sigma_e**2, 300)
+        se = np.full(300, 0.1 * 2 * sigma_e**2)
+        return day_calibration([(b, se, np.full(300, predicted), first)])
+
+    small = day(0.05, 0.05)
+    assert small[0] > 1.2 and small[1] < 0.02  # statistically "significant"
+    assert small[4] > 0.3  # the model error of k
+    assert not calibration_applies(small, products)
+    large = day(0.1, 0.15)
+    assert abs(large[0] - 0.72) < 0.03 and large[4] < 0.1
+    assert calibration_applies(large, products)
+
+
 def test_the_data_overrule_a_prediction_that_is_too_high():
     """D = eps^(2/3) A + 2 sigma_e^2 with sigma_e 0.1, the prediction 0.2 (x2 too high),
     the intercept measured to 5 %: the test with both errors keeps the data."""

@@ -13,7 +13,8 @@ settings (the signal's spectral width) and can be off by a factor. The data deci
    (:func:`cell_intercepts`) give the factor ``k`` that the SNR prediction is off by,
    with its standard error (:func:`cwproc.physics.noise.noise_calibration`);
 3. where ``k`` differs from 1 by more than :data:`CALIBRATION_SIGNIFICANT` standard
-   errors (and by more than :data:`CALIBRATION_RELEVANT`), explains the cells
+   errors (statistical and, :data:`CALIBRATION_MODEL_REL`, of the model's structure
+   function, in quadrature; and by more than :data:`CALIBRATION_RELEVANT`), explains the cells
    (:data:`CALIBRATION_MAX_DISPERSION`), the day holds at least
    :data:`CALIBRATION_MIN_BLOCKS` blocks, ``k`` is known to a relative standard error of
    :data:`CALIBRATION_MAX_REL_SE` and some cells took the prediction, the cells
@@ -69,6 +70,13 @@ CALIBRATION_MAX_REL_SE = 0.1
 #: exact statistics, where the prediction is off by one factor; a day whose prediction
 #: is off by a factor varying from cell to cell has no one calibration)
 CALIBRATION_MAX_DISPERSION = 3.0
+#: relative error of the model's structure function that the intercept of a cell carries
+#: whatever the number of cells (systematic, not averaged away): the swept-ray tables'
+#: ``D(l)`` are 1.2-1.6 % off the exact expectation at mu 3 (72 rays,
+#: benchmarks/bench_reference_72ray.py) and the step-stare dwell tables up to 2.4 %; at
+#: mu 1 a 72-ray day with sigma_e = 0.05 m s-1 (``2 sigma_e^2`` 3 % of ``D(1)``) read
+#: ``k`` = 1.24 from intercepts moved by 1.3 % of ``D(1)`` and applied it
+CALIBRATION_MODEL_REL = 0.02
 #: least relative standard error of a calibrated ``2 sigma_e^2`` of one block: the
 #: block's SNR varies about the day's, and the calibration is one factor for all SNRs
 CALIBRATED_PRIOR_FLOOR = 0.1
@@ -82,7 +90,11 @@ def cell_intercepts(
     predicted: np.ndarray,
     skip: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(intercept, standard error, predicted sigma_e)`` of the cells that can calibrate.
+    """``(intercept, standard error, predicted sigma_e, D at the first lag)`` of the cells.
+
+    The cells that can calibrate the prediction; the fourth array, the cell's structure
+    function at its first lag (m2 s-2), scales the model's systematic error of the
+    intercept (:data:`CALIBRATION_MODEL_REL`, :func:`day_calibration`).
 
     The free intercept of Smalikho (2020), eq. 4 with the cell's ``A_2`` (m2 s-2) and the
     uncalibrated prediction ``predicted`` (m s-1); NaN where the fit has fewer than
@@ -111,35 +123,53 @@ def cell_intercepts(
         b, se = np.where(use, b_w, b), np.where(use, se_w, se)
     keep = (n >= MIN_NOISE_LAGS) & ~skip
     nan = np.full(b.shape, np.nan)
-    return np.where(keep, b, nan), np.where(keep, se, nan), np.where(keep, predicted, nan)
+    first = np.where(valid[..., 0] & np.isfinite(cells.d[..., 0]), cells.d[..., 0], np.nan)
+    return (
+        np.where(keep, b, nan),
+        np.where(keep, se, nan),
+        np.where(keep, predicted, nan),
+        np.where(keep, first, nan),
+    )
 
 
-def day_calibration(intercepts: list[tuple]) -> tuple[float, float, int, float]:
-    """``(k, SE(k), cells, dispersion)`` over all groups of blocks (:func:`cell_intercepts`).
+def day_calibration(intercepts: list[tuple]) -> tuple[float, float, int, float, float]:
+    """``(k, SE(k), cells, dispersion, model SE(k))`` over all groups of blocks.
 
     :func:`cwproc.physics.noise.noise_calibration` of the cells of all groups, and the
     robust standard deviation (1.4826 times the median absolute value) of
     ``z = (b - k^2 2 sigma_pred^2) / s_b``: about 1 where one factor ``k`` explains every
     cell's intercept within its error, larger where the prediction's error varies from
-    cell to cell (:func:`calibration_applies`).
+    cell to cell (:func:`calibration_applies`). The model SE of ``k``: the systematic
+    error :data:`CALIBRATION_MODEL_REL` times the median first-lag ``D`` of the cells
+    (:func:`cell_intercepts`, all cells share it, so it does not average away) over the
+    median intercept ``b``, as ``SE(k) = k SE(b) / (2 b)``.
     """
     if not intercepts:
-        return math.nan, math.nan, 0, math.nan
+        return math.nan, math.nan, 0, math.nan, math.nan
     b, se, pred = (np.concatenate([np.ravel(p[i]) for p in intercepts]) for i in range(3))
     k, se_k, n = noise_calibration(b, se, pred)
     with np.errstate(invalid="ignore", divide="ignore"):
         z = (b - k**2 * 2.0 * pred**2) / se
     z = z[np.isfinite(z)]
     dispersion = float(1.4826 * np.median(np.abs(z))) if z.size else math.nan
-    return k, se_k, n, dispersion
+    model_se = 0.0  # cells given without their first-lag D: no model error known
+    if all(len(p) > 3 for p in intercepts):
+        first = np.concatenate([np.ravel(p[3]) for p in intercepts])
+        ok = np.isfinite(first) & np.isfinite(b) & np.isfinite(se)
+        b_mid = float(np.median(b[ok])) if ok.any() else math.nan
+        if ok.any() and b_mid > 0:
+            model_se = k * CALIBRATION_MODEL_REL * float(np.median(first[ok])) / (2.0 * b_mid)
+    return k, se_k, n, dispersion, model_se
 
 
 def calibration_applies(calibration: tuple, products: list[xr.Dataset]) -> bool:
     """Whether the cells are fitted again with the calibrated prediction (module doc, 3).
 
     Not with fewer than :data:`CALIBRATION_MIN_BLOCKS` blocks in ``products``: ``k`` is
-    then reported, not applied; nor where one factor does not explain the cells
-    (``dispersion``, the fourth item of :func:`day_calibration`, above
+    then reported, not applied; nor where ``k`` is within
+    :data:`CALIBRATION_SIGNIFICANT` times its statistical and model errors (the fifth
+    item of :func:`day_calibration`, in quadrature) of 1; nor where one factor does not
+    explain the cells (``dispersion``, the fourth item of :func:`day_calibration`, above
     :data:`CALIBRATION_MAX_DISPERSION`).
     """
     k, se_k = calibration[0], calibration[1]
@@ -151,7 +181,10 @@ def calibration_applies(calibration: tuple, products: list[xr.Dataset]) -> bool:
         return False
     if se_k > CALIBRATION_MAX_REL_SE * k:
         return False
-    if abs(k - 1.0) <= max(CALIBRATION_SIGNIFICANT * se_k, CALIBRATION_RELEVANT):
+    # significant against the statistical and the model's systematic error together
+    model_se = calibration[4] if len(calibration) > 4 else 0.0
+    total = math.hypot(se_k, model_se) if math.isfinite(model_se) else math.inf
+    if abs(k - 1.0) <= max(CALIBRATION_SIGNIFICANT * total, CALIBRATION_RELEVANT):
         return False
     return any(
         bool(np.any((p["turbulence_flag"].values.astype(int) & FLAG_NOISE_PREDICTED) > 0))
@@ -176,6 +209,7 @@ def add_calibration(out: xr.Dataset, calibration: tuple, applied: bool) -> None:
     out["noise_std_calibration"] = ((), float(k))
     out["noise_std_calibration"].attrs.update(
         standard_error=float(se_k),
+        model_standard_error=float(calibration[4]) if len(calibration) > 4 else float("nan"),
         cells=int(n),
         applied=int(applied),
         method="median over the cells of sigma_e^2 fitted / predicted "
