@@ -30,6 +30,10 @@ COMMANDS = {
         "cwproc.cli.sf_type:sf_type",
         "Structure-function types of sonic FILES (TOA5, TOB1, GHG, Gill, Meteo-2).",
     ),
+    "sonic-turbulence": (
+        "cwproc.cli.sonic_turbulence:sonic_turbulence",
+        "Dissipation rate, variances, TKE, u_* and EC quality flags of sonic FILES.",
+    ),
     "simulate": (
         "cwproc.cli.simulate:simulate",
         "Virtual lidars and sonics: files in the real formats plus the truth, and error studies.",

@@ -31,6 +31,10 @@ from cwproc.io.schema import (
     attach_attrs,
 )
 from cwproc.products.metadata_l1 import BETA_STANDARD_NAME, L1_VARIABLES
+from cwproc.products.metadata_sonic import (
+    SONIC_TURBULENCE_OVERRIDES,
+    SONIC_TURBULENCE_VARIABLES,
+)
 from cwproc.references import (
     BANAKH_1999,
     GLADKIKH_2014,
@@ -534,6 +538,7 @@ VARIABLES: dict[str, VarMeta] = {
     **WIND_RECORD_VARIABLES,
     **{k: SONIC_VARIABLES[k] for k in ("temperature", "diagnostic", "sample_flag")},
     **_PRODUCT_VARIABLES,
+    **SONIC_TURBULENCE_VARIABLES,
 }
 
 _VAD_ERROR_REFERENCES = f"{VAD_ACCURACY}, section 4"
@@ -587,6 +592,8 @@ PRODUCT_VARIABLES: dict[str, dict[str, VarMeta]] = {
     },
 }
 
+PRODUCT_VARIABLES["sonic_turbulence"] = SONIC_TURBULENCE_OVERRIDES
+
 _ASL_HEIGHT = VarMeta(
     "height above mean sea level",
     "m",
@@ -632,6 +639,7 @@ PRODUCTS: tuple[str, ...] = (
     "doppler-lidar",
     "doppler-lidar-wind",
     "sf",
+    "sonic_turbulence",
     "montecarlo",
 )
 
