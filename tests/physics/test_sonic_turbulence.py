@@ -73,6 +73,9 @@ def test_double_rotation_recovers_a_known_tilt():
     v = u1 * np.sin(yaw) + v2 * np.cos(yaw)
     ur, vr, wr, g, a = st.double_rotation(u, v, w)
     assert abs(np.mean(vr)) < 1e-12 and abs(np.mean(wr)) < 1e-12
+    assert np.mean(ur) == pytest.approx(
+        np.sqrt(np.mean(u) ** 2 + np.mean(v) ** 2 + np.mean(w) ** 2)
+    )
     # the means of v2, w2 are not exactly zero, so the angles differ by their ratio to U
     assert g == pytest.approx(35.0 + np.degrees(np.mean(v2) / 5.0), abs=0.05)
     assert a == pytest.approx(4.0 + np.degrees(np.mean(w2) / 5.0), abs=0.05)
