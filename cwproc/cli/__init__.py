@@ -17,6 +17,10 @@ COMMANDS = {
         "cwproc.cli.batch:batch",
         "Process every new or changed input under INPUT_DIR into OUTPUT_DIR.",
     ),
+    "compare": (
+        "cwproc.cli.compare:compare",
+        "Lidar eps against sonic eps: comparison product (NetCDF) and plot (PNG).",
+    ),
     "info": (
         "cwproc.cli.info:info",
         "What each of FILES is: format, instrument, rays, gates, time span, scans.",

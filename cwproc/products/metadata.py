@@ -32,6 +32,7 @@ from cwproc.io.schema import (
 )
 from cwproc.products.metadata_l1 import BETA_STANDARD_NAME, L1_VARIABLES
 from cwproc.products.metadata_sonic import (
+    COMPARISON_VARIABLES,
     SONIC_TURBULENCE_OVERRIDES,
     SONIC_TURBULENCE_VARIABLES,
 )
@@ -539,6 +540,7 @@ VARIABLES: dict[str, VarMeta] = {
     **{k: SONIC_VARIABLES[k] for k in ("temperature", "diagnostic", "sample_flag")},
     **_PRODUCT_VARIABLES,
     **SONIC_TURBULENCE_VARIABLES,
+    **COMPARISON_VARIABLES,
 }
 
 _VAD_ERROR_REFERENCES = f"{VAD_ACCURACY}, section 4"
@@ -593,6 +595,10 @@ PRODUCT_VARIABLES: dict[str, dict[str, VarMeta]] = {
 }
 
 PRODUCT_VARIABLES["sonic_turbulence"] = SONIC_TURBULENCE_OVERRIDES
+PRODUCT_VARIABLES["lidar_sonic"] = {
+    "time": SONIC_TURBULENCE_OVERRIDES["time"],
+    "mean_wind_speed": SONIC_TURBULENCE_VARIABLES["mean_wind_speed"],
+}
 
 _ASL_HEIGHT = VarMeta(
     "height above mean sea level",
@@ -640,6 +646,7 @@ PRODUCTS: tuple[str, ...] = (
     "doppler-lidar-wind",
     "sf",
     "sonic_turbulence",
+    "lidar_sonic",
     "montecarlo",
 )
 

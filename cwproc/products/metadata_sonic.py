@@ -196,3 +196,26 @@ SONIC_TURBULENCE_OVERRIDES: dict[str, VarMeta] = {
     ),
     "time": VarMeta("time (UTC)", None, "time", comment="start of the averaging window", axis="T"),
 }
+
+
+#: the lidar-against-sonic comparison product (stage ``lidar_sonic``)
+COMPARISON_VARIABLES: dict[str, VarMeta] = {
+    "lidar_epsilon": VarMeta(
+        "dissipation rate of the lidar at the sonic's height: mean of the blocks in the "
+        "sonic window",
+        "m2 s-3",
+    ),
+    "lidar_epsilon_standard_error": VarMeta(
+        "standard error of lidar_epsilon, sqrt(sum of the blocks' squared errors) / n", "m2 s-3"
+    ),
+    "n_lidar_blocks": VarMeta("number of lidar blocks (turbulence_flag 0) in the window", "1"),
+    "sonic_epsilon": VarMeta(
+        "dissipation rate of the sonic anemometer in the window", "m2 s-3", references=_EPS_REFS
+    ),
+    "sonic_epsilon_standard_error": VarMeta("standard error of sonic_epsilon", "m2 s-3"),
+    "lidar_sonic_epsilon_ratio": VarMeta("ratio of the lidar to the sonic dissipation rate", "1"),
+    "lidar_sonic_epsilon_ratio_error": VarMeta(
+        "standard error of the ratio (relative errors in quadrature)", "1"
+    ),
+    "lidar_height": VarMeta("height of the lidar gate compared with the sonic", "m"),
+}

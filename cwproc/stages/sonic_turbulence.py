@@ -471,6 +471,7 @@ def _dataset(
     ds.attrs.update(
         {
             "sampling_rate_hz": settings["sampling_rate_hz"],
+            "window_s": settings["window_s"],
             "instrument": str(sonic.attrs.get("instrument", "")),
             "sonic_turbulence_parameters": str(settings),
         }
