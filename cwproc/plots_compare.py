@@ -42,7 +42,7 @@ def plot_comparison(ds: xr.Dataset):
     ax.plot([lo, hi], [lo, hi], "k--", lw=1, label="1:1")
     ax.set(xscale="log", yscale="log", xlim=(lo, hi), ylim=(lo, hi))
     ax.set_xlabel("sonic epsilon (m2 s-3)")
-    ax.set_ylabel(f"lidar epsilon at {float(ds['lidar_height']):g} m (m2 s-3)")
+    ax.set_ylabel(f"lidar epsilon at {float(ds['lidar_height']):.1f} m (m2 s-3)")
     ax.legend()
     ratio = np.asarray(ds["lidar_sonic_epsilon_ratio"].values, dtype=float)
     rerr = np.nan_to_num(np.asarray(ds["lidar_sonic_epsilon_ratio_error"].values, dtype=float))

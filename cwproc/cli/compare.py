@@ -31,13 +31,25 @@ import click
     show_default=True,
     help="Largest distance of the nearest lidar height from --height (m).",
 )
+@click.option(
+    "--exclude-flags",
+    type=click.IntRange(0, 255),
+    default=None,
+    help="turbulence_flag bits of the lidar product that leave a block out "
+    "[default: 91 = 1+2+8+16+64; 4 and 32 leave epsilon usable].",
+)
 def compare(
-    lidar_product: str, sonic_product: str, height_m: float, outdir: str, max_height_offset: float
+    lidar_product: str,
+    sonic_product: str,
+    height_m: float,
+    outdir: str,
+    max_height_offset: float,
+    exclude_flags: int | None,
 ) -> None:
     """Lidar eps against sonic eps: comparison product (NetCDF) and plot (PNG).
 
     \b
-    Matches the lidar turbulence product's blocks (turbulence_flag 0) at the height
+    Matches the lidar turbulence product's blocks (without the --exclude-flags bits) at the height
     nearest --height to the windows of a sonic turbulence product (cwproc
     sonic-turbulence), averages the blocks of each window, and writes
     lidar-sonic_<YYYYMMDD>_<H>m.nc (both dissipation rates with errors, their ratio,
@@ -57,6 +69,7 @@ def compare(
             outdir,
             height_m=height_m,
             max_height_offset_m=max_height_offset,
+            exclude_flag_mask=exclude_flags,
         )
     except CwprocError as exc:
         raise click.ClickException(str(exc)) from None
@@ -69,7 +82,7 @@ def compare(
     a = ds.attrs
     if a.get("summary_n_pairs", 0):
         click.echo(
-            f"{a['summary_n_pairs']} windows at {float(ds['lidar_height']):g} m: lidar/sonic "
+            f"{a['summary_n_pairs']} windows at {float(ds['lidar_height']):.1f} m: lidar/sonic "
             f"geometric mean {a['summary_ratio_geometric_mean']:.3f} "
             f"(s.e. of mean ln ratio {a['summary_ratio_geometric_mean_relative_error']:.3f}), "
             "median "

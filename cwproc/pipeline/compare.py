@@ -34,6 +34,7 @@ def compare_files(
     *,
     height_m: float,
     max_height_offset_m: float = 25.0,
+    exclude_flag_mask: int | None = None,
 ) -> tuple[xr.Dataset, Path]:
     """Write ``lidar-sonic_<YYYYMMDD>_<H>m.nc`` in ``outdir``; return it and its path.
 
@@ -47,7 +48,11 @@ def compare_files(
     sonic = _read(sonic_path, "sonic turbulence")
     try:
         ds = compare_lidar_sonic(
-            lidar, sonic, height_m=height_m, max_height_offset_m=max_height_offset_m
+            lidar,
+            sonic,
+            height_m=height_m,
+            max_height_offset_m=max_height_offset_m,
+            **({} if exclude_flag_mask is None else {"exclude_flag_mask": exclude_flag_mask}),
         )
     except CwprocError as exc:
         raise CwprocError(f"{lidar_path} vs {sonic_path}: {exc}") from None

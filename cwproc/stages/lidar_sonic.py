@@ -5,8 +5,11 @@ Stage ``lidar_sonic``: (lidar turbulence product, sonic turbulence product, heig
 
 1. the lidar height nearest H is taken (its height and |Delta h| are recorded; more
    than ``max_height_offset_m`` away: error);
-2. the lidar blocks whose time lies in the window and whose ``turbulence_flag`` is 0
-   (all blocks when the product has no flag) are averaged: eps_L = mean of the blocks,
+2. the lidar blocks whose time lies in the window and whose ``turbulence_flag`` has
+   none of the bits of ``exclude_flag_mask`` (default 1, 2, 8, 16, 64: too few pairs, a
+   lag beyond the inertial range, a failed fit, a partial block, an unresolved integral
+   scale; bits 4 (method 1 only) and 32 (noise from the SNR prediction) leave epsilon
+   usable) are averaged: eps_L = mean of the blocks,
    s.e. = sqrt(sum s.e._b^2) / n (independent blocks);
 3. the ratio q = eps_L / eps_S with the relative errors combined in quadrature,
    s.e.(q)/q = sqrt((s.e._L/eps_L)^2 + (s.e._S/eps_S)^2);
@@ -20,6 +23,9 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import CwprocError
+
+#: turbulence_flag bits of the lidar product that exclude a block (see the module doc)
+EXCLUDE_FLAG_MASK = 1 | 2 | 8 | 16 | 64
 
 #: sonic variables carried into the comparison (stability and wind for the ratio plots)
 _SONIC_CARRIED = {
@@ -88,6 +94,7 @@ def compare_lidar_sonic(
     *,
     height_m: float,
     max_height_offset_m: float = 25.0,
+    exclude_flag_mask: int = EXCLUDE_FLAG_MASK,
 ) -> xr.Dataset:
     """The comparison dataset of a lidar and a sonic turbulence product (module doc).
 
@@ -104,6 +111,8 @@ def compare_lidar_sonic(
         Height of the sonic on the lidar's height axis (m).
     max_height_offset_m : float
         Largest accepted distance between H and the nearest lidar height (m).
+    exclude_flag_mask : int
+        ``turbulence_flag`` bits that leave a lidar block out.
 
     Returns
     -------
@@ -125,7 +134,8 @@ def compare_lidar_sonic(
         else np.full(eps_l.shape, np.nan)
     )
     if "turbulence_flag" in lidar:
-        good = np.asarray(lidar["turbulence_flag"].isel(height=k).values) == 0
+        flag = np.asarray(lidar["turbulence_flag"].isel(height=k).values).astype(np.int64)
+        good = (flag & int(exclude_flag_mask)) == 0
         eps_l = np.where(good, eps_l, np.nan)
     starts = np.asarray(sonic["time"].values)
     mean_l, se_l, n_l = _block_means(
@@ -154,8 +164,8 @@ def compare_lidar_sonic(
     )
     ds["lidar_height"] = ((), h)
     ds["lidar_sonic_epsilon_ratio"].attrs["method"] = (
-        "mean of the lidar blocks (turbulence_flag 0) in the sonic window over the sonic "
-        "epsilon; error: relative errors in quadrature"
+        "mean of the lidar blocks in the sonic window (turbulence_flag without the bits "
+        f"{int(exclude_flag_mask)}) over the sonic epsilon; error: relative errors in quadrature"
     )
     ds.attrs.update(
         {

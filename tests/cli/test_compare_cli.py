@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 from click.testing import CliRunner
 
 from cwproc.cli import main
@@ -50,3 +51,32 @@ def test_a_missing_product_is_named(tmp_path):
     )
     assert res.exit_code == 1
     assert "nope.nc" in res.output and "Traceback" not in res.output
+
+
+def test_simulated_lidar_and_mast_day_end_to_end(tmp_path):
+    """simulate mast -> retrieve -> sonic-turbulence -> compare on one field (1 h).
+
+    Truths (benchmarks/lidar_mast_truth.py, 6 fields): sonic eps / nominal
+    0.703 +- 0.007 (the grid's own D: 0.734 +- 0.010 of nominal), lidar eps / nominal
+    0.934 +- 0.027, lidar / sonic 1.33 +- 0.04; one field scatters by ~0.1-0.15."""
+    runner = CliRunner()
+    sim, out = tmp_path / "sim", tmp_path / "out"
+    site = Path(__file__).resolve().parents[2] / "sample_data" / "site.toml"
+    for args in (
+        ["simulate", "mast", "-o", str(sim), "--hours", "1", "--seed", "11"],
+        ["retrieve", str(sim / "lidar"), "-c", str(site), "-o", str(out), "-q"],
+        ["sonic-turbulence", str(sim / "mast"), "-o", str(out), "-q", "--height", "26"],
+    ):
+        res = runner.invoke(main, args)
+        assert res.exit_code == 0, res.output
+    lidar = next(out.glob("streamline_*_turbulence.nc"))
+    sonic = next(out.glob("meteo2_*_sonic-turbulence.nc"))
+    res = runner.invoke(main, ["compare", str(lidar), str(sonic), "--height", "26", "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    ds = read_product(next(out.glob("lidar-sonic_*_26m.nc")))
+    assert float(ds["lidar_height"]) == pytest.approx(26.0, abs=0.1)
+    sonic_q = ds["sonic_epsilon"].values / 0.01
+    lidar_q = ds["lidar_epsilon"].values / 0.01
+    assert np.all((sonic_q > 0.55) & (sonic_q < 0.9))
+    assert np.all((lidar_q > 0.65) & (lidar_q < 1.25))
+    assert 1.0 < ds.attrs["summary_ratio_geometric_mean"] < 1.8

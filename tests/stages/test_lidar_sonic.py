@@ -65,10 +65,15 @@ def test_flagged_blocks_are_left_out_and_an_empty_window_has_no_ratio():
     eps_s = np.array([1e-3, 4e-3])
     lidar = lidar_product(eps_s)
     flag = lidar["turbulence_flag"].values
-    flag[0, 1] = 4  # first block of window 0 (factor 0.8)
+    flag[0, 1] = 8  # first block of window 0 (factor 0.8): fit failed
+    flag[1, 1] = 32  # noise from the prediction: epsilon usable
     flag[3:6, 1] = 1  # all of window 1
     out = compare_lidar_sonic(lidar, sonic_product(eps_s, 0.05 * eps_s), height_m=40.0)
     np.testing.assert_array_equal(out["n_lidar_blocks"].values, [2, 0])
+    strict = compare_lidar_sonic(
+        lidar, sonic_product(eps_s, 0.05 * eps_s), height_m=40.0, exclude_flag_mask=255
+    )
+    np.testing.assert_array_equal(strict["n_lidar_blocks"].values, [1, 0])
     assert out["lidar_epsilon"].values[0] == pytest.approx(1e-3 * (1.0 + 1.2) / 2)
     assert np.isnan(out["lidar_sonic_epsilon_ratio"].values[1])
 
