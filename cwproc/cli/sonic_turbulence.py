@@ -37,7 +37,7 @@ from cwproc.cli._common import (
 )
 @click.option(
     "--rotation",
-    type=click.Choice(["double", "none"]),
+    type=click.Choice(["double", "planar_fit", "none"]),
     default="double",
     show_default=True,
     help="Coordinate rotation (Wilczak et al. (2001)).",

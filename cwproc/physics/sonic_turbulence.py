@@ -3,7 +3,8 @@
 Pure numpy functions on the samples of one averaging window (typically 30 min):
 
 * coordinate rotation: double rotation (Kaimal & Finnigan (1994); Wilczak et al.
-  (2001), eqs. 22-23: yaw into the mean wind, then pitch until the mean w vanishes);
+  (2001), eqs. 22-23: yaw into the mean wind, then pitch until the mean w vanishes) or
+  planar fit (Wilczak et al. (2001), eqs. 39-45);
 * despiking: Vickers & Mahrt (1997) (moving-window mean +/- k sigma, runs of at most
   three points, k raised each pass) or Mauder et al. (2013), eq. 1 (median +/- q
   MAD/0.6745);
@@ -71,6 +72,71 @@ def double_rotation(
     u2 = u1 * np.cos(pitch) + w * np.sin(pitch)
     w2 = -u1 * np.sin(pitch) + w * np.cos(pitch)
     return u2, v1, w2, float(np.degrees(yaw)), float(np.degrees(pitch))
+
+
+def planar_fit(
+    mean_u: np.ndarray, mean_v: np.ndarray, mean_w: np.ndarray
+) -> tuple[np.ndarray, float]:
+    """Planar fit of the window means: the unit normal of the mean-streamline plane.
+
+    Least squares of w_mean = b0 + b1 u_mean + b2 v_mean over many windows (Wilczak et
+    al. (2001), eqs. 39-40); the plane's unit normal (the new z axis, instrument frame)
+    is k = (-b1, -b2, 1) / sqrt(b1^2 + b2^2 + 1) (eq. 42) and b0 the offset of w.
+
+    Parameters
+    ----------
+    mean_u, mean_v, mean_w : ndarray, shape (W,)
+        Window means in the instrument frame (m s-1); NaN windows are left out.
+
+    Returns
+    -------
+    normal : ndarray, shape (3,)
+    offset : float
+        b0 (m s-1).
+
+    Raises
+    ------
+    ValueError
+        Fewer than 3 windows, or their mean winds do not span a plane.
+    """
+    ok = np.isfinite(mean_u) & np.isfinite(mean_v) & np.isfinite(mean_w)
+    if ok.sum() < 3:
+        raise ValueError("planar fit needs at least 3 windows")
+    a = np.column_stack([np.ones(ok.sum()), mean_u[ok], mean_v[ok]])
+    coef, _, rank, _ = np.linalg.lstsq(a, mean_w[ok], rcond=None)
+    if rank < 3:
+        raise ValueError("planar fit: the windows' mean winds do not span a plane")
+    b0, b1, b2 = coef
+    normal = np.array([-b1, -b2, 1.0]) / np.sqrt(b1 * b1 + b2 * b2 + 1.0)
+    return normal, float(b0)
+
+
+def planar_fit_rotation(
+    u: np.ndarray, v: np.ndarray, w: np.ndarray, normal: np.ndarray, offset: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+    """Rotate a window into the planar-fit frame, then yaw into its mean wind.
+
+    The z axis becomes ``normal`` (:func:`planar_fit`) after removing ``offset`` from w
+    (Wilczak et al. (2001), eqs. 42-44: pitch then roll of the instrument); the yaw then
+    turns x into the window's mean horizontal wind of the tilted plane (eq. 45), so that
+    mean v = 0 and mean w is what the plane leaves (not forced to zero).
+
+    Returns
+    -------
+    u2, v2, w2 : ndarray
+    yaw, tilt : float
+        Yaw (degree) and the angle between the instrument's z and the normal (degree).
+    """
+    k = np.asarray(normal, dtype=float)
+    i0 = np.array([1.0, 0.0, 0.0]) - k[0] * k  # instrument x projected on the plane
+    i0 /= np.linalg.norm(i0)
+    j0 = np.cross(k, i0)
+    x = np.stack([u, v, w - offset])
+    up, vp, wp = i0 @ x, j0 @ x, k @ x
+    yaw = np.arctan2(np.nanmean(vp), np.nanmean(up))
+    u2 = up * np.cos(yaw) + vp * np.sin(yaw)
+    v2 = -up * np.sin(yaw) + vp * np.cos(yaw)
+    return u2, v2, wp, float(np.degrees(yaw)), float(np.degrees(np.arccos(np.clip(k[2], -1, 1))))
 
 
 def detrend(x: np.ndarray, how: str = "linear") -> np.ndarray:

@@ -64,7 +64,10 @@ SONIC_TURBULENCE_VARIABLES: dict[str, VarMeta] = {
         "first rotation angle (into the mean wind)", "degree", references=WILCZAK_2001 + ", eq. 22"
     ),
     "pitch_angle": VarMeta(
-        "second rotation angle (mean w to zero)", "degree", references=WILCZAK_2001 + ", eq. 23"
+        "second rotation angle: pitch setting the mean w to zero (double rotation), or the "
+        "tilt of the planar-fit normal from the instrument's z axis (planar fit)",
+        "degree",
+        references=WILCZAK_2001 + ", eqs. 23 and 42",
     ),
     "velocity_variance_error": VarMeta(
         "random error (1 sigma) of the velocity variance, variance sqrt(2 T/T_avg)",

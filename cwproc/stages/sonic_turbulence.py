@@ -7,7 +7,8 @@ multiples). Per window:
 1. despike every component (Vickers & Mahrt (1997) or Mauder et al. (2013), eq. 1;
    :mod:`cwproc.physics.sonic_turbulence`); a window with more than 1 % spikes in a
    component gets window_flag bit 2 (the hard flag of Vickers & Mahrt (1997));
-2. double rotation (Wilczak et al. (2001), eqs. 22-23) or none;
+2. double rotation (Wilczak et al. (2001), eqs. 22-23), planar fit (eqs. 39-45, one
+   plane for all windows of the dataset) or none;
 3. type the structure functions of the despiked, rotated series with the sf-type
    stage (:func:`cwproc.stages.sonic_sf.structure_function_types`, Gladkikh et al.
    (2014), its own 1-min running mean) over the same window;
@@ -25,6 +26,8 @@ multiples). Per window:
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 import xarray as xr
@@ -203,7 +206,8 @@ def sonic_turbulence(
     despike : str
         ``"vickers_mahrt"``, ``"mauder"`` or ``"none"``.
     rotation : str
-        ``"double"`` or ``"none"``.
+        ``"double"``, ``"planar_fit"`` (one plane fitted to the means of all windows of
+        ``sonic``: give it days, not one window) or ``"none"``.
     detrend : str
         ``"linear"`` or ``"mean"``.
     height_m : float, optional
@@ -234,8 +238,8 @@ def sonic_turbulence(
         raise CwprocError("sonic dataset has no valid sampling_rate_hz attribute")
     if sonic.sizes.get("time", 0) == 0:
         raise CwprocError("sonic dataset has no samples")
-    if rotation not in ("double", "none"):
-        raise CwprocError(f"sonic rotation {rotation!r}: use double or none")
+    if rotation not in ("double", "planar_fit", "none"):
+        raise CwprocError(f"sonic rotation {rotation!r}: use double, planar_fit or none")
     params = {
         "detrend": detrend,
         "height_m": height_m,
@@ -316,23 +320,35 @@ def _despiked_rotated(
     grid3: np.ndarray, despike: str, rotation: str, rate: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Despike and rotate every window: rotated grid, spike fraction, angles, mean u, v."""
-    n_win, _, n_slots = grid3.shape
+    n_win = grid3.shape[0]
     rotated = np.full_like(grid3, np.nan)
     spike_fraction = np.full((n_win, 3), np.nan)
     angles = np.full((n_win, 2), np.nan)
     mean_uv = np.full((n_win, 2), np.nan)
+    clean = np.empty_like(grid3)
     for w in range(n_win):
-        clean = np.empty((3, n_slots))
         for c in range(3):
-            clean[c], spikes = _despike(grid3[w, c], despike, rate)
+            clean[w, c], spikes = _despike(grid3[w, c], despike, rate)
             spike_fraction[w, c] = spikes.sum() / max(np.isfinite(grid3[w, c]).sum(), 1)
-        with np.errstate(invalid="ignore"):
-            mean_uv[w] = np.nanmean(clean[0]), np.nanmean(clean[1])
-        if rotation == "double" and np.isfinite(clean).any():
-            *rot, yaw, pitch = st.double_rotation(*clean)
-            rotated[w], angles[w] = np.stack(rot), (yaw, pitch)
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN windows
+        means = np.nanmean(clean, axis=2)  # (W, 3)
+    mean_uv[:] = means[:, :2]
+    plane = None
+    if rotation == "planar_fit":
+        try:
+            plane = st.planar_fit(means[:, 0], means[:, 1], means[:, 2])
+        except ValueError as exc:
+            raise CwprocError(f"sonic rotation planar_fit: {exc}") from None
+    for w in range(n_win):
+        if rotation == "none" or not np.isfinite(clean[w]).any():
+            rotated[w] = clean[w]
+            continue
+        if plane is None:
+            *rot, yaw, pitch = st.double_rotation(*clean[w])
         else:
-            rotated[w] = clean
+            *rot, yaw, pitch = st.planar_fit_rotation(*clean[w], *plane)
+        rotated[w], angles[w] = np.stack(rot), (yaw, pitch)
     return rotated, spike_fraction, angles, mean_uv
 
 

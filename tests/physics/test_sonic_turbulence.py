@@ -157,3 +157,42 @@ def test_epsilon_of_an_exact_power_law():
     eps = 0.01
     d = st.C2_LONGITUDINAL * eps ** (2 / 3) * r ** (2 / 3)
     assert st.epsilon23_from_sf(r, d, st.C2_LONGITUDINAL) ** 1.5 == pytest.approx(eps)
+
+
+def test_planar_fit_recovers_the_tilt_of_the_instrument():
+    """Windows of streamline-flat flow (mean w = 0 in the true frame) from 12 directions
+    and speeds, seen by a sonic tilted by 3 deg pitch and 2 deg roll with a w offset of
+    0.05 m/s: the fitted normal is the tilted z axis and the rotated mean w vanishes."""
+    rng = np.random.default_rng(5)
+    pitch, roll = np.radians(3.0), np.radians(2.0)
+    ry = np.array(
+        [[np.cos(pitch), 0, np.sin(pitch)], [0, 1, 0], [-np.sin(pitch), 0, np.cos(pitch)]]
+    )
+    rx = np.array([[1, 0, 0], [0, np.cos(roll), -np.sin(roll)], [0, np.sin(roll), np.cos(roll)]])
+    to_instrument = (ry @ rx).T  # true frame -> instrument frame
+    means, windows = [], []
+    for k in range(12):
+        d = np.radians(30.0 * k)
+        speed = 2.0 + 0.5 * k
+        true = np.stack(
+            [
+                speed * np.cos(d) + ar1(3000, 0.9, rng, 0.5),
+                speed * np.sin(d) + ar1(3000, 0.9, rng, 0.5),
+                ar1(3000, 0.9, rng, 0.3),
+            ]
+        )
+        true[2] -= true[2].mean()
+        inst = to_instrument @ true
+        inst[2] += 0.05
+        windows.append((inst, true))
+        means.append(inst.mean(axis=1))
+    means = np.array(means)
+    normal, offset = st.planar_fit(means[:, 0], means[:, 1], means[:, 2])
+    np.testing.assert_allclose(normal, to_instrument[:, 2], atol=1e-6)
+    assert offset == pytest.approx(0.05, abs=1e-6)
+    for inst, true in windows:
+        u2, v2, w2, _, tilt = st.planar_fit_rotation(*inst, normal, offset)
+        assert abs(np.mean(w2)) < 1e-6 and abs(np.mean(v2)) < 1e-9
+        assert np.mean(u2) == pytest.approx(np.hypot(true[0].mean(), true[1].mean()))
+        assert np.var(w2) == pytest.approx(np.var(true[2]), rel=1e-6)
+        assert tilt == pytest.approx(np.degrees(np.arccos(np.cos(pitch) * np.cos(roll))), abs=1e-4)

@@ -14,6 +14,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from cwproc.errors import CwprocError
 from cwproc.physics.sonic_turbulence import C2_LONGITUDINAL, C2_TRANSVERSE
 from cwproc.sim.sonic import SFModel, default_models, simulate_sonic_dataset
 from cwproc.stages import sonic_turbulence as stt
@@ -133,3 +134,9 @@ def test_no_height_leaves_the_itc_untested():
     out = stt.sonic_turbulence(ds)
     assert np.all(out["window_flag"].values & stt.FLAG_ITC_UNTESTED)
     assert np.all(np.isnan(out["itc_deviation"].values))
+
+
+def test_planar_fit_of_one_window_is_an_error_that_says_why():
+    ds = simulate_sonic_dataset(hours=0.5, sf_type=1, seed=6)
+    with pytest.raises(CwprocError, match="planar fit needs at least 3 windows"):
+        stt.sonic_turbulence(ds, rotation="planar_fit")
