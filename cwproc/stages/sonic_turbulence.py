@@ -128,7 +128,7 @@ def _window_statistics(
 
 
 def _epsilon(
-    fl: np.ndarray, r: np.ndarray, slopes: list[np.ndarray], rate: float, speed: float, p: dict
+    fl: np.ndarray, r: np.ndarray, slopes: list[np.ndarray], p: dict
 ) -> dict[str, np.ndarray]:
     """eps per component from the inertial lags of the typed fits, errors by batch means."""
     n_lag = r.size
@@ -391,7 +391,7 @@ def _analyse_window(
         r = np.asarray(sf["lag_distance"].values[i], dtype=float)
         slopes = [_typed_slope(sf, i, c, r) for c in range(3)]
         result["sf_type"][w] = sf["sf_type"].values[i]
-        e = _epsilon(s["fluct"], r, slopes, rate, s["speed"], params)
+        e = _epsilon(s["fluct"], r, slopes, params)
         result["eps_c"][w], result["eps_c_err"][w] = e["eps"], e["err"]
         result["r_lo"][w], result["r_hi"][w] = e["r_lo"], e["r_hi"]
         result["eps_flag"][w] = e["flag"]
