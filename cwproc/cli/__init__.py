@@ -17,6 +17,10 @@ COMMANDS = {
         "cwproc.cli.batch:batch",
         "Process every new or changed input under INPUT_DIR into OUTPUT_DIR.",
     ),
+    "compare": (
+        "cwproc.cli.compare:compare",
+        "Lidar eps against sonic eps: comparison product (NetCDF) and plot (PNG).",
+    ),
     "info": (
         "cwproc.cli.info:info",
         "What each of FILES is: format, instrument, rays, gates, time span, scans.",
@@ -29,6 +33,10 @@ COMMANDS = {
     "sf-type": (
         "cwproc.cli.sf_type:sf_type",
         "Structure-function types of sonic FILES (TOA5, TOB1, GHG, Gill, Meteo-2).",
+    ),
+    "sonic-turbulence": (
+        "cwproc.cli.sonic_turbulence:sonic_turbulence",
+        "Dissipation rate, variances, TKE, u_* and EC quality flags of sonic FILES.",
     ),
     "simulate": (
         "cwproc.cli.simulate:simulate",

@@ -11,6 +11,10 @@ COMMANDS = {
         "cwproc.cli.simulate_lidar:simulate_lidar",
         "Files in the real formats from a virtual lidar, plus the truth that made them.",
     ),
+    "mast": (
+        "cwproc.cli.simulate_mast:simulate_mast",
+        "Lidar .hpl files and a mast sonic's Meteo-2 file from one field, plus the truth.",
+    ),
     "montecarlo": (
         "cwproc.cli.simulate_montecarlo:simulate_montecarlo",
         "Relative RMS errors of epsilon, sigma_V^2 and L_V versus the number of scans.",

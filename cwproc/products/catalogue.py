@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from cwproc.products.metadata_sonic import SONIC_TURBULENCE_REFERENCES
 from cwproc.references import (
     BANAKH_1999,
     GLADKIKH_2014,
@@ -67,11 +68,24 @@ _TITLES = {
         "coefficients of the normalised structure functions of the longitudinal, "
         "transverse and vertical wind per 10-min window",
     ),
+    "sonic_turbulence": (
+        "Turbulence from a sonic anemometer",
+        "Dissipation rate from the inertial range of the structure functions (range from "
+        "their type), velocity variances, TKE, friction velocity, integral scales with "
+        "random errors, despiking and the steady-state and ITC flags per averaging window",
+    ),
+    "lidar_sonic": (
+        "Dissipation rate: lidar against sonic anemometer",
+        "The lidar's dissipation rate at the sonic's height averaged over each sonic "
+        "window, the sonic's, their ratio with its error, the sonic's stability and wind",
+    ),
 }
 _KEYWORDS = {
     "wind": "Doppler lidar, VAD, wind profile",
     "turbulence": "Doppler lidar, turbulence, dissipation rate, structure function",
     "sf": "sonic anemometer, structure function, turbulence, surface layer",
+    "sonic_turbulence": "sonic anemometer, dissipation rate, eddy covariance, quality flags",
+    "lidar_sonic": "Doppler lidar, sonic anemometer, dissipation rate, validation",
     "stare": "Doppler lidar, vertical stare, vertical velocity, turbulence, dissipation rate",
     "doppler_lidar": "Doppler lidar, attenuated backscatter, depolarisation ratio, vertical stare",
     "doppler-lidar": "Doppler lidar, attenuated backscatter, depolarisation ratio, Cloudnet",
@@ -81,6 +95,8 @@ _REFERENCES = {
     "wind": SMALIKHO_2020 + "; " + VAD_ACCURACY,
     "turbulence": SMALIKHO_2020 + "; " + BANAKH_1999,
     "sf": GLADKIKH_2014,
+    "sonic_turbulence": SONIC_TURBULENCE_REFERENCES,
+    "lidar_sonic": SMALIKHO_2020 + "; " + SONIC_TURBULENCE_REFERENCES,
     "stare": OCONNOR_2010 + "; " + PEARSON_2009,
     "doppler_lidar": f"{PENTIKAINEN_2020}; {VAKKARI_2021}; {MANNINEN_2016}",
     "doppler-lidar": f"{PENTIKAINEN_2020}; {VAKKARI_2021}; {MANNINEN_2016}",

@@ -31,6 +31,11 @@ from cwproc.io.schema import (
     attach_attrs,
 )
 from cwproc.products.metadata_l1 import BETA_STANDARD_NAME, L1_VARIABLES
+from cwproc.products.metadata_sonic import (
+    COMPARISON_VARIABLES,
+    SONIC_TURBULENCE_OVERRIDES,
+    SONIC_TURBULENCE_VARIABLES,
+)
 from cwproc.references import (
     BANAKH_1999,
     GLADKIKH_2014,
@@ -537,6 +542,8 @@ VARIABLES: dict[str, VarMeta] = {
     **WIND_RECORD_VARIABLES,
     **{k: SONIC_VARIABLES[k] for k in ("temperature", "diagnostic", "sample_flag")},
     **_PRODUCT_VARIABLES,
+    **SONIC_TURBULENCE_VARIABLES,
+    **COMPARISON_VARIABLES,
 }
 
 _VAD_ERROR_REFERENCES = f"{VAD_ACCURACY}, section 4"
@@ -590,6 +597,12 @@ PRODUCT_VARIABLES: dict[str, dict[str, VarMeta]] = {
     },
 }
 
+PRODUCT_VARIABLES["sonic_turbulence"] = SONIC_TURBULENCE_OVERRIDES
+PRODUCT_VARIABLES["lidar_sonic"] = {
+    "time": SONIC_TURBULENCE_OVERRIDES["time"],
+    "mean_wind_speed": SONIC_TURBULENCE_VARIABLES["mean_wind_speed"],
+}
+
 _ASL_HEIGHT = VarMeta(
     "height above mean sea level",
     "m",
@@ -635,6 +648,8 @@ PRODUCTS: tuple[str, ...] = (
     "doppler-lidar",
     "doppler-lidar-wind",
     "sf",
+    "sonic_turbulence",
+    "lidar_sonic",
     "montecarlo",
 )
 

@@ -36,7 +36,14 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("cwproc.stages",),
     ("cwproc.products",),
     ("cwproc.pipeline",),
-    ("cwproc.sim", "cwproc.batch", "cwproc.plots", "cwproc.plots_l1", "cwproc.plot_axes"),
+    (
+        "cwproc.sim",
+        "cwproc.batch",
+        "cwproc.plots",
+        "cwproc.plots_l1",
+        "cwproc.plots_compare",
+        "cwproc.plot_axes",
+    ),
     ("cwproc.cli", "cwproc.api", "cwproc.reference_docs", "cwproc.__main__", "cwproc"),
 )
 
