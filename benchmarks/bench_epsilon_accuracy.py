@@ -92,10 +92,19 @@ def cases(quick: bool, fly_back_s: float = 3.0) -> list[dict]:
                     "mu": mu,
                 }
             )
+        for mu in (0.0, 0.5, 1.0, 2.0, 3.0):
             out.append(
                 {
                     "label": " 45 rays, 90° sector",
                     "pattern": eg.conical_pattern(45, 9.0, sector_deg=90.0, return_s=fly_back_s),
+                    "mu": mu,
+                }
+            )
+        for mu in (0.0, 1.0, 3.0):
+            out.append(
+                {
+                    "label": " 90 rays, 180° sector",
+                    "pattern": eg.conical_pattern(90, 18.0, sector_deg=180.0, return_s=fly_back_s),
                     "mu": mu,
                 }
             )

@@ -60,7 +60,9 @@ def test_analytic_point_pair_equals_the_two_beam_cross_term():
     a = 1.0 - mu[:, None] * np.sin(theta)
     b = mu[:, None] * np.cos(theta)
     pair = atable_swept.point_pair(PHI, 5.0, x, a, b, 1.0)
-    np.testing.assert_allclose(pair, atable_geometry._point_pair(PHI, 5.0, x, mu, theta), rtol=1e-12)
+    np.testing.assert_allclose(
+        pair, atable_geometry._point_pair(PHI, 5.0, x, mu, theta), rtol=1e-12
+    )
 
 
 def test_sweep_kernel_against_sub_beam_sums():
