@@ -78,9 +78,9 @@ def test_run_batch_classifies_in_batches_not_one_task_per_file(tmp_path, monkeyp
     tasks: Counter = Counter()
     original = batch_run.run_tasks
 
-    def counting(fn, items, *args, client=None):
+    def counting(fn, items, *args, **kw):
         tasks[fn.__name__] += len(items)
-        return original(fn, items, *args, client=client)
+        return original(fn, items, *args, **kw)
 
     monkeypatch.setattr(batch_run, "run_tasks", counting)
     report = run_toy(tmp_path / "in", tmp_path / "out")

@@ -53,6 +53,9 @@ log.addHandler(logging.NullHandler())  # a library: the application decides wher
 
 #: while classifying many new files, save the ledger at least this often (s)
 CLASSIFY_SAVE_INTERVAL_S = 30.0
+#: times a task the cluster could not run (worker lost, exception) is submitted again
+#: within the run before it counts as failed (:func:`cwproc.batch.executors.run_tasks`)
+TASK_RETRIES = 2
 #: most files classified by one task (:func:`classification_batches`)
 CLASSIFY_BATCH_FILES = 2000
 #: fewest classification tasks of a run with that many files
@@ -301,7 +304,7 @@ def run_batch(
             )
         )
         by_path = {i.path: i for i in infos}
-        for task, result in run_tasks(process, todo, client=client):
+        for task, result in run_tasks(process, todo, client=client, retries=TASK_RETRIES):
             outcome = _as_outcome(task, result)
             task, outcome = with_checksums(task, outcome, ledger, cfg_hash)
             if outcome.dropped:
@@ -395,7 +398,13 @@ def _classify_new(
     items = [(p, classify_mode(ledger.files.get(p))) for p in paths]
     batches = classification_batches(items)
     for batch, result in run_tasks(
-        classify_batch, batches, classify, config.to_toml(), config.source, client=client
+        classify_batch,
+        batches,
+        classify,
+        config.to_toml(),
+        config.source,
+        client=client,
+        retries=TASK_RETRIES,
     ):
         for info in _as_file_infos(batch, result):
             record_file(ledger, info)
