@@ -142,3 +142,17 @@ def test_new_file_changed_after_classification_fails_its_unit(tmp_path):
         f"unit {task.key} will be redone by the next run"
     )
     assert not (tmp_path / "out").exists()
+
+
+def test_a_unit_with_a_checksum_still_to_take_is_never_up_to_date(tmp_path):
+    from cwproc.batch import BatchReport, FileInfo, Ledger
+    from cwproc.batch.run import _units_to_do
+
+    info = FileInfo("/a/VAD_1.hpl", 10, 1, "ok", format="hpl", kind="scan", unit="u")
+    ((task, start),) = plan_units([info], Config(), tmp_path)
+    assert task.fingerprint == ""
+    ledger = Ledger()
+    ledger.units["u"] = {"fingerprint": "", "products": []}  # as a unit recorded without it
+    report = BatchReport()
+    assert _units_to_do([(task, start)], ledger, None, report) == [task]
+    assert report.units_up_to_date == 0
