@@ -405,7 +405,7 @@ def test_a_reader_bug_fails_that_file_only(tmp_path, monkeypatch):
     good.parent.mkdir()
     good.write_text("Filename:\tVAD_1_20240101_000000.hpl\n")
 
-    def broken_reader(path, config, *, identify_only=False):
+    def broken_reader(path, config, *, identify_only=False, checksum=True):
         raise ZeroDivisionError("division by zero")
 
     monkeypatch.setattr(cwproc.batch.worker, "read_input", broken_reader)

@@ -6,9 +6,12 @@
    (:func:`cwproc.io.sniff_format`), optionally restricted by glob patterns;
    unrecognised files are counted, not errors; files modified less than ``min_age_s``
    ago (still being written) wait for a later run;
-2. **classifies** each new or changed file: reads it once with
-   :func:`cwproc.pipeline.read_input` and records its checksum and the product unit it
-   belongs to (:func:`cwproc.pipeline.unit_key`, the grouping of ``cwproc retrieve``);
+2. **classifies** each new or changed file, in batches of up to 2,000 files a task
+   (:func:`cwproc.batch.run.classification_batches`; a lidar-year in a few hundred
+   tasks): finds the product unit it belongs to (:func:`cwproc.pipeline.unit_key`,
+   the grouping of ``cwproc retrieve``; a ``.hpl`` file from its header alone) and its
+   checksum, which for a ``.hpl`` file new to the ledger its unit takes from the bytes
+   it parses (each file read once in a run);
 3. **processes** only the units whose fingerprint (SHA-256 of the unit's input
    checksums and of the configuration) is not yet in the ledger, each on its own, with
    :func:`cwproc.pipeline.run_unit` (the chain ``cwproc retrieve`` runs: same products,
@@ -66,6 +69,7 @@ from cwproc.batch.records import (
 )
 from cwproc.batch.run import (
     before_since,
+    classification_batches,
     discover_files,
     file_older_than,
     matches_patterns,
@@ -86,6 +90,7 @@ from cwproc.batch.state import (
     unit_up_to_date,
 )
 from cwproc.batch.worker import (
+    classify_batch,
     classify_file,
     peak_rss_mib,
     process_unit_task,
@@ -106,6 +111,8 @@ __all__ = [
     "UnitTask",
     "before_since",
     "cached_file_info",
+    "classification_batches",
+    "classify_batch",
     "classify_file",
     "close_client",
     "config_hash",

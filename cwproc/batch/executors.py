@@ -12,7 +12,11 @@ from cwproc.errors import CwprocError
 
 
 def run_tasks(
-    fn: Callable[..., Any], items: Sequence[Any], *args: Any, client: Any = None
+    fn: Callable[..., Any],
+    items: Sequence[Any],
+    *args: Any,
+    client: Any = None,
+    retries: int = 0,
 ) -> Iterator[tuple[Any, Any]]:
     """Run ``fn(item, *args)`` for every item; yield ``(item, result)`` as they finish.
 
@@ -20,33 +24,76 @@ def run_tasks(
     :class:`concurrent.futures.Executor` (:func:`local_pool`) or a
     ``dask.distributed.Client`` they are submitted to its processes and yielded in order
     of completion; a task that could not run (worker killed, function not importable
-    there) yields the exception as its result.
+    there, an exception out of ``fn``) is submitted again, up to ``retries`` more times,
+    and then yields the exception as its result. (The functions of a batch return their
+    failures as records and never raise for anything the data cause, so an exception is
+    a failure of the machinery, which a second attempt on another worker may not meet;
+    Dask also reschedules by itself the tasks of a worker that died, up to
+    ``distributed.scheduler.allowed-failures`` times.)
     """
     if client is None:
         for item in items:
             yield item, fn(item, *args)
         return
     if isinstance(client, concurrent.futures.Executor):
-        pending = {client.submit(fn, item, *args): item for item in items}
-        for future in concurrent.futures.as_completed(pending):
-            item = pending.pop(future)
-            try:
-                result = future.result()
-            except Exception as exc:  # a worker died or the call failed: the unit's result
-                result = exc
-            yield item, result
+        yield from _run_on_executor(client, fn, items, args, retries)
         return
+    yield from _run_on_dask(client, fn, items, args, retries)
+
+
+def _run_on_executor(
+    pool: concurrent.futures.Executor,
+    fn: Callable[..., Any],
+    items: Sequence[Any],
+    args: tuple,
+    retries: int,
+) -> Iterator[tuple[Any, Any]]:
+    """:func:`run_tasks` on a local process pool (a broken pool cannot take a retry:
+    the exception is the result)."""
+    pending = {pool.submit(fn, item, *args): (item, 0) for item in items}
+    while pending:
+        done, _ = concurrent.futures.wait(pending, return_when=concurrent.futures.FIRST_COMPLETED)
+        for future in done:
+            item, attempt = pending.pop(future)
+            try:
+                yield item, future.result()
+                continue
+            except Exception as exc:  # a worker died or the call failed
+                result: Any = exc
+            if attempt < retries:
+                try:
+                    pending[pool.submit(fn, item, *args)] = (item, attempt + 1)
+                    continue
+                except Exception as exc:  # the pool is broken: no second attempt
+                    result = exc
+            yield item, result
+
+
+def _run_on_dask(
+    client: Any,
+    fn: Callable[..., Any],
+    items: Sequence[Any],
+    args: tuple,
+    retries: int,
+) -> Iterator[tuple[Any, Any]]:
+    """:func:`run_tasks` on a ``dask.distributed`` client."""
     from dask.distributed import as_completed
 
-    futures = {client.submit(fn, item, *args, pure=False): item for item in items}
-    for future in as_completed(futures):
-        item = futures.pop(future)
+    futures = {client.submit(fn, item, *args, pure=False): (item, 0) for item in items}
+    completed = as_completed(futures)
+    for future in completed:
+        item, attempt = futures.pop(future)
         try:
             result = future.result()
         except Exception as exc:
             result = exc
         finally:
             future.release()
+        if isinstance(result, Exception) and attempt < retries:
+            again = client.submit(fn, item, *args, pure=False)
+            futures[again] = (item, attempt + 1)
+            completed.add(again)
+            continue
         yield item, result
 
 

@@ -97,6 +97,10 @@ class UnitTask:
     #: the key its inputs group under alone (:func:`cwproc.pipeline.group_units`) when
     #: ``key`` keeps it apart from another logger of that key; "" when the same
     group_key: str = ""
+    #: (size, mtime_ns) of each input when it was classified; an input whose checksum
+    #: is "" (new: classified by its header alone) must still have them when its unit
+    #: reads it, which takes its checksum (:func:`cwproc.batch.worker.process_unit_task`)
+    signatures: tuple[tuple[int, int], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -121,6 +125,9 @@ class UnitOutcome:
     #: (path, failure line) of inputs identified by their header when classified but
     #: whose data could not be read: left out of the unit's products, file failures
     dropped: tuple[tuple[str, str], ...] = ()
+    #: SHA-256 of each input (the task's order) from the bytes the unit parsed; "" for
+    #: an input it did not read (the driver completes the plan's checksums with them)
+    checksums: tuple[str, ...] = ()
 
     @property
     def ok(self) -> bool:

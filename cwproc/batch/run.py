@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import datetime as _dt
 import json
@@ -40,9 +39,10 @@ from cwproc.batch.state import (
 )
 from cwproc.batch.worker import (
     _file_stat,
+    classify_batch,
     classify_file,
-    classify_file_whole,
     process_unit_task,
+    unclassified,
 )
 from cwproc.config import Config
 from cwproc.errors import CwprocError
@@ -53,6 +53,13 @@ log.addHandler(logging.NullHandler())  # a library: the application decides wher
 
 #: while classifying many new files, save the ledger at least this often (s)
 CLASSIFY_SAVE_INTERVAL_S = 30.0
+#: times a task the cluster could not run (worker lost, exception) is submitted again
+#: within the run before it counts as failed (:func:`cwproc.batch.executors.run_tasks`)
+TASK_RETRIES = 2
+#: most files classified by one task (:func:`classification_batches`)
+CLASSIFY_BATCH_FILES = 2000
+#: fewest classification tasks of a run with that many files
+CLASSIFY_MIN_BATCHES = 64
 
 
 def matches_patterns(relpath: PurePosixPath, patterns: Sequence[str]) -> bool:
@@ -137,7 +144,8 @@ def plan_units(
             kind=kind,
             paths=tuple(i.path for i in members),
             sha256=tuple(i.sha256 for i in members),
-            fingerprint=unit_fingerprint((i.sha256 for i in members), cfg_hash),
+            fingerprint=planned_fingerprint([i.sha256 for i in members], cfg_hash),
+            signatures=tuple((i.size, i.mtime_ns) for i in members),
             config_toml=toml,
             config_source=config.source,
             outdir=os.fspath(outdir),
@@ -145,6 +153,33 @@ def plan_units(
         starts = [i.start for i in members if i.start]
         out.append((task, min(starts) if starts else ""))
     return out
+
+
+def planned_fingerprint(checksums: Sequence[str], cfg_hash: str) -> str:
+    """The fingerprint of a planned unit: :func:`unit_fingerprint`, or "" when an input's
+    checksum is not known yet (a new file: its unit takes it, so the unit is never
+    found up to date before it is run)."""
+    return unit_fingerprint(checksums, cfg_hash) if all(checksums) else ""
+
+
+def classification_batches(
+    items: Sequence[tuple[str, str]],
+    max_files: int = CLASSIFY_BATCH_FILES,
+    min_batches: int = CLASSIFY_MIN_BATCHES,
+) -> list[tuple[tuple[str, str], ...]]:
+    """``items`` cut into consecutive batches for :func:`cwproc.batch.worker.classify_batch`.
+
+    At most ``max_files`` a batch, so that a lidar-year (about 700,000 files) is planned
+    in a few hundred tasks, not one per file; and at least ``min_batches`` batches (when
+    there are that many files), so that the first run of a small archive still spreads
+    over a cluster's workers. Consecutive in the discovery order (sorted paths): the
+    files of an instrument-day, usually one folder, go to the same batch.
+    """
+    n = len(items)
+    if n == 0:
+        return []
+    size = max(1, min(int(max_files), -(-n // max(int(min_batches), 1))))
+    return [tuple(items[i : i + size]) for i in range(0, n, size)]
 
 
 def _identity(info: FileInfo) -> tuple[tuple[tuple[str, str], ...], tuple[str, str]]:
@@ -269,8 +304,9 @@ def run_batch(
             )
         )
         by_path = {i.path: i for i in infos}
-        for task, result in run_tasks(process, todo, client=client):
+        for task, result in run_tasks(process, todo, client=client, retries=TASK_RETRIES):
             outcome = _as_outcome(task, result)
+            task, outcome = with_checksums(task, outcome, ledger, cfg_hash)
             if outcome.dropped:
                 task, outcome = _record_dropped(task, outcome, by_path, ledger, report, cfg_hash)
             if not task.paths:  # every input unreadable: no unit, as if classified whole
@@ -359,30 +395,40 @@ def _classify_new(
     its progress)."""
     infos = []
     last_save = time.monotonic()
-    # a file that failed before is read whole (with the default classifier): one damaged
-    # beyond its header then fails here again, not in its unit, whose record stands
-    again = {
-        p
-        for p in paths
-        if classify is classify_file and ledger.files.get(p, {}).get("status") == "error"
-    }
-    batches = [
-        (classify, [p for p in paths if p not in again]),
-        (classify_file_whole, [p for p in paths if p in again]),
-    ]
-    for function, chosen in batches:
-        if not chosen:
-            continue
-        for path, result in run_tasks(
-            function, chosen, config.to_toml(), config.source, client=client
-        ):
-            info = _as_file_info(path, result)
+    items = [(p, classify_mode(ledger.files.get(p))) for p in paths]
+    batches = classification_batches(items)
+    for batch, result in run_tasks(
+        classify_batch,
+        batches,
+        classify,
+        config.to_toml(),
+        config.source,
+        client=client,
+        retries=TASK_RETRIES,
+    ):
+        for info in _as_file_infos(batch, result):
             record_file(ledger, info)
             infos.append(info)
-            if time.monotonic() - last_save > CLASSIFY_SAVE_INTERVAL_S:
-                save_ledger(ledger, ledger_path)
-                last_save = time.monotonic()
+        if time.monotonic() - last_save > CLASSIFY_SAVE_INTERVAL_S:
+            save_ledger(ledger, ledger_path)
+            last_save = time.monotonic()
     return infos
+
+
+def classify_mode(entry: dict[str, Any] | None) -> str:
+    """How a file is classified given its ledger entry (:data:`CLASSIFY_MODES`).
+
+    A file that failed before is read whole: one damaged beyond its header then fails
+    here again, not in its unit, whose record stands. A file the ledger knew with a
+    checksum (changed size or time, or another configuration) is checksummed: if its
+    content is the same, its unit is up to date. A new file is classified by its header
+    alone; its unit takes its checksum from the bytes it parses (one read in all).
+    """
+    if entry is None:
+        return "header"
+    if entry.get("status") == "error":
+        return "whole"
+    return "checksum" if entry.get("sha256") else "header"
 
 
 def _sort_files(infos: Sequence[FileInfo], report: BatchReport) -> None:
@@ -413,22 +459,42 @@ def _units_to_do(
     for task, start in planned:
         if before_since(start, since):
             report.units_before_since += 1
-        elif unit_up_to_date(ledger, task):
+        elif task.fingerprint and unit_up_to_date(ledger, task):  # "": a checksum to take
             report.units_up_to_date += 1
         else:
             todo.append(task)
     return todo
 
 
-def _as_file_info(path: str, result: Any) -> FileInfo:
-    if isinstance(result, FileInfo):
-        return result
-    size, mtime_ns = 0, 0
-    with contextlib.suppress(OSError):
-        size, mtime_ns = _file_stat(path)
-    return FileInfo(
-        path, size, mtime_ns, "error", error=f"{path}: could not be classified: {result!r}"
+def _as_file_infos(batch: Sequence[tuple[str, str]], result: Any) -> list[FileInfo]:
+    """The records of a classification batch; a batch that could not run (a worker
+    lost) is a failure of each of its files, retried by the next run."""
+    if isinstance(result, list) and len(result) == len(batch):
+        return [
+            r if isinstance(r, FileInfo) else unclassified(p, r)
+            for (p, _), r in zip(batch, result, strict=True)
+        ]
+    return [unclassified(path, result) for path, _ in batch]
+
+
+def with_checksums(
+    task: UnitTask, outcome: UnitOutcome, ledger: Ledger, cfg_hash: str
+) -> tuple[UnitTask, UnitOutcome]:
+    """The task with the checksums its unit took of inputs planned without one (new
+    files), recorded in the ledger's classifications, and its fingerprint made from
+    them; unchanged when the plan knew every checksum."""
+    if all(task.sha256) or len(outcome.checksums) != len(task.paths):
+        return task, outcome
+    sha = tuple(
+        planned or taken for planned, taken in zip(task.sha256, outcome.checksums, strict=True)
     )
+    for path, planned, taken in zip(task.paths, task.sha256, outcome.checksums, strict=True):
+        entry = ledger.files.get(path)
+        if not planned and taken and entry is not None and entry.get("status") == "ok":
+            ledger.files[path] = {**entry, "sha256": taken}
+    fingerprint = planned_fingerprint(sha, cfg_hash)
+    task = dataclasses.replace(task, sha256=sha, fingerprint=fingerprint)
+    return task, dataclasses.replace(outcome, fingerprint=fingerprint)
 
 
 def _record_dropped(
@@ -459,7 +525,7 @@ def _record_dropped(
         log.warning(kv_line("file", status="failed", path=path, error=line))
     report.file_failures.sort(key=lambda i: i.path)
     kept = [(p, h) for p, h in zip(task.paths, task.sha256, strict=True) if p not in gone]
-    fingerprint = unit_fingerprint((h for _, h in kept), cfg_hash)
+    fingerprint = planned_fingerprint([h for _, h in kept], cfg_hash)
     task = dataclasses.replace(
         task,
         paths=tuple(p for p, _ in kept),

@@ -38,6 +38,8 @@ _HEADER_KEYS: tuple[tuple[str, ...], ...] = (
     ("Start time",),
     ("Resolution (m/s)",),
 )
+#: the keys of each header line, lower case (compared without case)
+_HEADER_KEYS_LOWER = tuple(frozenset(k.lower() for k in keys) for keys in _HEADER_KEYS)
 
 _RANGE_STANDARD = re.compile(
     r"^(Altitude|Range) of measurement \(center of gate\) = "
@@ -142,7 +144,7 @@ def parse_header(path: str | os.PathLike, lines: list[str]) -> HplHeader:
         line = lines[i]
         key, sep, value = line.partition(":")
         key = key.strip()
-        if not sep or key.lower() not in {k.lower() for k in keys}:
+        if not sep or key.lower() not in _HEADER_KEYS_LOWER[i]:
             expected = " or ".join(f"'{k}:'" for k in keys)
             raise InputFileError(
                 path, f"header line should start with {expected}, found {line[:40]!r}", i + 1
