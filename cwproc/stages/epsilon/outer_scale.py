@@ -19,6 +19,7 @@ import numpy as np
 
 from cwproc.physics import spectra
 from cwproc.physics.exact_lag import is_cw_probe
+from cwproc.physics.few_ray_sector import FEW_RAYS_STEP_DEG, sector_a2
 from cwproc.physics.probe_variance import averaging_loss, passed_variance, segment_loss
 from cwproc.physics.removed_share import (
     MAX_SECTOR_RAYS,
@@ -504,6 +505,61 @@ def fit_setup(
     }
 
 
+def few_ray_cells(cells: Cells, options: dict) -> np.ndarray:
+    """``(time, height)``: full circles of step-stare rays at least
+    :data:`FEW_RAYS_STEP_DEG` apart (12-ray VADs: two lags, 30 and 60 deg)."""
+    n_t, n_h = cells.range_m.shape
+    dtheta = np.broadcast_to(np.asarray(cells.dtheta, float)[:, None], (n_t, n_h))
+    partial = partial_circle(cells.weights, dtheta)
+    stare = not options.get("swept", True)
+    return stare & ~partial & np.isfinite(dtheta) & (dtheta >= FEW_RAYS_STEP_DEG - 1e-6)
+
+
+def _few_ray_circles(tables: tuple, partial: np.ndarray, dtheta: np.ndarray) -> np.ndarray:
+    """Full circles of step-stare rays at least :data:`FEW_RAYS_STEP_DEG` apart."""
+    params = tables[1].params
+    stare = not params.get("swept", True)
+    return stare & ~partial & np.isfinite(dtheta) & (dtheta >= FEW_RAYS_STEP_DEG - 1e-6)
+
+
+def _few_ray_factor(
+    tables: tuple,
+    lags: np.ndarray,
+    height: np.ndarray,
+    mu: np.ndarray,
+    weights: np.ndarray,
+    range_m: np.ndarray,
+    circle: np.ndarray,
+) -> np.ndarray:
+    """``(cells, nL, n_lag)``: the factor on the finite table's circle mean ``circle``
+    (``(cells, nL, n_lag)``, m^(2/3)) that gives few-ray circles the direct two-beam
+    ``A_2`` of their pairs (:func:`cwproc.physics.few_ray_sector.sector_a2`), in place of
+    :func:`outer_scale_sector_factor`; over the inertial sector ratio, by which
+    :func:`retrieve` multiplies."""
+    inertial, finite = tables
+    params = finite.params
+    n_l = lags.size
+    lag_b = np.broadcast_to(lags[None, :], (height.size, n_l))
+    h_b = np.repeat(height[:, None], n_l, 1)
+    mu_b = np.repeat(mu[:, None], n_l, 1)
+    _, probe_circle = inertial.evaluate(lag_b, h_b, mu_b)
+    direct = sector_a2(
+        weights,
+        float(params["delta_theta_deg"]),
+        float(params.get("dwell", 0.0)),
+        mu,
+        float(params["phi_deg"]),
+        range_m,
+        finite.outer_scales_m,
+        finite.model,
+        probe_circle,
+    )
+    base = np.sum(inertial.node_ratio(lag_b, h_b, mu_b) * np.nan_to_num(weights), axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = direct / (circle * base[:, None, :])
+    return np.where(np.isfinite(out) & (out > 0), out, 1.0)
+
+
 def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.ndarray) -> Any:
     """The finite table at the cells ``rows x heights`` with its own sector ratio.
 
@@ -532,9 +588,18 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
     coarse = np.nonzero(partial | (dtheta >= COARSE_STEP_DEG))[0]
     if coarse.size:
         lag_weights = cells.lag_weights[rows].reshape(-1, *cells.lag_weights.shape[-2:])
-        log_a2[coarse] += np.log(
-            outer_scale_sector_factor(tables, lags, height[coarse], mu[coarse], lag_weights[coarse])
+        factor = outer_scale_sector_factor(
+            tables, lags, height[coarse], mu[coarse], lag_weights[coarse]
         )
+        few_ray = _few_ray_circles(tables, partial[coarse], dtheta[coarse])
+        if few_ray.any():
+            at = coarse[few_ray]
+            cell_range = np.asarray(cells.range_m)[rows].ravel()[at]
+            circle_a2 = np.exp(log_a2[at])
+            factor[few_ray] = _few_ray_factor(
+                tables, lags, height[at], mu[at], lag_weights[at], cell_range, circle_a2
+            )
+        log_a2[coarse] += np.log(factor)
     # the block-mean VAD fit also takes part of D(l)
     scans = np.repeat(cells.scans[rows], n_h)
     scans = np.where(np.isfinite(scans) & (scans >= 1), scans, 1.0)
