@@ -40,6 +40,8 @@ FEW_RAYS_STEP_DEG = 20.0
 MU_STEP = 0.1
 #: sub-rays per dwell of :func:`cwproc.physics.two_beam.dwell_structure_function`
 N_DWELL = 6
+#: sub-rays per dwell of :func:`dwell_loss_ratio`
+N_DWELL_LOSS = 12
 
 
 @functools.lru_cache(maxsize=512)
@@ -153,3 +155,71 @@ def sector_a2(
         mean = np.where(known[None, :], mean, a.mean(axis=-1))
         out[c] = mean - (point[0].mean(axis=-1) - probe_circle[c])[None, :]
     return out
+
+
+@functools.lru_cache(maxsize=256)
+def _dwell_loss(
+    step_deg: float,
+    dwell: float,
+    mu: float,
+    phi_deg: float,
+    range_m: float,
+    scales: tuple[float, ...],
+    model: str,
+) -> np.ndarray:
+    """``(n_scales,)`` :func:`dwell_loss_ratio` at one ``mu`` node."""
+    theta = azimuth_nodes()
+    radius = range_m * math.cos(math.radians(phi_deg))
+    speed = mu * radius * math.radians(step_deg)  # tau = 1 s
+    offsets = (np.arange(N_DWELL_LOSS) + 0.5) / N_DWELL_LOSS * dwell
+    lag = (offsets[:, None] - offsets[None, :]).ravel()
+    # beams at every node azimuth, the wind towards north: (node, sub-pair, 3)
+    shift = speed * lag[None, :, None] * np.array([0.0, 1.0, 0.0])[None, None, :]
+    shift = np.broadcast_to(shift, (N_BINS, lag.size, 3))
+    az = np.broadcast_to(np.degrees(theta)[:, None], (N_BINS, lag.size))
+    point = two_beam.beam_quadrature(None, range_m)
+
+    def loss(model_: str, outer: float | None) -> float:
+        c = two_beam.cross_term(
+            az, az, phi_deg, point, separation_m=shift, model=model_, outer_scale_m=outer
+        )
+        return 0.5 * float(np.mean(c))
+
+    inertial = loss("inertial", None)
+    if model == "inertial" or inertial <= 0:
+        return np.ones(len(scales))
+    return np.array([loss(model, float(s)) for s in scales]) / inertial
+
+
+def dwell_loss_ratio(
+    step_deg: float,
+    dwell: float,
+    mu: float,
+    phi_deg: float,
+    range_m: float,
+    scales_m: np.ndarray,
+    model: str,
+) -> np.ndarray:
+    """``(n_scales,)``: the variance a step-stare ray loses to the transport during its
+    dwell with the outer scale ``scales_m``, over the inertial loss.
+
+    ``(1/2) mean_jk D_rr(U (o_j - o_k))`` of point beams (the own-average term of
+    :func:`cwproc.physics.two_beam.dwell_structure_function`), ``D_rr`` the structure
+    function along the beam, averaged over the beam's azimuth from the wind; ``U = mu
+    dy / tau``. The inertial loss grows as the segment ``d mu dy`` to the 2/3 power
+    without bound; with ``L_V`` 200 m and a 168 m segment (12 rays, 3 s dwell in 4 s,
+    ``mu`` 3) it overstated the loss so that the passed share of sigma_V^2 was 5.7 %
+    below the exact covariance's (0.596 against 0.632) and eps at the exact expected
+    statistics 0.87. Linear in ``mu`` between nodes :data:`MU_STEP` apart.
+    """
+    m = max(float(mu), 0.0) / MU_STEP
+    lo = math.floor(m)
+    frac = m - lo
+    args = (round(float(step_deg), 4), round(float(dwell), 4))
+    rest = (round(float(phi_deg), 3), round(float(range_m), 3))
+    scales = tuple(np.round(np.asarray(scales_m, float), 6).tolist())
+    low = _dwell_loss(*args, round(lo * MU_STEP, 6), *rest, scales, model)
+    if frac < 1e-9:
+        return low
+    high = _dwell_loss(*args, round((lo + 1) * MU_STEP, 6), *rest, scales, model)
+    return (1.0 - frac) * low + frac * high

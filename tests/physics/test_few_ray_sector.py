@@ -78,3 +78,17 @@ def test_sector_a2_of_a_12_ray_vad_matches_the_exact_pairs(mu, scale, tol, tmp_p
         circle[None],
     )[0, 0]
     assert model == pytest.approx(np.array(exact), rel=tol)
+
+
+def test_dwell_loss_ratio_tends_to_the_inertial_loss_for_large_outer_scales():
+    """The outer scale can only lower the variance a dwell's transport averages away:
+    below 1, rising with L_V to the inertial loss (12 rays, 3 s dwell in 4 s, mu 3:
+    a 168 m segment; 0.92 at L_V 200 m, within 1 % of 1 at 3000 m)."""
+    from cwproc.physics.few_ray_sector import dwell_loss_ratio
+
+    scales = np.array([50.0, 100.0, 200.0, 400.0, 1000.0, 3000.0])
+    ratio = dwell_loss_ratio(30.0, 0.75, 3.0, PHI, RANGE, scales, "von_karman")
+    assert np.all(np.diff(ratio) > 0)
+    assert np.all(ratio < 1.0)
+    assert ratio[-1] == pytest.approx(1.0, abs=0.01)
+    assert np.all(dwell_loss_ratio(30.0, 0.75, 3.0, PHI, RANGE, scales, "inertial") == 1.0)

@@ -19,7 +19,7 @@ import numpy as np
 
 from cwproc.physics import spectra
 from cwproc.physics.exact_lag import is_cw_probe
-from cwproc.physics.few_ray_sector import FEW_RAYS_STEP_DEG, sector_a2
+from cwproc.physics.few_ray_sector import FEW_RAYS_STEP_DEG, dwell_loss_ratio, sector_a2
 from cwproc.physics.probe_variance import averaging_loss, passed_variance, segment_loss
 from cwproc.physics.removed_share import (
     MAX_SECTOR_RAYS,
@@ -477,7 +477,9 @@ def fit_setup(
         finite = finite_scale_inputs(
             probe, model, options, uniq, inverse, cells, n_outer_scales, memo
         )
-        finite["passed"] -= carried[..., None]
+        finite["passed"] -= carried[..., None] * _carried_scale_factor(
+            cells, options, finite["scale_grid"], model
+        )
         probe_len = np.asarray(probe.length_scale_m(cells.range_m), float)
         probe_len = np.broadcast_to(probe_len, (n_t, n_h))
         finite["longest"] = np.maximum(n_l * dy * (1 + mu_eval), probe_len)
@@ -503,6 +505,28 @@ def fit_setup(
         "exact": exact,
         "finite": finite,
     }
+
+
+def _carried_scale_factor(
+    cells: Cells, options: dict, scale_grid: np.ndarray, model: str
+) -> np.ndarray:
+    """``(time, height, nL)``: the outer scale's factor on the inertial variance lost to
+    the transport during the dwell (:func:`transport_loss`), for few-ray circles
+    (:func:`few_ray_cells`: :func:`cwproc.physics.few_ray_sector.dwell_loss_ratio`); 1
+    elsewhere (24- and 36-ray VADs keep the inertial loss)."""
+    n_t, n_h = cells.range_m.shape
+    out = np.ones((n_t, n_h, scale_grid.size))
+    dwell = float(options.get("dwell", 0.0))
+    if dwell <= 0.0:
+        return out
+    phi = float(np.nanmedian(cells.phi))
+    for t, h in zip(*np.nonzero(few_ray_cells(cells, options)), strict=True):
+        mu, rng = cells.mu_eval[t, h], cells.range_m[t, h]
+        if np.isfinite(mu) and np.isfinite(rng):
+            out[t, h] = dwell_loss_ratio(
+                float(cells.dtheta[t]), dwell, float(mu), phi, float(rng), scale_grid, model
+            )
+    return out
 
 
 def few_ray_cells(cells: Cells, options: dict) -> np.ndarray:
