@@ -19,7 +19,10 @@ wind blows to (the convention of :func:`cwproc.stages.block_stats.pair_azimuth_w
 with point beams, and :func:`sector_a2` averages it over the pairs present less the
 probe's inertial share. The A-table's finite-outer-scale circle mean is not used
 for these scans: at 60 deg lags, ``mu`` 3, ``L_V`` 100 m it is 35 % above the direct
-two-beam value (41.7 against 30.9 eps^(2/3)). Pure numpy.
+two-beam value (41.7 against 30.9 eps^(2/3)). :func:`dwell_loss_ratio` is the outer
+scale's factor on the inertial variance a ray loses to the transport during its dwell.
+Point beams make both scale-free (functions of ``R'/L_V``), tabulated once per ``mu``
+node on :data:`X_GRID` for every height. Pure numpy.
 """
 
 from __future__ import annotations
@@ -44,28 +47,29 @@ N_DWELL = 6
 N_DWELL_LOSS = 12
 
 
+#: nodes of ``x = R'/L_V`` of the scale-free curves (log-log interpolation between them):
+#: with point beams ``A_2 / R'^(2/3)`` and the dwell-loss ratio are functions of
+#: ``x``, ``mu``, the step, the dwell and the elevation only, so one curve per ``mu``
+#: node serves every height
+X_GRID = np.geomspace(1e-3, 1e3, 49)
+
+
 @functools.lru_cache(maxsize=512)
-def _a2_at_node(
-    n_lags: int,
-    step_deg: float,
-    dwell: float,
-    mu: float,
-    phi_deg: float,
-    range_m: float,
-    scales: tuple[float, ...],
-    model: str,
+def _a2_curve(
+    n_lags: int, step_deg: float, dwell: float, mu: float, phi_deg: float, model: str
 ) -> np.ndarray:
-    """``(n_scales, n_lags, N_BINS)`` :func:`node_a2` at one ``mu`` node."""
+    """``(n_x, n_lags, N_BINS)``: ``A_2`` of point beams at ``R' = 1 m`` at each node of
+    :data:`X_GRID` (one row for ``"inertial"``), at one ``mu`` node."""
     theta = azimuth_nodes()
-    radius = range_m * math.cos(math.radians(phi_deg))
-    speed = mu * radius * math.radians(step_deg)  # U = mu V_s, V_s = dy / tau, tau = 1 s
+    range_m = 1.0 / math.cos(math.radians(phi_deg))  # R' = 1 m
+    speed = mu * math.radians(step_deg)  # U = mu V_s, V_s = dy / tau, tau = 1 s
     wind = speed * np.stack([np.zeros(N_BINS), np.cos(theta), np.sin(theta)], -1)[:, None, :]
+    scales = [None] if model == "inertial" else (1.0 / X_GRID).tolist()
     out = np.empty((len(scales), n_lags, N_BINS))
-    for k, scale in enumerate(scales):
-        outer = None if model == "inertial" else float(scale)
+    for k, outer in enumerate(scales):
         for li in range(n_lags):
             half = 0.5 * (li + 1) * step_deg
-            d = two_beam.dwell_structure_function(
+            out[k, li] = two_beam.dwell_structure_function(
                 np.full(N_BINS, -half),
                 np.full(N_BINS, half),
                 phi_deg,
@@ -77,8 +81,20 @@ def _a2_at_node(
                 model=model,
                 outer_scale_m=outer,
             )
-            out[k, li] = d
     return out
+
+
+def _at_x(curve: np.ndarray, x: np.ndarray, log: bool) -> np.ndarray:
+    """``curve`` (first axis on :data:`X_GRID`) at ``x``, linear in ``log x`` (and in
+    ``log curve`` where ``log``); clipped to the grid's ends."""
+    lx = np.clip(np.log(np.asarray(x, float)), math.log(X_GRID[0]), math.log(X_GRID[-1]))
+    pos = (lx - math.log(X_GRID[0])) / math.log(X_GRID[1] / X_GRID[0])
+    i = np.clip(np.floor(pos).astype(int), 0, X_GRID.size - 2)
+    w = (pos - i).reshape(-1, *([1] * (curve.ndim - 1)))
+    lo, hi = curve[i], curve[i + 1]
+    if log:
+        return np.exp((1.0 - w) * np.log(lo) + w * np.log(hi))
+    return (1.0 - w) * lo + w * hi
 
 
 def node_a2(
@@ -105,14 +121,19 @@ def node_a2(
     m = max(float(mu), 0.0) / MU_STEP
     lo = math.floor(m)
     frac = m - lo
-    args = (round(float(step_deg), 4), round(float(dwell), 4))
-    rest = (round(float(phi_deg), 3), round(float(range_m), 3))
-    scales = tuple(np.round(np.asarray(scales_m, float), 6).tolist())
-    low = _a2_at_node(int(n_lags), *args, round(lo * MU_STEP, 6), *rest, scales, model)
-    if frac < 1e-9:
-        return low
-    high = _a2_at_node(int(n_lags), *args, round((lo + 1) * MU_STEP, 6), *rest, scales, model)
-    return (1.0 - frac) * low + frac * high
+    args = (int(n_lags), round(float(step_deg), 4), round(float(dwell), 4))
+    phi = round(float(phi_deg), 3)
+    curve = _a2_curve(*args, round(lo * MU_STEP, 6), phi, model)
+    if frac > 1e-9:
+        high = _a2_curve(*args, round((lo + 1) * MU_STEP, 6), phi, model)
+        curve = (1.0 - frac) * curve + frac * high
+    radius = float(range_m) * math.cos(math.radians(phi_deg))
+    scales = np.atleast_1d(np.asarray(scales_m, float))
+    if model == "inertial":
+        per_scale = np.broadcast_to(curve, (scales.size, *curve.shape[1:]))
+    else:
+        per_scale = _at_x(curve, radius / scales, log=True)
+    return radius ** (2.0 / 3.0) * per_scale
 
 
 def sector_a2(
@@ -158,37 +179,30 @@ def sector_a2(
 
 
 @functools.lru_cache(maxsize=256)
-def _dwell_loss(
-    step_deg: float,
-    dwell: float,
-    mu: float,
-    phi_deg: float,
-    range_m: float,
-    scales: tuple[float, ...],
-    model: str,
+def _dwell_loss_curve(
+    step_deg: float, dwell: float, mu: float, phi_deg: float, model: str
 ) -> np.ndarray:
-    """``(n_scales,)`` :func:`dwell_loss_ratio` at one ``mu`` node."""
+    """``(n_x,)`` :func:`dwell_loss_ratio` on :data:`X_GRID` at one ``mu`` node."""
     theta = azimuth_nodes()
-    radius = range_m * math.cos(math.radians(phi_deg))
-    speed = mu * radius * math.radians(step_deg)  # tau = 1 s
+    speed = mu * math.radians(step_deg)  # R' = 1 m, tau = 1 s
     offsets = (np.arange(N_DWELL_LOSS) + 0.5) / N_DWELL_LOSS * dwell
     lag = (offsets[:, None] - offsets[None, :]).ravel()
     # beams at every node azimuth, the wind towards north: (node, sub-pair, 3)
     shift = speed * lag[None, :, None] * np.array([0.0, 1.0, 0.0])[None, None, :]
     shift = np.broadcast_to(shift, (N_BINS, lag.size, 3))
     az = np.broadcast_to(np.degrees(theta)[:, None], (N_BINS, lag.size))
-    point = two_beam.beam_quadrature(None, range_m)
+    point = two_beam.beam_quadrature(None, 1.0 / math.cos(math.radians(phi_deg)))
 
-    def loss(model_: str, outer: float | None) -> float:
+    def loss(name: str, outer: float | None) -> float:
         c = two_beam.cross_term(
-            az, az, phi_deg, point, separation_m=shift, model=model_, outer_scale_m=outer
+            az, az, phi_deg, point, separation_m=shift, model=name, outer_scale_m=outer
         )
         return 0.5 * float(np.mean(c))
 
     inertial = loss("inertial", None)
-    if model == "inertial" or inertial <= 0:
-        return np.ones(len(scales))
-    return np.array([loss(model, float(s)) for s in scales]) / inertial
+    if inertial <= 0:
+        return np.ones(X_GRID.size)
+    return np.array([loss(model, 1.0 / x) for x in X_GRID]) / inertial
 
 
 def dwell_loss_ratio(
@@ -212,14 +226,16 @@ def dwell_loss_ratio(
     below the exact covariance's (0.596 against 0.632) and eps at the exact expected
     statistics 0.87. Linear in ``mu`` between nodes :data:`MU_STEP` apart.
     """
+    if model == "inertial":
+        return np.ones(np.size(scales_m))
     m = max(float(mu), 0.0) / MU_STEP
     lo = math.floor(m)
     frac = m - lo
     args = (round(float(step_deg), 4), round(float(dwell), 4))
-    rest = (round(float(phi_deg), 3), round(float(range_m), 3))
-    scales = tuple(np.round(np.asarray(scales_m, float), 6).tolist())
-    low = _dwell_loss(*args, round(lo * MU_STEP, 6), *rest, scales, model)
-    if frac < 1e-9:
-        return low
-    high = _dwell_loss(*args, round((lo + 1) * MU_STEP, 6), *rest, scales, model)
-    return (1.0 - frac) * low + frac * high
+    phi = round(float(phi_deg), 3)
+    curve = _dwell_loss_curve(*args, round(lo * MU_STEP, 6), phi, model)
+    if frac > 1e-9:
+        high = _dwell_loss_curve(*args, round((lo + 1) * MU_STEP, 6), phi, model)
+        curve = (1.0 - frac) * curve + frac * high
+    radius = float(range_m) * math.cos(math.radians(phi_deg))
+    return _at_x(curve, radius / np.atleast_1d(np.asarray(scales_m, float)), log=False)
