@@ -456,6 +456,7 @@ def fit_setup(
     a1, a2, sector, groups = a_functions
     n_t, n_h, n_l = cells.d.shape
     dy, mu_eval = cells.dy, cells.mu_eval
+    a2 = _few_ray_inertial_a2(cells, options, a2, sector)
     # the loss depends on (dy, range) only: compute it once per distinct pair
     # step-stare rays are not swept: no transverse averaging in the variance (eq. 20)
     dy_filter = dy if options["swept"] else np.where(np.isfinite(dy), 0.0, np.nan)
@@ -505,6 +506,37 @@ def fit_setup(
         "exact": exact,
         "finite": finite,
     }
+
+
+def _few_ray_inertial_a2(
+    cells: Cells, options: dict, a2: np.ndarray, sector: np.ndarray
+) -> np.ndarray:
+    """The inertial ``A_2`` ``(time, height, lag)`` with the few-ray circles'
+    (:func:`few_ray_cells`) from :func:`cwproc.physics.few_ray_sector.sector_a2` (the
+    inertial fit and the fallback of the finite-outer-scale one); the table's circle mean
+    ``a2 / sector`` gives the probe's share."""
+    few = few_ray_cells(cells, options) & np.all(np.isfinite(a2), axis=-1)
+    if not few.any():
+        return a2
+    out = a2.copy()
+    phi = float(np.nanmedian(cells.phi))
+    dwell = float(options.get("dwell", 0.0))
+    for t, h in zip(*np.nonzero(few), strict=True):
+        mu, rng = cells.mu_eval[t, h], cells.range_m[t, h]
+        if not (np.isfinite(mu) and np.isfinite(rng)):
+            continue
+        out[t, h] = sector_a2(
+            cells.lag_weights[t, h][None],
+            float(cells.dtheta[t]),
+            dwell,
+            np.array([mu]),
+            phi,
+            np.array([rng]),
+            np.array([1.0]),
+            "inertial",
+            (a2[t, h] / sector[t, h])[None],
+        )[0, 0]
+    return out
 
 
 def _carried_scale_factor(
