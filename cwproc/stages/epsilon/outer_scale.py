@@ -566,6 +566,9 @@ def few_ray_cells(cells: Cells, options: dict) -> np.ndarray:
     :data:`FEW_RAYS_STEP_DEG` apart (12-ray VADs: two lags, 30 and 60 deg)."""
     n_t, n_h = cells.range_m.shape
     dtheta = np.broadcast_to(np.asarray(cells.dtheta, float)[:, None], (n_t, n_h))
+    coarse = np.isfinite(dtheta) & (dtheta >= FEW_RAYS_STEP_DEG - 1e-6)
+    if options.get("swept", True) or not coarse.any():
+        return np.zeros((n_t, n_h), dtype=bool)  # (no partial-circle test of every cell)
     partial = partial_circle(cells.weights, dtheta)
     stare = not options.get("swept", True)
     return stare & ~partial & np.isfinite(dtheta) & (dtheta >= FEW_RAYS_STEP_DEG - 1e-6)
