@@ -124,8 +124,9 @@ def dwell_cases() -> list[dict]:
     Each ray accumulates ``dwell x PRF`` pulses at its azimuth while the wind carries the
     field (the generator averages over the dwell, the header says the pulses), then the
     beam moves for :data:`MOVE_S`: ray period ``dwell + 1 s``, dwell fraction 0.5 / 0.75.
-    The 12-ray VADs (30 deg steps) take 20 scans per block; they get no eps (3 lags
-    would reach 90 deg, beyond the 60 deg limit of the structure function).
+    The 12-ray VADs (30 deg steps) take 20 scans per block and get two lags (30 and 60
+    deg; three would reach 90 deg, beyond the 60 deg limit of the structure function),
+    their A_2 from :mod:`cwproc.physics.few_ray_sector`.
     """
     out = []
     for rays in (12, 24, 36):

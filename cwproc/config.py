@@ -108,7 +108,8 @@ class QCConfig:
     snr_min: float = 0.008
     #: robust outlier threshold in scaled MADs (1.4826 MAD) of the residuals about a robust
     #: VAD fit per scan and gate; 4 flags ~0.2-0.4 % of good rays of 24-ray scans and
-    #: catches +-20 m s-1 noise estimates (see cwproc/stages/qc.py)
+    #: catches +-20 m s-1 noise estimates; scans of fewer than 18 rays take 1.5 times it
+    #: (see cwproc/stages/qc.py)
     outlier_threshold: float = 4.0
 
     def __post_init__(self) -> None:

@@ -287,18 +287,15 @@ def lag_count(dtheta_deg: float, max_lag_deg: float, min_lags: int = MIN_LAGS) -
     """Number of lags L of the structure function for the azimuth step ``dtheta_deg``.
 
     ``floor(max_lag_deg / dtheta)``, raised to ``min_lags`` for coarse scans (24-72 rays,
-    step-stare VADs) as long as ``min_lags dtheta <= MAX_LAG_LIMIT_DEG``; 0 when not even
-    that fits. The exact two-beam geometry (:mod:`cwproc.physics.two_beam`) replaces the
-    small-angle model of Smalikho (2020), eq. 15 that limited lags to 9 deg.
+    step-stare VADs) or, where ``min_lags dtheta`` exceeds :data:`MAX_LAG_LIMIT_DEG`, to
+    as many as fit within it (a 12-ray VAD: lags 30 and 60 deg, whose A_2 over the pairs
+    present comes from :mod:`cwproc.physics.few_ray_sector`); 0 when not one fits. The
+    exact two-beam geometry (:mod:`cwproc.physics.two_beam`) replaces the small-angle
+    model of Smalikho (2020), eq. 15 that limited lags to 9 deg.
     """
     n = int(np.floor(max_lag_deg / dtheta_deg + 1e-9))
-    if n < min_lags and min_lags * dtheta_deg <= MAX_LAG_LIMIT_DEG + 1e-9:
-        n = int(min_lags)
-    return (
-        n
-        if n * dtheta_deg <= MAX_LAG_LIMIT_DEG + 1e-9
-        else int(np.floor(MAX_LAG_LIMIT_DEG / dtheta_deg + 1e-9))
-    )
+    most = int(np.floor(MAX_LAG_LIMIT_DEG / dtheta_deg + 1e-9))
+    return min(max(n, int(min_lags)), most)
 
 
 def azimuth_structure_function(

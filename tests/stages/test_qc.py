@@ -159,8 +159,12 @@ def test_missing_radial_velocity_is_a_clear_error() -> None:
 
 
 def test_robust_outliers_rule() -> None:
-    # residuals 0, +-1 (MAD = 1, scaled 1.4826): 6 is an outlier at k = 4, 5.9 is not
-    r = np.array([0, 1, -1, 0, 1, -1, 0, 5.9, 6.0, 0, 1, -1], dtype=float)
+    # 18 residuals 0, +-1 (MAD = 1, scaled 1.4826): 6 is an outlier at k = 4, 5.9 is not
+    r18 = np.array([0, 1, -1] * 5 + [0, 5.9, 6.0], dtype=float)
+    flagged = robust_outliers(r18[None, :, None], np.ones((1, r18.size, 1), bool), 4.0, 0.01)
+    assert list(np.flatnonzero(flagged[0, :, 0])) == [17]
+    # 12 rays (fewer than FEW_RAYS): k = 4 x 1.5 = 6 scaled MADs, 8.9 m s-1: 9 is, 6 is not
+    r = np.array([0, 1, -1, 0, 1, -1, 0, 6.0, 9.0, 0, 1, -1], dtype=float)
     flagged = robust_outliers(r[None, :, None], np.ones((1, r.size, 1), bool), 4.0, 0.01)
     assert list(np.flatnonzero(flagged[0, :, 0])) == [8]
     # fewer than 6 valid entries: no test

@@ -8,7 +8,7 @@ import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.physics.geometry import radial_velocity
-from cwproc.stages.structure import azimuth_structure_function
+from cwproc.stages.structure import azimuth_structure_function, lag_count
 
 U0, V0, W0 = 6.0, -3.0, 0.2  # m s-1
 ELEVATION = 35.3  # deg
@@ -211,8 +211,10 @@ def test_impossible_inputs_raise_cwproc_errors():
         azimuth_structure_function(
             ds, wind.assign_coords(range=("height", RANGES + 7.0)), n_scans=2, max_lag_deg=9.0
         )
+    # 90 deg steps: not one lag within 60 deg (a 12-ray VAD gets its two, 30 and 60 deg)
+    coarse = ramp_scans(n_scans=2, rays=4)
     with pytest.raises(CwprocError, match="max_lag_deg"):
-        azimuth_structure_function(ds, wind, n_scans=2, max_lag_deg=2.0, min_lags=30)
+        azimuth_structure_function(coarse, true_wind(coarse), n_scans=2, max_lag_deg=9.0)
 
 
 def test_chunked_blocks_give_the_same_result(monkeypatch):
@@ -471,3 +473,12 @@ def test_block_median_between_bounds_is_numpy_nanmedian():
     first = values[:10].reshape(-1, 8)
     bounded = _median_within_bounds(first, np.count_nonzero(~np.isnan(first), axis=0))
     assert np.isnan(bounded[4]) and np.count_nonzero(np.isnan(bounded)) <= 3
+
+
+@pytest.mark.parametrize(
+    "step, lags",
+    # 24/36-ray VADs: min_lags 3 (45/30 deg); 12 rays: the two within 60 deg; 4: none
+    [(15.0, 3), (10.0, 3), (30.0, 2), (24.0, 2), (90.0, 0), (1.0, 9)],
+)
+def test_lag_count_of_coarse_scans_stops_at_60_deg(step, lags):
+    assert lag_count(step, 9.0) == lags

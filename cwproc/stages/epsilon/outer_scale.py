@@ -19,6 +19,7 @@ import numpy as np
 
 from cwproc.physics import spectra
 from cwproc.physics.exact_lag import is_cw_probe
+from cwproc.physics.few_ray_sector import FEW_RAYS_STEP_DEG, dwell_loss_ratio, sector_a2
 from cwproc.physics.probe_variance import averaging_loss, passed_variance, segment_loss
 from cwproc.physics.removed_share import (
     MAX_SECTOR_RAYS,
@@ -455,6 +456,7 @@ def fit_setup(
     a1, a2, sector, groups = a_functions
     n_t, n_h, n_l = cells.d.shape
     dy, mu_eval = cells.dy, cells.mu_eval
+    a2 = _few_ray_inertial_a2(cells, options, a2, sector)
     # the loss depends on (dy, range) only: compute it once per distinct pair
     # step-stare rays are not swept: no transverse averaging in the variance (eq. 20)
     dy_filter = dy if options["swept"] else np.where(np.isfinite(dy), 0.0, np.nan)
@@ -476,7 +478,9 @@ def fit_setup(
         finite = finite_scale_inputs(
             probe, model, options, uniq, inverse, cells, n_outer_scales, memo
         )
-        finite["passed"] -= carried[..., None]
+        finite["passed"] -= carried[..., None] * _carried_scale_factor(
+            cells, options, finite["scale_grid"], model
+        )
         probe_len = np.asarray(probe.length_scale_m(cells.range_m), float)
         probe_len = np.broadcast_to(probe_len, (n_t, n_h))
         finite["longest"] = np.maximum(n_l * dy * (1 + mu_eval), probe_len)
@@ -502,6 +506,117 @@ def fit_setup(
         "exact": exact,
         "finite": finite,
     }
+
+
+def _few_ray_inertial_a2(
+    cells: Cells, options: dict, a2: np.ndarray, sector: np.ndarray
+) -> np.ndarray:
+    """The inertial ``A_2`` ``(time, height, lag)`` with the few-ray circles'
+    (:func:`few_ray_cells`) from :func:`cwproc.physics.few_ray_sector.sector_a2` (the
+    inertial fit and the fallback of the finite-outer-scale one); the table's circle mean
+    ``a2 / sector`` gives the probe's share."""
+    few = few_ray_cells(cells, options) & np.all(np.isfinite(a2), axis=-1)
+    if not few.any():
+        return a2
+    out = a2.copy()
+    phi = float(np.nanmedian(cells.phi))
+    dwell = float(options.get("dwell", 0.0))
+    for t, h in zip(*np.nonzero(few), strict=True):
+        mu, rng = cells.mu_eval[t, h], cells.range_m[t, h]
+        if not (np.isfinite(mu) and np.isfinite(rng)):
+            continue
+        out[t, h] = sector_a2(
+            cells.lag_weights[t, h][None],
+            float(cells.dtheta[t]),
+            dwell,
+            np.array([mu]),
+            phi,
+            np.array([rng]),
+            np.array([1.0]),
+            "inertial",
+            (a2[t, h] / sector[t, h])[None],
+        )[0, 0]
+    return out
+
+
+def _carried_scale_factor(
+    cells: Cells, options: dict, scale_grid: np.ndarray, model: str
+) -> np.ndarray:
+    """``(time, height, nL)``: the outer scale's factor on the inertial variance lost to
+    the transport during the dwell (:func:`transport_loss`), for few-ray circles
+    (:func:`few_ray_cells`: :func:`cwproc.physics.few_ray_sector.dwell_loss_ratio`); 1
+    elsewhere (24- and 36-ray VADs keep the inertial loss)."""
+    n_t, n_h = cells.range_m.shape
+    out = np.ones((n_t, n_h, scale_grid.size))
+    dwell = float(options.get("dwell", 0.0))
+    if dwell <= 0.0:
+        return out
+    phi = float(np.nanmedian(cells.phi))
+    for t, h in zip(*np.nonzero(few_ray_cells(cells, options)), strict=True):
+        mu, rng = cells.mu_eval[t, h], cells.range_m[t, h]
+        if np.isfinite(mu) and np.isfinite(rng):
+            out[t, h] = dwell_loss_ratio(
+                float(cells.dtheta[t]), dwell, float(mu), phi, float(rng), scale_grid, model
+            )
+    return out
+
+
+def few_ray_cells(cells: Cells, options: dict) -> np.ndarray:
+    """``(time, height)``: full circles of step-stare rays at least
+    :data:`FEW_RAYS_STEP_DEG` apart (12-ray VADs: two lags, 30 and 60 deg)."""
+    n_t, n_h = cells.range_m.shape
+    dtheta = np.broadcast_to(np.asarray(cells.dtheta, float)[:, None], (n_t, n_h))
+    coarse = np.isfinite(dtheta) & (dtheta >= FEW_RAYS_STEP_DEG - 1e-6)
+    if options.get("swept", True) or not coarse.any():
+        return np.zeros((n_t, n_h), dtype=bool)  # (no partial-circle test of every cell)
+    partial = partial_circle(cells.weights, dtheta)
+    stare = not options.get("swept", True)
+    return stare & ~partial & np.isfinite(dtheta) & (dtheta >= FEW_RAYS_STEP_DEG - 1e-6)
+
+
+def _few_ray_circles(tables: tuple, partial: np.ndarray, dtheta: np.ndarray) -> np.ndarray:
+    """Full circles of step-stare rays at least :data:`FEW_RAYS_STEP_DEG` apart."""
+    params = tables[1].params
+    stare = not params.get("swept", True)
+    return stare & ~partial & np.isfinite(dtheta) & (dtheta >= FEW_RAYS_STEP_DEG - 1e-6)
+
+
+def _few_ray_factor(
+    tables: tuple,
+    lags: np.ndarray,
+    height: np.ndarray,
+    mu: np.ndarray,
+    weights: np.ndarray,
+    range_m: np.ndarray,
+    circle: np.ndarray,
+) -> np.ndarray:
+    """``(cells, nL, n_lag)``: the factor on the finite table's circle mean ``circle``
+    (``(cells, nL, n_lag)``, m^(2/3)) that gives few-ray circles the direct two-beam
+    ``A_2`` of their pairs (:func:`cwproc.physics.few_ray_sector.sector_a2`), in place of
+    :func:`outer_scale_sector_factor`; over the inertial sector ratio, by which
+    :func:`retrieve` multiplies."""
+    inertial, finite = tables
+    params = finite.params
+    n_l = lags.size
+    lag_b = np.broadcast_to(lags[None, :], (height.size, n_l))
+    h_b = np.repeat(height[:, None], n_l, 1)
+    mu_b = np.repeat(mu[:, None], n_l, 1)
+    _, probe_circle = inertial.evaluate(lag_b, h_b, mu_b)
+    direct = sector_a2(
+        weights,
+        float(params["delta_theta_deg"]),
+        float(params.get("dwell", 0.0)),
+        mu,
+        float(params["phi_deg"]),
+        range_m,
+        finite.outer_scales_m,
+        finite.model,
+        probe_circle,
+    )
+    base = np.sum(inertial.node_ratio(lag_b, h_b, mu_b) * np.nan_to_num(weights), axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = direct / (circle * base[:, None, :])
+    return np.where(np.isfinite(out) & (out > 0), out, 1.0)
 
 
 def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.ndarray) -> Any:
@@ -532,9 +647,18 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
     coarse = np.nonzero(partial | (dtheta >= COARSE_STEP_DEG))[0]
     if coarse.size:
         lag_weights = cells.lag_weights[rows].reshape(-1, *cells.lag_weights.shape[-2:])
-        log_a2[coarse] += np.log(
-            outer_scale_sector_factor(tables, lags, height[coarse], mu[coarse], lag_weights[coarse])
+        factor = outer_scale_sector_factor(
+            tables, lags, height[coarse], mu[coarse], lag_weights[coarse]
         )
+        few_ray = _few_ray_circles(tables, partial[coarse], dtheta[coarse])
+        if few_ray.any():
+            at = coarse[few_ray]
+            cell_range = np.asarray(cells.range_m)[rows].ravel()[at]
+            circle_a2 = np.exp(log_a2[at])
+            factor[few_ray] = _few_ray_factor(
+                tables, lags, height[at], mu[at], lag_weights[at], cell_range, circle_a2
+            )
+        log_a2[coarse] += np.log(factor)
     # the block-mean VAD fit also takes part of D(l)
     scans = np.repeat(cells.scans[rows], n_h)
     scans = np.where(np.isfinite(scans) & (scans >= 1), scans, 1.0)
