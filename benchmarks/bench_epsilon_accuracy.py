@@ -92,24 +92,22 @@ def cases(quick: bool, fly_back_s: float = 3.0) -> list[dict]:
                     "mu": mu,
                 }
             )
-        for mu in (0.0, 0.5, 1.0, 2.0, 3.0):
-            out.append(
-                {
-                    "label": " 45 rays, 90° sector",
-                    "pattern": eg.conical_pattern(45, 9.0, sector_deg=90.0, return_s=fly_back_s),
-                    "mu": mu,
-                }
-            )
-        for mu in (0.0, 1.0, 3.0):
-            out.append(
-                {
-                    "label": " 90 rays, 180° sector",
-                    "pattern": eg.conical_pattern(90, 18.0, sector_deg=180.0, return_s=fly_back_s),
-                    "mu": mu,
-                }
-            )
+            out.append(_sector(45, 90.0, mu, fly_back_s))
         out += dwell_cases()
+        # issue 29's Show table: the sectors at mu 0 and 3 too (appended, so that every
+        # earlier case keeps its seed)
+        out += [_sector(45, 90.0, mu, fly_back_s) for mu in (0.0, 3.0)]
+        out += [_sector(90, 180.0, mu, fly_back_s) for mu in (0.0, 1.0, 3.0)]
     return out
+
+
+def _sector(rays: int, sector_deg: float, mu: float, fly_back_s: float) -> dict:
+    """A continuous sector scan of 2 deg rays (0.2 s each) with its fly-back (s)."""
+    return {
+        "label": f"{rays:3d} rays, {sector_deg:g}° sector",
+        "pattern": eg.conical_pattern(rays, rays * 0.2, sector_deg=sector_deg, return_s=fly_back_s),
+        "mu": mu,
+    }
 
 
 #: time the beam takes from one azimuth of a step-stare VAD to the next (s)
