@@ -105,7 +105,9 @@ def sonic_turbulence(
     )
     for line in report.failures:
         report_failure(line)
+    for line in report.notes:
+        click.echo(f"note: {line}", err=True)
     if not quiet:
         for path in report.written:
             click.echo(f"wrote {path}")
-    sys.exit(1 if report.failures or not report.written else 0)
+    sys.exit(1 if report.failures or not (report.written or report.notes) else 0)

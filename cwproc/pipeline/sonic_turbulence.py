@@ -32,6 +32,25 @@ class SonicTurbulenceReport:
 
     written: list[Path] = field(default_factory=list)
     failures: list[str] = field(default_factory=list)
+    #: why a day of readable data gave no product (no window with enough valid samples)
+    notes: list[str] = field(default_factory=list)
+
+
+def empty_product_note(product: xr.Dataset, unit: str) -> str | None:
+    """Why ``product`` holds no statistic (every window without a variance), or None.
+
+    A day shorter than one window, or whose windows lack valid samples, gives windows of
+    missing values only: no product is written for it, and this note says why.
+    """
+    if np.isfinite(product["velocity_variance"].values).any():
+        return None
+    window = float(product.attrs.get("window_s", np.nan))
+    valid = product["valid_fraction"].values
+    most = float(np.nanmax(valid)) if np.isfinite(valid).any() else 0.0
+    return (
+        f"{unit}: no product: no window of {window:g} s holds enough valid samples "
+        f"(at most {most:.0%} of a window); a shorter --window may fit the data"
+    )
 
 
 def _read_groups(
@@ -47,7 +66,8 @@ def _read_groups(
             if not {"u", "v", "w"} <= set(ds.data_vars):
                 raise CwprocError("not a sonic file (no u, v, w)")
         except (CwprocError, OSError, ValueError) as exc:
-            report.failures.append(f"{path}: {exc}")
+            text = str(exc)
+            report.failures.append(text if text.startswith(str(path)) else f"{path}: {text}")
             continue
         keep = [v for v in ("u", "v", "w", "temperature", "sample_flag") if v in ds]
         key = (fmt.value, round(float(ds.attrs.get("sampling_rate_hz", np.nan)), 2))
@@ -98,6 +118,10 @@ def sonic_turbulence_files(
                 )
             except CwprocError as exc:
                 report.failures.append(f"{fmt_name} {d}: {exc}")
+                continue
+            empty = empty_product_note(product, f"{fmt_name} {d}")
+            if empty is not None:
+                report.notes.append(empty)
                 continue
             target = Path(outdir) / f"{fmt_name}_{d}_sonic-turbulence.nc"
             write_product(

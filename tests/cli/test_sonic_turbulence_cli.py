@@ -119,3 +119,24 @@ def test_real_csat3_window_against_an_independent_computation(real_data, tmp_pat
     ustar = (np.mean(fu * fw) ** 2 + np.mean(fv * fw) ** 2) ** 0.25
     assert float(ds["friction_velocity"][0]) == pytest.approx(ustar, rel=1e-9)
     assert float(ds["tke"][0]) == pytest.approx(0.5 * sum(var), rel=1e-9)
+
+
+def test_data_shorter_than_a_window_give_a_note_not_an_empty_product(tmp_path):
+    """The shipped 10-min sonic samples under the default 30-min window: every window
+    lacks valid samples, so no all-missing product is written and a note says why."""
+    from pathlib import Path
+
+    samples = Path(__file__).resolve().parents[2] / "sample_data" / "sonic"
+    files = sorted(samples.glob("TOA5_*")) + sorted(samples.glob("meteo2_*"))
+    assert files
+    res = CliRunner().invoke(main, ["sonic-turbulence", *map(str, files), "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    assert not list(tmp_path.glob("*.nc"))
+    notes = [line for line in res.output.splitlines() if line.startswith("note:")]
+    assert len(notes) == 2 and all("no window of 1800 s" in line for line in notes)
+    assert all("--window" in line for line in notes)
+    res = CliRunner().invoke(
+        main, ["sonic-turbulence", *map(str, files), "-o", str(tmp_path), "--window", "300"]
+    )
+    assert res.exit_code == 0, res.output
+    assert len(list(tmp_path.glob("*_sonic-turbulence.nc"))) == 2
