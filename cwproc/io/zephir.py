@@ -98,14 +98,31 @@ _NUMBER_RE = re.compile(r"(\d+(?:[.,]\d+)?)")
 _HEADER_LINES = 2
 
 
+#: records averaged over at least this long (s) take the narrower ranges of means
+#: (:data:`cwproc.io.ranges.KIND_RANGES` ``"wind_record"``); 1-s ZephIR records and the
+#: single lines of sight of a WindCube ``.rtd`` keep the ranges of single values
+MEAN_RECORD_MIN_S = 60.0
+
+
 def with_range_screen(ds: xr.Dataset) -> xr.Dataset:
-    """Impossible values of a wind record (:func:`cwproc.io.ranges.ranges_for`
-    ``"wind_record"``: 10-min means) and infinite ones as missing, reported."""
-    screened, counts = screen_physical_range(ds, "wind_record")
+    """Impossible values of a wind record and infinite ones as missing, reported.
+
+    Records averaged over :data:`MEAN_RECORD_MIN_S` or longer (``averaging_interval_s``)
+    are screened with the ranges of means (:func:`cwproc.io.ranges.ranges_for`
+    ``"wind_record"``: w within +-10 m s-1 over ten minutes); faster records (1-s ZephIR,
+    ``.rtd`` lines of sight, no stated interval) with those of single values.
+    """
+    interval = ds.attrs.get("averaging_interval_s")
+    try:
+        mean = interval is not None and float(interval) >= MEAN_RECORD_MIN_S
+    except (TypeError, ValueError):
+        mean = False
+    kind = "wind_record" if mean else None
+    screened, counts = screen_physical_range(ds, kind)
     if counts:
         screened.attrs["warnings"] = [
             *ds.attrs.get("warnings", []),
-            *range_warnings(counts, "wind_record"),
+            *range_warnings(counts, kind),
         ]
     return screened
 
