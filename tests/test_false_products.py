@@ -405,3 +405,21 @@ def test_any_year_outside_the_window_is_refused_as_written(name, year):
         with pytest.raises(InputFileError, match="outside the plausible range") as err:
             read(redated(name, year, Path(tmp)))
     assert str(year) in str(err.value)
+
+
+@pytest.mark.parametrize(
+    ("interval", "kept"), [(1.0, True), (None, True), (60.0, False), (600.0, False)]
+)
+def test_the_ranges_of_means_apply_to_averaged_records_only(interval, kept):
+    """w = 18 m s-1 is impossible as a 1- or 10-min mean but a possible single value: the
+    1-s ZephIR records and the .rtd lines of sight (the real WindCube .rtd has a 1-Hz
+    Z-wind of 18 m s-1 at -30 dB CNR) keep it; 60 s and longer averages lose it."""
+    import xarray as xr
+
+    from cwproc.io.zephir import with_range_screen
+
+    attrs = {} if interval is None else {"averaging_interval_s": interval}
+    ds = xr.Dataset({"w": (("time",), np.array([0.5, 18.0, -70.0]))}, attrs=attrs)
+    w = with_range_screen(ds)["w"].values
+    assert np.isnan(w[2])  # beyond the +-60 of any single value
+    assert np.isfinite(w[1]) == kept
