@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +12,9 @@ from hypothesis import strategies as st
 
 from cwproc.errors import InputFileError
 from cwproc.io.windcube import read_windcube_sta
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from byte_mutations import mutated, mutation_ops
 
 V1 = "windcube/WLS7-164_2016_11_24__00_00_00.sta"
 V3 = "windcube/WLS7-72_2016_12_06__00_00_00.sta"
@@ -185,15 +189,7 @@ def test_bad_time(tmp_path, real_data):
     max_examples=120, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(
-    ops=st.lists(
-        st.tuples(
-            st.sampled_from(["replace", "delete", "insert", "truncate"]),
-            st.floats(0, 1, allow_nan=False),
-            st.sampled_from(list(b"\t\n.=0123456789 xN-\xb0m")),
-        ),
-        min_size=1,
-        max_size=4,
-    ),
+    ops=mutation_ops(b"\t\n.=0123456789 xN-\xb0m"),
     version=st.sampled_from([V1, V3]),
 )
 def test_mutated_files_give_a_dataset_or_input_file_error(
@@ -202,16 +198,7 @@ def test_mutated_files_give_a_dataset_or_input_file_error(
     lines = (real_data / version).read_bytes().split(b"\n")
     n = 45 if version == V1 else 60  # header + a few records keeps the test fast
     data = bytearray(b"\n".join(lines[:n]) + b"\n")
-    for op, where, byte in ops:
-        i = min(int(where * len(data)), max(len(data) - 1, 0))
-        if op == "replace" and data:
-            data[i] = byte
-        elif op == "delete" and data:
-            del data[i]
-        elif op == "insert":
-            data.insert(i, byte)
-        else:
-            del data[i:]
+    data = mutated(bytes(data), ops)
     path = tmp_path_factory.mktemp("mut") / "m.sta"
     path.write_bytes(bytes(data))
     try:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,9 @@ from hypothesis import strategies as st
 from cwproc.errors import ConfigError, InputFileError
 from cwproc.io import Format, detect_format
 from cwproc.io.windcube_rtd import read_windcube_rtd
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from byte_mutations import mutated, mutation_ops
 
 REAL = "windcube/WLS71460_2022_01_11__21_04_17.rtd"
 SAMPLE = Path(__file__).resolve().parents[2] / "sample_data" / "windcube_rtd"
@@ -170,15 +174,7 @@ def test_sta_reader_is_not_confused_with_rtd():
     max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(
-    ops=st.lists(
-        st.tuples(
-            st.sampled_from(["replace", "delete", "insert", "truncate"]),
-            st.floats(0, 1, allow_nan=False),
-            st.sampled_from(list(b"\t\n.=0123456789 xNAV-/:\xb0m")),
-        ),
-        min_size=1,
-        max_size=4,
-    ),
+    ops=mutation_ops(b"\t\n.=0123456789 xNAV-/:\xb0m"),
     name=st.sampled_from(
         ["WLS71999_2024_06_01__00_00_00.rtd", "WLS7-099_2024_06_01__00_12_00.rtd"]
     ),
@@ -186,16 +182,7 @@ def test_sta_reader_is_not_confused_with_rtd():
 def test_mutated_files_give_a_dataset_or_input_file_error(tmp_path_factory, ops, name):
     lines = (SAMPLE / name).read_bytes().split(b"\n")
     data = bytearray(b"\n".join(lines[:40]) + b"\n")
-    for op, where, byte in ops:
-        i = min(int(where * len(data)), max(len(data) - 1, 0))
-        if op == "replace" and data:
-            data[i] = byte
-        elif op == "delete" and data:
-            del data[i]
-        elif op == "insert":
-            data.insert(i, byte)
-        else:
-            del data[i:]
+    data = mutated(bytes(data), ops)
     path = tmp_path_factory.mktemp("mut") / "m.rtd"
     path.write_bytes(bytes(data))
     try:

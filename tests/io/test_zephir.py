@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
 from cwproc.errors import InputFileError
 from cwproc.io.zephir import HEIGHT_COLUMNS, read_zephir_csv
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from byte_mutations import mutated, mutation_ops
 
 REAL = "zephir/Wind10_317@Y2016_M12_D13.ZPH.csv"
 
@@ -279,29 +282,10 @@ def _base_bytes(tmp_path_factory) -> bytes:
     deadline=None,
     suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
-@given(
-    ops=st.lists(
-        st.tuples(
-            st.sampled_from(["replace", "delete", "insert", "truncate"]),
-            st.floats(0, 1, allow_nan=False),
-            st.sampled_from(list(b";,.:0123456789 \nx-9\t\xb0")),
-        ),
-        min_size=1,
-        max_size=4,
-    )
-)
+@given(ops=mutation_ops(b";,.:0123456789 \nx-9\t\xb0"))
 def test_mutated_files_give_a_dataset_or_input_file_error(tmp_path_factory, ops):
     data = bytearray(_base_bytes(tmp_path_factory))
-    for op, where, byte in ops:
-        i = min(int(where * len(data)), max(len(data) - 1, 0))
-        if op == "replace" and data:
-            data[i] = byte
-        elif op == "delete" and data:
-            del data[i]
-        elif op == "insert":
-            data.insert(i, byte)
-        else:
-            del data[i:]
+    data = mutated(bytes(data), ops)
     path = tmp_path_factory.mktemp("mut") / "Wind_m.ZPH.csv"
     path.write_bytes(bytes(data))
     try:
