@@ -11,7 +11,8 @@ files. Nothing of the year is stored:
    saved (journal, then the snapshot), cut into classification tasks
    (:func:`cwproc.batch.run.classification_batches`) and planned into units
    (:func:`cwproc.batch.run.plan_units`). Printed: the driver's time and peak memory
-   (VmHWM above the imports), the ledger's size, the number of tasks.
+   (VmHWM above the imports), the ledger's size, the number of tasks. Then the saved
+   ledger is loaded in another child (the next run's start): its time and peak memory.
 2. **Classification on the workers**, measured on ``--header-files`` real files of the
    year's layout cut after their first ray lines (classification reads a ``.hpl`` file's
    header and first ray only): CPU per file of :func:`classify_batch`, scaled to the
@@ -134,6 +135,21 @@ def plan_year(out: Path) -> dict[str, float]:
     }
 
 
+def load_year(out: Path) -> dict[str, float]:
+    """The year's ledger loaded back in this process (a next run's start)."""
+    from cwproc.batch import load_ledger
+
+    base_kib = vm_kib("VmRSS")
+    t0 = time.perf_counter()
+    ledger = load_ledger(out / "ledger.json")
+    return {
+        "files": len(ledger.files),
+        "load_s": time.perf_counter() - t0,
+        "load_peak_mib": (vm_kib("VmHWM") - base_kib) / 1024,
+        "loaded_mib": (vm_kib("VmRSS") - base_kib) / 1024,
+    }
+
+
 def classify_per_file(folder: Path, n: int) -> float:
     """Step 2: CPU seconds per file of classify_batch on ``n`` files cut after 3 rays."""
     from cwproc.batch.worker import classify_batch, classify_file
@@ -241,9 +257,11 @@ def main() -> None:
     parser.add_argument("--no-dask", action="store_true", help="leave out the LocalCluster")
     parser.add_argument("--plan-only", action="store_true", help="only the year's planning")
     parser.add_argument("--plan-child", metavar="DIR", help=argparse.SUPPRESS)
+    parser.add_argument("--load-child", metavar="DIR", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.plan_child:
-        print(json.dumps(plan_year(Path(args.plan_child))))
+    if args.plan_child or args.load_child:
+        child = plan_year if args.plan_child else load_year
+        print(json.dumps(child(Path(args.plan_child or args.load_child))))
         return
     work = Path(tempfile.mkdtemp(prefix="cwproc_year_"))
     try:
@@ -252,22 +270,31 @@ def main() -> None:
         shutil.rmtree(work, ignore_errors=True)
 
 
-def print_plan(work: Path) -> dict[str, float]:
-    """Step 1 in a child process (its peak memory is the driver's); figures printed."""
-    (work / "plan").mkdir()
-    child = subprocess.run(
-        [sys.executable, __file__, "--plan-child", str(work / "plan")],
-        capture_output=True,
-        text=True,
-        check=True,
+def child(flag: str, folder: Path) -> dict[str, float]:
+    """The figures of this script run as ``--plan-child``/``--load-child`` on ``folder``
+    in a new process (its peak memory is the driver's)."""
+    done = subprocess.run(
+        [sys.executable, __file__, flag, str(folder)], capture_output=True, text=True, check=True
     )
-    plan = json.loads(child.stdout.strip().splitlines()[-1])
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def print_plan(work: Path) -> dict[str, float]:
+    """Step 1 in a child process, then the ledger loaded back in another; printed."""
+    (work / "plan").mkdir()
+    plan = child("--plan-child", work / "plan")
     print(
         f"planning the year ({plan['files']:,} files, driver): "
         f"{plan['classification_tasks']} classification tasks + {plan['unit_tasks']} unit "
         f"tasks; records {plan['records_s']:.1f} s, planned at {plan['plan_s']:.1f} s, "
         f"ledger saved at {plan['plan_and_save_s']:.1f} s (CPU {plan['cpu_s']:.1f} s); "
         f"driver memory {plan['driver_mib']:.0f} MiB; ledger {plan['ledger_mb']:.0f} MB",
+        flush=True,
+    )
+    load = child("--load-child", work / "plan")
+    print(
+        f"the year's ledger loaded by the next run: {load['load_s']:.1f} s, driver peak "
+        f"{load['load_peak_mib']:.0f} MiB, {load['loaded_mib']:.0f} MiB once loaded",
         flush=True,
     )
     return plan

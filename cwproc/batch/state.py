@@ -101,18 +101,22 @@ class FileTable(MutableMapping[str, dict[str, Any]]):
                 return value
             return replace(value, **dict(zip(_SHARED_FIELDS, interned, strict=True)))
         if isinstance(value, Mapping) and value.keys() == _FILE_FIELD_SET:
-            return FileInfo(
-                **{
-                    f: pool.setdefault(v, v) if f in _SHARED_FIELDS and isinstance(v, str) else v
-                    for f, v in value.items()
-                }
-            )
+            return self._from_fields(dict(value))
         return dict(value)
+
+    def _from_fields(self, fields_: dict[str, Any]) -> FileInfo:
+        """The record of an entry's fields (``fields_`` is changed: strings interned)."""
+        pool = self._strings
+        for name in _SHARED_FIELDS:
+            text = fields_[name]
+            if type(text) is str:
+                fields_[name] = pool.setdefault(text, text)
+        return FileInfo(**fields_)
 
     def json_hook(self, obj: dict[str, Any]) -> Any:
         """``object_hook`` of :func:`json.loads`: a file entry compacted as it is parsed
         (a year's snapshot never exists as 700,800 dicts)."""
-        return self.compact(obj) if obj.keys() == _FILE_FIELD_SET else obj
+        return self._from_fields(obj) if obj.keys() == _FILE_FIELD_SET else obj
 
     def put(self, info: FileInfo) -> FileInfo:
         """Store ``info`` under its path; the stored record (interned strings)."""
