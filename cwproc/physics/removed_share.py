@@ -648,11 +648,12 @@ def _dense_circle(
     angle = np.arange(1, n_lags + 1) * 2.0 * np.pi / rays
     needed = math.ceil(angle[-1] * ref / (2.0 * np.pi) - 1e-9) + 1
     ref_lags = min(max(needed, DENSE_REFERENCE_LAGS), ref // 2)  # one grid for most scans
-    grid = _dense_reference_grid(ref_lags, setting)
-    ref_angle = np.arange(1, ref_lags + 1) * 2.0 * np.pi / ref
-    per_angle2 = _grid_at(grid, mu, ratio) / ref_angle**2  # (cells, k, ref_lags)
-    pos = np.interp(angle, ref_angle, np.arange(ref_lags, dtype=float))  # ref_lags >= 2
-    i0 = np.minimum(np.floor(pos).astype(int), ref_lags - 2)
+    use = min(needed, ref_lags)  # >= 2; the cells interpolated at these lags only
+    grid = _dense_reference_grid(ref_lags, setting)[..., :use]
+    ref_angle = np.arange(1, use + 1) * 2.0 * np.pi / ref
+    per_angle2 = _grid_at(grid, mu, ratio) / ref_angle**2  # (cells, k, use)
+    pos = np.interp(angle, ref_angle, np.arange(use, dtype=float))
+    i0 = np.minimum(np.floor(pos).astype(int), use - 2)
     frac = pos - i0
     value = (1.0 - frac) * per_angle2[..., i0] + frac * per_angle2[..., i0 + 1]
     return value * angle**2
