@@ -15,7 +15,7 @@ code of this checkout; every table it requests is recorded with its parameters, 
 and copied, compressed, into ``cwproc/atables/`` under its cache key with its parameters
 (``params``, JSON) inside. ``cwproc/atables/MANIFEST.txt`` lists which job needed which
 table. The cache key holds a hash of the code of the physics modules the build uses
-(:func:`cwproc.physics.disk_cache.code_digest`), so any change of that code makes the
+(:func:`cwproc.tables.store.code_digest`), so any change of that code makes the
 shipped tables stale: ``--rebuild`` then builds them again from the stored parameters,
 without the jobs; ``tests/physics/test_shipped_atables.py`` fails until it is run.
 """
@@ -57,7 +57,7 @@ JOBS: dict[str, list[str]] = {
 #: runs ``cwproc`` with every table request appended to $CWPROC_ATABLE_LOG (JSON lines)
 RECORDER = """
 import json, os, sys
-from cwproc.physics import atable
+from cwproc.tables import atable
 key = atable.table_key
 def recorded(params):
     with open(os.environ["CWPROC_ATABLE_LOG"], "a") as log:
@@ -87,7 +87,7 @@ def run_job(commands: list[str], cache: Path, workdir: Path) -> list[dict]:
 def ship(params: dict, target: Path, built: Path | None = None) -> Path:
     """The table of ``params`` (from the folder ``built`` when there, else built), written
     into ``target`` compressed, with ``params`` inside."""
-    from cwproc.physics import atable
+    from cwproc.tables import atable
 
     key = atable.table_key(params)
     with tempfile.TemporaryDirectory() as tmp:
@@ -95,7 +95,7 @@ def ship(params: dict, target: Path, built: Path | None = None) -> Path:
         if path is None or not path.exists():
             table = atable.build_a_table(atable.probe_from_params(params["probe"]), params)
             path = Path(tmp) / f"atable-{key}.npz"
-            atable._save(table, path, key)
+            atable.save_table(table, path, key)
         with np.load(path, allow_pickle=False) as data:
             arrays = {name: data[name] for name in data.files}
     arrays["params"] = np.array(json.dumps(params, sort_keys=True))
@@ -119,7 +119,7 @@ def stored(target: Path) -> list[tuple[dict, str, None]]:
 def write(entries: list[tuple[dict, str, Path | None]], target: Path) -> None:
     """Ship the tables of ``entries`` (``(params, job, cache)``) and write the manifest;
     a table requested by several jobs is shipped once, listed under the first."""
-    from cwproc.physics import atable
+    from cwproc.tables import atable
 
     target.mkdir(exist_ok=True)
     for old in target.glob("atable-*.npz"):

@@ -66,7 +66,7 @@ Estimates, per block of scans and height, all vectorised:
   lidar of Banakh et al. (1999)) passes only 25 % of sigma_V^2 of an L_V = 333 m field, and
   the inertial loss overestimated sigma_V^2 2.5-fold, so L_V came out too large and eps 40 % low.
   The share the block-mean VAD wind takes is that of the full circle
-  (:func:`cwproc.physics.removed_share.mean_removed_share`), or for sectors and gaps
+  (:func:`cwproc.tables.removed_share.mean_removed_share`), or for sectors and gaps
   (:func:`cwproc.physics.removed_share.partial_circle`) that of the azimuths present
   with the scans' correlation (:func:`cwproc.physics.removed_share.sector_removed_share`);
 - ``integral_scale``: ``L_V = c sigma_V^3 / eps``, Banakh et al. (1999), eq. 19, with the
@@ -224,7 +224,7 @@ def estimate_epsilon(
         Geometric nodes of L_V scanned for the root of the variance condition
         (finite-outer-scale models) before the bisection refines it.
     table_options : dict, optional
-        Keyword arguments of :func:`cwproc.physics.atable.get_a_table` (``cache_dir``,
+        Keyword arguments of :func:`cwproc.tables.atable.get_a_table` (``cache_dir``,
         ``height_range_m``, ``mu_max``, ``outer_scale_range_m``).
     fit_noise : bool
         Fit the noise term ``2 sigma_e^2`` in the exact cw fit

@@ -25,7 +25,6 @@ from cwproc.physics.removed_share import (
     MAX_SECTOR_RAYS,
     circle_removed_d,
     interp_log_scale,
-    mean_removed_share,
     partial_circle,
     sector_removed_d,
     sector_removed_share,
@@ -35,6 +34,7 @@ from cwproc.physics.structure_fit import NOISE_PRIOR_REL_SE, fit_structure_funct
 from cwproc.stages.epsilon.atable_fit import EVALUATION_CELLS, outer_scale_sector_factor
 from cwproc.stages.epsilon.cells import Cells
 from cwproc.stages.epsilon.root_search import Residual, bracket_root, replayed_root
+from cwproc.tables.removed_share import mean_removed_share
 
 #: lengths below this fraction of L_V keep the inertial A-functions (see module doc)
 INERTIAL_FRACTION = 0.02
@@ -685,7 +685,8 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
     if circle.size:
         # the field's transport between the scans: the measured mu less its turbulent bias
         var, v_s = cells.var_raw[rows].ravel()[circle], cells.v_s[rows].ravel()[circle]
-        mu_t = transport_mu(mu[circle], ratio[circle], var, v_s, scans[circle], phi, model)
+        rest = mean_removed_share(ratio[circle], phi, model, 0.0)
+        mu_t = transport_mu(mu[circle], rest, var, v_s, scans[circle], phi)
         removed[circle] = circle_removed_d(
             np.radians(dtheta[circle]),
             lags.size,
