@@ -152,7 +152,6 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from cwproc.config import load_config
 from cwproc.physics import spectra
 from cwproc.physics.constants import STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M
 from cwproc.physics.exact_lag import is_cw_probe
@@ -178,21 +177,23 @@ from cwproc.stages.epsilon.noise_prior import (
 from cwproc.stages.epsilon.outer_scale import fit_setup, retrieve
 from cwproc.stages.epsilon.product import describe, product_arrays, turbulence_dataset
 
-#: the preset whose values are the defaults of :func:`estimate_epsilon`
-PRESET = load_config("streamline")
-#: the preset's probe volume for data without a range gate length (the pipeline passes
-#: the probe of the file's gate, :func:`cwproc.pipeline.probe_for`)
-PRESET_PROBE: Probe = PulsedProbe(
-    STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M, PRESET.turbulence.pulse_transfer
-)
+#: the Stream Line preset's probe volume (``cwproc/configs/streamline.toml``:
+#: ``pulse_transfer = "physical"``), for data without a range gate length (the pipeline
+#: passes the probe of the file's gate, :func:`cwproc.pipeline.probe_for`). The stage
+#: reads no configuration: its defaults are literals, equal to the preset's values
+#: (``tests/stages/test_epsilon_defaults.py``)
+PRESET_PROBE: Probe = PulsedProbe(STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M, "physical")
+#: the Stream Line preset's ``[turbulence]`` lag number and spectrum model
+PRESET_LAG_NUMBER = 3
+PRESET_MODEL: Model = "von_karman"
 
 
 def estimate_epsilon(
     sf: xr.Dataset,
     *,
     probe: Probe = PRESET_PROBE,
-    lag_number: int = PRESET.turbulence.lag_number,
-    model: Model = PRESET.turbulence.model,
+    lag_number: int = PRESET_LAG_NUMBER,
+    model: Model = PRESET_MODEL,
     min_pairs: int = 100,
     n_outer_scales: int = 7,
     table_options: dict | None = None,
