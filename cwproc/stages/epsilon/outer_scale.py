@@ -30,10 +30,10 @@ from cwproc.physics.removed_share import (
     sector_removed_share,
     transport_mu,
 )
+from cwproc.physics.root_search import Residual, bracket_root, replayed_root
 from cwproc.physics.structure_fit import NOISE_PRIOR_REL_SE, fit_structure_function
 from cwproc.stages.epsilon.atable_fit import EVALUATION_CELLS, outer_scale_sector_factor
 from cwproc.stages.epsilon.cells import Cells
-from cwproc.stages.epsilon.root_search import Residual, bracket_root, replayed_root
 from cwproc.tables.removed_share import mean_removed_share
 
 #: lengths below this fraction of L_V keep the inertial A-functions (see module doc)
@@ -208,13 +208,13 @@ def outer_scale_root(
 
     ``residual_of(index)`` is :func:`variance_residual` of the cells ``index``. Coarse
     scan of ``nodes`` (``(k,)``, m), then :data:`_BISECTIONS` bisections of the largest
-    sign change in log L_V (:func:`cwproc.stages.epsilon.root_search.bracket_root`);
+    sign change in log L_V (:func:`cwproc.physics.root_search.bracket_root`);
     ``below``: even the smallest node gives too much variance (lags not inertial);
     ``slope``: the residual's slope by log L_V at the root. With ``near`` (a root per
     cell, for the small changes of :func:`cwproc.stages.epsilon.errors.covariance_errors`)
     the scan covers ``near / 2 .. 2 near`` and :data:`_BISECTIONS_NEAR` bisections reach
     the same bracket, replayed from a secant step where ``near_slope`` (the slope at
-    ``near``) is given (:func:`cwproc.stages.epsilon.root_search.replayed_root`, the same
+    ``near``) is given (:func:`cwproc.physics.root_search.replayed_root`, the same
     roots from three evaluations for seven); ``slope`` is then NaN.
     """
     residual = residual_of(np.arange(n))
