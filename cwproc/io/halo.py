@@ -67,9 +67,9 @@ from cwproc.io.halo_header import (
     split_header,
 )
 from cwproc.io.netcdf import write_bytes_atomic
-from cwproc.io.scans import scan_indices
 from cwproc.io.schema import DECLARED_ATTRS, SCAN_VARIABLES
 from cwproc.physics.geometry import normalise_pointing
+from cwproc.physics.scan_numbering import scan_indices
 
 
 class Fed(Protocol):

@@ -43,13 +43,9 @@ from cwproc.io.halo_body import (
     structure_problem,
 )
 from cwproc.io.halo_header import HplHeader, parse_header
-from cwproc.io.scans import (
-    concat_scans,
-    joined_attrs,
-    scan_indices_of_runs,
-    time_sorted_scans,
-)
+from cwproc.io.scans import concat_scans, joined_attrs, time_sorted_scans
 from cwproc.physics.geometry import normalise_pointing
+from cwproc.physics.scan_numbering import scan_indices_of_runs
 
 #: data lines joined for one call of the pandas tokenizer (bytes), used only when the
 #: compiled tokenizer is not built: large enough to amortise pandas' cost per call
