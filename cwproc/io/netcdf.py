@@ -20,7 +20,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import ProductError
-from cwproc.io import NETCDF_LOCK
+from cwproc.io.identity import NETCDF_LOCK
 
 _CHUNK = 1 << 20
 

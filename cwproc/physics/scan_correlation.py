@@ -49,7 +49,7 @@ import math
 
 import numpy as np
 
-from cwproc.physics.removed_share import _correlation_curve
+from cwproc.physics.removed_share import correlation_curve
 
 #: ``mu = U/V_s`` from which the scans are the frozen field carried by the wind; below it
 #: the frozen cross-scan correlation is scaled by ``mu / MU_FROZEN`` (at 0 the scans are
@@ -123,7 +123,7 @@ def cross_scan_correlation(
     model : str
         ``"von_karman"`` or ``"exponential"``.
     """
-    log_r, f_c, g_c = _correlation_curve(model)
+    log_r, f_c, g_c = correlation_curve(model)
     r_vec = pos[None, :, None, :] - pos[None, None, :, :]
     r_vec = r_vec + np.asarray(shift, float)[:, None, None, None] * np.array([1.0, 0.0, 0.0])
     r = np.linalg.norm(r_vec, axis=-1)

@@ -24,16 +24,16 @@ from cwproc.physics.probe_variance import averaging_loss, passed_variance, segme
 from cwproc.physics.removed_share import (
     circle_removed_d,
     interp_log_scale,
-    mean_removed_share,
     partial_circle,
     sector_removed_d,
     sector_removed_share,
     transport_mu,
 )
+from cwproc.physics.root_search import Residual, bracket_root, replayed_root
 from cwproc.physics.structure_fit import NOISE_PRIOR_REL_SE, fit_structure_function
 from cwproc.stages.epsilon.atable_fit import EVALUATION_CELLS, outer_scale_sector_factor
 from cwproc.stages.epsilon.cells import Cells
-from cwproc.stages.epsilon.root_search import Residual, bracket_root, replayed_root
+from cwproc.tables.removed_share import mean_removed_share, stored_dense_grid
 
 #: lengths below this fraction of L_V keep the inertial A-functions (see module doc)
 INERTIAL_FRACTION = 0.02
@@ -211,13 +211,13 @@ def outer_scale_root(
 
     ``residual_of(index)`` is :func:`variance_residual` of the cells ``index``. Coarse
     scan of ``nodes`` (``(k,)``, m), then :data:`_BISECTIONS` bisections of the largest
-    sign change in log L_V (:func:`cwproc.stages.epsilon.root_search.bracket_root`);
+    sign change in log L_V (:func:`cwproc.physics.root_search.bracket_root`);
     ``below``: even the smallest node gives too much variance (lags not inertial);
     ``slope``: the residual's slope by log L_V at the root. With ``near`` (a root per
     cell, for the small changes of :func:`cwproc.stages.epsilon.errors.covariance_errors`)
     the scan covers ``near / 2 .. 2 near`` and :data:`_BISECTIONS_NEAR` bisections reach
     the same bracket, replayed from a secant step where ``near_slope`` (the slope at
-    ``near``) is given (:func:`cwproc.stages.epsilon.root_search.replayed_root`, the same
+    ``near``) is given (:func:`cwproc.physics.root_search.replayed_root`, the same
     roots from three evaluations for seven); ``slope`` is then NaN.
     """
     residual = residual_of(np.arange(n))
@@ -690,7 +690,8 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
     if circle.size:
         # the field's transport between the scans: the measured mu less its turbulent bias
         var, v_s = cells.var_raw[rows].ravel()[circle], cells.v_s[rows].ravel()[circle]
-        mu_t = transport_mu(mu[circle], ratio[circle], var, v_s, scans[circle], phi, model)
+        rest = mean_removed_share(ratio[circle], phi, model, 0.0)
+        mu_t = transport_mu(mu[circle], rest, var, v_s, scans[circle], phi)
         removed[circle] = circle_removed_d(
             np.radians(dtheta[circle]),
             lags.size,
@@ -700,6 +701,7 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
             scans[circle],
             phi,
             model,
+            dense_reference=stored_dense_grid,
         )
     full = np.array([spectra.variance_per_eps23(model, x) for x in nodes])
     a2 = np.exp(log_a2) - removed * full[None, :, None]
