@@ -1,11 +1,23 @@
 """The stage chains of each kind of unit (pure: datasets in, product datasets out).
 
-scan data (Stream Line ``.hpl``, cw line-of-sight NetCDF)::
+scan data (Stream Line ``.hpl``, cw line-of-sight NetCDF), :class:`ScanChain`, each
+step with its reach::
 
-    qc.screen_radial_velocity -> vad.fit_vad -> wind product
+    chunk  -> background.correct_snr (per ray, ScanChain.prepare)
+           -> stare.split_stares (per ray, ScanChain.split)
+    others -> qc.screen_radial_velocity -> vad.fit_vad (per scan, ScanChain.fit)
+           -> wind product
     screened scans + wind -> structure.azimuth_structure_function
-                          -> epsilon.estimate_epsilon -> turbulence product
+                             (per block of N scans, ScanChain.blocks)
+    the day's blocks -> epsilon.estimate_epsilon -> turbulence product
     vertical stares -> stare.stare_product (+ the day's VAD wind) -> stare product
+                       (and doppler_lidar.doppler_lidar_product: L1)
+                       (per day, ScanChain.finish)
+
+:class:`ScanChain` is the only place that names this order and the day's decisions
+(:meth:`ScanChain.decisions`: scan numbering, the VAD's conical elevation, the azimuth
+step and rotation); :func:`cwproc.pipeline.stream.run_scan_chain` runs it over one
+chunk (the whole day) or many (a day in bounded memory), with the same products.
 
 wind records (ZephIR, WindCube)::
 
@@ -22,166 +34,412 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Literal
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 import xarray as xr
 
-from cwproc.config import Config, InstrumentConfig
+from cwproc import memory
+from cwproc.config import Config
 from cwproc.errors import CwprocError
-from cwproc.physics.probe_lengths import ProbeLengths, pulse_rate, pulsed_probe_lengths
+from cwproc.pipeline.background import SnrCorrection, corrected_snr
+from cwproc.pipeline.probe import (  # moved (issue 33): remove in stream D
+    probe_attrs,
+    probe_for,
+    probe_from_config,
+    probe_mismatch,
+    pulse_rate_hz,
+    pulsed_lengths,
+)
 from cwproc.pipeline.units import ProductUnit
 
 if TYPE_CHECKING:
-    from cwproc.physics.transfer import Probe
     from cwproc.stages.doppler_lidar import DopplerLidarOptions
+
+__all__ = [
+    "Carry",
+    "DayDecisions",
+    "DayParts",
+    "Fitted",
+    "PartsDiffer",
+    "Pointing",
+    "Rows",
+    "ScanChain",
+    "probe_attrs",
+    "probe_for",
+    "probe_from_config",
+    "probe_mismatch",
+    "pulse_rate_hz",
+    "pulsed_lengths",
+]
 
 # The stages are imported by the functions that run them: a command imports the chain
 # of its own kind of data only (the lidar chain's scipy.integrate, optimize and special
 # took 0.55 s of each sf-type run, a quarter of its time).
 
 
-def probe_from_config(
-    instrument: InstrumentConfig,
-    *,
-    pulse_transfer: Literal["physical", "printed"] = "physical",
-    data_attrs: Mapping[str, object] | None = None,
-) -> Probe:
-    """The probe of an instrument configuration and of the data it describes.
+@dataclass(frozen=True)
+class Fitted:
+    """Screened conical scans and their VAD wind rows (:meth:`ScanChain.fit`)."""
 
-    Parameters
+    screened: xr.Dataset
+    wind: xr.Dataset
+
+
+@dataclass(frozen=True)
+class Carry:
+    """Screened rays and wind rows of the scans of an incomplete block, carried into the
+    next chunk (:meth:`ScanChain.blocks`)."""
+
+    screened: xr.Dataset
+    wind: xr.Dataset
+
+
+@dataclass(frozen=True)
+class Pointing:
+    """Per-ray time, azimuth and elevation (deg) of a day, and its files' scan type."""
+
+    time: np.ndarray
+    azimuth: np.ndarray
+    elevation: np.ndarray
+    scan_type: str
+
+
+@dataclass(frozen=True)
+class DayDecisions:
+    """What the whole day decides, which every chunk of a streamed day must repeat.
+
+    Attributes
     ----------
-    instrument : InstrumentConfig
-        ``kind == "pulsed"`` gives a ``PulsedProbe`` whose ``Delta_R`` is
-        ``delta_r_m`` when set, else the data's range gate length (``gate_length_m``,
-        the Stream Line header's ``Range gate length (m)``; 18 m when the data have
-        none), and whose ``Delta_p`` is ``delta_p_m`` when set, else the instrument
-        model's (Stream Line 15.3 m), Smalikho (2020), eq. 19
-        (:func:`cwproc.physics.probe_lengths.pulsed_probe_lengths`);
-        ``kind == "cw"`` a ``CWProbe`` from ``beam_radius_m`` and ``wavelength_m`` when
-        the beam radius is set, else from ``z_r_coefficient``
-        (:mod:`cwproc.physics.transfer`).
-    pulse_transfer : {"physical", "printed"}
-        Form of the Gaussian term of a pulsed probe (see ``PulsedProbe``).
-    data_attrs : mapping, optional
-        Attributes of the scan dataset (``gate_length_m``, ``instrument_kind``).
-
-    Raises
-    ------
-    ValueError
-        For ``kind == "sonic"`` (no probe volume) or an impossible parameter.
+    scan : numpy.ndarray
+        Scan index of each ray (:func:`cwproc.io.scans.scan_indices` over the day).
+    vad_elevation_deg : float or None
+        The conical elevation the VAD keeps (the day's most common); None: no wind.
+    vad_scans_other_elevation : int
+        Conical scans left out for another elevation.
+    wind_scans : numpy.ndarray
+        The scans the VAD fits, in order.
+    azimuth_step : (float, float) or None
+        Azimuth step (deg) and rotation (+1 clockwise) of the wind scans' rays (None:
+        no structure function).
     """
-    from cwproc.physics.transfer import CWProbe, PulsedProbe
 
-    if instrument.kind == "pulsed":
-        lengths = pulsed_lengths(instrument, data_attrs)
-        return PulsedProbe(lengths.delta_p_m, lengths.delta_r_m, pulse_transfer)
-    if instrument.kind == "cw":
-        if instrument.beam_radius_m is not None:
-            return CWProbe(
-                instrument.z_r_coefficient, instrument.wavelength_m, instrument.beam_radius_m
-            )
-        return CWProbe(instrument.z_r_coefficient)
-    raise ValueError(f"instrument kind {instrument.kind!r} has no lidar probe volume")
+    scan: np.ndarray
+    vad_elevation_deg: float | None = None
+    vad_scans_other_elevation: int = 0
+    wind_scans: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    azimuth_step: tuple[float, float] | None = None
 
-
-def pulsed_lengths(
-    instrument: InstrumentConfig, data_attrs: Mapping[str, object] | None = None
-) -> ProbeLengths:
-    """``Delta_p``, ``Delta_R`` (m) and their sources for data with ``data_attrs``."""
-    return pulsed_probe_lengths(data_attrs or {}, instrument.delta_p_m, instrument.delta_r_m)
-
-
-def probe_attrs(config: Config, data_attrs: Mapping[str, object] | None) -> dict[str, object]:
-    """Product attributes recording the pulsed probe used (empty for a cw lidar).
-
-    The lengths (:func:`pulsed_lengths`) and the pulse repetition frequency
-    (:func:`pulse_rate_hz`) with their sources.
-    """
-    if config.instrument.kind != "pulsed":
-        return {}
-    rate = pulse_rate(data_attrs or {}, config.instrument.prf_hz)
-    return {**pulsed_lengths(config.instrument, data_attrs).attrs(), **rate.attrs()}
-
-
-def pulse_rate_hz(config: Config, data_attrs: Mapping[str, object] | None) -> float | None:
-    """The PRF (Hz) of a pulsed lidar's data: ``[instrument] prf_hz``, else the model's.
-
-    :func:`cwproc.physics.probe_lengths.pulse_rate`; None for other instruments (their
-    rays have no pulses to count).
-    """
-    if config.instrument.kind != "pulsed":
-        return None
-    return pulse_rate(data_attrs or {}, config.instrument.prf_hz).prf_hz
-
-
-def probe_for(config: Config, data_attrs: Mapping[str, object] | None = None) -> Probe:
-    """The probe-volume description of the configured instrument (physics object).
-
-    ``data_attrs``: the scan dataset's attributes, which give a pulsed probe its range
-    gate length (:func:`probe_from_config`).
-
-    Raises
-    ------
-    CwprocError
-        The configuration describes no lidar (``instrument.kind = "sonic"``).
-    """
-    if config.instrument.kind not in ("pulsed", "cw"):
-        raise CwprocError(
-            f"configuration {config.source}: instrument.kind = {config.instrument.kind!r} "
-            "describes no lidar probe volume; use a lidar configuration (e.g. -c streamline "
-            "or -c zephir300) for scan data"
-        )
-    return probe_from_config(
-        config.instrument, pulse_transfer=config.turbulence.pulse_transfer, data_attrs=data_attrs
-    )
-
-
-def probe_mismatch(scans: xr.Dataset, config: Config) -> str:
-    """Why the configured probe cannot describe these scans ('' when it can).
-
-    The A-functions and the variance correction depend on the probe volume (pulsed range
-    gate or focused cw Lorentzian, Smalikho (2020), eqs. 19-20; Banakh et al. (1999),
-    eq. 3); scans whose ``instrument_kind`` differs from ``[instrument] kind`` would get
-    an eps of the wrong instrument (a cw series read with the pulsed default config came
-    out 3-25 times too low), so no turbulence product is made for them.
-    """
-    declared = str(scans.attrs.get("instrument_kind", "")).strip().lower()
-    kind = {"streamline": "pulsed", "pulsed": "pulsed", "cw": "cw"}.get(declared)
-    if kind is None or kind == config.instrument.kind:
+    def differences(self, other: DayDecisions) -> str:
+        """What ``other`` decided differently ('' when nothing)."""
+        if not np.array_equal(self.scan, other.scan):
+            return "scan numbering"
+        vad = (self.vad_elevation_deg, self.vad_scans_other_elevation)
+        if vad != (other.vad_elevation_deg, other.vad_scans_other_elevation):
+            return "conical elevation"
+        if not np.array_equal(self.wind_scans, other.wind_scans):
+            return "conical scans of the day"
+        if self.azimuth_step != other.azimuth_step:
+            return "azimuth step"
         return ""
-    files = ", ".join(str(f) for f in np.atleast_1d(scans.attrs.get("source_files", []))[:3])
-    return (
-        f"the scans{' of ' + files if files else ''} come from a {kind} lidar "
-        f"(instrument_kind = {declared!r}) but configuration {config.source} describes a "
-        f"{config.instrument.kind} lidar; use a {kind} configuration "
-        f"(e.g. -c {'banakh1999' if kind == 'cw' else 'streamline'})"
-    )
+
+
+@dataclass
+class DayParts:
+    """The pieces a day's products are made of (one each for a day run whole).
+
+    ``attrs``: the attributes of the day's scans; ``joined``: the pieces come from
+    several chunks, so the products take the day's attributes, not a chunk's.
+    """
+
+    attrs: dict
+    winds: Rows = field(default_factory=lambda: Rows("time"))
+    sfs: Rows = field(default_factory=lambda: Rows("time"))
+    stares: Rows = field(default_factory=lambda: Rows("ray"))
+    turbulence: bool = True
+    joined: bool = False
+
+
+class PartsDiffer(CwprocError):
+    """Parts of a day that cannot be one dataset (other variables, gates or lags)."""
+
+
+class Rows:
+    """Datasets of the same variables along one dimension, kept as numpy arrays and
+    joined once (:meth:`joined`).
+
+    The parts of a day (its chunks' wind rows, blocks of structure statistics, stare
+    rays) hold the same variables; those along ``dim`` are kept as arrays and the others
+    (coordinates such as ``height``, ``lag``), the attributes, encodings and the order
+    of the variables are the first part's: the result of ``xr.concat(parts, dim,
+    combine_attrs="override")`` in one ``numpy.concatenate`` per variable (xarray's
+    join aligns and compares the parts variable by variable: 0.1-0.2 s for the 24 parts
+    of a day of 480 scans).
+    """
+
+    def __init__(self, dim: str) -> None:
+        self.dim = dim
+        self.first: xr.Dataset | None = None
+        self.arrays: dict[str, list[np.ndarray]] = {}
+        self.size = 0
+
+    def __bool__(self) -> bool:
+        return self.first is not None
+
+    def append(self, part: xr.Dataset) -> None:
+        """Keep ``part``'s values along ``dim``.
+
+        Raises
+        ------
+        PartsDiffer
+            ``part`` has other variables than the first part, or another value of a
+            variable not along ``dim``.
+        """
+        if self.first is None:
+            self.first = part
+            self.arrays = {n: [v.values] for n, v in part.variables.items() if self.dim in v.dims}
+        else:
+            first = self.first.variables
+            if part.variables.keys() != first.keys():
+                raise PartsDiffer(f"parts along {self.dim} with other variables")
+            for name, var in first.items():
+                other = part.variables[name]
+                if name in self.arrays and other.dims == var.dims and other.dtype == var.dtype:
+                    self.arrays[name].append(other.values)
+                elif name in self.arrays or not _same_values(other, var):
+                    raise PartsDiffer(f"parts along {self.dim} with another {name}")
+        self.size += int(part.sizes.get(self.dim, 0))
+
+    def joined(self) -> xr.Dataset:
+        """The parts as one dataset (the first part itself when it is the only one)."""
+        first = self.first
+        if first is None:
+            raise ValueError("no part to join")
+        if all(len(values) == 1 for values in self.arrays.values()):
+            return first
+        variables = {}
+        for name, var in first.variables.items():
+            if name in self.arrays:
+                data = np.concatenate(self.arrays[name], axis=var.dims.index(self.dim))
+                var = xr.Variable(var.dims, data, var.attrs, var.encoding)
+            variables[name] = var
+        return xr.Dataset(
+            {name: variables[name] for name in first.data_vars},
+            coords={name: variables[name] for name in first.coords},
+            attrs=dict(first.attrs),
+        )
+
+    @staticmethod
+    def of(parts: Sequence[xr.Dataset], dim: str) -> xr.Dataset:
+        """``parts`` joined along ``dim``."""
+        rows = Rows(dim)
+        for part in parts:
+            rows.append(part)
+        return rows.joined()
+
+
+def _same_values(a: xr.Variable, b: xr.Variable) -> bool:
+    """``a.equals(b)`` (dimensions and values, NaN equal to NaN) without xarray's
+    per-call overhead (about 1 ms)."""
+    if a is b:
+        return True
+    if a.dims != b.dims or a.shape != b.shape:
+        return False
+    x, y = a.values, b.values
+    nan = x.dtype.kind in "fc" and y.dtype.kind in "fc"
+    return bool(np.array_equal(x, y, equal_nan=nan))
+
+
+@dataclass(frozen=True)
+class ScanChain:
+    """The stage chain of scan data, and the decisions the whole day makes.
+
+    Built from a :class:`~cwproc.config.Config`; each method is one step of the chain
+    with its reach (ray, scan, block of ``[turbulence] n_scans`` scans, day). Run by
+    :func:`cwproc.pipeline.stream.run_scan_chain` over one chunk or many.
+    """
+
+    config: Config
+
+    def prepare(
+        self,
+        chunk: xr.Dataset,
+        unit: ProductUnit,
+        files: list[Path] | None,
+        notes: list[str] | None,
+    ) -> tuple[xr.Dataset, SnrCorrection]:
+        """Per ray: the SNR corrected with the background files of ``unit``.
+
+        ``files``: :func:`~cwproc.pipeline.background.find_background_files` of the
+        unit when the caller holds them (a streamed day looks once, not once per
+        chunk). The summary line is the record's (:class:`SnrCorrection`): the caller
+        writes one for the day.
+        """
+        return corrected_snr(chunk, unit, self.config, notes, files=files)
+
+    def split(self, ds: xr.Dataset) -> tuple[xr.Dataset | None, xr.Dataset | None]:
+        """Per ray: ``(stares, others)``, the vertical stares and the other rays."""
+        from cwproc.stages.stare import split_stares, stare_mask
+
+        vertical = stare_mask(ds)
+        # without stares the dataset is taken as it is (split_stares would copy it)
+        return split_stares(ds) if vertical.any() else (None, ds)
+
+    def fit(self, others: xr.Dataset) -> Fitted:
+        """Per scan: the rays screened (stage ``qc``) and the VAD wind (stage ``vad``)."""
+        from cwproc.io.scans import is_homodyne
+        from cwproc.stages import qc, vad
+
+        c = self.config
+        homodyne = is_homodyne(others)
+        screened = qc.screen_radial_velocity(
+            others,
+            snr_min=c.qc.snr_min,
+            outlier_threshold=c.qc.outlier_threshold,
+            homodyne=homodyne,
+        )
+        wind = vad.fit_vad(
+            screened,
+            min_rays=c.vad.min_rays,
+            max_gap_deg=c.vad.max_gap_deg,
+            reference_direction_deg=c.vad.reference_direction_deg,
+            max_residual_std=c.vad.max_residual_std,
+            homodyne=homodyne,
+        )
+        return Fitted(screened, wind)
+
+    def blocks(
+        self, carry: Carry | None, fitted: Fitted | None, *, final: bool
+    ) -> tuple[xr.Dataset | None, Carry | None]:
+        """Per block: the structure function of the complete blocks of N scans.
+
+        Blocks are ``[turbulence] n_scans`` consecutive wind rows from the first of the
+        day (Smalikho (2020), eq. 1), as
+        :func:`cwproc.stages.structure.azimuth_structure_function` forms them on the
+        whole day: the carried scans first, then ``fitted``; the scans of an incomplete
+        last block are carried (``final``: the short last block is reduced too).
+
+        Returns
+        -------
+        (sf or None, carry or None)
+        """
+        from cwproc.stages import structure
+
+        parts = [p for p in (carry, fitted) if p is not None]
+        if not parts:
+            return None, None
+        screened = Rows.of([p.screened for p in parts], "ray")
+        wind = Rows.of([p.wind for p in parts], "time")
+        n_scans = self.config.turbulence.n_scans
+        n = int(wind.sizes["time"])
+        k = n if final else n // n_scans * n_scans
+        rest = None
+        if k < n:
+            kept = np.isin(screened["scan"].values, wind["scan"].values[k:])
+            rest = Carry(screened.isel(ray=np.flatnonzero(kept)), wind.isel(time=slice(k, None)))
+        if k == 0:
+            return None, rest
+        sf = structure.azimuth_structure_function(
+            screened,
+            wind.isel(time=slice(0, k)) if k < n else wind,
+            n_scans=n_scans,
+            max_lag_deg=self.config.turbulence.max_lag_deg,
+            min_lags=self.config.turbulence.min_lags,
+        )
+        return sf, rest
+
+    def decisions(self, pointing: Pointing, *, wind: bool, step: bool) -> DayDecisions:
+        """What the whole day decides, from its pointing alone (24 bytes a ray).
+
+        The scan numbering (:func:`cwproc.io.scans.scan_indices`); with ``wind``, the
+        VAD's conical scans (:func:`cwproc.stages.vad.select_conical_scans`); with
+        ``step``, the azimuth step and rotation of their rays
+        (:func:`cwproc.stages.structure.azimuth_step`).
+        """
+        from cwproc.io.scans import scan_indices
+        from cwproc.stages import structure, vad
+
+        time, az, el = pointing.time, pointing.azimuth, pointing.elevation
+        scan, _ = scan_indices(time, az, el, scan_type=pointing.scan_type)
+        if not wind:
+            return DayDecisions(scan)
+        layout, phi, _, n_other = vad.select_conical_scans(
+            vad.scan_layout(scan, np.isfinite(az) & np.isfinite(el)), el
+        )
+        rays = np.isin(scan, layout.scan_ids)
+        found = structure.azimuth_step(az[rays], scan[rays]) if step else None
+        return DayDecisions(scan, phi, n_other, layout.scan_ids, found)
+
+    def turbulence_note(self, scans: xr.Dataset) -> str:
+        """Why no turbulence product is made of these scans ('' when one is)."""
+        mismatch = probe_mismatch(scans, self.config)
+        return f"turbulence not computed: {mismatch}" if mismatch else ""
+
+    def finish(
+        self,
+        day: DayParts,
+        notes: list[str] | None,
+        cross: xr.Dataset | None = None,
+    ) -> dict[str, xr.Dataset]:
+        """Per day: the wind, turbulence (eps with the probe), stare and L1 products.
+
+        The parts of ``day`` are released as they are joined: the chunks' pieces are
+        not held by the dissipation-rate fit, whose working arrays make the day's peak.
+        """
+        from cwproc.stages import epsilon
+        from cwproc.stages.structure import INSTRUMENT_SETTINGS
+
+        c, attrs = self.config, day.attrs
+        products: dict[str, xr.Dataset] = {}
+        rows = day.winds.size
+        if day.winds:
+            wind = day.winds.joined()
+            day.winds = Rows("time")
+            if day.joined:
+                vad_attrs = {k: v for k, v in wind.attrs.items() if k.startswith("vad_")}
+                wind.attrs = {**attrs, **vad_attrs}
+            products["wind"] = wind
+        if day.sfs:
+            sf = day.sfs.joined()
+            day.sfs = Rows("time")
+            if day.joined:
+                sf.attrs["instrument"] = str(attrs.get("instrument", ""))
+                for key in INSTRUMENT_SETTINGS:  # the day's, as the whole-day run has them
+                    sf.attrs.pop(key, None)
+                    if key in attrs:
+                        sf.attrs[key] = attrs[key]
+            with memory.phase("day_fit"):
+                turbulence = epsilon.estimate_epsilon(
+                    sf,
+                    probe=probe_for(c, attrs),
+                    lag_number=c.turbulence.lag_number,
+                    model=c.turbulence.model,
+                    prf_hz=pulse_rate_hz(c, attrs),
+                )
+            turbulence.attrs.update(probe_attrs(c, attrs))
+            products["turbulence"] = turbulence
+        elif day.turbulence and rows and notes is not None:
+            notes.append("turbulence not computed: no complete block of scans")
+        if day.stares and (c.stare.enabled or c.doppler_lidar.enabled):
+            stares = day.stares.joined()
+            day.stares = Rows("ray")
+            if day.joined:
+                stares.attrs = dict(attrs)
+            if c.stare.enabled:
+                products["stare"] = stare_products(stares, products.get("wind"), c, notes)
+            if c.doppler_lidar.enabled:
+                products["doppler_lidar"] = doppler_lidar_products(stares, cross, c, notes)
+        return products
 
 
 def screened_wind(scans: xr.Dataset, config: Config) -> tuple[xr.Dataset, xr.Dataset]:
-    """Screened conical scans and their VAD wind rows (stages ``qc`` and ``vad``)."""
-    from cwproc.io.scans import is_homodyne
-    from cwproc.stages import qc, vad
-
-    homodyne = is_homodyne(scans)
-    screened = qc.screen_radial_velocity(
-        scans,
-        snr_min=config.qc.snr_min,
-        outlier_threshold=config.qc.outlier_threshold,
-        homodyne=homodyne,
-    )
-    wind = vad.fit_vad(
-        screened,
-        min_rays=config.vad.min_rays,
-        max_gap_deg=config.vad.max_gap_deg,
-        reference_direction_deg=config.vad.reference_direction_deg,
-        max_residual_std=config.vad.max_residual_std,
-        homodyne=homodyne,
-    )
-    return screened, wind
+    """Screened conical scans and their VAD wind rows (:meth:`ScanChain.fit`)."""
+    fitted = ScanChain(config).fit(scans)
+    return fitted.screened, fitted.wind
 
 
 def process_scans(
@@ -192,49 +450,43 @@ def process_scans(
 ) -> dict[str, xr.Dataset]:
     """Wind and turbulence products from a scan dataset (already concatenated).
 
-    A wind profile that can be fitted is always returned. When the turbulence chain
-    cannot run on these scans (e.g. azimuth steps wider than the 9 degree lag limit of
-    Smalikho (2020)), the reason is appended to ``notes`` and only the wind product is
-    returned. ``kept``, when given, receives the QC-screened scans the VAD was fitted
-    to (``kept["screened"]``).
+    :class:`ScanChain` run whole (:func:`cwproc.pipeline.stream.run_scan_chain`)
+    without splitting vertical stares off. A wind profile that can be fitted is always
+    returned. When the turbulence chain cannot run on these scans (e.g. azimuth steps
+    wider than the 9 degree lag limit of Smalikho (2020)), the reason is appended to
+    ``notes`` and only the wind product is returned. ``kept``, when given, receives the
+    QC-screened scans the VAD was fitted to (``kept["screened"]``).
     """
-    from cwproc.stages import epsilon, structure
+    from cwproc.pipeline.stream import run_scan_chain
 
-    screened, wind = screened_wind(scans, config)
-    if kept is not None:
-        kept["screened"] = screened
-    products = {"wind": wind}
-    if not config.turbulence.enabled or int(wind.sizes.get("time", 0)) < 1:
-        return products
-    mismatch = probe_mismatch(scans, config)
-    if mismatch:
-        if notes is not None:
-            notes.append(f"turbulence not computed: {mismatch}")
-        return products
-    try:
-        sf = structure.azimuth_structure_function(
-            screened,
-            wind,
-            n_scans=config.turbulence.n_scans,
-            max_lag_deg=config.turbulence.max_lag_deg,
-            min_lags=config.turbulence.min_lags,
-        )
-    except CwprocError as exc:
-        if notes is not None:
-            notes.append(f"turbulence not computed: {exc}")
-        return products
-    if int(sf.sizes.get("time", 0)) >= 1:
-        products["turbulence"] = epsilon.estimate_epsilon(
-            sf,
-            probe=probe_for(config, scans.attrs),
-            lag_number=config.turbulence.lag_number,
-            model=config.turbulence.model,
-            prf_hz=pulse_rate_hz(config, scans.attrs),
-        )
-        products["turbulence"].attrs.update(probe_attrs(config, scans.attrs))
-    elif notes is not None:
-        notes.append("turbulence not computed: no complete block of scans")
-    return products
+    return run_scan_chain(
+        ScanChain(config), [scans], whole=True, notes=notes, kept=kept, stares=False
+    )
+
+
+def process_scan_day(
+    scans: xr.Dataset,
+    config: Config,
+    notes: list[str] | None = None,
+    kept: dict[str, xr.Dataset] | None = None,
+    cross: xr.Dataset | None = None,
+) -> dict[str, xr.Dataset]:
+    """Products of the scans of one instrument-day: wind/turbulence and stare.
+
+    :class:`ScanChain` run whole (:func:`cwproc.pipeline.stream.run_scan_chain`).
+    Vertical stares (elevation >= 85 deg) go to the stare product (w statistics and
+    eps of O'Connor et al. (2010), the wind speed from this day's VADs); the other rays
+    to the wind and turbulence products (``kept`` receives their screened scans). A day
+    of stares only gives the stare product (eps NaN, flag bit 1, and a note); with
+    ``[doppler_lidar] enabled`` the stares also give the L1 product ``doppler_lidar``
+    (beta, and the depolarisation ratio with the ``cross``-polarised stare rays of the
+    day when given).
+    """
+    from cwproc.pipeline.stream import run_scan_chain
+
+    return run_scan_chain(
+        ScanChain(config), [scans], whole=True, notes=notes, kept=kept, cross=cross
+    )
 
 
 # --------------------------------------------------------------------------------------
@@ -251,6 +503,13 @@ def count_stare_rays(scans: xr.Dataset) -> int:
     from cwproc.stages.stare import stare_mask
 
     return int(stare_mask(scans).sum()) if "elevation" in scans else 0
+
+
+def vertical_rays(scans: xr.Dataset) -> np.ndarray:
+    """Per ray, True for a vertical stare (the rays :meth:`ScanChain.split` sets apart)."""
+    from cwproc.stages.stare import stare_mask
+
+    return stare_mask(scans)
 
 
 def describe_scan_inputs(unit: ProductUnit) -> list[str]:
@@ -284,44 +543,6 @@ def describe_scan_file(
         parts.append(f"{unused} rays neither vertical nor in a conical scan: not used")
     kind = str(attrs.get("scan_type", "")).strip() or "scan"
     return f"{os.fspath(path)}: {kind}: " + "; ".join(parts or ["no rays"])
-
-
-def process_scan_day(
-    scans: xr.Dataset,
-    config: Config,
-    notes: list[str] | None = None,
-    kept: dict[str, xr.Dataset] | None = None,
-    cross: xr.Dataset | None = None,
-) -> dict[str, xr.Dataset]:
-    """Products of the scans of one instrument-day: wind/turbulence and stare.
-
-    Vertical stares (elevation >= 85 deg) go to the stare product (w statistics and
-    eps of O'Connor et al. (2010), the wind speed from this day's VADs); the other rays
-    to :func:`process_scans` (which fills ``kept``). A day of stares only gives the
-    stare product (eps NaN, flag bit 1, and a note); a day without stares gives what it
-    gave before. With ``[doppler_lidar] enabled`` the stares also give the L1 product
-    ``doppler_lidar`` (beta, and the depolarisation ratio with the ``cross``-polarised
-    stare rays of the day when given).
-    """
-    from cwproc.stages.stare import split_stares
-
-    stares, others = split_stares(scans)
-    products: dict[str, xr.Dataset] = {}
-    if others is not None:
-        try:
-            products = process_scans(others, config, notes, kept)
-        except CwprocError as exc:
-            if stares is None:
-                raise
-            if notes is not None:
-                notes.append(f"wind not computed: {exc}")
-    elif stares is None:
-        return process_scans(scans, config, notes, kept)
-    if stares is not None and config.stare.enabled:
-        products["stare"] = stare_products(stares, products.get("wind"), config, notes)
-    if stares is not None and config.doppler_lidar.enabled:
-        products["doppler_lidar"] = doppler_lidar_products(stares, cross, config, notes)
-    return products
 
 
 def doppler_lidar_options(config: Config) -> DopplerLidarOptions:
