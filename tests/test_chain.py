@@ -171,3 +171,14 @@ def test_day_decisions_are_those_the_stages_make(day):
     for reason, change in changes.items():
         assert decided.differences(dataclasses.replace(decided, **change)) == reason
     assert chain.decisions(pointing, wind=False, step=False).vad_elevation_deg is None
+
+
+def test_a_whole_run_takes_one_dataset():
+    """whole=True means the one dataset is the day (its last block is reduced short)."""
+    from cwproc.pipeline.chain import ScanChain
+    from cwproc.pipeline.stream import run_scan_chain
+
+    chain = ScanChain(load_config("streamline"))
+    with pytest.raises(ValueError, match="one dataset"):
+        run_scan_chain(chain, [None, None], whole=True)
+    assert run_scan_chain(chain, [None], whole=False) is None  # no chunk: run it whole

@@ -268,12 +268,16 @@ def run_scan_chain(
     ------
     CwprocError
         ``whole``: no wind can be fitted and no stare gives a product.
+    ValueError
+        ``whole`` with more than one dataset.
     """
     day = ChunkedDay(DayParts(attrs={}, turbulence=chain.config.turbulence.enabled))
     own: list[str] = [] if notes is None else notes
     try:
         with contextlib.nullcontext() if whole else memory.phase("chunks"):
-            for chunk in chunks:
+            for k, chunk in enumerate(chunks):
+                if whole and k:
+                    raise ValueError("run_scan_chain(whole=True) takes one dataset, the day")
                 if chunk is not None:
                     _take(chain, day, chunk, own, whole=whole, kept=kept, unit=unit, stares=stares)
                 del chunk  # released before the next chunk is read (and before epsilon)

@@ -72,6 +72,9 @@ def wrapped_azimuth_difference(a_deg: np.ndarray, b_deg: np.ndarray) -> np.ndarr
 def azimuth_step(azimuth_deg: np.ndarray, scan: np.ndarray) -> tuple[float, float]:
     """Azimuth step dtheta (deg) and rotation sign from consecutive rays of the same scan.
 
+    The stage's day decision, used by ``ScanChain.decisions``
+    (:mod:`cwproc.pipeline.chain`): a day run in chunks must find the step of the whole day.
+
     Parameters
     ----------
     azimuth_deg : numpy.ndarray
