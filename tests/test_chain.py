@@ -17,7 +17,7 @@ from cwproc.sim.sample_data import StreamLineSpec, write_streamline_series
 from cwproc.stages.structure import azimuth_structure_function
 
 PIPELINE = Path(__file__).resolve().parents[1] / "cwproc" / "pipeline"
-#: the stages of the scan chain, whose order only ScanChain (chain.py) may know
+#: the stages of the scan chain, whose order only ScanChain (scan_chain.py) may know
 SCAN_STAGES = {"qc", "vad", "structure", "epsilon", "stare", "doppler_lidar"}
 
 
@@ -44,7 +44,7 @@ def stage_imports(source: str) -> set[str]:
         ("from cwproc.stages import qc, vad\n", {"qc", "vad"}),
         ("def f():\n    from cwproc.stages.structure import azimuth_step\n", {"structure"}),
         ("import cwproc.stages.epsilon as e\n", {"epsilon"}),
-        ("import numpy\nfrom cwproc.pipeline.chain import ScanChain\n", set()),
+        ("import numpy\nfrom cwproc.pipeline.scan_chain import ScanChain\n", set()),
     ],
 )
 def test_stage_imports_are_found(source, stages):
@@ -53,14 +53,14 @@ def test_stage_imports_are_found(source, stages):
 
 def test_only_the_scan_chain_knows_the_stage_order():
     """The executor (stream.py) and the entry (run.py) import no stage; the scan
-    chain's stages are imported by chain.py alone (background.py wraps the SNR
+    chain's stages are imported by scan_chain.py alone (background.py wraps the SNR
     correction stage that ScanChain.prepare calls)."""
     by_module = {
         p.name: stage_imports(p.read_text(encoding="utf-8")) for p in PIPELINE.glob("*.py")
     }
     assert by_module["stream.py"] == set() and by_module["run.py"] == set()
-    assert SCAN_STAGES <= by_module["chain.py"]
-    others = {name: found & SCAN_STAGES for name, found in by_module.items() if name != "chain.py"}
+    assert SCAN_STAGES <= by_module["scan_chain.py"]
+    others = {n: found & SCAN_STAGES for n, found in by_module.items() if n != "scan_chain.py"}
     assert not any(others.values()), others
     assert {n for n, found in by_module.items() if "background" in found} == {"background.py"}
 
@@ -145,7 +145,7 @@ def test_day_decisions_are_those_the_stages_make(day):
     differs in any of them is named."""
     import dataclasses
 
-    from cwproc.pipeline.chain import Pointing, ScanChain
+    from cwproc.pipeline.scan_chain import Pointing, ScanChain
 
     screened, wind = day
     chain = ScanChain(load_config("streamline"))
@@ -175,7 +175,7 @@ def test_day_decisions_are_those_the_stages_make(day):
 
 def test_a_whole_run_takes_one_dataset():
     """whole=True means the one dataset is the day (its last block is reduced short)."""
-    from cwproc.pipeline.chain import ScanChain
+    from cwproc.pipeline.scan_chain import ScanChain
     from cwproc.pipeline.stream import run_scan_chain
 
     chain = ScanChain(load_config("streamline"))

@@ -9,8 +9,8 @@ import xarray as xr
 from cwproc.config import load_config
 from cwproc.pipeline import group_units, process_scan_day, read_input
 from cwproc.pipeline.background import correct_background
-from cwproc.pipeline.chain import DayDecisions
 from cwproc.pipeline.run import unit_products
+from cwproc.pipeline.scan_chain import DayDecisions
 from cwproc.pipeline.stream import stream_unit
 from cwproc.pipeline.units import concat_unit, load_item
 from cwproc.sim.sample_data import StreamLineSpec, write_streamline_series
@@ -514,7 +514,7 @@ def test_parts_joined_like_xarray_concat(tmp_path, config, monkeypatch):
     """The day's wind rows, structure functions and stares joined from the chunks'
     pieces (``chain.join``, ``xr.concat`` without alignment or comparisons): what the
     default ``xr.concat`` gives (values, attributes, encodings, variable order)."""
-    from cwproc.pipeline import chain
+    from cwproc.pipeline import scan_chain as chain
 
     spec = StreamLineSpec(n_gates=24, seed=37)
     write_stare_series(

@@ -2,7 +2,7 @@
 
 :func:`run_unit` is the only entry: ``cwproc retrieve`` (:func:`retrieve_files`),
 ``cwproc batch``, ``cwproc plot`` and the Python API call it. The order of the stages of
-scan data and the day's decisions live in one place, :class:`~.chain.ScanChain`, which
+scan data and the day's decisions live in one place, :class:`~.scan_chain.ScanChain`, which
 :func:`~.stream.run_scan_chain` runs over one chunk (the whole day) or many.
 
 Every input is read on its own (:func:`read_input`; a bad file fails
@@ -15,8 +15,11 @@ Modules
 -------
 ``units``
     inputs and product units: reading, keys, grouping, reading again.
+``scan_chain``
+    ``ScanChain``: the stage chain of scan data and the day's decisions, pure.
 ``chain``
-    the stage chain of each kind of unit (scan: ``ScanChain``; wind record, sonic), pure.
+    the stage chain of each kind of unit (scan: runs ``ScanChain`` whole; wind record,
+    sonic), pure.
 ``probe``
     the configured lidar's probe volume, and whether it describes the scans.
 ``background``

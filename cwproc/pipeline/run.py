@@ -3,7 +3,7 @@
 ``cwproc retrieve``, ``cwproc batch``, ``cwproc plot`` and the Python API all turn a
 product unit into products by calling :func:`run_unit`; what a unit gave (products,
 notes, failures and so the exit status) is therefore the same whichever client asked.
-The order of the stages is :class:`cwproc.pipeline.chain.ScanChain`'s (scan data) and
+The order of the stages is :class:`cwproc.pipeline.scan_chain.ScanChain`'s (scan data) and
 the ``process_*`` chains' of :mod:`cwproc.pipeline.chain` (wind records, sonic data).
 """
 
@@ -19,12 +19,8 @@ import xarray as xr
 
 from cwproc.config import Config
 from cwproc.errors import CwprocError
-from cwproc.pipeline.chain import (
-    ScanChain,
-    describe_scan_inputs,
-    process_sonic,
-    process_wind_record,
-)
+from cwproc.pipeline.chain import process_sonic, process_wind_record
+from cwproc.pipeline.scan_chain import ScanChain, describe_scan_inputs
 from cwproc.pipeline.units import ProductUnit, concat_unit, load_item, load_unit, unit_label
 from cwproc.products.catalogue import product_kind
 from cwproc.products.metadata import product_table
@@ -103,7 +99,7 @@ def run_unit(unit: ProductUnit, config: Config, *, keep_screened: bool = False) 
 
     Notes
     -----
-    A scan unit runs :class:`~cwproc.pipeline.chain.ScanChain` (``read ->
+    A scan unit runs :class:`~cwproc.pipeline.scan_chain.ScanChain` (``read ->
     background.correct_snr -> qc -> vad -> structure -> epsilon``, and ``stare`` for
     vertical rays) through :func:`cwproc.pipeline.stream.run_scan_chain`, chunk by chunk
     in bounded memory unless its chunks would decide differently from the whole day; a

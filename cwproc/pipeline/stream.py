@@ -1,6 +1,6 @@
 """The executor of the scan chain: one chunk (the whole day) or many (bounded memory).
 
-:func:`run_scan_chain` runs :class:`~cwproc.pipeline.chain.ScanChain` over the chunks
+:func:`run_scan_chain` runs :class:`~cwproc.pipeline.scan_chain.ScanChain` over the chunks
 of a day, in time order. Each chunk is background-corrected, split into stares and
 conical scans, screened and VAD-fitted (all per ray or per scan); the structure function
 (Smalikho (2020), eqs. 1-2) is computed for the complete blocks of N scans held so far
@@ -8,14 +8,14 @@ and the scans of an incomplete last block are carried, screened, into the next c
 every block is the one the whole-day run forms. Only the per-scan wind rows, the
 per-block structure statistics and the (vertical) stare rays are kept; the dissipation
 rate (which may pool noise over neighbouring blocks) and the stare product are computed
-once over the day (:meth:`~cwproc.pipeline.chain.ScanChain.finish`). The whole day is the
+once over the day (:meth:`~cwproc.pipeline.scan_chain.ScanChain.finish`). The whole day is the
 same function over one chunk (``whole=True``, :func:`~cwproc.pipeline.process_scan_day`),
 so one code path makes the products either way.
 
 The whole-day run is the definition: what it decides over the whole day (scan numbering,
 the most common conical elevation, the azimuth step and rotation, the background
 method) is decided again at the end from the per-ray pointing kept on the way (24 bytes
-a ray, :meth:`~cwproc.pipeline.chain.ScanChain.decisions`) and compared with what the
+a ray, :meth:`~cwproc.pipeline.scan_chain.ScanChain.decisions`) and compared with what the
 chunks decided; should any differ (a day of mixed geometries), or a chunk fail,
 :func:`run_scan_chain` returns None and the caller runs the day whole, so the products
 are identical either way.
@@ -49,7 +49,7 @@ from cwproc.errors import CwprocError, InputFileError
 from cwproc.io import FileIdentity
 from cwproc.io.scans import _source_files, concat_scans, joined_attrs
 from cwproc.pipeline.background import SnrCorrection, find_background_files
-from cwproc.pipeline.chain import (
+from cwproc.pipeline.scan_chain import (
     Carry,
     DayDecisions,
     DayParts,
