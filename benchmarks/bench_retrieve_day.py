@@ -8,7 +8,7 @@ scans, one ``.hpl`` file per scan as the Stream Line writes them) is
    process, as ``cwproc`` keeps it out of every command but ``batch``
    (``cwproc.cli._group.keep_dask_out``: xarray would import it, 0.5 s, to ask whether
    the arrays are dask's), and freed arrays are reused
-   (``cwproc.cli._group.keep_freed_arrays``, as the retrieve's chunks have them): with
+   (``cwproc.memory.keep_freed_arrays``, as the retrieve's chunks have them): with
    glibc's defaults each file's arrays were mapped and zeroed afresh, 800 000 page
    faults and 1.5 s of system time for the day;
 2. retrieved with ``python -m cwproc retrieve DAY -o OUT -q -c streamline`` in a child
@@ -20,7 +20,8 @@ read, and their median: the machine is shared, and a neighbour's load moves both
 bests) and the peak resident memory of the retrieve process (``ru_maxrss`` of the
 child, all its threads; target < 300 MiB). The retrieve runs with its reading thread
 (the next chunk read, parsed and checksummed beside the numerical work on the one
-before; ``cwproc.pipeline.stream``); ``--serial`` also runs it in one thread
+before; ``cwproc.pipeline.stream.UnitChunks``, the allocator tuned for the chunks by
+the program, ``cwproc.memory``); ``--serial`` also runs it in one thread
 (``CWPROC_READ_AHEAD=0``), side by side.
 ``--baseline CHECKOUT`` also runs the retrieve of another checkout of cwproc (e.g.
 main's, imported through ``PYTHONPATH``, with this interpreter), each repeat right
@@ -63,8 +64,8 @@ RAYS, PERIOD_S, GATES, GATE_M, ELEVATION = 180, 45.0, 100, 30.0, 75.0
 _READ = """
 import sys
 sys.modules["dask"] = None  # as cwproc keeps it out (cwproc.cli._group.keep_dask_out)
-from cwproc.cli._group import keep_freed_arrays
-keep_freed_arrays()  # freed arrays reused, as cwproc's chunks have them (heap_kept)
+from cwproc.memory import keep_freed_arrays
+keep_freed_arrays()  # freed arrays reused, as cwproc's chunks have them (memory.phase)
 from pathlib import Path
 from cwproc.io.halo import read_hpl
 for p in sorted(Path(sys.argv[1]).glob("*.hpl")):

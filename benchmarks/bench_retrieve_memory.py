@@ -7,6 +7,9 @@ for N = 1, 8, 32 (and more with ``--days``), printing the child's peak resident 
 ``cwproc.pipeline.retrieve.RETRIEVE_MEMORY_BYTES`` of inputs between reading and
 processing and reads the rest again unit by unit, so the peak stays flat once the
 inputs exceed that budget; ``--budget-mib`` lowers it to show the flat regime on a small archive.
+The child calls the library (``retrieve_files``) with the allocator tuned as the
+``cwproc retrieve`` program tunes it (``cwproc.memory.tune_allocator``; the library
+alone leaves the process's allocator as it is).
 
 Run::
 
@@ -27,6 +30,8 @@ import numpy as np
 CHILD = """
 import resource, sys
 from pathlib import Path
+from cwproc import memory
+memory.tune_allocator()  # as the cwproc program does (cwproc.cli._group)
 from cwproc.pipeline import retrieve
 from cwproc.config import load_config
 retrieve.RETRIEVE_MEMORY_BYTES = int(sys.argv[3])

@@ -10,7 +10,8 @@ from cwproc.config import load_config
 from cwproc.pipeline import group_units, process_scan_day, read_input
 from cwproc.pipeline.background import correct_background
 from cwproc.pipeline.run import unit_products
-from cwproc.pipeline.stream import stream_scan_unit
+from cwproc.pipeline.scan_chain import DayDecisions
+from cwproc.pipeline.stream import stream_unit
 from cwproc.pipeline.units import concat_unit, load_item
 from cwproc.sim.sample_data import StreamLineSpec, write_streamline_series
 from cwproc.sim.stare import write_stare_series
@@ -31,7 +32,7 @@ def streamed_day(folder, config, chunk_bytes=SMALL_CHUNK, notes=None):
     (unit,) = group_units(read_input(p, config) for p in sorted(folder.glob("*.hpl")))
     for item in unit.inputs[::2]:  # half the files not held: read again when streamed
         item.dataset = None
-    products = stream_scan_unit(
+    products = stream_unit(
         unit, config, notes, lambda item: load_item(item, config), chunk_bytes=chunk_bytes
     )
     assert products is not None, "the day was not streamed (a chunk chose differently)"
@@ -90,18 +91,12 @@ def test_unit_products_streams_and_falls_back_identically(tmp_path, config, monk
     whole = whole_day(tmp_path / "day", config)
     (unit,) = group_units(read_input(p, config) for p in sorted((tmp_path / "day").glob("*.hpl")))
     assert_same_products(unit_products(unit, config, [], chunk_bytes=SMALL_CHUNK), whole)
-    # a chunk choosing differently from the day: the day is processed whole
-    monkeypatch.setattr("cwproc.pipeline.stream.check_day_choices", _mismatch)
+    # a chunk deciding differently from the day: the day is processed whole
+    monkeypatch.setattr(DayDecisions, "differences", lambda day, chunks: "azimuth step")
     (unit,) = group_units(read_input(p, config) for p in sorted((tmp_path / "day").glob("*.hpl")))
-    assert stream_scan_unit(unit, config, [], lambda i: load_item(i, config), SMALL_CHUNK) is None
+    assert stream_unit(unit, config, [], lambda i: load_item(i, config), SMALL_CHUNK) is None
     (unit,) = group_units(read_input(p, config) for p in sorted((tmp_path / "day").glob("*.hpl")))
     assert_same_products(unit_products(unit, config, [], chunk_bytes=SMALL_CHUNK), whole)
-
-
-def _mismatch(state, config):
-    from cwproc.pipeline.stream import StreamMismatch
-
-    raise StreamMismatch("azimuth step")
 
 
 def test_streamed_background_correction_equals_whole_day(tmp_path, config):
@@ -211,7 +206,7 @@ def test_checksums_left_to_the_read_are_taken_by_it(tmp_path, config, monkeypatc
     items = [read_input(p, config, identify_only=True, checksum=False) for p in paths]
     assert all(i.sha256 is None and i.signature is not None for i in items)
     (unit,) = group_units(items)
-    products = stream_scan_unit(
+    products = stream_unit(
         unit, config, [], lambda i: load_item(i, config), SMALL_CHUNK, read_ahead=ahead
     )
     assert calls == []  # taken by the plan's read of each file, not by another read
@@ -244,7 +239,7 @@ def test_a_streamed_file_is_opened_once(tmp_path, config, monkeypatch):
         return real_open(self, *args, **kwargs)
 
     monkeypatch.setattr(Path, "open", counting)
-    products = stream_scan_unit(
+    products = stream_unit(
         unit, config, [], lambda i: load_item(i, config), SMALL_CHUNK, read_ahead=False
     )
     monkeypatch.undo()
@@ -293,7 +288,7 @@ def test_read_ahead_gives_the_serial_products_and_failures(tmp_path, config):
         items = [read_input(p, config, identify_only=True) for p in paths]
         (unit,) = group_units(items)
         notes: list[str] = []
-        products = stream_scan_unit(
+        products = stream_unit(
             unit, config, notes, lambda i: load_item(i, config), SMALL_CHUNK, read_ahead=ahead
         )
         results[ahead] = (products, notes, list(unit.failures))
@@ -411,9 +406,7 @@ def test_chunks_read_at_once_give_the_file_by_file_products(tmp_path, config, mo
         monkeypatch.setattr(stream, "chunk_reading_possible", lambda unit, cfg, p=possible: p)
         (unit,) = group_units(read_input(p, config, identify_only=True) for p in paths)
         notes: list[str] = []
-        products = stream_scan_unit(
-            unit, config, notes, lambda i: load_item(i, config), SMALL_CHUNK
-        )
+        products = stream_unit(unit, config, notes, lambda i: load_item(i, config), SMALL_CHUNK)
         identities = [(i.identity.attrs, i.identity.time) for i in unit.inputs]
         results.append((products, notes, list(unit.failures), identities))
     (products, notes, failures, ids), (products_1, notes_1, failures_1, ids_1) = results
@@ -428,39 +421,6 @@ def test_chunks_read_at_once_give_the_file_by_file_products(tmp_path, config, mo
         np.testing.assert_array_equal(time, time_1)
     assert products["wind"].attrs["source_files"] == products_1["wind"].attrs["source_files"]
     assert products["wind"].sizes["time"] == 24
-
-
-def test_heap_kept_sets_and_restores_the_glibc_thresholds(monkeypatch):
-    """heap_kept: the chunks run with 32 MiB mmap and 256 MiB trim thresholds; the default
-    trim threshold is restored and the free heap returned on exit, also after an error;
-    heap_returned trims first and keeps 64 MiB of free heap while it runs, the default
-    trim threshold set back after it; without glibc both do nothing."""
-    import cwproc.pipeline.stream as stream
-
-    calls: list[tuple] = []
-
-    class FakeLibc:
-        def mallopt(self, param, value):
-            calls.append(("mallopt", param, value))
-            return 1
-
-        def malloc_trim(self, pad):
-            calls.append(("trim", pad))
-            return 1
-
-    monkeypatch.setattr(stream, "_glibc", lambda: FakeLibc())
-    with pytest.raises(RuntimeError), stream.heap_kept():
-        assert calls == [("mallopt", -3, 32 << 20), ("mallopt", -1, 256 << 20)]
-        raise RuntimeError("a chunk failed")
-    assert calls[2:] == [("mallopt", -1, 128 << 10), ("trim", 0)]
-    calls.clear()
-    with stream.heap_returned():  # the dissipation rate: the chunks' free heap returned
-        assert calls == [("trim", 0), ("mallopt", -1, 64 << 20)]
-    assert calls[2:] == [("mallopt", -1, 128 << 10)]
-    monkeypatch.setattr(stream, "_glibc", lambda: None)
-    with stream.heap_kept(), stream.heap_returned():
-        pass
-    assert len(calls) == 3
 
 
 def test_read_inputs_keeps_the_order_and_hands_errors_in_place(monkeypatch):
@@ -552,10 +512,9 @@ def test_read_inputs_identifies_hpl_headers_in_the_callers_thread(tmp_path, monk
 
 def test_parts_joined_like_xarray_concat(tmp_path, config, monkeypatch):
     """The day's wind rows, structure functions and stares joined from the chunks'
-    pieces: exactly ``xr.concat`` (values, attributes, encodings, variable order); parts
-    that differ in a coordinate or hold a variable not along the dimension are left to
-    xarray."""
-    from cwproc.pipeline import stream
+    pieces (``chain.join``, ``xr.concat`` without alignment or comparisons): what the
+    default ``xr.concat`` gives (values, attributes, encodings, variable order)."""
+    from cwproc.pipeline import scan_chain as chain
 
     spec = StreamLineSpec(n_gates=24, seed=37)
     write_stare_series(
@@ -564,24 +523,28 @@ def test_parts_joined_like_xarray_concat(tmp_path, config, monkeypatch):
     items = [read_input(p, config) for p in sorted((tmp_path / "day").glob("*.hpl"))]
     (unit,) = group_units(items)
     pieces: list[tuple[list, str]] = []
-    real_join = stream._join
+    real_append = chain.Rows.append
 
-    def recording(parts, dim):
-        pieces.append((list(parts), dim))
-        return real_join(parts, dim)
+    def recording(rows, part):
+        if rows.first is None:  # a new day's (or a carry's) rows
+            rows.recorded = []
+            pieces.append((rows.recorded, rows.dim))
+        rows.recorded.append(part)
+        return real_append(rows, part)
 
-    monkeypatch.setattr(stream, "_join", recording)
-    stream_scan_unit(unit, config, [], lambda i: load_item(i, config), SMALL_CHUNK)
+    monkeypatch.setattr(chain.Rows, "append", recording)
+    assert stream_unit(unit, config, [], lambda i: load_item(i, config), SMALL_CHUNK)
     joined = [(parts, dim) for parts, dim in pieces if len(parts) > 1]
-    assert {dim for _, dim in joined} >= {"time", "ray"}  # winds, sfs and stares
+    assert {dim for _, dim in joined} >= {"time", "ray"}  # winds, sfs, stares and carries
     for parts, dim in joined:
-        ours = stream.concat_like_parts(parts, dim)
+        ours = chain.Rows.of(parts, dim)
         theirs = xr.concat(parts, dim=dim, combine_attrs="override")
-        assert ours is not None and ours.identical(theirs)
+        assert ours.identical(theirs)
         assert list(ours.variables) == list(theirs.variables)
         assert all(ours[k].encoding == theirs[k].encoding for k in theirs.variables)
     parts, dim = next((p, d) for p, d in joined if d == "time")
     shifted = [parts[0], parts[1].assign_coords(height=parts[1]["height"] + 1.0)]
-    assert stream.concat_like_parts(shifted, dim) is None
-    flat = [part.assign(extra=((), 1.0)) for part in parts]
-    assert stream.concat_like_parts(flat, dim) is None
+    with pytest.raises(chain.PartsDiffer, match="another height"):
+        chain.Rows.of(shifted, dim)
+    with pytest.raises(chain.PartsDiffer, match="other variables"):
+        chain.Rows.of([parts[0], parts[1].assign(extra=((), 1.0))], dim)

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from cwproc import memory
 from cwproc.batch.records import (
     PRODUCT_FORMAT,
     FileInfo,
@@ -290,6 +291,8 @@ def process_unit_task(task: UnitTask) -> UnitOutcome:
             host=host,
         )
 
+    # a batch process is cwproc's own: the chain's phases may tune its allocator
+    memory.tune_allocator()
     with local_dask_scheduler():
         return _process_unit_task(task, outcome)
 

@@ -54,6 +54,10 @@ DASK_COMMANDS = frozenset({"batch"})
 #: run with freed arrays kept for reuse (``keep_freed_arrays``: their temporaries are
 #: allocated again and again) and OpenBLAS on one thread (``one_blas_thread``)
 ARRAY_COMMANDS = frozenset({"sf-type"})
+#: the commands whose process the library may tune for its phases of array work
+#: (``cwproc.memory.tune_allocator``: a day's chunks, its dissipation-rate fit); a
+#: notebook's or a test's process is left as it is
+ALLOCATOR_COMMANDS = frozenset({"retrieve", "plot", "sf-type"})
 #: the commands run with OpenBLAS on one thread (``one_blas_thread``): besides
 #: ``sf-type``, ``simulate``, whose linear algebra is small (Cholesky factors of 140 x 140
 #: B_D, matrix-vector products of quadrature weights): on two busy cores a second BLAS
@@ -66,6 +70,7 @@ ONE_BLAS_THREAD_COMMANDS = frozenset({"sf-type", "simulate"})
     lazy=COMMANDS,
     dask_commands=DASK_COMMANDS,
     array_commands=ARRAY_COMMANDS,
+    allocator_commands=ALLOCATOR_COMMANDS,
     one_blas_thread_commands=ONE_BLAS_THREAD_COMMANDS,
     context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
 )

@@ -17,6 +17,8 @@ from typing import Any, NoReturn
 
 import click
 
+from cwproc.memory import keep_freed_arrays  # moved (issue 33): remove in stream D
+
 
 class LazyGroup(click.Group):
     """A click group whose sub-commands are ``name -> (module:attribute, one-line help)``."""
@@ -83,58 +85,6 @@ def keep_dask_out() -> bool:
     return True
 
 
-#: ``mallopt`` parameters of glibc (``malloc.h``)
-_M_TRIM_THRESHOLD = -1
-_M_MMAP_THRESHOLD = -3
-_M_ARENA_MAX = -8
-#: blocks up to this size come from the heap (glibc's largest mmap threshold on 64 bits)
-HEAP_BLOCK_BYTES = 32 << 20
-#: free memory at the top of the heap kept for the next blocks, not given back
-HEAP_KEEP_BYTES = 256 << 20
-
-
-def keep_freed_arrays() -> bool:
-    """Let glibc's allocator reuse the memory of freed arrays instead of returning it.
-
-    glibc maps large blocks (numpy arrays of a few MB: a column of a day of 10.7 Hz
-    samples is 7.4 MB) on their own and unmaps them when freed, and gives the free top
-    of its heap back beyond a few MB; the next array then costs fresh pages, which the
-    kernel zeroes on first touch. A day of ``sf-type`` allocates its temporaries many
-    times over: about 0.4 s of system time of a 2-s run. With blocks of up to
-    :data:`HEAP_BLOCK_BYTES` taken from the heap and up to :data:`HEAP_KEEP_BYTES` of
-    free heap kept (``mallopt`` M_MMAP_THRESHOLD and M_TRIM_THRESHOLD, the settings
-    of the ``MALLOC_MMAP_THRESHOLD_`` and ``MALLOC_TRIM_THRESHOLD_`` variables), the
-    memory of freed arrays serves the next ones: the same results (the arithmetic does
-    not depend on where an array lies). With one arena for every thread (M_ARENA_MAX
-    1) the memory the reading threads free serves the main thread's arrays too, where
-    each thread's own arena would keep it apart: a day's peak memory 430 -> 290 MB.
-
-    Returns
-    -------
-    bool
-        True when the three settings were taken (glibc), False elsewhere (macOS,
-        Windows, musl: the allocator is left as it is).
-    """
-    if not sys.platform.startswith("linux"):
-        return False
-    import ctypes
-
-    try:
-        libc = ctypes.CDLL(None)
-        mallopt = libc.mallopt
-        libc.gnu_get_libc_version  # noqa: B018 -- glibc only (musl's mallopt does nothing)
-    except (OSError, AttributeError):
-        return False
-    mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
-    mallopt.restype = ctypes.c_int
-    settings = (
-        (_M_ARENA_MAX, 1),
-        (_M_MMAP_THRESHOLD, HEAP_BLOCK_BYTES),
-        (_M_TRIM_THRESHOLD, HEAP_KEEP_BYTES),
-    )
-    return all([bool(mallopt(key, value)) for key, value in settings])
-
-
 def one_blas_thread() -> bool:
     """Have OpenBLAS start with one thread, unless numpy is imported or a count is set.
 
@@ -177,8 +127,10 @@ class CwprocGroup(LazyGroup):
     script, ``python -m cwproc``), a command not in ``dask_commands`` runs with dask
     kept out of the process (:func:`keep_dask_out`) and the process ends without the
     interpreter's teardown (:func:`exit_now`); a command in ``array_commands`` also runs
-    with freed arrays kept for reuse (:func:`keep_freed_arrays`), and one in
-    ``one_blas_thread_commands`` with OpenBLAS on one thread (:func:`one_blas_thread`).
+    with freed arrays kept for reuse (:func:`keep_freed_arrays`), one in
+    ``allocator_commands`` with the library's phases allowed to tune the allocator
+    (:func:`cwproc.memory.tune_allocator`), and one in ``one_blas_thread_commands``
+    with OpenBLAS on one thread (:func:`one_blas_thread`).
     Called with explicit arguments (a test, a notebook) the process is left as it is.
     """
 
@@ -187,12 +139,14 @@ class CwprocGroup(LazyGroup):
         *args: Any,
         dask_commands: frozenset[str],
         array_commands: frozenset[str] = frozenset(),
+        allocator_commands: frozenset[str] = frozenset(),
         one_blas_thread_commands: frozenset[str] = frozenset(),
         **kwargs: Any,
     ) -> None:
         super().__init__(*args, **kwargs)
         self.dask_commands = dask_commands
         self.array_commands = array_commands
+        self.allocator_commands = allocator_commands
         self.one_blas_thread_commands = one_blas_thread_commands
 
     def main(
@@ -204,6 +158,10 @@ class CwprocGroup(LazyGroup):
             keep_dask_out()
             if name in self.array_commands:
                 keep_freed_arrays()
+            if name in self.allocator_commands:
+                from cwproc import memory
+
+                memory.tune_allocator()
             if name in self.one_blas_thread_commands:
                 one_blas_thread()
         if not standalone_mode:

@@ -1,8 +1,11 @@
 """Composition of the stages: one chain of stages, used by every client.
 
-:func:`run_unit` is the only place that knows the order of the stages; ``cwproc
-retrieve`` (:func:`retrieve_files`), ``cwproc batch``, ``cwproc plot`` and the Python
-API call it. Every input is read on its own (:func:`read_input`; a bad file fails
+:func:`run_unit` is the only entry: ``cwproc retrieve`` (:func:`retrieve_files`),
+``cwproc batch``, ``cwproc plot`` and the Python API call it. The order of the stages of
+scan data and the day's decisions live in one place, :class:`~.scan_chain.ScanChain`, which
+:func:`~.stream.run_scan_chain` runs over one chunk (the whole day) or many.
+
+Every input is read on its own (:func:`read_input`; a bad file fails
 alone, with one line naming the file, the line and the problem), inputs that belong
 together are grouped into *product units* (:func:`group_units`), each unit is run
 (:func:`run_unit`: products, notes, failures) and its products written atomically
@@ -12,12 +15,18 @@ Modules
 -------
 ``units``
     inputs and product units: reading, keys, grouping, reading again.
+``scan_chain``
+    ``ScanChain``: the stage chain of scan data and the day's decisions, pure.
 ``chain``
-    the stage chain of each kind of unit (scan, wind record, sonic), pure.
+    the stage chain of each kind of unit (scan: runs ``ScanChain`` whole; wind record,
+    sonic), pure.
+``probe``
+    the configured lidar's probe volume, and whether it describes the scans.
 ``background``
     Stream Line background files, found and read for the SNR correction stage.
 ``stream``
-    a day of scans chunk by chunk in bounded memory (same products as whole).
+    the executor of ``ScanChain``: a day of scans whole or chunk by chunk in bounded
+    memory (the same products), and the chunks of a unit's files.
 ``run``
     :func:`run_unit` and :class:`UnitResult`.
 ``write``
@@ -28,10 +37,8 @@ Modules
 """
 
 from cwproc.pipeline.chain import (
+    ScanChain,
     count_stare_rays,
-    probe_for,
-    probe_from_config,
-    probe_mismatch,
     process_scan_day,
     process_scans,
     process_sonic,
@@ -39,6 +46,7 @@ from cwproc.pipeline.chain import (
     screened_wind,
     sf_summary_tables,
 )
+from cwproc.pipeline.probe import probe_for, probe_from_config, probe_mismatch
 from cwproc.pipeline.retrieve import FoundUnits, RunReport, read_units, retrieve_files
 from cwproc.pipeline.run import EXIT_FAILED, EXIT_OK, UnitResult, internal_error, run_unit
 from cwproc.pipeline.units import (
@@ -65,6 +73,7 @@ __all__ = [
     "InputFile",
     "ProductUnit",
     "RunReport",
+    "ScanChain",
     "UnitResult",
     "count_stare_rays",
     "format_mismatch",

@@ -7,8 +7,10 @@ al. (2016); Vakkari et al. (2019)) and hands the datasets to the stage
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +20,7 @@ from cwproc.config import Config
 from cwproc.errors import CwprocError
 from cwproc.io.halo_background import background_time, read_halo_background
 from cwproc.pipeline.units import ProductUnit
-from cwproc.stages.background import correct_snr, match_rays
+from cwproc.stages.background import correct_snr, correction_summary, match_rays
 
 #: file-name pattern of Stream Line background files (any prefix, e.g. a site name)
 BACKGROUND_GLOB = "*Background_*.txt"
@@ -79,6 +81,76 @@ def read_backgrounds(
             if notes is not None:
                 notes.append(f"background file not used: {exc}")
     return out
+
+
+@dataclass(frozen=True)
+class SnrCorrection:
+    """What the SNR background correction did to the rays of a chunk or of a day.
+
+    Attributes
+    ----------
+    method : str
+        The ``snr_correction`` attribute of the corrected scans (``"None"``: the
+        correction did not run on them: switched off, other scans, no background file).
+    files : tuple of str
+        The background files used (``background_files``).
+    corrected : numpy.ndarray or None
+        Per ray, True where a background file corrected the SNR; None when the
+        correction did not run.
+    summary : str
+        The stage's one-line summary of the correction ('' when it did not run).
+    """
+
+    method: str
+    files: tuple[str, ...]
+    corrected: np.ndarray | None
+    summary: str
+
+    @staticmethod
+    def of_day(parts: Sequence[SnrCorrection]) -> SnrCorrection | None:
+        """The correction of a day from that of its chunks, in time order (None: none).
+
+        One line for the day, as the whole-day run words it
+        (:func:`cwproc.stages.background.correction_summary`): a single chunk's own
+        summary, else the rays of all chunks counted again.
+        """
+        ran = [p for p in parts if p.corrected is not None]
+        if not parts:
+            return None
+        files = tuple(sorted({f for p in parts for f in p.files}))
+        if not ran:
+            return SnrCorrection(parts[0].method, files, None, "")
+        if len(ran) == 1:
+            return dataclasses.replace(ran[0], method=parts[0].method, files=files)
+        done = np.concatenate([p.corrected for p in ran])
+        summary = correction_summary(done, list(files), np.where(done, 0, -1))
+        return SnrCorrection(parts[0].method, files, done, summary)
+
+
+def corrected_snr(
+    scans: xr.Dataset,
+    unit: ProductUnit,
+    config: Config,
+    notes: list[str] | None = None,
+    files: list[Path] | None = None,
+) -> tuple[xr.Dataset, SnrCorrection]:
+    """:func:`correct_background` with the summary line returned in the record, not noted.
+
+    The other notes (a damaged or too short background file) go to ``notes``; the
+    caller writes the summary of the day once (:meth:`SnrCorrection.of_day`).
+    """
+    own: list[str] = []
+    out = correct_background(scans, unit, config, own, files)
+    ran = "background_time" in out.variables and out is not scans
+    if notes is not None:
+        notes.extend(own[:-1] if ran else own)  # correct_snr writes its summary last
+    record = SnrCorrection(
+        method=str(out.attrs.get("snr_correction")),
+        files=tuple(out.attrs.get("background_files", [])),
+        corrected=~np.isnat(out["background_time"].values) if ran else None,
+        summary=own[-1] if ran else "",
+    )
+    return out, record
 
 
 def correct_background(

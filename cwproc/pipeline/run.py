@@ -1,8 +1,10 @@
-"""``run_unit``: the one place that knows the order of the stages.
+"""``run_unit``: the one entry that turns a product unit into products.
 
 ``cwproc retrieve``, ``cwproc batch``, ``cwproc plot`` and the Python API all turn a
 product unit into products by calling :func:`run_unit`; what a unit gave (products,
 notes, failures and so the exit status) is therefore the same whichever client asked.
+The order of the stages is :class:`cwproc.pipeline.scan_chain.ScanChain`'s (scan data) and
+the ``process_*`` chains' of :mod:`cwproc.pipeline.chain` (wind records, sonic data).
 """
 
 from __future__ import annotations
@@ -17,12 +19,8 @@ import xarray as xr
 
 from cwproc.config import Config
 from cwproc.errors import CwprocError
-from cwproc.pipeline.chain import (
-    describe_scan_inputs,
-    process_scan_day,
-    process_sonic,
-    process_wind_record,
-)
+from cwproc.pipeline.chain import process_sonic, process_wind_record
+from cwproc.pipeline.scan_chain import ScanChain, describe_scan_inputs
 from cwproc.pipeline.units import ProductUnit, concat_unit, load_item, load_unit, unit_label
 from cwproc.products.catalogue import product_kind
 from cwproc.products.metadata import product_table
@@ -101,10 +99,11 @@ def run_unit(unit: ProductUnit, config: Config, *, keep_screened: bool = False) 
 
     Notes
     -----
-    A scan unit runs ``read -> background.correct_snr -> qc -> vad -> structure ->
-    epsilon`` (and ``stare`` for vertical rays, :func:`cwproc.pipeline.process_scan_day`),
-    chunk by chunk in bounded memory unless its chunks would choose differently from the
-    whole day; a wind-record unit runs ``zephir.wind_record_product``; a sonic unit
+    A scan unit runs :class:`~cwproc.pipeline.scan_chain.ScanChain` (``read ->
+    background.correct_snr -> qc -> vad -> structure -> epsilon``, and ``stare`` for
+    vertical rays) through :func:`cwproc.pipeline.stream.run_scan_chain`, chunk by chunk
+    in bounded memory unless its chunks would decide differently from the whole day; a
+    wind-record unit runs ``zephir.wind_record_product``; a sonic unit
     ``sonic_sf.structure_function_types``.
     """
     result = UnitResult(key=unit.key, kind=unit.kind)
@@ -162,10 +161,11 @@ def unit_products(
     """The products of one unit, ``{product name: dataset}`` (the chain of :func:`run_unit`).
 
     Non-fatal remarks (a product that could not be made) are appended to ``notes``.
-    A scan unit is processed chunk by chunk (:func:`cwproc.pipeline.stream.stream_scan_unit`,
+    A scan unit is run chunk by chunk (:func:`cwproc.pipeline.stream.stream_unit`,
     identical products in bounded memory, ``chunk_bytes`` of input per chunk); a day
-    whose chunks would choose differently from the whole day is processed whole, and so
-    is a day whose screened scans are asked for in ``kept``.
+    whose chunks would decide differently from the whole day runs whole
+    (:func:`~cwproc.pipeline.stream.run_scan_chain` with ``whole=True``), and so does a
+    day whose screened scans are asked for in ``kept`` or with the L1 product.
 
     Raises
     ------
@@ -173,12 +173,11 @@ def unit_products(
         The chain cannot run on these data (the message says why).
     """
     if unit.kind == "scan":
-        # the lidar stream, here: a sonic or wind-record command does not import it
-        from cwproc.pipeline.background import correct_background
-        from cwproc.pipeline.stream import STREAM_CHUNK_BYTES, stream_scan_unit
+        # the lidar chain, here: a sonic or wind-record command does not import it
+        from cwproc.pipeline.stream import STREAM_CHUNK_BYTES, run_scan_chain, stream_unit
     # the L1 product keeps every stare ray and gate of the day: the day runs whole
     if unit.kind == "scan" and kept is None and not config.doppler_lidar.enabled:
-        products = stream_scan_unit(
+        products = stream_unit(
             unit,
             config,
             notes,
@@ -192,10 +191,14 @@ def unit_products(
     if unit.kind == "scan":
         if notes is not None:
             notes.extend(describe_scan_inputs(unit))
-        ds = correct_background(ds, unit, config, notes)
         from cwproc.pipeline.cross import cross_scans
 
-        return process_scan_day(ds, config, notes, kept, cross=cross_scans(unit, config, notes))
+        chain = ScanChain(config)
+        ds, snr = chain.prepare(ds, unit, None, notes)
+        if notes is not None and snr.summary:
+            notes.append(snr.summary)
+        cross = cross_scans(unit, config, notes)
+        return run_scan_chain(chain, [ds], whole=True, notes=notes, kept=kept, cross=cross)
     if unit.kind == "wind_record":
         return process_wind_record(ds, config)
     return process_sonic(ds, config)

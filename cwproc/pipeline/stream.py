@@ -1,61 +1,64 @@
-"""A day of scans processed chunk by chunk in bounded memory (issue 15.3).
+"""The executor of the scan chain: one chunk (the whole day) or many (bounded memory).
 
-The files of a scan unit are taken in time order and joined into chunks of about
-``STREAM_CHUNK_BYTES`` (``.hpl`` files parsed straight into the chunk's arrays,
-:mod:`cwproc.pipeline.stream_read`); each chunk is background-corrected, split into
-stares and conical scans, screened and VAD-fitted (all per ray or per scan). The structure
-function (Smalikho (2020), eqs. 1-2) is computed for the complete blocks of N scans
-held so far; the scans of an incomplete last block are carried, screened, into the next
-chunk, so every block is the one the whole-day run forms. Only the per-scan wind rows,
-the per-block structure statistics and the (vertical) stare rays are kept; the
-dissipation rate (which may pool noise over neighbouring blocks) and the stare product
-are computed once over the day.
+:func:`run_scan_chain` runs :class:`~cwproc.pipeline.scan_chain.ScanChain` over the chunks
+of a day, in time order. Each chunk is background-corrected, split into stares and
+conical scans, screened and VAD-fitted (all per ray or per scan); the structure function
+(Smalikho (2020), eqs. 1-2) is computed for the complete blocks of N scans held so far
+and the scans of an incomplete last block are carried, screened, into the next chunk, so
+every block is the one the whole-day run forms. Only the per-scan wind rows, the
+per-block structure statistics and the (vertical) stare rays are kept; the dissipation
+rate (which may pool noise over neighbouring blocks) and the stare product are computed
+once over the day (:meth:`~cwproc.pipeline.scan_chain.ScanChain.finish`). The whole day is the
+same function over one chunk (``whole=True``, :func:`~cwproc.pipeline.process_scan_day`),
+so one code path makes the products either way.
 
-Two threads share the work (unless ``CWPROC_READ_AHEAD=0``): one plans, reads, parses
-and checksums the next chunk's files, whose costly parts (the file reads, the compiled
-tokenizer, ``hashlib``) release the GIL, while the caller's thread does all the
-numerical work of the chunk before it, in chunk order (background correction, scan
-numbering, screening and VAD fit, the structure function of the blocks). That work is
-numpy operations on a chunk's arrays, each holding the GIL for its Python-level part:
-a third thread that screened the next chunk beside the reduction of the one before
-gained nothing over the caller's thread doing both (5 pairs of runs of a simulated
-day) and cost 0.7 s more CPU, so the caller's thread is the day's critical path and
-the checksums are taken in the reading thread.
+The whole-day run is the definition: what it decides over the whole day (scan numbering,
+the most common conical elevation, the azimuth step and rotation, the background
+method) is decided again at the end from the per-ray pointing kept on the way (24 bytes
+a ray, :meth:`~cwproc.pipeline.scan_chain.ScanChain.decisions`) and compared with what the
+chunks decided; should any differ (a day of mixed geometries), or a chunk fail,
+:func:`run_scan_chain` returns None and the caller runs the day whole, so the products
+are identical either way.
 
-The whole-day run is the definition: the choices it makes over the whole day (scan
-numbering, the most common conical elevation, the azimuth step and rotation, the
-background method) are recomputed at the end from the per-ray pointing kept on the way
-(24 bytes a ray) and compared with those of the chunks; should any differ (a day of
-mixed geometries), or a chunk fail, the unit is processed whole instead, so the
-products are identical either way.
+A unit's files are read into chunks of about ``STREAM_CHUNK_BYTES`` by
+:class:`UnitChunks` (``.hpl`` files parsed straight into the chunk's arrays,
+:mod:`cwproc.pipeline.stream_read`). Two threads share the work (unless
+``CWPROC_READ_AHEAD=0``): one plans, reads, parses and checksums the next chunk's files,
+whose costly parts (the file reads, the compiled tokenizer, ``hashlib``) release the
+GIL, while the caller's thread does all the numerical work of the chunk before it, in
+chunk order. A third thread that screened the next chunk beside the reduction of the one
+before gained nothing (5 pairs of runs of a simulated day) and cost 0.7 s more CPU, so
+the caller's thread is the day's critical path and the checksums are taken in the
+reading thread.
 """
 
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import dataclasses
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
-from cwproc import progress
+from cwproc import memory, progress
 from cwproc.config import Config
 from cwproc.errors import CwprocError, InputFileError
 from cwproc.io import FileIdentity
-from cwproc.io.scans import _source_files, concat_scans, joined_attrs, scan_indices
-from cwproc.pipeline.background import correct_background, find_background_files
-from cwproc.pipeline.chain import (
+from cwproc.io.scans import _source_files, concat_scans, joined_attrs
+from cwproc.pipeline.background import SnrCorrection, find_background_files
+from cwproc.pipeline.scan_chain import (
+    Carry,
+    DayDecisions,
+    DayParts,
+    PartsDiffer,
+    Pointing,
+    ScanChain,
     describe_scan_file,
     describe_scan_inputs,
-    probe_attrs,
-    probe_for,
-    probe_mismatch,
-    pulse_rate_hz,
-    screened_wind,
-    stare_products,
+    vertical_rays,
 )
 from cwproc.pipeline.stream_read import (
     ChunkAhead,
@@ -65,49 +68,22 @@ from cwproc.pipeline.stream_read import (
     read_ahead_enabled,
     read_planned_chunk,
 )
-from cwproc.pipeline.units import drop_input
-from cwproc.stages import epsilon, structure, vad
-from cwproc.stages.background import correction_summary
-from cwproc.stages.stare import split_stares, stare_mask
-from cwproc.stages.structure import INSTRUMENT_SETTINGS
+from cwproc.pipeline.units import ProductUnit, drop_input
+
+__all__ = [
+    "STREAM_CHUNK_BYTES",
+    "ChunkAhead",
+    "ReadAhead",
+    "UnitChunks",
+    "read_ahead_enabled",
+    "run_scan_chain",
+    "stream_unit",
+]
 
 #: input data joined into one chunk (bytes of the read datasets): the stages need about
 #: ten times this at once (padded per-scan arrays of the robust VAD fits), so 8 MiB
 #: (14 files of 180 rays x 100 gates) keeps a day under 300 MiB
 STREAM_CHUNK_BYTES = 8 << 20
-
-
-class StreamMismatch(Exception):
-    """A chunk made a choice the whole-day run would not make: process the day whole."""
-
-
-@dataclass
-class StreamState:
-    """What a streamed day keeps: small per-scan and per-block results, and pointing."""
-
-    winds: list[xr.Dataset] = field(default_factory=list)
-    sfs: list[xr.Dataset] = field(default_factory=list)
-    stares: list[xr.Dataset] = field(default_factory=list)
-    #: screened rays and wind rows of the scans of the incomplete last block
-    carry: tuple[xr.Dataset, xr.Dataset] | None = None
-    scan_offset: int = 0
-    last_time: np.datetime64 | None = None
-    #: per-ray time, azimuth, elevation and streamed scan index of every chunk
-    pointing: list[tuple[np.ndarray, ...]] = field(default_factory=list)
-    #: (vad elevation, vad scans left out) of every chunk with conical scans
-    choices: set[tuple[object, ...]] = field(default_factory=set)
-    #: the SNR correction method of every chunk ("None": not corrected)
-    snr_corrections: set[str] = field(default_factory=set)
-    background_files: set[str] = field(default_factory=set)
-    #: (inputs of the unit, the background files beside them) when last looked for
-    background_found: tuple[int, list] | None = None
-    #: (wind time origin, ray time origin) of the structure function, from the first block
-    origins: tuple[np.datetime64, np.datetime64] | None = None
-    turbulence: bool = True
-    #: per chunk, the rays whose SNR a background file corrected
-    corrected: list[np.ndarray] = field(default_factory=list)
-    #: scan type of the day's files (joined), for the scan numbering of the whole day
-    scan_type: str = ""
 
 
 def time_ordered(items: list, start: Callable[[object], np.datetime64]) -> list:
@@ -169,7 +145,7 @@ def _planned_chunk(
         parts = [ds for item, _ in planned if (ds := take(item)) is not None]
         return concat_scans(parts) if parts else None
     chunk, files = got
-    vertical = stare_mask(chunk)
+    vertical = vertical_rays(chunk)
     for (item, _), part in zip(planned, files, strict=True):  # checksummed by the read
         line = describe_scan_file(
             item.path, part.identity.attrs, vertical[part.start : part.stop], part.scan
@@ -178,344 +154,267 @@ def _planned_chunk(
     return chunk
 
 
-def number_scans(chunk: xr.Dataset, state: StreamState) -> xr.Dataset:
-    """The chunk with its scan indices shifted to follow those of earlier chunks.
+class ChunkMismatch(Exception):
+    """A chunk decided what the whole-day run would not: the day runs whole."""
 
-    Raises
-    ------
-    StreamMismatch
-        The chunk's rays do not all come after those of the previous chunk.
-    """
-    time = chunk["time"].values
-    if state.last_time is not None and time.size and time[0] <= state.last_time:
-        raise StreamMismatch("files overlap in time")
-    scan = chunk["scan"].values
-    shifted = np.where(scan >= 0, scan + state.scan_offset, scan)
-    if scan.size:
-        state.scan_offset += int(scan.max()) + 1 if (scan >= 0).any() else 0
-        state.last_time = time[-1]
-    state.pointing.append(
-        (
-            time,
-            chunk["azimuth"].values.astype(float),
-            chunk["elevation"].values.astype(float),
-            shifted,
+
+@dataclass
+class ChunkedDay:
+    """What the executor keeps of a day: its pieces and what its chunks decided."""
+
+    parts: DayParts
+    #: screened rays and wind rows of the scans of the incomplete last block
+    carry: Carry | None = None
+    scan_offset: int = 0
+    last_time: np.datetime64 | None = None
+    #: per chunk: per-ray time, azimuth, elevation and scan index (numbered over the day)
+    pointing: list[tuple[np.ndarray, ...]] = field(default_factory=list)
+    #: per chunk with wind: (VAD elevation, VAD scans of other elevations)
+    vad: set[tuple[float, int]] = field(default_factory=set)
+    #: per structure function: (azimuth step, rotation)
+    steps: set[tuple[float, float]] = field(default_factory=set)
+    snr: list[SnrCorrection] = field(default_factory=list)
+    #: (inputs of the unit, the background files beside them) when last looked for
+    background: tuple[int, list[Path]] | None = None
+    probe_checked: bool = False
+
+    def numbered(self, chunk: xr.Dataset) -> xr.Dataset:
+        """The chunk with its scan indices shifted to follow those of earlier chunks.
+
+        Raises
+        ------
+        ChunkMismatch
+            The chunk's rays do not all come after those of the previous chunk.
+        """
+        time = chunk["time"].values
+        if self.last_time is not None and time.size and time[0] <= self.last_time:
+            raise ChunkMismatch("files overlap in time")
+        scan = chunk["scan"].values
+        shifted = np.where(scan >= 0, scan + self.scan_offset, scan)
+        if scan.size:
+            self.scan_offset += int(scan.max()) + 1 if (scan >= 0).any() else 0
+            self.last_time = time[-1]
+        az, el = chunk["azimuth"].values.astype(float), chunk["elevation"].values.astype(float)
+        self.pointing.append((time, az, el, shifted))
+        return chunk.assign_coords(scan=("ray", shifted, chunk["scan"].attrs))
+
+    def decided(self) -> DayDecisions:
+        """What the chunks decided, as one record (:class:`ChunkMismatch`: not one thing)."""
+        if len(self.vad) > 1 or len(self.steps) > 1:
+            raise ChunkMismatch("conical elevation or azimuth step")
+        if len({s.method for s in self.snr}) > 1:
+            raise ChunkMismatch("background method")
+        phi, n_other = next(iter(self.vad)) if self.vad else (None, 0)
+        winds = self.parts.winds
+        return DayDecisions(
+            scan=np.concatenate([p[3] for p in self.pointing]),
+            vad_elevation_deg=phi,
+            vad_scans_other_elevation=n_other,
+            wind_scans=np.concatenate(winds.arrays["scan"]) if winds else np.zeros(0, np.int64),
+            azimuth_step=next(iter(self.steps)) if self.steps else None,
         )
-    )
-    return chunk.assign_coords(scan=("ray", shifted, chunk["scan"].attrs))
+
+    def day_pointing(self, scan_type: str) -> Pointing:
+        time, az, el, _ = (np.concatenate(p) for p in zip(*self.pointing, strict=True))
+        return Pointing(time, az, el, scan_type)
 
 
-def _join(parts: list[xr.Dataset], dim: str) -> xr.Dataset:
-    """``xr.concat(parts, dim, combine_attrs="override")`` (:func:`concat_like_parts`
-    when the parts allow it)."""
-    if len(parts) == 1:
-        return parts[0]
-    joined = concat_like_parts(parts, dim)
-    return joined if joined is not None else xr.concat(parts, dim=dim, combine_attrs="override")
+def run_scan_chain(
+    chain: ScanChain,
+    chunks: Iterable[xr.Dataset | None],
+    *,
+    whole: bool,
+    notes: list[str] | None = None,
+    kept: dict[str, xr.Dataset] | None = None,
+    cross: xr.Dataset | None = None,
+    unit: ProductUnit | None = None,
+    day_attrs: Callable[[], dict] | None = None,
+    stares: bool = True,
+) -> dict[str, xr.Dataset] | None:
+    """The products of a day of scans: ``chain`` run over its chunks, in time order.
 
+    Parameters
+    ----------
+    chain : ScanChain
+        The stage chain and the day's decisions.
+    chunks : iterable of xarray.Dataset or None
+        The day's scans in time order; ``whole``: one dataset, the day (scans numbered
+        over it). None items (a chunk whose every file was left out) are skipped.
+    whole : bool
+        The chunk is the whole day: what cannot be made is said in ``notes`` (a wind
+        that cannot be fitted raises, unless stares give a product), as the definition
+        of the products. Else the day is streamed: a chunk failing or deciding
+        otherwise than the whole day gives None.
+    notes : list of str, optional
+        Receives the notes of the run, in order.
+    kept : dict, optional
+        Receives the screened scans (``kept["screened"]``; ``whole`` only).
+    cross : xarray.Dataset, optional
+        Cross-polarised stare rays of the day for the L1 product (``whole`` only).
+    unit : ProductUnit, optional
+        The unit of the chunks: their SNR is corrected with its background files
+        (:meth:`ScanChain.prepare`); None: the chunks are already corrected.
+    day_attrs : callable, optional
+        Attributes of the whole day's scans, asked once the chunks are done (streamed).
+    stares : bool
+        Split vertical stares off for the stare product (False: every ray is fitted).
 
-def concat_like_parts(parts: list[xr.Dataset], dim: str) -> xr.Dataset | None:
-    """Datasets of the same variables joined along ``dim``, one ``np.concatenate`` each.
-
-    The result of ``xr.concat(parts, dim, combine_attrs="override")`` when every part
-    has the variables of the first (in any order), with its dimensions and dtype, every
-    data variable lies along ``dim`` and every other variable (a coordinate) equals the
-    first's: the first's attributes and encodings, the variables along ``dim`` joined,
-    the others the first's. ``xr.concat`` aligns and compares the parts variable by
-    variable: 0.5 s for the 96 chunks of a day of wind rows and structure functions,
-    against a few ms here. None when a part differs (the caller concatenates with
-    xarray).
-    """
-    first = parts[0]
-    if any(dim not in first.variables[name].dims for name in first.data_vars):
-        return None
-    names = list(first.variables)
-    variables: dict[str, xr.Variable] = {}
-    for name in names:
-        var = first.variables[name]
-        others = [part.variables.get(name) for part in parts[1:]]
-        if any(o is None or o.dims != var.dims or o.dtype != var.dtype for o in others):
-            return None
-        if dim in var.dims:
-            data = np.concatenate(
-                [var.values, *(o.values for o in others)], axis=var.dims.index(dim)
-            )
-            variables[name] = xr.Variable(var.dims, data, var.attrs, var.encoding)
-        elif all(o.equals(var) for o in others):
-            variables[name] = var
-        else:
-            return None
-    if any(len(part.variables) != len(names) for part in parts[1:]):
-        return None
-    return xr.Dataset(
-        {name: variables[name] for name in first.data_vars},
-        coords={name: variables[name] for name in first.coords},
-        attrs=dict(first.attrs),
-    )
-
-
-def flush_blocks(
-    screened: xr.Dataset, wind: xr.Dataset, state: StreamState, config: Config, final: bool
-) -> None:
-    """Structure function of the complete blocks of ``wind``; the rest is carried.
-
-    Blocks are ``[turbulence] n_scans`` consecutive wind rows from the first of the day
-    (Smalikho (2020), eq. 1), as :func:`cwproc.stages.structure.azimuth_structure_function`
-    forms them on the whole day; the last, shorter block is flushed at the end.
-    """
-
-    n_scans = config.turbulence.n_scans
-    n = int(wind.sizes["time"])
-    k = n if final else n // n_scans * n_scans
-    if k < n:
-        rest = wind["scan"].values[k:]
-        carried = np.flatnonzero(np.isin(screened["scan"].values, rest))
-        state.carry = (screened.isel(ray=carried), wind.isel(time=slice(k, None)))
-    else:
-        state.carry = None
-    if k == 0:
-        return
-    done = wind.isel(time=slice(0, k)) if k < n else wind
-    if state.origins is None:
-        in_wind = np.isin(screened["scan"].values, done["scan"].values)
-        state.origins = (done["time"].values[0], screened["time"].values[in_wind].min())
-    try:
-        state.sfs.append(
-            structure.azimuth_structure_function(
-                screened,
-                done,
-                n_scans=n_scans,
-                max_lag_deg=config.turbulence.max_lag_deg,
-                min_lags=config.turbulence.min_lags,
-                time_origins=state.origins,
-            )
-        )
-    except CwprocError as exc:
-        raise StreamMismatch(f"structure function of a chunk: {exc}") from None
-
-
-def take_chunk(chunk: xr.Dataset, state: StreamState, config: Config) -> None:
-    """Stares kept, conical scans screened, fitted and their complete blocks reduced."""
-    others = split_chunk(chunk, state)
-    if others is not None:
-        reduce_chunk(*screen_chunk(others, config), state, config)
-
-
-def split_chunk(chunk: xr.Dataset, state: StreamState) -> xr.Dataset | None:
-    """The stares of a chunk kept in ``state``; its other rays returned (None: none)."""
-    # a chunk without stares is taken as it is (split_stares would copy every ray)
-    vertical = stare_mask(chunk)
-    stares, others = split_stares(chunk) if vertical.any() or not vertical.size else (None, chunk)
-    if stares is not None:
-        state.stares.append(stares)
-    return others
-
-
-def screen_chunk(others: xr.Dataset, config: Config) -> tuple[xr.Dataset, xr.Dataset]:
-    """Screened conical scans of a chunk and their wind rows (the day's state untouched).
+    Returns
+    -------
+    dict or None
+        ``{product name: dataset}``; None (streamed only) when the day must run whole.
 
     Raises
     ------
-    StreamMismatch
-        The screening or the VAD fit cannot run on the chunk alone.
+    CwprocError
+        ``whole``: no wind can be fitted and no stare gives a product.
+    ValueError
+        ``whole`` with more than one dataset.
     """
+    day = ChunkedDay(DayParts(attrs={}, turbulence=chain.config.turbulence.enabled))
+    own: list[str] = [] if notes is None else notes
     try:
-        return screened_wind(others, config)
-    except CwprocError as exc:
-        raise StreamMismatch(f"wind of a chunk: {exc}") from None
+        with contextlib.nullcontext() if whole else memory.phase("chunks"):
+            for k, chunk in enumerate(chunks):
+                if whole and k:
+                    raise ValueError("run_scan_chain(whole=True) takes one dataset, the day")
+                if chunk is not None:
+                    _take(chain, day, chunk, own, whole=whole, kept=kept, unit=unit, stares=stares)
+                del chunk  # released before the next chunk is read (and before epsilon)
+        if not whole and not _streamed_day(chain, day, day_attrs, own):
+            return None
+    except (ChunkMismatch, PartsDiffer):  # PartsDiffer: chunks only (one part when whole)
+        return None
+    return chain.finish(day.parts, notes, cross)
 
 
-def reduce_chunk(
-    screened: xr.Dataset, wind: xr.Dataset, state: StreamState, config: Config
+def _take(
+    chain: ScanChain,
+    day: ChunkedDay,
+    chunk: xr.Dataset,
+    notes: list[str],
+    *,
+    whole: bool,
+    kept: dict[str, xr.Dataset] | None,
+    unit: ProductUnit | None,
+    stares: bool,
 ) -> None:
-    """A chunk's wind rows kept and its complete blocks reduced (in chunk order)."""
-    state.winds.append(wind)
-    state.choices.add((wind.attrs["vad_elevation_deg"], wind.attrs["vad_scans_other_elevation"]))
-    if state.turbulence:
-        if state.carry is not None:
-            screened = _join([state.carry[0], screened], "ray")
-            wind = _join([state.carry[1], wind], "time")
-        flush_blocks(screened, wind, state, config, final=False)
+    """One chunk through the chain: corrected, split, fitted, its complete blocks reduced."""
+    if unit is not None:
+        if day.background is None or day.background[0] != len(unit.inputs):
+            # the unit only loses inputs (damaged beyond their header): look again then only
+            paths = (item.path for item in unit.inputs)
+            found = find_background_files(paths, chain.config.background.folder or None)
+            day.background = (len(unit.inputs), found)
+        chunk, snr = chain.prepare(chunk, unit, day.background[1], notes)
+        day.snr.append(snr)
+        if whole and snr.summary:
+            notes.append(snr.summary)
+    if not whole:
+        chunk = day.numbered(chunk)
+    vertical, others = chain.split(chunk) if stares else (None, chunk)
+    if vertical is not None:
+        day.parts.stares.append(vertical)
+    if not day.parts.attrs:
+        day.parts.attrs = dict((others if others is not None else chunk).attrs)
+    if others is None:
+        return
+    try:
+        fitted = chain.fit(others)
+    except CwprocError as exc:
+        if not whole:
+            raise ChunkMismatch(f"wind of a chunk: {exc}") from None
+        if vertical is None:
+            raise
+        notes.append(f"wind not computed: {exc}")
+        return
+    if kept is not None:
+        kept["screened"] = fitted.screened
+    wind = fitted.wind
+    day.parts.winds.append(wind)
+    if not whole:  # what the chunk decided, checked against the day at the end
+        day.vad.add((wind.attrs["vad_elevation_deg"], wind.attrs["vad_scans_other_elevation"]))
+    if not day.parts.turbulence or int(wind.sizes.get("time", 0)) < 1:
+        return
+    if not day.probe_checked:  # the day's first wind rows: can its probe give eps?
+        day.probe_checked = True
+        note = chain.turbulence_note(others)
+        if note:
+            day.parts.turbulence = False
+            notes.append(note)
+            return
+    try:
+        sf, day.carry = chain.blocks(day.carry, fitted, final=whole)
+    except CwprocError as exc:
+        if not whole:
+            raise ChunkMismatch(f"structure function of a chunk: {exc}") from None
+        day.parts.turbulence = False
+        notes.append(f"turbulence not computed: {exc}")
+        return
+    _keep_blocks(day, sf, decided=not whole)
 
 
-def check_day_choices(state: StreamState, config: Config) -> None:
-    """Compare the chunks' choices with the whole day's (recomputed from the pointing).
+def _keep_blocks(day: ChunkedDay, sf: xr.Dataset | None, *, decided: bool) -> None:
+    """Keep the blocks of ``sf`` (and, ``decided``, their azimuth step and rotation)."""
+    if sf is not None and int(sf.sizes.get("time", 0)) >= 1:
+        day.parts.sfs.append(sf)
+        if decided:
+            day.steps.add((float(sf["azimuth_step"].values[0]), float(sf.attrs["rotation"])))
+
+
+def _streamed_day(
+    chain: ScanChain, day: ChunkedDay, day_attrs: Callable[[], dict] | None, notes: list[str]
+) -> bool:
+    """The streamed day's last block reduced, its decisions checked against the whole
+    day's and its attributes set; False when there is no wind (the whole-day run words
+    what it cannot make).
 
     Raises
     ------
-    StreamMismatch
-        Scan numbering, conical elevation, azimuth step or rotation, or the background
-        method of a chunk differs from the whole day's.
+    ChunkMismatch
+        The chunks decided otherwise than the whole day would.
     """
-    time, az, el, streamed = (np.concatenate(p) for p in zip(*state.pointing, strict=True))
-    whole, _ = scan_indices(time, az, el, scan_type=state.scan_type)
-    if not np.array_equal(whole, streamed):
-        raise StreamMismatch("scan numbering")
-    if len(state.choices) > 1 or len(state.snr_corrections) > 1:
-        raise StreamMismatch("conical elevation or background method")
-    if not state.winds:
-        return
-    layout, phi, _, n_other = vad.select_conical_scans(
-        vad.scan_layout(whole, np.isfinite(az) & np.isfinite(el)), el
-    )
-    wind_scans = np.concatenate([w["scan"].values for w in state.winds])
-    chosen, other = next(iter(state.choices))
-    if (phi, n_other) != (chosen, other) or not np.array_equal(layout.scan_ids, wind_scans):
-        raise StreamMismatch("conical scans of the day")
-    if state.sfs:
-        rays = np.isin(whole, wind_scans)
-        day_step = structure.azimuth_step(az[rays], whole[rays])
-        for sf in state.sfs:
-            if (float(sf["azimuth_step"].values[0]), float(sf.attrs["rotation"])) != day_step:
-                raise StreamMismatch("azimuth step")
-
-
-def day_attrs(first: dict, files: list[str], scan_types: list[str], state: StreamState) -> dict:
-    """Attributes of the whole day's scans (those the whole-day run would carry)."""
-
-    attrs = joined_attrs(first, files, scan_types)
-    if state.snr_corrections:
-        snr_correction = next(iter(state.snr_corrections))
-        if snr_correction != "None":
-            attrs["snr_correction"] = snr_correction
-            attrs["background_files"] = sorted(state.background_files)
-    return attrs
-
-
-def stream_products(
-    state: StreamState, attrs: dict, config: Config, notes: list[str] | None
-) -> dict[str, xr.Dataset]:
-    """Wind, turbulence and stare products of the day from what the chunks kept."""
-
-    products: dict[str, xr.Dataset] = {}
-    any_wind = bool(state.winds)
-    # each list is released once joined: the chunks' pieces are not held by the
-    # dissipation-rate fit, whose working arrays make the day's peak memory
-    if state.winds:
-        wind = _join(state.winds, "time")
-        state.winds = []
-        wind.attrs = {**attrs, **{k: v for k, v in wind.attrs.items() if k.startswith("vad_")}}
-        products["wind"] = wind
-    if state.sfs:
-        sf = _join(state.sfs, "time")
-        state.sfs = []
-        sf.attrs["instrument"] = str(attrs.get("instrument", ""))
-        for key in INSTRUMENT_SETTINGS:  # the day's, as the whole-day run has them
-            sf.attrs.pop(key, None)
-            if key in attrs:
-                sf.attrs[key] = attrs[key]
-        with heap_returned():
-            products["turbulence"] = epsilon.estimate_epsilon(
-                sf,
-                probe=probe_for(config, attrs),
-                lag_number=config.turbulence.lag_number,
-                model=config.turbulence.model,
-                prf_hz=pulse_rate_hz(config, attrs),
-            )
-            products["turbulence"].attrs.update(probe_attrs(config, attrs))
-    elif state.turbulence and any_wind and notes is not None:
-        notes.append("turbulence not computed: no complete block of scans")
-    if state.stares and config.stare.enabled:
-        stares = _join(state.stares, "ray")
-        state.stares = []
-        stares.attrs = dict(attrs)
-        products["stare"] = stare_products(stares, products.get("wind"), config, notes)
-    return products
-
-
-#: glibc ``mallopt`` parameters: free memory at the top of the heap above which ``free``
-#: returns it to the system; size from which ``malloc`` maps memory apart (left at the
-#: chunks' value after them)
-_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
-#: while the chunks are processed: arrays up to glibc's largest threshold (64-bit) come
-#: from the heap, and up to this much free heap is kept for the next chunk's arrays
-_CHUNK_MMAP_BYTES, _CHUNK_TRIM_BYTES = 32 << 20, 256 << 20
-#: glibc's default trim threshold, set back after the chunks
-_DEFAULT_TRIM_BYTES = 128 << 10
-
-
-#: free heap kept at the top while the dissipation rate is fitted (its groups of blocks
-#: make and drop arrays of the same sizes)
-_EPSILON_TRIM_BYTES = 64 << 20
-
-
-@contextlib.contextmanager
-def heap_returned() -> Iterator[None]:
-    """Run a step with the chunks' freed heap returned to the system first (glibc only).
-
-    After the chunks, tens of MiB of freed heap stay resident, and the dissipation
-    rate's working arrays (A-table evaluations, the delta-method errors of groups of 40
-    blocks) would be laid out in and beside them. The free heap is given back
-    (``malloc_trim``), so the step's peak is what it uses; its arrays then come from the
-    heap as the chunks' did (up to 32 MiB, :func:`heap_kept`) and up to
-    :data:`_EPSILON_TRIM_BYTES` of it is kept free while the step runs, so that one
-    group's arrays reuse the pages of the group before (afterwards glibc's default trim
-    threshold is set back). For a day of 1920 scans the whole run then faults in about
-    116 000 pages instead of 280 000 when every array of 128 KiB and more was mapped
-    apart (until 2026-11-26; 0.3-1.0 s in interleaved runs), for a peak about 10 MiB
-    higher (247-260 against 245-253 MiB). The values computed are the same; with another C library
-    this does nothing.
-    """
-    libc = _glibc()
-    if libc is None:
-        yield
-        return
-    libc.malloc_trim(0)
-    libc.mallopt(_M_TRIM_THRESHOLD, _EPSILON_TRIM_BYTES)
+    if not day.pointing:
+        return False
     try:
-        yield
-    finally:
-        libc.mallopt(_M_TRIM_THRESHOLD, _DEFAULT_TRIM_BYTES)
+        if day.carry is not None:
+            _keep_blocks(day, chain.blocks(day.carry, None, final=True)[0], decided=True)
+            day.carry = None
+        attrs = dict(day_attrs()) if day_attrs is not None else dict(day.parts.attrs)
+        pointing = day.day_pointing(str(attrs.get("scan_type", "")))
+        decided = chain.decisions(pointing, wind=bool(day.parts.winds), step=bool(day.parts.sfs))
+    except CwprocError as exc:
+        raise ChunkMismatch(str(exc)) from None
+    different = decided.differences(day.decided())
+    day.pointing = []  # 24 bytes a ray of the day: not needed any more
+    if different:
+        raise ChunkMismatch(different)
+    if not day.parts.winds:
+        return False
+    snr = SnrCorrection.of_day(day.snr)
+    if snr is not None and snr.method != "None":
+        attrs["snr_correction"] = snr.method
+        attrs["background_files"] = list(snr.files)
+    if snr is not None and snr.summary:
+        notes.append(snr.summary)
+    day.parts.attrs, day.parts.joined = attrs, True
+    return True
 
 
-@contextlib.contextmanager
-def heap_kept() -> Iterator[None]:
-    """Process the chunks with their freed arrays kept in the heap (glibc only).
-
-    Each chunk's stages make and drop hundreds of arrays of a few MiB (the padded
-    (scan, ray, gate) arrays of the fits, the structure function's); by default glibc
-    maps such arrays apart or returns the freed heap top to the system, so every one
-    is faulted in page by page and zeroed by the kernel again (about a third of the
-    stages' time, and more when the cores are shared). Here arrays up to 32 MiB come
-    from the heap and up to 256 MiB of free heap is kept, so the next array reuses pages
-    already resident; the peak memory is that of the largest chunk's arrays in use, as
-    before. Afterwards the free heap is given back (``malloc_trim``) and the default
-    trim threshold restored. The values computed are the same; with another C library
-    this does nothing.
-    """
-    libc = _glibc()
-    if libc is None:
-        yield
-        return
-    libc.mallopt(_M_MMAP_THRESHOLD, _CHUNK_MMAP_BYTES)
-    libc.mallopt(_M_TRIM_THRESHOLD, _CHUNK_TRIM_BYTES)
-    try:
-        yield
-    finally:
-        libc.mallopt(_M_TRIM_THRESHOLD, _DEFAULT_TRIM_BYTES)
-        libc.malloc_trim(0)
+# --------------------------------------------------------------------------------------
+# the chunks of a unit's files
+# --------------------------------------------------------------------------------------
 
 
-def _glibc() -> ctypes.CDLL | None:
-    """The GNU C library when this process runs on it (with ``malloc_trim``), else None."""
-    try:
-        libc = ctypes.CDLL(None)  # the symbols of the process, its C library's among them
-    except OSError:
-        return None
-    if not hasattr(libc, "malloc_trim") or not hasattr(libc, "mallopt"):
-        return None
-    return libc
-
-
-def stream_scan_unit(
-    unit,
+def stream_unit(
+    unit: ProductUnit,
     config: Config,
     notes: list[str] | None,
     load: Callable,
     chunk_bytes: int = STREAM_CHUNK_BYTES,
     read_ahead: bool | None = None,
 ) -> dict[str, xr.Dataset] | None:
-    """Products of a scan unit processed chunk by chunk; None when it must run whole.
+    """Products of a scan unit run chunk by chunk; None when it must run whole.
 
     Parameters
     ----------
@@ -529,150 +428,109 @@ def stream_scan_unit(
     chunk_bytes : int
         Input data joined into one chunk (bytes).
     read_ahead : bool, optional
-        Read ahead: the next files read (and checksummed) in a second thread
-        (:class:`ChunkAhead` for chunks read at once, else :class:`ReadAhead`; at most
-        one chunk ahead) while the caller's thread processes the chunk before it; None:
-        unless ``CWPROC_READ_AHEAD=0`` (:func:`read_ahead_enabled`). The products, notes
-        and failures are the same either way.
+        Read ahead (:class:`UnitChunks`); None: unless ``CWPROC_READ_AHEAD=0``. The
+        products, notes and failures are the same either way.
 
     Returns
     -------
     dict or None
-        ``{product name: dataset}``, identical to :func:`cwproc.pipeline.process_scan_day`
-        of the whole day; None when a chunk's choices differ from the day's (see the
-        module docstring) and the caller must process the day whole.
+        ``{product name: dataset}``, identical to :func:`run_scan_chain` of the whole day
+        (``whole=True``); None when a chunk decided otherwise (see the module docstring).
     """
-
-    state = StreamState(turbulence=config.turbulence.enabled)
     own: list[str] = []
-    seen: dict[int, FileIdentity] = {}
-    position = {id(item): k for k, item in enumerate(unit.inputs)}
-
-    def read(item) -> xr.Dataset | None:
-        return item.dataset if item.dataset is not None else load(item)
-
-    ordered = time_ordered(list(unit.inputs), lambda item: item.start)
-    by_chunk = chunk_reading_possible(unit, config)
-    reading_ahead = read_ahead_enabled(read_ahead)
-    ahead = ReadAhead(ordered, read, chunk_bytes) if reading_ahead and not by_chunk else None
-
-    files_done = contextlib.ExitStack()  # a bar of the day's files (when progress is on)
-    files_bar = files_done.enter_context(
-        progress.bar(desc=f"{unit.key}", total=len(ordered), unit="file")
-    )
-
-    def took(item, identity: FileIdentity, lines: list[str]) -> None:
-        files_bar.update(1)
-        item.dataset = None  # the chunk holds it now; released with the chunk
-        # for products; its attributes are the file's (source files, scan type) below
-        item.identity = identity
-        own.extend(lines)
-        seen[position[id(item)]] = identity
-
-    def take(item) -> xr.Dataset | None:
-        try:
-            ds = ahead.load(item) if ahead is not None else read(item)
-        except InputFileError as exc:  # identified by its header, damaged beyond it
-            drop_input(unit, item, exc)
-            return None
-        item.dataset = None
-        if ds is not None:
-            identity = FileIdentity(dict(ds.attrs), ds.variables["time"].values[:1])
-            took(item, identity, describe_scan_inputs(_single(unit, item, ds)))
-        return ds
-
-    if by_chunk:
-        chunks = planned_chunk_datasets(ordered, take, took, chunk_bytes, reading_ahead)
-    else:
-        chunks = (concat_scans(parts) for parts in chunks_of(ordered, take, chunk_bytes))
-    try:
-        with heap_kept():  # the chunks' arrays reuse the freed heap
-            for chunk in chunks:
-                if chunk is None:
-                    continue  # every file of the chunk damaged beyond its header
-                take_chunk(prepared_chunk(chunk, unit, config, own, state), state, config)
-                del chunk  # released before the next chunk is read (and before epsilon)
-        if not seen:  # every input damaged beyond its header: each has its failure line
-            return {} if not unit.inputs else None
-        if state.carry is not None:
-            flush_blocks(*state.carry, state, config, final=True)
-        firsts = [seen[k] for k in sorted(seen)]
-        files = [f for ds in firsts for f in _source_files(ds)]
-        types = [str(ds.attrs.get("scan_type", "")) for ds in firsts]
-        state.scan_type = "; ".join(t for t in dict.fromkeys(types) if t)
-        check_day_choices(state, config)
-        state.pointing = []  # 24 bytes a ray of the day: not needed any more
-    except StreamMismatch:
-        return None
-    finally:
-        files_done.close()
-        chunks.close()  # stops the reading thread of a chunk reader
-        if ahead is not None:
-            ahead.close()
-    if not state.winds:
-        return None  # no conical scan: the whole-day run words what it cannot make
-    if state.corrected:
-        own.append(background_summary(state))
-    products = stream_products(state, day_attrs(firsts[0].attrs, files, types, state), config, own)
+    with UnitChunks(unit, config, load, own, chunk_bytes, read_ahead) as chunks:
+        products = run_scan_chain(
+            ScanChain(config), chunks, whole=False, notes=own, unit=unit, day_attrs=chunks.attrs
+        )
+    if products is None:
+        return {} if not chunks.seen and not unit.inputs else None
     if notes is not None:
         notes.extend(dict.fromkeys(own))
     return products
 
 
-def prepared_chunk(
-    chunk: xr.Dataset,
-    unit,
-    config: Config,
-    notes: list[str],
-    state: StreamState,
-) -> xr.Dataset:
-    """A chunk corrected and its scans numbered after the earlier chunks' (in chunk
-    order), for :func:`take_chunk`."""
-    chunk = corrected_chunk(chunk, unit, config, notes, state)
-    state.scan_type = str(chunk.attrs.get("scan_type", ""))
-    chunk = number_scans(chunk, state)
-    if state.turbulence and not (state.winds or state.stares):
-        mismatch = probe_mismatch(chunk, config)  # the first chunk of the day's data
-        if mismatch:
-            state.turbulence = False
-            notes.append(f"turbulence not computed: {mismatch}")
-    return chunk
+class UnitChunks:
+    """The scan files of a unit as chunks of about ``chunk_bytes``, in time order.
 
-
-def corrected_chunk(
-    chunk: xr.Dataset, unit, config: Config, notes: list[str], state: StreamState
-) -> xr.Dataset:
-    """The chunk with its SNR background-corrected (:func:`~.background.correct_background`).
-
-    The per-chunk summary line is left out of ``notes`` and the rays counted instead, so
-    the day gets one summary (:func:`background_summary`), as the whole-day run words it.
+    Each file's description line (:func:`~.chain.describe_scan_inputs`) is appended to
+    ``notes`` as it is read; a file damaged beyond its header is left out of the unit
+    with its failure line (:func:`~cwproc.pipeline.units.drop_input`). With
+    ``read_ahead`` (None: unless ``CWPROC_READ_AHEAD=0``) the next files are read (and
+    checksummed) in a second thread (:class:`ChunkAhead` for chunks read at once, else
+    :class:`ReadAhead`; at most one chunk ahead) while the caller processes the chunk
+    before it. A context manager: leaving it stops the reading thread.
     """
 
-    own: list[str] = []
-    if state.background_found is None or state.background_found[0] != len(unit.inputs):
-        # the unit only loses inputs (damaged beyond their header): look again then only
-        paths = (item.path for item in unit.inputs)
-        found = find_background_files(paths, config.background.folder or None)
-        state.background_found = (len(unit.inputs), found)
-    out = correct_background(chunk, unit, config, own, files=state.background_found[1])
-    state.snr_corrections.add(str(out.attrs.get("snr_correction")))
-    state.background_files.update(out.attrs.get("background_files", []))
-    if "background_time" in out and own:
-        own.pop()  # the summary line correct_snr appends last
-        state.corrected.append(~np.isnat(out["background_time"].values))
-    notes.extend(own)
-    return out
+    def __init__(
+        self,
+        unit: ProductUnit,
+        config: Config,
+        load: Callable,
+        notes: list[str],
+        chunk_bytes: int = STREAM_CHUNK_BYTES,
+        read_ahead: bool | None = None,
+    ) -> None:
+        self.unit, self.load, self.notes = unit, load, notes
+        #: identity of each file read, by its position in the unit
+        self.seen: dict[int, FileIdentity] = {}
+        self._position = {id(item): k for k, item in enumerate(unit.inputs)}
+        ordered = time_ordered(list(unit.inputs), lambda item: item.start)
+        by_chunk = chunk_reading_possible(unit, config)
+        ahead = read_ahead_enabled(read_ahead)
+        self._ahead = (
+            ReadAhead(ordered, self._read, chunk_bytes) if ahead and not by_chunk else None
+        )
+        self._done = contextlib.ExitStack()  # a bar of the day's files (when progress is on)
+        self._bar = self._done.enter_context(
+            progress.bar(desc=f"{unit.key}", total=len(ordered), unit="file")
+        )
+        if by_chunk:
+            self._chunks = planned_chunk_datasets(
+                ordered, self._take, self._took, chunk_bytes, ahead
+            )
+        else:
+            parts = chunks_of(ordered, self._take, chunk_bytes)
+            self._chunks = (concat_scans(p) for p in parts)
 
+    def __iter__(self) -> Iterator[xr.Dataset | None]:
+        return self._chunks
 
-def background_summary(state: StreamState) -> str:
-    """One line for the day: rays whose SNR was corrected, with how many files."""
+    def __enter__(self) -> UnitChunks:
+        return self
 
-    done = np.concatenate(state.corrected)
-    used = sorted(state.background_files)
-    return correction_summary(done, used, np.where(done, 0, -1))
+    def __exit__(self, *exc: object) -> None:
+        self._done.close()
+        self._chunks.close()  # stops the reading thread of a chunk reader
+        if self._ahead is not None:
+            self._ahead.close()
 
+    def attrs(self) -> dict:
+        """Attributes of the whole day's scans (those the whole-day run carries)."""
+        firsts = [self.seen[k] for k in sorted(self.seen)]
+        files = [f for ds in firsts for f in _source_files(ds)]
+        types = [str(ds.attrs.get("scan_type", "")) for ds in firsts]
+        return joined_attrs(firsts[0].attrs, files, types)
 
-def _single(unit, item, ds: xr.Dataset):
-    """A one-input copy of ``unit`` holding ``ds`` (for per-file descriptions)."""
+    def _read(self, item) -> xr.Dataset | None:
+        return item.dataset if item.dataset is not None else self.load(item)
 
-    return dataclasses.replace(unit, inputs=[dataclasses.replace(item, dataset=ds)])
+    def _took(self, item, identity: FileIdentity, lines: list[str]) -> None:
+        self._bar.update(1)
+        item.dataset = None  # the chunk holds it now; released with the chunk
+        # for products; its attributes are the file's (source files, scan type) below
+        item.identity = identity
+        self.notes.extend(lines)
+        self.seen[self._position[id(item)]] = identity
+
+    def _take(self, item) -> xr.Dataset | None:
+        try:
+            ds = self._ahead.load(item) if self._ahead is not None else self._read(item)
+        except InputFileError as exc:  # identified by its header, damaged beyond it
+            drop_input(self.unit, item, exc)
+            return None
+        item.dataset = None
+        if ds is not None:
+            identity = FileIdentity(dict(ds.attrs), ds.variables["time"].values[:1])
+            single = dataclasses.replace(self.unit, inputs=[dataclasses.replace(item, dataset=ds)])
+            self._took(item, identity, describe_scan_inputs(single))
+        return ds

@@ -72,6 +72,9 @@ def wrapped_azimuth_difference(a_deg: np.ndarray, b_deg: np.ndarray) -> np.ndarr
 def azimuth_step(azimuth_deg: np.ndarray, scan: np.ndarray) -> tuple[float, float]:
     """Azimuth step dtheta (deg) and rotation sign from consecutive rays of the same scan.
 
+    The stage's day decision, used by ``ScanChain.decisions``
+    (:mod:`cwproc.pipeline.chain`): a day run in chunks must find the step of the whole day.
+
     Parameters
     ----------
     azimuth_deg : numpy.ndarray
@@ -305,7 +308,6 @@ def azimuth_structure_function(
     n_scans: int = 10,
     max_lag_deg: float = 9.0,
     min_lags: int = MIN_LAGS,
-    time_origins: tuple[np.datetime64, np.datetime64] | None = None,
     homodyne: bool | None = None,
 ) -> xr.Dataset:
     """Azimuth structure function D_L(l dtheta) per block of scans and height.
@@ -328,10 +330,6 @@ def azimuth_structure_function(
         Largest azimuth lag l dtheta (deg) of dense scans (:func:`lag_count`).
     min_lags : int, optional
         Fewest lags of coarse scans (:func:`lag_count`).
-    time_origins : (datetime64, datetime64), optional
-        Origins of the block-centre times and of the ray times of the scan period
-        (default: the first wind time and the first ray used). A day processed in
-        chunks passes the day's, so its blocks equal those of the whole day to the bit.
     homodyne : bool, optional
         ``radial_velocity`` holds ``|V_r|`` (homodyne detection): signs are taken from
         the block-mean wind (:func:`homodyne_radial_velocity`). None: the ``homodyne``
@@ -368,7 +366,7 @@ def azimuth_structure_function(
     stats = _block_statistics_by_chunk(
         screened_ds, grid, gates, mean_wind, scan_wind, n_scans=n_scans, homodyne=homodyne
     )
-    times = _block_times(wind, grid, n_scans, time_origins)
+    times = _block_times(wind, grid, n_scans)
     out = _structure_dataset(wind, grid, mean_wind, stats, times)
     out["structure_function"].attrs.update(
         method="azimuth structure function of V_L minus the block-mean VAD wind, pairs "
@@ -669,38 +667,38 @@ def _group_median(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.nd
     return out
 
 
-def _block_times(
-    wind: xr.Dataset,
-    grid: RayGrid,
-    n_scans: int,
-    time_origins: tuple[np.datetime64, np.datetime64] | None,
-) -> dict[str, np.ndarray]:
+def _block_times(wind: xr.Dataset, grid: RayGrid, n_scans: int) -> dict[str, np.ndarray]:
     """Per block: ``centre`` time, ``scan_period`` and ``scan_interval`` (s), ``n_scans``
-    and mean ``elevation`` (deg)."""
+    and mean ``elevation`` (deg).
+
+    Every time is taken from differences of integer nanoseconds within its block, so a
+    block's values do not depend on the blocks before it: the blocks of a day reduced
+    a few at a time (:func:`cwproc.pipeline.stream.run_scan_chain`) equal those of the
+    whole day to the bit. The centre is the block's first wind time plus the mean offset
+    of its wind times, rounded half up to the nanosecond (exact integer arithmetic).
+    """
     n_time = grid.n_time
     starts = np.arange(0, n_time, n_scans)
     n_blocks = starts.size
     block_of_time = np.arange(n_time) // n_scans
     scan_pos, az, sign, dtheta = grid.scan_pos, grid.az, grid.sign, grid.dtheta
     # scan period from the ray times: median time per azimuth step, times M
-    wind_time = wind["time"].values
-    wind_t0, ray_t0 = time_origins if time_origins is not None else (wind_time[0], grid.t_ray[0])
-    t_sec = (grid.t_ray - ray_t0) / np.timedelta64(1, "s")
     same = scan_pos[1:] == scan_pos[:-1]
     dm = (sign * wrapped_azimuth_difference(az[1:], az[:-1]) / dtheta)[same]
-    dt = np.diff(t_sec)[same]
+    dt = _nanoseconds(np.diff(grid.t_ray))[same] / 1e9
     good = (dm > 0.5) & (dt > 0)
     step_time = _group_median(
         dt[good] / np.rint(dm[good]), block_of_time[scan_pos[1:][same][good]], n_blocks
     )
 
-    t0 = wind_t0
-    rel = (wind_time - t0) / np.timedelta64(1, "ns")
-    centre = t0 + np.rint(_block_mean(rel[:, None].astype(float), starts)[:, 0]).astype(
-        "timedelta64[ns]"
-    )
+    wind_time = wind["time"].values.astype("datetime64[ns]")
+    first = wind_time[starts]
+    offset = _nanoseconds(wind_time - first[block_of_time])  # within the block, >= 0
+    count = np.diff(np.append(starts, n_time))
+    total = np.add.reduceat(offset, starts) if n_time else np.zeros(0, np.int64)
+    centre = first + ((2 * total + count) // (2 * count)).astype("timedelta64[ns]")
     # time between the starts of consecutive scans (a sector scan's return included)
-    gaps_s = np.diff(rel) / 1e9
+    gaps_s = _nanoseconds(np.diff(wind_time)) / 1e9
     inside = block_of_time[1:] == block_of_time[:-1]
     scan_interval = _group_median(gaps_s[inside], block_of_time[1:][inside], n_blocks)
     return {
@@ -710,6 +708,11 @@ def _block_times(
         "n_scans": _block_sum(np.ones(n_time, dtype=np.int64), starts),
         "elevation": _block_mean(wind["elevation"].values.astype(float)[:, None], starts)[:, 0],
     }
+
+
+def _nanoseconds(delta: np.ndarray) -> np.ndarray:
+    """Time differences as int64 nanoseconds (exact)."""
+    return delta.astype("timedelta64[ns]").astype(np.int64)
 
 
 def _structure_dataset(

@@ -96,6 +96,8 @@ class ScanLayout:
 def scan_layout(scan: np.ndarray, keep: BoolArray | None = None) -> ScanLayout:
     """Group ray indices by scan number (rays with ``scan < 0`` or ``~keep`` left out).
 
+    The stage's day decision, used by ``ScanChain.decisions`` (:mod:`cwproc.pipeline.chain`).
+
     Parameters
     ----------
     scan : ndarray, shape (n_ray,)
@@ -258,6 +260,9 @@ def select_conical_scans(
     layout: ScanLayout, elevation_deg: FloatArray
 ) -> tuple[ScanLayout, float, FloatArray, int]:
     """Keep the scans at the most common conical elevation.
+
+    The stage's day decision, used by ``ScanChain.decisions`` (:mod:`cwproc.pipeline.chain`):
+    a day run in chunks must keep the elevation and the scans of the whole day.
 
     A scan is conical when its median elevation lies in ``CONICAL_ELEVATION_RANGE_DEG``.
     The most common elevation (rounded to 0.1 deg) is chosen; scans within
