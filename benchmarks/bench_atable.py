@@ -1,6 +1,6 @@
 """Build and evaluation time of the cached A-function tables (Stream Line preset).
 
-A table (:func:`cwproc.physics.atable.get_a_table`) is built once per instrument
+A table (:func:`cwproc.tables.atable.get_a_table`) is built once per instrument
 configuration and then read from the disk cache; the retrieval evaluates it for every
 block, height and lag. This script times, in a fresh temporary cache directory:
 
@@ -35,8 +35,8 @@ import time
 import numpy as np
 
 from cwproc.config import load_config
-from cwproc.physics.atable import get_a_table
 from cwproc.pipeline import probe_from_config
+from cwproc.tables.atable import get_a_table
 
 
 def time_one(

@@ -21,9 +21,9 @@ import time
 import numpy as np
 import xarray as xr
 
-from cwproc.physics.atable import get_a_table
 from cwproc.physics.transfer import PulsedProbe
 from cwproc.stages.epsilon import estimate_epsilon
+from cwproc.tables.atable import get_a_table
 
 PHI, DTHETA, N_LAGS, T_SCAN = 35.3, 2.0, 4, 60.0
 

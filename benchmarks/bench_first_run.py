@@ -5,7 +5,7 @@ count, range) builds every table the ε stage requests: the inertial A-table and
 table of the preset's spectrum model (:func:`cwproc.stages.epsilon.atable_fit.a_tables`,
 with the lags of :func:`cwproc.stages.structure.lag_count` and the height range of
 :func:`cwproc.stages.epsilon.atable_fit.table_height_range`) and the removed-share
-curve of the elevation (:func:`cwproc.physics.removed_share.mean_removed_share`). This
+curve of the elevation (:func:`cwproc.tables.removed_share.mean_removed_share`). This
 script times them in a cold temporary cache (``XDG_CACHE_HOME``) for five geometries
 that are not shipped in ``cwproc/atables/`` (checked: the script stops if one is; the
 samples' 30 m / 180-ray scans at 35.3 deg ship, so that geometry is timed at another
@@ -114,7 +114,7 @@ def _request(geo: Geometry) -> tuple:
 
 def shipped_tables(geo: Geometry) -> list[str]:
     """The tables of ``geo`` that ship in ``cwproc/atables/`` (none, for a fair timing)."""
-    from cwproc.physics import atable
+    from cwproc.tables import atable
 
     probe, phi, dtheta, n_lags, model, options = _request(geo)
     found = []
@@ -134,8 +134,8 @@ def time_geometry(geo: Geometry) -> tuple[float, float, list[str]]:
     The CPU seconds (this process, all its threads) are the figure to compare on a
     shared machine: the wall clock also counts the other users' jobs.
     """
-    from cwproc.physics.removed_share import mean_removed_share
     from cwproc.stages.epsilon.atable_fit import a_tables
+    from cwproc.tables.removed_share import mean_removed_share
 
     probe, phi, dtheta, n_lags, model, options = _request(geo)
     parts = []

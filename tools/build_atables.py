@@ -9,15 +9,24 @@ shipped samples and the README's tour are built here and shipped in ``cwproc/ata
     python tools/build_atables.py            # run the jobs below, ship what they request
     python tools/build_atables.py --rebuild  # rebuild the shipped tables from their
                                              # stored parameters (after a code change)
+    python tools/build_atables.py --rekey    # ship the same arrays under the key of
+                                             # the current code (after a move of code
+                                             # that leaves the numbers alone; checked)
 
 Each job runs with an empty cache (``XDG_CACHE_HOME`` in a temporary folder) and the
 code of this checkout; every table it requests is recorded with its parameters, built,
 and copied, compressed, into ``cwproc/atables/`` under its cache key with its parameters
 (``params``, JSON) inside. ``cwproc/atables/MANIFEST.txt`` lists which job needed which
 table. The cache key holds a hash of the code of the physics modules the build uses
-(:func:`cwproc.physics.disk_cache.code_digest`), so any change of that code makes the
+(:func:`cwproc.tables.store.code_digest`), so any change of that code makes the
 shipped tables stale: ``--rebuild`` then builds them again from the stored parameters,
 without the jobs; ``tests/physics/test_shipped_atables.py`` fails until it is run.
+When the code changed without changing the numbers (a module moved or renamed, a
+docstring edited), ``--rekey`` keeps the shipped arrays byte for byte: it rebuilds each
+table with the current code, requires it to equal the shipped one within the
+tolerance of ``test_shipped_tables_equal_a_rebuild`` (the last bits of another host's
+arithmetic), and ships the old arrays under the new key; a table that differs more
+stops it, and ``--rebuild`` is then the way.
 """
 
 from __future__ import annotations
@@ -57,7 +66,7 @@ JOBS: dict[str, list[str]] = {
 #: runs ``cwproc`` with every table request appended to $CWPROC_ATABLE_LOG (JSON lines)
 RECORDER = """
 import json, os, sys
-from cwproc.physics import atable
+from cwproc.tables import atable
 key = atable.table_key
 def recorded(params):
     with open(os.environ["CWPROC_ATABLE_LOG"], "a") as log:
@@ -87,7 +96,7 @@ def run_job(commands: list[str], cache: Path, workdir: Path) -> list[dict]:
 def ship(params: dict, target: Path, built: Path | None = None) -> Path:
     """The table of ``params`` (from the folder ``built`` when there, else built), written
     into ``target`` compressed, with ``params`` inside."""
-    from cwproc.physics import atable
+    from cwproc.tables import atable
 
     key = atable.table_key(params)
     with tempfile.TemporaryDirectory() as tmp:
@@ -95,7 +104,7 @@ def ship(params: dict, target: Path, built: Path | None = None) -> Path:
         if path is None or not path.exists():
             table = atable.build_a_table(atable.probe_from_params(params["probe"]), params)
             path = Path(tmp) / f"atable-{key}.npz"
-            atable._save(table, path, key)
+            atable.save_table(table, path, key)
         with np.load(path, allow_pickle=False) as data:
             arrays = {name: data[name] for name in data.files}
     arrays["params"] = np.array(json.dumps(params, sort_keys=True))
@@ -119,7 +128,7 @@ def stored(target: Path) -> list[tuple[dict, str, None]]:
 def write(entries: list[tuple[dict, str, Path | None]], target: Path) -> None:
     """Ship the tables of ``entries`` (``(params, job, cache)``) and write the manifest;
     a table requested by several jobs is shipped once, listed under the first."""
-    from cwproc.physics import atable
+    from cwproc.tables import atable
 
     target.mkdir(exist_ok=True)
     for old in target.glob("atable-*.npz"):
@@ -137,13 +146,46 @@ def write(entries: list[tuple[dict, str, Path | None]], target: Path) -> None:
     (target / "MANIFEST.txt").write_text("\n".join(manifest) + "\n")
 
 
+#: a rebuild equals a shipped table within these (test_shipped_tables_equal_a_rebuild)
+REKEY_RTOL, REKEY_ATOL = 1e-7, 1e-12
+
+
+def rekeyed(target: Path, built: Path) -> list[tuple[dict, str, Path | None]]:
+    """The shipped tables of ``target``, their arrays written into ``built`` under the
+    key of the current code after a rebuild agreed with them (``ValueError`` if not)."""
+    from cwproc.tables import atable
+
+    out: list[tuple[dict, str, Path | None]] = []
+    for params, job, _ in stored(target):
+        with np.load(target / f"atable-{atable.table_key(params)}.npz") as data:
+            arrays = {name: data[name] for name in data.files if name != "params"}
+        fresh = {**params, "code": atable.code_version()}
+        table = atable.build_a_table(atable.probe_from_params(params["probe"]), fresh)
+        for name in ("log_a1", "log_a2", "bins_a2", "scale_bins"):
+            now = getattr(table, name)
+            now = np.zeros(0) if now is None else now
+            if now.shape != arrays[name].shape or not np.allclose(
+                now, arrays[name], rtol=REKEY_RTOL, atol=REKEY_ATOL
+            ):
+                raise ValueError(f"{job}: {name} changed with the code; use --rebuild")
+        arrays["key"] = np.array(atable.table_key(fresh))
+        np.savez(built / f"atable-{atable.table_key(fresh)}.npz", **arrays)
+        out.append((params, job, built))
+    return out
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rebuild", action="store_true", help="from the stored parameters")
+    parser.add_argument("--rekey", action="store_true", help="same arrays, current code's key")
     args = parser.parse_args()
     sys.path.insert(0, str(ROOT))
     if args.rebuild:
         write(stored(TARGET), TARGET)
+        return 0
+    if args.rekey:
+        with tempfile.TemporaryDirectory() as tmp:
+            write(rekeyed(TARGET, Path(tmp)), TARGET)
         return 0
     entries: list[tuple[dict, str, Path | None]] = []
     with tempfile.TemporaryDirectory() as tmp:

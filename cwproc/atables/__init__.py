@@ -1,5 +1,5 @@
 """Prebuilt A-function tables shipped with cwproc (``tools/build_atables.py``).
 
-:func:`cwproc.physics.atable.get_a_table` looks here when a table is not in the user
+:func:`cwproc.tables.atable.get_a_table` looks here when a table is not in the user
 cache, so that the shipped presets on the shipped samples never wait for a build.
 """

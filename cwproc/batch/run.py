@@ -407,8 +407,7 @@ def _classify_new(
         retries=TASK_RETRIES,
     ):
         for info in _as_file_infos(batch, result):
-            record_file(ledger, info)
-            infos.append(info)
+            infos.append(record_file(ledger, info))  # the ledger's record, not a copy
         if time.monotonic() - last_save > CLASSIFY_SAVE_INTERVAL_S:
             save_ledger(ledger, ledger_path)
             last_save = time.monotonic()
@@ -489,9 +488,9 @@ def with_checksums(
         planned or taken for planned, taken in zip(task.sha256, outcome.checksums, strict=True)
     )
     for path, planned, taken in zip(task.paths, task.sha256, outcome.checksums, strict=True):
-        entry = ledger.files.get(path)
-        if not planned and taken and entry is not None and entry.get("status") == "ok":
-            ledger.files[path] = {**entry, "sha256": taken}
+        entry = ledger.files.record(path)
+        if not planned and taken and isinstance(entry, FileInfo) and entry.status == "ok":
+            ledger.files.put(dataclasses.replace(entry, sha256=taken))
     fingerprint = planned_fingerprint(sha, cfg_hash)
     task = dataclasses.replace(task, sha256=sha, fingerprint=fingerprint)
     return task, dataclasses.replace(outcome, fingerprint=fingerprint)

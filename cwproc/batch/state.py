@@ -9,8 +9,8 @@ import json
 import os
 import socket
 import time
-from collections.abc import Iterator
-from dataclasses import asdict, dataclass, field
+from collections.abc import Iterable, Iterator, Mapping, MutableMapping
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -54,6 +54,112 @@ class _Tracked(dict):
             self[key] = value
 
 
+#: the fields of a file's ledger entry, in order (those of :class:`FileInfo`)
+FILE_FIELDS = tuple(f.name for f in fields(FileInfo))
+_FILE_FIELD_SET = frozenset(FILE_FIELDS)
+#: the fields of a file's entry that take few distinct values over an archive
+_SHARED_FIELDS = ("status", "format", "kind", "unit", "config_hash")
+#: entries of the ``files`` table per JSON chunk of a snapshot (:func:`_snapshot_chunks`)
+SNAPSHOT_CHUNK = 10_000
+
+
+class FileTable(MutableMapping[str, dict[str, Any]]):
+    """The ledger's ``files`` table, ``{path: FileInfo as dict}``, held compactly.
+
+    A lidar-year is 700,800 entries. Held as one dict per file (12 keys, 650 bytes)
+    beside the plan's :class:`FileInfo` records, they cost the driver about 1 KiB a
+    file (1.45 GiB with the snapshot's text). Here an entry with exactly FileInfo's
+    fields is kept as the :class:`FileInfo` itself (slots: 150 bytes), its few-valued
+    strings (status, format, kind, unit, configuration hash) interned, so that all the
+    entries of a day share one copy of each; the plan's records are these same objects
+    (:meth:`put`, :meth:`record`). Any other entry (another version's) is kept as given.
+
+    Reading an entry (``table[path]``) gives a new dict; :meth:`record` gives the
+    stored record without a copy. Like the other tables, the keys set or removed since
+    the last save are in ``changed``.
+    """
+
+    def __init__(
+        self,
+        entries: Mapping[str, Any] | Iterable[tuple[str, Any]] = (),
+        strings: dict[str, str] | None = None,
+    ) -> None:
+        self._rows: dict[str, FileInfo | dict[str, Any]] = {}
+        self._strings: dict[str, str] = {} if strings is None else strings
+        self.changed: set[str] = set()
+        for key, value in dict(entries).items():
+            self._rows[key] = self.compact(value)
+
+    def compact(self, value: Any) -> FileInfo | dict[str, Any]:
+        """The stored form of an entry: a :class:`FileInfo` with interned strings, or,
+        for an entry of another shape, a copy of the dict."""
+        pool = self._strings
+        if isinstance(value, FileInfo):
+            shared = [getattr(value, f) for f in _SHARED_FIELDS]
+            interned = [pool.setdefault(v, v) if isinstance(v, str) else v for v in shared]
+            if all(a is b for a, b in zip(shared, interned, strict=True)):
+                return value
+            return replace(value, **dict(zip(_SHARED_FIELDS, interned, strict=True)))
+        if isinstance(value, Mapping) and value.keys() == _FILE_FIELD_SET:
+            return self._from_fields(dict(value))
+        return dict(value)
+
+    def _from_fields(self, fields_: dict[str, Any]) -> FileInfo:
+        """The record of an entry's fields (``fields_`` is changed: strings interned)."""
+        pool = self._strings
+        for name in _SHARED_FIELDS:
+            text = fields_[name]
+            if type(text) is str:
+                fields_[name] = pool.setdefault(text, text)
+        return FileInfo(**fields_)
+
+    def json_hook(self, obj: dict[str, Any]) -> Any:
+        """``object_hook`` of :func:`json.loads`: a file entry compacted as it is parsed
+        (a year's snapshot never exists as 700,800 dicts)."""
+        return self._from_fields(obj) if obj.keys() == _FILE_FIELD_SET else obj
+
+    def put(self, info: FileInfo) -> FileInfo:
+        """Store ``info`` under its path; the stored record (interned strings)."""
+        stored = self.compact(info)
+        self._rows[info.path] = stored
+        self.changed.add(info.path)
+        return stored  # type: ignore[return-value]
+
+    def record(self, key: str) -> FileInfo | dict[str, Any] | None:
+        """The stored entry of ``key`` (no copy; a dict only for another version's)."""
+        return self._rows.get(key)
+
+    def plain(self, key: str) -> dict[str, Any]:
+        """The entry of ``key`` as a JSON-ready dict (KeyError when absent)."""
+        row = self._rows[key]
+        if isinstance(row, FileInfo):
+            return {f: getattr(row, f) for f in FILE_FIELDS}
+        return dict(row)
+
+    def __getitem__(self, key: str) -> dict[str, Any]:
+        return self.plain(key)
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        self._rows[key] = self.compact(value)
+        self.changed.add(key)
+
+    def __delitem__(self, key: str) -> None:
+        del self._rows[key]
+        self.changed.add(key)
+
+    def __contains__(self, key: object) -> bool:
+        return key in self._rows
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._rows)
+
+    def __len__(self) -> int:
+        return len(self._rows)
+
+    def __repr__(self) -> str:
+        return f"FileTable({len(self)} files)"
+
+
 #: the tables of the ledger
 _TABLES = ("files", "units", "failures")
 
@@ -73,26 +179,23 @@ class Ledger:
     snapshot is compacted when the journal outgrows a quarter of it (:func:`save_ledger`).
     """
 
-    files: dict[str, dict[str, Any]] = field(default_factory=dict)
+    files: FileTable = field(default_factory=FileTable)
     units: dict[str, dict[str, Any]] = field(default_factory=dict)
     failures: dict[str, dict[str, Any]] = field(default_factory=dict)
     #: journal lines on disk since the snapshot
     journal_lines: int = 0
 
     def __post_init__(self) -> None:
-        for name in _TABLES:
+        if not isinstance(self.files, FileTable):
+            self.files = FileTable(self.files)
+        for name in ("units", "failures"):
             value = getattr(self, name)
             if not isinstance(value, _Tracked):
                 setattr(self, name, _Tracked(value))
 
     def to_json(self) -> str:
-        doc = {
-            "version": LEDGER_VERSION,
-            "files": self.files,
-            "units": self.units,
-            "failures": self.failures,
-        }
-        return json.dumps(doc, separators=(",", ":"))
+        """The snapshot's text (compact JSON: version, files, units, failures)."""
+        return b"".join(_snapshot_chunks(self)).decode("utf-8")
 
     def changes(self) -> list[dict[str, Any]]:
         """The journal entries of the changes since the last save (sorted, JSON-ready)."""
@@ -102,11 +205,15 @@ class Ledger:
             for key in sorted(table.changed):
                 entry: dict[str, Any] = {"table": name, "key": key}
                 if key in table:
-                    entry["value"] = table[key]
+                    entry["value"] = table[key]  # a new dict for a file entry
                 else:
                     entry["deleted"] = True
                 out.append(entry)
         return out
+
+    def changed_count(self) -> int:
+        """Entries changed since the last save (the journal lines a save would append)."""
+        return sum(len(getattr(self, name).changed) for name in _TABLES)
 
     def mark_saved(self) -> None:
         for name in _TABLES:
@@ -143,11 +250,15 @@ def load_ledger(path: str | os.PathLike) -> Ledger:
     ledger = Ledger()
     if text is not None:
         try:
-            doc = json.loads(text)
+            files = FileTable()  # file entries compacted while parsing (json_hook)
+            doc = json.loads(text, object_hook=files.json_hook)
+            del text
             if doc.get("version") != LEDGER_VERSION:
                 raise ValueError(f"unknown ledger version {doc.get('version')!r}")
             ledger = Ledger(
-                files=dict(doc["files"]), units=dict(doc["units"]), failures=dict(doc["failures"])
+                files=FileTable(doc.pop("files"), strings=files._strings),
+                units=dict(doc["units"]),
+                failures=dict(doc["failures"]),
             )
         except (ValueError, KeyError, TypeError, AttributeError) as exc:
             raise CwprocError(
@@ -167,7 +278,8 @@ def _replay_journal(ledger: Ledger, journal: Path) -> None:
         raise CwprocError(f"{journal}: cannot read the ledger: {exc.strerror or exc}") from None
     complete = lines[:-1]  # the part after the last newline was never confirmed
     try:  # one parse of all the lines (C speed); line by line only to name a bad one
-        entries = json.loads(b"[" + b",".join(complete) + b"]") if complete else []
+        text = b"[" + b",".join(complete) + b"]"
+        entries = json.loads(text, object_hook=ledger.files.json_hook) if complete else []
     except ValueError:
         entries = None
     if entries is not None and len(entries) == len(complete):
@@ -252,13 +364,14 @@ def save_ledger(ledger: Ledger, path: str | os.PathLike, *, compact: bool = Fals
     path = Path(path)
     journal = journal_path(path)
     try:
-        entries = ledger.changes()
-        if compact or not path.exists() or needs_compaction(ledger, len(entries)):
+        pending = ledger.changed_count()  # the entries are made only to be journalled
+        if compact or not path.exists() or needs_compaction(ledger, pending):
             _write_snapshot(ledger, path)
             journal.unlink(missing_ok=True)
             _fsync_folder(path.parent)
             ledger.journal_lines = 0
         else:
+            entries = ledger.changes()
             if entries:
                 data = "".join(json.dumps(e, sort_keys=True) + "\n" for e in entries)
                 new = not journal.exists()
@@ -277,8 +390,29 @@ def save_ledger(ledger: Ledger, path: str | os.PathLike, *, compact: bool = Fals
 
 
 def _write_snapshot(ledger: Ledger, path: Path) -> None:
-    """The whole ledger to ``path`` atomically (temporary file, fsync, rename)."""
-    write_bytes_atomic(path, ledger.to_json().encode("utf-8"), fsync=True)
+    """The whole ledger to ``path`` atomically (temporary file, fsync, rename), written
+    in chunks (:func:`_snapshot_chunks`): a year's 266 MB never exists as one text."""
+    write_bytes_atomic(path, _snapshot_chunks(ledger), fsync=True)
+
+
+def _snapshot_chunks(ledger: Ledger) -> Iterator[bytes]:
+    """The snapshot's compact JSON in pieces of :data:`SNAPSHOT_CHUNK` file entries.
+
+    The bytes are those of ``json.dumps(doc, separators=(",", ":"))`` of the whole
+    ``{"version", "files", "units", "failures"}`` document; each chunk of the files
+    table is one call of the C encoder on a dict of that many entries.
+    """
+    compact = {"separators": (",", ":")}
+    yield f'{{"version":{json.dumps(LEDGER_VERSION)},"files":{{'.encode()
+    files = ledger.files
+    keys = list(files)
+    for i in range(0, len(keys), SNAPSHOT_CHUNK):
+        chunk = {k: files.plain(k) for k in keys[i : i + SNAPSHOT_CHUNK]}
+        yield (("," if i else "") + json.dumps(chunk, **compact)[1:-1]).encode("utf-8")
+    del keys
+    units = json.dumps(dict(ledger.units), **compact)
+    failures = json.dumps(dict(ledger.failures), **compact)
+    yield f'}},"units":{units},"failures":{failures}}}'.encode()
 
 
 def cached_file_info(
@@ -289,15 +423,18 @@ def cached_file_info(
     Valid means: same size, modification time and configuration, and the file was not a
     failure (failed files are always tried again).
     """
-    entry = ledger.files.get(path)
+    entry = ledger.files.record(path)
     if entry is None:
         return None
-    try:
-        info = FileInfo(**entry)
-    except TypeError:  # written by another version of cwproc: classify again
-        return None
-    if info.kind == "sonic" and "identity" not in entry:
-        return None  # classified before loggers were told apart by identity (34.2)
+    if isinstance(entry, FileInfo):
+        info = entry  # the ledger's own record, shared with the plan (no copy)
+    else:  # written by another version of cwproc
+        try:
+            info = FileInfo(**entry)
+        except TypeError:  # classify again
+            return None
+        if info.kind == "sonic" and "identity" not in entry:
+            return None  # classified before loggers were told apart by identity (34.2)
     if (
         info.size != size
         or info.mtime_ns != mtime_ns
@@ -308,9 +445,13 @@ def cached_file_info(
     return info
 
 
-def record_file(ledger: Ledger, info: FileInfo) -> None:
-    """Store a classification; a file failure also goes to ``failures``."""
-    ledger.files[info.path] = asdict(info)
+def record_file(ledger: Ledger, info: FileInfo) -> FileInfo:
+    """Store a classification; a file failure also goes to ``failures``.
+
+    Returns the record the ledger keeps (:meth:`FileTable.put`): the plan holds that one,
+    not a second copy.
+    """
+    stored = ledger.files.put(info)
     if info.status == "error":
         previous = ledger.failures.get(info.path, {})
         ledger.failures[info.path] = {
@@ -320,6 +461,7 @@ def record_file(ledger: Ledger, info: FileInfo) -> None:
         }
     else:
         ledger.failures.pop(info.path, None)
+    return stored
 
 
 def unit_up_to_date(ledger: Ledger, task: UnitTask) -> bool:

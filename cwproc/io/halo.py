@@ -48,7 +48,6 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import ConfigError, CwprocError, InputFileError
-from cwproc.io import FileIdentity
 from cwproc.io.halo_body import (
     _fields_of_row,
     _hpltok,
@@ -66,10 +65,11 @@ from cwproc.io.halo_header import (
     parse_header,
     split_header,
 )
+from cwproc.io.identity import FileIdentity
 from cwproc.io.netcdf import write_bytes_atomic
-from cwproc.io.scans import scan_indices
 from cwproc.io.schema import DECLARED_ATTRS, SCAN_VARIABLES
 from cwproc.physics.geometry import normalise_pointing
+from cwproc.physics.scan_numbering import scan_indices
 
 
 class Fed(Protocol):

@@ -23,7 +23,6 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import InputFileError
-from cwproc.io import FileIdentity
 from cwproc.io.halo import (
     _attrs,
     _bad_ray,
@@ -43,13 +42,10 @@ from cwproc.io.halo_body import (
     structure_problem,
 )
 from cwproc.io.halo_header import HplHeader, parse_header
-from cwproc.io.scans import (
-    concat_scans,
-    joined_attrs,
-    scan_indices_of_runs,
-    time_sorted_scans,
-)
+from cwproc.io.identity import FileIdentity
+from cwproc.io.scans import concat_scans, joined_attrs, time_sorted_scans
 from cwproc.physics.geometry import normalise_pointing
+from cwproc.physics.scan_numbering import scan_indices_of_runs
 
 #: data lines joined for one call of the pandas tokenizer (bytes), used only when the
 #: compiled tokenizer is not built: large enough to amortise pandas' cost per call

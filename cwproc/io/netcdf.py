@@ -13,14 +13,14 @@ import os
 import shutil
 import tempfile
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
 from cwproc.errors import ProductError
-from cwproc.io import NETCDF_LOCK
+from cwproc.io.identity import NETCDF_LOCK
 
 _CHUNK = 1 << 20
 
@@ -185,8 +185,13 @@ def remove_stale_temporaries(
     return removed
 
 
-def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, fsync: bool = False) -> Path:
+def write_bytes_atomic(
+    path: str | os.PathLike, data: bytes | Iterable[bytes], *, fsync: bool = False
+) -> Path:
     """Write ``data`` to ``path`` whole or not at all; returns ``path``.
+
+    ``data`` is the bytes, or an iterable of pieces written one after the other (a
+    large text need not exist whole in memory: the ledger's snapshot).
 
     The bytes go to an unpredictable temporary created exclusively beside ``path``
     (:func:`tempfile.mkstemp`: no planted symlink is followed), get the umask's mode
@@ -206,7 +211,11 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, fsync: bool = Fa
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
+            if isinstance(data, bytes | bytearray | memoryview):
+                fh.write(data)
+            else:
+                for piece in data:
+                    fh.write(piece)
             if fsync:
                 fh.flush()
                 os.fsync(fh.fileno())

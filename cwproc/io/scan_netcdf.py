@@ -25,7 +25,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import ConfigError, InputFileError
-from cwproc.io import NETCDF_LOCK
+from cwproc.io.identity import NETCDF_LOCK
 from cwproc.io.netcdf import write_netcdf_atomic
 from cwproc.io.scans import assign_scans, parse_homodyne
 from cwproc.io.schema import with_canonical_attrs

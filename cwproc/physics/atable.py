@@ -1,11 +1,12 @@
-"""Cached tables of the A-functions of one instrument configuration.
+"""Tables of the A-functions of one instrument configuration.
 
 The A-functions of Smalikho (2020), eqs. 15-17 are expensive double integrals, but for a
 given instrument (probe volume, elevation ``phi``, azimuth step ``dtheta``, spectrum
 model) they depend only on the height ``h`` (which fixes ``dy = dtheta h / tan(phi)`` and,
 for a cw lidar, the focus distance ``R = h / sin(phi)`` and so ``Z_R``), the lag number
-``l``, ``mu = U / V_s`` and, for the finite-outer-scale models, ``L_V``. :func:`get_a_table`
-computes them once on a grid over these variables and caches the result on disk;
+``l``, ``mu = U / V_s`` and, for the finite-outer-scale models, ``L_V``. :func:`build_a_table`
+computes them once on a grid over these variables (the table store
+:mod:`cwproc.tables.atable` keeps them on disk);
 :meth:`cwproc.physics.atable_interp.ATable.evaluate` interpolates.
 
 Grid and interpolation. Heights: geometric, ratio 1.2; ``mu``: step 0.05 up to 2, 0.1 up
@@ -15,17 +16,13 @@ are the integers ``1..n_lags``. The interpolation error is below 1e-4 relative (
 against direct evaluation at points between the nodes). Outside the grid ``evaluate``
 returns NaN.
 
-Cache. Files ``atable-<sha256>.npz`` in ``platformdirs.user_cache_dir("cwproc")`` (or
-``cache_dir``), keyed by a hash of every parameter and of the code of the physics
-modules the build uses (:func:`code_version`, so a change of the code is never served
-an old table); written
-atomically (temporary file, then rename). A cache file that cannot be read, has the wrong
-key or shapes, or holds non-finite values is rebuilt, never trusted. An unwritable cache
-directory only costs the rebuild next time. With the default cache, a table missing
-there is looked up next among the prebuilt tables shipped in the package
-(``cwproc/atables/``, made at release by ``tools/build_atables.py`` for the shipped
-presets and samples), so that a new user never waits; a table that must be built
-shows a :mod:`cwproc.progress` bar (only when the command line turned progress on).
+Parameters and key. :func:`table_parameters` validates a configuration into the
+dictionary whose hash (:func:`table_key`) names the table; its ``"code"`` entry is the
+hash of the physics code the build uses, given by the table store
+(:func:`cwproc.tables.atable.code_version`), so that a stored table never outlives the
+code that computed it. The build reports its progress only through the ``bar``
+callback it is given (:data:`Bar`): this module reads no file, no environment and
+writes nothing.
 
 Speed. The spectrum-independent quadrature weights of each height
 (:class:`cwproc.physics.curve_kernel.CurveKernel`) serve every ``L_V`` node; the
@@ -37,13 +34,13 @@ evaluation, tested).
 
 from __future__ import annotations
 
+import contextlib
 import math
-import os
-from pathlib import Path
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager
 
 import numpy as np
 
-from cwproc import progress
 from cwproc.physics import afunctions, atable_swept, spectra
 from cwproc.physics.atable_geometry import (
     _azimuth_to_nodes,
@@ -54,20 +51,23 @@ from cwproc.physics.atable_geometry import (
     full_circle,
 )
 from cwproc.physics.atable_interp import N_BINS, ATable
+from cwproc.physics.canonical_key import parameter_key
 from cwproc.physics.curve_kernel import CurveKernel, CurveStack, shared_plane
-from cwproc.physics.disk_cache import (
-    cache_path,
-    code_digest,
-    load_arrays,
-    parameter_key,
-    save_arrays,
-)
 from cwproc.physics.spectra import MODELS, Model
 from cwproc.physics.transfer import CWProbe, Probe, PulsedProbe
 
-#: the modules whose code a table depends on: their source is hashed into the cache key
-#: (:func:`cwproc.physics.disk_cache.code_digest`, the closure of this module's imports)
-CODE_ROOT = "cwproc.physics.atable"
+#: a progress report of a build step: ``bar(description, total)`` is a context manager
+#: giving ``advance(n)``, called as ``n`` of the ``total`` items are done
+#: (:func:`cwproc.tables.atable.get_a_table` draws it on the terminal)
+Bar = Callable[[str, int], AbstractContextManager[Callable[[int], None]]]
+
+
+@contextlib.contextmanager
+def no_bar(description: str, total: int) -> Iterator[Callable[[int], None]]:
+    """The :data:`Bar` that reports nothing (the default of :func:`build_a_table`)."""
+    yield lambda n: None
+
+
 #: geometry models of a table
 GEOMETRIES = ("two_beam", "small_angle")
 #: geometric ratio of the height nodes
@@ -119,16 +119,6 @@ def _probe_params(probe: Probe) -> dict:
     raise TypeError(f"unknown probe {probe!r}")
 
 
-def code_version() -> str:
-    """Hash of the code the tables depend on (the ``"code"`` entry of their parameters).
-
-    :func:`cwproc.physics.disk_cache.code_digest` of this module and the physics
-    modules it uses: any change of them gives every table a new cache key, so that a
-    cached or shipped table never outlives the code that computed it.
-    """
-    return code_digest(CODE_ROOT)
-
-
 def probe_from_params(probe: dict) -> Probe:
     """The probe of a table's ``params["probe"]`` (:func:`table_parameters`)."""
     if probe["kind"] == "pulsed":
@@ -160,8 +150,9 @@ def table_parameters(
     swept: bool = True,
     geometry: str | None = None,
     dwell: float = 0.0,
+    code: str = "",
 ) -> dict:
-    """The validated parameter dictionary of a table (its cache key is a hash of it).
+    """The validated parameter dictionary of a table (its key is a hash of it).
 
     ``swept``: each ray is accumulated while the beam sweeps its azimuth step (continuous
     scan: the rays seen at their own times, :mod:`cwproc.physics.atable_swept`; with
@@ -178,6 +169,10 @@ def table_parameters(
     separations, lets the beam spacing vary along the probe, which the point-probe
     correction does not describe; cw cells with finite outer scales use the exact model
     of :class:`cwproc.physics.exact_lag.ExactLagModel`).
+    ``code``: the hash of the code that builds the table (the ``"code"`` entry, so that
+    a stored table is never served to other code;
+    :func:`cwproc.tables.atable.code_version`); empty for a table built and used in
+    memory.
     """
     if geometry is None:
         geometry = "small_angle" if isinstance(probe, CWProbe) else "two_beam"
@@ -208,7 +203,7 @@ def table_parameters(
         "swept": bool(swept),
         **extra,
         "geometry": geometry,
-        "code": code_version(),
+        "code": str(code),
         "probe": _probe_params(probe),
         "phi_deg": float(phi_deg),
         "delta_theta_deg": float(delta_theta_deg),
@@ -241,6 +236,7 @@ def _memo_swept_pairs(
     dys: np.ndarray,
     mu: np.ndarray,
     same: np.ndarray,
+    bar: Bar = no_bar,
 ) -> list[np.ndarray]:
     """:func:`_swept_pairs`, kept in memory for the next table of the same geometry.
 
@@ -255,7 +251,7 @@ def _memo_swept_pairs(
     if key not in _PAIRS_MEMO:
         while len(_PAIRS_MEMO) >= 2:
             _PAIRS_MEMO.pop(next(iter(_PAIRS_MEMO)))
-        _PAIRS_MEMO[key] = _swept_pairs(probe, params, ranges, dys, mu, same)
+        _PAIRS_MEMO[key] = _swept_pairs(probe, params, ranges, dys, mu, same, bar)
     return _PAIRS_MEMO[key]
 
 
@@ -266,6 +262,7 @@ def _swept_pairs(
     dys: np.ndarray,
     mu: np.ndarray,
     same: np.ndarray,
+    bar: Bar = no_bar,
 ) -> list[np.ndarray]:
     """Per height the inertial A_2 integrand of the pairs of rays (plane A-function).
 
@@ -312,10 +309,10 @@ def _swept_pairs(
             theta=theta,
         )
 
-    with progress.bar(desc="A-table (swept pairs)", total=ranges.size) as shown:
+    with bar("A-table (swept pairs)", ranges.size) as advance:
         offset = [atable_swept.offset_rule(probe, float(r))[0][-1] for r in ranges]
         direct = np.asarray(offset) > PAIRS_DIRECT_OFFSET
-        return atable_swept.by_height(pairs_at, ranges, PAIRS_STRIDE, direct, shown.update)
+        return atable_swept.by_height(pairs_at, ranges, PAIRS_STRIDE, direct, advance)
 
 
 def _height_cell(
@@ -391,8 +388,8 @@ def _outer_scale_blend(
     return scaled + share * (added - scaled)
 
 
-def build_a_table(probe: Probe, params: dict) -> ATable:
-    """Compute a table (no cache): ``A_1`` and ``A_2`` on the grid of ``params``.
+def build_a_table(probe: Probe, params: dict, bar: Bar = no_bar) -> ATable:
+    """Compute a table: ``A_1`` and ``A_2`` on the grid of ``params``.
 
     For every height node (and outer scale) the curves ``A_perp``, ``A_par`` of the lag are
     computed once (:func:`cwproc.physics.afunctions.a_curve_splines`) and eq. 15 is
@@ -405,7 +402,8 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
     step-stare pairs at fractional lags, step-stare rays the pairs at the lags. ``A_2``
     is stored as its azimuth average (``log_a2``) and, for inertial tables, its means
     over azimuth bins relative to that average (``bins_a2``), so that sectors and gaps
-    can be averaged over the azimuths of the pairs present.
+    can be averaged over the azimuths of the pairs present. ``bar``: the progress
+    report of the two long steps (:data:`Bar`; none by default).
     """
     phi, n_lags, model = params["phi_deg"], params["n_lags"], params["model"]
     swept = bool(params.get("swept", True))
@@ -454,18 +452,18 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
         ]
     )
     if plane_pairs:
-        swept_pairs = _memo_swept_pairs(probe, params, ranges, dys, mu, same)
+        swept_pairs = _memo_swept_pairs(probe, params, ranges, dys, mu, same, bar)
         if model != "inertial":
             flat = shared_plane(kernels, "inertial", None)
             inertial = [kernel.curves(flat) for kernel in kernels]
     # the curves of every L_V node and height: one spectrum matrix per L_V, shared
     per_scale = []
-    with progress.bar(desc=f"A-table ({model})", total=scales.size + heights.size) as shown:
+    with bar(f"A-table ({model})", scales.size + heights.size) as advance:
         for big_l in scales if kernels else []:
             outer = None if model == "inertial" else float(big_l)
             plane = shared_plane(kernels, model, outer)
             per_scale.append([kernel.curves(plane) for kernel in kernels])
-            shown.update(1)
+            advance(1)
         sigma2 = np.array(
             [0.0 if model == "inertial" else spectra.variance_per_eps23(model, s) for s in scales]
         )
@@ -489,7 +487,7 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
             log_a2[:, j] = np.log(c0)
             if model == "inertial" or j == j_ref:  # finite tables keep one height's bins
                 bins_a2[:, j] = (per_theta @ to_nodes) / c0[..., None]
-            shown.update(1)
+            advance(1)
     keep = bins_a2 if model == "inertial" else None
     scale_bins = None
     if model != "inertial" and swept_pairs[0] is not None:
@@ -498,150 +496,3 @@ def build_a_table(probe: Probe, params: dict) -> ATable:
         inert = (pairs @ to_nodes) / pairs.mean(axis=-1)[..., None]
         scale_bins = bins_a2[:, j_ref] / inert[None]
     return ATable(heights, mu, scales, log_a1, log_a2, dict(params), keep, scale_bins)
-
-
-def _cache_path(cache_dir: str | os.PathLike | None, key: str) -> Path:
-    return cache_path(cache_dir, "atable", key)
-
-
-def _load(path: Path, key: str, params: dict) -> ATable | None:
-    """The cached table at ``path``, or ``None`` if it is missing, corrupt or not this one."""
-    data = load_arrays(path, key)
-    if data is None:
-        return None
-    try:
-        table = ATable(
-            data["heights_m"],
-            data["mu"],
-            data["outer_scales_m"],
-            data["log_a1"],
-            data["log_a2"],
-            dict(params),
-            data["bins_a2"] if params["model"] == "inertial" else None,
-            data["scale_bins"] if data["scale_bins"].size else None,
-        )
-    except Exception:  # an array missing or unusable: rebuilt, never trusted
-        return None
-    nl, nh, nm = table.outer_scales_m.size, table.heights_m.size, table.mu.size
-    ok = (
-        table.log_a1.shape == (nl, nh, params["n_lags"])
-        and table.log_a2.shape == (nl, nh, params["n_lags"], nm)
-        and np.isfinite(table.log_a1).all()
-        and np.isfinite(table.log_a2).all()
-        and (
-            table.bins_a2 is None
-            or (
-                table.bins_a2.shape == (nl, nh, params["n_lags"], nm, N_BINS)
-                and np.isfinite(table.bins_a2).all()
-            )
-        )
-        and (
-            table.scale_bins is None
-            or (
-                table.scale_bins.shape == (nl, params["n_lags"], nm, N_BINS)
-                and np.isfinite(table.scale_bins).all()
-            )
-        )
-        and nh >= 4
-        and nm >= 4
-    )
-    return table if ok else None
-
-
-def _save(table: ATable, path: Path, key: str) -> None:
-    """Write atomically (:func:`cwproc.physics.disk_cache.save_arrays`)."""
-    save_arrays(
-        path,
-        {
-            "key": np.array(key),
-            "heights_m": table.heights_m,
-            "mu": table.mu,
-            "outer_scales_m": table.outer_scales_m,
-            "log_a1": table.log_a1,
-            "log_a2": table.log_a2,
-            "bins_a2": np.zeros(0) if table.bins_a2 is None else table.bins_a2,
-            "scale_bins": np.zeros(0) if table.scale_bins is None else table.scale_bins,
-        },
-    )
-
-
-def get_a_table(
-    probe: Probe,
-    *,
-    phi_deg: float,
-    delta_theta_deg: float,
-    n_lags: int,
-    model: Model = "inertial",
-    cache_dir: str | os.PathLike | None = None,
-    height_range_m: tuple[float, float] = (10.0, 3000.0),
-    mu_max: float = 10.0,
-    outer_scale_range_m: tuple[float, float] = (10.0, 3000.0),
-    swept: bool = True,
-    geometry: str | None = None,
-    dwell: float = 0.0,
-) -> ATable:
-    """The A-function table of one instrument configuration, from the cache or computed.
-
-    Parameters
-    ----------
-    probe : PulsedProbe or CWProbe
-        Probe volume (:func:`cwproc.pipeline.probe_from_config`).
-    phi_deg : float
-        Elevation of the scan cone (degrees).
-    delta_theta_deg : float
-        Azimuth step between rays (degrees); ``dy = dtheta h / tan(phi)``.
-    n_lags : int
-        Largest lag number ``l`` tabulated (lags ``1..n_lags``).
-    model : {"inertial", "von_karman", "exponential"}
-        Spectrum model; the finite-outer-scale models add the ``L_V`` axis.
-    cache_dir : path, optional
-        Cache directory; default ``platformdirs.user_cache_dir("cwproc")``.
-    height_range_m : (float, float)
-        Heights (m) covered.
-    mu_max : float
-        Largest ``mu = U / V_s`` covered.
-    outer_scale_range_m : (float, float)
-        ``L_V`` (m) covered by finite-outer-scale tables.
-    swept, geometry, dwell
-        See :func:`table_parameters`.
-
-    Returns
-    -------
-    ATable
-    """
-    params = table_parameters(
-        probe,
-        phi_deg=phi_deg,
-        delta_theta_deg=delta_theta_deg,
-        n_lags=n_lags,
-        model=model,
-        height_range_m=height_range_m,
-        mu_max=mu_max,
-        outer_scale_range_m=outer_scale_range_m,
-        swept=swept,
-        geometry=geometry,
-        dwell=dwell,
-    )
-    key = table_key(params)
-    path = _cache_path(cache_dir, key)
-    table = _load(path, key, params)
-    if table is not None:
-        return table
-    if cache_dir is None:
-        table = _load(shipped_path(key), key, params)
-        if table is not None:
-            return table
-    table = build_a_table(probe, params)
-    _save(table, path, key)
-    return table
-
-
-#: package folder of the prebuilt tables shipped in the wheel (``tools/build_atables.py``)
-SHIPPED_PACKAGE = "cwproc.atables"
-
-
-def shipped_path(key: str) -> Path:
-    """Where a prebuilt table of ``key`` ships inside the package (it may not exist)."""
-    from importlib import resources
-
-    return Path(str(resources.files(SHIPPED_PACKAGE).joinpath(f"atable-{key}.npz")))

@@ -9,7 +9,7 @@ integrals and the cosine weights of the outer ones (spherical Bessel moments, th
 costliest part after ``Phi``). A table with an outer-scale axis (``L_V``) needs the same
 curves for every ``L_V`` node at each height, so :class:`CurveKernel` prepares these
 weights once per height and :meth:`CurveKernel.curves` applies them to the spectrum
-matrix of each ``L_V`` (a :class:`cwproc.physics.afunctions.PlaneMatrix` whose panels
+matrix of each ``L_V`` (a :class:`~cwproc.physics.afunction_quadrature.PlaneMatrix` whose panels
 cover the kernel's): two matrix products per curve instead of a full
 :func:`~cwproc.physics.afunctions.a_curves` call. The arithmetic is that of
 :func:`~cwproc.physics.afunctions.a_curves` (same panels, heads, tails and pruning of
@@ -23,19 +23,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cwproc.physics import afunctions
-from cwproc.physics.afunctions import (
-    _ORDER,
-    ACurves,
-    PlaneMatrix,
-    _cos_weights,
-    _integral_weights,
-    _longitudinal_factor,
-    _Panels,
-    _panels,
-    _sinc2,
-    panel_limits,
-)
+from cwproc.physics import afunction_quadrature as quadrature
+from cwproc.physics import spectra
+from cwproc.physics.afunction_quadrature import PlaneMatrix
+from cwproc.physics.afunctions import ACurves, longitudinal_factor, panel_limits
 from cwproc.physics.transfer import Probe
 
 try:  # optional C extension (setup.py): the splines' sums, the same numbers bit for bit
@@ -53,7 +44,8 @@ class _Outer:
 
     ``direct`` ``(R, n)`` acts on ``f = smooth sinc^2`` at the nodes of panels below
     ``1/L``, ``trig`` ``(R, n)`` on ``g = smooth / (2 pi^2 L^2 k^2)`` beyond (zero
-    columns elsewhere): the split of ``afunctions._structure_integral``.
+    columns elsewhere): the split of
+    :func:`cwproc.physics.afunction_quadrature.structure_integral`.
     """
 
     direct: np.ndarray
@@ -64,13 +56,13 @@ class _Outer:
     rho: np.ndarray
 
 
-def _outer(p: _Panels, length: float, rho: np.ndarray, wr: np.ndarray) -> _Outer:
+def _outer(p: quadrature.Panels, length: float, rho: np.ndarray, wr: np.ndarray) -> _Outer:
     """:class:`_Outer` of the panels ``p``, the probe length ``length`` (m) and lags ``rho``."""
     w0 = p.gl
     n = p.kappa.size
     if length > 0:
         is_trig = p.left * length >= 1.0
-        sinc2 = _sinc2(length * p.kappa)
+        sinc2 = quadrature.sinc2(length * p.kappa)
     else:
         is_trig = np.zeros(n, bool)
         sinc2 = np.ones(n)
@@ -79,29 +71,32 @@ def _outer(p: _Panels, length: float, rho: np.ndarray, wr: np.ndarray) -> _Outer
     inv = np.zeros(n)
     if is_trig.any():
         kt = p.kappa[is_trig]
-        wl = _cos_weights(p, np.array([length]), is_trig)
-        wm = _cos_weights(p, np.abs(rho - length), is_trig)
-        wp = _cos_weights(p, rho + length, is_trig)
+        wl = quadrature.cos_weights(p, np.array([length]), is_trig)
+        wm = quadrature.cos_weights(p, np.abs(rho - length), is_trig)
+        wp = quadrature.cos_weights(p, rho + length, is_trig)
         trig[:, is_trig] = w0[None, is_trig] - wl - wr[:, is_trig] + 0.5 * wm + 0.5 * wp
         inv[is_trig] = 1.0 / (2.0 * np.pi**2 * length**2 * kt**2)
     return _Outer(direct, trig, is_trig, sinc2, inv, rho)
 
 
-def _apply_outer(p: _Panels, o: _Outer, smooth: np.ndarray, tail_power: float | None) -> np.ndarray:
-    """``afunctions._structure_integral`` with the prepared weights ``o`` (one ``smooth``)."""
+def _apply_outer(
+    p: quadrature.Panels, o: _Outer, smooth: np.ndarray, tail_power: float | None
+) -> np.ndarray:
+    """:func:`~cwproc.physics.afunction_quadrature.structure_integral` with the
+    prepared weights ``o`` (one ``smooth``)."""
     f = smooth * o.sinc2
     contrib = p.gl * np.abs(f)
     significant = np.flatnonzero(contrib > 1e-17 * contrib.sum())
     cut = p.kappa.size
     if significant.size:
-        cut = min(cut, (significant[-1] // _ORDER + 1) * _ORDER)
+        cut = min(cut, (significant[-1] // quadrature.ORDER + 1) * quadrature.ORDER)
     pruned = cut < p.kappa.size
     g = smooth * o.inv
     # einsum, not BLAS: matrix-vector products this small lose to the threads of a
     # multi-threaded BLAS on a busy machine (6x slower under load average 9)
     out = np.einsum("rk,k->r", o.direct[:, :cut], f[:cut])
     out = out + np.einsum("rk,k->r", o.trig[:, :cut], g[:cut])
-    return afunctions.add_end_corrections(
+    return quadrature.add_end_corrections(
         out, p, f, g if o.is_trig[-1] else f, o.rho, pruned, tail_power
     )
 
@@ -147,12 +142,12 @@ class CurveKernel:
             model=model,
             outer_scale_m=outer_scale_m,
         )
-        self.panels = p = _panels(k_lo, k_hi)
+        self.panels = p = quadrature.panels(k_lo, k_hi)
         self.dy = dy
-        self.fac_par, self.len_par = _longitudinal_factor(probe, p, range_m)
-        self.u_par = _integral_weights(p, self.len_par, self.fac_par)
-        self.u_perp = _integral_weights(p, dy, np.ones_like(p.kappa))
-        wr = _cos_weights(p, self.rho)
+        self.fac_par, self.len_par = longitudinal_factor(probe, p, range_m)
+        self.u_par = quadrature.integral_weights(p, self.len_par, self.fac_par)
+        self.u_perp = quadrature.integral_weights(p, dy, np.ones_like(p.kappa))
+        wr = quadrature.cos_weights(p, self.rho)
         self.perp_outer = _outer(p, dy, self.rho, wr)
         self.par_outer = _outer(p, self.len_par, self.rho, wr)
 
@@ -183,7 +178,7 @@ class CurveKernel:
 
 
 def shared_plane(
-    kernels: list[CurveKernel], model: afunctions.spectra.Model, outer_scale_m: float | None
+    kernels: list[CurveKernel], model: spectra.Model, outer_scale_m: float | None
 ) -> PlaneMatrix:
     """One :class:`PlaneMatrix` of ``model`` covering the panels of all ``kernels``."""
     lo = min(k.limits()[0] for k in kernels)

@@ -1,7 +1,7 @@
 """The along-beam integrals of the plane A-function, all separations at once.
 
 :func:`cwproc.physics.afunctions.a_plane` needs, per separation ``(s_par, s_perp)``, the
-outer integral of :func:`cwproc.physics.afunctions._structure_integral` with its own
+outer integral of :func:`cwproc.physics.afunction_quadrature.structure_integral` with its own
 smooth factor ``2 C(k1; s_perp) H_par`` and lag ``s_par``. Called once per separation
 (about 800 separations per table of plane curves) its Python overhead and the many
 small cosine-weight matrices cost about 3 s per probe. :func:`structure_integrals` is
@@ -16,20 +16,20 @@ import math
 
 import numpy as np
 
-from cwproc.physics import afunctions
+from cwproc.physics import afunction_quadrature as quadrature
 
 #: separations per block (bounds the (separations, nodes) weight matrices to ~10 MB)
 BLOCK = 256
 
 
 def structure_integrals(
-    p: afunctions._Panels, smooth: np.ndarray, length: float, rho: np.ndarray
+    p: quadrature.Panels, smooth: np.ndarray, length: float, rho: np.ndarray
 ) -> np.ndarray:
     """``int smooth_i(kappa) sinc^2(pi length kappa) [1 - cos(2 pi rho_i kappa)] dkappa``.
 
     Parameters
     ----------
-    p : afunctions._Panels
+    p : quadrature.Panels
         Panels and nodes of the integral.
     smooth : numpy.ndarray
         ``(nodes, n)``: the smooth factor of each integral at the panel nodes.
@@ -41,7 +41,7 @@ def structure_integrals(
     Returns
     -------
     numpy.ndarray
-        ``(n,)``: :func:`cwproc.physics.afunctions._structure_integral` of each column
+        ``(n,)``: :func:`cwproc.physics.afunction_quadrature.structure_integral` of each column
         with its lag (tail power estimated from the last two nodes).
     """
     rho = np.asarray(rho, dtype=float)
@@ -51,13 +51,13 @@ def structure_integrals(
     return out
 
 
-def _block(p: afunctions._Panels, smooth: np.ndarray, length: float, rho: np.ndarray) -> np.ndarray:
+def _block(p: quadrature.Panels, smooth: np.ndarray, length: float, rho: np.ndarray) -> np.ndarray:
     """:func:`structure_integrals` of one block of columns."""
     w0, kappa, n = p.gl, p.kappa, p.kappa.size
-    order = afunctions._ORDER
+    order = quadrature.ORDER
     if length > 0:
         direct = p.left * length < 1.0
-        f = smooth * afunctions._sinc2(length * kappa)[:, None]
+        f = smooth * quadrature.sinc2(length * kappa)[:, None]
     else:
         direct = np.ones(n, bool)
         f = smooth
@@ -71,7 +71,7 @@ def _block(p: afunctions._Panels, smooth: np.ndarray, length: float, rho: np.nda
     # the cosine weights only on the nodes inside some column's cut (the rest weigh 0)
     used = np.arange(n) < cut.max()
     wr = np.zeros((rho.size, n))
-    wr[:, used] = afunctions._cos_weights(p, rho, used)  # (n, nodes)
+    wr[:, used] = quadrature.cos_weights(p, rho, used)  # (n, nodes)
     fd = np.where(direct[:, None] & inside, f, 0.0)
     out = np.einsum("ik,ki->i", w0[None, :] - wr, fd)
     trig = ~direct
@@ -83,9 +83,9 @@ def _block(p: afunctions._Panels, smooth: np.ndarray, length: float, rho: np.nda
         live = used[trig]
         if live.any():
             sub = trig & used
-            wl = afunctions._cos_weights(p, np.array([length]), sub)
-            wm = afunctions._cos_weights(p, np.abs(rho - length), sub)
-            wp = afunctions._cos_weights(p, rho + length, sub)
+            wl = quadrature.cos_weights(p, np.array([length]), sub)
+            wm = quadrature.cos_weights(p, np.abs(rho - length), sub)
+            wp = quadrature.cos_weights(p, rho + length, sub)
             kern[:, live] = w0[None, sub] - wl - wr[:, sub] + 0.5 * wm + 0.5 * wp
         g = np.where(inside[trig], g_all, 0.0)
         out = out + np.einsum("ik,ki->i", kern, g)

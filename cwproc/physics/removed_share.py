@@ -4,27 +4,28 @@ The deviations ``V'_L`` from the VAD fit (Smalikho (2020), eqs. 1-2) miss the pa
 the variance the fitted wind takes: ``tr(H B)/M`` of the fit's hat matrix ``H`` and the
 correlation tensor ``B`` of the isotropic field (Banakh et al. (1999), eqs. 15-16) at
 the beams, seen at their own times in the field the wind carries (Smalikho (2020),
-eq. 3). :func:`mean_removed_share` for full circles, :func:`sector_removed_share` for
-sectors and gaps (:func:`partial_circle`). Pure numpy.
+eq. 3). :func:`removed_share_curve` and :func:`share_on_curve` for full circles (kept
+on disk by the table store, :func:`cwproc.tables.removed_share.mean_removed_share`),
+:func:`sector_removed_share` for sectors and gaps (:func:`partial_circle`). Pure numpy:
+no files, no environment.
 """
 
 from __future__ import annotations
 
 import functools
 import math
-import os
+from collections.abc import Callable
 
 import numpy as np
 
 from cwproc.physics import spectra
 from cwproc.physics.atable_interp import N_BINS, azimuth_nodes
-from cwproc.physics.disk_cache import cached_arrays, code_digest
 
-#: nodes of mu = U/V_s of :func:`mean_removed_share` (linear interpolation between them)
+#: nodes of mu = U/V_s of :func:`share_on_curve` (linear interpolation between them)
 REMOVED_SHARE_MU = np.array([0.0, 0.5, 1.0, 2.0, 3.0, 5.0, 10.0])
 
 
-#: wind directions (from the scan's first ray) averaged in :func:`mean_removed_share`
+#: wind directions (from the scan's first ray) averaged in :func:`share_on_curve`
 _REMOVED_SHARE_DIRECTIONS = 4
 
 
@@ -34,31 +35,30 @@ _CURVE_X = np.geomspace(1e-2, 1e2, 25)
 _CURVE_BEAMS = 48
 
 
-@functools.lru_cache(maxsize=16)
-def _removed_share_curve(
-    phi_deg: float, model: str, cache_dir: str | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`removed_share_curve`, computed once per elevation and model and kept on
-    disk (:func:`cwproc.physics.disk_cache.cached_arrays`, folder ``cache_dir``): about
-    0.6 s of correlation functions, otherwise paid by every run."""
-    # the code of this module and of what it uses: a change computes the curves again
-    params = {"phi_deg": phi_deg, "model": model, "code": code_digest(__name__)}
-    params |= {"x": _CURVE_X.tolist(), "mu": REMOVED_SHARE_MU.tolist(), "n_az": _CURVE_BEAMS}
+def curve_parameters(phi_deg: float, model: str) -> dict:
+    """Every parameter of :func:`removed_share_curve` but the code (the curve's key)."""
+    return {
+        "phi_deg": phi_deg,
+        "model": model,
+        "x": _CURVE_X.tolist(),
+        "mu": REMOVED_SHARE_MU.tolist(),
+        "n_az": _CURVE_BEAMS,
+    }
+
+
+def curve_log_x() -> np.ndarray:
+    """``log x`` of the nodes of :func:`removed_share_curve`, ``x = R'/L_V``."""
+    return np.log(_CURVE_X)
+
+
+def valid_curve(share: np.ndarray | None) -> bool:
+    """Whether ``share`` has the shape and finite values of :func:`removed_share_curve`."""
     shape = (REMOVED_SHARE_MU.size, _CURVE_X.size)
-
-    def compute() -> dict[str, np.ndarray]:
-        return {"share": removed_share_curve(phi_deg, model)[1]}
-
-    def valid(arrays: dict[str, np.ndarray]) -> bool:
-        share = arrays.get("share")
-        return share is not None and share.shape == shape and bool(np.isfinite(share).all())
-
-    share = cached_arrays("removed-share", params, compute, valid, cache_dir)["share"]
-    return np.log(_CURVE_X), share
+    return share is not None and share.shape == shape and bool(np.isfinite(share).all())
 
 
 def removed_share_curve(phi_deg: float, model: str) -> tuple[np.ndarray, np.ndarray]:
-    """``(log x, r(mu, x))`` of :func:`mean_removed_share` on 25 nodes of ``x = R'/L_V``.
+    """``(log x, r(mu, x))`` of :func:`share_on_curve` on 25 nodes of ``x = R'/L_V``.
 
     ``tr(H B)/M`` of the VAD hat matrix ``H = (1 + 2 cos(theta_i - theta_j))/M`` of a
     full circle of 48 point beams and the correlation tensor ``B`` of the frozen field
@@ -99,29 +99,23 @@ def removed_share_curve(phi_deg: float, model: str) -> tuple[np.ndarray, np.ndar
     return np.log(x), share
 
 
-def mean_removed_share(
-    ratio: np.ndarray,
-    phi_deg: float,
-    model: str,
-    mu: np.ndarray | float = 0.0,
-    cache_dir: str | os.PathLike | None = None,
+def share_on_curve(
+    curve: tuple[np.ndarray, np.ndarray], ratio: np.ndarray, mu: np.ndarray | float = 0.0
 ) -> np.ndarray:
     """Share of sigma_V^2 the scan-mean (VAD) wind takes from one scan's V'_L.
 
     ``tr(H B)/(M sigma_V^2)`` of a full circle of point beams, Banakh et al. (1999),
-    eqs. 15-16 with the isotropic tensor of ``model``, the rays seen at their own times
-    in the field carried by the wind (:func:`removed_share_curve`); a function of
-    ``ratio = R'/L_V`` and ``mu = U/V_s`` (tabulated once per elevation and model). The
-    block mean of N independent scans removes this divided by N. The probe volume is
-    neglected (the share is carried by scales of the circle, far above the probe).
-    Transport matters: on exact 24-ray statistics at ``mu = 3`` (R'/L_V = 0.71) the
-    block-mean wind removed 2.4 % of sigma_V^2, the frozen circle predicts 5.0 %; the
-    overestimate biased the variance condition and eps 8 % low. The curve of an
-    elevation and model is kept in the cache folder ``cache_dir`` (default
-    ``platformdirs.user_cache_dir("cwproc")``, as the A-tables).
+    eqs. 15-16 with the isotropic tensor of the curve's model, the rays seen at their own
+    times in the field carried by the wind: ``curve = (log x, r(mu, x))`` of
+    :func:`removed_share_curve`, interpolated at ``ratio = R'/L_V`` (linear in
+    ``log x``) and ``mu = U/V_s`` (linear). The block mean of N independent scans
+    removes this divided by N. The probe volume is neglected (the share is carried by
+    scales of the circle, far above the probe). Transport matters: on exact 24-ray
+    statistics at ``mu = 3`` (R'/L_V = 0.71) the block-mean wind removed 2.4 % of
+    sigma_V^2, the frozen circle predicts 5.0 %; the overestimate biased the variance
+    condition and eps 8 % low.
     """
-    folder = None if cache_dir is None else os.fspath(cache_dir)
-    log_x, share = _removed_share_curve(round(float(phi_deg), 2), model, folder)
+    log_x, share = curve
     lx = np.log(np.clip(ratio, 1e-2, 1e2))
     m = np.clip(np.nan_to_num(np.asarray(mu, float), nan=0.0), 0.0, REMOVED_SHARE_MU[-1])
     lx, m = np.broadcast_arrays(lx, m)
@@ -145,7 +139,7 @@ _SECTOR_X = np.geomspace(1e-2, 1e2, 9)
 
 
 @functools.lru_cache(maxsize=4)
-def _correlation_curve(model: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def correlation_curve(model: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(ln r, f, g)``: normalised correlations of ``model`` at ``r/L_V`` 1e-5 to 1e3."""
     r = np.geomspace(1e-5, 1e3, 400)
     f, g = spectra.correlation_functions(r, model, 1.0)
@@ -224,7 +218,7 @@ def sector_removed_share(
     et al. (1999), eqs. 15-16, isotropic tensor of ``model``) in the field carried by
     the wind: within a scan the rays follow each other (``mu R'`` per radian scanned,
     Smalikho (2020), eq. 3), and scan ``n + m`` is ``m U T_int`` further on. A full
-    circle of independent scans gives :func:`mean_removed_share` over N. Exact
+    circle of independent scans gives :func:`share_on_curve` over N. Exact
     statistics of a 90 deg sector scan (45 rays, 12 s apart): the fit removes 7.7 % of
     sigma_V^2 per scan, and, the scans being 1-2 L_V apart, 11-18 % of it in the block
     at mu 1-0.5 (the full circle: 4.6 %).
@@ -233,7 +227,7 @@ def sector_removed_share(
     ----------
     weights : numpy.ndarray
         ``(cells, N_BINS)`` node weights; rows that are NaN give NaN (the caller keeps
-        :func:`mean_removed_share` there and for full circles, :func:`partial_circle`).
+        :func:`share_on_curve` there and for full circles, :func:`partial_circle`).
     ratio : numpy.ndarray
         ``(cells, k)`` values of ``R'/L_V``.
     mu, interval, n_scans : numpy.ndarray
@@ -246,7 +240,7 @@ def sector_removed_share(
     cells = np.nonzero(np.all(np.isfinite(weights), axis=-1) & (w.sum(-1) > 0))[0]
     if cells.size == 0:
         return out
-    log_r, f_c, g_c = _correlation_curve(model)
+    log_r, f_c, g_c = correlation_curve(model)
     th = azimuth_nodes()
     beta = -th  # wind towards beta = 0; the frozen statistics are mirror-symmetric
     ph = math.radians(phi_deg)
@@ -340,8 +334,9 @@ def _point_correlation(
     return np.where((r < 1e-6)[..., None], dot[..., None], b)  # the same point: s_p.s_q
 
 
-#: rays per scan beyond which :func:`sector_removed_d` and :func:`circle_removed_d` leave
-#: D(l) alone (the cost of a configuration grows as the square of the rays)
+#: rays per scan beyond which :func:`sector_removed_d` leaves D(l) alone and
+#: :func:`circle_removed_d` takes the removal of a circle of this many rays at the same
+#: lag angles (the cost of a configuration grows as the square of the rays)
 MAX_SECTOR_RAYS = 60
 
 #: nodes of mu = U/V_s of the removal in D(l) (:func:`_removed_d_grid`; linear
@@ -501,17 +496,16 @@ def _configurations(keys: np.ndarray) -> list[tuple[tuple, np.ndarray]]:
 
 def transport_mu(
     mu: np.ndarray,
-    ratio: np.ndarray,
+    share: np.ndarray,
     variance: np.ndarray,
     v_s: np.ndarray,
     n_scans: np.ndarray,
     phi_deg: float,
-    model: str,
 ) -> np.ndarray:
     """``(cells, k)``: ``U/V_s`` of the field's transport, the measured ``mu`` less its bias.
 
     The block-mean VAD wind of turbulence at rest is not zero: the fit of one full circle
-    takes the share ``S`` of sigma_V^2 (:func:`mean_removed_share` at ``mu = 0``), nearly
+    takes the share ``S`` of sigma_V^2 (:func:`share_on_curve` at ``mu = 0``), nearly
     all of it in the horizontal wind, so each horizontal component of the mean of N
     independent scans scatters with ``S sigma_V^2 / (N cos^2 phi)`` and ``|U|^2`` is biased
     by twice that. ``mu_t = sqrt(max(mu^2 - 2 S var / (N cos^2 phi V_s^2), 0))``, ``var``
@@ -525,12 +519,14 @@ def transport_mu(
     ----------
     mu : numpy.ndarray
         ``(cells,)`` measured ``U/V_s``.
-    ratio : numpy.ndarray
-        ``(cells, k)`` values of ``R'/L_V``.
+    share : numpy.ndarray
+        ``(cells, k)`` share ``S`` at the values of ``R'/L_V`` (``mu = 0``,
+        :func:`cwproc.tables.removed_share.mean_removed_share`).
     variance, v_s, n_scans : numpy.ndarray
         ``(cells,)`` variance of V'_L (m2 s-2), ``V_s`` (m s-1), scans per block.
+    phi_deg : float
+        Elevation (degrees).
     """
-    share = mean_removed_share(ratio, phi_deg, model, 0.0)
     cos2 = math.cos(math.radians(phi_deg)) ** 2
     with np.errstate(invalid="ignore", divide="ignore"):
         bias = 2.0 * share * (variance / (n_scans * cos2 * v_s**2))[:, None]
@@ -547,6 +543,7 @@ def circle_removed_d(
     n_scans: np.ndarray,
     phi_deg: float,
     model: str,
+    dense_reference: Callable[[int, tuple], np.ndarray] | None = None,
 ) -> np.ndarray:
     """``(cells, k, n_lags)``: share of sigma_V^2 the block-mean VAD wind takes from ``D(l)``
     of full-circle scans (``M = 2 pi / dtheta`` rays, e.g. 24- and 36-ray VADs).
@@ -560,7 +557,8 @@ def circle_removed_d(
     :data:`REMOVED_D_X` and interpolated (:func:`_removed_d_grid`). Against the exact
     covariance of a 24-ray step-stare VAD (10 scans back to back, ``R'/L_V`` 0.71, ``mu``
     0) the block-mean fit removes 0.25/0.98/2.1 % of sigma_V^2 from D at lags 1-3.
-    Scans of more than :data:`MAX_SECTOR_RAYS` rays give 0.
+    Dense circles (more than :data:`MAX_SECTOR_RAYS` rays) take that of the circle of
+    :data:`MAX_SECTOR_RAYS` rays at their lag angles (:func:`_dense_circle`).
 
     Parameters
     ----------
@@ -575,20 +573,99 @@ def circle_removed_d(
         at 0 the scans are independent, the no-transport limit of Smalikho (2020).
     interval, n_scans : numpy.ndarray
         ``(cells,)`` as :func:`sector_removed_share`.
+    dense_reference : callable
+        ``(ref_lags, setting) -> grid`` of the reference circle of dense circles
+        (default :func:`dense_reference_grid`; the stages pass the table store's stored
+        copy).
     """
+    reference = dense_reference_grid if dense_reference is None else dense_reference
     out = np.zeros((*ratio.shape, n_lags))
     n_rays = np.rint(2.0 * np.pi / np.asarray(step_rad, float))
     keys = np.stack([n_rays, np.rint(n_scans), np.round(interval, 2)], -1)
     offsets = tuple(2.0 * np.pi * np.arange(CIRCLE_DIRECTIONS) / CIRCLE_DIRECTIONS)
     for (rays, scans, inter), at in _configurations(keys):
-        if not (2 <= rays <= MAX_SECTOR_RAYS) or scans < 1:
+        if rays < 2 or scans < 1:
+            continue
+        setting = (int(scans), float(inter), round(float(phi_deg), 2), model)
+        if rays > MAX_SECTOR_RAYS:
+            out[at] = _dense_circle(int(rays), n_lags, setting, mu[at], ratio[at], reference)
             continue
         phase = tuple(2.0 * np.pi * np.arange(int(rays)) / rays)
-        grid = _removed_d_grid(
-            phase, offsets, n_lags, int(scans), float(inter), round(float(phi_deg), 2), model, False
-        )
+        grid = _removed_d_grid(phase, offsets, n_lags, *setting, False)
         out[at] = _grid_at(grid, mu[at], ratio[at])
     return out
+
+
+def dense_grid_parameters(ref_lags: int, setting: tuple) -> dict:
+    """The parameters that identify :func:`dense_reference_grid` (a cache key without the
+    code version, which the table store adds)."""
+    params = {"rays": MAX_SECTOR_RAYS, "lags": ref_lags, "setting": list(setting)}
+    params |= {"directions": CIRCLE_DIRECTIONS}
+    return params | {"mu": REMOVED_D_MU.tolist(), "x": REMOVED_D_X.tolist()}
+
+
+def valid_dense_grid(grid: np.ndarray | None, ref_lags: int) -> bool:
+    """Whether ``grid`` is a complete :func:`dense_reference_grid` of ``ref_lags`` lags."""
+    shape = (REMOVED_D_MU.size, REMOVED_D_X.size, ref_lags)
+    return grid is not None and grid.shape == shape and bool(np.isfinite(grid).all())
+
+
+@functools.lru_cache(maxsize=64)
+def dense_reference_grid(ref_lags: int, setting: tuple) -> np.ndarray:
+    """:func:`_removed_d_grid` of the circle of :data:`MAX_SECTOR_RAYS` rays on
+    :data:`REMOVED_D_MU` x :data:`REMOVED_D_X` x ``ref_lags`` lags: 3-6 s of correlations
+    per ``(lags, N, T_int/T_scan, phi, model)``, kept in memory here and on disk by the
+    table store (:func:`cwproc.tables.removed_share.stored_dense_grid`)."""
+    ref = MAX_SECTOR_RAYS
+    phase = tuple(2.0 * np.pi * np.arange(ref) / ref)
+    offsets = tuple(2.0 * np.pi * np.arange(CIRCLE_DIRECTIONS) / CIRCLE_DIRECTIONS)
+    return _removed_d_grid(phase, offsets, ref_lags, *setting, False)
+
+
+#: fewest lags of the reference circle of :func:`_dense_circle` (6 deg steps: 60 deg,
+#: the largest lag angle the structure function uses)
+DENSE_REFERENCE_LAGS = 10
+
+
+def _dense_circle(
+    rays: int,
+    n_lags: int,
+    setting: tuple,
+    mu: np.ndarray,
+    ratio: np.ndarray,
+    reference: Callable[[int, tuple], np.ndarray],
+) -> np.ndarray:
+    """``(cells, k, n_lags)``: the removal in D(l) of a circle of ``rays`` > 60 rays.
+
+    The removal at lag angle ``alpha = l dtheta`` is of second order in ``alpha``:
+    ``P_a - P_b`` of the fitted wind and the part of ``V_a - V_b`` correlated with it
+    are both of first order. Its ratio to ``alpha^2`` varies little with the angle and
+    converges with the rays (at ``R'/L_V`` 0.94, 30 deg: 9.66, 9.50, 9.39 x 1e-6 per
+    deg^2 for 24, 36 and 72 rays at ``mu`` 0; 4.80, 4.49, 4.27 at ``mu`` 3), so the
+    ratio of the circle of :data:`MAX_SECTOR_RAYS` rays, interpolated linearly in the
+    angle (held below its first lag), times ``alpha^2`` stands for it: against the
+    direct evaluation of 72 rays (lags 1-3, ``R'/L_V`` 0.94, 10 scans) within 0.2 % at
+    ``mu`` 0 and 1 and 0.8 % at ``mu`` 3 (the removal is 0.1-0.4 % of D(l) there, and
+    moves the free intercept by 4 % of ``2 sigma_e^2`` = 0.02 m2 s-2 at ``mu`` 1). The
+    reference's grid holds :data:`DENSE_REFERENCE_LAGS` lags at least, so that scans of
+    any density share it.
+    ``setting``: scans per block, ``T_int/T_scan``, elevation (deg) and model;
+    ``reference(ref_lags, setting)`` gives the reference circle's grid
+    (:func:`dense_reference_grid` or a stored copy of it).
+    """
+    ref = MAX_SECTOR_RAYS
+    angle = np.arange(1, n_lags + 1) * 2.0 * np.pi / rays
+    needed = math.ceil(angle[-1] * ref / (2.0 * np.pi) - 1e-9) + 1
+    ref_lags = min(max(needed, DENSE_REFERENCE_LAGS), ref // 2)  # one grid for most scans
+    use = min(needed, ref_lags)  # >= 2; the cells interpolated at these lags only
+    grid = reference(ref_lags, setting)[..., :use]
+    ref_angle = np.arange(1, use + 1) * 2.0 * np.pi / ref
+    per_angle2 = _grid_at(grid, mu, ratio) / ref_angle**2  # (cells, k, use)
+    pos = np.interp(angle, ref_angle, np.arange(use, dtype=float))
+    i0 = np.minimum(np.floor(pos).astype(int), use - 2)
+    frac = pos - i0
+    value = (1.0 - frac) * per_angle2[..., i0] + frac * per_angle2[..., i0 + 1]
+    return value * angle**2
 
 
 def _sector_rays(weights: np.ndarray, step_rad: np.ndarray) -> tuple[np.ndarray, ...]:

@@ -45,13 +45,11 @@ independent observations in an autocorrelated time series, J. R. Stat. Soc. Supp
 
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
 
-from cwproc.physics.disk_cache import cached_arrays, code_digest
-from cwproc.physics.removed_share import _correlation_curve
+from cwproc.physics.removed_share import correlation_curve
 
 #: ``mu = U/V_s`` from which the scans are the frozen field carried by the wind; below it
 #: the frozen cross-scan correlation is scaled by ``mu / MU_FROZEN`` (at 0 the scans are
@@ -125,7 +123,7 @@ def cross_scan_correlation(
     model : str
         ``"von_karman"`` or ``"exponential"``.
     """
-    log_r, f_c, g_c = _correlation_curve(model)
+    log_r, f_c, g_c = correlation_curve(model)
     r_vec = pos[None, :, None, :] - pos[None, None, :, :]
     r_vec = r_vec + np.asarray(shift, float)[:, None, None, None] * np.array([1.0, 0.0, 0.0])
     r = np.linalg.norm(r_vec, axis=-1)
@@ -400,38 +398,21 @@ FACTOR_ANGLES = np.arange(0.0, 360.0, 30.0)
 FACTOR_MU = np.array([0.0, 0.05, 0.1, 0.2, 0.3, 0.45, 0.6, 0.8, 1.0, 1.4, 2.0, 3.0, 5.0, 10.0])
 
 
-@functools.lru_cache(maxsize=512)
-def _circle_factor_slice(
-    n_rays: int, n_scans: int, interval: float, phi_deg: float, model: str, mu_node: int
+def circle_factor_slice(
+    n_rays: int, n_scans: int, interval: float, phi_deg: float, model: str, mu: float
 ) -> np.ndarray:
-    """``(x, angle)``: :func:`refit_jackknife_factor` of a circle of ``n_rays`` rays at the
-    ``mu_node``-th node of :data:`FACTOR_MU`, on :data:`FACTOR_X` x :data:`FACTOR_ANGLES`
-    (about 0.7 s for 24 rays and 10 scans, when a cell first needs that ``mu``; then
-    kept on disk, :func:`cwproc.physics.disk_cache.cached_arrays`)."""
-    mu = float(FACTOR_MU[mu_node])
-    shape = (FACTOR_X.size, FACTOR_ANGLES.size)
+    """``(x, angle)``: :func:`refit_jackknife_factor` of a circle of ``n_rays`` rays (first
+    ray at scan angle 0, ``n_scans`` scans ``interval`` scan periods apart) at ``mu``, on
+    :data:`FACTOR_X` x :data:`FACTOR_ANGLES` (about 0.7 s for 24 rays and 10 scans)."""
+    out = np.ones((FACTOR_X.size, FACTOR_ANGLES.size))
     if mu <= 0.0 or n_scans < 2:
-        return np.ones(shape)
+        return out
     phase = 2.0 * np.pi * np.arange(n_rays) / n_rays
-
-    def compute() -> dict[str, np.ndarray]:
-        out = np.ones(shape)
-        for i, x in enumerate(FACTOR_X):
-            for j, angle in enumerate(np.radians(FACTOR_ANGLES)):
-                out[i, j] = refit_jackknife_factor(
-                    phase, float(angle), mu, interval, n_scans, float(x), 0.0, phi_deg, model
-                )
-        return {"factor": out}
-
-    def valid(arrays: dict[str, np.ndarray]) -> bool:
-        factor = arrays.get("factor")
-        return factor is not None and factor.shape == shape and bool(np.isfinite(factor).all())
-
-    params = {"rays": n_rays, "scans": n_scans, "interval": interval, "phi_deg": phi_deg}
-    params |= {"model": model, "mu": mu, "code": code_digest(__name__)}
-    params |= {"x": FACTOR_X.tolist(), "angles": FACTOR_ANGLES.tolist()}
-    out = cached_arrays("scan-factor", params, compute, valid)["factor"]
-    out.flags.writeable = False  # shared by every caller through the cache
+    for i, x in enumerate(FACTOR_X):
+        for j, angle in enumerate(np.radians(FACTOR_ANGLES)):
+            out[i, j] = refit_jackknife_factor(
+                phase, float(angle), mu, interval, n_scans, float(x), 0.0, phi_deg, model
+            )
     return out
 
 
@@ -467,74 +448,3 @@ def refit_jackknife_factor(
     var_i, jack_i = refit_variance_moments(independent, design)
     factor = (var_c / jack_c) / (var_i / jack_i)
     return float(factor) if math.isfinite(factor) and factor > 0 else 1.0
-
-
-def circle_variance_factor(
-    n_rays: np.ndarray,
-    n_scans: np.ndarray,
-    interval: np.ndarray,
-    mu: np.ndarray,
-    ratio: np.ndarray,
-    angle_deg: np.ndarray,
-    phi_deg: float,
-    model: str,
-) -> np.ndarray:
-    """``(cells,)`` :func:`refit_jackknife_factor` of full circles, from tabulated nodes.
-
-    Per configuration ``(M rays, N scans, T_int/T_scan)`` and node of :data:`FACTOR_MU`
-    a table on :data:`FACTOR_X` x :data:`FACTOR_ANGLES` (:func:`_circle_factor_slice`,
-    no noise: the noise only dilutes the correlation), interpolated linearly in ``mu``,
-    ``log(R'/L_V)`` and the start angle; cells without an angle (NaN) take the mean
-    over the angles. 1 where a value is not finite or ``mu`` is 0.
-
-    Parameters
-    ----------
-    n_rays, n_scans, interval : numpy.ndarray
-        ``(cells,)`` rays per circle, scans per block, ``T_int/T_scan``.
-    mu, ratio : numpy.ndarray
-        ``(cells,)`` ``U/V_s`` of the transport and ``R'/L_V``.
-    angle_deg : numpy.ndarray
-        ``(cells,)`` angle of the block's first ray from the wind's direction of motion,
-        in the scan's sense of rotation (deg).
-    phi_deg : float
-        Elevation (deg).
-    model : str
-        Correlation model.
-    """
-    mu = np.asarray(mu, float)
-    ratio = np.asarray(ratio, float)
-    out = np.ones(mu.shape)
-    ok = np.isfinite(mu) & (mu > 0) & np.isfinite(ratio) & (ratio > 0)
-    ok &= np.isfinite(n_rays) & (n_rays >= 3) & np.isfinite(n_scans) & (n_scans >= 2)
-    if not ok.any():
-        return out
-    m = np.clip(mu, 0.0, FACTOR_MU[-1])
-    j = np.clip(np.searchsorted(FACTOR_MU, m, side="right") - 1, 0, FACTOR_MU.size - 2)
-    w_mu = (m - FACTOR_MU[j]) / (FACTOR_MU[j + 1] - FACTOR_MU[j])
-    lx = np.log(FACTOR_X)
-    pos = (np.log(np.clip(ratio, FACTOR_X[0], FACTOR_X[-1])) - lx[0]) / (lx[1] - lx[0])
-    i0 = np.clip(np.floor(np.nan_to_num(pos)).astype(int), 0, lx.size - 2)
-    w_x = np.nan_to_num(pos) - i0
-    step = FACTOR_ANGLES[1] - FACTOR_ANGLES[0]
-    a_pos = np.mod(np.nan_to_num(angle_deg), 360.0) / step
-    a0 = np.floor(a_pos).astype(int) % FACTOR_ANGLES.size
-    w_a = a_pos - np.floor(a_pos)
-    no_angle = ~np.isfinite(angle_deg)
-    keys = np.stack([n_rays, n_scans, np.round(interval, 2), j], -1)
-    uniq, inverse = np.unique(np.where(ok[:, None], keys, -1.0), axis=0, return_inverse=True)
-    for u, key in enumerate(uniq):
-        at = np.nonzero((inverse.ravel() == u) & ok)[0]
-        if at.size == 0:
-            continue
-        rays, scans, inter, node = int(key[0]), int(key[1]), float(key[2]), int(key[3])
-        lo, hi = (
-            _circle_factor_slice(rays, scans, inter, round(phi_deg, 2), model, k)
-            for k in (node, node + 1)
-        )
-        grid = (1.0 - w_mu[at, None, None]) * lo + w_mu[at, None, None] * hi  # (c, x, a)
-        c = np.arange(at.size)
-        in_x = (1.0 - w_x[at, None]) * grid[c, i0[at]] + w_x[at, None] * grid[c, i0[at] + 1]
-        a1 = (a0[at] + 1) % FACTOR_ANGLES.size
-        value = (1.0 - w_a[at]) * in_x[c, a0[at]] + w_a[at] * in_x[c, a1]
-        out[at] = np.where(no_angle[at], in_x.mean(axis=1), value)
-    return out

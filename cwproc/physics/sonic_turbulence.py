@@ -7,7 +7,8 @@ Pure numpy functions on the samples of one averaging window (typically 30 min):
   planar fit (Wilczak et al. (2001), eqs. 39-45);
 * despiking: Vickers & Mahrt (1997) (moving-window mean +/- k sigma, runs of at most
   three points, k raised each pass) or Mauder et al. (2013), eq. 1 (median +/- q
-  MAD/0.6745);
+  MAD/0.6745); constants as in EddyPro's engine (``TestSpikeDetection``,
+  ``TestSpikeDetectionMauder13``) and checked against EC-PeT (docs/sonic.md);
 * detrending: linear least squares or block mean;
 * the dissipation rate from the inertial range of the second-order structure function,
   D_ii(r) = C_ii eps^(2/3) r^(2/3) with C_11 = C_2 = 2.0 and C_22 = C_33 = 4/3 C_2
@@ -17,7 +18,8 @@ Pure numpy functions on the samples of one averaging window (typically 30 min):
   Finnigan (1994)), the random error of a variance, sqrt(2 T / T_avg) (Lenschow et al.
   (1994)), friction velocity (Weber (1999));
 * the steady-state test and the integral turbulence characteristics of Foken &
-  Wichura (1996) and the 0-1-2 flag of Mauder & Foken (2004).
+  Wichura (1996) with the ITC models of Foken et al. (2004), ch. 9, and Thomas & Foken
+  (2002), and the 0-1-2 flag of Mauder & Foken (2004).
 """
 
 from __future__ import annotations
@@ -37,6 +39,25 @@ VON_KARMAN = 0.4
 GRAVITY = 9.81
 #: Earth's angular velocity (rad s-1)
 OMEGA_EARTH = 7.2921e-5
+
+#: Vickers & Mahrt (1997), spike test: moving window L1 = 5 min; first-pass threshold
+#: 3.5 sigma, raised by 0.1 sigma each pass until a pass finds no new spike; only runs
+#: of at most 3 consecutive outliers are spikes; more than 1 % spikes is a hard flag.
+#: The numbers are those of EddyPro's engine (TestSpikeDetection: lim_step = 0.1,
+#: max_pass = 10; GUI defaults sr_num_spk = 3, sr_lim_u = 3.5, sr_lim_w = 5.0,
+#: sr_lim_hf = 1 %) and of EC-PeT (L1 = 300 s, 3.5 sigma, 3 points, 1 %); 5.0 sigma for
+#: w, whose tails are wider, is EddyPro's default, kept here (docs/sonic.md).
+VM97_WINDOW_S = 300.0
+VM97_FACTOR = 3.5
+VM97_FACTOR_W = 5.0
+VM97_INCREMENT = 0.1
+VM97_MAX_PASSES = 10
+SPIKE_MAX_RUN = 3
+SPIKE_HARD_FLAG_FRACTION = 0.01
+#: Mauder et al. (2013), eq. 1: q = 7 median absolute deviations scaled by 0.6745 (the
+#: MAD of a standard normal law), as EddyPro's TestSpikeDetectionMauder13 (zlim = 7)
+MAUDER_Q = 7.0
+MAD_NORMAL = 0.6745
 
 
 # --------------------------------------------------------------------------------------
@@ -201,21 +222,27 @@ def despike_vickers_mahrt(
     x: np.ndarray,
     rate_hz: float,
     *,
-    window_s: float = 300.0,
-    factor: float = 3.6,
-    increment: float = 0.3,
-    max_run: int = 3,
-    max_passes: int = 20,
+    window_s: float = VM97_WINDOW_S,
+    factor: float = VM97_FACTOR,
+    increment: float = VM97_INCREMENT,
+    max_run: int = SPIKE_MAX_RUN,
+    max_passes: int = VM97_MAX_PASSES,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Despike a series by the moving-window test of Vickers & Mahrt (1997).
 
-    A sample departing from the mean of a moving window of ``window_s`` (5 min) by
-    more than ``factor`` standard deviations of that window is an outlier; runs of at
-    most ``max_run`` (3) consecutive outliers are spikes (longer runs are taken as
-    physical and kept) and are replaced by linear interpolation. The test is repeated,
-    with the factor raised by ``increment`` each pass, until a pass finds no new spike
-    (Vickers & Mahrt (1997), the spike test: 3.6 sigma, +0.3 per pass, L1 = 5 min,
-    runs of 3 or fewer points; more than 1 % spikes is their hard flag).
+    A sample departing from the mean of a centred moving window of ``window_s`` (5 min;
+    at the ends the first or last full window) by more than ``factor`` standard
+    deviations of that window is an outlier; runs of at most ``max_run`` (3) consecutive
+    outliers are spikes (longer runs are taken as physical and kept) and are replaced by
+    linear interpolation. The test is repeated, with the factor raised by ``increment``
+    each pass, until a pass finds no new spike or after ``max_passes`` passes (Vickers &
+    Mahrt (1997), spike test: 3.5 sigma, +0.1 per pass, L1 = 5 min, runs of 3 or fewer
+    points; more than 1 % spikes is their hard flag). Defaults: :data:`VM97_FACTOR`
+    (u, v, T; use :data:`VM97_FACTOR_W` = 5.0 for w as EddyPro does),
+    :data:`VM97_INCREMENT`, :data:`VM97_MAX_PASSES` (EddyPro's ``max_pass``).
+
+    Verified against EC-PeT 2.1.0b1 ``ecpre.vmspike`` (tests/physics/
+    test_sonic_reference.py): the same spikes, sample for sample, at 3.5 sigma.
 
     Parameters
     ----------
@@ -223,6 +250,16 @@ def despike_vickers_mahrt(
         Samples (NaN: missing, not touched).
     rate_hz : float
         Sampling rate (Hz).
+    window_s : float
+        Moving-window length (s).
+    factor : float
+        First-pass threshold (standard deviations of the window).
+    increment : float
+        Rise of the threshold per pass (standard deviations).
+    max_run : int
+        Longest run of outliers that is a spike (samples).
+    max_passes : int
+        Most passes.
 
     Returns
     -------
@@ -249,15 +286,21 @@ def despike_vickers_mahrt(
 
 
 def despike_mauder(
-    x: np.ndarray, *, q: float = 7.0, max_run: int = 3
+    x: np.ndarray, *, q: float = MAUDER_Q, max_run: int = SPIKE_MAX_RUN
 ) -> tuple[np.ndarray, np.ndarray]:
     """Despike a series by the median absolute deviation test of Mauder et al. (2013).
 
     Samples outside Md - q MAD/0.6745 <= x <= Md + q MAD/0.6745 are spikes, with Md the
     median of the window and MAD the median of |x - Md| (Mauder et al. (2013), eq. 1,
-    q = 7; 0.6745 makes MAD/0.6745 the standard deviation of a normal law). As in
-    :func:`despike_vickers_mahrt`, only runs of at most ``max_run`` samples count as
-    spikes; they are replaced by linear interpolation.
+    q = 7 (:data:`MAUDER_Q`); 0.6745 (:data:`MAD_NORMAL`) makes MAD/0.6745 the standard
+    deviation of a normal law). As in :func:`despike_vickers_mahrt` and EddyPro's
+    ``TestSpikeDetectionMauder13`` (runs of at most ``sr_num_spk`` = 3), only runs of at
+    most ``max_run`` samples count as spikes; they are replaced by linear interpolation.
+    One pass: the median and MAD hardly move when the few spikes are replaced.
+
+    Verified against EC-PeT 2.1.0b1 ``ecpre.madspike`` with its threshold set to
+    7/0.6745 MAD (tests/physics/test_sonic_reference.py): the same spikes, except that
+    EC-PeT, having no run-length rule, also takes the samples of longer bursts.
 
     Returns
     -------
@@ -270,7 +313,7 @@ def despike_mauder(
     md = np.median(x[ok])
     mad = np.median(np.abs(x[ok] - md))
     with np.errstate(invalid="ignore"):
-        outlier = np.abs(x - md) > q * mad / 0.6745
+        outlier = np.abs(x - md) > q * mad / MAD_NORMAL
     spikes = _short_runs(outlier & ok, max_run)
     return interpolate_gaps(x, spikes), spikes
 
@@ -443,20 +486,58 @@ def stationarity_deviation(a: np.ndarray, b: np.ndarray, n_sub: int = 6) -> floa
     return float(abs((np.mean(parts) - full) / full) * 100.0)
 
 
-def itc_model_sigma_w(z_over_l: float, z_m: float, latitude_deg: float, ustar: float) -> float:
-    """Modelled sigma_w / u_* of the integral turbulence characteristics.
+#: z+ = 1 m of the neutral ITC models (Thomas & Foken (2002))
+ITC_Z_PLUS_M = 1.0
 
-    Foken et al. (2004) (after Foken & Wichura (1996) and Thomas & Foken (2002)):
-    -0.2 < z/L < 0.4: 0.21 ln(z_+ f / u_*) + 3.1 with z_+ = 1 m and f the Coriolis
-    parameter; -3 < z/L <= -0.2: 1.3 (-z/L)^(1/3). NaN outside (-3, 0.4).
+
+def coriolis_parameter(latitude_deg: float) -> float:
+    """|f| = 2 Omega |sin(latitude)| (s-1)."""
+    return float(2.0 * OMEGA_EARTH * abs(np.sin(np.radians(latitude_deg))))
+
+
+def itc_model_sigma_w(z_over_l: float, z_m: float, latitude_deg: float, ustar: float) -> float:
+    """Modelled sigma_w / u_* of the integral turbulence characteristics test.
+
+    Foken et al. (2004), ch. 9, ITC model table (after Foken & Wichura (1996):
+    sigma_w/u_* = c1 |z/L|^c2 with c1 = 2.0, c2 = 1/8 for z/L < -0.032), with the
+    neutral range replaced by that of Thomas & Foken (2002), their eq. for w:
+
+    * -3 < z/L <= -0.2: 2.0 |z/L|^(1/8);
+    * -0.2 < z/L < 0.4: 0.21 ln(z_+ f / u_*) + 3.1, z_+ = 1 m, f the Coriolis
+      parameter;
+    * NaN outside (-3, 0.4) (no published model) and at the equator (f = 0).
+
+    These are TK3's functions (Mauder & Foken (2011)) as EC-PeT 2.1.0b1 transcribes them
+    (``ecpost.itc_w``), checked in tests/physics/test_sonic_reference.py. EddyPro's
+    engine uses 1.3 (1 - 2 z/L)^(1/3) for z/L < -0.2 instead (Goeckede et al. (2004)).
+    ``z_m`` is not used by these models (kept for the call signature).
     """
     if not np.isfinite(z_over_l) or ustar <= 0:
         return float("nan")
     if -0.2 < z_over_l < 0.4:
-        f = 2.0 * OMEGA_EARTH * abs(np.sin(np.radians(latitude_deg)))
-        return float(0.21 * np.log(1.0 * f / ustar) + 3.1) if f > 0 else float("nan")
+        f = coriolis_parameter(latitude_deg)
+        return float(0.21 * np.log(ITC_Z_PLUS_M * f / ustar) + 3.1) if f > 0 else float("nan")
     if -3.0 < z_over_l <= -0.2:
-        return float(1.3 * (-z_over_l) ** (1.0 / 3.0))
+        return float(2.0 * abs(z_over_l) ** (1.0 / 8.0))
+    return float("nan")
+
+
+def itc_model_sigma_u(z_over_l: float, latitude_deg: float, ustar: float) -> float:
+    """Modelled sigma_u / u_* of the integral turbulence characteristics test.
+
+    Foken et al. (2004), ch. 9 (Foken & Wichura (1996): c1 = 4.15, c2 = 1/8 for
+    z/L < -0.032; Thomas & Foken (2002) near neutral): -3 < z/L <= -0.2:
+    4.15 |z/L|^(1/8); -0.2 < z/L < 0.4:
+    0.44 ln(z_+ f / u_*) + 6.3, z_+ = 1 m; NaN outside (-3, 0.4). As TK3 and EC-PeT
+    (``ecpost.itc_u``) and, for these ranges, EddyPro's engine.
+    """
+    if not np.isfinite(z_over_l) or ustar <= 0:
+        return float("nan")
+    if -0.2 < z_over_l < 0.4:
+        f = coriolis_parameter(latitude_deg)
+        return float(0.44 * np.log(ITC_Z_PLUS_M * f / ustar) + 6.3) if f > 0 else float("nan")
+    if -3.0 < z_over_l <= -0.2:
+        return float(4.15 * abs(z_over_l) ** (1.0 / 8.0))
     return float("nan")
 
 
@@ -471,9 +552,13 @@ def foken_flag(stationarity_pct: float, itc_pct: float) -> int:
     """The 0-1-2 quality flag of Mauder & Foken (2004) from the two test deviations.
 
     0 (high quality, fundamental research): both <= 30 %; 1 (general use): both
-    <= 100 %; 2 (discard) otherwise. An ITC that cannot be evaluated (NaN: stability
-    outside the models' range) is not held against the window; a stationarity that
-    cannot be evaluated gives 2.
+    <= 100 %; 2 (discard) otherwise. Mauder & Foken (2004) (TK2 documentation) define it
+    on the deviation classes of Foken et al. (2004), ch. 9 (1: 0-15 %, 2: 16-30 %, ...,
+    5: 76-100 %, ...): 0 = both classes 1-2, 1 = both classes 1-5, 2 otherwise; this is
+    EddyPro's ``GTK2Flag`` (``mauder_foken_04``), which classes the percentages after
+    truncation to integers (30.9 % is class 2 there, above 30 % here). An ITC that
+    cannot be evaluated (NaN: stability outside the models' range) is not held against
+    the window (EddyPro gives 2); a stationarity that cannot be evaluated gives 2.
     """
     if not np.isfinite(stationarity_pct):
         return 2

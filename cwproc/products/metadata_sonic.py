@@ -158,7 +158,15 @@ SONIC_TURBULENCE_VARIABLES: dict[str, VarMeta] = {
     "itc_deviation": VarMeta(
         "integral turbulence characteristics test: deviation of sigma_w/u_* from its model",
         "percent",
-        references=FOKEN_WICHURA_1996 + "; model of Thomas and Foken (2002)",
+        references=FOKEN_WICHURA_1996
+        + "; models of Foken et al. (2004) and Thomas and Foken (2002)",
+    ),
+    "itc_deviation_u": VarMeta(
+        "integral turbulence characteristics test: deviation of sigma_u/u_* from its model "
+        "(not in foken_flag)",
+        "percent",
+        references=FOKEN_WICHURA_1996
+        + "; models of Foken et al. (2004) and Thomas and Foken (2002)",
     ),
     "foken_flag": VarMeta(
         "overall quality flag of the steady-state and ITC tests",

@@ -33,7 +33,7 @@ from cwproc.physics.correlation import (
     interpolated_azimuth_correlation_matrix,
     longitudinal_correlation,
 )
-from cwproc.physics.disk_cache import cached_arrays
+from cwproc.tables.store import cached_arrays
 
 
 def next_fast_len(target: int, real: bool = False) -> int:
@@ -85,7 +85,7 @@ def scan_cholesky(
 
     Parameters are hashable (frozen dataclasses, tuples) so that the factor of each
     geometry/probe/outer scale/wind is computed once per process, and kept on disk
-    between runs (:func:`cwproc.physics.disk_cache.cached_arrays`, keyed by the SHA-256
+    between runs (:func:`cwproc.tables.store.cached_arrays`, keyed by the SHA-256
     of every parameter: a file read the next time). B_D (eq. 15) is
     :func:`cwproc.physics.correlation.interpolated_azimuth_correlation_matrix` (entries
     within 1e-4 of the variance of the exact matrix by construction, 1e-6 measured for

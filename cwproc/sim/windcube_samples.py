@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cwproc.sim.output import fresh_folder, write_truth
+from cwproc.sim.specs import WindRecordSpec
 from cwproc.sim.windcube import (
     WindCubeSpec,
     instrument_statistics,
@@ -25,9 +25,6 @@ from cwproc.sim.windcube import (
     write_rtd,
     write_sta,
 )
-
-if TYPE_CHECKING:
-    from cwproc.sim.sample_data import WindRecordSpec
 
 
 def wind_record_statistics(

@@ -38,8 +38,7 @@ import xarray as xr
 from cwproc.errors import CwprocError
 from cwproc.io.scans import is_homodyne
 from cwproc.physics.geometry import beam_unit_vector
-from cwproc.stages.vad import pointing, scan_chunks, scan_layout
-from cwproc.stages.vad_fit import (
+from cwproc.physics.vad_least_squares import (
     fit_least_absolute,
     fit_scans,
     group_linear_residuals,
@@ -47,6 +46,7 @@ from cwproc.stages.vad_fit import (
     ray_rows,
     row_residuals,
 )
+from cwproc.stages.vad import pointing, scan_chunks, scan_layout
 
 FLAG_LOW_SNR = 1
 FLAG_OUTLIER = 2
@@ -338,7 +338,7 @@ def _linear_passes(
 
     ``values``, ``base``, ``flagged`` and ``use`` are (S, R, G), ``n`` (S, G);
     ``residuals`` are those of the least-squares fit of every group on all its ``base``
-    rays as rows of rays (S, G, R) (:func:`cwproc.stages.vad_fit.row_residuals`, float32
+    rays as rows of rays (S, G, R) (:func:`cwproc.physics.vad_least_squares.row_residuals`, float32
     or float64; overwritten), tested along their contiguous axis. The least-squares fit
     of a (scan, gate) group is its own (Smalikho (2020), eq. 1, per scan and gate), so a
     group with no flagged ray keeps these residuals in the first pass, and a group whose
@@ -346,7 +346,7 @@ def _linear_passes(
     is flagged as before. The first pass refits the groups with a ray flagged by the L1
     fit (about 75 of 2000 groups of a chunk of 20 scans) and tests every group; the
     later ones refit and test the groups whose flags the pass before changed (about 3).
-    Each group is refitted alone (:func:`cwproc.stages.vad_fit.group_linear_residuals`):
+    Each group is refitted alone (:func:`cwproc.physics.vad_least_squares.group_linear_residuals`):
     the flags are those of refitting and testing every group in every pass, up to the
     round-off of a sum taken in another order (and of float32 residuals).
     """

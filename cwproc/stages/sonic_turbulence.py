@@ -4,7 +4,8 @@ Stage ``sonic_turbulence``: sonic dataset (dim ``time``) -> product (dims ``wind
 ``component``), one row per averaging window (30 min by default, aligned to UTC
 multiples). Per window:
 
-1. despike every component (Vickers & Mahrt (1997) or Mauder et al. (2013), eq. 1;
+1. despike every component (Vickers & Mahrt (1997): 3.5 sigma for u and v, 5.0 sigma for
+   w as EddyPro; or Mauder et al. (2013), eq. 1;
    :mod:`cwproc.physics.sonic_turbulence`); a window with more than 1 % spikes in a
    component gets window_flag bit 2 (the hard flag of Vickers & Mahrt (1997));
 2. double rotation (Wilczak et al. (2001), eqs. 22-23), planar fit (eqs. 39-45, one
@@ -21,8 +22,9 @@ multiples). Per window:
    2/3); no such range of at least ``min_inertial_points`` lags: no eps and
    ``epsilon_flag`` says why. Standard error from ``n_sub`` sub-windows (batch means);
 6. the longitudinal spectrum over the same range as a check (``epsilon_spectrum``);
-7. steady state of <u'w'> and ITC of sigma_w/u_* (Foken & Wichura (1996)) and the
-   0-1-2 flag (Mauder & Foken (2004)).
+7. steady state of <u'w'> and ITC of sigma_w/u_* (Foken & Wichura (1996), models of
+   Foken et al. (2004) and Thomas & Foken (2002)) and the 0-1-2 flag (Mauder & Foken
+   (2004)); the ITC of sigma_u/u_* is reported beside it, outside the flag.
 """
 
 from __future__ import annotations
@@ -58,9 +60,13 @@ EPS_NO_INERTIAL_RANGE = 2
 SF_CONSTANTS = (st.C2_LONGITUDINAL, st.C2_TRANSVERSE, st.C2_TRANSVERSE)
 
 
-def _despike(x: np.ndarray, method: str, rate: float) -> tuple[np.ndarray, np.ndarray]:
+def _despike(
+    x: np.ndarray, method: str, rate: float, component: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Despike one component (0 u, 1 v, 2 w): VM97 at 3.5 sigma, 5.0 sigma for w."""
     if method == "vickers_mahrt":
-        return st.despike_vickers_mahrt(x, rate)
+        factor = st.VM97_FACTOR_W if component == 2 else st.VM97_FACTOR
+        return st.despike_vickers_mahrt(x, rate, factor=factor)
     if method == "mauder":
         return st.despike_mauder(x)
     if method == "none":
@@ -104,12 +110,16 @@ def _window_statistics(
         )
     elif p["height_m"] is not None:
         zl = 0.0  # no sonic temperature: neutral assumed (documented)
-    model = (
-        st.itc_model_sigma_w(zl, p["height_m"], p["latitude_deg"], ustar)
-        if p["height_m"] is not None
-        else np.nan
-    )
-    itc = st.itc_deviation(np.sqrt(var[2]) / ustar if ustar > 0 else np.nan, model)
+    itc, itc_u = np.nan, np.nan
+    if p["height_m"] is not None and ustar > 0:
+        itc = st.itc_deviation(
+            np.sqrt(var[2]) / ustar,
+            st.itc_model_sigma_w(zl, p["height_m"], p["latitude_deg"], ustar),
+        )
+        # reported, not in the flag (EddyPro's flag of tau takes the worse of the two)
+        itc_u = st.itc_deviation(
+            np.sqrt(var[0]) / ustar, st.itc_model_sigma_u(zl, p["latitude_deg"], ustar)
+        )
     rn = st.stationarity_deviation(fl[0], fl[2], p["n_sub"])
     return {
         "fluct": fl,
@@ -122,6 +132,7 @@ def _window_statistics(
         "speed": speed,
         "zl": zl,
         "itc": itc,
+        "itc_u": itc_u,
         "rn": rn,
         "flag012": st.foken_flag(rn, itc),
     }
@@ -328,7 +339,7 @@ def _despiked_rotated(
     clean = np.empty_like(grid3)
     for w in range(n_win):
         for c in range(3):
-            clean[w, c], spikes = _despike(grid3[w, c], despike, rate)
+            clean[w, c], spikes = _despike(grid3[w, c], despike, rate, c)
             spike_fraction[w, c] = spikes.sum() / max(np.isfinite(grid3[w, c]).sum(), 1)
     with np.errstate(invalid="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN windows
@@ -381,7 +392,7 @@ def _analyse_window(
     s = _window_statistics(x, temp, rate, params)
     for key in ("variance", "variance_error", "t_int", "length_scale"):
         result[key][w] = s[key]
-    for key in ("ustar", "ustar_error", "speed", "zl", "itc", "rn", "flag012"):
+    for key in ("ustar", "ustar_error", "speed", "zl", "itc", "itc_u", "rn", "flag012"):
         result[key][w] = s[key]
     result["tke"][w] = 0.5 * np.sum(s["variance"])
     result["tke_error"][w] = 0.5 * np.sqrt(np.sum(s["variance_error"] ** 2))
@@ -426,7 +437,7 @@ def _empty_result(n_win: int) -> dict[str, np.ndarray]:
         "r_hi": nan3.copy(),
         "eps_flag": np.full((n_win, 3), EPS_UNTYPED, dtype=np.int8),
         "sf_type": np.zeros((n_win, 3), dtype=np.int8),
-        **{k: nan1.copy() for k in ("ustar", "ustar_error", "speed", "zl", "itc", "rn")},
+        **{k: nan1.copy() for k in ("ustar", "ustar_error", "speed", "zl", "itc", "itc_u", "rn")},
         **{k: nan1.copy() for k in ("tke", "tke_error", "eps", "eps_err", "eps_spec")},
         "flag012": np.full(n_win, 2, dtype=np.int8),
         "window_flag": np.zeros(n_win, dtype=np.int8),
@@ -471,6 +482,7 @@ def _dataset(
             "stability_parameter": (w1, res["zl"]),
             "stationarity_deviation": (w1, res["rn"]),
             "itc_deviation": (w1, res["itc"]),
+            "itc_deviation_u": (w1, res["itc_u"]),
             "foken_flag": (w1, res["flag012"]),
             "window_flag": (w1, res["window_flag"]),
             "valid_fraction": (w1, valid_fraction),

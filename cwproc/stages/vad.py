@@ -8,14 +8,14 @@ with ``theta`` the azimuth clockwise from north and ``phi`` the elevation of eac
 (Smalikho (2020), eq. 1 and eq. 8; Banakh et al. (1999), after eq. 23; the forward model
 is :func:`cwproc.physics.geometry.radial_velocity`). Rays are grouped by scan
 (:class:`ScanLayout`) and all scans and gates are solved at once by the batched fits of
-:mod:`cwproc.stages.vad_fit`. Standard errors come from the residual variance and
+:mod:`cwproc.physics.vad_least_squares`. Standard errors come from the residual variance and
 ``(A^T A)^-1``; their behaviour with the number of rays, a missing azimuth sector,
 shear and tilt is the error theory of the VAD accuracy paper (Theoretical accuracy of
 wind-vector reconstruction from lidar VAD scanning, sections 2-4;
 :mod:`cwproc.physics.vad_errors`).
 
 Homodyne cw lidars (ZephIR) measure only ``|V_r|``: the model becomes ``|A beta|``
-(:func:`cwproc.stages.vad_fit.fit_homodyne`). ``beta`` and ``-beta`` fit equally well:
+(:func:`cwproc.physics.vad_least_squares.fit_homodyne`). ``beta`` and ``-beta`` fit equally well:
 the 180 deg ambiguity is resolved by a reference direction (argument, a
 ``reference_direction`` variable of the scan dataset, or the ``reference_direction_deg``
 attribute, in this order).
@@ -38,8 +38,8 @@ from cwproc.physics.geometry import (
     normalise_pointing,
     speed_and_direction,
 )
+from cwproc.physics.vad_least_squares import fit_scans
 from cwproc.references import VAD_WIND
-from cwproc.stages.vad_fit import fit_scans
 
 #: elevations (deg) that count as conical scans; outside, w or u, v are not determined
 CONICAL_ELEVATION_RANGE_DEG = (1.0, 89.0)

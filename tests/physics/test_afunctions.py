@@ -289,18 +289,19 @@ def test_filon_moments_match_scipy_spherical_bessel():
     # the quadrature moments need j_0..j_7 everywhere, including the zeros of j_0 (x = n pi)
     from scipy import special
 
-    from cwproc.physics.afunctions import _spherical_j
+    from cwproc.physics.afunction_quadrature import spherical_j
 
     x = np.concatenate(
         [[0.0, 1e-9], np.geomspace(1e-4, 1e5, 4000), np.pi * np.arange(1, 6), [4.4934094579]]
     )
-    ours = _spherical_j(x, 8)
+    ours = spherical_j(x, 8)
     ref = np.array([special.spherical_jn(m, x) for m in range(8)])
     assert np.max(np.abs(ours - ref) / np.abs(ref).max(axis=0)) < 1e-12
 
 
 def test_shared_plane_matrix_gives_identical_results():
-    from cwproc.physics.afunctions import PlaneMatrix, panel_limits
+    from cwproc.physics.afunction_quadrature import PlaneMatrix
+    from cwproc.physics.afunctions import panel_limits
 
     r = np.array([2.0, 7.5, 40.0])
     lo, hi, _ = panel_limits(0.01, 500.0, probe=PHYSICAL, dy=1.0)

@@ -1,4 +1,5 @@
-"""Cached A-function tables: interpolation accuracy, cache reuse and corrupt-cache rebuilds."""
+"""A-function tables (cwproc.physics.atable) and their store (cwproc.tables.atable):
+interpolation accuracy, cache reuse and corrupt-cache rebuilds."""
 
 from __future__ import annotations
 
@@ -9,9 +10,10 @@ import pytest
 
 from cwproc.physics import atable
 from cwproc.physics.afunctions import a2, a_perp
-from cwproc.physics.atable import get_a_table
 from cwproc.physics.atable_interp import ATable, azimuth_bin_weights
 from cwproc.physics.transfer import CWProbe, PulsedProbe
+from cwproc.tables import atable as stored
+from cwproc.tables.atable import get_a_table
 
 PROBE = PulsedProbe()
 PHI, DTHETA = 60.0, 3.6
@@ -74,7 +76,7 @@ def test_second_call_reads_the_cache(cache, table, monkeypatch):
     def no_build(*args, **kwargs):
         raise AssertionError("table rebuilt although cached")
 
-    monkeypatch.setattr(atable, "build_a_table", no_build)
+    monkeypatch.setattr(stored, "build_a_table", no_build)
     again = get_a_table(PROBE, cache_dir=cache, mu_max=3.0, **SMALL)
     np.testing.assert_array_equal(again.log_a2, table.log_a2)
     assert not list(cache.glob("*.part")), "temporary files left behind"
@@ -95,19 +97,19 @@ def test_damaged_cache_is_rebuilt(tmp_path, damage, monkeypatch):
         arrays["log_a2"] = np.full_like(arrays["log_a2"], np.nan)
         np.savez(path, **arrays)
     calls = []
-    real_build = atable.build_a_table
+    real_build = stored.build_a_table
 
     def counting_build(*args, **kwargs):
         calls.append(1)
         return real_build(*args, **kwargs)
 
-    monkeypatch.setattr(atable, "build_a_table", counting_build)
+    monkeypatch.setattr(stored, "build_a_table", counting_build)
     second = get_a_table(PROBE, cache_dir=tmp_path, mu_max=1.0, **params)
     assert calls == [1]
     np.testing.assert_allclose(second.log_a2, first.log_a2, rtol=0, atol=0)
     # and the rebuilt file is valid again
-    monkeypatch.setattr(atable, "build_a_table", real_build)
-    assert atable._load(path, atable.table_key(second.params), second.params) is not None
+    monkeypatch.setattr(stored, "build_a_table", real_build)
+    assert stored._load(path, atable.table_key(second.params), second.params) is not None
 
 
 def test_cache_key_depends_on_every_parameter():

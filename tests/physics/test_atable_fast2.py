@@ -2,7 +2,7 @@
 
 - :func:`cwproc.physics.afunctions.a_plane` integrates along the beam for all
   separations at once (:mod:`cwproc.physics.plane_integral`); the former loop, one
-  :func:`cwproc.physics.afunctions._structure_integral` per separation, is rebuilt here
+  :func:`cwproc.physics.afunction_quadrature.structure_integral` per separation, is rebuilt here
   as the reference: equal within 1e-12 relative.
 - :class:`cwproc.physics.atable_swept.PlaneCurves` evaluates its spline per cell in numpy
   (:class:`cwproc.physics.atable_swept.BicubicPieces`): equal to
@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from cwproc.physics import afunction_quadrature as quadrature
 from cwproc.physics import afunctions
 from cwproc.physics.transfer import CWProbe, PulsedProbe
 
@@ -31,14 +32,14 @@ def _a_plane_loop(s_par, s_perp, *, probe, range_m, model="inertial", outer_scal
         model=model,
         outer_scale_m=outer_scale_m,
     )
-    shared = afunctions.PlaneMatrix(k_lo, k_hi, model, outer_scale_m)
+    shared = quadrature.PlaneMatrix(k_lo, k_hi, model, outer_scale_m)
     p, phi = shared.panels, shared.matrix
-    fac_par, len_par = afunctions._longitudinal_factor(probe, p, range_m)
+    fac_par, len_par = afunctions.longitudinal_factor(probe, p, range_m)
     perps, which = np.unique(st, return_inverse=True)
     options = dict(probe=probe, dy=0.0, range_m=range_m, model=model, outer_scale_m=outer_scale_m)
     chunks = [perps[i : i + 64] for i in range(0, perps.size, 64)]  # as a_plane
     a_perp_v = np.concatenate([afunctions.a_curves(c, plane=shared, **options)[0] for c in chunks])
-    cross = np.concatenate([phi @ afunctions._cos_weights(p, c).T for c in chunks], axis=1)
+    cross = np.concatenate([phi @ quadrature.cos_weights(p, c).T for c in chunks], axis=1)
     cross = cross + phi[:, [0]] * p.lo
     out = np.zeros(s1.size)
     for j in range(perps.size):
@@ -49,7 +50,7 @@ def _a_plane_loop(s_par, s_perp, *, probe, range_m, model="inertial", outer_scal
             out[sel] = afunctions.a_curves(s1[sel], plane=shared, **options)[1]
             continue
         smooth = 2.0 * cross[:, j] * fac_par
-        out[sel] = afunctions._structure_integral(p, smooth, len_par, s1[sel], None)
+        out[sel] = quadrature.structure_integral(p, smooth, len_par, s1[sel], None)
     return out + a_perp_v[which]
 
 

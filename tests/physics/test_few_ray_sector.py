@@ -13,13 +13,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cwproc.physics.atable import get_a_table
 from cwproc.physics.atable_interp import azimuth_bin_weights
 from cwproc.physics.constants import STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M
 from cwproc.physics.few_ray_sector import sector_a2
 from cwproc.physics.geometry import wind_components
 from cwproc.physics.transfer import PulsedProbe
 from cwproc.sim import exact_gaussian as eg
+from cwproc.tables.atable import get_a_table
 
 PHI, HEIGHT, RAYS, PERIOD, WIND_FROM = 35.0, 100.0, 12, 24.0, 250.0
 RANGE = HEIGHT / np.sin(np.radians(PHI))

@@ -228,7 +228,9 @@ def test_the_variance_factor_of_a_vad_at_mu_1_peaks_where_the_seam_moves_with_th
     assert 1.0 < across < 1.05, across
     assert 1.0 < fast < 1.04, fast
     # the tabulated factor at a node equals the direct one
-    node = sc.circle_variance_factor(
+    from cwproc.tables.scan_factor import circle_variance_factor
+
+    node = circle_variance_factor(
         np.array([24.0]),
         np.array([10.0]),
         np.array([1.0]),

@@ -11,7 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 from cwproc.cli import main
-from cwproc.physics import atable
+from cwproc.tables import atable
 
 SAMPLE = Path(__file__).parents[2] / "sample_data"
 SHIPPED = Path(atable.shipped_path("x")).parent

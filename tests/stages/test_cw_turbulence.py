@@ -210,8 +210,8 @@ def test_exact_cw_model_agrees_with_the_spectral_a_functions(tmp_path):
     15-20). They differ only by the spacing varying along a long probe (1.4-3.8 % of
     A_2 for a 270 m probe), and the probe-passed variances by the quadratures.
     """
-    from cwproc.physics.atable import get_a_table
     from cwproc.physics.spectra import variance_per_eps23
+    from cwproc.tables.atable import get_a_table
 
     probe = CWProbe(wavelength_m=10.6e-6, beam_radius_m=0.075)
     dtheta = 360.0 / 140

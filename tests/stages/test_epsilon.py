@@ -7,11 +7,9 @@ import pytest
 import xarray as xr
 
 from cwproc.physics import spectra
-from cwproc.physics.atable import get_a_table
 from cwproc.physics.probe_variance import averaging_loss, passed_variance
 from cwproc.physics.removed_share import (
     circle_removed_d,
-    mean_removed_share,
     partial_circle,
     sector_removed_d,
     sector_removed_share,
@@ -26,6 +24,8 @@ from cwproc.stages.epsilon.flags import (
     FLAG_PARTIAL_BLOCK,
     FLAG_TOO_FEW_PAIRS,
 )
+from cwproc.tables.atable import get_a_table
+from cwproc.tables.removed_share import mean_removed_share
 
 PHI = 35.3  # deg
 DTHETA = 2.0  # deg -> lags 1..4 within 9 deg

@@ -193,14 +193,14 @@ def test_outlier_passes_on_changed_groups_flag_as_refitting_every_group() -> Non
     its own), on noisy scans with wild estimates where the flags change from pass to
     pass."""
     from cwproc.physics.geometry import beam_unit_vector
-    from cwproc.stages import qc
-    from cwproc.stages.vad_fit import (
+    from cwproc.physics.vad_least_squares import (
         fit_least_absolute,
         linear_residuals,
         linear_start,
         ray_rows,
         row_residuals,
     )
+    from cwproc.stages import qc
 
     rng = np.random.default_rng(3)
     n_scans, n_rays, n_gates = 12, 24, 15

@@ -1,6 +1,6 @@
 """The vectorised root search of the outer-scale fit (stage ``epsilon``).
 
-:func:`cwproc.stages.epsilon.root_search.replayed_root` must give the roots of the
+:func:`cwproc.physics.root_search.replayed_root` must give the roots of the
 bisections it replaces bit for bit wherever the residual crosses zero once in the
 bracket, from three evaluations instead of seven, and bisect for real where its guess
 misses; on residuals whose roots are known exactly.
@@ -9,7 +9,7 @@ misses; on residuals whose roots are known exactly.
 import numpy as np
 import pytest
 
-from cwproc.stages.epsilon.root_search import bracket_root, replayed_root
+from cwproc.physics.root_search import bracket_root, replayed_root
 
 FACTOR, STEPS = 2.0, 6
 RNG = np.random.default_rng(12)

@@ -140,3 +140,16 @@ def test_planar_fit_of_one_window_is_an_error_that_says_why():
     ds = simulate_sonic_dataset(hours=0.5, sf_type=1, seed=6)
     with pytest.raises(CwprocError, match="planar fit needs at least 3 windows"):
         stt.sonic_turbulence(ds, rotation="planar_fit")
+
+
+def test_w_is_despiked_at_5_sigma_and_u_v_at_3_5():
+    """EddyPro's defaults (sr_lim_u = 3.5, sr_lim_w = 5.0): a +4.5 sigma single spike is
+    removed from u and v, kept in w; a +7 sigma one is removed from all three."""
+    rng = np.random.default_rng(2)
+    x = rng.standard_normal(6000)
+    x[1000] += 4.5
+    x[3000] += 7.0
+    for component, kept in ((0, False), (1, False), (2, True)):
+        _, spikes = stt._despike(x, "vickers_mahrt", 10.0, component)
+        assert bool(spikes[1000]) is not kept
+        assert spikes[3000]

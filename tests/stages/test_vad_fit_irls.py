@@ -1,4 +1,4 @@
-"""The L1 VAD fit of the outlier screening (``vad_fit.fit_least_absolute``): IRLS with a
+"""The L1 VAD fit of the outlier screening (``vad_least_squares.fit_least_absolute``): IRLS with a
 stop per (scan, gate) cell and the moving cells packed."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from cwproc.physics.geometry import beam_unit_vector
-from cwproc.stages.vad_fit import fit_least_absolute, fit_linear
+from cwproc.physics.vad_least_squares import fit_least_absolute, fit_linear
 
 TRUTH = np.array([6.0, -3.0, 0.4])  # u, v, w (m s-1)
 PHI = 60.0  # elevation (deg)

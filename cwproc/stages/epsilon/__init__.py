@@ -66,7 +66,7 @@ Estimates, per block of scans and height, all vectorised:
   lidar of Banakh et al. (1999)) passes only 25 % of sigma_V^2 of an L_V = 333 m field, and
   the inertial loss overestimated sigma_V^2 2.5-fold, so L_V came out too large and eps 40 % low.
   The share the block-mean VAD wind takes is that of the full circle
-  (:func:`cwproc.physics.removed_share.mean_removed_share`), or for sectors and gaps
+  (:func:`cwproc.tables.removed_share.mean_removed_share`), or for sectors and gaps
   (:func:`cwproc.physics.removed_share.partial_circle`) that of the azimuths present
   with the scans' correlation (:func:`cwproc.physics.removed_share.sector_removed_share`);
 - ``integral_scale``: ``L_V = c sigma_V^3 / eps``, Banakh et al. (1999), eq. 19, with the
@@ -152,7 +152,6 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from cwproc.config import load_config
 from cwproc.physics import spectra
 from cwproc.physics.constants import STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M
 from cwproc.physics.exact_lag import is_cw_probe
@@ -178,21 +177,23 @@ from cwproc.stages.epsilon.noise_prior import (
 from cwproc.stages.epsilon.outer_scale import fit_setup, retrieve
 from cwproc.stages.epsilon.product import describe, product_arrays, turbulence_dataset
 
-#: the preset whose values are the defaults of :func:`estimate_epsilon`
-PRESET = load_config("streamline")
-#: the preset's probe volume for data without a range gate length (the pipeline passes
-#: the probe of the file's gate, :func:`cwproc.pipeline.probe_for`)
-PRESET_PROBE: Probe = PulsedProbe(
-    STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M, PRESET.turbulence.pulse_transfer
-)
+#: the Stream Line preset's probe volume (``cwproc/configs/streamline.toml``:
+#: ``pulse_transfer = "physical"``), for data without a range gate length (the pipeline
+#: passes the probe of the file's gate, :func:`cwproc.pipeline.probe_for`). The stage
+#: reads no configuration: its defaults are literals, equal to the preset's values
+#: (``tests/stages/test_epsilon_defaults.py``)
+PRESET_PROBE: Probe = PulsedProbe(STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M, "physical")
+#: the Stream Line preset's ``[turbulence]`` lag number and spectrum model
+PRESET_LAG_NUMBER = 3
+PRESET_MODEL: Model = "von_karman"
 
 
 def estimate_epsilon(
     sf: xr.Dataset,
     *,
     probe: Probe = PRESET_PROBE,
-    lag_number: int = PRESET.turbulence.lag_number,
-    model: Model = PRESET.turbulence.model,
+    lag_number: int = PRESET_LAG_NUMBER,
+    model: Model = PRESET_MODEL,
     min_pairs: int = 100,
     n_outer_scales: int = 7,
     table_options: dict | None = None,
@@ -224,7 +225,7 @@ def estimate_epsilon(
         Geometric nodes of L_V scanned for the root of the variance condition
         (finite-outer-scale models) before the bisection refines it.
     table_options : dict, optional
-        Keyword arguments of :func:`cwproc.physics.atable.get_a_table` (``cache_dir``,
+        Keyword arguments of :func:`cwproc.tables.atable.get_a_table` (``cache_dir``,
         ``height_range_m``, ``mu_max``, ``outer_scale_range_m``).
     fit_noise : bool
         Fit the noise term ``2 sigma_e^2`` in the exact cw fit

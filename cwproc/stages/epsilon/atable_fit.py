@@ -14,10 +14,11 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from cwproc.physics.atable import HEIGHT_RATIO, get_a_table
+from cwproc.physics.atable import HEIGHT_RATIO
 from cwproc.physics.atable_interp import N_BINS
 from cwproc.physics.probe_lengths import FALLBACK_PRF_HZ, dwell_fraction, ray_dwell_s
 from cwproc.stages.epsilon.cells import Cells
+from cwproc.tables.atable import get_a_table
 
 #: cells (block, height) whose A-functions or passed variances are evaluated at once:
 #: the evaluations hold a few kB per cell, so a day of blocks is done in pieces
@@ -193,7 +194,7 @@ def outer_scale_sector_factor(
 def table_options_for(
     sf: xr.Dataset, table_options: dict | None, prf_hz: float | None = None
 ) -> dict:
-    """Keyword arguments of :func:`cwproc.physics.atable.get_a_table` for ``sf``.
+    """Keyword arguments of :func:`cwproc.tables.atable.get_a_table` for ``sf``.
 
     ``table_options`` completed with the height range of the data
     (:func:`table_height_range`), whether the rays are swept (``swept_rays``) and, for

@@ -11,15 +11,11 @@ import numpy as np
 import xarray as xr
 
 from cwproc.physics.delta_method import delta_method_errors
-from cwproc.physics.removed_share import (
-    MAX_SECTOR_RAYS,
-    mean_removed_share,
-    partial_circle,
-    transport_mu,
-)
-from cwproc.physics.scan_correlation import circle_variance_factor
+from cwproc.physics.removed_share import MAX_SECTOR_RAYS, partial_circle, transport_mu
 from cwproc.stages.epsilon.cells import Cells
 from cwproc.stages.epsilon.outer_scale import retrieve
+from cwproc.tables.removed_share import mean_removed_share
+from cwproc.tables.scan_factor import circle_variance_factor
 
 
 def standard_errors(
@@ -159,7 +155,7 @@ def correlated_scans_covariance(
     through the field), and when that azimuth is the seam between two scans they sample
     the same air over several rays. The factor ``f`` by which the variance of the block
     mean exceeds the jackknife's expectation, over the same ratio with the scans
-    independent (:func:`cwproc.physics.scan_correlation.circle_variance_factor`: the
+    independent (:func:`cwproc.tables.scan_factor.circle_variance_factor`: the
     Gaussian fourth moments of the rays of point beams at their times, exact for the
     jackknife as it is computed, the wind refitted without each scan), multiplies the
     variance's variance and ``sqrt(f)`` its covariances with the ``D_L``. Full circles of

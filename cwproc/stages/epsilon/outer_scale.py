@@ -22,19 +22,18 @@ from cwproc.physics.exact_lag import is_cw_probe
 from cwproc.physics.few_ray_sector import FEW_RAYS_STEP_DEG, dwell_loss_ratio, sector_a2
 from cwproc.physics.probe_variance import averaging_loss, passed_variance, segment_loss
 from cwproc.physics.removed_share import (
-    MAX_SECTOR_RAYS,
     circle_removed_d,
     interp_log_scale,
-    mean_removed_share,
     partial_circle,
     sector_removed_d,
     sector_removed_share,
     transport_mu,
 )
+from cwproc.physics.root_search import Residual, bracket_root, replayed_root
 from cwproc.physics.structure_fit import NOISE_PRIOR_REL_SE, fit_structure_function
 from cwproc.stages.epsilon.atable_fit import EVALUATION_CELLS, outer_scale_sector_factor
 from cwproc.stages.epsilon.cells import Cells
-from cwproc.stages.epsilon.root_search import Residual, bracket_root, replayed_root
+from cwproc.tables.removed_share import mean_removed_share, stored_dense_grid
 
 #: lengths below this fraction of L_V keep the inertial A-functions (see module doc)
 INERTIAL_FRACTION = 0.02
@@ -44,9 +43,13 @@ _BISECTIONS = 9
 #: 16384 rather than 2048: a day's 180-ray cells in one pass, 13 % less time for the error
 #: bars' retrievals, the same retrieve-day peak (283 MiB; the stream runs 40 blocks at once))
 ROOT_CELLS = 16384
-#: azimuth step (deg) from which full circles (at most 60 rays) get the outer scale's own
-#: node ratio over the pairs present (:func:`_sector_cell_table`)
-COARSE_STEP_DEG = 6.0
+#: azimuth step (deg) from which full circles (at most 72 rays) get the outer scale's own
+#: node ratio over the pairs present (:func:`_sector_cell_table`). 72-ray circles (5 deg)
+#: need it: with the inertial ratio alone their model D(1-3) at mu 1 (L_V 150 m, 100 m
+#: height) was 0.998 / 0.999 / 1.002 of the exact expectation, a shape that moved the free
+#: intercept by +7 % of 2 sigma_e^2 = 0.02 m2 s-2 (sigma_e read 1.11 with the SNR x1.5);
+#: with it 0.9975 / 0.9982 / 0.9988, +2.4 % (issue 29, item 2)
+COARSE_STEP_DEG = 4.9
 #: bisections from a bracket of a factor NEAR_FACTOR on either side of a known root
 #: (-> 1.1 %)
 _BISECTIONS_NEAR = 6
@@ -208,13 +211,13 @@ def outer_scale_root(
 
     ``residual_of(index)`` is :func:`variance_residual` of the cells ``index``. Coarse
     scan of ``nodes`` (``(k,)``, m), then :data:`_BISECTIONS` bisections of the largest
-    sign change in log L_V (:func:`cwproc.stages.epsilon.root_search.bracket_root`);
+    sign change in log L_V (:func:`cwproc.physics.root_search.bracket_root`);
     ``below``: even the smallest node gives too much variance (lags not inertial);
     ``slope``: the residual's slope by log L_V at the root. With ``near`` (a root per
     cell, for the small changes of :func:`cwproc.stages.epsilon.errors.covariance_errors`)
     the scan covers ``near / 2 .. 2 near`` and :data:`_BISECTIONS_NEAR` bisections reach
     the same bracket, replayed from a secant step where ``near_slope`` (the slope at
-    ``near``) is given (:func:`cwproc.stages.epsilon.root_search.replayed_root`, the same
+    ``near``) is given (:func:`cwproc.physics.root_search.replayed_root`, the same
     roots from three evaluations for seven); ``slope`` is then NaN.
     """
     residual = residual_of(np.arange(n))
@@ -627,8 +630,9 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
     :func:`outer_scale_sector_factor` (the sector ratio of the outer scale over the
     inertial one that :func:`retrieve` applies); less the share of ``D(l)`` the block-mean
     VAD wind takes times ``sigma_V^2 / eps^(2/3)`` of the node: :func:`sector_removed_d`
-    for sectors and gaps, :func:`circle_removed_d` for full circles (both up to
-    ``MAX_SECTOR_RAYS`` rays per scan).
+    for sectors and gaps (up to ``MAX_SECTOR_RAYS`` rays per scan), :func:`circle_removed_d`
+    for full circles of steps of at least :data:`COARSE_STEP_DEG` (72 rays: from the circle
+    of ``MAX_SECTOR_RAYS`` rays).
     """
     height = np.tile(cells.height, rows.sum())
     mu = cells.mu_eval[rows].ravel()
@@ -641,7 +645,7 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
     log_a2 = table.log_a2.copy()
     # the outer scale's own ratio over the azimuths of each lag's pairs (uniform weights:
     # 1 by construction). Partial circles, and full circles of coarse scans, whose pairs
-    # do not wrap (lag l lacks l of M positions); dense full circles (M > 60: at most 5 %
+    # do not wrap (lag l lacks l of M positions); dense full circles (M > 72: at most 2-3 %
     # of the positions, at lags where the outer scale barely changes the node ratio) keep
     # the inertial ratio alone, which saves most of the stage's time on a day of them
     coarse = np.nonzero(partial | (dtheta >= COARSE_STEP_DEG))[0]
@@ -679,13 +683,15 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
             phi,
             model,
         )
-    with np.errstate(invalid="ignore", divide="ignore"):
-        few = np.rint(360.0 / dtheta) <= MAX_SECTOR_RAYS  # longer circles: no removal in D
-    circle = np.nonzero(~partial & np.isfinite(dtheta) & (dtheta > 0) & few)[0]
+    # full circles of at most 72 rays (denser: the removal's share of the intercept falls
+    # as the lag angle^(4/3), about 3 % of 2 sigma_e^2 at 180 rays against 4 % at 72, and
+    # its 0.3 s would take the 180-ray day past 1 s)
+    circle = np.nonzero(~partial & (dtheta >= COARSE_STEP_DEG))[0]
     if circle.size:
         # the field's transport between the scans: the measured mu less its turbulent bias
         var, v_s = cells.var_raw[rows].ravel()[circle], cells.v_s[rows].ravel()[circle]
-        mu_t = transport_mu(mu[circle], ratio[circle], var, v_s, scans[circle], phi, model)
+        rest = mean_removed_share(ratio[circle], phi, model, 0.0)
+        mu_t = transport_mu(mu[circle], rest, var, v_s, scans[circle], phi)
         removed[circle] = circle_removed_d(
             np.radians(dtheta[circle]),
             lags.size,
@@ -695,6 +701,7 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
             scans[circle],
             phi,
             model,
+            dense_reference=stored_dense_grid,
         )
     full = np.array([spectra.variance_per_eps23(model, x) for x in nodes])
     a2 = np.exp(log_a2) - removed * full[None, :, None]

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import platformdirs
 
-from cwproc.physics import disk_cache
+from cwproc.tables import store as disk_cache
 
 
 def test_the_cache_of_the_tests_is_a_temporary_folder_not_the_users():

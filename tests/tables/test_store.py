@@ -1,15 +1,16 @@
-"""The on-disk cache of computed tables (cwproc.physics.disk_cache) and its users."""
+"""The disk cache of the table store (cwproc.tables.store) and its users."""
 
 from __future__ import annotations
 
 import os
 import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from cwproc.physics import disk_cache, removed_share
+from cwproc.physics import removed_share
+from cwproc.tables import removed_share as stored_share
+from cwproc.tables import store as disk_cache
 
 
 def _counted(values: np.ndarray):
@@ -100,7 +101,7 @@ def test_a_folder_in_place_of_the_cache_file_only_costs_the_computation(tmp_path
 def test_the_removed_share_curve_from_the_cache_is_the_computed_one(tmp_path, model):
     """The curve read back from disk is the computed one bit for bit, so retrievals do
     not change with the cache (Banakh et al. (1999), eqs. 15-16 evaluated once)."""
-    cached = removed_share._removed_share_curve.__wrapped__  # past the in-process cache
+    cached = stored_share.stored_curve.__wrapped__  # past the in-process cache
     log_x, share = removed_share.removed_share_curve(75.0, model)
     for _ in range(2):  # computed and stored, then read from the file
         got_x, got = cached(75.0, model, os.fspath(tmp_path))
@@ -109,8 +110,8 @@ def test_the_removed_share_curve_from_the_cache_is_the_computed_one(tmp_path, mo
     # the share of a circle is a fraction of the variance, zero for a point-sized circle
     assert np.all((share >= 0.0) & (share < 1.0))
     ratio, mu = np.array([0.02, 0.5, 3.0]), np.array([0.0, 1.0, 4.0])
-    with_cache = removed_share.mean_removed_share(ratio, 75.0, model, mu, tmp_path)
-    without = removed_share.mean_removed_share(ratio, 75.0, model, mu)
+    with_cache = stored_share.mean_removed_share(ratio, 75.0, model, mu, tmp_path)
+    without = stored_share.mean_removed_share(ratio, 75.0, model, mu)
     assert with_cache.tobytes() == without.tobytes()
 
 
@@ -118,7 +119,7 @@ def test_the_code_digest_follows_the_modules_a_table_uses(tmp_path):
     """The cache key holds a hash of the code of the physics modules the build uses
     (the closure of its imports): a change of one of them gives a new key, a change of
     a module the tables do not use does not."""
-    src = Path(disk_cache.__file__).parent
+    src = disk_cache.PHYSICS_FOLDER
     folder = tmp_path / "physics"
     shutil.copytree(src, folder, ignore=shutil.ignore_patterns("__pycache__"))
     before = disk_cache.code_digest("cwproc.physics.atable", str(folder))
@@ -131,3 +132,22 @@ def test_the_code_digest_follows_the_modules_a_table_uses(tmp_path):
     assert disk_cache.code_digest.__wrapped__("cwproc.physics.atable", str(folder)) != before
     share = disk_cache.code_digest.__wrapped__("cwproc.physics.removed_share", str(folder))
     assert share != disk_cache.code_digest("cwproc.physics.removed_share", str(src))
+
+
+def test_the_code_digest_does_not_depend_on_where_the_package_is(tmp_path):
+    """The digest hashes the modules by their dotted names and texts, not their paths:
+    a copy of the physics sources elsewhere (another checkout, a wheel) gives the key
+    of the tables shipped from this one."""
+    folder = tmp_path / "elsewhere" / "deeper" / "physics"
+    shutil.copytree(disk_cache.PHYSICS_FOLDER, folder, ignore=shutil.ignore_patterns("__pycache__"))
+    for module in ("cwproc.physics.atable", "cwproc.physics.removed_share"):
+        assert disk_cache.code_digest.__wrapped__(module, str(folder)) == disk_cache.code_digest(
+            module
+        )
+
+
+def test_the_default_folder_follows_the_environment(tmp_path, monkeypatch):
+    """The one place that reads the environment for the cache reads it at each call."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert disk_cache.default_cache_dir() == tmp_path / "cwproc"
+    assert disk_cache.cache_path(None, "atable", "k") == tmp_path / "cwproc" / "atable-k.npz"

@@ -1,21 +1,24 @@
-"""Arrays computed once per parameter set and kept on disk between runs.
+"""The disk cache of the table store: arrays computed once per parameter set.
 
 The expensive tables of the turbulence retrieval (the A-functions of
-:mod:`cwproc.physics.atable`, the removed share of :mod:`cwproc.physics.removed_share`)
+:mod:`cwproc.tables.atable`, the removed share of :mod:`cwproc.tables.removed_share`)
 depend only on a few parameters, so each is stored as ``<kind>-<sha256>.npz`` in
-``platformdirs.user_cache_dir("cwproc")`` (or a given folder), keyed by the SHA-256 of
-the canonical JSON of its parameters (:func:`parameter_key`). A file is written
-atomically (temporary file in the same folder, then rename), and one that cannot be
-read, holds another key or fails the caller's check is computed again, never trusted;
-an unwritable folder only costs the computation next time. Stored as ``.npz``
-(float64 kept bit for bit), a table read back gives the results of the table computed.
+:func:`default_cache_dir` (or a given folder), keyed by the SHA-256 of the canonical
+JSON of its parameters (:func:`parameter_key`). A file is written atomically
+(temporary file in the same folder, then rename), and one that cannot be read, holds
+another key or fails the caller's check is computed again, never trusted; an
+unwritable folder only costs the computation next time. Stored as ``.npz`` (float64
+kept bit for bit), a table read back gives the results of the table computed.
+
+This module is the one place of the library that reads the environment for the cache
+(``platformdirs``: ``XDG_CACHE_HOME``, ``HOME``) and writes its files; the physics it
+stores is computed without either (:mod:`cwproc.physics`).
 """
 
 from __future__ import annotations
 
 import functools
 import hashlib
-import json
 import os
 import re
 import tempfile
@@ -25,16 +28,35 @@ from pathlib import Path
 import numpy as np
 import platformdirs
 
+from cwproc.physics.canonical_key import parameter_key
 
-def parameter_key(params: dict) -> str:
-    """SHA-256 (hex) of the canonical JSON of ``params`` (keys sorted, no spaces)."""
-    text = json.dumps(params, sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(text.encode()).hexdigest()
+__all__ = [
+    "PHYSICS_FOLDER",
+    "cache_path",
+    "cached_arrays",
+    "code_digest",
+    "default_cache_dir",
+    "load_arrays",
+    "parameter_key",
+    "save_arrays",
+]
+
+#: folder of the :mod:`cwproc.physics` sources that :func:`code_digest` hashes
+PHYSICS_FOLDER = Path(__file__).resolve().parents[1] / "physics"
+
+
+def default_cache_dir() -> Path:
+    """The user's cache folder of cwproc, ``platformdirs.user_cache_dir("cwproc")``.
+
+    Read from the environment (``XDG_CACHE_HOME``, else ``~/.cache`` on Linux) at each
+    call, so that a process that changes it (the tests) is followed.
+    """
+    return Path(platformdirs.user_cache_dir("cwproc"))
 
 
 def cache_path(cache_dir: str | os.PathLike | None, kind: str, key: str) -> Path:
-    """``<cache_dir>/<kind>-<key>.npz``; default folder ``user_cache_dir("cwproc")``."""
-    base = Path(cache_dir) if cache_dir is not None else Path(platformdirs.user_cache_dir("cwproc"))
+    """``<cache_dir>/<kind>-<key>.npz``; default folder :func:`default_cache_dir`."""
+    base = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     return base / f"{kind}-{key}.npz"
 
 
@@ -90,7 +112,7 @@ def cached_arrays(
         ``valid(arrays) -> bool``: a file read back is used only when this holds (the
         names, shapes and finite values ``compute`` gives).
     cache_dir : path, optional
-        Folder of the cache; default ``platformdirs.user_cache_dir("cwproc")``.
+        Folder of the cache; default :func:`default_cache_dir`.
     """
     key = parameter_key(params)
     path = cache_path(cache_dir, kind, key)
@@ -126,10 +148,12 @@ def code_digest(module: str, folder: str | None = None) -> str:
     The modules are followed through their imports (closure within ``cwproc.physics``)
     and their source texts hashed, so that any change of the code that computes cached
     arrays gives them a new key (a change of a docstring too: a rebuild, never a stale
-    result). Computed once per process and module (a few tens of ms). ``folder``: where
-    the modules are (default: this package's folder).
+    result). The modules are named by their dotted names, not their paths, so the digest
+    is the same wherever the package is installed. Computed once per process and module
+    (a few tens of ms). ``folder``: where the modules are (default
+    :data:`PHYSICS_FOLDER`).
     """
-    root = Path(folder) if folder is not None else Path(__file__).resolve().parent
+    root = Path(folder) if folder is not None else PHYSICS_FOLDER
     seen: dict[str, str] = {}
     todo = [module]
     while todo:
