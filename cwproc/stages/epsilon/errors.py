@@ -185,11 +185,12 @@ def correlated_scans_covariance(
     scans = np.where(np.isfinite(cells.scans), cells.scans, 1.0)[t_idx]
     model_t = model_c if model_c != "inertial" else "von_karman"
     mu_m, var, v_s = (a[t_idx, h_idx] for a in (cells.mu_eval, cells.var_raw, cells.v_s))
-    mu_t = transport_mu(mu_m, ratio[:, None], var, v_s, scans, phi, model_t)[:, 0]
     # the transport must be measured: the turbulent scatter of mu at rest (rms of each
     # horizontal component of the block-mean wind over V_s, transport_mu) ramps it in
     # from 2 to 4 of those
-    share = mean_removed_share(np.clip(ratio, 1e-3, None)[:, None], phi, model_t, 0.0)[:, 0]
+    share = mean_removed_share(np.clip(ratio, 1e-3, None)[:, None], phi, model_t, 0.0)
+    mu_t = transport_mu(mu_m, share, var, v_s, scans, phi)[:, 0]
+    share = share[:, 0]
     cos2 = np.cos(np.radians(phi)) ** 2
     with np.errstate(invalid="ignore", divide="ignore"):
         rest = np.sqrt(share * var / (scans * cos2 * v_s**2))
