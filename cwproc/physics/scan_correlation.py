@@ -290,3 +290,161 @@ def correlation_inflation(
     with np.errstate(invalid="ignore", divide="ignore"):
         factor = ratios[0] / ratios[1]
     return np.where(np.isfinite(factor) & (factor > 0), factor, 1.0)
+
+
+def _scan_blocks(
+    phase: np.ndarray,
+    offset: float,
+    mu: float,
+    interval: float,
+    n_scans: int,
+    ratio: float,
+    noise_ratio: float,
+    phi_deg: float,
+    model: str,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(N, N, M, M)`` velocity covariances (over sigma_V^2) of a block's scans: with their
+    correlation in the frozen field (weighted in up to :data:`MU_FROZEN`), and the same
+    with the scans independent (the cross-scan blocks zero). Module doc."""
+    weight = min(max(mu, 0.0) / MU_FROZEN, 1.0)
+    mu_c = max(min(max(mu, 0.0), 1e6), MU_FROZEN)
+    pos, beam = scan_positions(phase, offset, mu_c, phi_deg)
+    shift = -mu_c * 2.0 * math.pi * interval * np.arange(n_scans)
+    rho = cross_scan_correlation(pos, beam, shift, ratio, model)  # (m, M, M)
+    m_rays = pos.shape[0]
+    blocks = np.zeros((n_scans, n_scans, m_rays, m_rays))
+    own = rho[0] + max(float(noise_ratio), 0.0) * np.eye(m_rays)
+    for n in range(n_scans):
+        blocks[n, n] = own
+        for k in range(n + 1, n_scans):
+            blocks[n, k] = weight * rho[k - n].T
+            blocks[k, n] = blocks[n, k].T
+    independent = np.zeros_like(blocks)
+    idx = np.arange(n_scans)
+    independent[idx, idx] = own
+    return blocks, independent
+
+
+def refit_variance_moments(blocks: np.ndarray, design: np.ndarray) -> tuple[float, float]:
+    """Variance of the block's variance statistic and the expectation of its refit jackknife.
+
+    The statistic is ``s = (1/N) sum_n |V'_n|^2 / M``, ``V'_n = V_n - H <V>`` (the
+    block-mean VAD fit, ``H`` the hat of ``design``); the jackknife of
+    :func:`cwproc.stages.block_stats.jackknife_covariance` recomputes it without scan
+    ``k`` with the wind refitted without it, ``theta_k``, and reports ``(N - 1)/N sum_k
+    (theta_k - <theta>)^2``. With ``Q`` an orthonormal basis of the fit's columns,
+    ``r_n = (I - Q Q^T) V_n`` and ``c_n = Q^T V_n``, ``|V_n - H w|^2 = |r_n|^2 + |c_n -
+    w|^2``: every ``theta_k`` is ``sum_n alpha_kn a_n + c^T (gamma_k x I_3) c / M`` with
+    ``a_n = |r_n|^2 / M``, so its moments follow from the Gaussian fourth moments
+    ``cov(x^T A x, x^T B x) = 2 tr(A G B G)`` over blocks of at most ``M x M``.
+
+    Parameters
+    ----------
+    blocks : numpy.ndarray
+        ``(N, N, M, M)`` covariance of the rays of the block's scans (any unit ``u``).
+    design : numpy.ndarray
+        ``(M, p)`` the VAD fit's columns at the scan's rays.
+
+    Returns
+    -------
+    (variance, jackknife) : float
+        ``var(s)`` and ``E[jackknife estimate of var(s)]`` (``u^2``).
+    """
+    n, m_rays = blocks.shape[0], blocks.shape[2]
+    q_basis = np.linalg.qr(design)[0]  # (M, p)
+    proj = np.eye(m_rays) - q_basis @ q_basis.T
+    g_rr = proj @ blocks @ proj  # (N, N, M, M)
+    g_rc = proj @ blocks @ q_basis  # (N, N, M, p)
+    p = q_basis.shape[1]
+    g_cc = np.einsum("ia,nmij,jb->namb", q_basis, blocks, q_basis).reshape(n * p, n * p)
+    mean_a = np.trace(np.diagonal(g_rr, axis1=0, axis2=1), axis1=0, axis2=1) / m_rays
+    cov_a = 2.0 * np.einsum("nmij,nmij->nm", g_rr, g_rr) / m_rays**2
+    w = np.einsum("npij,nqij->npq", g_rc, g_rc)  # tr(G^rc_np G^rc_nq^T)
+
+    g4 = g_cc.reshape(n, p, n, p)
+    trace_cc = np.einsum("aibi->ab", g4)  # tr_p of the block (a, b)
+    four = np.einsum("bicj,djai->bcda", g4, g4)  # tr(G_bc G_da) over the fit's columns
+
+    def moments(alpha: np.ndarray, gamma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Means and variances of ``alpha_k . a + c^T (gamma_k x I) c / M`` (``k``: rows)."""
+        mean = alpha @ mean_a + np.einsum("kab,ba->k", gamma, trace_cc) / m_rays
+        var = np.einsum("kn,nm,km->k", alpha, cov_a, alpha)
+        var += 2.0 * np.einsum("kab,kcd,bcda->k", gamma, gamma, four) / m_rays**2
+        var += 4.0 * np.einsum("kn,kpq,npq->k", alpha, gamma, w) / m_rays**2
+        return mean, var
+
+    centre = np.eye(n) - 1.0 / n
+    variance = moments(np.full((1, n), 1.0 / n), centre[None] / n)[1][0]
+    keep = 1.0 - np.eye(n)  # (k, n): the scans of leave-one-out k
+    alphas = keep / (n - 1.0)
+    gammas = (keep[:, :, None] * np.eye(n) - keep[:, :, None] * keep[:, None, :] / (n - 1.0)) / (
+        n - 1.0
+    )
+    mean, var = moments(alphas - alphas.mean(0), gammas - gammas.mean(0))
+    jack = np.sum(var + mean**2)
+    return float(variance), float(jack * (n - 1.0) / n)
+
+
+#: nodes of ``R'/L_V`` of :func:`circle_variance_factor` (log-linear interpolation,
+#: clipped): the factor is smooth in ``log(R'/L_V)`` and 1 beyond the last
+FACTOR_X = np.geomspace(0.03, 30.0, 7)
+
+#: nodes of the angle of a block's first ray from the wind's direction of motion (deg,
+#: periodic linear interpolation): at ``mu = 1`` the factor of a 24-ray VAD varies from
+#: 1.02 to 1.2 over the start angle, with one peak about 60 deg wide
+FACTOR_ANGLES = np.arange(0.0, 360.0, 30.0)
+
+#: nodes of ``mu`` (linear interpolation, clipped): those of the removal in D(l)
+FACTOR_MU = np.array([0.0, 0.05, 0.1, 0.2, 0.3, 0.45, 0.6, 0.8, 1.0, 1.4, 2.0, 3.0, 5.0, 10.0])
+
+
+def circle_factor_slice(
+    n_rays: int, n_scans: int, interval: float, phi_deg: float, model: str, mu: float
+) -> np.ndarray:
+    """``(x, angle)``: :func:`refit_jackknife_factor` of a circle of ``n_rays`` rays (first
+    ray at scan angle 0, ``n_scans`` scans ``interval`` scan periods apart) at ``mu``, on
+    :data:`FACTOR_X` x :data:`FACTOR_ANGLES` (about 0.7 s for 24 rays and 10 scans)."""
+    out = np.ones((FACTOR_X.size, FACTOR_ANGLES.size))
+    if mu <= 0.0 or n_scans < 2:
+        return out
+    phase = 2.0 * np.pi * np.arange(n_rays) / n_rays
+    for i, x in enumerate(FACTOR_X):
+        for j, angle in enumerate(np.radians(FACTOR_ANGLES)):
+            out[i, j] = refit_jackknife_factor(
+                phase, float(angle), mu, interval, n_scans, float(x), 0.0, phi_deg, model
+            )
+    return out
+
+
+def refit_jackknife_factor(
+    phase: np.ndarray,
+    offset: float,
+    mu: float,
+    interval: float,
+    n_scans: int,
+    ratio: float,
+    noise_ratio: float,
+    phi_deg: float,
+    model: str,
+) -> float:
+    """Factor of the refit jackknife's variance of the block's variance statistic.
+
+    ``[var(s) / E J]`` with the scans correlated in the frozen field over the same ratio
+    with the scans independent (:func:`refit_variance_moments`): 1 for independent scans
+    whatever the approximations of the velocity covariance (point beams), larger where
+    consecutive scans see the same eddies. Parameters as :func:`correlation_inflation`.
+    """
+    if n_scans < 2 or not (math.isfinite(mu) and math.isfinite(ratio) and ratio > 0):
+        return 1.0
+    if mu <= 0.0:
+        return 1.0
+    model = model if model in ("von_karman", "exponential") else FALLBACK_MODEL
+    beta = offset + np.asarray(phase, float)
+    design = np.stack([np.ones(beta.size), np.cos(beta), np.sin(beta)], -1)
+    blocks, independent = _scan_blocks(
+        phase, offset, mu, interval, n_scans, ratio, noise_ratio, phi_deg, model
+    )
+    var_c, jack_c = refit_variance_moments(blocks, design)
+    var_i, jack_i = refit_variance_moments(independent, design)
+    factor = (var_c / jack_c) / (var_i / jack_i)
+    return float(factor) if math.isfinite(factor) and factor > 0 else 1.0

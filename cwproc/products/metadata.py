@@ -294,6 +294,11 @@ _PRODUCT_VARIABLES: dict[str, VarMeta] = {
     "wind_to_direction": VarMeta(
         "direction the block-mean wind blows towards", "degree", "wind_to_direction"
     ),
+    "scan_start_angle": VarMeta(
+        "azimuth of the first ray of the block from the direction the block-mean wind "
+        "blows towards, in the scan's sense of rotation",
+        "degree",
+    ),
     "pair_azimuth_weights": VarMeta(
         "share of the ray pairs of each lag at each azimuth node of the wind's angle from "
         "the scan direction (sectors, gaps and the positions a scan's pairs leave out)",

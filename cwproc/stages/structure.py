@@ -536,7 +536,8 @@ def _block_statistics_by_chunk(
 
     Returns the arrays of :func:`block_statistics` for all blocks (keys ``sf``,
     ``pairs``, ``variance``, ``sf_se``, ``diff_se``, ``variance_se``, ``covariance``),
-    the A-table node ``weights``, ``snr_median`` and ``wind_to`` (deg).
+    the A-table node ``weights``, ``snr_median``, ``wind_to`` and ``start_angle`` (the
+    first ray's azimuth from ``wind_to`` in the sense of rotation; deg).
     """
     u_b, v_b, w_b = mean_wind
     n_blocks, n_h = u_b.shape
@@ -616,6 +617,9 @@ def _block_statistics_by_chunk(
             snr = on_grid(np.where(usable, snr_vals, np.nan))
             out["snr_median"][b0:b1] = block_median(snr, n_scans)
     out["wind_to"] = wind_to
+    # the first ray's azimuth from the wind's direction of motion, in the scan's sense
+    first_block = first_az[np.arange(n_blocks) * n_scans]
+    out["start_angle"] = np.mod(grid.sign * (first_block[:, None] - wind_to), 360.0)
     return out
 
 
@@ -739,6 +743,7 @@ def _structure_dataset(
             ),
             "wind_speed": (("time", "height"), speed_and_direction(u_b, v_b)[0]),
             "wind_to_direction": (("time", "height"), np.mod(stats["wind_to"], 360.0)),
+            "scan_start_angle": (("time", "height"), stats["start_angle"]),
             "pair_azimuth_weights": (
                 ("time", "height", "lag", "azimuth_node"),
                 stats["weights"],

@@ -167,3 +167,80 @@ def test_error_bars_of_a_sector_swept_back_to_back_match_the_scatter():
         assert ok.sum() >= 95, name
         ratio = se[ok].mean() / value[ok].std(ddof=1)
         assert abs(ratio - 1.0) < _ratio_tolerance(value[ok]), (name, ratio)
+
+
+def _refit_jackknife_draws(cov: np.ndarray, design: np.ndarray, n: int, draws: int, seed: int):
+    """Block-mean variance statistic and its refit jackknife
+    (:func:`cwproc.stages.block_stats.jackknife_covariance`) over Gaussian draws."""
+    from cwproc.stages.block_stats import WindRefit, jackknife_covariance, wind_refit_terms
+
+    m = design.shape[0]
+    rng = np.random.default_rng(seed)
+    v = rng.multivariate_normal(np.zeros(n * m), cov, size=draws).reshape(draws, n, m)
+    v = np.moveaxis(v, 0, -1)  # (scan, m, draw): the draws as heights
+    coef = np.linalg.lstsq(design, v.reshape(n, m, -1).transpose(1, 0, 2).reshape(m, -1))[0]
+    winds = coef.reshape(3, n, draws).transpose(1, 2, 0)  # (scan, draw, 3)
+    block = winds.mean(0, keepdims=True)
+    vprime = v - np.einsum("mc,sdc->smd", design, np.repeat(block, n, 0))
+    beams = np.broadcast_to(design, (n, m, 3))
+    refit = WindRefit(beams, winds, block)
+    per_scan = np.mean(vprime**2, axis=1)[..., None]  # (scan, draw, 1)
+    jack = jackknife_covariance(per_scan, np.array([0]), wind_refit_terms(vprime, refit, n))
+    return per_scan[..., 0].mean(0), jack[0, :, 0, 0]
+
+
+def test_the_refit_jackknife_moments_are_exact():
+    """:func:`refit_variance_moments` (the block-mean variance of V'_L and the expectation of
+    the jackknife that refits the wind without each scan) against 20000 Gaussian draws
+    of a small correlated block pushed through the pipeline's own jackknife."""
+    rng = np.random.default_rng(11)
+    n, m = 4, 8
+    x = rng.standard_normal((n * m, n * m + 4))
+    cov = x @ x.T / (n * m)
+    beta = 2 * np.pi * np.arange(m) / m + 0.3
+    design = np.stack([np.ones(m), np.cos(beta), np.sin(beta)], -1)
+    blocks = cov.reshape(n, m, n, m).transpose(0, 2, 1, 3)
+    variance, jack = sc.refit_variance_moments(blocks, design)
+    stat, jk = _refit_jackknife_draws(cov, design, n, 20000, 3)
+    dev2 = (stat - stat.mean()) ** 2
+    se_var, se_jack = dev2.std() / math.sqrt(dev2.size), jk.std() / math.sqrt(jk.size)
+    assert abs(variance - dev2.mean()) < 4 * se_var, (variance, dev2.mean(), se_var)
+    assert abs(jack - jk.mean()) < 4 * se_jack, (jack, jk.mean(), se_jack)
+    # the two differ here by far more than the Monte Carlo's error: the test can fail
+    assert abs(variance - jack) > 10 * max(se_var, se_jack)
+
+
+def test_the_variance_factor_of_a_vad_at_mu_1_peaks_where_the_seam_moves_with_the_wind():
+    """24-ray step-stare VAD, 10 scans back to back, R'/L_V 0.71 (the bench's 3 s dwell
+    case): the scans are independent at mu 0 (factor 1); at mu 1 the beam moves with the
+    air at one azimuth, and where that is the seam between scans (start 70 deg before the
+    wind, as in the benchmark) consecutive scans share eddies: factor 1.19, against 1.02
+    with the seam 90 deg from the wind; at mu 3 the transport parts the scans (<= 1.03)."""
+    phase = 2 * np.pi * np.arange(24) / 24
+    args = {"interval": 1.0, "n_scans": 10, "ratio": RADIUS / 200.0, "noise_ratio": 0.0}
+    args |= {"phi_deg": PHI, "model": "von_karman"}
+    seam = math.radians(-70.0)
+    assert sc.refit_jackknife_factor(phase, seam, 0.0, **args) == 1.0
+    at_seam = sc.refit_jackknife_factor(phase, seam, 1.0, **args)
+    across = sc.refit_jackknife_factor(phase, math.radians(90.0), 1.0, **args)
+    fast = sc.refit_jackknife_factor(phase, seam, 3.0, **args)
+    assert 1.15 < at_seam < 1.25, at_seam
+    assert 1.0 < across < 1.05, across
+    assert 1.0 < fast < 1.04, fast
+    # the tabulated factor at a node equals the direct one
+    from cwproc.tables.scan_factor import circle_variance_factor
+
+    node = circle_variance_factor(
+        np.array([24.0]),
+        np.array([10.0]),
+        np.array([1.0]),
+        np.array([1.0]),
+        np.array([sc.FACTOR_X[3]]),
+        np.array([270.0]),
+        PHI,
+        "von_karman",
+    )
+    direct = sc.refit_jackknife_factor(
+        phase, math.radians(270.0), 1.0, **(args | {"ratio": sc.FACTOR_X[3]})
+    )
+    assert node[0] == pytest.approx(direct, rel=1e-12)

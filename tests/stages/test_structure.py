@@ -482,3 +482,16 @@ def test_block_median_between_bounds_is_numpy_nanmedian():
 )
 def test_lag_count_of_coarse_scans_stops_at_60_deg(step, lags):
     assert lag_count(step, 9.0) == lags
+
+
+@pytest.mark.parametrize("clockwise", [False, True])
+def test_scan_start_angle_is_the_first_ray_from_the_wind_in_the_sense_of_rotation(clockwise):
+    """``scan_start_angle``: the first ray's azimuth from the direction the block-mean wind
+    blows towards, counted in the scan's sense of rotation (the seam's place, on which the
+    correlation of consecutive circles at mu near 1 depends)."""
+    ds = ramp_scans(start_az=40.0, clockwise=clockwise)
+    sf = azimuth_structure_function(ds, true_wind(ds), n_scans=6, max_lag_deg=9.0)
+    wind_to = sf["wind_to_direction"].values
+    np.testing.assert_allclose(wind_to, np.degrees(np.arctan2(U0, V0)) % 360.0, atol=1e-6)
+    expected = ((40.0 - wind_to) * (1.0 if clockwise else -1.0)) % 360.0
+    np.testing.assert_allclose(sf["scan_start_angle"].values, expected, atol=1e-6)

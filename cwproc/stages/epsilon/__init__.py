@@ -164,7 +164,7 @@ from cwproc.stages.epsilon.atable_fit import (
 )
 from cwproc.stages.epsilon.cells import cell_inputs, predicted_noise, statistics_covariance
 from cwproc.stages.epsilon.cw_exact import NOISE_WINDOW_BLOCKS, apply_exact_cells, exact_cells
-from cwproc.stages.epsilon.errors import block_errors
+from cwproc.stages.epsilon.errors import block_errors, correlated_scans_covariance
 from cwproc.stages.epsilon.flags import turbulence_flags
 from cwproc.stages.epsilon.noise_prior import (
     NOISE_PRIOR_REL_SE,
@@ -408,8 +408,9 @@ def _block_group(
         )
     flag, bad, few_fit = turbulence_flags(cells, valid, lag_used, est, model)
     arrays = product_arrays(est, bad, few_fit, exact)
+    cov_errors = correlated_scans_covariance(sf, cells, cov, res["l_v"], model)
     eps_se, sigma2_se, scale_se = block_errors(
-        sf, lag_used, fixed, cells.d, cells.var_raw, arrays, est["noise"], res, cov
+        sf, lag_used, fixed, cells.d, cells.var_raw, arrays, est["noise"], res, cov_errors
     )
     out = turbulence_dataset(
         sf,
