@@ -39,7 +39,7 @@ from cwproc.pipeline import (
     run_unit,
     write_unit_products,
 )
-from cwproc.pipeline.inputs import expand_inputs
+from cwproc.pipeline.file_search import expand_inputs
 from cwproc.products.catalogue import product_kind
 from cwproc.products.metadata import apply_metadata
 from cwproc.products.writer import add_site_coordinates

@@ -104,7 +104,7 @@ def test_cli_names_the_new_preset_when_the_old_one_is_used(tmp_path):
 @pytest.mark.parametrize("value", ["true", "false"])
 def test_the_retired_homodyne_key_is_refused_by_name(value):
     """Homodyne detection is a property of the data (the scans' ``homodyne`` attribute,
-    read by :func:`cwproc.io.scans.is_homodyne`); an ``[instrument] homodyne`` that
+    read by :func:`cwproc.io.scan_join.is_homodyne`); an ``[instrument] homodyne`` that
     nothing reads would pretend to control it."""
     with pytest.raises(ConfigError) as err:
         config_from_toml(f"[instrument]\nkind = 'cw'\nhomodyne = {value}\n", source="old.toml")

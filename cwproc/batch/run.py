@@ -46,7 +46,7 @@ from cwproc.batch.worker import (
 )
 from cwproc.config import Config
 from cwproc.errors import CwprocError
-from cwproc.pipeline.units import distinct_keys
+from cwproc.pipeline.product_units import distinct_keys
 
 log = logging.getLogger("cwproc.batch")
 log.addHandler(logging.NullHandler())  # a library: the application decides where logs go

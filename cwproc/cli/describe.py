@@ -10,7 +10,7 @@ import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.io import KIND, Format, detect_format, is_product_layout, read
-from cwproc.io.scans import is_homodyne
+from cwproc.io.scan_join import is_homodyne
 
 if TYPE_CHECKING:
     from cwproc.config import Config

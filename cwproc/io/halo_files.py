@@ -43,7 +43,7 @@ from cwproc.io.halo_body import (
 )
 from cwproc.io.halo_header import HplHeader, parse_header
 from cwproc.io.identity import FileIdentity
-from cwproc.io.scans import concat_scans, joined_attrs, time_sorted_scans
+from cwproc.io.scan_join import concat_scans, joined_attrs, time_sorted_scans
 from cwproc.physics.geometry import normalise_pointing
 from cwproc.physics.scan_numbering import scan_indices_of_runs
 
@@ -361,7 +361,7 @@ def _read_together(paths: list[Path]) -> xr.Dataset | None:
 
     Memory: the record's arrays, one file's data lines and their parsed numbers, and,
     only when files overlap in time (rays out of time order or times repeated), one
-    reordered variable (:func:`cwproc.io.scans.time_sorted_scans`).
+    reordered variable (:func:`cwproc.io.scan_join.time_sorted_scans`).
     """
     plans = _plan(paths)
     if not plans:
@@ -434,7 +434,7 @@ def read_hpl_files(paths: list[str | os.PathLike], **options: object) -> xr.Data
         A file is damaged (as :func:`read_hpl`).
     CwprocError
         No files, or files that cannot be concatenated (as
-        :func:`cwproc.io.scans.concat_scans`).
+        :func:`cwproc.io.scan_join.concat_scans`).
     """
     _check_options(options)
     paths = [Path(p) for p in paths]

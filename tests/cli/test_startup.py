@@ -166,7 +166,7 @@ def test_program_exit_runs_the_atexit_functions():
 _FAULTS = (
     "import resource, sys, threading\n"
     "import numpy as np\n"
-    "from cwproc.cli._group import keep_freed_arrays\n"
+    "from cwproc.memory import keep_freed_arrays\n"
     "if sys.argv[1] == '1':\n"
     "    assert keep_freed_arrays()\n"
     "def arrays():\n"

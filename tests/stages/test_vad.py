@@ -335,7 +335,7 @@ def test_homodyne_measured_reference_and_missing_reference() -> None:
 
 @pytest.mark.parametrize("spelling", ["false", "0", 0, False, np.int8(0)])
 def test_homodyne_false_in_any_spelling_is_heterodyne(spelling: object) -> None:
-    """``bool("false")`` is True; the one parser (cwproc.io.scans) reads it as 0."""
+    """``bool("false")`` is True; the one parser (cwproc.io.scan_join) reads it as 0."""
     ds = scan_dataset(n_scans=2, seed=14)
     signed = fit(ds)
     ds.attrs["homodyne"] = spelling
