@@ -30,8 +30,7 @@ import xarray as xr
 
 from cwproc.config import Config, load_config
 from cwproc.errors import CwprocError, InputFileError
-from cwproc.io import FileIdentity, is_regular_file
-from cwproc.io import read as read_file
+from cwproc.io import FileIdentity, is_regular_file, read_file
 from cwproc.pipeline import (
     InputFile,
     ProductUnit,

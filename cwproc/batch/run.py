@@ -38,9 +38,9 @@ from cwproc.batch.state import (
     unit_up_to_date,
 )
 from cwproc.batch.worker import (
-    _file_stat,
     classify_batch,
     classify_file,
+    file_size_mtime,
     process_unit_task,
     unclassified,
 )
@@ -366,7 +366,7 @@ def _cached_or_new(
     settled_ns = time.time_ns() - int(min_age_s * 1e9)
     for path in map(os.fspath, files):
         try:
-            size, mtime_ns = _file_stat(path)
+            size, mtime_ns = file_size_mtime(path)
         except OSError:
             continue  # vanished since discovery
         if min_age_s > 0 and mtime_ns > settled_ns:

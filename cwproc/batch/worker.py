@@ -65,7 +65,8 @@ def _first_time_iso(item: InputFile) -> str:
     return np.datetime_as_string(np.min(t).astype("datetime64[s]"), unit="s") + "Z"
 
 
-def _file_stat(path: str) -> tuple[int, int]:
+def file_size_mtime(path: str) -> tuple[int, int]:
+    """Size (bytes) and modification time (ns) of a file, as the ledger records them."""
     st = os.stat(path)
     return st.st_size, st.st_mtime_ns
 
@@ -114,7 +115,7 @@ def classify_file(
     """
     config, chash = parsed_config(config_toml, config_source)
     try:
-        size, mtime_ns = _file_stat(path)
+        size, mtime_ns = file_size_mtime(path)
         with open(path, "rb") as fh:
             head = fh.read(_HEAD_BYTES)
     except OSError as exc:
@@ -215,7 +216,7 @@ def unclassified(path: str, exc: object) -> FileInfo:
     """The failure record of a file whose classification could not run (``exc``)."""
     size, mtime_ns = 0, 0
     with contextlib.suppress(OSError):
-        size, mtime_ns = _file_stat(path)
+        size, mtime_ns = file_size_mtime(path)
     return FileInfo(
         path, size, mtime_ns, "error", error=f"{path}: could not be classified: {exc!r}"
     )

@@ -9,7 +9,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import CwprocError
-from cwproc.io import KIND, Format, detect_format, is_product_layout, read
+from cwproc.io import KIND, Format, detect_format, is_product_layout, read_file
 from cwproc.io.scan_join import is_homodyne
 
 if TYPE_CHECKING:
@@ -239,7 +239,7 @@ def describe_file(path: str | os.PathLike, config: Config | None = None) -> list
         if product is not None:
             return describe_product(path, product)
     try:
-        ds = read(path, fmt, **(dict(config.reader.get(fmt.value, {})) if config else {}))
+        ds = read_file(path, fmt, **(dict(config.reader.get(fmt.value, {})) if config else {}))
     except ImportError:
         raise CwprocError(f"{path}: no reader for format {fmt.value} in this build") from None
     header = [f"{os.fspath(path)}", f"  format        {fmt.value} ({FORMAT_NAMES[fmt]})"]

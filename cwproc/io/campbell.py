@@ -37,10 +37,10 @@ import xarray as xr
 
 from cwproc.errors import InputFileError
 from cwproc.io.averaged import averaged_table_reason, refuse_averaged_table
-from cwproc.io.meteo2 import (
+from cwproc.io.records import realigned_records
+from cwproc.io.sonic_samples import SONIC_FIELDS, SPIKE_THRESHOLD, sonic_dataset
+from cwproc.io.sonic_text import (
     NA_TEXT,
-    SONIC_FIELDS,
-    SPIKE_THRESHOLD,
     blank_row,
     check_options,
     column_map,
@@ -50,9 +50,7 @@ from cwproc.io.meteo2 import (
     parse_times,
     read_bytes,
     read_table,
-    sonic_dataset,
 )
-from cwproc.io.records import realigned_records
 from cwproc.io.timecheck import check_times, epoch_seconds_to_times, plausible_years
 
 INSTRUMENT = "Campbell Scientific CSAT3 (logger {logger}, table {table})"

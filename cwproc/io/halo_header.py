@@ -122,7 +122,7 @@ def parse_start_time(text: str) -> np.datetime64:
     return date.astype("datetime64[us]") + np.timedelta64(micro, "us")
 
 
-def parse_header(path: str | os.PathLike, lines: list[str]) -> HplHeader:
+def parse_hpl_header(path: str | os.PathLike, lines: list[str]) -> HplHeader:
     """Parse and validate the 17 header lines.
 
     Parameters
@@ -232,7 +232,7 @@ def parse_header(path: str | os.PathLike, lines: list[str]) -> HplHeader:
     )
 
 
-_EOL = re.compile(rb"\r\n|\n|\r")
+LINE_END = re.compile(rb"\r\n|\n|\r")
 
 
 def split_header(path: str | os.PathLike, raw: bytes) -> tuple[list[str], int]:
@@ -252,7 +252,7 @@ def split_header(path: str | os.PathLike, raw: bytes) -> tuple[list[str], int]:
     lines: list[str] = []
     pos = 0
     for _ in range(HEADER_LINES):
-        m = _EOL.search(raw, pos)
+        m = LINE_END.search(raw, pos)
         end = m.start() if m else len(raw)
         lines.append(raw[pos:end].decode("latin-1"))
         if m is None:

@@ -24,15 +24,14 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import InputFileError
-from cwproc.io.meteo2 import (
-    SPIKE_THRESHOLD,
+from cwproc.io.sonic_samples import SPIKE_THRESHOLD, sonic_dataset
+from cwproc.io.sonic_text import (
     check_options,
     column_map,
     numeric_column,
     option_number,
     read_table,
     read_text,
-    sonic_dataset,
 )
 from cwproc.io.timecheck import epoch_seconds_to_times
 
