@@ -318,7 +318,7 @@ def _process_unit_task(task: UnitTask, outcome: Callable[..., UnitOutcome]) -> U
         units = group_units(items)
         if len(units) != 1 or units[0].key != (task.group_key or task.key):
             found = ", ".join(u.key for u in units)
-            return outcome(error=f"{unit_label(task)}: its inputs now group as {found}")
+            return outcome(error=f"{task_label(task)}: its inputs now group as {found}")
         units[0].key = task.key  # a logger kept apart from another of its key (34.2)
         result = run_unit(units[0], config)
         written = (
@@ -331,10 +331,10 @@ def _process_unit_task(task: UnitTask, outcome: Callable[..., UnitOutcome]) -> U
     except (InputFileError, ProductError) as exc:
         return outcome(error=str(exc))  # already names the file
     except CwprocError as exc:
-        return outcome(error=f"{unit_label(task)}: {exc}")
+        return outcome(error=f"{task_label(task)}: {exc}")
     except Exception as exc:
         return outcome(
-            error=f"{unit_label(task)}: internal error {type(exc).__name__}: {exc}",
+            error=f"{task_label(task)}: internal error {type(exc).__name__}: {exc}",
             detail=traceback.format_exc(),
         )
     # inputs whose data could not be read are file failures (the driver records them),
@@ -393,7 +393,7 @@ def dropped_inputs(task: UnitTask, unit: ProductUnit) -> list[tuple[str, str]]:
     return dropped
 
 
-def unit_label(task: UnitTask) -> str:
+def task_label(task: UnitTask) -> str:
     """How failure lines name a unit: its key and its (first) input file."""
     more = f" and {len(task.paths) - 1} more" if len(task.paths) > 1 else ""
     first = task.paths[0] if task.paths else "no inputs"

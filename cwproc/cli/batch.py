@@ -242,7 +242,7 @@ def check_scheduler_address(value: str | None) -> str | None:
 )
 @click.option("-q", "--quiet", is_flag=True, help="Print only failures.")
 @click.option("-v", "--verbose", is_flag=True, help="Log every unit and list unrecognised files.")
-def batch(
+def batch_command(
     input_dir: str,
     output_dir: str,
     config: str | None,

@@ -191,7 +191,7 @@ def open_product(path: str | os.PathLike) -> xr.Dataset | None:
     return None
 
 
-def describe_product(path: str | os.PathLike, ds: xr.Dataset) -> list[str]:
+def describe_product_file(path: str | os.PathLike, ds: xr.Dataset) -> list[str]:
     """Lines describing a cwproc product: title, provenance, dims, time span, variables."""
     lines = [
         f"{os.fspath(path)}",
@@ -237,7 +237,7 @@ def describe_file(path: str | os.PathLike, config: Config | None = None) -> list
     if fmt is Format.SCAN_NETCDF:
         product = open_product(path)
         if product is not None:
-            return describe_product(path, product)
+            return describe_product_file(path, product)
     try:
         ds = read_file(path, fmt, **(dict(config.reader.get(fmt.value, {})) if config else {}))
     except ImportError:

@@ -665,16 +665,7 @@ def read_tob1(path: str | os.PathLike, **options: Any) -> xr.Dataset:
             raw = fh.read()
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
-    pos = 0
-    header: list[str] = []
-    for number in range(1, 6):
-        end = raw.find(b"\n", pos)
-        if end < 0:
-            raise InputFileError(path, "file ends inside the 5-line ASCII header", number)
-        header.append(raw[pos : end + 1].decode("latin-1"))
-        pos = end + 1
-    if not header[0].startswith('"TOB1"'):
-        raise InputFileError(path, 'not a TOB1 file (line 1 must start with "TOB1")', 1)
+    header, pos = _tob1_header(path, raw)
     env = _header_fields(path, header[0], 1)
     names = _header_fields(path, header[1], 2)
     units = _header_fields(path, header[2], 3)
@@ -687,40 +678,11 @@ def read_tob1(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     for key in ("u", "v", "w"):
         if cols[key] not in names:
             raise InputFileError(path, f"no field {cols[key]!r} ({key})", 2)
-    data = raw[pos:]
-    n_rec, extra = divmod(len(data), dtype.itemsize)
-    if n_rec == 0:
-        raise InputFileError(path, "no complete data record", 1, unit="record")
     notes: list[str] = []
-    if "RECORD" in names and dtype["RECORD"].kind in "iu":
-        records, extra = realigned_records(path, data, dtype, pos, notes)
-        n_rec = records.size
-    else:
-        records = np.frombuffer(data[: n_rec * dtype.itemsize], dtype=dtype)
-    if extra:
-        notes.append(
-            f"partial trailing record ({extra} of {dtype.itemsize} bytes) ignored: the file was cut"
-        )
+    records, extra = _tob1_records(path, raw[pos:], dtype, pos, notes)
+    n_rec = records.size
     typ = dict(zip(names, types, strict=True))
-    for key in ("SECONDS", "NANOSECONDS"):
-        field = records[key]
-        if field.dtype.kind not in "iuf":
-            raise InputFileError(path, f"{key} has type {typ[key]}, not a number", 5)
-        if field.dtype.kind == "f":
-            with np.errstate(invalid="ignore"):
-                wrong = np.flatnonzero(~np.isfinite(field) | (np.abs(field) > 2.0**40))
-            if wrong.size:
-                raise InputFileError(
-                    path, f"{key} is not a valid count", int(wrong[0]) + 1, unit="record"
-                )
-    nanos = records["NANOSECONDS"].astype(np.int64)
-    bad = np.flatnonzero((nanos < 0) | (nanos >= 1_000_000_000))
-    if bad.size:
-        raise InputFileError(
-            path, f"NANOSECONDS {nanos[bad[0]]} out of range", int(bad[0]) + 1, unit="record"
-        )
-    times = epoch_seconds_to_times(path, records["SECONDS"], nanos, TOB1_EPOCH, 1, unit="record")
-    times = times - np.timedelta64(round(offset_h * 3600e9), "ns")
+    times = _tob1_times(path, records, typ) - np.timedelta64(round(offset_h * 3600e9), "ns")
     vals = {k: _tob1_column(path, records, cols[k], typ[cols[k]]) for k in ("u", "v", "w")}
     unit = dict(zip(names, (units + [""] * len(names))[: len(names)], strict=True))
     temp = (
@@ -751,3 +713,78 @@ def read_tob1(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         "time_reference": f"logger time minus {offset_h:g} h",
     }
     return _campbell_dataset(path, options, env, times, vals, temp, diag, attrs, notes)
+
+
+def _tob1_header(path: str | os.PathLike, raw: bytes) -> tuple[list[str], int]:
+    """The 5 ASCII header lines of a TOB1 file (line ends kept) and the offset of its
+    first binary record.
+
+    Raises
+    ------
+    InputFileError
+        The file ends inside the header, or line 1 is not a TOB1 environment line.
+    """
+    pos = 0
+    header: list[str] = []
+    for number in range(1, 6):
+        end = raw.find(b"\n", pos)
+        if end < 0:
+            raise InputFileError(path, "file ends inside the 5-line ASCII header", number)
+        header.append(raw[pos : end + 1].decode("latin-1"))
+        pos = end + 1
+    if not header[0].startswith('"TOB1"'):
+        raise InputFileError(path, 'not a TOB1 file (line 1 must start with "TOB1")', 1)
+    return header, pos
+
+
+def _tob1_records(
+    path: str | os.PathLike, data: bytes, dtype: np.dtype, pos: int, notes: list[str]
+) -> tuple[np.ndarray, int]:
+    """The binary records of a TOB1 file (realigned on their ``RECORD`` numbers when the
+    file has them) and the bytes of a cut last record, noted in ``notes``.
+
+    Raises
+    ------
+    InputFileError
+        Not one complete record.
+    """
+    n_rec, extra = divmod(len(data), dtype.itemsize)
+    if n_rec == 0:
+        raise InputFileError(path, "no complete data record", 1, unit="record")
+    if dtype.names is not None and "RECORD" in dtype.names and dtype["RECORD"].kind in "iu":
+        records, extra = realigned_records(path, data, dtype, pos, notes)
+    else:
+        records = np.frombuffer(data[: n_rec * dtype.itemsize], dtype=dtype)
+    if extra:
+        notes.append(
+            f"partial trailing record ({extra} of {dtype.itemsize} bytes) ignored: the file was cut"
+        )
+    return records, extra
+
+
+def _tob1_times(path: str | os.PathLike, records: np.ndarray, typ: dict[str, str]) -> np.ndarray:
+    """Logger time of each record: 1990-01-01 + SECONDS + NANOSECONDS (datetime64[ns]).
+
+    Raises
+    ------
+    InputFileError
+        A field is not a number, or a count is not valid (names the record).
+    """
+    for key in ("SECONDS", "NANOSECONDS"):
+        field = records[key]
+        if field.dtype.kind not in "iuf":
+            raise InputFileError(path, f"{key} has type {typ[key]}, not a number", 5)
+        if field.dtype.kind == "f":
+            with np.errstate(invalid="ignore"):
+                wrong = np.flatnonzero(~np.isfinite(field) | (np.abs(field) > 2.0**40))
+            if wrong.size:
+                raise InputFileError(
+                    path, f"{key} is not a valid count", int(wrong[0]) + 1, unit="record"
+                )
+    nanos = records["NANOSECONDS"].astype(np.int64)
+    bad = np.flatnonzero((nanos < 0) | (nanos >= 1_000_000_000))
+    if bad.size:
+        raise InputFileError(
+            path, f"NANOSECONDS {nanos[bad[0]]} out of range", int(bad[0]) + 1, unit="record"
+        )
+    return epoch_seconds_to_times(path, records["SECONDS"], nanos, TOB1_EPOCH, 1, unit="record")
