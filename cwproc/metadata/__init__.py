@@ -91,7 +91,8 @@ def described(product: str | None) -> Callable[[Callable[P, R]], Callable[P, R]]
         The decorator. The wrapped function keeps its name, module, docstring and
         signature (:func:`functools.wraps`); a returned :class:`xarray.Dataset` (or
         each one of a returned tuple) gets ``units``, ``long_name`` and the other
-        declared attributes of its variables (:func:`apply_metadata`); attributes that
+        declared attributes of its variables (:func:`apply_metadata`; flag values and
+        masks as lists of int, which the writer types as CF asks); attributes that
         record what the stage did (method, parameters) are kept. Anything else is
         returned as it is.
 
@@ -119,7 +120,7 @@ def described(product: str | None) -> Callable[[Callable[P, R]], Callable[P, R]]
 def _described(value: Any, table: Mapping[str, VarMeta]) -> Any:
     """``value`` with the declared attributes of ``table`` on its datasets."""
     if isinstance(value, xr.Dataset):
-        return attach_declared(value, table)
+        return attach_declared(value, table, flag_arrays=False)
     if type(value) is tuple:
-        return tuple(attach_declared(v, table) if isinstance(v, xr.Dataset) else v for v in value)
+        return tuple(_described(v, table) if isinstance(v, xr.Dataset) else v for v in value)
     return value

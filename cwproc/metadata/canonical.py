@@ -234,14 +234,18 @@ DATASET_VARIABLES: dict[str, dict[str, VarMeta]] = {
 }
 
 
-def attach_attrs(ds: xr.Dataset, table: Mapping[str, VarMeta]) -> xr.Dataset:
+def attach_attrs(
+    ds: xr.Dataset, table: Mapping[str, VarMeta], *, flag_arrays: bool = True
+) -> xr.Dataset:
     """Attach the declared attributes of ``table`` to the variables of ``ds``.
 
     The declared attributes (:data:`DECLARED_ATTRS`: names, units, flags, citations)
     replace any of those already set; other attributes (what a stage did: ``method``,
     parameters) are kept. Flag masks and values take the dtype of their integer
-    variable; coordinates are ACDD ``coordinate`` content. A datetime64 variable keeps
-    no ``units`` (the NetCDF encoding sets them).
+    variable (as CF requires of a file; ``flag_arrays=False``: plain lists of int, as a
+    stage's output holds them, comparable with ``==``); coordinates are ACDD
+    ``coordinate`` content. A datetime64 variable keeps no ``units`` (the NetCDF
+    encoding sets them).
 
     Returns
     -------
@@ -257,7 +261,7 @@ def attach_attrs(ds: xr.Dataset, table: Mapping[str, VarMeta]) -> xr.Dataset:
         attrs = {k: v for k, v in var.attrs.items() if k not in DECLARED_ATTRS}
         attrs.update(meta.attrs())
         for key in ("flag_values", "flag_masks"):
-            if key in attrs and var.dtype.kind in "iu":
+            if flag_arrays and key in attrs and var.dtype.kind in "iu":
                 attrs[key] = np.asarray(attrs[key], dtype=var.dtype)
         if var.dtype.kind == "M":
             attrs.pop("units", None)

@@ -709,15 +709,17 @@ def apply_metadata(ds: xr.Dataset, *, product: str) -> xr.Dataset:
     return attach_declared(ds, product_table(product))
 
 
-def attach_declared(ds: xr.Dataset, table: Mapping[str, VarMeta]) -> xr.Dataset:
+def attach_declared(
+    ds: xr.Dataset, table: Mapping[str, VarMeta], *, flag_arrays: bool = True
+) -> xr.Dataset:
     """``ds`` with the declarations of ``table`` and the ACDD attributes they imply.
 
-    :func:`cwproc.metadata.canonical.attach_attrs`, then the content type and standard
-    name that follow from the kind of variable (flags, counts, coordinates). Used by
-    :func:`apply_metadata` (a product's table) and :func:`cwproc.metadata.described`
-    (a stage's output).
+    :func:`cwproc.metadata.canonical.attach_attrs` (``flag_arrays`` as there), then the
+    content type and standard name that follow from the kind of variable (flags,
+    counts, coordinates). Used by :func:`apply_metadata` (a product's table) and
+    :func:`cwproc.metadata.described` (a stage's output).
     """
-    out = attach_attrs(ds, table)
+    out = attach_attrs(ds, table, flag_arrays=flag_arrays)
     for name in out.variables:
         meta = table.get(str(name))
         if meta is not None:
