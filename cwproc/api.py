@@ -150,7 +150,7 @@ def _read_paths(paths: str | os.PathLike | Sequence[str | os.PathLike]) -> list[
     """The files :func:`read` is asked for: one path, a glob's matches, or a sequence."""
     if isinstance(paths, str | os.PathLike):
         text = os.fspath(paths)
-        if not glob.has_magic(text) or os.path.lexists(text):
+        if not any(c in text for c in "*?[") or os.path.lexists(text):
             return [text]
         found = sorted(glob.glob(os.path.expanduser(text), recursive=True))
         if not found:
