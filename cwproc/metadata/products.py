@@ -720,11 +720,11 @@ def attach_declared(
     :func:`cwproc.metadata.described` (a stage's output).
     """
     out = attach_attrs(ds, table, flag_arrays=flag_arrays)
-    for name in out.variables:
+    coords = set(out.coords)
+    for name, var in out.variables.items():  # Variables: no DataArray built per name
         meta = table.get(str(name))
         if meta is not None:
-            derived = _derived_attrs(str(name), meta, is_coord=name in out.coords)
-            out[name].attrs.update(derived)
+            var.attrs.update(_derived_attrs(str(name), meta, is_coord=name in coords))
     return out
 
 
