@@ -14,6 +14,9 @@ them with their signatures. They are imported when first used (PEP 562), so that
 
     result = cwproc.retrieve("sample_data/streamline", "streamline")
     result["wind"]
+
+Join the files of a record with ``cwproc.read([...])`` or ``cwproc.concat_scans``, not
+``xarray.concat`` (each file numbers its scans from 0; the stages refuse the mixture).
 """
 
 from __future__ import annotations
@@ -43,6 +46,7 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers and editors
         preset_names,
     )
     from cwproc.errors import ConfigError, CwprocError, InputFileError
+    from cwproc.io.scan_join import concat_scans
 
 __all__ = [
     "BackgroundConfig",
@@ -62,6 +66,7 @@ __all__ = [
     "VADConfig",
     "ZephirConfig",
     "__version__",
+    "concat_scans",
     "config_from_toml",
     "load_config",
     "preset_names",
@@ -96,6 +101,7 @@ _HOMES = {
     "InputFileError": "cwproc.errors",
     "ConfigError": "cwproc.errors",
     "stages": "cwproc.stages",
+    "concat_scans": "cwproc.io.scan_join",
 }
 
 

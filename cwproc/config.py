@@ -21,6 +21,7 @@ import tomllib
 import types
 import typing
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -437,6 +438,49 @@ PRESET_ALIASES = {"seed000": "banakh1999"}
 
 class PresetAliasWarning(UserWarning):
     """A preset was chosen by an old name (see :data:`PRESET_ALIASES`)."""
+
+
+#: the preset each input format is processed with when no configuration is given
+#: (:func:`cwproc.retrieve` with ``config=None``); a scan NetCDF file depends on the
+#: instrument it states (:func:`default_preset`)
+DEFAULT_PRESET_OF_FORMAT: dict[str, str] = {
+    "hpl": "streamline",
+    "halo_background": "streamline",
+    "zephir_csv": "zephir300",
+    "windcube_sta": "windcube",
+    "windcube_rtd": "windcube",
+    "meteo2": "meteo2",
+    "toa5": "csat3",
+    "tob1": "csat3",
+    "ghg": "csat3",
+    "gill": "csat3",
+}
+
+
+def default_preset(fmt: str, attrs: Mapping[str, object] | None = None) -> str:
+    """The preset of an input of format ``fmt`` when no configuration is given.
+
+    Parameters
+    ----------
+    fmt : str
+        The input's format (``"hpl"``, ``"meteo2"``, ..., as ``[instrument] format``).
+    attrs : mapping, optional
+        The input's global attributes; a scan NetCDF file is a Stream Line's
+        (``instrument_kind`` ``streamline`` or ``pulsed``), a ZephIR's (``instrument``
+        names it) or another cw lidar's (``banakh1999``, the simulated cw lidar).
+
+    Returns
+    -------
+    str
+        A name of :func:`preset_names`.
+    """
+    if fmt in DEFAULT_PRESET_OF_FORMAT:
+        return DEFAULT_PRESET_OF_FORMAT[fmt]
+    attrs = attrs or {}
+    kind = str(attrs.get("instrument_kind", "")).strip().lower()
+    if kind == "cw":
+        return "zephir300" if "zephir" in str(attrs.get("instrument", "")).lower() else "banakh1999"
+    return "streamline"
 
 
 def preset_names() -> list[str]:

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from cwproc import config as config_module
 from cwproc.config import Config, preset_names
-from cwproc.products.metadata import VARIABLES
+from cwproc.metadata import VARIABLES
 
 
 def variables_markdown() -> str:
@@ -26,7 +26,7 @@ def variables_markdown() -> str:
     lines = [
         "# Product variables",
         "",
-        "Generated from `cwproc/metadata.py` by `python -m cwproc.reference_docs docs/`;",
+        "Generated from `cwproc/metadata/` by `python -m cwproc.reference_docs docs/`;",
         "do not edit by hand.",
         "",
         "| variable | units | standard_name | long_name | notes |",
@@ -187,7 +187,7 @@ def commands_markdown() -> str:
 
 #: sections of the API page: title and the modules whose public names it lists
 API_SECTIONS = (
-    ("Reading, retrieving and writing", ("cwproc.api",)),
+    ("Reading, retrieving and writing", ("cwproc.api", "cwproc.io.scan_join")),
     ("Configuration", ("cwproc.config", "cwproc.config_products")),
     ("Errors", ("cwproc.errors",)),
 )
@@ -279,15 +279,26 @@ def api_markdown() -> str:
         "",
         "Generated from the docstrings by `python -m cwproc.reference_docs docs/`; do not",
         "edit by hand. `import cwproc` gives every name below (imported when first used,",
-        "so the command line stays fast); a worked example that runs on the shipped",
-        "samples is [examples/first_day.py](examples/first_day.py).",
+        "so the command line stays fast); worked examples that run on the shipped",
+        "samples are [examples/first_day.py](examples/first_day.py) (the products of a",
+        "day) and [examples/stages.py](examples/stages.py) (each stage on its own).",
         "",
         "```python",
         "import cwproc",
         "",
         'result = cwproc.retrieve("sample_data/streamline", "streamline")',
         'wind = result["wind"]  # xarray.Dataset with CF units',
+        "",
+        'scans = cwproc.read("sample_data/streamline/*.hpl")  # one record, 12 scans',
+        "wind = cwproc.stages.fit_vad(scans)  # units and long names attached",
         "```",
+        "",
+        "Join the files of a record with `cwproc.read([...])` or `cwproc.concat_scans`,",
+        "never `xarray.concat`: every file numbers its scans from 0, so scan k of each",
+        "file would be fitted as one rotation. The scan stages (`screen_radial_velocity`,",
+        "`fit_vad`, `azimuth_structure_function`) refuse such a dataset with a message",
+        "that says so. `cwproc.retrieve` and `cwproc.write` accept datasets too; without",
+        "a configuration each unit takes its instrument's preset (a note names it).",
         "",
     ]
     public = [n for n in cwproc.__all__ if n not in ("__version__", "stages")]

@@ -162,7 +162,7 @@ def test_api_page_lists_every_public_name_with_its_signature():
             assert f"### `cwproc.{name}`" in page, name
     for name in cwproc.stages.__all__:
         assert f"### `cwproc.stages.{name}`" in page, name
-    assert "cwproc.read(path: str | os.PathLike, *, format: str = 'auto'" in page
+    assert "cwproc.read(paths: str | os.PathLike | Sequence[str | os.PathLike], *, format" in page
     assert "- `.replace(**sections: Any) -> Config`: A copy with some sections changed" in page
 
 

@@ -13,9 +13,9 @@ from typing import NamedTuple
 import xarray as xr
 
 from cwproc import progress
-from cwproc.config import Config
+from cwproc.config import Config, default_preset, load_config
 from cwproc.errors import CwprocError
-from cwproc.io import KIND
+from cwproc.io import KIND, NETCDF_LOCK, Format, detect_format
 from cwproc.io.netcdf import remove_stale_temporaries
 from cwproc.pipeline.input_checks import instrument_mismatch
 from cwproc.pipeline.input_files import Examined, InputFile, identify_input, read_input
@@ -28,7 +28,7 @@ from cwproc.pipeline.product_units import (
     units_of,
 )
 from cwproc.pipeline.run import internal_error, run_unit
-from cwproc.pipeline.write import product_path, write_unit_products
+from cwproc.pipeline.write import IN_MEMORY, product_path, write_unit_products
 
 
 @dataclass
@@ -287,3 +287,156 @@ def _read_one(path: str | os.PathLike, config: Config, examined: Examined) -> In
 
 def _result(path: str | os.PathLike, item: object) -> tuple[str | os.PathLike, object]:
     return path, item.result() if _is_future(item) else item
+
+
+#: variables a dataset of each canonical kind has (declared in its table of
+#: :data:`cwproc.metadata.DATASET_VARIABLES`, as a test checks)
+_KIND_VARIABLES = {
+    "scan": ("radial_velocity", "azimuth", "elevation", "time", "range"),
+    "sonic": ("u", "v", "w", "time"),
+}
+#: sonic formats by the prefix of the attributes their readers set
+_SONIC_PREFIXES = (("toa5_", Format.TOA5), ("tob1_", Format.TOB1), ("ghg_", Format.GHG))
+
+
+def dataset_format(ds: xr.Dataset, label: str = "dataset") -> Format:
+    """The input format a canonical dataset was read from (its attributes and variables).
+
+    A wind record names its format (``format``); a scan dataset with a Stream Line
+    header is ``hpl``, any other ``scan_netcdf``; a sonic dataset is told by the
+    attributes of its reader (``toa5_*``, ``tob1_*``, ``ghg_*``, ``meteo2_*``; else
+    ``gill``).
+
+    Raises
+    ------
+    CwprocError
+        ``ds`` is none of the canonical datasets (e.g. a product): the message names
+        ``label`` and what a canonical dataset holds.
+    """
+    stated = str(ds.attrs.get("format", ""))
+    if stated in {f.value for f in Format} and KIND[Format(stated)] == "wind_record":
+        return Format(stated)
+    names = {str(v) for v in ds.variables}
+    for kind, needed in _KIND_VARIABLES.items():
+        if not set(needed) <= names:
+            continue
+        if kind == "scan" and "ray" in ds.dims:
+            hpl = "header_filename" in ds.attrs or ds.attrs.get("instrument_kind") == "streamline"
+            return Format.HPL if hpl else Format.SCAN_NETCDF
+        if kind == "sonic" and "sampling_rate_hz" in ds.attrs:
+            keys = " ".join(str(k) for k in ds.attrs)
+            for prefix, fmt in _SONIC_PREFIXES:
+                if prefix in keys:
+                    return fmt
+            return Format.METEO2 if "meteo2_" in keys else Format.GILL
+    raise CwprocError(
+        f"{label}: not a dataset cwproc reads (scan: radial_velocity(ray, range); sonic: "
+        "u, v, w(time) and sampling_rate_hz; wind record: the format attribute of its "
+        "reader); pass what cwproc.read returns"
+    )
+
+
+def dataset_units(
+    datasets: Sequence[xr.Dataset], config: Config | None
+) -> tuple[list[tuple[ProductUnit, Config]], list[str], list[str]]:
+    """Product units of datasets already read (:func:`cwproc.read`), with their configuration.
+
+    Each dataset becomes an :class:`InputFile` holding it, named
+    ``<in-memory>/<its source file>`` (``<in-memory>/dataset-<k>`` without one), with no
+    checksum; the inputs are grouped as files are (:func:`group_units`: the scans of
+    one instrument and day are joined by :func:`cwproc.io.scan_join.concat_scans`, so the
+    per-file datasets of one day may be passed as they are).
+
+    Parameters
+    ----------
+    datasets : sequence of xarray.Dataset
+        Canonical scan, wind-record or sonic datasets.
+    config : Config or None
+        The configuration of every unit; ``None``: each unit's instrument preset
+        (:func:`cwproc.config.default_preset`).
+
+    Returns
+    -------
+    units : list of (ProductUnit, Config)
+    failures : list of str
+        One line per dataset of another instrument than ``config`` describes.
+    notes : list of str
+        Without ``config``: which preset each unit took (:func:`preset_note`).
+
+    Raises
+    ------
+    CwprocError
+        A dataset is none of the canonical datasets (the message names it).
+    """
+    parts: list[UnitPart] = []
+    failures: list[str] = []
+    for k, ds in enumerate(datasets):
+        fmt = dataset_format(ds, f"dataset {k}")
+        sources = ds.attrs.get("source_files")
+        named = [str(s) for s in sources] if isinstance(sources, list | tuple) else []
+        name = Path(named[0]).name if len(named) == 1 else f"dataset-{k}"
+        time = ds["time"].values if "time" in ds.variables else None
+        item = InputFile(
+            path=IN_MEMORY / name,
+            format=fmt,
+            sha256=None,
+            dataset=ds,
+            start=time.min() if time is not None and time.size else None,
+        )
+        mismatch = instrument_mismatch(item, config) if config is not None else ""
+        if mismatch:
+            failures.append(mismatch)
+            continue
+        parts.extend(unit_part(part) for part in split_by_day(item))
+    chosen: list[tuple[ProductUnit, Config]] = []
+    notes: list[str] = []
+    for unit in units_of(parts):
+        if config is None:
+            first = unit.inputs[0]
+            attrs = dict(first.dataset.attrs) if first.dataset is not None else {}
+            preset = default_preset(first.format.value, attrs)
+            chosen.append((unit, load_config(preset)))
+            notes.append(preset_note(preset, [os.fspath(i.path) for i in unit.inputs]))
+        else:
+            chosen.append((unit, config))
+    return chosen, failures, notes
+
+
+def preset_note(preset: str, files: Sequence[str]) -> str:
+    """The note that ``files`` were processed with ``preset`` (no configuration given)."""
+    names = ", ".join(files[:3]) + (f" (+{len(files) - 3} more)" if len(files) > 3 else "")
+    return (
+        f"no configuration given: preset {preset} for {names}; pass config= to choose "
+        "another (cwproc.preset_names())"
+    )
+
+
+def default_presets(paths: Iterable[str | os.PathLike]) -> dict[str, list[str]]:
+    """The files of ``paths`` by the preset of their instrument (no configuration given).
+
+    The format of each file is recognised from its content
+    (:func:`cwproc.config.default_preset`; a scan NetCDF file by the instrument its
+    attributes state). A file that cannot be recognised goes with the defaults (key
+    ``""``: :class:`Config`), whose read then names its problem.
+    """
+    groups: dict[str, list[str]] = {}
+    for path in paths:
+        try:
+            fmt = detect_format(path)
+        except CwprocError:
+            groups.setdefault("", []).append(os.fspath(path))
+            continue
+        attrs = netcdf_attributes(path) if fmt is Format.SCAN_NETCDF else {}
+        groups.setdefault(default_preset(fmt.value, attrs), []).append(os.fspath(path))
+    return groups
+
+
+def netcdf_attributes(path: str | os.PathLike) -> dict[str, object]:
+    """The global attributes of a NetCDF file ({} when it cannot be opened)."""
+    import netCDF4
+
+    try:
+        with NETCDF_LOCK, netCDF4.Dataset(path) as nc:
+            return {k: nc.getncattr(k) for k in nc.ncattrs()}
+    except OSError:
+        return {}

@@ -35,6 +35,26 @@ def product_path(outdir: str | os.PathLike, unit: ProductUnit, name: str) -> Pat
     return Path(outdir) / filename
 
 
+#: the folder named by the inputs passed as datasets (no file is there, so no background
+#: file or checksum is looked for)
+IN_MEMORY = Path("<in-memory>")
+#: the ``input_sha256`` entry of an input passed as a dataset (no file to checksum)
+IN_MEMORY_CHECKSUM = "none: passed to cwproc.retrieve as a dataset in memory"
+
+
+def input_checksums(unit: ProductUnit) -> dict[str, str]:
+    """``{path: sha256}`` of the inputs whose checksum is known, and of those passed as
+    datasets (:func:`cwproc.pipeline.retrieve.dataset_units`, folder ``<in-memory>``):
+    :data:`IN_MEMORY_CHECKSUM`. The writer takes the others' checksums from their files."""
+    sums = {}
+    for item in unit.inputs:
+        if item.sha256:
+            sums[os.fspath(item.path)] = item.sha256
+        elif Path(item.path).parent == IN_MEMORY:
+            sums[os.fspath(item.path)] = IN_MEMORY_CHECKSUM
+    return sums
+
+
 def write_unit_products(
     unit: ProductUnit, products: dict[str, xr.Dataset], outdir: str | os.PathLike, config: Config
 ) -> list[Path]:
@@ -77,7 +97,7 @@ def _write_staged(
                     summary=about.summary,
                     inputs=list(dict.fromkeys(i.path for i in unit.inputs)),
                     # a checksum not taken yet is taken by the writer
-                    checksums={os.fspath(i.path): i.sha256 for i in unit.inputs if i.sha256},
+                    checksums=input_checksums(unit),
                     config_toml=config.to_toml(),
                     references=about.references,
                     keywords=about.keywords,

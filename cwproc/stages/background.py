@@ -15,6 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 import xarray as xr
 
+from cwproc.metadata import described
 from cwproc.physics.background import MIN_FIT_RANGE_M, corrected_snr, fit_background_shape
 
 METHOD = (
@@ -45,6 +46,7 @@ def match_rays(
     return np.where(np.isnat(rt), -1, idx)
 
 
+@described(None)
 def correct_snr(
     scans: xr.Dataset,
     backgrounds: Sequence[xr.Dataset],

@@ -39,6 +39,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import CwprocError
+from cwproc.metadata import described
 from cwproc.physics import dbs
 from cwproc.physics.geometry import speed_and_direction
 from cwproc.physics.noise import velocity_noise_std
@@ -111,6 +112,7 @@ def _ratios(
     return out
 
 
+@described("dbs")
 def dbs_statistics(
     rtd: xr.Dataset,
     *,

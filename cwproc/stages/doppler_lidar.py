@@ -38,6 +38,7 @@ import numpy as np
 import xarray as xr
 from scipy.ndimage import maximum_filter1d, median_filter, uniform_filter
 
+from cwproc.metadata import described
 from cwproc.physics.background import fit_noise_floor
 from cwproc.physics.backscatter import (
     LidarConstants,
@@ -309,6 +310,7 @@ def _pointing(ds: xr.Dataset) -> np.ndarray:
     )
 
 
+@described("doppler_lidar")
 def doppler_lidar_product(
     stares: xr.Dataset,
     cross: xr.Dataset | None = None,

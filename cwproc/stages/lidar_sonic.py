@@ -23,6 +23,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import CwprocError
+from cwproc.metadata import described
 
 #: turbulence_flag bits of the lidar product that exclude a block (see the module doc)
 EXCLUDE_FLAG_MASK = 1 | 2 | 8 | 16 | 64
@@ -88,6 +89,7 @@ def ratio_summary(ratio: np.ndarray, ratio_err: np.ndarray) -> dict[str, float]:
     }
 
 
+@described("lidar_sonic")
 def compare_lidar_sonic(
     lidar: xr.Dataset,
     sonic: xr.Dataset,

@@ -37,6 +37,7 @@ import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.io.scan_join import is_homodyne
+from cwproc.metadata import described
 from cwproc.physics.geometry import beam_unit_vector
 from cwproc.physics.vad_least_squares import (
     fit_least_absolute,
@@ -46,6 +47,7 @@ from cwproc.physics.vad_least_squares import (
     ray_rows,
     row_residuals,
 )
+from cwproc.stages.scan_guard import require_distinct_scans
 from cwproc.stages.vad import pointing, scan_chunks, scan_layout
 
 FLAG_LOW_SNR = 1
@@ -155,6 +157,7 @@ def median_along_rays(
         return np.where(n > 0, 0.5 * (lo + hi).squeeze(axis), np.nan)
 
 
+@described(None)
 def screen_radial_velocity(
     ds: xr.Dataset,
     *,
@@ -191,6 +194,7 @@ def screen_radial_velocity(
     CwprocError
         No ``radial_velocity(ray, range)`` in the input.
     """
+    require_distinct_scans(ds, stage="screen_radial_velocity")
     if "radial_velocity" not in ds or ds["radial_velocity"].dims != ("ray", "range"):
         raise CwprocError(
             "Screening needs a scan dataset with radial_velocity(ray, range); this input has none."

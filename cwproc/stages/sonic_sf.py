@@ -37,6 +37,7 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import CwprocError
+from cwproc.metadata import described
 from cwproc.stages.sonic_fits import (
     TypeDecision,
     fit_curves,
@@ -55,9 +56,7 @@ FLAG_STRONG_WIND = 2
 FLAG_CALM = 4
 
 
-# --------------------------------------------------------------------------------------
-# windows and preprocessing
-# --------------------------------------------------------------------------------------
+# -- windows and preprocessing ---------------------------------------------------------
 
 
 def grid_windows(
@@ -306,9 +305,7 @@ def structure_function_fft(x: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.
     return d, pairs
 
 
-# --------------------------------------------------------------------------------------
-# type decision
-# --------------------------------------------------------------------------------------
+# -- type decision ---------------------------------------------------------------------
 
 
 def decide_types(
@@ -404,9 +401,7 @@ def decide_types(
     )
 
 
-# --------------------------------------------------------------------------------------
-# the stage
-# --------------------------------------------------------------------------------------
+# -- the stage -------------------------------------------------------------------------
 
 #: D(r_N) below this (m2 s-2; a 1e-5 m/s rms increment, far below any sonic's
 #: resolution) means a numerically constant component: it is not typed
@@ -433,6 +428,7 @@ def window_batches(
     return np.split(order, bounds)
 
 
+@described("sf")
 def structure_function_types(
     sonic: xr.Dataset,
     *,
@@ -723,9 +719,7 @@ def _sf_dataset(
     return ds
 
 
-# --------------------------------------------------------------------------------------
-# summaries (Gladkikh et al. (2014), Tables 2-5)
-# --------------------------------------------------------------------------------------
+# -- summaries (Gladkikh et al. (2014), Tables 2-5) ------------------------------------
 
 #: parameters summarised per type (Tables 3-5)
 TYPE_PARAMETERS = {

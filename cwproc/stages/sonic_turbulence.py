@@ -35,6 +35,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import CwprocError
+from cwproc.metadata import described
 from cwproc.physics import sonic_turbulence as st
 from cwproc.stages.sonic_sf import (
     COMPONENTS,
@@ -189,6 +190,7 @@ def _combine(eps: np.ndarray, err: np.ndarray) -> tuple[float, float]:
     return float(np.sum(wgt * eps[ok]) / wgt.sum()), float(1.0 / np.sqrt(wgt.sum()))
 
 
+@described("sonic_turbulence")
 def sonic_turbulence(
     sonic: xr.Dataset,
     *,

@@ -19,6 +19,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import CwprocError
+from cwproc.metadata import described
 from cwproc.physics import noise, stare
 from cwproc.physics.geometry import height_from_range
 from cwproc.physics.probe_lengths import ProbeLengths, pulsed_probe_lengths
@@ -350,6 +351,7 @@ def variance_se_per_window(
     return stare.variance_standard_error(epsilon, speed, noise_variance, (t0, t1, t2))
 
 
+@described("stare")
 def stare_product(
     stares: xr.Dataset, wind: xr.Dataset | None = None, options: StareOptions | None = None
 ) -> xr.Dataset:

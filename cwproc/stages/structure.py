@@ -34,6 +34,7 @@ import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.io.scan_join import is_homodyne
+from cwproc.metadata import described
 from cwproc.physics.atable_interp import N_BINS, azimuth_nodes
 from cwproc.physics.geometry import beam_unit_vector, radial_velocity, speed_and_direction
 from cwproc.stages.block_stats import (
@@ -43,6 +44,7 @@ from cwproc.stages.block_stats import (
     finite_columns,
     pair_azimuth_weights,
 )
+from cwproc.stages.scan_guard import require_distinct_scans
 
 #: largest relative mismatch (m) between wind-product gate ranges and scan gate ranges
 _RANGE_TOLERANCE_M = 0.5
@@ -301,6 +303,7 @@ def lag_count(dtheta_deg: float, max_lag_deg: float, min_lags: int = MIN_LAGS) -
     return min(max(n, int(min_lags)), most)
 
 
+@described(None)
 def azimuth_structure_function(
     screened_ds: xr.Dataset,
     wind: xr.Dataset,
@@ -353,6 +356,7 @@ def azimuth_structure_function(
         No ray of the scan dataset belongs to a scan of the wind product, the gates do
         not match, or the azimuth step exceeds ``max_lag_deg``.
     """
+    require_distinct_scans(screened_ds, stage="azimuth_structure_function")
     _check_inputs(screened_ds, wind, n_scans)
     if not np.all(np.diff(wind["time"].values) >= np.timedelta64(0)):  # else a copy
         wind = wind.sortby("time")

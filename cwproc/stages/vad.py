@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from cwproc.errors import CwprocError
 from cwproc.io.scan_join import is_homodyne
+from cwproc.metadata import described
 from cwproc.physics.geometry import (
     beam_unit_vector,
     height_from_range,
@@ -40,6 +41,7 @@ from cwproc.physics.geometry import (
 )
 from cwproc.physics.vad_least_squares import fit_scans
 from cwproc.references import VAD_WIND
+from cwproc.stages.scan_guard import require_distinct_scans
 
 #: elevations (deg) that count as conical scans; outside, w or u, v are not determined
 CONICAL_ELEVATION_RANGE_DEG = (1.0, 89.0)
@@ -345,6 +347,7 @@ def _mean_times(ds: xr.Dataset, layout: ScanLayout) -> np.ndarray:
     return (t0 + np.round(mean).astype(np.int64)).astype("datetime64[ns]")
 
 
+@described("wind")
 def fit_vad(
     ds: xr.Dataset,
     *,
@@ -396,6 +399,7 @@ def fit_vad(
         Missing variables, no conical scan, or homodyne data without any reference
         direction.
     """
+    require_distinct_scans(ds, stage="fit_vad")
     _require(ds, ("radial_velocity", "azimuth", "elevation", "scan", "time", "range"))
     if ds["radial_velocity"].dims != ("ray", "range"):
         raise CwprocError(

@@ -20,6 +20,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import CwprocError
+from cwproc.metadata import described
 from cwproc.physics.constants import ZEPHIR_Z_R_COEFFICIENT
 from cwproc.physics.geometry import wind_components
 from cwproc.physics.volume_averaging import std_ratio_and_tp_share
@@ -123,6 +124,7 @@ def _flags(
     return flag.astype(np.int8)
 
 
+@described("wind_record")
 def wind_record_product(
     record: xr.Dataset,
     *,

@@ -54,7 +54,9 @@ def test_png_is_written(tmp_path):
 
 def test_unwritable_png_is_one_line_error(tmp_path):
     target = tmp_path / "missing-dir" / "x.png"
-    result = CliRunner().invoke(eps_ratio_command, ["--phi", "45", "--mu-max", "1", "--png", str(target)])
+    result = CliRunner().invoke(
+        eps_ratio_command, ["--phi", "45", "--mu-max", "1", "--png", str(target)]
+    )
     assert result.exit_code == 1
     assert "cannot write" in result.output
     assert "Traceback" not in result.output

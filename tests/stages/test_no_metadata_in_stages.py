@@ -1,8 +1,10 @@
-"""Metadata has one home (issue 16): no stage sets a name, unit, flag or citation.
+"""Metadata has one home (issues 16, 33): no stage sets a name, unit, flag or citation.
 
-The CF attributes of the products are declared in :mod:`cwproc.products.metadata`
-(and, for the canonical inputs, :mod:`cwproc.io.schema`) and attached by the writer;
-a stage records only what it did (``method``, its parameters). The source of every
+The CF attributes are declared once, in :mod:`cwproc.metadata` (the products in
+:mod:`cwproc.metadata.products`, the canonical inputs in
+:mod:`cwproc.metadata.canonical`); the decorator :func:`cwproc.metadata.described`
+attaches them to what a stage returns, and the writer again to what it writes. The
+stage code itself records only what it did (``method``, its parameters). The source of every
 stage module is scanned: a declared attribute name used as a string key of a dict
 literal (``{"units": ...}``, the attrs of ``(dims, values, attrs)``), as a keyword of
 ``.attrs.update(...)``/``dict(...)``, or as a subscript assigned into ``.attrs``.
@@ -15,11 +17,11 @@ from pathlib import Path
 
 import pytest
 
-from cwproc.io.schema import DECLARED_ATTRS
+from cwproc.metadata import DECLARED_ATTRS
 
 ROOT = Path(__file__).resolve().parents[2] / "cwproc"
 #: the retrieval stages, and the scan bookkeeping they share with the readers
-SCANNED = [*sorted((ROOT / "stages").rglob("*.py")), ROOT / "io" / "scans.py"]
+SCANNED = [*sorted((ROOT / "stages").rglob("*.py")), ROOT / "io" / "scan_join.py"]
 
 
 def _key(node: ast.AST | None) -> str | None:
@@ -88,4 +90,4 @@ def test_no_stage_sets_a_declared_attribute():
         for path in SCANNED
         for line, key in declared_keys_set(path.read_text(encoding="utf-8"))
     ]
-    assert offences == [], "declare these in cwproc/products/metadata.py:\n" + "\n".join(offences)
+    assert offences == [], "declare these in cwproc/metadata/ instead:\n" + "\n".join(offences)

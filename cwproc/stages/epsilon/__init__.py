@@ -152,6 +152,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from cwproc.metadata import described
 from cwproc.physics import spectra
 from cwproc.physics.constants import STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M
 from cwproc.physics.exact_lag import is_cw_probe
@@ -188,6 +189,7 @@ PRESET_LAG_NUMBER = 3
 PRESET_MODEL: Model = "von_karman"
 
 
+@described("turbulence")
 def estimate_epsilon(
     sf: xr.Dataset,
     *,
