@@ -66,7 +66,7 @@ from cwproc.io.halo_header import (
 from cwproc.io.hpl_attrs import check_no_options, check_rays, scan_attrs
 from cwproc.io.identity import FileIdentity
 from cwproc.io.netcdf import write_bytes_atomic
-from cwproc.io.schema import DECLARED_ATTRS, SCAN_VARIABLES
+from cwproc.metadata.canonical import DECLARED_ATTRS, SCAN_VARIABLES
 from cwproc.physics.geometry import normalise_pointing
 from cwproc.physics.scan_numbering import scan_indices
 
@@ -386,7 +386,7 @@ def scan_dataset(
 
 @functools.lru_cache(maxsize=64)
 def _declared_attrs(name: str, dtype: np.dtype, coord: bool) -> dict[str, object]:
-    """The attributes :func:`cwproc.io.schema.attach_attrs` declares for a scan variable
+    """The attributes :func:`cwproc.metadata.canonical.attach_attrs` declares for a scan variable
     of this name and dtype (computed once per process; copied for each variable)."""
     meta = SCAN_VARIABLES.get(name)
     if meta is None:

@@ -19,12 +19,12 @@ import xarray as xr
 
 from cwproc.config import Config
 from cwproc.errors import CwprocError
+from cwproc.metadata.products import product_table
 from cwproc.pipeline.chain import process_sonic, process_wind_record
 from cwproc.pipeline.input_files import load_item
 from cwproc.pipeline.product_units import ProductUnit, concat_unit, load_unit, unit_label
 from cwproc.pipeline.scan_chain import ScanChain, describe_scan_inputs
 from cwproc.products.catalogue import product_kind
-from cwproc.products.metadata import product_table
 
 #: exit status of a command whose every unit succeeded
 EXIT_OK = 0

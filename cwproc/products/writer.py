@@ -21,7 +21,7 @@ from cwproc._version import __version__
 from cwproc.config import OutputConfig
 from cwproc.io import NETCDF_LOCK
 from cwproc.io.netcdf import sha256_file, stage_netcdf, write_netcdf_atomic
-from cwproc.products.metadata import apply_metadata
+from cwproc.metadata.products import apply_metadata
 
 CONVENTIONS = "CF-1.10, ACDD-1.3"
 
@@ -284,8 +284,8 @@ def write_product(
     path : path
         Where it is written.
     product : str
-        Which product ``ds`` is, one of :data:`cwproc.products.metadata.PRODUCTS`: it
-        selects the declarations (:func:`cwproc.products.metadata.apply_metadata`).
+        Which product ``ds`` is, one of :data:`cwproc.metadata.products.PRODUCTS`: it
+        selects the declarations (:func:`cwproc.metadata.products.apply_metadata`).
     title, summary, inputs, checksums, config_toml, references, keywords, extra_attrs
         Global attributes, see :func:`global_attributes`.
     compression_level : int

@@ -13,7 +13,7 @@ from cwproc.io import KIND, detect_format, read_file
 from cwproc.io.halo import read_hpl
 from cwproc.io.halo_files import read_hpl_files
 from cwproc.io.scan_netcdf import read_scan_netcdf, write_scan_netcdf
-from cwproc.io.schema import DATASET_VARIABLES, SCAN_VARIABLES, attach_attrs
+from cwproc.metadata.canonical import DATASET_VARIABLES, SCAN_VARIABLES, attach_attrs
 
 SAMPLE = Path(__file__).resolve().parents[2] / "sample_data"
 HPL = sorted((SAMPLE / "streamline").glob("*.hpl"))

@@ -18,10 +18,10 @@ from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from cwproc.errors import CwprocError
+from cwproc.metadata.products import apply_metadata, undeclared_variables
 from cwproc.physics import vad_errors as ve
 from cwproc.physics.geometry import beam_unit_vector, radial_velocity, speed_and_direction
 from cwproc.physics.vad_least_squares import fit_homodyne
-from cwproc.products.metadata import apply_metadata, undeclared_variables
 from cwproc.references import SMALIKHO_2020, VAD_ACCURACY
 from cwproc.stages import vad
 from cwproc.stages.vad import fit_vad
