@@ -272,26 +272,14 @@ def run_batch(
     report = BatchReport(pinned_format=config.instrument.format)
     with output_lock(state_dir, wait_s=wait_s) as stale:
         _note_stale_lock_and_leftovers(stale, state_dir, outdir, report)
-        ledger = load_ledger(ledger_path)
-        cfg_hash = config_hash(config)
+        run = _RunLedger(load_ledger(ledger_path), ledger_path, config_hash(config), report)
         infos, todo = _plan_run(
-            input_dir,
-            outdir,
-            config,
-            cfg_hash,
-            ledger,
-            ledger_path,
-            report,
-            patterns=patterns,
-            since=since,
-            min_age_s=min_age_s,
-            classify=classify,
-            client=client,
+            run, input_dir, outdir, config, patterns, since, min_age_s, classify, client
         )
         if on_plan is not None:
             on_plan(len(todo))
-        _run_units(process, todo, infos, ledger, ledger_path, cfg_hash, report, client, on_unit)
-        save_ledger(ledger, ledger_path)  # the last changes; compacted only periodically
+        _run_units(run, process, todo, infos, client, on_unit)
+        run.save()  # the last changes; compacted only periodically
     report.seconds = time.perf_counter() - t0
     return report
 
@@ -308,15 +296,26 @@ def _note_stale_lock_and_leftovers(
         log.warning(kv_line("removed_temporary", path=path))
 
 
+@dataclasses.dataclass(frozen=True)
+class _RunLedger:
+    """The ledger of a batch run, the file it is saved to, the configuration's hash
+    (part of every fingerprint) and the run's report."""
+
+    ledger: Ledger
+    path: Path
+    cfg_hash: str
+    report: BatchReport
+
+    def save(self) -> None:
+        """Write the ledger to its file (atomically, :func:`save_ledger`)."""
+        save_ledger(self.ledger, self.path)
+
+
 def _plan_run(
+    run: _RunLedger,
     input_dir: Path,
     outdir: Path,
     config: Config,
-    cfg_hash: str,
-    ledger: Ledger,
-    ledger_path: Path,
-    report: BatchReport,
-    *,
     patterns: Sequence[str],
     since: _dt.date | None,
     min_age_s: float,
@@ -325,14 +324,15 @@ def _plan_run(
 ) -> tuple[list[FileInfo], list[UnitTask]]:
     """The files of the archive (classified: from the ledger or anew) and the units to
     process; the ledger saved when classification changed it."""
+    ledger, report = run.ledger, run.report
     files = discover_files(input_dir, patterns, exclude=[outdir], errors=report.listing_failures)
     for line in report.listing_failures:
         log.warning(kv_line("folder", status="failed", error=line))
     report.discovered = len(files)
-    infos, to_classify = _cached_or_new(files, ledger, cfg_hash, since, min_age_s, report)
-    infos += _classify_new(to_classify, classify, config, client, ledger, ledger_path)
+    infos, to_classify = _cached_or_new(files, ledger, run.cfg_hash, since, min_age_s, report)
+    infos += _classify_new(to_classify, classify, config, client, ledger, run.path)
     if forget_vanished_files(ledger) or to_classify:
-        save_ledger(ledger, ledger_path)
+        run.save()
     _sort_files(infos, report)
     planned = plan_units(infos, config, outdir, report.plan_notes)
     todo = _units_to_do(planned, ledger, since, report)
@@ -350,18 +350,16 @@ def _plan_run(
 
 
 def _run_units(
+    run: _RunLedger,
     process: Callable[[UnitTask], UnitOutcome],
     todo: list[UnitTask],
     infos: list[FileInfo],
-    ledger: Ledger,
-    ledger_path: Path,
-    cfg_hash: str,
-    report: BatchReport,
     client: Any,
     on_unit: Callable[[UnitOutcome], None] | None,
 ) -> None:
     """Process the units to do (here or on ``client``), recording each outcome in the
-    ledger as it arrives (saved after each unit) and in ``report``."""
+    ledger as it arrives (saved after each unit) and in the run's report."""
+    ledger, report, cfg_hash = run.ledger, run.report, run.cfg_hash
     by_path = {i.path: i for i in infos}
     for task, result in run_tasks(process, todo, client=client, retries=TASK_RETRIES):
         outcome = _as_outcome(task, result)
@@ -369,10 +367,10 @@ def _run_units(
         if outcome.dropped:
             task, outcome = _record_dropped(task, outcome, by_path, ledger, report, cfg_hash)
         if not task.paths:  # every input unreadable: no unit, as if classified whole
-            save_ledger(ledger, ledger_path)
+            run.save()
             continue
         record_outcome(ledger, task, outcome)
-        save_ledger(ledger, ledger_path)
+        run.save()
         report.processed.append(outcome)
         _log_outcome(task, outcome)
         if on_unit is not None:

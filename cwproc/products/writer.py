@@ -67,9 +67,28 @@ def global_attributes(
     extra : mapping, optional
         More global attributes (e.g. instrument attributes of the input).
     """
-    now = _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z")
     names, sums = _input_checksums(inputs, checksums)
-    attrs: dict[str, object] = {
+    attrs = _provenance_attributes(title, summary, keywords, references, names, sums, config_toml)
+    attrs.update(_time_coverage(ds))
+    attrs.update(_vertical_coverage(ds))
+    if extra:
+        attrs.update({k: v for k, v in extra.items() if v is not None})
+    return attrs
+
+
+def _provenance_attributes(
+    title: str,
+    summary: str,
+    keywords: str,
+    references: str,
+    names: list[str],
+    sums: dict[str, str],
+    config_toml: str,
+) -> dict[str, object]:
+    """The ACDD-1.3 attributes that do not depend on the data: what, who, when (now,
+    UTC) and from which inputs and configuration."""
+    now = _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z")
+    return {
         "Conventions": CONVENTIONS,
         "title": title,
         "summary": summary,
@@ -113,11 +132,6 @@ def global_attributes(
         "input_sha256": json.dumps(sums, sort_keys=True),
         "cwproc_config": config_toml,
     }
-    attrs.update(_time_coverage(ds))
-    attrs.update(_vertical_coverage(ds))
-    if extra:
-        attrs.update({k: v for k, v in extra.items() if v is not None})
-    return attrs
 
 
 def _input_checksums(
