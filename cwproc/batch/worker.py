@@ -26,6 +26,7 @@ from cwproc.batch.records import (
     UnitTask,
     parsed_config,
 )
+from cwproc.config import Config
 from cwproc.errors import CwprocError, InputFileError, ProductError
 from cwproc.io import Format, is_cwproc_product, sniff_format
 from cwproc.pipeline import (
@@ -121,27 +122,11 @@ def classify_file(
     except OSError as exc:
         return FileInfo(path, 0, 0, "error", error=f"{path}: cannot read: {exc.strerror or exc}")
     base = FileInfo(path, size, mtime_ns, "unrecognised", config_hash=chash)
-    if not head:
-        return replace(base, error=f"{path}: file is empty")
     fmt = sniff_format(head)
-    if fmt is None:
-        return replace(base, error=f"{path}:1: not a format cwproc reads")
-    if fmt is Format.SCAN_NETCDF and is_cwproc_product(path):
-        return replace(
-            base,
-            format=PRODUCT_FORMAT,
-            error=f"{path}: a cwproc product, not an instrument file: skipped",
-        )
-    if fmt is Format.HALO_BACKGROUND:
-        return replace(
-            base,
-            format=fmt.value,
-            error=f"{path}: a Stream Line background file (used for the SNR of the scans "
-            "beside it, not a product input): skipped",
-        )
-    mismatch = format_mismatch(path, fmt, config)
-    if mismatch:
-        return replace(base, status="other_format", format=fmt.value, error=mismatch)
+    skipped = _skipped_by_its_head(path, head, fmt, base, config)
+    if skipped is not None:
+        return skipped
+    assert fmt is not None
     try:
         with local_dask_scheduler():
             item = read_input(path, config, identify_only=not whole, checksum=checksum)
@@ -169,6 +154,35 @@ def classify_file(
         start=_first_time_iso(item),
         identity=json.dumps({"fields": identity, "span": sonic_span(item)}) if identity else "",
     )
+
+
+def _skipped_by_its_head(
+    path: str, head: bytes, fmt: Format | None, base: FileInfo, config: Config
+) -> FileInfo | None:
+    """The record of a file its first bytes already rule out (empty, not a format cwproc
+    reads, a cwproc product, a background file, a format the configuration does not
+    read); None for a file to read."""
+    if not head:
+        return replace(base, error=f"{path}: file is empty")
+    if fmt is None:
+        return replace(base, error=f"{path}:1: not a format cwproc reads")
+    if fmt is Format.SCAN_NETCDF and is_cwproc_product(path):
+        return replace(
+            base,
+            format=PRODUCT_FORMAT,
+            error=f"{path}: a cwproc product, not an instrument file: skipped",
+        )
+    if fmt is Format.HALO_BACKGROUND:
+        return replace(
+            base,
+            format=fmt.value,
+            error=f"{path}: a Stream Line background file (used for the SNR of the scans "
+            "beside it, not a product input): skipped",
+        )
+    mismatch = format_mismatch(path, fmt, config)
+    if mismatch:
+        return replace(base, status="other_format", format=fmt.value, error=mismatch)
+    return None
 
 
 #: how :func:`classify_batch` classifies a file: by its header, its checksum left to its

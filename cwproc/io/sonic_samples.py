@@ -245,45 +245,34 @@ def sonic_dataset(
     InputFileError
         No samples, or fewer than two distinct time stamps.
     """
-    t = _checked_stamps(path, time)
     notes = list(warnings)
-    keep, counts = _time_order(t.astype(np.int64), notes)
-    t_ns = t.astype(np.int64)[keep]
+    t = _checked_stamps(path, time).astype(np.int64)
+    keep, counts = _time_order(t, notes)
+    t_ns = t[keep]
     rate = sampling_rate_hz if sampling_rate_hz is not None else measure_sampling_rate(t_ns)
     if not np.isfinite(rate) or rate <= 0:
         raise InputFileError(path, "fewer than two distinct time stamps: no sampling rate")
     n_gaps, missing = _gaps(t_ns, rate, notes)
-    data = _within_physical_range(
-        {
-            **{c: np.asarray(wind[c], float)[keep] for c in ("u", "v", "w")},
-            "temperature": np.asarray(temperature, float)[keep],
-        },
-        notes,
-    )
+    values = {c: np.asarray(wind[c], float)[keep] for c in ("u", "v", "w")}
+    values["temperature"] = np.asarray(temperature, float)[keep]
+    data = _within_physical_range(values, notes)
     diag = _status_words(np.asarray(diagnostic)[keep])
     flag, flag_counts = _sample_flags(data, diag, rate, spike_threshold, notes)
-    ds = xr.Dataset(
-        {
-            **{k: (("time",), val) for k, val in data.items()},
-            "diagnostic": (("time",), diag),
-            "sample_flag": (("time",), flag),
-        },
-        coords={"time": (("time",), t_ns.astype("datetime64[ns]"))},
-    )
-    ds.attrs.update(dict(attrs or {}))
-    ds.attrs.update(
-        {
-            "instrument": instrument,
-            "frame": frame,
-            "sampling_rate_hz": float(rate),
-            "source_files": [os.path.basename(os.fspath(path))],
-            "n_gaps": n_gaps,
-            "gap_seconds": missing,
-            **counts,
-            **flag_counts,
-            "warnings": notes,
-        }
-    )
+    variables = {k: (("time",), val) for k, val in data.items()}
+    variables.update(diagnostic=(("time",), diag), sample_flag=(("time",), flag))
+    ds = xr.Dataset(variables, coords={"time": (("time",), t_ns.astype("datetime64[ns]"))})
+    ds.attrs = {
+        **dict(attrs or {}),
+        "instrument": instrument,
+        "frame": frame,
+        "sampling_rate_hz": float(rate),
+        "source_files": [os.path.basename(os.fspath(path))],
+        "n_gaps": n_gaps,
+        "gap_seconds": missing,
+        **counts,
+        **flag_counts,
+        "warnings": notes,
+    }
     return with_canonical_attrs(ds, "sonic")
 
 
