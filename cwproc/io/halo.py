@@ -523,6 +523,38 @@ def hpl_text(ds: xr.Dataset, filename: str) -> str:
     n_gates = int(ds.sizes["range"])
     if n_rays == 0:
         raise CwprocError(f"write_hpl {filename}: the dataset has no rays")
+    gate_length, times = _writable(ds, filename)
+    day = times.min().astype("datetime64[D]")
+    hours = (times - day.astype("datetime64[us]")).astype(np.int64) / 3.6e9
+    az = np.asarray(ds["azimuth"].values, dtype=np.float64)
+    el = np.asarray(ds["elevation"].values, dtype=np.float64)
+    has_pr = "pitch" in ds and "roll" in ds
+    has_sw = "spectral_width" in ds
+    header = _hpl_header(ds, filename, times[0], gate_length, has_pr, has_sw)
+    ray = np.char.add(np.char.mod("%.8f", hours), np.char.mod(" %6.2f", az))
+    ray = np.char.add(ray, np.char.mod(" %6.2f", el))
+    if has_pr:
+        ray = np.char.add(ray, np.char.mod(" %.2f", ds["pitch"].values))
+        ray = np.char.add(ray, np.char.mod(" %.2f", ds["roll"].values))
+    beta = ds["beta"].values if "beta" in ds else np.zeros((n_rays, n_gates))
+    columns = [ds["radial_velocity"].values, ds["snr"].values + 1.0, _beta_strings(beta)]
+    formats = ["%.4f", "%.6f", "%12s"]
+    if has_sw:
+        columns.append(ds["spectral_width"].values)
+        formats.append("%.4f ")
+    return "\r\n".join(header) + "\r\n" + _data_lines(ray.tolist(), columns, formats)
+
+
+def _writable(ds: xr.Dataset, filename: str) -> tuple[float, np.ndarray]:
+    """The gate length (m) and ray times (datetime64[us]) of a dataset the ``.hpl``
+    format can hold.
+
+    Raises
+    ------
+    CwprocError
+        The range grid is not the Stream Line grid, or a value is not finite.
+    """
+    n_gates = int(ds.sizes["range"])
     ranges = np.asarray(ds["range"].values, dtype=np.float64)
     gate_length = float(ds.attrs.get("gate_length_m", 2.0 * ranges[0]))
     if not np.allclose(ranges, (np.arange(n_gates) + 0.5) * gate_length, rtol=0, atol=1e-6):
@@ -548,21 +580,30 @@ def hpl_text(ds: xr.Dataset, filename: str) -> str:
     times = ds["time"].values.astype("datetime64[us]")
     if np.isnat(times).any():
         raise CwprocError(f"write_hpl {filename}: time has missing values")
-    day = times.min().astype("datetime64[D]")
-    hours = (times - day.astype("datetime64[us]")).astype(np.int64) / 3.6e9
-    az = np.asarray(ds["azimuth"].values, dtype=np.float64)
-    el = np.asarray(ds["elevation"].values, dtype=np.float64)
-    has_pr = "pitch" in ds and "roll" in ds
-    has_sw = "spectral_width" in ds
+    return gate_length, times
+
+
+def _hpl_header(
+    ds: xr.Dataset,
+    filename: str,
+    start_time: np.datetime64,
+    gate_length: float,
+    has_pr: bool,
+    has_sw: bool,
+) -> list[str]:
+    """The 17 header lines of the ``.hpl`` file of ``ds`` (``has_pr``: pitch and roll on
+    the ray lines; ``has_sw``: spectral width on the gate lines)."""
+    n_rays = int(ds.sizes["ray"])
+    n_gates = int(ds.sizes["range"])
     focus = float(ds.attrs.get("focus_range_m", float("inf")))
     focus_text = str(FOCUS_INFINITY) if not np.isfinite(focus) else f"{focus:g}"
-    start = np.datetime_as_string(times[0], unit="ms")
+    start = np.datetime_as_string(start_time, unit="ms")
     start_text = start[:10].replace("-", "") + " " + start[11:22]
     scan_type = str(ds.attrs.get("scan_type", "VAD"))
     which = "Altitude" if scan_type.startswith("Stare") else "Range"
     res = float(ds.attrs.get("velocity_resolution_m_s", 0.0382))
     spectral = ds.attrs.get("instrument_spectral_width_m_s")
-    header = [
+    return [
         f"Filename:\t{filename}",
         f"System ID:\t{ds.attrs.get('system_id', '0')}",
         f"Number of gates:\t{n_gates}",
@@ -583,18 +624,6 @@ def hpl_text(ds: xr.Dataset, filename: str) -> str:
         "i3,1x,f6.4,1x,f8.6,1x,e12.6" + (",1x,f6.4" if has_sw else "") + " - repeat for no. gates",
         "****" + (f" Instrument spectral width = {float(spectral):.6f}" if spectral else ""),
     ]
-    ray = np.char.add(np.char.mod("%.8f", hours), np.char.mod(" %6.2f", az))
-    ray = np.char.add(ray, np.char.mod(" %6.2f", el))
-    if has_pr:
-        ray = np.char.add(ray, np.char.mod(" %.2f", ds["pitch"].values))
-        ray = np.char.add(ray, np.char.mod(" %.2f", ds["roll"].values))
-    beta = ds["beta"].values if "beta" in ds else np.zeros((n_rays, n_gates))
-    columns = [ds["radial_velocity"].values, ds["snr"].values + 1.0, _beta_strings(beta)]
-    formats = ["%.4f", "%.6f", "%12s"]
-    if has_sw:
-        columns.append(ds["spectral_width"].values)
-        formats.append("%.4f ")
-    return "\r\n".join(header) + "\r\n" + _data_lines(ray.tolist(), columns, formats)
 
 
 def write_hpl(ds: xr.Dataset, path: str | os.PathLike) -> Path:

@@ -386,49 +386,13 @@ def diagnose(
             token = bad[0].decode("latin-1")
             return InputFileError(path, f"field {token[:20]!r} is not a number{cut}", line_no)
         if pos == 0:
-            if b"." not in tokens[0]:
-                restart = (
-                    ": the gate index restarts without a ray line"
-                    if row and tokens[0] == b"0"
-                    else ""
-                )
-                return InputFileError(
-                    path,
-                    f"expected a ray line (decimal time, azimuth, elevation) "
-                    f"{f'after {n_gates} gate lines ' if row else ''}but found gate index "
-                    f"{tokens[0].decode('latin-1')}{restart}",
-                    line_no,
-                )
-            if len(tokens) not in ray_ok:
-                return InputFileError(
-                    path,
-                    f"ray line has {len(tokens)} fields, expected "
-                    + " or ".join(map(str, ray_ok))
-                    + cut,
-                    line_no,
-                )
+            problem = _ray_line_problem(tokens, row, n_gates, ray_ok, cut)
+            if problem:
+                return InputFileError(path, problem, line_no)
             continue
-        gate = pos - 1
-        if b"." in tokens[0] and len(tokens) in (3, 5):
-            return InputFileError(
-                path,
-                f"ray line after only {gate} of {n_gates} gate lines (Number of gates: {n_gates})",
-                line_no,
-            )
-        if len(tokens) not in gate_ok:
-            return InputFileError(
-                path,
-                f"gate line has {len(tokens)} fields, expected "
-                + " or ".join(map(str, gate_ok))
-                + cut,
-                line_no,
-            )
-        if b"." in tokens[0] or float(tokens[0]) != gate:
-            index = tokens[0].decode("latin-1")
-            hint = ": the gate index restarts without a ray line" if index == "0" else ""
-            return InputFileError(
-                path, f"gate index {index} where {gate} was expected{hint}", line_no
-            )
+        problem = _gate_line_problem(tokens, pos - 1, n_gates, gate_ok, cut)
+        if problem:
+            return InputFileError(path, problem, line_no)
         if gate_fields is None:
             gate_ok = (len(tokens),)
         if ray_fields is None:
@@ -443,3 +407,42 @@ def diagnose(
             first + start_row,
         )
     return InputFileError(path, "inconsistent ray block", first + start_row)
+
+
+def _ray_line_problem(
+    tokens: list[bytes], row: int, n_gates: int, ray_ok: tuple[int, ...], cut: str
+) -> str:
+    """What is wrong with the numbers ``tokens`` of body row ``row`` read as a ray line
+    ('' when nothing); ``ray_ok``: the field counts accepted, ``cut``: a hint appended
+    when the line is the cut last one."""
+    if b"." not in tokens[0]:
+        restart = (
+            ": the gate index restarts without a ray line" if row and tokens[0] == b"0" else ""
+        )
+        return (
+            f"expected a ray line (decimal time, azimuth, elevation) "
+            f"{f'after {n_gates} gate lines ' if row else ''}but found gate index "
+            f"{tokens[0].decode('latin-1')}{restart}"
+        )
+    if len(tokens) not in ray_ok:
+        return f"ray line has {len(tokens)} fields, expected " + " or ".join(map(str, ray_ok)) + cut
+    return ""
+
+
+def _gate_line_problem(
+    tokens: list[bytes], gate: int, n_gates: int, gate_ok: tuple[int, ...], cut: str
+) -> str:
+    """What is wrong with the numbers ``tokens`` read as the line of gate ``gate`` (''
+    when nothing); ``gate_ok``: the field counts accepted, ``cut`` as for
+    :func:`_ray_line_problem`."""
+    if b"." in tokens[0] and len(tokens) in (3, 5):
+        return f"ray line after only {gate} of {n_gates} gate lines (Number of gates: {n_gates})"
+    if len(tokens) not in gate_ok:
+        return (
+            f"gate line has {len(tokens)} fields, expected " + " or ".join(map(str, gate_ok)) + cut
+        )
+    if b"." in tokens[0] or float(tokens[0]) != gate:
+        index = tokens[0].decode("latin-1")
+        hint = ": the gate index restarts without a ray line" if index == "0" else ""
+        return f"gate index {index} where {gate} was expected{hint}"
+    return ""

@@ -152,20 +152,12 @@ def read_windcube_rtd(
     if lines[-1] == "":
         lines.pop()
     column_line, items = parse_windcube_header(path, lines)
-    names = lines[column_line - 1].split("\t")
-    if not is_rtd_column_line(lines[column_line - 1]):
-        raise InputFileError(
-            path,
-            f"expected the .rtd column header ('Timestamp' or 'Date', then 'Position', "
-            f"TAB-separated) on line {column_line}, found {names[0][:40]!r}",
-            column_line,
-        )
+    names = _column_names(path, lines[column_line - 1], column_line)
     layout = "v1" if names[0].strip() == "Date" else "v2/v2.1"
-    altitudes = header_altitudes(path, items)
     if layout != "v1":
         heights, hcols = _long_layout(path, names, column_line)
     else:
-        heights, hcols = _v1_layout(path, names, column_line, altitudes)
+        heights, hcols = _v1_layout(path, names, column_line, header_altitudes(path, items))
     table = record_table(path, lines[column_line:], names, column_line)
     first = column_line + 1
     offset, sync = utc_offset(path, items, utc_offset_hours)
@@ -187,6 +179,26 @@ def read_windcube_rtd(
         n_missing=n_missing,
     )
     return wind_record_dataset(data_vars, times, heights_sorted, attrs)
+
+
+def _column_names(path: Path, line: str, number: int) -> list[str]:
+    """The TAB-separated column names of the ``.rtd`` column header ``line``.
+
+    Raises
+    ------
+    InputFileError
+        The line is not an ``.rtd`` column header (``Timestamp`` or ``Date``, then
+        ``Position``).
+    """
+    names = line.split("\t")
+    if not is_rtd_column_line(line):
+        raise InputFileError(
+            path,
+            f"expected the .rtd column header ('Timestamp' or 'Date', then 'Position', "
+            f"TAB-separated) on line {number}, found {names[0][:40]!r}",
+            number,
+        )
+    return names
 
 
 def _long_layout(
