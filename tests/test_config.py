@@ -111,3 +111,15 @@ def test_the_retired_homodyne_key_is_refused_by_name(value):
     assert err.value.key == "instrument.homodyne"
     assert "comes from the data" in err.value.problem
     assert str(err.value).startswith("old.toml: ")
+
+
+def test_wind_record_is_another_name_of_the_zephir_section():
+    """``[wind_record]`` (the QC of ZephIR and WindCube records) reads as ``[zephir]``;
+    the provenance keeps writing ``[zephir]``, and giving both is an error naming it."""
+    cfg = config_from_toml("[wind_record]\nmin_packets = 30\n", source="x.toml")
+    assert cfg.zephir.min_packets == 30
+    assert cfg == config_from_toml("[zephir]\nmin_packets = 30\n", source="x.toml")
+    assert Config().replace(wind_record={"max_rain_percent": 10.0}).zephir.max_rain_percent == 10
+    with pytest.raises(ConfigError, match="wind_record") as info:
+        config_from_toml("[wind_record]\nmin_packets = 30\n[zephir]\nmin_packets = 3\n")
+    assert "give one of them" in str(info.value)
