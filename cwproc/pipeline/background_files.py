@@ -127,7 +127,7 @@ class SnrCorrection:
         return SnrCorrection(parts[0].method, files, done, summary)
 
 
-def corrected_snr(
+def snr_corrected_scans(
     scans: xr.Dataset,
     unit: ProductUnit,
     config: Config,

@@ -34,7 +34,7 @@ import xarray as xr
 from cwproc import memory
 from cwproc.config import Config
 from cwproc.errors import CwprocError
-from cwproc.pipeline.background_files import SnrCorrection, corrected_snr
+from cwproc.pipeline.background_files import SnrCorrection, snr_corrected_scans
 from cwproc.pipeline.probe import probe_attrs, probe_for, probe_mismatch, pulse_rate_hz
 from cwproc.pipeline.product_units import ProductUnit
 
@@ -261,7 +261,7 @@ class ScanChain:
         chunk). The summary line is the record's (:class:`SnrCorrection`): the caller
         writes one for the day.
         """
-        return corrected_snr(chunk, unit, self.config, notes, files=files)
+        return snr_corrected_scans(chunk, unit, self.config, notes, files=files)
 
     def split(self, ds: xr.Dataset) -> tuple[xr.Dataset | None, xr.Dataset | None]:
         """Per ray: ``(stares, others)``, the vertical stares and the other rays."""
