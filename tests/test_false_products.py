@@ -270,7 +270,7 @@ TOB1 = SAMPLE / "sonic" / "TOB1_999.ts_data_2024_06_01_1200.dat"
 
 def tob1_parts() -> tuple[bytes, np.ndarray]:
     """The TOB1 sample's header bytes and its records (their dtype from the header)."""
-    from cwproc.io.campbell import tob1_dtype
+    from cwproc.io.campbell_tob1 import tob1_dtype
 
     raw = TOB1.read_bytes()
     lines = raw.split(b"\n", 5)

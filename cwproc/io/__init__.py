@@ -46,7 +46,7 @@ READERS: dict[Format, str] = {
     Format.WINDCUBE_STA: "cwproc.io.windcube:read_windcube_sta",
     Format.WINDCUBE_RTD: "cwproc.io.windcube_rtd:read_windcube_rtd",
     Format.TOA5: "cwproc.io.campbell:read_toa5",
-    Format.TOB1: "cwproc.io.campbell:read_tob1",
+    Format.TOB1: "cwproc.io.campbell_tob1:read_tob1",
     Format.GHG: "cwproc.io.licor:read_ghg",
     Format.METEO2: "cwproc.io.meteo2:read_meteo2",
     Format.GILL: "cwproc.io.gill:read_gill",

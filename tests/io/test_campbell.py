@@ -10,7 +10,8 @@ from hypothesis import strategies as st
 
 from cwproc.errors import InputFileError
 from cwproc.io import Format, campbell, detect_format
-from cwproc.io.campbell import decode_fp2, read_toa5, read_tob1
+from cwproc.io.campbell import read_toa5
+from cwproc.io.campbell_tob1 import decode_fp2, read_tob1
 
 TOA5 = "sonic/TOA5_6843.ts_Above_2012_06_07_1245.dat"
 TOB1 = "sonic/testing.tob"
