@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cwproc.io import read
+from cwproc.io import read_file
 from cwproc.io.halo_background import read_halo_background
 from cwproc.physics.background import signal_free_gates
 from cwproc.stages.background import correct_snr
@@ -78,7 +78,7 @@ def noise_sd(snr: np.ndarray, rng: np.ndarray) -> float:
 
 
 def run_case(site: str, hpl: Path, bg: Path | None) -> None:
-    ds = read(hpl)
+    ds = read_file(hpl)
     rng = np.asarray(ds["range"].values, dtype=float)
     print(f"{site}: {hpl.name} ({ds.sizes['ray']} rays x {rng.size} gates)")
     if bg is None:

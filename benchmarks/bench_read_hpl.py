@@ -43,7 +43,7 @@ import xarray as xr
 
 from cwproc.io.halo import read_hpl, write_hpl
 from cwproc.io.halo_files import read_hpl_files
-from cwproc.io.scans import concat_scans
+from cwproc.io.scan_join import concat_scans
 
 #: real files below this size (bytes) are "small" (per-call costs dominate)
 _SMALL_BYTES = 100_000
@@ -215,7 +215,7 @@ import numpy as np
 import xarray as xr
 from cwproc.io.halo import read_hpl
 from cwproc.io.halo_files import read_hpl_files
-from cwproc.io.scans import concat_scans
+from cwproc.io.scan_join import concat_scans
 paths = sorted(Path(sys.argv[2]).glob("*.hpl"))
 if sys.argv[1] == "reversed":
     paths = paths[::-1]

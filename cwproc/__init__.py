@@ -46,7 +46,7 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers and editors
         preset_names,
     )
     from cwproc.errors import ConfigError, CwprocError, InputFileError
-    from cwproc.io.scans import concat_scans
+    from cwproc.io.scan_join import concat_scans
 
 __all__ = [
     "BackgroundConfig",
@@ -101,7 +101,7 @@ _HOMES = {
     "InputFileError": "cwproc.errors",
     "ConfigError": "cwproc.errors",
     "stages": "cwproc.stages",
-    "concat_scans": "cwproc.io.scans",
+    "concat_scans": "cwproc.io.scan_join",
 }
 
 

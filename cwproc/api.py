@@ -17,7 +17,7 @@ functions themselves (``cwproc.stages``) take plain keyword arguments whose defa
 are those of the instrument presets, and their outputs carry the units and long names
 of the metadata table (:mod:`cwproc.metadata`).
 
-Join the files of a record with :func:`read` (or :func:`cwproc.io.scans.concat_scans`),
+Join the files of a record with :func:`read` (or :func:`cwproc.io.scan_join.concat_scans`),
 never ``xarray.concat``: every file numbers its scans from 0, and the scan stages refuse
 a dataset whose scan numbers collide across files (:mod:`cwproc.stages.scan_guard`).
 """
@@ -37,9 +37,8 @@ import xarray as xr
 
 from cwproc.config import Config, load_config
 from cwproc.errors import CwprocError, InputFileError
-from cwproc.io import KIND, FileIdentity, Format, detect_format, is_regular_file
-from cwproc.io import read as read_file
-from cwproc.io.scans import concat_scans
+from cwproc.io import KIND, FileIdentity, Format, detect_format, is_regular_file, read_file
+from cwproc.io.scan_join import concat_scans
 from cwproc.metadata import PRODUCTS, apply_metadata
 from cwproc.pipeline import (
     InputFile,
@@ -48,9 +47,9 @@ from cwproc.pipeline import (
     run_unit,
     write_unit_products,
 )
-from cwproc.pipeline.inputs import expand_inputs
+from cwproc.pipeline.file_search import expand_inputs
+from cwproc.pipeline.product_units import concat_sonic, name_part
 from cwproc.pipeline.retrieve import dataset_units, default_presets, preset_note
-from cwproc.pipeline.units import concat_sonic, name_part
 from cwproc.products.catalogue import describe_product, product_kind
 from cwproc.products.writer import add_site_coordinates, write_product
 
@@ -64,7 +63,7 @@ def read(
 
     Like :func:`xarray.open_mfdataset` for cwproc's inputs: several scan files become
     one scan dataset whose scans are numbered over the whole record (rays in time
-    order, :func:`cwproc.io.scans.concat_scans`), so that scan ``k`` of one file is
+    order, :func:`cwproc.io.scan_join.concat_scans`), so that scan ``k`` of one file is
     never merged with scan ``k`` of the next, as ``xarray.concat`` would do.
 
     Parameters

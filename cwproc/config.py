@@ -400,6 +400,7 @@ class Config:
         """
         data = dataclasses.asdict(self)
         for name, value in sections.items():
+            name = SECTION_ALIASES.get(name, name)  # [wind_record] is [zephir]
             if dataclasses.is_dataclass(value):
                 value = dataclasses.asdict(value)
             if name in data and isinstance(data[name], dict) and isinstance(value, dict):
@@ -552,10 +553,26 @@ def config_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Config:
     """Validate a nested dict (as read from TOML) into a :class:`Config`."""
     data = dict(data)
     data.pop("source", None)
+    _resolve_section_aliases(data, source)
     _check_moved_keys(data, source)
     _check_reader_tables(data.get("reader"), source)
     cfg = _build(Config, data, source, "")
     return dataclasses.replace(cfg, source=source)
+
+
+#: another name of a section: alias -> the section's name in :class:`Config`
+SECTION_ALIASES = {"wind_record": "zephir"}
+
+
+def _resolve_section_aliases(data: dict[str, Any], source: str) -> None:
+    """Read ``[wind_record]`` as ``[zephir]``: the section holds the QC of every wind
+    record (ZephIR and WindCube), and either name is accepted (not both)."""
+    for alias, name in SECTION_ALIASES.items():
+        if alias not in data:
+            continue
+        if name in data:
+            raise ConfigError(source, alias, f"the same section as [{name}]: give one of them")
+        data[name] = data.pop(alias)
 
 
 _SONIC_ORIENTATION_MOVED = (

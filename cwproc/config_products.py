@@ -129,7 +129,7 @@ class SonicConfig:
 
 @dataclass(frozen=True)
 class ZephirConfig:
-    """QC of ZephIR wind records."""
+    """QC of wind records, ZephIR and WindCube (``[zephir]``, also ``[wind_record]``)."""
 
     #: fewest 1-s scan packets in a 10-min average at one height; ZephIR 300 cycling 11
     #: heights gets at most 36-37 per 10 min (unit 317 export), and Wagner et al. (DTU),

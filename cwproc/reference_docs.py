@@ -187,7 +187,7 @@ def commands_markdown() -> str:
 
 #: sections of the API page: title and the modules whose public names it lists
 API_SECTIONS = (
-    ("Reading, retrieving and writing", ("cwproc.api", "cwproc.io.scans")),
+    ("Reading, retrieving and writing", ("cwproc.api", "cwproc.io.scan_join")),
     ("Configuration", ("cwproc.config", "cwproc.config_products")),
     ("Errors", ("cwproc.errors",)),
 )

@@ -497,7 +497,7 @@ def test_lock_of_a_killed_process_is_taken_over(tmp_path):
 #: what ``pipeline.process_scans`` imports (structure/epsilon even with turbulence off)
 _PIPELINE_MODULES = (
     "cwproc.io.halo",
-    "cwproc.io.scans",
+    "cwproc.io.scan_join",
     "cwproc.stages.qc",
     "cwproc.stages.vad",
     "cwproc.stages.structure",

@@ -13,7 +13,7 @@ import pytest
 
 import cwproc.batch.run as batch_run
 import cwproc.io.netcdf as netcdf
-import cwproc.pipeline.units as units
+import cwproc.pipeline.input_files as input_files
 from cwproc.batch import STATE_DIR, load_ledger, plan_units, process_unit_task, run_batch
 from cwproc.batch.run import (
     CLASSIFY_BATCH_FILES,
@@ -98,7 +98,7 @@ def whole_checksums(monkeypatch) -> Counter:
         counts[os.fspath(path)] += 1
         return original(path, *rest, **kw)
 
-    monkeypatch.setattr(units, "sha256_file", counting)
+    monkeypatch.setattr(input_files, "sha256_file", counting)
     return counts
 
 

@@ -12,7 +12,7 @@ import xarray as xr
 
 from cwproc.config import load_config
 from cwproc.pipeline import group_units, read_input, screened_wind
-from cwproc.pipeline.units import concat_unit
+from cwproc.pipeline.product_units import concat_unit
 from cwproc.sim.sample_data import StreamLineSpec, write_streamline_series
 from cwproc.stages.structure import azimuth_structure_function
 
@@ -53,7 +53,7 @@ def test_stage_imports_are_found(source, stages):
 
 def test_only_the_scan_chain_knows_the_stage_order():
     """The executor (stream.py) and the entry (run.py) import no stage; the scan
-    chain's stages are imported by scan_chain.py alone (background.py wraps the SNR
+    chain's stages are imported by scan_chain.py alone (background_files.py wraps the SNR
     correction stage that ScanChain.prepare calls)."""
     by_module = {
         p.name: stage_imports(p.read_text(encoding="utf-8")) for p in PIPELINE.glob("*.py")
@@ -62,7 +62,7 @@ def test_only_the_scan_chain_knows_the_stage_order():
     assert SCAN_STAGES <= by_module["scan_chain.py"]
     others = {n: found & SCAN_STAGES for n, found in by_module.items() if n != "scan_chain.py"}
     assert not any(others.values()), others
-    assert {n for n, found in by_module.items() if "background" in found} == {"background.py"}
+    assert {n for n, found in by_module.items() if "background" in found} == {"background_files.py"}
 
 
 def test_no_allocator_tuning_in_library_code():

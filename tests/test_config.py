@@ -104,10 +104,22 @@ def test_cli_names_the_new_preset_when_the_old_one_is_used(tmp_path):
 @pytest.mark.parametrize("value", ["true", "false"])
 def test_the_retired_homodyne_key_is_refused_by_name(value):
     """Homodyne detection is a property of the data (the scans' ``homodyne`` attribute,
-    read by :func:`cwproc.io.scans.is_homodyne`); an ``[instrument] homodyne`` that
+    read by :func:`cwproc.io.scan_join.is_homodyne`); an ``[instrument] homodyne`` that
     nothing reads would pretend to control it."""
     with pytest.raises(ConfigError) as err:
         config_from_toml(f"[instrument]\nkind = 'cw'\nhomodyne = {value}\n", source="old.toml")
     assert err.value.key == "instrument.homodyne"
     assert "comes from the data" in err.value.problem
     assert str(err.value).startswith("old.toml: ")
+
+
+def test_wind_record_is_another_name_of_the_zephir_section():
+    """``[wind_record]`` (the QC of ZephIR and WindCube records) reads as ``[zephir]``;
+    the provenance keeps writing ``[zephir]``, and giving both is an error naming it."""
+    cfg = config_from_toml("[wind_record]\nmin_packets = 30\n", source="x.toml")
+    assert cfg.zephir.min_packets == 30
+    assert cfg == config_from_toml("[zephir]\nmin_packets = 30\n", source="x.toml")
+    assert Config().replace(wind_record={"max_rain_percent": 10.0}).zephir.max_rain_percent == 10
+    with pytest.raises(ConfigError, match="wind_record") as info:
+        config_from_toml("[wind_record]\nmin_packets = 30\n[zephir]\nmin_packets = 3\n")
+    assert "give one of them" in str(info.value)

@@ -31,7 +31,7 @@ from hypothesis import strategies as st
 
 from cwproc.cli import main
 from cwproc.errors import CwprocError
-from cwproc.io import read
+from cwproc.io import read_file
 from cwproc.io.ranges import ranges_for
 from cwproc.io.timecheck import first_implausible
 
@@ -112,7 +112,7 @@ def own_time_span(name: str) -> tuple[np.datetime64, np.datetime64]:
     if name == "scan_netcdf":
         name = "hpl"
     path, options = FILES[name]
-    times = read(path, **options)["time"].values
+    times = read_file(path, **options)["time"].values
     return times.min(), times.max()
 
 
@@ -159,7 +159,7 @@ def test_damaged_file_is_an_error_or_a_sane_dataset(
     bad = tmp_path / f"damaged{path.suffix}"
     bad.write_bytes(damage(raw, kind, where, junk))
     try:
-        ds = read(bad, **options)
+        ds = read_file(bad, **options)
     except CwprocError as exc:
         text = str(exc)
         assert "internal error" not in text

@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cwproc.errors import InputFileError
-from cwproc.io import read
+from cwproc.io import read_file
 from cwproc.io.timecheck import set_plausible_window
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data"
@@ -57,7 +57,7 @@ def test_a_year_beyond_the_nanosecond_range_is_refused_as_written(tmp_path, name
     (``.hpl`` starting in 2590 gave ``..._20051111_wind.nc``); 1600 and 2300 were
     refused with the wrapped date in the message. Now: refused, the year as written."""
     with pytest.raises(InputFileError, match="outside the plausible range") as err:
-        read(redated(name, year, tmp_path))
+        read_file(redated(name, year, tmp_path))
     assert str(year) in str(err.value)
     assert "2005" not in str(err.value) and "2004" not in str(err.value)
 
@@ -66,9 +66,9 @@ def test_the_configuration_widens_the_window(tmp_path):
     """A 1990 file is refused by default and read once the configuration widens it."""
     old = redated("toa5", 1990, tmp_path)
     with pytest.raises(InputFileError, match="'1990-06-01 12:00:00'"):
-        read(old)
+        read_file(old)
     set_plausible_window("1985-01-01")
-    ds = read(old)
+    ds = read_file(old)
     assert str(ds["time"].values[0]).startswith("1990-06-01T12:00")
 
 
@@ -101,7 +101,7 @@ def test_a_sparse_2gb_file_behind_a_valid_header_is_refused_unread(tmp_path, dat
     before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     start = time.process_time()
     with pytest.raises(InputFileError, match=r"NUL byte at byte \d+ .* refused unread"):
-        read(path)
+        read_file(path)
     assert time.process_time() - start < 5.0
     assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 200_000  # kB
 
@@ -270,7 +270,7 @@ TOB1 = SAMPLE / "sonic" / "TOB1_999.ts_data_2024_06_01_1200.dat"
 
 def tob1_parts() -> tuple[bytes, np.ndarray]:
     """The TOB1 sample's header bytes and its records (their dtype from the header)."""
-    from cwproc.io.campbell import tob1_dtype
+    from cwproc.io.campbell_tob1 import tob1_dtype
 
     raw = TOB1.read_bytes()
     lines = raw.split(b"\n", 5)
@@ -300,7 +300,7 @@ def test_garbage_records_with_believable_times_invent_no_day(tmp_path, where):
     )
     path = tmp_path / "TOB1_garbage.dat"
     path.write_bytes(header + body.tobytes())
-    ds = read(path)
+    ds = read_file(path)
     assert ds.sizes["time"] == records.size
     assert np.unique(ds["time"].values.astype("datetime64[D]")).tolist() == [
         np.datetime64("2024-06-01", "D")
@@ -322,7 +322,7 @@ def test_bytes_inserted_mid_file_do_not_drop_the_rest(tmp_path, n_bytes):
     at = len(header) + 32 * 2000 + 17  # inside record 2001
     path = tmp_path / "TOB1_inserted.dat"
     path.write_bytes(raw[:at] + b"\xa5" * n_bytes + raw[at:])
-    ds = read(path)
+    ds = read_file(path)
     assert ds.sizes["time"] == records.size - 1
     assert any(
         f"{32 + n_bytes} byte(s) skipped, 1 record(s) lost" in w for w in ds.attrs["warnings"]
@@ -363,8 +363,8 @@ def test_an_impossible_mean_vertical_wind_is_missing_not_good(tmp_path, name):
     from cwproc.io.ranges import ranges_for
 
     assert ranges_for("wind_record")["w"] == (-10.0, 10.0)
-    whole = read(RECORDS[name][0])
-    ds = read(edited_record(name, tmp_path, RECORDS[name][3], _decimal(name, "-50.0")))
+    whole = read_file(RECORDS[name][0])
+    ds = read_file(edited_record(name, tmp_path, RECORDS[name][3], _decimal(name, "-50.0")))
     w = ds["w"].values
     assert np.count_nonzero(np.isnan(w)) == np.count_nonzero(np.isnan(whole["w"].values)) + 1
     assert np.nanmax(np.abs(w)) <= 10.0
@@ -376,8 +376,8 @@ def test_an_impossible_mean_vertical_wind_is_missing_not_good(tmp_path, name):
 def test_one_missing_or_infinite_cell_is_one_missing_value(tmp_path, name, cell):
     """One empty cell made the ZephIR reader refuse a whole day; ``inf`` was an error for
     one reader and a value for the other. Now both: that value missing, the rest read."""
-    whole = read(RECORDS[name][0])
-    ds = read(edited_record(name, tmp_path, RECORDS[name][4], cell))
+    whole = read_file(RECORDS[name][0])
+    ds = read_file(edited_record(name, tmp_path, RECORDS[name][4], cell))
     speed = ds["wind_speed"].values
     assert speed.shape == whole["wind_speed"].values.shape
     assert (
@@ -403,7 +403,7 @@ def test_any_year_outside_the_window_is_refused_as_written(name, year):
     set_plausible_window()
     with tempfile.TemporaryDirectory() as tmp:
         with pytest.raises(InputFileError, match="outside the plausible range") as err:
-            read(redated(name, year, Path(tmp)))
+            read_file(redated(name, year, Path(tmp)))
     assert str(year) in str(err.value)
 
 

@@ -8,11 +8,12 @@ import xarray as xr
 
 from cwproc.config import load_config
 from cwproc.pipeline import group_units, process_scan_day, read_input
-from cwproc.pipeline.background import correct_background
+from cwproc.pipeline.background_files import correct_background
+from cwproc.pipeline.input_files import load_item
+from cwproc.pipeline.product_units import concat_unit
 from cwproc.pipeline.run import unit_products
 from cwproc.pipeline.scan_chain import DayDecisions
 from cwproc.pipeline.stream import stream_unit
-from cwproc.pipeline.units import concat_unit, load_item
 from cwproc.sim.sample_data import StreamLineSpec, write_streamline_series
 from cwproc.sim.stare import write_stare_series
 
@@ -137,7 +138,7 @@ def test_header_identity_groups_like_the_full_read(tmp_path, config):
 def test_each_input_is_checksummed_once(tmp_path, config, monkeypatch):
     """Grouping takes the checksum; the unit reads an unchanged file without a second one,
     and the products record the same checksum (provenance)."""
-    import cwproc.pipeline.units as units
+    import cwproc.pipeline.input_files as input_files
     from cwproc.io.netcdf import sha256_file
 
     spec = StreamLineSpec(n_scans=12, scans_per_file=1, n_gates=24, seed=17)
@@ -149,7 +150,7 @@ def test_each_input_is_checksummed_once(tmp_path, config, monkeypatch):
         calls.append(str(path))
         return sha256_file(path)
 
-    monkeypatch.setattr(units, "sha256_file", counted)
+    monkeypatch.setattr(input_files, "sha256_file", counted)
     items = [read_input(p, config, identify_only=True) for p in paths]
     (unit,) = group_units(items)
     streamed = unit_products(unit, config, [], chunk_bytes=SMALL_CHUNK)
@@ -185,7 +186,7 @@ def test_checksums_left_to_the_read_are_taken_by_it(tmp_path, config, monkeypatc
     products are those of the whole day."""
     import threading
 
-    import cwproc.pipeline.units as units
+    import cwproc.pipeline.input_files as input_files
     from cwproc.io import halo_files
     from cwproc.io.netcdf import sha256_file
 
@@ -202,7 +203,7 @@ def test_checksums_left_to_the_read_are_taken_by_it(tmp_path, config, monkeypatc
     write_streamline_series(tmp_path / "day", tmp_path / "truth.json", spec)
     paths = sorted((tmp_path / "day").glob("*.hpl"))
     calls: list[str] = []
-    monkeypatch.setattr(units, "sha256_file", lambda path: calls.append(str(path)) or "")
+    monkeypatch.setattr(input_files, "sha256_file", lambda path: calls.append(str(path)) or "")
     items = [read_input(p, config, identify_only=True, checksum=False) for p in paths]
     assert all(i.sha256 is None and i.signature is not None for i in items)
     (unit,) = group_units(items)
@@ -433,7 +434,7 @@ def test_read_inputs_keeps_the_order_and_hands_errors_in_place(monkeypatch):
     from cwproc.errors import InputFileError
     from cwproc.io import Format
     from cwproc.pipeline import retrieve
-    from cwproc.pipeline.units import Examined
+    from cwproc.pipeline.input_files import Examined
 
     lock = threading.Lock()
     started: list[str] = []

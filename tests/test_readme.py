@@ -304,7 +304,7 @@ def test_output_table_of_the_readme_completes_the_acdd_attributes(tmp_path):
     from click.testing import CliRunner
 
     from cwproc.cli import main
-    from cwproc.products.metadata import VARIABLES
+    from cwproc.metadata.products import VARIABLES
 
     (table,) = [b for b in readme_blocks() if b.lang == "toml" and b.lines[0] == "[output]"]
     preset = (REPO / "configs" / "streamline.toml").read_text(encoding="utf-8")
@@ -338,7 +338,7 @@ def cwproc_names() -> set[str]:
 
     import cwproc
     from cwproc.config import Config
-    from cwproc.products.metadata import VARIABLES
+    from cwproc.metadata.products import VARIABLES
 
     names: set[str] = set(VARIABLES)
     for info in pkgutil.walk_packages(cwproc.__path__, "cwproc."):

@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from cwproc.errors import CwprocError
-from cwproc.io import read
+from cwproc.io import read_file
 from cwproc.io.ranges import ranges_for
 from cwproc.io.timecheck import first_implausible
 
@@ -176,7 +176,7 @@ def mutate(raw: bytes, name: str, rng: np.random.Generator, binary: bool) -> byt
 
 def own_span(path: Path, options: dict) -> tuple[np.datetime64, np.datetime64]:
     """First and last time of the undamaged file."""
-    t = read(path, **options)["time"].values
+    t = read_file(path, **options)["time"].values
     return t.min(), t.max()
 
 
@@ -281,7 +281,7 @@ def run(per_format: int, seed: int, timeout_s: int, retrieve_every: int) -> Coun
                     check_retrieve(bad, folder / f"out_{fmt}_{k}", presets[fmt], kind, case, counts)
                 signal.alarm(timeout_s)
                 try:
-                    ds = read(bad, **options)
+                    ds = read_file(bad, **options)
                 except Hang:
                     counts["hangs"] += 1
                     print(f"HANG {case}")

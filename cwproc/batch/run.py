@@ -38,15 +38,15 @@ from cwproc.batch.state import (
     unit_up_to_date,
 )
 from cwproc.batch.worker import (
-    _file_stat,
     classify_batch,
     classify_file,
+    file_size_mtime,
     process_unit_task,
     unclassified,
 )
 from cwproc.config import Config
 from cwproc.errors import CwprocError
-from cwproc.pipeline.units import distinct_keys
+from cwproc.pipeline.product_units import distinct_keys
 
 log = logging.getLogger("cwproc.batch")
 log.addHandler(logging.NullHandler())  # a library: the application decides where logs go
@@ -271,56 +271,110 @@ def run_batch(
     ledger_path = state_dir / LEDGER_NAME
     report = BatchReport(pinned_format=config.instrument.format)
     with output_lock(state_dir, wait_s=wait_s) as stale:
-        report.stale_lock = stale
-        if stale:
-            log.warning(kv_line("stale_lock", lock=state_dir / LOCK_NAME, previous=stale))
-        for path in remove_leftover_temporaries(outdir):
-            log.warning(kv_line("removed_temporary", path=path))
-        ledger = load_ledger(ledger_path)
-        files = discover_files(
-            input_dir, patterns, exclude=[outdir], errors=report.listing_failures
+        _note_stale_lock_and_leftovers(stale, state_dir, outdir, report)
+        run = _RunLedger(load_ledger(ledger_path), ledger_path, config_hash(config), report)
+        infos, todo = _plan_run(
+            run, input_dir, outdir, config, patterns, since, min_age_s, classify, client
         )
-        for line in report.listing_failures:
-            log.warning(kv_line("folder", status="failed", error=line))
-        report.discovered = len(files)
-        cfg_hash = config_hash(config)
-        infos, to_classify = _cached_or_new(files, ledger, cfg_hash, since, min_age_s, report)
-        infos += _classify_new(to_classify, classify, config, client, ledger, ledger_path)
-        if forget_vanished_files(ledger) or to_classify:
-            save_ledger(ledger, ledger_path)
-        _sort_files(infos, report)
-        planned = plan_units(infos, config, outdir, report.plan_notes)
-        todo = _units_to_do(planned, ledger, since, report)
         if on_plan is not None:
             on_plan(len(todo))
-        log.info(
-            kv_line(
-                "plan",
-                files=len(files),
-                classified=len(to_classify),
-                units=len(planned),
-                todo=len(todo),
-                up_to_date=report.units_up_to_date,
-            )
-        )
-        by_path = {i.path: i for i in infos}
-        for task, result in run_tasks(process, todo, client=client, retries=TASK_RETRIES):
-            outcome = _as_outcome(task, result)
-            task, outcome = with_checksums(task, outcome, ledger, cfg_hash)
-            if outcome.dropped:
-                task, outcome = _record_dropped(task, outcome, by_path, ledger, report, cfg_hash)
-            if not task.paths:  # every input unreadable: no unit, as if classified whole
-                save_ledger(ledger, ledger_path)
-                continue
-            record_outcome(ledger, task, outcome)
-            save_ledger(ledger, ledger_path)
-            report.processed.append(outcome)
-            _log_outcome(task, outcome)
-            if on_unit is not None:
-                on_unit(outcome)
-        save_ledger(ledger, ledger_path)  # the last changes; compacted only periodically
+        _run_units(run, process, todo, infos, client, on_unit)
+        run.save()  # the last changes; compacted only periodically
     report.seconds = time.perf_counter() - t0
     return report
+
+
+def _note_stale_lock_and_leftovers(
+    stale: Any, state_dir: Path, outdir: Path, report: BatchReport
+) -> None:
+    """Log a lock left by a killed run (kept in ``report``) and remove the temporaries
+    of unfinished writes in ``outdir``."""
+    report.stale_lock = stale
+    if stale:
+        log.warning(kv_line("stale_lock", lock=state_dir / LOCK_NAME, previous=stale))
+    for path in remove_leftover_temporaries(outdir):
+        log.warning(kv_line("removed_temporary", path=path))
+
+
+@dataclasses.dataclass(frozen=True)
+class _RunLedger:
+    """The ledger of a batch run, the file it is saved to, the configuration's hash
+    (part of every fingerprint) and the run's report."""
+
+    ledger: Ledger
+    path: Path
+    cfg_hash: str
+    report: BatchReport
+
+    def save(self) -> None:
+        """Write the ledger to its file (atomically, :func:`save_ledger`)."""
+        save_ledger(self.ledger, self.path)
+
+
+def _plan_run(
+    run: _RunLedger,
+    input_dir: Path,
+    outdir: Path,
+    config: Config,
+    patterns: Sequence[str],
+    since: _dt.date | None,
+    min_age_s: float,
+    classify: Callable[[str, str, str], FileInfo],
+    client: Any,
+) -> tuple[list[FileInfo], list[UnitTask]]:
+    """The files of the archive (classified: from the ledger or anew) and the units to
+    process; the ledger saved when classification changed it."""
+    ledger, report = run.ledger, run.report
+    files = discover_files(input_dir, patterns, exclude=[outdir], errors=report.listing_failures)
+    for line in report.listing_failures:
+        log.warning(kv_line("folder", status="failed", error=line))
+    report.discovered = len(files)
+    infos, to_classify = _cached_or_new(files, ledger, run.cfg_hash, since, min_age_s, report)
+    infos += _classify_new(to_classify, classify, config, client, ledger, run.path)
+    if forget_vanished_files(ledger) or to_classify:
+        run.save()
+    _sort_files(infos, report)
+    planned = plan_units(infos, config, outdir, report.plan_notes)
+    todo = _units_to_do(planned, ledger, since, report)
+    log.info(
+        kv_line(
+            "plan",
+            files=len(files),
+            classified=len(to_classify),
+            units=len(planned),
+            todo=len(todo),
+            up_to_date=report.units_up_to_date,
+        )
+    )
+    return infos, todo
+
+
+def _run_units(
+    run: _RunLedger,
+    process: Callable[[UnitTask], UnitOutcome],
+    todo: list[UnitTask],
+    infos: list[FileInfo],
+    client: Any,
+    on_unit: Callable[[UnitOutcome], None] | None,
+) -> None:
+    """Process the units to do (here or on ``client``), recording each outcome in the
+    ledger as it arrives (saved after each unit) and in the run's report."""
+    ledger, report, cfg_hash = run.ledger, run.report, run.cfg_hash
+    by_path = {i.path: i for i in infos}
+    for task, result in run_tasks(process, todo, client=client, retries=TASK_RETRIES):
+        outcome = _as_outcome(task, result)
+        task, outcome = with_checksums(task, outcome, ledger, cfg_hash)
+        if outcome.dropped:
+            task, outcome = _record_dropped(task, outcome, by_path, ledger, report, cfg_hash)
+        if not task.paths:  # every input unreadable: no unit, as if classified whole
+            run.save()
+            continue
+        record_outcome(ledger, task, outcome)
+        run.save()
+        report.processed.append(outcome)
+        _log_outcome(task, outcome)
+        if on_unit is not None:
+            on_unit(outcome)
 
 
 def checked_folders(input_dir: str | os.PathLike, outdir: str | os.PathLike) -> tuple[Path, Path]:
@@ -366,7 +420,7 @@ def _cached_or_new(
     settled_ns = time.time_ns() - int(min_age_s * 1e9)
     for path in map(os.fspath, files):
         try:
-            size, mtime_ns = _file_stat(path)
+            size, mtime_ns = file_size_mtime(path)
         except OSError:
             continue  # vanished since discovery
         if min_age_s > 0 and mtime_ns > settled_ns:

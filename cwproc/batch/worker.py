@@ -26,6 +26,7 @@ from cwproc.batch.records import (
     UnitTask,
     parsed_config,
 )
+from cwproc.config import Config
 from cwproc.errors import CwprocError, InputFileError, ProductError
 from cwproc.io import Format, is_cwproc_product, sniff_format
 from cwproc.pipeline import (
@@ -65,7 +66,8 @@ def _first_time_iso(item: InputFile) -> str:
     return np.datetime_as_string(np.min(t).astype("datetime64[s]"), unit="s") + "Z"
 
 
-def _file_stat(path: str) -> tuple[int, int]:
+def file_size_mtime(path: str) -> tuple[int, int]:
+    """Size (bytes) and modification time (ns) of a file, as the ledger records them."""
     st = os.stat(path)
     return st.st_size, st.st_mtime_ns
 
@@ -114,33 +116,17 @@ def classify_file(
     """
     config, chash = parsed_config(config_toml, config_source)
     try:
-        size, mtime_ns = _file_stat(path)
+        size, mtime_ns = file_size_mtime(path)
         with open(path, "rb") as fh:
             head = fh.read(_HEAD_BYTES)
     except OSError as exc:
         return FileInfo(path, 0, 0, "error", error=f"{path}: cannot read: {exc.strerror or exc}")
     base = FileInfo(path, size, mtime_ns, "unrecognised", config_hash=chash)
-    if not head:
-        return replace(base, error=f"{path}: file is empty")
     fmt = sniff_format(head)
-    if fmt is None:
-        return replace(base, error=f"{path}:1: not a format cwproc reads")
-    if fmt is Format.SCAN_NETCDF and is_cwproc_product(path):
-        return replace(
-            base,
-            format=PRODUCT_FORMAT,
-            error=f"{path}: a cwproc product, not an instrument file: skipped",
-        )
-    if fmt is Format.HALO_BACKGROUND:
-        return replace(
-            base,
-            format=fmt.value,
-            error=f"{path}: a Stream Line background file (used for the SNR of the scans "
-            "beside it, not a product input): skipped",
-        )
-    mismatch = format_mismatch(path, fmt, config)
-    if mismatch:
-        return replace(base, status="other_format", format=fmt.value, error=mismatch)
+    skipped = _skipped_by_its_head(path, head, fmt, base, config)
+    if skipped is not None:
+        return skipped
+    assert fmt is not None
     try:
         with local_dask_scheduler():
             item = read_input(path, config, identify_only=not whole, checksum=checksum)
@@ -168,6 +154,35 @@ def classify_file(
         start=_first_time_iso(item),
         identity=json.dumps({"fields": identity, "span": sonic_span(item)}) if identity else "",
     )
+
+
+def _skipped_by_its_head(
+    path: str, head: bytes, fmt: Format | None, base: FileInfo, config: Config
+) -> FileInfo | None:
+    """The record of a file its first bytes already rule out (empty, not a format cwproc
+    reads, a cwproc product, a background file, a format the configuration does not
+    read); None for a file to read."""
+    if not head:
+        return replace(base, error=f"{path}: file is empty")
+    if fmt is None:
+        return replace(base, error=f"{path}:1: not a format cwproc reads")
+    if fmt is Format.SCAN_NETCDF and is_cwproc_product(path):
+        return replace(
+            base,
+            format=PRODUCT_FORMAT,
+            error=f"{path}: a cwproc product, not an instrument file: skipped",
+        )
+    if fmt is Format.HALO_BACKGROUND:
+        return replace(
+            base,
+            format=fmt.value,
+            error=f"{path}: a Stream Line background file (used for the SNR of the scans "
+            "beside it, not a product input): skipped",
+        )
+    mismatch = format_mismatch(path, fmt, config)
+    if mismatch:
+        return replace(base, status="other_format", format=fmt.value, error=mismatch)
+    return None
 
 
 #: how :func:`classify_batch` classifies a file: by its header, its checksum left to its
@@ -215,7 +230,7 @@ def unclassified(path: str, exc: object) -> FileInfo:
     """The failure record of a file whose classification could not run (``exc``)."""
     size, mtime_ns = 0, 0
     with contextlib.suppress(OSError):
-        size, mtime_ns = _file_stat(path)
+        size, mtime_ns = file_size_mtime(path)
     return FileInfo(
         path, size, mtime_ns, "error", error=f"{path}: could not be classified: {exc!r}"
     )
@@ -317,7 +332,7 @@ def _process_unit_task(task: UnitTask, outcome: Callable[..., UnitOutcome]) -> U
         units = group_units(items)
         if len(units) != 1 or units[0].key != (task.group_key or task.key):
             found = ", ".join(u.key for u in units)
-            return outcome(error=f"{unit_label(task)}: its inputs now group as {found}")
+            return outcome(error=f"{task_label(task)}: its inputs now group as {found}")
         units[0].key = task.key  # a logger kept apart from another of its key (34.2)
         result = run_unit(units[0], config)
         written = (
@@ -330,10 +345,10 @@ def _process_unit_task(task: UnitTask, outcome: Callable[..., UnitOutcome]) -> U
     except (InputFileError, ProductError) as exc:
         return outcome(error=str(exc))  # already names the file
     except CwprocError as exc:
-        return outcome(error=f"{unit_label(task)}: {exc}")
+        return outcome(error=f"{task_label(task)}: {exc}")
     except Exception as exc:
         return outcome(
-            error=f"{unit_label(task)}: internal error {type(exc).__name__}: {exc}",
+            error=f"{task_label(task)}: internal error {type(exc).__name__}: {exc}",
             detail=traceback.format_exc(),
         )
     # inputs whose data could not be read are file failures (the driver records them),
@@ -392,7 +407,7 @@ def dropped_inputs(task: UnitTask, unit: ProductUnit) -> list[tuple[str, str]]:
     return dropped
 
 
-def unit_label(task: UnitTask) -> str:
+def task_label(task: UnitTask) -> str:
     """How failure lines name a unit: its key and its (first) input file."""
     more = f" and {len(task.paths) - 1} more" if len(task.paths) > 1 else ""
     first = task.paths[0] if task.paths else "no inputs"

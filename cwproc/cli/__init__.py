@@ -14,36 +14,36 @@ from cwproc.cli._group import CwprocGroup
 #: command -> (module:attribute, one-line help = first line of its docstring)
 COMMANDS = {
     "batch": (
-        "cwproc.cli.batch:batch",
+        "cwproc.cli.batch:batch_command",
         "Process every new or changed input under INPUT_DIR into OUTPUT_DIR.",
     ),
     "compare": (
-        "cwproc.cli.compare:compare",
+        "cwproc.cli.compare:compare_command",
         "Lidar eps against sonic eps: comparison product (NetCDF) and plot (PNG).",
     ),
     "info": (
-        "cwproc.cli.info:info",
+        "cwproc.cli.info:info_command",
         "What each of FILES is: format, instrument, rays, gates, time span, scans.",
     ),
-    "plot": ("cwproc.cli.plot:plot", "Draw a quicklook of SOURCE into a PNG."),
+    "plot": ("cwproc.cli.plot:plot_command", "Draw a quicklook of SOURCE into a PNG."),
     "retrieve": (
-        "cwproc.cli.retrieve:retrieve",
+        "cwproc.cli.retrieve:retrieve_command",
         "Wind profile and turbulence products from lidar or sonic FILES (or directories).",
     ),
     "sf-type": (
-        "cwproc.cli.sf_type:sf_type",
+        "cwproc.cli.sf_type:sf_type_command",
         "Structure-function types of sonic FILES (TOA5, TOB1, GHG, Gill, Meteo-2).",
     ),
     "sonic-turbulence": (
-        "cwproc.cli.sonic_turbulence:sonic_turbulence",
+        "cwproc.cli.sonic_turbulence:sonic_turbulence_command",
         "Dissipation rate, variances, TKE, u_* and EC quality flags of sonic FILES.",
     ),
     "simulate": (
-        "cwproc.cli.simulate:simulate",
+        "cwproc.cli.simulate:simulate_command",
         "Virtual lidars and sonics: files in the real formats plus the truth, and error studies.",
     ),
     "theory": (
-        "cwproc.cli.theory:theory",
+        "cwproc.cli.theory:theory_command",
         "Theory tables for planning and checking: epsilon bias, VAD errors, cw averaging.",
     ),
 }

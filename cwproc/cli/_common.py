@@ -15,7 +15,7 @@ from cwproc.config import Config, PresetAliasWarning, load_config, preset_names
 from cwproc.errors import CwprocError
 
 if TYPE_CHECKING:
-    from cwproc.pipeline.inputs import Inputs
+    from cwproc.pipeline.file_search import Inputs
 
 
 def config_option(default: str | None = None) -> Callable[[Any], Any]:
@@ -178,7 +178,7 @@ def inputs_or_exit(inputs: tuple[str, ...], config: Config, quiet: bool) -> Inpu
     file found is of another format (:meth:`Inputs.nothing_readable`, the line ``cwproc
     batch`` gives on the same folder), else a usage error (exit 2).
     """
-    from cwproc.pipeline.inputs import expand_inputs  # not at import: --help stays light
+    from cwproc.pipeline.file_search import expand_inputs  # not at import: --help stays light
 
     found = expand_inputs(inputs, config)
     for line in found.mismatched:

@@ -17,7 +17,7 @@ from typing import Any, NoReturn
 
 import click
 
-from cwproc.memory import keep_freed_arrays  # moved (issue 33): remove in stream D
+from cwproc.memory import keep_freed_arrays
 
 
 class LazyGroup(click.Group):

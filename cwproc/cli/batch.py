@@ -11,7 +11,7 @@ import time
 from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import click
 
@@ -242,7 +242,7 @@ def check_scheduler_address(value: str | None) -> str | None:
 )
 @click.option("-q", "--quiet", is_flag=True, help="Print only failures.")
 @click.option("-v", "--verbose", is_flag=True, help="Log every unit and list unrecognised files.")
-def batch(
+def batch_command(
     input_dir: str,
     output_dir: str,
     config: str | None,
@@ -274,29 +274,9 @@ def batch(
     cfg = load_config_or_fail(config)  # before the heavy imports: a typo is told at once
     output_dir_or_exit(output_dir)
     from cwproc import progress
-    from cwproc.batch import (
-        EXIT_LOCKED,
-        DaskNotInstalledError,
-        LockBusyError,
-        close_client,
-        dask_client,
-        local_pool,
-        run_batch,
-    )
-    from cwproc.pipeline import EXIT_FAILED, EXIT_OK
+    from cwproc.batch import EXIT_LOCKED, LockBusyError, close_client, run_batch
 
-    client = None
-    if workers is not None and not scheduler:
-        client = local_pool(workers)
-    elif scheduler:
-        try:
-            client = dask_client(scheduler=scheduler)
-        except DaskNotInstalledError as exc:
-            report_failure(str(exc))
-            sys.exit(2)
-        except CwprocError as exc:
-            report_failure(str(exc))
-            sys.exit(2)
+    client = _client_or_exit(workers, scheduler)
     units = _Progress()
     previous_sigterm = signal.signal(signal.SIGTERM, _terminate)
     try:
@@ -327,6 +307,29 @@ def batch(
         units.finish()
         if client is not None:
             close_client(client)
+    _report_and_exit(report, quiet, verbose)
+
+
+def _client_or_exit(workers: int | None, scheduler: str | None) -> Any:
+    """The executor of ``--workers`` (a local process pool) or ``--scheduler`` (a Dask
+    client), None for neither; a scheduler that cannot be used exits with status 2."""
+    from cwproc.batch import DaskNotInstalledError, dask_client, local_pool
+
+    if workers is not None and not scheduler:
+        return local_pool(workers)
+    if not scheduler:
+        return None
+    try:
+        return dask_client(scheduler=scheduler)
+    except (DaskNotInstalledError, CwprocError) as exc:
+        report_failure(str(exc))
+        sys.exit(2)
+
+
+def _report_and_exit(report: BatchReport, quiet: bool, verbose: bool) -> NoReturn:
+    """Print the failures, notes and summary of a run; exit 0 when all went well, else 1."""
+    from cwproc.pipeline import EXIT_FAILED, EXIT_OK
+
     if report.stale_lock and not quiet:
         click.echo(f"took over the lock of a run that ended abnormally ({report.stale_lock})")
     for line in report.failure_lines():

@@ -38,7 +38,7 @@ import click
     help="turbulence_flag bits of the lidar product that leave a block out "
     "[default: 91 = 1+2+8+16+64; 4 and 32 leave epsilon usable].",
 )
-def compare(
+def compare_command(
     lidar_product: str,
     sonic_product: str,
     height_m: float,

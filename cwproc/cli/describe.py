@@ -9,8 +9,8 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import CwprocError
-from cwproc.io import KIND, Format, detect_format, is_product_layout, read
-from cwproc.io.scans import is_homodyne
+from cwproc.io import KIND, Format, detect_format, is_product_layout, read_file
+from cwproc.io.scan_join import is_homodyne
 
 if TYPE_CHECKING:
     from cwproc.config import Config
@@ -191,7 +191,7 @@ def open_product(path: str | os.PathLike) -> xr.Dataset | None:
     return None
 
 
-def describe_product(path: str | os.PathLike, ds: xr.Dataset) -> list[str]:
+def describe_product_file(path: str | os.PathLike, ds: xr.Dataset) -> list[str]:
     """Lines describing a cwproc product: title, provenance, dims, time span, variables."""
     lines = [
         f"{os.fspath(path)}",
@@ -237,9 +237,9 @@ def describe_file(path: str | os.PathLike, config: Config | None = None) -> list
     if fmt is Format.SCAN_NETCDF:
         product = open_product(path)
         if product is not None:
-            return describe_product(path, product)
+            return describe_product_file(path, product)
     try:
-        ds = read(path, fmt, **(dict(config.reader.get(fmt.value, {})) if config else {}))
+        ds = read_file(path, fmt, **(dict(config.reader.get(fmt.value, {})) if config else {}))
     except ImportError:
         raise CwprocError(f"{path}: no reader for format {fmt.value} in this build") from None
     header = [f"{os.fspath(path)}", f"  format        {fmt.value} ({FORMAT_NAMES[fmt]})"]

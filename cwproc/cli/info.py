@@ -17,7 +17,7 @@ from cwproc.errors import CwprocError
 @click.command("info")
 @click.argument("files", nargs=-1, required=True, metavar="FILES...")
 @config_option()
-def info(files: tuple[str, ...], config: str | None) -> None:
+def info_command(files: tuple[str, ...], config: str | None) -> None:
     """What each of FILES is: format, instrument, rays, gates, time span, scans.
 
     \b

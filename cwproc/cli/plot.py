@@ -70,7 +70,9 @@ KIND_CHOICES = [
     help="epsilon: colour range in m2 s-3 [default: 1e-5 1e-1, the same for every file].",
 )
 @config_option()
-def plot(source, out, kind, time_index, height, scan, window, component, eps_range, config) -> None:
+def plot_command(
+    source, out, kind, time_index, height, scan, window, component, eps_range, config
+) -> None:
     """Draw a quicklook of SOURCE into a PNG.
 
     \b

@@ -47,7 +47,7 @@ from cwproc.cli._common import (
     help="Write <product>.qc.json beside every product: coverage, flagged fractions by "
     "bit, CF/ACDD check, inputs refused.",
 )
-def retrieve(
+def retrieve_command(
     inputs: tuple[str, ...],
     outdir: str,
     config: str | None,

@@ -29,7 +29,7 @@ from cwproc.cli._common import (
 @product_command(
     "sf-type", "Directory for the NetCDF products and summary CSV files (created if missing)."
 )
-def sf_type(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bool) -> None:
+def sf_type_command(inputs: tuple[str, ...], outdir: str, config: str | None, quiet: bool) -> None:
     """Structure-function types of sonic FILES (TOA5, TOB1, GHG, Gill, Meteo-2).
 
     \b

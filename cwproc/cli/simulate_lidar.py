@@ -114,7 +114,7 @@ _ZEPHIR_HEIGHTS = (40.0, 60.0, 80.0, 100.0, 150.0, 200.0)
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
-def simulate_lidar(
+def simulate_lidar_command(
     outdir: str,
     instrument: str,
     hours: float | None,

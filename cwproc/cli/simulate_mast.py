@@ -36,7 +36,9 @@ import click
     help="Height of the sonic above the lidar (m).",
 )
 @click.option("--seed", type=int, default=1, show_default=True, help="Seed of the field.")
-def simulate_mast(outdir: str, hours: float, epsilon: float, mast_height: float, seed: int) -> None:
+def simulate_mast_command(
+    outdir: str, hours: float, epsilon: float, mast_height: float, seed: int
+) -> None:
     """Lidar .hpl files and a mast sonic's Meteo-2 file from one field, plus the truth.
 
     \b

@@ -37,7 +37,7 @@ STEM = "montecarlo_banakh1999"
 )
 @config_option("banakh1999")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
-def simulate_montecarlo(
+def simulate_montecarlo_command(
     outdir: str, realisations: int | None, seed: int, png: bool, config: str | None, quiet: bool
 ) -> None:
     """Relative RMS errors of epsilon, sigma_V^2 and L_V versus the number of scans.

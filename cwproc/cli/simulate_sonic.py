@@ -42,7 +42,7 @@ from cwproc.sim.sonic import write_simulation
 @click.option(
     "--start", default="2014-06-01T00:00:00", show_default=True, help="Start time (ISO, UTC)."
 )
-def simulate_sonic(
+def simulate_sonic_command(
     outdir: str, sf_type: int, hours: float, seed: int, speed: float, start: str
 ) -> None:
     """Synthetic Meteo-2 files (10.7 Hz, one per UTC day) with a prescribed SF type + truth.

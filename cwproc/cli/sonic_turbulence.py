@@ -64,7 +64,7 @@ from cwproc.cli._common import (
     show_default=True,
     help="Latitude (degree) of the ITC model's Coriolis parameter.",
 )
-def sonic_turbulence(
+def sonic_turbulence_command(
     inputs: tuple[str, ...],
     outdir: str,
     config: str | None,

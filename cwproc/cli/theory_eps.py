@@ -112,7 +112,7 @@ def _write_png(path: str, mu: np.ndarray, ratio: np.ndarray, title: str) -> None
     help="Range-gate length dR = c T_w / 2 (m).",
 )
 @click.option("--png", "png", type=click.Path(dir_okay=False), help="Also plot to this PNG file.")
-def eps_ratio(
+def eps_ratio_command(
     phi_deg: float,
     dy: float,
     lag: int,

@@ -123,7 +123,7 @@ def _error_tables(phi: float, n: int, sector: float, bound: float | None, sigma:
     show_default=True,
     help="Tilt term: vertical shear dVx/dz (s-1).",
 )
-def vad_errors(
+def vad_errors_command(
     phi: float,
     n_azimuths: int,
     sector: float,

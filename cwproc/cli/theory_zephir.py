@@ -91,7 +91,7 @@ def ratio_table(
     show_default=True,
     help="Averaging window of the standard deviations (s).",
 )
-def zephir_ratio(
+def zephir_ratio_command(
     heights: str,
     wind_speed: float,
     scan_time: str | None,

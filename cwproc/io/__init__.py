@@ -1,7 +1,7 @@
 """Readers of instrument files (one module per format), giving the canonical datasets.
 
 :func:`detect_format` recognises a file by its content (not its name) and
-:func:`read` dispatches to the reader of that format. Every reader has the signature
+:func:`read_file` dispatches to the reader of that format. Every reader has the signature
 ``read_<format>(path, **options) -> xarray.Dataset`` and returns one of the
 canonical datasets (scan, wind-record or sonic), raising
 :class:`cwproc.errors.InputFileError` (file, line, problem) on bad input.
@@ -34,7 +34,7 @@ __all__ = [
     "is_cwproc_product",
     "is_product_layout",
     "is_regular_file",
-    "read",
+    "read_file",
     "sniff_format",
 ]
 
@@ -46,7 +46,7 @@ READERS: dict[Format, str] = {
     Format.WINDCUBE_STA: "cwproc.io.windcube:read_windcube_sta",
     Format.WINDCUBE_RTD: "cwproc.io.windcube_rtd:read_windcube_rtd",
     Format.TOA5: "cwproc.io.campbell:read_toa5",
-    Format.TOB1: "cwproc.io.campbell:read_tob1",
+    Format.TOB1: "cwproc.io.campbell_tob1:read_tob1",
     Format.GHG: "cwproc.io.licor:read_ghg",
     Format.METEO2: "cwproc.io.meteo2:read_meteo2",
     Format.GILL: "cwproc.io.gill:read_gill",
@@ -188,7 +188,9 @@ def get_identifier(fmt: Format | str):
     return getattr(importlib.import_module(module_name), func)
 
 
-def read(path: str | os.PathLike, fmt: Format | str | None = None, **options: Any) -> xr.Dataset:
+def read_file(
+    path: str | os.PathLike, fmt: Format | str | None = None, **options: Any
+) -> xr.Dataset:
     """Read one file with the reader of its format (detected when ``fmt`` is None)."""
     fmt = detect_format(path) if fmt in (None, "auto") else Format(fmt)
     return get_reader(fmt)(path, **options)

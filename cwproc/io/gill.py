@@ -32,13 +32,8 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import InputFileError
-from cwproc.io.meteo2 import (
-    SPIKE_THRESHOLD,
-    check_options,
-    option_number,
-    read_text,
-    sonic_dataset,
-)
+from cwproc.io.sonic_samples import SPIKE_THRESHOLD, sonic_dataset
+from cwproc.io.sonic_text import check_options, option_number, read_text
 from cwproc.io.timecheck import check_times
 
 OPTIONS = {

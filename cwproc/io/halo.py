@@ -47,29 +47,33 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-from cwproc.errors import ConfigError, CwprocError, InputFileError
+from cwproc.errors import CwprocError, InputFileError
 from cwproc.io.halo_body import (
-    _fields_of_row,
-    _hpltok,
-    _single_space_ok,
-    _tokenize,
     content_end,
     diagnose,
+    fields_of_row,
+    single_space_ok,
     structure_problem,
+    tokenize_body,
 )
 from cwproc.io.halo_header import (
-    _EOL,
     FOCUS_INFINITY,
     HEADER_LINES,
-    HplHeader,
-    parse_header,
+    LINE_END,
+    parse_hpl_header,
     split_header,
 )
+from cwproc.io.hpl_attrs import check_no_options, check_rays, scan_attrs
 from cwproc.io.identity import FileIdentity
 from cwproc.io.netcdf import write_bytes_atomic
-from cwproc.io.schema import DECLARED_ATTRS, SCAN_VARIABLES
+from cwproc.metadata.canonical import DECLARED_ATTRS, SCAN_VARIABLES
 from cwproc.physics.geometry import normalise_pointing
 from cwproc.physics.scan_numbering import scan_indices
+
+try:  # the optional compiled tokenizer (setup.py)
+    from cwproc.io import _hpltok
+except ImportError:
+    _hpltok = None
 
 
 class Fed(Protocol):
@@ -78,9 +82,6 @@ class Fed(Protocol):
 
     def update(self, data: bytes | memoryview, /) -> None: ...
 
-
-INSTRUMENT = "Halo Photonics Stream Line"
-INSTRUMENT_KIND = "streamline"
 
 #: hours of a step back in decimal time that marks a wrap at midnight
 _WRAP_HOURS = 12.0
@@ -226,13 +227,6 @@ def decimal_hours_to_time(hours: np.ndarray, start_time: np.datetime64) -> np.nd
     return (day.astype("datetime64[us]") + micro.astype("timedelta64[us]")).astype("datetime64[ns]")
 
 
-def _check_options(options: dict) -> None:
-    if options:
-        raise ConfigError(
-            "[reader.hpl]", ", ".join(sorted(options)), "the .hpl reader takes no options"
-        )
-
-
 def read_hpl(path: str | os.PathLike, **options: object) -> xr.Dataset:
     """Read a Halo Photonics Stream Line ``.hpl`` file into a canonical scan dataset.
 
@@ -262,36 +256,36 @@ def read_hpl(path: str | os.PathLike, **options: object) -> xr.Dataset:
         that does not match the body, a gate index that restarts without a ray line,
         a truncated last ray: the message names the file and the 1-based line.
     """
-    _check_options(options)
+    check_no_options(options)
     path = Path(path)
     lines, body = read_header_and_body(path)
-    header = parse_header(path, lines)
+    header = parse_hpl_header(path, lines)
     if content_end(body) == 0:
         raise InputFileError(path, "no data after the header", HEADER_LINES + 1)
     nul = body.find(b"\x00")
     if nul >= 0:
-        line = HEADER_LINES + 1 + len(_EOL.findall(body, 0, nul))
+        line = HEADER_LINES + 1 + len(LINE_END.findall(body, 0, nul))
         raise InputFileError(path, "NUL byte in the data", line)
 
     n_gates = header.n_gates
     # the pandas tokenizer's layout (decided lazily when the compiled one is there)
-    single_space = None if _hpltok is not None else _single_space_ok(body)
-    columns = _tokenize(path, body, single_space=single_space)
+    single_space = None if _hpltok is not None else single_space_ok(body)
+    columns = tokenize_body(path, body, single_space=single_space)
     problem = structure_problem(columns, n_gates)
     if problem is not None and single_space:  # judge damage with the reference tokenizer
-        columns = _tokenize(path, body, single_space=False)
+        columns = tokenize_body(path, body, single_space=False)
         problem = structure_problem(columns, n_gates)
     if problem is not None:
         raise diagnose(path, body, *problem)
     n_rows = columns[0].size
     block = n_gates + 1
-    ray_fields = _fields_of_row(columns, 0)
-    gate_fields = _fields_of_row(columns, 1)
+    ray_fields = fields_of_row(columns, 0)
+    gate_fields = fields_of_row(columns, 1)
     n_rays = n_rows // block
     grids = [col.reshape(n_rays, block) for col in columns]
     rays = np.column_stack([g[:, 0] for g in grids])
     ray_lines = HEADER_LINES + 1 + np.arange(n_rays) * block
-    _check_rays(path, rays, ray_lines)
+    check_rays(path, rays, ray_lines)
 
     time = decimal_hours_to_time(rays[:, 0], header.start_time)
     azimuth, elevation = normalise_pointing(rays[:, 1], rays[:, 2])
@@ -299,7 +293,7 @@ def read_hpl(path: str | os.PathLike, **options: object) -> xr.Dataset:
     if gate_fields == 5:
         gates["spectral_width"] = grids[4]
     per_ray = {"pitch": rays[:, 3], "roll": rays[:, 4]} if ray_fields == 5 else {}
-    scan, scan_attrs = scan_indices(time, azimuth, elevation, scan_type=header.scan_type)
+    scan, numbering_attrs = scan_indices(time, azimuth, elevation, scan_type=header.scan_type)
     ds = scan_dataset(
         gates,
         per_ray,
@@ -307,8 +301,8 @@ def read_hpl(path: str | os.PathLike, **options: object) -> xr.Dataset:
         azimuth=azimuth,
         elevation=elevation,
         ranges=header.gate_ranges(),
-        scan=(scan, scan_attrs),
-        attrs=_attrs(path, header),
+        scan=(scan, numbering_attrs),
+        attrs=scan_attrs(path, header),
     )
     return ds
 
@@ -333,14 +327,14 @@ def read_hpl_identity(path: str | os.PathLike) -> FileIdentity:
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
     lines, offset = split_header(path, head)
-    header = parse_header(path, lines)
+    header = parse_hpl_header(path, lines)
     first = head[offset:].lstrip(b"\r\n").split(b"\n", 1)[0].split(b"\r", 1)[0].split()
     try:
         hours = float(first[0])
     except (IndexError, ValueError):
         raise InputFileError(path, "no ray line after the header", HEADER_LINES + 1) from None
     time = decimal_hours_to_time(np.array([hours]), header.start_time)
-    return FileIdentity(attrs=_attrs(path, header), time=time, header=header, offset=offset)
+    return FileIdentity(attrs=scan_attrs(path, header), time=time, header=header, offset=offset)
 
 
 def scan_dataset(
@@ -392,7 +386,7 @@ def scan_dataset(
 
 @functools.lru_cache(maxsize=64)
 def _declared_attrs(name: str, dtype: np.dtype, coord: bool) -> dict[str, object]:
-    """The attributes :func:`cwproc.io.schema.attach_attrs` declares for a scan variable
+    """The attributes :func:`cwproc.metadata.canonical.attach_attrs` declares for a scan variable
     of this name and dtype (computed once per process; copied for each variable)."""
     meta = SCAN_VARIABLES.get(name)
     if meta is None:
@@ -463,51 +457,6 @@ def _assembled(
     )
 
 
-def _bad_ray(rays: np.ndarray) -> tuple[int, str] | None:
-    """First ray whose decimal time or pointing no instrument writes, and the problem."""
-    checks = (
-        ((rays[:, 0] < 0) | (rays[:, 0] >= 48), "decimal time {} h is outside 0-48 h", 0),
-        ((rays[:, 1] < -360) | (rays[:, 1] > 720), "azimuth {} deg is out of range", 1),
-        ((rays[:, 2] < -90) | (rays[:, 2] > 270), "elevation {} deg is out of range", 2),
-    )
-    for bad, message, column in checks:
-        idx = np.flatnonzero(bad)
-        if idx.size:
-            i = int(idx[0])
-            return i, message.format(rays[i, column])
-    return None
-
-
-def _check_rays(path: str | os.PathLike, rays: np.ndarray, ray_lines: np.ndarray) -> None:
-    """Decimal time and pointing angles within what an instrument can write."""
-    bad = _bad_ray(rays)
-    if bad is not None:
-        raise InputFileError(path, bad[1], int(ray_lines[bad[0]]))
-
-
-def _attrs(path: Path, header: HplHeader) -> dict[str, object]:
-    attrs: dict[str, object] = {
-        "instrument": INSTRUMENT,
-        "instrument_kind": INSTRUMENT_KIND,
-        "system_id": header.system_id,
-        "source_files": [path.name],
-        "scan_type": header.scan_type,
-        "gate_length_m": header.gate_length_m,
-        "homodyne": 0,
-        "points_per_gate": header.points_per_gate,
-        "pulses_per_ray": header.pulses_per_ray,
-        "focus_range_m": header.focus_range_m,
-        "velocity_resolution_m_s": header.velocity_resolution_m_s,
-        "header_filename": header.filename,
-        "header_start_time": np.datetime_as_string(header.start_time, unit="ms") + "Z",
-        "header_rays_in_file": header.rays_in_file,
-        "range_formula": header.range_formula,
-    }
-    if header.instrument_spectral_width_m_s is not None:
-        attrs["instrument_spectral_width_m_s"] = header.instrument_spectral_width_m_s
-    return attrs
-
-
 # --------------------------------------------------------------------------------------
 # writer
 # --------------------------------------------------------------------------------------
@@ -574,6 +523,38 @@ def hpl_text(ds: xr.Dataset, filename: str) -> str:
     n_gates = int(ds.sizes["range"])
     if n_rays == 0:
         raise CwprocError(f"write_hpl {filename}: the dataset has no rays")
+    gate_length, times = _writable(ds, filename)
+    day = times.min().astype("datetime64[D]")
+    hours = (times - day.astype("datetime64[us]")).astype(np.int64) / 3.6e9
+    az = np.asarray(ds["azimuth"].values, dtype=np.float64)
+    el = np.asarray(ds["elevation"].values, dtype=np.float64)
+    has_pr = "pitch" in ds and "roll" in ds
+    has_sw = "spectral_width" in ds
+    header = _hpl_header(ds, filename, times[0], gate_length, has_pr, has_sw)
+    ray = np.char.add(np.char.mod("%.8f", hours), np.char.mod(" %6.2f", az))
+    ray = np.char.add(ray, np.char.mod(" %6.2f", el))
+    if has_pr:
+        ray = np.char.add(ray, np.char.mod(" %.2f", ds["pitch"].values))
+        ray = np.char.add(ray, np.char.mod(" %.2f", ds["roll"].values))
+    beta = ds["beta"].values if "beta" in ds else np.zeros((n_rays, n_gates))
+    columns = [ds["radial_velocity"].values, ds["snr"].values + 1.0, _beta_strings(beta)]
+    formats = ["%.4f", "%.6f", "%12s"]
+    if has_sw:
+        columns.append(ds["spectral_width"].values)
+        formats.append("%.4f ")
+    return "\r\n".join(header) + "\r\n" + _data_lines(ray.tolist(), columns, formats)
+
+
+def _writable(ds: xr.Dataset, filename: str) -> tuple[float, np.ndarray]:
+    """The gate length (m) and ray times (datetime64[us]) of a dataset the ``.hpl``
+    format can hold.
+
+    Raises
+    ------
+    CwprocError
+        The range grid is not the Stream Line grid, or a value is not finite.
+    """
+    n_gates = int(ds.sizes["range"])
     ranges = np.asarray(ds["range"].values, dtype=np.float64)
     gate_length = float(ds.attrs.get("gate_length_m", 2.0 * ranges[0]))
     if not np.allclose(ranges, (np.arange(n_gates) + 0.5) * gate_length, rtol=0, atol=1e-6):
@@ -599,21 +580,30 @@ def hpl_text(ds: xr.Dataset, filename: str) -> str:
     times = ds["time"].values.astype("datetime64[us]")
     if np.isnat(times).any():
         raise CwprocError(f"write_hpl {filename}: time has missing values")
-    day = times.min().astype("datetime64[D]")
-    hours = (times - day.astype("datetime64[us]")).astype(np.int64) / 3.6e9
-    az = np.asarray(ds["azimuth"].values, dtype=np.float64)
-    el = np.asarray(ds["elevation"].values, dtype=np.float64)
-    has_pr = "pitch" in ds and "roll" in ds
-    has_sw = "spectral_width" in ds
+    return gate_length, times
+
+
+def _hpl_header(
+    ds: xr.Dataset,
+    filename: str,
+    start_time: np.datetime64,
+    gate_length: float,
+    has_pr: bool,
+    has_sw: bool,
+) -> list[str]:
+    """The 17 header lines of the ``.hpl`` file of ``ds`` (``has_pr``: pitch and roll on
+    the ray lines; ``has_sw``: spectral width on the gate lines)."""
+    n_rays = int(ds.sizes["ray"])
+    n_gates = int(ds.sizes["range"])
     focus = float(ds.attrs.get("focus_range_m", float("inf")))
     focus_text = str(FOCUS_INFINITY) if not np.isfinite(focus) else f"{focus:g}"
-    start = np.datetime_as_string(times[0], unit="ms")
+    start = np.datetime_as_string(start_time, unit="ms")
     start_text = start[:10].replace("-", "") + " " + start[11:22]
     scan_type = str(ds.attrs.get("scan_type", "VAD"))
     which = "Altitude" if scan_type.startswith("Stare") else "Range"
     res = float(ds.attrs.get("velocity_resolution_m_s", 0.0382))
     spectral = ds.attrs.get("instrument_spectral_width_m_s")
-    header = [
+    return [
         f"Filename:\t{filename}",
         f"System ID:\t{ds.attrs.get('system_id', '0')}",
         f"Number of gates:\t{n_gates}",
@@ -634,18 +624,6 @@ def hpl_text(ds: xr.Dataset, filename: str) -> str:
         "i3,1x,f6.4,1x,f8.6,1x,e12.6" + (",1x,f6.4" if has_sw else "") + " - repeat for no. gates",
         "****" + (f" Instrument spectral width = {float(spectral):.6f}" if spectral else ""),
     ]
-    ray = np.char.add(np.char.mod("%.8f", hours), np.char.mod(" %6.2f", az))
-    ray = np.char.add(ray, np.char.mod(" %6.2f", el))
-    if has_pr:
-        ray = np.char.add(ray, np.char.mod(" %.2f", ds["pitch"].values))
-        ray = np.char.add(ray, np.char.mod(" %.2f", ds["roll"].values))
-    beta = ds["beta"].values if "beta" in ds else np.zeros((n_rays, n_gates))
-    columns = [ds["radial_velocity"].values, ds["snr"].values + 1.0, _beta_strings(beta)]
-    formats = ["%.4f", "%.6f", "%12s"]
-    if has_sw:
-        columns.append(ds["spectral_width"].values)
-        formats.append("%.4f ")
-    return "\r\n".join(header) + "\r\n" + _data_lines(ray.tolist(), columns, formats)
 
 
 def write_hpl(ds: xr.Dataset, path: str | os.PathLike) -> Path:

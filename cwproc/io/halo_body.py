@@ -3,7 +3,7 @@
 After the header, one block per ray: a *ray line* (decimal hours, azimuth, elevation
 and, on most instruments, pitch and roll) and ``Number of gates`` *gate lines* (gate
 index, Doppler velocity, intensity, attenuated backscatter and optionally the spectral
-width; ``real_data/FORMATS.md`` section 1). :func:`_tokenize` parses a whole body with
+width; ``real_data/FORMATS.md`` section 1). :func:`tokenize_body` parses a whole body with
 one call of the compiled tokenizer (``_hpltok``, built by ``setup.py``) or the pandas C
 tokenizer, :func:`structure_problem` checks the block structure (in one compiled pass
 over the tokenizer's table, else with array operations), and only when a check fails
@@ -55,11 +55,11 @@ def content_end(raw: bytes, start: int = 0) -> int:
 
 
 #: fields per line that the single-space tokenizer keeps: 5 and the empty field after a
-#: trailing space (a sixth number is an error, found by :func:`_tokenize`)
-_SPACE_FIELDS = 6
+#: trailing space (a sixth number is an error, found by :func:`tokenize_body`)
+SPACE_FIELDS = 6
 
 
-def _read_table(body: bytes | io.RawIOBase, *, single_space: bool) -> pd.DataFrame:
+def read_body_table(body: bytes | io.RawIOBase, *, single_space: bool) -> pd.DataFrame:
     """Parse body lines with the pandas C tokenizer (5 or, see below, 6 columns).
 
     ``body`` is the data or a binary file object that reads it.
@@ -71,7 +71,7 @@ def _read_table(body: bytes | io.RawIOBase, *, single_space: bool) -> pd.DataFra
     field. Otherwise ``\\s+`` with 5 columns.
     """
     layout = (
-        {"sep": " ", "skipinitialspace": True, "names": range(_SPACE_FIELDS)}
+        {"sep": " ", "skipinitialspace": True, "names": range(SPACE_FIELDS)}
         if single_space
         else {"sep": r"\s+", "names": range(5)}
     )
@@ -109,7 +109,7 @@ def _chunks(body: bytes, n_chunks: int) -> list[tuple[int, int]]:
     return list(itertools.pairwise(cuts))
 
 
-def _tokenize(
+def tokenize_body(
     path: str | os.PathLike, body: bytes, *, single_space: bool | None = None
 ) -> list[np.ndarray]:
     """The 5 fields of every body line as 5 float columns (NaN where a line is shorter).
@@ -119,7 +119,7 @@ def _tokenize(
     fields raises here. The compiled tokenizer ``cwproc.io._hpltok`` does the work when
     it was built (``setup.py``: an optional extension; every value equals
     ``float(token)``, about twice the speed of pandas); otherwise the pandas C tokenizer
-    (single-space separator when :func:`_single_space_ok`, see :func:`_read_table`); very
+    (single-space separator when :func:`single_space_ok`, see :func:`read_body_table`); very
     large bodies are cut at line starts and parsed in threads (the tokenizer releases the
     GIL). The columns
     may be read-only or strided views (of one float table up to ``_TABLE_ROWS``
@@ -131,22 +131,22 @@ def _tokenize(
             table = np.frombuffer(values, dtype=np.float64).reshape(n_lines, 5)
             return [table[:, j] for j in range(5)]
     if single_space is None:
-        single_space = _single_space_ok(body)
+        single_space = single_space_ok(body)
     workers = min(os.cpu_count() or 1, max(1, len(body) // _PARALLEL_BYTES))
     spans = _chunks(body, workers)
 
     def parse(span: tuple[int, int]) -> pd.DataFrame:
-        return _read_table(body[span[0] : span[1]], single_space=single_space)
+        return read_body_table(body[span[0] : span[1]], single_space=single_space)
 
     try:
         if len(spans) == 1:
-            frames = [_read_table(body, single_space=single_space)]
+            frames = [read_body_table(body, single_space=single_space)]
         else:
             with ThreadPoolExecutor(len(spans)) as pool:
                 frames = list(pool.map(parse, spans))
     except pd.errors.ParserError as exc:
         if single_space:  # name the line exactly as the whitespace tokenizer does
-            return _tokenize(path, body, single_space=False)
+            return tokenize_body(path, body, single_space=False)
         m = re.search(r"Expected \d+ fields in line (\d+), saw (\d+)", str(exc))
         if m is None:
             raise InputFileError(
@@ -155,7 +155,7 @@ def _tokenize(
         # which chunk failed: re-parse the chunks one by one (error path only)
         for start, end in spans:
             try:
-                _read_table(body[start:end], single_space=False)
+                read_body_table(body[start:end], single_space=False)
             except pd.errors.ParserError as chunk_exc:
                 m = re.search(r"Expected \d+ fields in line (\d+), saw (\d+)", str(chunk_exc))
                 if m is None:
@@ -178,10 +178,10 @@ def _tokenize(
         table = tables[0] if len(tables) == 1 else np.concatenate(tables)
         columns = [table[:, j] for j in range(table.shape[1])]
     else:
-        parts = [[_float_column(frame[name]) for name in frame.columns] for frame in frames]
+        parts = [[float_column(frame[name]) for name in frame.columns] for frame in frames]
         columns = [p[0] if len(p) == 1 else np.concatenate(p) for p in zip(*parts, strict=True)]
     if len(columns) > 5 and not np.isnan(columns[5]).all():
-        return _tokenize(path, body, single_space=False)  # the reference names the line
+        return tokenize_body(path, body, single_space=False)  # the reference names the line
     return columns[:5]
 
 
@@ -191,17 +191,17 @@ _TABLE_ROWS = 100_000
 
 
 def _float_table(frame: pd.DataFrame) -> np.ndarray:
-    """The parsed lines as a float array (line, field); see :func:`_float_column`.
+    """The parsed lines as a float array (line, field); see :func:`float_column`.
 
     One copy of the parser's columns (measured: fewer page faults than keeping the
     columns, whose memory is then freed and reused at once).
     """
     if all(dtype.kind == "f" for dtype in frame.dtypes):
         return frame.to_numpy(dtype=np.float64)
-    return np.column_stack([_float_column(frame[name]) for name in frame.columns])
+    return np.column_stack([float_column(frame[name]) for name in frame.columns])
 
 
-def _float_column(col: pd.Series) -> np.ndarray:
+def float_column(col: pd.Series) -> np.ndarray:
     """A parsed column as float64; a field that is there but no number becomes +inf."""
     if col.dtype.kind in "fiu":
         return col.to_numpy(dtype=np.float64)
@@ -211,7 +211,7 @@ def _float_column(col: pd.Series) -> np.ndarray:
     return values
 
 
-def _fields_of_row(columns: list[np.ndarray], row: int) -> int:
+def fields_of_row(columns: list[np.ndarray], row: int) -> int:
     """Number of leading finite fields of one body row (0 when there is no such row)."""
     if row >= columns[0].size:
         return 0
@@ -223,7 +223,7 @@ def _fields_of_row(columns: list[np.ndarray], row: int) -> int:
     return count
 
 
-def _single_space_ok(body: bytes) -> bool:
+def single_space_ok(body: bytes) -> bool:
     """Whether the single-space tokenizer applies: no TAB and no lone CR line end.
 
     (pandas' ``skipinitialspace`` takes the leading space of a line that follows a lone
@@ -250,8 +250,8 @@ def structure_problem(
         ``body`` of :func:`diagnose` for the ray block to walk (field counts ``None``
         when the first rows do not even say them); ``None`` when every block is whole.
     """
-    ray_fields = _fields_of_row(columns, 0)
-    gate_fields = _fields_of_row(columns, 1)
+    ray_fields = fields_of_row(columns, 0)
+    gate_fields = fields_of_row(columns, 1)
     if ray_fields not in (3, 5) or gate_fields not in (4, 5):
         return 0, n_gates, None, None
     block = n_gates + 1
@@ -271,7 +271,7 @@ def first_bad_row(
 
     A row is good when exactly its first ``ray_fields`` (ray rows, every
     ``n_gates + 1``-th row) or ``gate_fields`` (gate rows) fields are present, all of them
-    finite numbers (``+inf`` marks a field that is no number, see :func:`_tokenize`),
+    finite numbers (``+inf`` marks a field that is no number, see :func:`tokenize_body`),
     and, for a gate row, when its gate index equals its position in the block.
     Rows of an incomplete last block are checked as far as they go.
 
@@ -386,49 +386,13 @@ def diagnose(
             token = bad[0].decode("latin-1")
             return InputFileError(path, f"field {token[:20]!r} is not a number{cut}", line_no)
         if pos == 0:
-            if b"." not in tokens[0]:
-                restart = (
-                    ": the gate index restarts without a ray line"
-                    if row and tokens[0] == b"0"
-                    else ""
-                )
-                return InputFileError(
-                    path,
-                    f"expected a ray line (decimal time, azimuth, elevation) "
-                    f"{f'after {n_gates} gate lines ' if row else ''}but found gate index "
-                    f"{tokens[0].decode('latin-1')}{restart}",
-                    line_no,
-                )
-            if len(tokens) not in ray_ok:
-                return InputFileError(
-                    path,
-                    f"ray line has {len(tokens)} fields, expected "
-                    + " or ".join(map(str, ray_ok))
-                    + cut,
-                    line_no,
-                )
+            problem = _ray_line_problem(tokens, row, n_gates, ray_ok, cut)
+            if problem:
+                return InputFileError(path, problem, line_no)
             continue
-        gate = pos - 1
-        if b"." in tokens[0] and len(tokens) in (3, 5):
-            return InputFileError(
-                path,
-                f"ray line after only {gate} of {n_gates} gate lines (Number of gates: {n_gates})",
-                line_no,
-            )
-        if len(tokens) not in gate_ok:
-            return InputFileError(
-                path,
-                f"gate line has {len(tokens)} fields, expected "
-                + " or ".join(map(str, gate_ok))
-                + cut,
-                line_no,
-            )
-        if b"." in tokens[0] or float(tokens[0]) != gate:
-            index = tokens[0].decode("latin-1")
-            hint = ": the gate index restarts without a ray line" if index == "0" else ""
-            return InputFileError(
-                path, f"gate index {index} where {gate} was expected{hint}", line_no
-            )
+        problem = _gate_line_problem(tokens, pos - 1, n_gates, gate_ok, cut)
+        if problem:
+            return InputFileError(path, problem, line_no)
         if gate_fields is None:
             gate_ok = (len(tokens),)
         if ray_fields is None:
@@ -443,3 +407,42 @@ def diagnose(
             first + start_row,
         )
     return InputFileError(path, "inconsistent ray block", first + start_row)
+
+
+def _ray_line_problem(
+    tokens: list[bytes], row: int, n_gates: int, ray_ok: tuple[int, ...], cut: str
+) -> str:
+    """What is wrong with the numbers ``tokens`` of body row ``row`` read as a ray line
+    ('' when nothing); ``ray_ok``: the field counts accepted, ``cut``: a hint appended
+    when the line is the cut last one."""
+    if b"." not in tokens[0]:
+        restart = (
+            ": the gate index restarts without a ray line" if row and tokens[0] == b"0" else ""
+        )
+        return (
+            f"expected a ray line (decimal time, azimuth, elevation) "
+            f"{f'after {n_gates} gate lines ' if row else ''}but found gate index "
+            f"{tokens[0].decode('latin-1')}{restart}"
+        )
+    if len(tokens) not in ray_ok:
+        return f"ray line has {len(tokens)} fields, expected " + " or ".join(map(str, ray_ok)) + cut
+    return ""
+
+
+def _gate_line_problem(
+    tokens: list[bytes], gate: int, n_gates: int, gate_ok: tuple[int, ...], cut: str
+) -> str:
+    """What is wrong with the numbers ``tokens`` read as the line of gate ``gate`` (''
+    when nothing); ``gate_ok``: the field counts accepted, ``cut`` as for
+    :func:`_ray_line_problem`."""
+    if b"." in tokens[0] and len(tokens) in (3, 5):
+        return f"ray line after only {gate} of {n_gates} gate lines (Number of gates: {n_gates})"
+    if len(tokens) not in gate_ok:
+        return (
+            f"gate line has {len(tokens)} fields, expected " + " or ".join(map(str, gate_ok)) + cut
+        )
+    if b"." in tokens[0] or float(tokens[0]) != gate:
+        index = tokens[0].decode("latin-1")
+        hint = ": the gate index restarts without a ray line" if index == "0" else ""
+        return f"gate index {index} where {gate} was expected{hint}"
+    return ""

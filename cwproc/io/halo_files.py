@@ -24,28 +24,30 @@ import xarray as xr
 
 from cwproc.errors import InputFileError
 from cwproc.io.halo import (
-    _attrs,
-    _bad_ray,
-    _check_options,
     decimal_hours_to_time,
     read_header_body_offset,
     read_hpl,
 )
 from cwproc.io.halo_body import (
-    _SPACE_FIELDS,
-    _fields_of_row,
-    _float_column,
-    _hpltok,
-    _read_table,
-    _single_space_ok,
+    SPACE_FIELDS,
     content_end,
+    fields_of_row,
+    float_column,
+    read_body_table,
+    single_space_ok,
     structure_problem,
 )
-from cwproc.io.halo_header import HplHeader, parse_header
+from cwproc.io.halo_header import HplHeader, parse_hpl_header
+from cwproc.io.hpl_attrs import bad_ray, check_no_options, scan_attrs
 from cwproc.io.identity import FileIdentity
-from cwproc.io.scans import concat_scans, joined_attrs, time_sorted_scans
+from cwproc.io.scan_join import concat_scans, joined_attrs, time_sorted_scans
 from cwproc.physics.geometry import normalise_pointing
 from cwproc.physics.scan_numbering import scan_indices_of_runs
+
+try:  # the optional compiled tokenizer (setup.py)
+    from cwproc.io import _hpltok
+except ImportError:
+    _hpltok = None
 
 #: data lines joined for one call of the pandas tokenizer (bytes), used only when the
 #: compiled tokenizer is not built: large enough to amortise pandas' cost per call
@@ -126,7 +128,7 @@ def _plan_file(
             _, body, offset = read_header_body_offset(path, read, known_offset)
         else:
             lines, body, offset = read_header_body_offset(path, read)
-            header = parse_header(path, lines)
+            header = parse_hpl_header(path, lines)
     except InputFileError:
         return None
     end = content_end(body)
@@ -263,15 +265,15 @@ def _group_columns(group: list[_FilePlan], n_gates: int) -> list[np.ndarray] | N
         table = np.frombuffer(values, dtype=np.float64).reshape(n_lines, 5)
         columns = [table[:, j] for j in range(5)]
     else:
-        if not all(_single_space_ok(bytes(piece)) for piece in pieces):
+        if not all(single_space_ok(bytes(piece)) for piece in pieces):
             return None
         try:
-            frame = _read_table(_JoinedBodies(pieces), single_space=True)
+            frame = read_body_table(_JoinedBodies(pieces), single_space=True)
         except (pd.errors.ParserError, ValueError, UnicodeDecodeError, pd.errors.EmptyDataError):
             return None
-        if frame.shape[1] != _SPACE_FIELDS or len(frame) != n_lines:
+        if frame.shape[1] != SPACE_FIELDS or len(frame) != n_lines:
             return None
-        columns = [_float_column(frame[name]) for name in frame.columns]
+        columns = [float_column(frame[name]) for name in frame.columns]
         if not np.isnan(columns[5]).all():
             return None
         columns = columns[:5]
@@ -330,7 +332,7 @@ def _fill(plans: list[_FilePlan]) -> _Record | None:
         columns = _group_columns(group, n_gates)
         if columns is None:
             return None
-        layout = (_fields_of_row(columns, 0), _fields_of_row(columns, 1))
+        layout = (fields_of_row(columns, 0), fields_of_row(columns, 1))
         if record is None:
             record = _Record(n_rays, n_gates, layout)
         elif layout != record.layout:
@@ -361,7 +363,7 @@ def _read_together(paths: list[Path]) -> xr.Dataset | None:
 
     Memory: the record's arrays, one file's data lines and their parsed numbers, and,
     only when files overlap in time (rays out of time order or times repeated), one
-    reordered variable (:func:`cwproc.io.scans.time_sorted_scans`).
+    reordered variable (:func:`cwproc.io.scan_join.time_sorted_scans`).
     """
     plans = _plan(paths)
     if not plans:
@@ -376,7 +378,7 @@ def _read_plans(plans: list[_FilePlan], paths: list[Path]) -> xr.Dataset | None:
     if record is None:
         return None
     per_ray = record.per_ray
-    if _bad_ray(np.column_stack(per_ray[:3])) is not None:
+    if bad_ray(np.column_stack(per_ray[:3])) is not None:
         return None
     azimuth, elevation = normalise_pointing(per_ray[1], per_ray[2])
     variables = {name: (("ray", "range"), values, {}) for name, values in record.gates.items()}
@@ -385,7 +387,7 @@ def _read_plans(plans: list[_FilePlan], paths: list[Path]) -> xr.Dataset | None:
         variables["roll"] = (("ray",), per_ray[4], {})
     first = plans[0].header
     scan_types = [plan.header.scan_type for plan in plans]
-    attrs = joined_attrs(_attrs(paths[0], first), [path.name for path in paths], scan_types)
+    attrs = joined_attrs(scan_attrs(paths[0], first), [path.name for path in paths], scan_types)
     time = record.time
     del record, per_ray  # the record's arrays now live in ``variables`` alone
     return time_sorted_scans(
@@ -434,9 +436,9 @@ def read_hpl_files(paths: list[str | os.PathLike], **options: object) -> xr.Data
         A file is damaged (as :func:`read_hpl`).
     CwprocError
         No files, or files that cannot be concatenated (as
-        :func:`cwproc.io.scans.concat_scans`).
+        :func:`cwproc.io.scan_join.concat_scans`).
     """
-    _check_options(options)
+    check_no_options(options)
     paths = [Path(p) for p in paths]
     if paths:
         together = _read_together(paths)
@@ -527,6 +529,6 @@ def read_hpl_run(plans: list[_FilePlan]) -> tuple[xr.Dataset, list[HplFilePart]]
     parts = []
     for plan, a, b, scan in zip(plans, bounds[:-1], bounds[1:], scans, strict=True):
         a, b = int(a), int(b)
-        identity = FileIdentity(_attrs(plan.path, plan.header), time[a : a + 1].copy())
+        identity = FileIdentity(scan_attrs(plan.path, plan.header), time[a : a + 1].copy())
         parts.append(HplFilePart(identity, a, b, scan))
     return ds, parts

@@ -122,7 +122,7 @@ def parse_start_time(text: str) -> np.datetime64:
     return date.astype("datetime64[us]") + np.timedelta64(micro, "us")
 
 
-def parse_header(path: str | os.PathLike, lines: list[str]) -> HplHeader:
+def parse_hpl_header(path: str | os.PathLike, lines: list[str]) -> HplHeader:
     """Parse and validate the 17 header lines.
 
     Parameters
@@ -138,28 +138,10 @@ def parse_header(path: str | os.PathLike, lines: list[str]) -> HplHeader:
         A key is missing or garbled, a value is not a number, or a fixed line is
         not what a Stream Line writes; the message names the 1-based line.
     """
-    values: list[str] = []
-    rays_key = ""
-    for i, keys in enumerate(_HEADER_KEYS):
-        line = lines[i]
-        key, sep, value = line.partition(":")
-        key = key.strip()
-        if not sep or key.lower() not in _HEADER_KEYS_LOWER[i]:
-            expected = " or ".join(f"'{k}:'" for k in keys)
-            raise InputFileError(
-                path, f"header line should start with {expected}, found {line[:40]!r}", i + 1
-            )
-        if i == 6:
-            rays_key = key
-        values.append(value.strip())
+    values, rays_key = _keyed_values(path, lines)
 
     def field(i: int, convert, what: str):
-        try:
-            return convert(values[i])
-        except (ValueError, OverflowError):
-            raise InputFileError(
-                path, f"{_HEADER_KEYS[i][0]}: {values[i]!r} is not {what}", i + 1
-            ) from None
+        return _header_field(path, values, i, convert, what)
 
     n_gates = field(2, _integer, "a whole number")
     if not 1 <= n_gates <= _MAX_GATES:
@@ -181,37 +163,10 @@ def parse_header(path: str | os.PathLike, lines: list[str]) -> HplHeader:
     start = field(9, parse_start_time, "a time 'yyyymmdd HH:MM:SS.ss'")
     check_times(path, np.array([start]), 10, written=[values[9]])
     resolution = field(10, _number, "a number")
-
     formula = lines[11].strip()
-    divisor = step = None
-    if _RANGE_STANDARD.match(formula) is None:
-        m = _RANGE_OVERLAPPING.match(formula)
-        if m is None:
-            raise InputFileError(
-                path, f"unknown range formula {formula[:80]!r} (line 12 of the header)", 12
-            )
-        divisor, step = _number(m.group(1)), _number(m.group(2))
-        if not (0 < divisor < 10 and 0 < step < 100):
-            raise InputFileError(path, f"implausible range formula {formula!r}", 12)
-    for number, prefix in ((13, "Data line 1:"), (15, "Data line 2:")):
-        if not lines[number - 1].startswith(prefix):
-            raise InputFileError(
-                path,
-                f"header line should start with {prefix!r}, found {lines[number - 1][:40]!r}",
-                number,
-            )
-    last = lines[16].strip()
-    if not last.startswith("****"):
-        raise InputFileError(path, f"header should end with a '****' line, found {last[:40]!r}", 17)
-    spectral_width = None
-    if last != "****":
-        m = _SPECTRAL_WIDTH.match(last)
-        try:
-            spectral_width = _number(m.group(1)) if m else None
-        except ValueError:
-            spectral_width = None
-        if spectral_width is None:
-            raise InputFileError(path, f"unexpected end-of-header line {last[:60]!r}", 17)
+    divisor, step = _range_formula(path, formula)
+    _check_data_line_keys(path, lines)
+    spectral_width = _spectral_width(path, lines[16].strip())
     return HplHeader(
         filename=values[0],
         system_id=values[1],
@@ -232,7 +187,99 @@ def parse_header(path: str | os.PathLike, lines: list[str]) -> HplHeader:
     )
 
 
-_EOL = re.compile(rb"\r\n|\n|\r")
+def _keyed_values(path: str | os.PathLike, lines: list[str]) -> tuple[list[str], str]:
+    """The values of the 11 ``key: value`` lines, and the key of line 7 as written.
+
+    Raises
+    ------
+    InputFileError
+        A line does not start with its key (names the line).
+    """
+    values: list[str] = []
+    rays_key = ""
+    for i, keys in enumerate(_HEADER_KEYS):
+        line = lines[i]
+        key, sep, value = line.partition(":")
+        key = key.strip()
+        if not sep or key.lower() not in _HEADER_KEYS_LOWER[i]:
+            expected = " or ".join(f"'{k}:'" for k in keys)
+            raise InputFileError(
+                path, f"header line should start with {expected}, found {line[:40]!r}", i + 1
+            )
+        if i == 6:
+            rays_key = key
+        values.append(value.strip())
+    return values, rays_key
+
+
+def _header_field(path: str | os.PathLike, values: list[str], i: int, convert, what: str):
+    """``convert(values[i])``; a value it refuses raises :class:`InputFileError` naming
+    the key, the value, what it should be (``what``) and the line."""
+    try:
+        return convert(values[i])
+    except (ValueError, OverflowError):
+        raise InputFileError(
+            path, f"{_HEADER_KEYS[i][0]}: {values[i]!r} is not {what}", i + 1
+        ) from None
+
+
+def _range_formula(path: str | os.PathLike, formula: str) -> tuple[float | None, float | None]:
+    """Divisor and step (m) of an overlapping-gate range formula (line 12); both None for
+    the standard ``(range gate + 0.5) * Gate length``.
+
+    Raises
+    ------
+    InputFileError
+        The formula is neither, or its numbers are implausible.
+    """
+    if _RANGE_STANDARD.match(formula) is not None:
+        return None, None
+    m = _RANGE_OVERLAPPING.match(formula)
+    if m is None:
+        raise InputFileError(
+            path, f"unknown range formula {formula[:80]!r} (line 12 of the header)", 12
+        )
+    divisor, step = _number(m.group(1)), _number(m.group(2))
+    if not (0 < divisor < 10 and 0 < step < 100):
+        raise InputFileError(path, f"implausible range formula {formula!r}", 12)
+    return divisor, step
+
+
+def _check_data_line_keys(path: str | os.PathLike, lines: list[str]) -> None:
+    """Lines 13 and 15 start as a Stream Line writes them (``Data line 1:``, ``2:``)."""
+    for number, prefix in ((13, "Data line 1:"), (15, "Data line 2:")):
+        if not lines[number - 1].startswith(prefix):
+            raise InputFileError(
+                path,
+                f"header line should start with {prefix!r}, found {lines[number - 1][:40]!r}",
+                number,
+            )
+
+
+def _spectral_width(path: str | os.PathLike, last: str) -> float | None:
+    """The instrument spectral width (m s-1) of the last header line (``****`` alone:
+    None).
+
+    Raises
+    ------
+    InputFileError
+        The line is not ``****``, nor ``**** Instrument spectral width = <number>``.
+    """
+    if not last.startswith("****"):
+        raise InputFileError(path, f"header should end with a '****' line, found {last[:40]!r}", 17)
+    if last == "****":
+        return None
+    m = _SPECTRAL_WIDTH.match(last)
+    try:
+        spectral_width = _number(m.group(1)) if m else None
+    except ValueError:
+        spectral_width = None
+    if spectral_width is None:
+        raise InputFileError(path, f"unexpected end-of-header line {last[:60]!r}", 17)
+    return spectral_width
+
+
+LINE_END = re.compile(rb"\r\n|\n|\r")
 
 
 def split_header(path: str | os.PathLike, raw: bytes) -> tuple[list[str], int]:
@@ -252,7 +299,7 @@ def split_header(path: str | os.PathLike, raw: bytes) -> tuple[list[str], int]:
     lines: list[str] = []
     pos = 0
     for _ in range(HEADER_LINES):
-        m = _EOL.search(raw, pos)
+        m = LINE_END.search(raw, pos)
         end = m.start() if m else len(raw)
         lines.append(raw[pos:end].decode("latin-1"))
         if m is None:

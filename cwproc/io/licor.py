@@ -24,15 +24,14 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.errors import InputFileError
-from cwproc.io.meteo2 import (
-    SPIKE_THRESHOLD,
+from cwproc.io.sonic_samples import SPIKE_THRESHOLD, sonic_dataset
+from cwproc.io.sonic_text import (
     check_options,
     column_map,
     numeric_column,
     option_number,
     read_table,
     read_text,
-    sonic_dataset,
 )
 from cwproc.io.timecheck import epoch_seconds_to_times
 
@@ -139,18 +138,7 @@ def read_ghg(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     cols = column_map(path, options, DEFAULT_COLUMNS)
 
     lines = ghg_text(path).splitlines()
-    attrs: dict[str, str] = {}
-    header_at = None
-    for i, line in enumerate(lines):
-        if line.startswith("DATAH\t"):
-            header_at = i
-            break
-        key, sep, value = line.partition(":")
-        if not sep:
-            raise InputFileError(path, "metadata line without 'Key:' before DATAH", i + 1)
-        attrs["ghg_" + key.strip().lower().replace(" ", "_")] = value.strip()
-    if header_at is None:
-        raise InputFileError(path, "no DATAH column-header line", len(lines) + 1)
+    attrs, header_at = _metadata_lines(path, lines)
     names = [c.strip() for c in lines[header_at].split("\t")]
     for key in ("Seconds", "Nanoseconds", cols["u"], cols["v"], cols["w"]):
         if key not in names:
@@ -161,17 +149,7 @@ def read_ghg(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     first = header_at + 2
     if not data_lines:
         raise InputFileError(path, "no DATA lines", first)
-    text = pd.Series(data_lines, dtype="string")
-    not_data = np.flatnonzero(~text.str.startswith("DATA\t").to_numpy(dtype=bool))
-    if not_data.size:
-        raise InputFileError(path, "line does not start with DATA", first + int(not_data[0]))
-    counts = text.str.count("\t").to_numpy()
-    wrong = np.flatnonzero(counts != len(names) - 1)
-    if wrong.size:
-        i = int(wrong[0])
-        raise InputFileError(
-            path, f"data line has {counts[i] + 1} fields, expected {len(names)}", first + i
-        )
+    _check_data_lines(path, data_lines, len(names), first)
     frame = read_table(
         path, "\n".join(data_lines) + "\n", delimiter="\t", skip=header_at + 1, names=names
     )
@@ -202,3 +180,47 @@ def read_ghg(path: str | os.PathLike, **options: Any) -> xr.Dataset:
         attrs=attrs,
         spike_threshold=option_number(path, options, "spike_threshold", SPIKE_THRESHOLD),
     )
+
+
+def _metadata_lines(path: str | os.PathLike, lines: list[str]) -> tuple[dict[str, str], int]:
+    """The ``Key: value`` lines before the ``DATAH`` column header, as ``ghg_<key>``
+    attributes, and the index of the ``DATAH`` line.
+
+    Raises
+    ------
+    InputFileError
+        A line without ``Key:`` before ``DATAH``, or no ``DATAH`` line.
+    """
+    attrs: dict[str, str] = {}
+    for i, line in enumerate(lines):
+        if line.startswith("DATAH\t"):
+            return attrs, i
+        key, sep, value = line.partition(":")
+        if not sep:
+            raise InputFileError(path, "metadata line without 'Key:' before DATAH", i + 1)
+        attrs["ghg_" + key.strip().lower().replace(" ", "_")] = value.strip()
+    raise InputFileError(path, "no DATAH column-header line", len(lines) + 1)
+
+
+def _check_data_lines(
+    path: str | os.PathLike, data_lines: list[str], n_fields: int, first: int
+) -> None:
+    """Every line after ``DATAH`` starts with ``DATA`` and has ``n_fields`` TAB-separated
+    fields (``first``: the 1-based number of the first).
+
+    Raises
+    ------
+    InputFileError
+        The first line that does not, named.
+    """
+    text = pd.Series(data_lines, dtype="string")
+    not_data = np.flatnonzero(~text.str.startswith("DATA\t").to_numpy(dtype=bool))
+    if not_data.size:
+        raise InputFileError(path, "line does not start with DATA", first + int(not_data[0]))
+    counts = text.str.count("\t").to_numpy()
+    wrong = np.flatnonzero(counts != n_fields - 1)
+    if wrong.size:
+        i = int(wrong[0])
+        raise InputFileError(
+            path, f"data line has {counts[i] + 1} fields, expected {n_fields}", first + i
+        )

@@ -1,7 +1,7 @@
 """Sequences of logger records: times that break them, binary records off their boundaries.
 
 Shared by the sonic readers (:func:`out_of_sequence`, applied by
-:func:`cwproc.io.meteo2.sonic_dataset` to every sonic file) and the TOB1 reader
+:func:`cwproc.io.sonic_samples.sonic_dataset` to every sonic file) and the TOB1 reader
 (:func:`misaligned_from`, :func:`realigned_records`); issue 34.3.
 """
 

@@ -27,7 +27,7 @@ import xarray as xr
 from cwproc.errors import ConfigError, InputFileError
 from cwproc.io.identity import NETCDF_LOCK
 from cwproc.io.netcdf import write_netcdf_atomic
-from cwproc.io.scans import assign_scans, parse_homodyne
+from cwproc.io.scan_join import assign_scans, parse_homodyne
 from cwproc.io.schema import with_canonical_attrs
 
 #: required variables and their dimensions

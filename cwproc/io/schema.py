@@ -10,22 +10,7 @@ from __future__ import annotations
 
 import xarray as xr
 
-# moved (issue 33): remove in stream D
-from cwproc.metadata.canonical import (  # noqa: F401
-    DATASET_VARIABLES,
-    DECLARED_ATTRS,
-    HEIGHT,
-    LATITUDE,
-    LONGITUDE,
-    SCAN_VARIABLES,
-    SONIC_VARIABLES,
-    TIME,
-    UPWARD_AIR_VELOCITY,
-    WIND_RECORD_VARIABLES,
-    DatasetKind,
-    VarMeta,
-    attach_attrs,
-)
+from cwproc.metadata.canonical import DATASET_VARIABLES, DatasetKind, attach_attrs
 
 
 def with_canonical_attrs(ds: xr.Dataset, kind: DatasetKind = "scan") -> xr.Dataset:

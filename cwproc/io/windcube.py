@@ -124,7 +124,7 @@ _SHORT_RE = re.compile(r"^(?P<name>[A-Za-z_.]+?)(?P<index>\d*)$")
 _TZ_RE = re.compile(r"UTC\s*([+-])\s*(\d+(?:\.\d+)?)", re.IGNORECASE)
 
 
-def parse_header(path: str | os.PathLike, lines: list[str]) -> tuple[int, dict[str, str]]:
+def parse_windcube_header(path: str | os.PathLike, lines: list[str]) -> tuple[int, dict[str, str]]:
     """Header length and ``Key=value`` items of a ``.sta`` file.
 
     Returns
@@ -169,7 +169,7 @@ MISSING_HEADER_VALUES = frozenset({"", "NA", "N/A", "-", "NaN", "nan"})
 MISSING_FIELDS = frozenset({"NaN", "nan", "NA", "N/A", "-", ""})
 
 
-def _header_value(items: dict[str, str], *keys: str) -> str | None:
+def header_value(items: dict[str, str], *keys: str) -> str | None:
     """The first of ``keys`` in the header, stripped; None when absent or missing."""
     for key in keys:
         if key in items:
@@ -204,8 +204,15 @@ def instrument_model(version: str, system_id: str, generation: str) -> str:
     return "WindCube v2"
 
 
-def _altitudes(path: str | os.PathLike, items: dict[str, str]) -> np.ndarray | None:
-    value = _header_value(items, "Altitudes (m)", "Altitudes(m)", "Altitudes AGL (m)")
+def header_altitudes(path: str | os.PathLike, items: dict[str, str]) -> np.ndarray | None:
+    """The measurement heights (m) of the header's ``Altitudes (m)=`` item (None: absent).
+
+    Raises
+    ------
+    InputFileError
+        The item holds something other than numbers.
+    """
+    value = header_value(items, "Altitudes (m)", "Altitudes(m)", "Altitudes AGL (m)")
     if value is None:
         return None
     try:
@@ -331,12 +338,12 @@ def read_windcube_sta(
     lines = read_latin1_lines(path)
     if lines[-1] == "":
         lines.pop()
-    column_line, items = parse_header(path, lines)
+    column_line, items = parse_windcube_header(path, lines)
     names = lines[column_line - 1].split("\t")
     generation, heights, hcols = _layout(path, names, column_line, items)
-    table = _record_table(path, lines[column_line:], names, column_line)
+    table = record_table(path, lines[column_line:], names, column_line)
     first = column_line + 1
-    offset, sync = _utc_offset(path, items, utc_offset_hours)
+    offset, sync = utc_offset(path, items, utc_offset_hours)
     times = increasing_utc_times(path, _parse_times(path, table[0], first), offset, first)
     heights_sorted = np.array(sorted(heights), dtype=float)
     data_vars, n_missing = _variables(path, table, names, hcols, heights_sorted, first)
@@ -362,7 +369,7 @@ def _layout(
             f"TAB-separated) on line {column_line}, found {names[0][:40]!r}",
             column_line,
         )
-    altitudes = _altitudes(path, items)
+    altitudes = header_altitudes(path, items)
     if any(_LONG_RE.match(n) for n in names):
         generation = "1.x"
         heights, hcols = _layout_long(path, names, column_line)
@@ -380,7 +387,7 @@ def _layout(
     return generation, heights, hcols
 
 
-def _record_table(path: Path, data: list[str], names: list[str], column_line: int) -> pd.DataFrame:
+def record_table(path: Path, data: list[str], names: list[str], column_line: int) -> pd.DataFrame:
     """The records split at TABs, each with the header's number of fields."""
     if not data:
         raise InputFileError(path, "no data records after the column header", column_line)
@@ -396,11 +403,11 @@ def _record_table(path: Path, data: list[str], names: list[str], column_line: in
     return series.str.split("\t", expand=True, regex=False)
 
 
-def _utc_offset(
+def utc_offset(
     path: Path, items: dict[str, str], utc_offset_hours: float | None
 ) -> tuple[float, str]:
     """Offset of the stamps from UTC (h) and where it comes from (``time_sync``)."""
-    tz = _header_value(items, "timezone", "TimeZone", "Timezone")
+    tz = header_value(items, "timezone", "TimeZone", "Timezone")
     offset, sync = 0.0, "absent"
     if tz:
         m = _TZ_RE.search(tz)
@@ -441,8 +448,8 @@ def _variables(
 
 def _attrs(path: Path, items: dict[str, str], generation: str) -> dict[str, Any]:
     """Dataset attributes from the header: instrument, system, scan angle, location."""
-    version = _header_value(items, "Version") or ""
-    system_id = _header_value(items, "ID System") or ""
+    version = header_value(items, "Version") or ""
+    system_id = header_value(items, "ID System") or ""
     model = instrument_model(version, system_id, generation)
     software = f" (software {version})" if version else ""
     attrs: dict[str, Any] = {
@@ -460,16 +467,16 @@ def _attrs(path: Path, items: dict[str, str], generation: str) -> dict[str, Any]
     missing = sorted(k for k, v in items.items() if v.strip() in MISSING_HEADER_VALUES - {""})
     if missing:
         attrs["header_items_not_reported"] = missing
-    angle = _header_value(items, "ScanAngle (°)", "ScanAngle(°)")
+    angle = header_value(items, "ScanAngle (°)", "ScanAngle(°)")
     if angle:
         try:
             attrs["scan_angle_deg"] = float(angle)
         except ValueError:
             raise InputFileError(path, f"ScanAngle {angle!r} is not a number") from None
-    location = _header_value(items, "Location", "Localisation")
+    location = header_value(items, "Location", "Localisation")
     if location:
         attrs["location"] = location
-    gps = _header_value(items, "GPS Location", "GPS Localisation")
+    gps = header_value(items, "GPS Location", "GPS Localisation")
     if gps:
         attrs["gps_location"] = gps
     return attrs

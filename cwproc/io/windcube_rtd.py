@@ -47,11 +47,11 @@ from cwproc.io.timecheck import check_times
 from cwproc.io.windcube import (
     MISSING_FIELDS,
     MISSING_HEADER_VALUES,
-    _altitudes,
-    _header_value,
-    _record_table,
-    _utc_offset,
-    parse_header,
+    header_altitudes,
+    header_value,
+    parse_windcube_header,
+    record_table,
+    utc_offset,
 )
 from cwproc.io.zephir import increasing_utc_times, read_latin1_lines, wind_record_dataset
 
@@ -151,24 +151,16 @@ def read_windcube_rtd(
     lines = read_latin1_lines(path)
     if lines[-1] == "":
         lines.pop()
-    column_line, items = parse_header(path, lines)
-    names = lines[column_line - 1].split("\t")
-    if not is_rtd_column_line(lines[column_line - 1]):
-        raise InputFileError(
-            path,
-            f"expected the .rtd column header ('Timestamp' or 'Date', then 'Position', "
-            f"TAB-separated) on line {column_line}, found {names[0][:40]!r}",
-            column_line,
-        )
+    column_line, items = parse_windcube_header(path, lines)
+    names = _column_names(path, lines[column_line - 1], column_line)
     layout = "v1" if names[0].strip() == "Date" else "v2/v2.1"
-    altitudes = _altitudes(path, items)
     if layout != "v1":
         heights, hcols = _long_layout(path, names, column_line)
     else:
-        heights, hcols = _v1_layout(path, names, column_line, altitudes)
-    table = _record_table(path, lines[column_line:], names, column_line)
+        heights, hcols = _v1_layout(path, names, column_line, header_altitudes(path, items))
+    table = record_table(path, lines[column_line:], names, column_line)
     first = column_line + 1
-    offset, sync = _utc_offset(path, items, utc_offset_hours)
+    offset, sync = utc_offset(path, items, utc_offset_hours)
     stamps = _times(path, table[0], _TIME_FORMATS[names[0].strip()], first)
     times = increasing_utc_times(path, stamps, offset, first)
     angle, source = _scan_angle(items, scan_angle_deg)
@@ -187,6 +179,26 @@ def read_windcube_rtd(
         n_missing=n_missing,
     )
     return wind_record_dataset(data_vars, times, heights_sorted, attrs)
+
+
+def _column_names(path: Path, line: str, number: int) -> list[str]:
+    """The TAB-separated column names of the ``.rtd`` column header ``line``.
+
+    Raises
+    ------
+    InputFileError
+        The line is not an ``.rtd`` column header (``Timestamp`` or ``Date``, then
+        ``Position``).
+    """
+    names = line.split("\t")
+    if not is_rtd_column_line(line):
+        raise InputFileError(
+            path,
+            f"expected the .rtd column header ('Timestamp' or 'Date', then 'Position', "
+            f"TAB-separated) on line {number}, found {names[0][:40]!r}",
+            number,
+        )
+    return names
 
 
 def _long_layout(
@@ -250,7 +262,7 @@ def _scan_angle(items: dict[str, str], option: float | None) -> tuple[float, str
     """Cone half-angle from the zenith (deg) and where it comes from."""
     if option is not None:
         return float(option), "reader option scan_angle_deg"
-    value = _header_value(items, "ScanAngle (°)", "ScanAngle(°)")
+    value = header_value(items, "ScanAngle (°)", "ScanAngle(°)")
     if value is not None:
         try:
             return float(value), "header"
@@ -338,8 +350,8 @@ def _rtd_attrs(
     """Dataset attributes: model, software, system, scan angle and where it comes from."""
     from cwproc.io.windcube import instrument_model
 
-    version = _header_value(items, "Version") or ""
-    system_id = _header_value(items, "ID System") or ""
+    version = header_value(items, "Version") or ""
+    system_id = header_value(items, "ID System") or ""
     model = instrument_model(version, system_id, "3.x" if layout == "v1" else "1.x")
     attrs: dict[str, Any] = {
         "instrument": f"Leosphere {model}" + (f" (software {version})" if version else ""),
@@ -368,7 +380,7 @@ def _rtd_attrs(
         ("location", ("Location", "Localisation")),
         ("gps_location", ("GPS Location", "GPS Localisation")),
     ):
-        value = _header_value(items, *names)
+        value = header_value(items, *names)
         if value:
             attrs[key] = value
     return attrs

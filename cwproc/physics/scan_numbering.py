@@ -3,8 +3,8 @@
 The structure function and the VAD fit of Smalikho (2020), eqs. 1-2, work on the
 rays of one full rotation of the cone (azimuth theta_m = m dtheta at a fixed
 elevation phi). :func:`scan_indices` recovers the rotations from the pointing angles
-and times alone (numpy only); :func:`cwproc.io.scans.assign_scans` sets them on a scan
-dataset and :func:`cwproc.io.scans.concat_scans` numbers the datasets of several files
+and times alone (numpy only); :func:`cwproc.io.scan_join.assign_scans` sets them on a scan
+dataset and :func:`cwproc.io.scan_join.concat_scans` numbers the datasets of several files
 joined in time order.
 
 Method

@@ -13,8 +13,14 @@ together are grouped into *product units* (:func:`group_units`), each unit is ru
 
 Modules
 -------
-``units``
-    inputs and product units: reading, keys, grouping, reading again.
+``input_files``
+    one input: its format, checksum and dataset; read once, read again unchanged.
+``input_checks``
+    whether the configuration reads an input (its format, its instrument).
+``file_search``
+    the inputs of a run: files named, folders searched, what is skipped and why.
+``product_units``
+    product units: keys, grouping inputs into units, joining their datasets.
 ``scan_chain``
     ``ScanChain``: the stage chain of scan data and the day's decisions, pure.
 ``chain``
@@ -22,7 +28,7 @@ Modules
     sonic), pure.
 ``probe``
     the configured lidar's probe volume, and whether it describes the scans.
-``background``
+``background_files``
     Stream Line background files, found and read for the SNR correction stage.
 ``stream``
     the executor of ``ScanChain``: a day of scans whole or chunk by chunk in bounded
@@ -37,8 +43,6 @@ Modules
 """
 
 from cwproc.pipeline.chain import (
-    ScanChain,
-    count_stare_rays,
     process_scan_day,
     process_scans,
     process_sonic,
@@ -46,24 +50,26 @@ from cwproc.pipeline.chain import (
     screened_wind,
     sf_summary_tables,
 )
-from cwproc.pipeline.probe import probe_for, probe_from_config, probe_mismatch
-from cwproc.pipeline.retrieve import FoundUnits, RunReport, read_units, retrieve_files
-from cwproc.pipeline.run import EXIT_FAILED, EXIT_OK, UnitResult, internal_error, run_unit
-from cwproc.pipeline.units import (
-    InputFile,
-    ProductUnit,
+from cwproc.pipeline.input_checks import (
     format_mismatch,
-    group_units,
     instrument_mismatch,
-    name_part,
     no_input_of_format,
     other_formats_note,
-    read_input,
+)
+from cwproc.pipeline.input_files import InputFile, read_input
+from cwproc.pipeline.probe import probe_for, probe_from_config, probe_mismatch
+from cwproc.pipeline.product_units import (
+    ProductUnit,
+    group_units,
+    name_part,
     sonic_identity,
     sonic_span,
     unit_key,
     unit_label,
 )
+from cwproc.pipeline.retrieve import FoundUnits, RunReport, read_units, retrieve_files
+from cwproc.pipeline.run import EXIT_FAILED, EXIT_OK, UnitResult, internal_error, run_unit
+from cwproc.pipeline.scan_chain import ScanChain, count_stare_rays
 from cwproc.pipeline.write import product_path, write_unit_products
 
 __all__ = [

@@ -39,44 +39,15 @@ import pandas as pd
 import xarray as xr
 
 from cwproc.config import Config
-from cwproc.pipeline.probe import (  # moved (issue 33): remove in stream D
-    probe_attrs,
-    probe_for,
-    probe_from_config,
-    probe_mismatch,
-    pulse_rate_hz,
-    pulsed_lengths,
-)
-from cwproc.pipeline.scan_chain import (  # moved (issue 33): remove in stream D
-    ScanChain,
-    count_stare_rays,
-    describe_scan_file,
-    describe_scan_inputs,
-    doppler_lidar_options,
-    doppler_lidar_products,
-    stare_products,
-)
+from cwproc.pipeline.scan_chain import ScanChain
 
 __all__ = [
-    "ScanChain",
-    "count_stare_rays",
-    "describe_scan_file",
-    "describe_scan_inputs",
-    "doppler_lidar_options",
-    "doppler_lidar_products",
-    "probe_attrs",
-    "probe_for",
-    "probe_from_config",
-    "probe_mismatch",
     "process_scan_day",
     "process_scans",
     "process_sonic",
     "process_wind_record",
-    "pulse_rate_hz",
-    "pulsed_lengths",
     "screened_wind",
     "sf_summary_tables",
-    "stare_products",
 ]
 
 # The stages are imported by the functions that run them: a command imports the chain

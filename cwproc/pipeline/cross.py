@@ -17,14 +17,9 @@ import xarray as xr
 
 from cwproc.config import Config
 from cwproc.errors import CwprocError
-from cwproc.pipeline.background import correct_background, find_background_files
-from cwproc.pipeline.units import (
-    ProductUnit,
-    concat_unit,
-    load_unit,
-    read_input,
-    unit_key,
-)
+from cwproc.pipeline.background_files import correct_background, find_background_files
+from cwproc.pipeline.input_files import read_input
+from cwproc.pipeline.product_units import ProductUnit, concat_unit, load_unit, unit_key
 
 
 def cross_files(folder: str | Path) -> list[Path]:

@@ -17,20 +17,17 @@ from cwproc.config import Config, default_preset, load_config
 from cwproc.errors import CwprocError
 from cwproc.io import KIND, NETCDF_LOCK, Format, detect_format
 from cwproc.io.netcdf import remove_stale_temporaries
-from cwproc.pipeline.run import internal_error, run_unit
-from cwproc.pipeline.units import (
-    Examined,
-    InputFile,
+from cwproc.pipeline.input_checks import instrument_mismatch
+from cwproc.pipeline.input_files import Examined, InputFile, identify_input, read_input
+from cwproc.pipeline.product_units import (
     ProductUnit,
     UnitPart,
-    identify_input,
-    instrument_mismatch,
-    read_input,
     split_by_day,
     unit_label,
     unit_part,
     units_of,
 )
+from cwproc.pipeline.run import internal_error, run_unit
 from cwproc.pipeline.write import IN_MEMORY, product_path, write_unit_products
 
 
@@ -234,10 +231,11 @@ def read_inputs(
     """``(path, read_input(path, identify_only=True, checksum=False))`` of each input,
     in order; the exception a file raised in place of its item. A ``.hpl`` file is
     identified by its header, and its checksum taken when its unit reads its data
-    (:func:`cwproc.pipeline.units.load_item`, :func:`cwproc.pipeline.stream_read.planned_chunks`):
+    (:func:`cwproc.pipeline.input_files.load_item`,
+    :func:`cwproc.pipeline.stream_read.planned_chunks`):
     a day of scans is read once less.
 
-    A file known from its header (:func:`~cwproc.pipeline.units.identify_input`) is
+    A file known from its header (:func:`~cwproc.pipeline.input_files.identify_input`) is
     identified in the caller's thread: that is Python-level work, which threads would
     only pass the GIL back and forth for (a day of 1920 ``.hpl`` headers took 0.55-0.70
     s in two threads, 0.31-0.35 s in one). The inputs read whole are read by
@@ -346,7 +344,7 @@ def dataset_units(
     Each dataset becomes an :class:`InputFile` holding it, named
     ``<in-memory>/<its source file>`` (``<in-memory>/dataset-<k>`` without one), with no
     checksum; the inputs are grouped as files are (:func:`group_units`: the scans of
-    one instrument and day are joined by :func:`cwproc.io.scans.concat_scans`, so the
+    one instrument and day are joined by :func:`cwproc.io.scan_join.concat_scans`, so the
     per-file datasets of one day may be passed as they are).
 
     Parameters

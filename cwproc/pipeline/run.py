@@ -19,11 +19,12 @@ import xarray as xr
 
 from cwproc.config import Config
 from cwproc.errors import CwprocError
+from cwproc.metadata.products import product_table
 from cwproc.pipeline.chain import process_sonic, process_wind_record
+from cwproc.pipeline.input_files import load_item
+from cwproc.pipeline.product_units import ProductUnit, concat_unit, load_unit, unit_label
 from cwproc.pipeline.scan_chain import ScanChain, describe_scan_inputs
-from cwproc.pipeline.units import ProductUnit, concat_unit, load_item, load_unit, unit_label
 from cwproc.products.catalogue import product_kind
-from cwproc.products.metadata import product_table
 
 #: exit status of a command whose every unit succeeded
 EXIT_OK = 0
@@ -136,7 +137,7 @@ def cloudnet_layout(
     unit: ProductUnit, products: dict[str, xr.Dataset], config: Config
 ) -> dict[str, xr.Dataset]:
     """The ACTRIS Cloudnet files of a scan unit's products (:mod:`cwproc.products.cloudnet`)."""
-    from cwproc.pipeline.units import held_or_identity
+    from cwproc.pipeline.input_files import held_or_identity
     from cwproc.products.cloudnet import cloudnet_products
 
     first = held_or_identity(unit.inputs[0]) if unit.inputs else None

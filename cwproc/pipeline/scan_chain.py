@@ -34,9 +34,9 @@ import xarray as xr
 from cwproc import memory
 from cwproc.config import Config
 from cwproc.errors import CwprocError
-from cwproc.pipeline.background import SnrCorrection, corrected_snr
+from cwproc.pipeline.background_files import SnrCorrection, snr_corrected_scans
 from cwproc.pipeline.probe import probe_attrs, probe_for, probe_mismatch, pulse_rate_hz
-from cwproc.pipeline.units import ProductUnit
+from cwproc.pipeline.product_units import ProductUnit
 
 if TYPE_CHECKING:
     from cwproc.stages.doppler_lidar import DopplerLidarOptions
@@ -98,7 +98,7 @@ class DayDecisions:
     Attributes
     ----------
     scan : numpy.ndarray
-        Scan index of each ray (:func:`cwproc.io.scans.scan_indices` over the day).
+        Scan index of each ray (:func:`cwproc.io.scan_join.scan_indices` over the day).
     vad_elevation_deg : float or None
         The conical elevation the VAD keeps (the day's most common); None: no wind.
     vad_scans_other_elevation : int
@@ -256,12 +256,12 @@ class ScanChain:
     ) -> tuple[xr.Dataset, SnrCorrection]:
         """Per ray: the SNR corrected with the background files of ``unit``.
 
-        ``files``: :func:`~cwproc.pipeline.background.find_background_files` of the
+        ``files``: :func:`~cwproc.pipeline.background_files.find_background_files` of the
         unit when the caller holds them (a streamed day looks once, not once per
         chunk). The summary line is the record's (:class:`SnrCorrection`): the caller
         writes one for the day.
         """
-        return corrected_snr(chunk, unit, self.config, notes, files=files)
+        return snr_corrected_scans(chunk, unit, self.config, notes, files=files)
 
     def split(self, ds: xr.Dataset) -> tuple[xr.Dataset | None, xr.Dataset | None]:
         """Per ray: ``(stares, others)``, the vertical stares and the other rays."""
@@ -273,7 +273,7 @@ class ScanChain:
 
     def fit(self, others: xr.Dataset) -> Fitted:
         """Per scan: the rays screened (stage ``qc``) and the VAD wind (stage ``vad``)."""
-        from cwproc.io.scans import is_homodyne
+        from cwproc.io.scan_join import is_homodyne
         from cwproc.stages import qc, vad
 
         c = self.config
@@ -337,12 +337,12 @@ class ScanChain:
     def decisions(self, pointing: Pointing, *, wind: bool, step: bool) -> DayDecisions:
         """What the whole day decides, from its pointing alone (24 bytes a ray).
 
-        The scan numbering (:func:`cwproc.io.scans.scan_indices`); with ``wind``, the
+        The scan numbering (:func:`cwproc.io.scan_join.scan_indices`); with ``wind``, the
         VAD's conical scans (:func:`cwproc.stages.vad.select_conical_scans`); with
         ``step``, the azimuth step and rotation of their rays
         (:func:`cwproc.stages.structure.azimuth_step`).
         """
-        from cwproc.io.scans import scan_indices
+        from cwproc.io.scan_join import scan_indices
         from cwproc.stages import structure, vad
 
         time, az, el = pointing.time, pointing.azimuth, pointing.elevation

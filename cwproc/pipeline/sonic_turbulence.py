@@ -20,7 +20,7 @@ import xarray as xr
 from cwproc.config import Config
 from cwproc.errors import CwprocError
 from cwproc.io import detect_format, get_reader
-from cwproc.pipeline.units import reader_options
+from cwproc.pipeline.input_files import reader_options
 from cwproc.products.catalogue import describe_product
 from cwproc.products.writer import add_site_coordinates, site_attributes, write_product
 from cwproc.stages.sonic_turbulence import sonic_turbulence

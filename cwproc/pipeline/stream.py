@@ -47,8 +47,9 @@ from cwproc import memory, progress
 from cwproc.config import Config
 from cwproc.errors import CwprocError, InputFileError
 from cwproc.io import FileIdentity
-from cwproc.io.scans import _source_files, concat_scans, joined_attrs
-from cwproc.pipeline.background import SnrCorrection, find_background_files
+from cwproc.io.scan_join import concat_scans, joined_attrs, source_files
+from cwproc.pipeline.background_files import SnrCorrection, find_background_files
+from cwproc.pipeline.product_units import ProductUnit, drop_input
 from cwproc.pipeline.scan_chain import (
     Carry,
     DayDecisions,
@@ -68,7 +69,6 @@ from cwproc.pipeline.stream_read import (
     read_ahead_enabled,
     read_planned_chunk,
 )
-from cwproc.pipeline.units import ProductUnit, drop_input
 
 __all__ = [
     "STREAM_CHUNK_BYTES",
@@ -118,7 +118,7 @@ def planned_chunk_datasets(
     """The chunks of ``.hpl`` files read a chunk at a time (:mod:`.stream_read`).
 
     ``took(item, identity, lines)`` is called for each file of a chunk read at once
-    (its identity and the line :func:`~.chain.describe_scan_inputs` gives it); a chunk
+    (its identity and the line :func:`~.scan_chain.describe_scan_inputs` gives it); a chunk
     that cannot be read at once is read file by file with ``take(item)``, as
     :func:`chunks_of` does. None: a chunk whose every file was left out. With
     ``ahead``, the next chunk is planned and parsed in a second thread
@@ -452,9 +452,9 @@ def stream_unit(
 class UnitChunks:
     """The scan files of a unit as chunks of about ``chunk_bytes``, in time order.
 
-    Each file's description line (:func:`~.chain.describe_scan_inputs`) is appended to
+    Each file's description line (:func:`~.scan_chain.describe_scan_inputs`) is appended to
     ``notes`` as it is read; a file damaged beyond its header is left out of the unit
-    with its failure line (:func:`~cwproc.pipeline.units.drop_input`). With
+    with its failure line (:func:`~cwproc.pipeline.product_units.drop_input`). With
     ``read_ahead`` (None: unless ``CWPROC_READ_AHEAD=0``) the next files are read (and
     checksummed) in a second thread (:class:`ChunkAhead` for chunks read at once, else
     :class:`ReadAhead`; at most one chunk ahead) while the caller processes the chunk
@@ -507,7 +507,7 @@ class UnitChunks:
     def attrs(self) -> dict:
         """Attributes of the whole day's scans (those the whole-day run carries)."""
         firsts = [self.seen[k] for k in sorted(self.seen)]
-        files = [f for ds in firsts for f in _source_files(ds)]
+        files = [f for ds in firsts for f in source_files(ds)]
         types = [str(ds.attrs.get("scan_type", "")) for ds in firsts]
         return joined_attrs(firsts[0].attrs, files, types)
 

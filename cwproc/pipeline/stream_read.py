@@ -24,7 +24,8 @@ import xarray as xr
 from cwproc.config import Config
 from cwproc.io import Format
 from cwproc.io.halo_files import HplFilePart, plan_hpl_file, planned_bytes, read_hpl_run
-from cwproc.pipeline.units import InputFile, ProductUnit, file_signature, reader_options
+from cwproc.pipeline.input_files import InputFile, file_signature, reader_options
+from cwproc.pipeline.product_units import ProductUnit
 
 
 def chunk_reading_possible(unit: ProductUnit, config: Config) -> bool:

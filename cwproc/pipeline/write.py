@@ -11,7 +11,8 @@ import xarray as xr
 from cwproc.config import Config
 from cwproc.errors import CwprocError
 from cwproc.io.netcdf import discard, publish
-from cwproc.pipeline.units import ProductUnit, held_or_identity
+from cwproc.pipeline.input_files import held_or_identity
+from cwproc.pipeline.product_units import ProductUnit
 from cwproc.products.catalogue import describe_product, product_kind
 from cwproc.products.writer import add_site_coordinates, site_attributes, write_product
 

@@ -1,14 +1,14 @@
 """What each product is: its title, summary, keywords and references (ACDD attributes).
 
 The one home of the descriptions of the product files; the variables' own names, units
-and flags are in :mod:`cwproc.products.metadata`.
+and flags are in :mod:`cwproc.metadata.products`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from cwproc.products.metadata_sonic import SONIC_TURBULENCE_REFERENCES
+from cwproc.metadata.sonic import SONIC_TURBULENCE_REFERENCES
 from cwproc.references import (
     BANAKH_1999,
     GLADKIKH_2014,
@@ -113,7 +113,7 @@ _WIND_RECORD = ProductDescription(
 
 
 def product_kind(name: str, unit_kind: str) -> str:
-    """The product (a key of :data:`cwproc.products.metadata.PRODUCTS`) that product
+    """The product (a key of :data:`cwproc.metadata.products.PRODUCTS`) that product
     ``name`` of a unit of kind ``unit_kind`` is: the ``"wind"`` of instrument wind
     records is ``"wind_record"``, every other product is its name."""
     return "wind_record" if unit_kind == "wind_record" else name

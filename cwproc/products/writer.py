@@ -21,7 +21,7 @@ from cwproc._version import __version__
 from cwproc.config import OutputConfig
 from cwproc.io import NETCDF_LOCK
 from cwproc.io.netcdf import sha256_file, stage_netcdf, write_netcdf_atomic
-from cwproc.products.metadata import apply_metadata
+from cwproc.metadata.products import apply_metadata
 
 CONVENTIONS = "CF-1.10, ACDD-1.3"
 
@@ -67,15 +67,28 @@ def global_attributes(
     extra : mapping, optional
         More global attributes (e.g. instrument attributes of the input).
     """
+    names, sums = _input_checksums(inputs, checksums)
+    attrs = _provenance_attributes(title, summary, keywords, references, names, sums, config_toml)
+    attrs.update(_time_coverage(ds))
+    attrs.update(_vertical_coverage(ds))
+    if extra:
+        attrs.update({k: v for k, v in extra.items() if v is not None})
+    return attrs
+
+
+def _provenance_attributes(
+    title: str,
+    summary: str,
+    keywords: str,
+    references: str,
+    names: list[str],
+    sums: dict[str, str],
+    config_toml: str,
+) -> dict[str, object]:
+    """The ACDD-1.3 attributes that do not depend on the data: what, who, when (now,
+    UTC) and from which inputs and configuration."""
     now = _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z")
-    sums = dict(checksums or {})
-    names = []
-    for p in inputs:
-        key = os.fspath(p)
-        if key not in sums:
-            sums[key] = sha256_file(key)
-        names.append(os.path.basename(key))
-    attrs: dict[str, object] = {
+    return {
         "Conventions": CONVENTIONS,
         "title": title,
         "summary": summary,
@@ -119,28 +132,55 @@ def global_attributes(
         "input_sha256": json.dumps(sums, sort_keys=True),
         "cwproc_config": config_toml,
     }
-    if "time" in ds.variables and ds["time"].size > 0:
-        t = np.ravel(ds["time"].values)
-        t = t[~np.isnat(t)] if np.issubdtype(t.dtype, np.datetime64) else t
-        if len(t) and np.issubdtype(np.asarray(t).dtype, np.datetime64):
-            start, end = np.min(t), np.max(t)
-            attrs["time_coverage_start"] = _iso(start)
-            attrs["time_coverage_end"] = _iso(end)
-            seconds = int((end - start) / np.timedelta64(1, "s"))
-            attrs["time_coverage_duration"] = f"PT{seconds}S"
-            if len(t) > 1:
-                step = np.median(np.diff(np.sort(t))) / np.timedelta64(1, "s")
-                attrs["time_coverage_resolution"] = f"PT{float(step):g}S"
-    if "height" in ds.coords and ds["height"].size > 0:
-        h = np.asarray(ds["height"].values, dtype=float)
-        attrs["geospatial_vertical_min"] = float(np.nanmin(h))
-        attrs["geospatial_vertical_max"] = float(np.nanmax(h))
-        attrs["geospatial_vertical_units"] = "m"
-        attrs["geospatial_vertical_positive"] = "up"
-        if h.size > 1:
-            attrs["geospatial_vertical_resolution"] = f"{float(np.median(np.diff(h))):g} m"
-    if extra:
-        attrs.update({k: v for k, v in extra.items() if v is not None})
+
+
+def _input_checksums(
+    inputs: Sequence[str | os.PathLike], checksums: Mapping[str, str] | None
+) -> tuple[list[str], dict[str, str]]:
+    """File names of the inputs and ``{path: sha256}`` of each (``checksums`` first,
+    the others computed)."""
+    sums = dict(checksums or {})
+    names = []
+    for p in inputs:
+        key = os.fspath(p)
+        if key not in sums:
+            sums[key] = sha256_file(key)
+        names.append(os.path.basename(key))
+    return names, sums
+
+
+def _time_coverage(ds: xr.Dataset) -> dict[str, object]:
+    """ACDD ``time_coverage_*`` of the product's valid times ({} without times)."""
+    attrs: dict[str, object] = {}
+    if "time" not in ds.variables or ds["time"].size == 0:
+        return attrs
+    t = np.ravel(ds["time"].values)
+    t = t[~np.isnat(t)] if np.issubdtype(t.dtype, np.datetime64) else t
+    if len(t) and np.issubdtype(np.asarray(t).dtype, np.datetime64):
+        start, end = np.min(t), np.max(t)
+        attrs["time_coverage_start"] = _iso(start)
+        attrs["time_coverage_end"] = _iso(end)
+        seconds = int((end - start) / np.timedelta64(1, "s"))
+        attrs["time_coverage_duration"] = f"PT{seconds}S"
+        if len(t) > 1:
+            step = np.median(np.diff(np.sort(t))) / np.timedelta64(1, "s")
+            attrs["time_coverage_resolution"] = f"PT{float(step):g}S"
+    return attrs
+
+
+def _vertical_coverage(ds: xr.Dataset) -> dict[str, object]:
+    """ACDD ``geospatial_vertical_*`` of the product's heights (m; {} without heights)."""
+    if "height" not in ds.coords or ds["height"].size == 0:
+        return {}
+    h = np.asarray(ds["height"].values, dtype=float)
+    attrs: dict[str, object] = {
+        "geospatial_vertical_min": float(np.nanmin(h)),
+        "geospatial_vertical_max": float(np.nanmax(h)),
+        "geospatial_vertical_units": "m",
+        "geospatial_vertical_positive": "up",
+    }
+    if h.size > 1:
+        attrs["geospatial_vertical_resolution"] = f"{float(np.median(np.diff(h))):g} m"
     return attrs
 
 
@@ -258,8 +298,8 @@ def write_product(
     path : path
         Where it is written.
     product : str
-        Which product ``ds`` is, one of :data:`cwproc.products.metadata.PRODUCTS`: it
-        selects the declarations (:func:`cwproc.products.metadata.apply_metadata`).
+        Which product ``ds`` is, one of :data:`cwproc.metadata.products.PRODUCTS`: it
+        selects the declarations (:func:`cwproc.metadata.products.apply_metadata`).
     title, summary, inputs, checksums, config_toml, references, keywords, extra_attrs
         Global attributes, see :func:`global_attributes`.
     compression_level : int

@@ -4,7 +4,7 @@ Each ray is matched to the background file of its hour: the nearest background m
 at or before the ray (as the Stream Line measures it at the start of each hour), no older
 than ``max_age_h``. The physics is in :mod:`cwproc.physics.background` (Manninen et al.
 (2016); Vakkari et al. (2019)); this module matches the rays to the background datasets
-it is given (read by :mod:`cwproc.pipeline.background`; a stage does no I/O) and builds
+it is given (read by :mod:`cwproc.pipeline.background_files`; a stage does no I/O) and builds
 the dataset. The SNR as the instrument gave it stays in ``snr_uncorrected``.
 """
 

@@ -36,7 +36,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import CwprocError
-from cwproc.io.scans import is_homodyne
+from cwproc.io.scan_join import is_homodyne
 from cwproc.metadata import described
 from cwproc.physics.geometry import beam_unit_vector
 from cwproc.physics.vad_least_squares import (
@@ -178,7 +178,7 @@ def screen_radial_velocity(
         Outlier threshold in scaled MADs of the residuals of a robust VAD fit.
     homodyne : bool, optional
         The VAD model of the outlier test is ``|A beta|`` (homodyne detection). None:
-        the ``homodyne`` attribute of ``ds`` (:func:`cwproc.io.scans.is_homodyne`).
+        the ``homodyne`` attribute of ``ds`` (:func:`cwproc.io.scan_join.is_homodyne`).
 
     The defaults of the keyword arguments are those of the ``streamline`` preset
     (``[qc]`` of ``cwproc/configs/streamline.toml``).

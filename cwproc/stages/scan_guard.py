@@ -1,11 +1,11 @@
 """Refuse scan datasets whose scan numbers collide across files (the ``xr.concat`` trap).
 
-Every file's scans are numbered from 0 (:func:`cwproc.io.scans.assign_scans`), so
+Every file's scans are numbered from 0 (:func:`cwproc.io.scan_join.assign_scans`), so
 ``xarray.concat([read(a), read(b)], "ray")`` keeps two numberings: the VAD fit then
 merges scan ``k`` of each file into one rotation (the two sample ``.hpl`` files of six
 scans each give 6 wind rows instead of 12), and the structure function and epsilon built
 on it are wrong without any error. The right join renumbers the scans over the whole
-record: :func:`cwproc.read` of several files, or :func:`cwproc.io.scans.concat_scans`.
+record: :func:`cwproc.read` of several files, or :func:`cwproc.io.scan_join.concat_scans`.
 
 :func:`require_distinct_scans` checks, in time order and among the rays of a scan
 (``scan >= 0``), the invariants that the numbering guarantees (Smalikho (2020),
@@ -13,7 +13,7 @@ eqs. 1-2: one scan is one rotation of the cone, turning one way):
 
 (a) the scan numbers never decrease (several files of several scans each);
 (b) two consecutive rays of one scan are at most ``max_gap_s`` apart (the numbering's
-    own rule, ``max_gap_s`` of :func:`cwproc.io.scans.scan_indices`);
+    own rule, ``max_gap_s`` of :func:`cwproc.physics.scan_numbering.scan_indices`);
 (c) the azimuth turned within one scan is at most one full turn plus its largest step
     (one scan per file, files back to back: every ray is scan 0).
 

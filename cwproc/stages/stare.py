@@ -378,7 +378,7 @@ def stare_product(
     Returns
     -------
     xarray.Dataset
-        Dims ``time`` (window centres), ``height``, ``ray``; see ``cwproc.products.metadata``.
+        Dims ``time`` (window centres), ``height``, ``ray``; see ``cwproc.metadata.products``.
     """
     if stares.sizes.get("ray", 0) == 0:
         raise CwprocError("stare: no vertical rays")
@@ -467,7 +467,7 @@ def stare_flags(
     far: np.ndarray,
     min_rays: int,
 ) -> np.ndarray:
-    """``stare_flag`` bits per window and height (``cwproc.products.metadata``).
+    """``stare_flag`` bits per window and height (``cwproc.metadata.products``).
 
     Bit 2 where a window has fewer than ``min_rays`` valid rays or no variance window of
     3 valid rays.

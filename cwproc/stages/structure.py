@@ -33,7 +33,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import CwprocError
-from cwproc.io.scans import is_homodyne
+from cwproc.io.scan_join import is_homodyne
 from cwproc.metadata import described
 from cwproc.physics.atable_interp import N_BINS, azimuth_nodes
 from cwproc.physics.geometry import beam_unit_vector, radial_velocity, speed_and_direction
@@ -336,7 +336,7 @@ def azimuth_structure_function(
     homodyne : bool, optional
         ``radial_velocity`` holds ``|V_r|`` (homodyne detection): signs are taken from
         the block-mean wind (:func:`homodyne_radial_velocity`). None: the ``homodyne``
-        attribute of ``screened_ds`` (:func:`cwproc.io.scans.is_homodyne`).
+        attribute of ``screened_ds`` (:func:`cwproc.io.scan_join.is_homodyne`).
 
     The defaults of ``n_scans``, ``max_lag_deg`` and ``min_lags`` are those of the
     ``streamline`` preset (``[turbulence]`` of ``cwproc/configs/streamline.toml``).

@@ -31,7 +31,7 @@ import xarray as xr
 from numpy.typing import NDArray
 
 from cwproc.errors import CwprocError
-from cwproc.io.scans import is_homodyne
+from cwproc.io.scan_join import is_homodyne
 from cwproc.metadata import described
 from cwproc.physics.geometry import (
     beam_unit_vector,
@@ -379,7 +379,7 @@ def fit_vad(
         scatter of a scan (~1 m s-1), and typical of noise gates or folded velocities.
     homodyne : bool, optional
         Fit ``|V_r| = |A beta|`` (homodyne detection). None: the ``homodyne`` attribute
-        of ``ds`` (:func:`cwproc.io.scans.is_homodyne`).
+        of ``ds`` (:func:`cwproc.io.scan_join.is_homodyne`).
 
     The defaults of the keyword arguments are those of the ``streamline`` preset
     (``[vad]`` of ``cwproc/configs/streamline.toml``).

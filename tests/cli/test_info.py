@@ -12,7 +12,7 @@ from click.testing import CliRunner
 from cwproc.cli import main
 from cwproc.cli.describe import azimuth_coverage, describe_scan, elevation_summary
 from cwproc.io.halo import read_hpl, write_hpl
-from cwproc.io.scans import assign_scans
+from cwproc.io.scan_join import assign_scans
 
 
 def run(*args: str):

@@ -12,7 +12,7 @@ from click.testing import CliRunner
 
 from cwproc.cli import main
 from cwproc.io.netcdf import read_product
-from cwproc.products.metadata import undeclared_variables
+from cwproc.metadata.products import undeclared_variables
 
 
 @pytest.fixture(scope="module")

@@ -166,7 +166,7 @@ def test_program_exit_runs_the_atexit_functions():
 _FAULTS = (
     "import resource, sys, threading\n"
     "import numpy as np\n"
-    "from cwproc.cli._group import keep_freed_arrays\n"
+    "from cwproc.memory import keep_freed_arrays\n"
     "if sys.argv[1] == '1':\n"
     "    assert keep_freed_arrays()\n"
     "def arrays():\n"
@@ -247,3 +247,17 @@ def test_sf_type_program_keeps_freed_arrays_and_one_blas_thread_only_there():
             env=environment,
         ).stdout
         assert out.splitlines()[-1] == expected, argv
+
+
+@pytest.mark.parametrize(
+    "table", [COMMANDS, simulate_group.COMMANDS, theory_group.COMMANDS], ids=["top", "sim", "th"]
+)
+def test_command_functions_say_they_are_commands(table):
+    """A click command's function is ``<name>_command``: ``cwproc.retrieve`` (the API),
+    ``stages.sonic_turbulence`` and ``physics``' ε-bias ratio keep their names alone."""
+    import importlib
+
+    for name, (target, _) in table.items():
+        module, attr = target.split(":")
+        assert attr.endswith("_command"), target
+        assert getattr(importlib.import_module(module), attr).name == name

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from cwproc.cli.theory_eps import DEFAULT_LAG, eps_ratio, first_exceedance
+from cwproc.cli.theory_eps import DEFAULT_LAG, eps_ratio_command, first_exceedance
 
 
 def _table(output: str) -> np.ndarray:
@@ -15,7 +15,7 @@ def _table(output: str) -> np.ndarray:
 
 
 def test_default_table_reproduces_reference_row():
-    result = CliRunner().invoke(eps_ratio, ["--phi", "60", "--dy", "3", "--mu-step", "0.5"])
+    result = CliRunner().invoke(eps_ratio_command, ["--phi", "60", "--dy", "3", "--mu-step", "0.5"])
     assert result.exit_code == 0, result.output
     table = _table(result.output)
     # REFERENCE_VALUES.md 1.3.pi, phi = 60, dy = 3, l = 3 (the default lag)
@@ -33,7 +33,7 @@ def test_default_table_reproduces_reference_row():
 
 def test_printed_transfer_and_lag_option():
     result = CliRunner().invoke(
-        eps_ratio,
+        eps_ratio_command,
         ["--phi", "16", "--dy", "12", "--lag", "2", "--transfer", "printed", "--mu-max", "2"],
     )
     assert result.exit_code == 0, result.output
@@ -46,7 +46,7 @@ def test_printed_transfer_and_lag_option():
 def test_png_is_written(tmp_path):
     png = tmp_path / "ratio.png"
     result = CliRunner().invoke(
-        eps_ratio, ["--phi", "45", "--dy", "6", "--mu-max", "2", "--png", str(png)]
+        eps_ratio_command, ["--phi", "45", "--dy", "6", "--mu-max", "2", "--png", str(png)]
     )
     assert result.exit_code == 0, result.output
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -54,7 +54,9 @@ def test_png_is_written(tmp_path):
 
 def test_unwritable_png_is_one_line_error(tmp_path):
     target = tmp_path / "missing-dir" / "x.png"
-    result = CliRunner().invoke(eps_ratio, ["--phi", "45", "--mu-max", "1", "--png", str(target)])
+    result = CliRunner().invoke(
+        eps_ratio_command, ["--phi", "45", "--mu-max", "1", "--png", str(target)]
+    )
     assert result.exit_code == 1
     assert "cannot write" in result.output
     assert "Traceback" not in result.output
@@ -65,7 +67,7 @@ def test_unwritable_png_is_one_line_error(tmp_path):
     [["--dy", "3"], ["--phi", "95"], ["--phi", "60", "--lag", "1"], ["--phi", "60", "--dy", "0"]],
 )
 def test_bad_arguments_are_usage_errors(args):
-    result = CliRunner().invoke(eps_ratio, args)
+    result = CliRunner().invoke(eps_ratio_command, args)
     assert result.exit_code == 2
     assert "Traceback" not in result.output
 

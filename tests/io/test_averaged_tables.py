@@ -12,8 +12,9 @@ from click.testing import CliRunner
 from cwproc.cli import main
 from cwproc.errors import InputFileError
 from cwproc.io.averaged import averaged_table_reason
-from cwproc.io.campbell import read_toa5, read_tob1
-from cwproc.io.meteo2 import sonic_dataset
+from cwproc.io.campbell import read_toa5
+from cwproc.io.campbell_tob1 import read_tob1
+from cwproc.io.sonic_samples import sonic_dataset
 
 SAMPLE = Path(__file__).resolve().parents[2] / "sample_data" / "sonic"
 FLUX_NAMES = ["Fc_molar", "LE", "H", "Tau", "u_star", "Ux", "Uy", "Uz", "Ts"]

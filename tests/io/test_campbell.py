@@ -10,7 +10,8 @@ from hypothesis import strategies as st
 
 from cwproc.errors import InputFileError
 from cwproc.io import Format, campbell, detect_format
-from cwproc.io.campbell import decode_fp2, read_toa5, read_tob1
+from cwproc.io.campbell import read_toa5
+from cwproc.io.campbell_tob1 import decode_fp2, read_tob1
 
 TOA5 = "sonic/TOA5_6843.ts_Above_2012_06_07_1245.dat"
 TOB1 = "sonic/testing.tob"
@@ -230,7 +231,7 @@ def test_mutated_tob1_gives_dataset_or_input_file_error(tmp_path, real_data, dat
 
 def test_every_real_sonic_file_reads_through_format_detection(real_data):
     """Every data file of real_data/sonic: detected, read, expected size and sane values."""
-    from cwproc.io import read
+    from cwproc.io import read_file
 
     expected = {
         "TOA5_6843.ts_Above_2012_06_07_1245.dat": (18000, 20.0),
@@ -240,7 +241,7 @@ def test_every_real_sonic_file_reads_through_format_detection(real_data):
     files = sorted(p for p in (real_data / "sonic").iterdir() if p.suffix != ".md")
     assert {p.name for p in files} >= set(expected)
     for p in files:
-        ds = read(p)
+        ds = read_file(p)
         n, rate = expected[p.name]
         assert ds.sizes["time"] == n, p.name
         assert ds.attrs["sampling_rate_hz"] == pytest.approx(rate, rel=1e-6), p.name

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from cwproc.errors import InputFileError
-from cwproc.io import Format, detect_format, read
+from cwproc.io import Format, detect_format, read_file
 from cwproc.io.licor import read_ghg
 
 SAMPLE = Path(__file__).resolve().parents[2] / "sample_data" / "sonic"
@@ -25,7 +25,7 @@ def test_ghg_archive_reads_like_its_data_file(tmp_path):
     raw = DATA.read_bytes()
     path = archive(tmp_path, {"x.metadata": b"[Site]\n", DATA.name: raw})
     assert detect_format(path) is Format.GHG
-    from_zip, plain = read(path), read_ghg(DATA)
+    from_zip, plain = read_file(path), read_ghg(DATA)
     assert from_zip.sizes == plain.sizes
     assert (from_zip["u"].values[:100] == plain["u"].values[:100]).all()
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from cwproc.io.halo import read_hpl
-from cwproc.io.halo_body import _read_table, _single_space_ok, _tokenize, content_end
+from cwproc.io.halo_body import content_end, read_body_table, single_space_ok, tokenize_body
 from cwproc.io.halo_header import split_header
 
 REAL_FILES = (
@@ -48,14 +48,14 @@ def test_single_space_parse_is_bitwise_the_whitespace_parse(real_data: Path, nam
     raw = (real_data / "hpl" / name).read_bytes()
     _, offset = split_header(name, raw)
     body = raw[offset : content_end(raw, offset)]
-    assert _single_space_ok(body)  # CRLF or LF, no TAB: every real file takes the fast path
-    # the single-space table itself (not _tokenize, which would fall back on a problem):
+    assert single_space_ok(body)  # CRLF or LF, no TAB: every real file takes the fast path
+    # the single-space table itself (not tokenize_body, which would fall back on a problem):
     # 5 columns equal to the reference, and a sixth that only ever holds the empty field
     # after a trailing space
-    table = _read_table(body, single_space=True)
+    table = read_body_table(body, single_space=True)
     assert table.shape[1] == 6 and table[5].isna().all()
     fast = [table[j].to_numpy(dtype=np.float64) for j in range(5)]
-    reference = _tokenize(name, body, single_space=False)
+    reference = tokenize_body(name, body, single_space=False)
     assert len(reference) == 5
     for a, b in zip(fast, reference, strict=True):
         assert a.tobytes() == b.tobytes()  # NaN pattern and -0.0 included
@@ -74,7 +74,7 @@ def test_single_space_parse_is_bitwise_the_whitespace_parse(real_data: Path, nam
     ],
 )
 def test_single_space_only_for_space_separated_crlf_or_lf(body: bytes, expected: bool) -> None:
-    assert _single_space_ok(body) is expected
+    assert single_space_ok(body) is expected
 
 
 def test_tab_separated_fields_read_like_spaces(real_data: Path, tmp_path: Path) -> None:

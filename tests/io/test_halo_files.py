@@ -19,7 +19,7 @@ from cwproc.errors import CwprocError, InputFileError
 from cwproc.io.halo import read_header_and_body, read_hpl, write_hpl
 from cwproc.io.halo_files import read_hpl_files
 from cwproc.io.halo_header import HEADER_LINES
-from cwproc.io.scans import concat_scans
+from cwproc.io.scan_join import concat_scans
 
 #: a large file with pitch/roll, and one with 3-field ray lines and no final newline
 REAL_SINGLE = ("User5_96_20190308_200500.hpl", "hyytiala-2023-09-13-Stare_46_20230913_23.hpl")

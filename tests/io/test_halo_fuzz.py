@@ -17,8 +17,8 @@ from hypothesis import strategies as st
 
 from cwproc.errors import InputFileError
 from cwproc.io.halo import read_hpl
-from cwproc.io.halo_body import _single_space_ok, _tokenize, content_end, structure_problem
-from cwproc.io.halo_header import parse_header, split_header
+from cwproc.io.halo_body import content_end, single_space_ok, structure_problem, tokenize_body
+from cwproc.io.halo_header import parse_hpl_header, split_header
 
 SMALL_FILES = (
     "eriswil-2022-12-14-Stare_91_20221214_11.hpl",
@@ -148,15 +148,15 @@ def test_single_space_tokenizer_agrees_with_whitespace_tokenizer(
         raw = apply(raw, mut)
     try:
         lines, offset = split_header("x.hpl", raw)
-        n_gates = parse_header("x.hpl", lines).n_gates
+        n_gates = parse_hpl_header("x.hpl", lines).n_gates
     except InputFileError:
         return
     body = raw[offset : content_end(raw, offset)]
-    if not body or b"\x00" in body or not _single_space_ok(body):
+    if not body or b"\x00" in body or not single_space_ok(body):
         return
     try:
-        fast = _tokenize("x.hpl", body, single_space=True)
+        fast = tokenize_body("x.hpl", body, single_space=True)
     except InputFileError:
         return
     if structure_problem(fast, n_gates) is None:
-        assert same_columns(fast, _tokenize("x.hpl", body, single_space=False))
+        assert same_columns(fast, tokenize_body("x.hpl", body, single_space=False))

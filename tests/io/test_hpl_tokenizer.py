@@ -94,7 +94,7 @@ def test_round_trip_of_formatted_floats(tokens: list[str]) -> None:
 @settings(max_examples=300, deadline=None, derandomize=True)
 @given(st.lists(st.sampled_from(list("0123456789+-.eE \t\n\rx")), max_size=80))
 def test_tokenize_lines_of_a_known_count_is_tokenize(chars: list[str]) -> None:
-    """tokenize_lines with the body's true line count gives tokenize's result; with any
+    """tokenize_lines with the body's true line count gives tokenize_body's result; with any
     other count, a count that differs from it (or the bad line), never its value."""
     body = "".join(chars).encode()
     n_true = len(reference(body, 64))
@@ -118,9 +118,9 @@ def test_too_many_fields_names_the_line() -> None:
 
 def tokenized_both_ways(path: Path, monkeypatch: pytest.MonkeyPatch) -> tuple[list, list]:
     _, body = halo.read_header_and_body(path)
-    fast = halo_body._tokenize(path, body)
+    fast = halo_body.tokenize_body(path, body)
     monkeypatch.setattr(halo_body, "_hpltok", None)
-    slow = halo_body._tokenize(path, body)
+    slow = halo_body.tokenize_body(path, body)
     monkeypatch.undo()
     return fast, slow
 

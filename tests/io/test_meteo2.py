@@ -11,13 +11,8 @@ from hypothesis import strategies as st
 
 from cwproc.errors import InputFileError
 from cwproc.io import Format, detect_format
-from cwproc.io.meteo2 import (
-    _spike_mask_everywhere,
-    measure_sampling_rate,
-    read_meteo2,
-    spike_mask,
-    write_meteo2,
-)
+from cwproc.io.meteo2 import read_meteo2, write_meteo2
+from cwproc.io.sonic_samples import _spike_mask_everywhere, measure_sampling_rate, spike_mask
 from cwproc.sim.sonic import METEO2_RATE_HZ, simulate_sonic_dataset
 
 FIXTURE_CHECK = HealthCheck.function_scoped_fixture
@@ -184,7 +179,7 @@ def test_stray_stamp_of_a_damaged_record_is_dropped():
     """A flipped byte in one TOB1 SECONDS field gave a sample 20 years before the file's
     first record (found by tests/test_damaged_inputs.py): a stamp far from both of its
     neighbours, which agree with each other, is dropped and reported."""
-    from cwproc.io.meteo2 import sonic_dataset, stray_stamps
+    from cwproc.io.sonic_samples import sonic_dataset, stray_stamps
 
     t = np.datetime64("2024-06-01T12:00", "ns") + np.arange(100) * np.timedelta64(100, "ms")
     for i in (0, 40, 99):

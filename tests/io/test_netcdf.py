@@ -14,7 +14,7 @@ from cwproc import __version__
 from cwproc.config import Config, OutputConfig
 from cwproc.errors import ProductError
 from cwproc.io.netcdf import read_product, sha256_file
-from cwproc.products.metadata import VARIABLES, apply_metadata, undeclared_variables
+from cwproc.metadata.products import VARIABLES, apply_metadata, undeclared_variables
 from cwproc.products.writer import site_attributes, write_product
 
 

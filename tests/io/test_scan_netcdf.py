@@ -9,7 +9,7 @@ import pytest
 import xarray as xr
 
 from cwproc.errors import InputFileError
-from cwproc.io import Format, detect_format, read
+from cwproc.io import Format, detect_format, read_file
 from cwproc.io.halo import read_hpl
 from cwproc.io.scan_netcdf import read_scan_netcdf, write_scan_netcdf
 
@@ -61,7 +61,7 @@ def test_cw_round_trip(tmp_path: Path) -> None:
     # CF attributes from the metadata table
     assert back["radial_velocity"].attrs["units"] == "m s-1"
     assert detect_format(path) == Format.SCAN_NETCDF
-    assert read(path).sizes == {"ray": 50, "range": 3}
+    assert read_file(path).sizes == {"ray": 50, "range": 3}
 
 
 def test_real_hpl_round_trip(real_data: Path, tmp_path: Path) -> None:

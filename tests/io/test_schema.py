@@ -9,11 +9,11 @@ import pytest
 import xarray as xr
 
 from cwproc.config import load_config
-from cwproc.io import KIND, detect_format, read
+from cwproc.io import KIND, detect_format, read_file
 from cwproc.io.halo import read_hpl
 from cwproc.io.halo_files import read_hpl_files
 from cwproc.io.scan_netcdf import read_scan_netcdf, write_scan_netcdf
-from cwproc.io.schema import DATASET_VARIABLES, SCAN_VARIABLES, attach_attrs
+from cwproc.metadata.canonical import DATASET_VARIABLES, SCAN_VARIABLES, attach_attrs
 
 SAMPLE = Path(__file__).resolve().parents[2] / "sample_data"
 HPL = sorted((SAMPLE / "streamline").glob("*.hpl"))
@@ -50,7 +50,7 @@ def test_every_variable_every_reader_returns_has_declared_units(folder, config):
     cfg = load_config(SAMPLE / config if config.endswith(".toml") else config)
     for path in sorted((SAMPLE / folder).iterdir()):
         fmt = detect_format(path)
-        ds = read(path, **cfg.reader.get(fmt.value, {}))
+        ds = read_file(path, **cfg.reader.get(fmt.value, {}))
         table = DATASET_VARIABLES[KIND[fmt]]
         for name in ds.variables:
             assert name in table, (path.name, name)
@@ -62,7 +62,7 @@ def test_every_variable_every_reader_returns_has_declared_units(folder, config):
 def test_sonic_components_are_named_in_the_instrument_frame():
     cfg = load_config(SAMPLE / "sonic.toml")
     path = next(p for p in sorted((SAMPLE / "sonic").iterdir()) if p.name.startswith("TOA5"))
-    ds = read(path, **cfg.reader.get("toa5", {}))
+    ds = read_file(path, **cfg.reader.get("toa5", {}))
     assert "instrument frame" in ds["u"].attrs["long_name"]
     assert "standard_name" not in ds["u"].attrs  # not eastward_wind: the frame is the sonic's
 

@@ -2,7 +2,7 @@
 
 The Stream Line wind product lists only its own ``qc_flag`` bits (rain belongs to the
 wind records of ZephIR), no attribute cites one of cwproc's own files instead of a
-paper, and every variable carries the units that ``cwproc.products.metadata``
+paper, and every variable carries the units that ``cwproc.metadata.products``
 declares for its product.
 """
 
@@ -17,14 +17,14 @@ from click.testing import CliRunner
 from cwproc.cli import main
 from cwproc.errors import CwprocError
 from cwproc.io.netcdf import read_product
-from cwproc.products.catalogue import product_kind
-from cwproc.products.metadata import (
+from cwproc.metadata.products import (
     PRODUCT_VARIABLES,
     PRODUCTS,
     VARIABLES,
     apply_metadata,
     product_table,
 )
+from cwproc.products.catalogue import product_kind
 
 SAMPLE = Path(__file__).resolve().parents[2] / "sample_data"
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from cwproc.pipeline.background import find_background_files
+from cwproc.pipeline.background_files import find_background_files
 from cwproc.stages.background import correct_snr, match_rays
 
 
@@ -95,11 +95,11 @@ def test_background_files_found_beside_the_data_or_in_a_folder(tmp_path):
 @pytest.mark.realdata
 def test_real_stares_corrected_like_doppy_figures(real_data):
     """docs/streamline-background.md: Eriswil noise floor and gate counts of the benchmark."""
-    from cwproc.io import read
-    from cwproc.pipeline.background import read_backgrounds
+    from cwproc.io import read_file
+    from cwproc.pipeline.background_files import read_backgrounds
 
     hpl = real_data / "hpl"
-    ds = read(hpl / "eriswil-2022-12-14-Stare_91_20221214_11.hpl")
+    ds = read_file(hpl / "eriswil-2022-12-14-Stare_91_20221214_11.hpl")
     bgs = read_backgrounds([hpl / "background" / "eriswil-Background_141222-000013.txt"])
     out = correct_snr(ds, bgs, max_age_h=None)
     np.testing.assert_allclose(out["noise_floor"].values, [1.000459, 1.000837], atol=2e-6)
@@ -113,7 +113,7 @@ def test_real_stares_corrected_like_doppy_figures(real_data):
 
 
 def test_only_the_backgrounds_the_rays_need_are_read(tmp_path):
-    from cwproc.pipeline.background import read_backgrounds
+    from cwproc.pipeline.background_files import read_backgrounds
 
     good = "".join(f"{1.7e7 + i:.6f}\r\n" for i in range(130)).encode()
     for name in ("Background_010624-100002.txt", "Background_010624-110003.txt"):

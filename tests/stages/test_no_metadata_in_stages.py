@@ -21,7 +21,7 @@ from cwproc.metadata import DECLARED_ATTRS
 
 ROOT = Path(__file__).resolve().parents[2] / "cwproc"
 #: the retrieval stages, and the scan bookkeeping they share with the readers
-SCANNED = [*sorted((ROOT / "stages").rglob("*.py")), ROOT / "io" / "scans.py"]
+SCANNED = [*sorted((ROOT / "stages").rglob("*.py")), ROOT / "io" / "scan_join.py"]
 
 
 def _key(node: ast.AST | None) -> str | None:

@@ -18,10 +18,10 @@ from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from cwproc.errors import CwprocError
+from cwproc.metadata.products import apply_metadata, undeclared_variables
 from cwproc.physics import vad_errors as ve
 from cwproc.physics.geometry import beam_unit_vector, radial_velocity, speed_and_direction
 from cwproc.physics.vad_least_squares import fit_homodyne
-from cwproc.products.metadata import apply_metadata, undeclared_variables
 from cwproc.references import SMALIKHO_2020, VAD_ACCURACY
 from cwproc.stages import vad
 from cwproc.stages.vad import fit_vad
@@ -335,7 +335,7 @@ def test_homodyne_measured_reference_and_missing_reference() -> None:
 
 @pytest.mark.parametrize("spelling", ["false", "0", 0, False, np.int8(0)])
 def test_homodyne_false_in_any_spelling_is_heterodyne(spelling: object) -> None:
-    """``bool("false")`` is True; the one parser (cwproc.io.scans) reads it as 0."""
+    """``bool("false")`` is True; the one parser (cwproc.io.scan_join) reads it as 0."""
     ds = scan_dataset(n_scans=2, seed=14)
     signed = fit(ds)
     ds.attrs["homodyne"] = spelling

@@ -13,15 +13,8 @@ from hypothesis import strategies as st
 
 from cwproc.errors import CwprocError
 from cwproc.io.halo import read_hpl
-from cwproc.io.scans import (
-    assign_scans,
-    azimuth_steps,
-    concat_scans,
-    is_homodyne,
-    parse_homodyne,
-    scan_indices,
-    scan_indices_of_runs,
-)
+from cwproc.io.scan_join import assign_scans, concat_scans, is_homodyne, parse_homodyne
+from cwproc.physics.scan_numbering import azimuth_steps, scan_indices, scan_indices_of_runs
 
 T0 = np.datetime64("2024-06-01T12:00:00", "ns")
 

@@ -1,11 +1,14 @@
-"""Joining the sonic files of one instrument-day (:func:`cwproc.pipeline.units.concat_sonic`)."""
+"""Joining the sonic files of one instrument-day.
+
+(:func:`cwproc.pipeline.product_units.concat_sonic`)
+"""
 
 import numpy as np
 import pytest
 import xarray as xr
 
 from cwproc.errors import CwprocError
-from cwproc.pipeline.units import concat_sonic
+from cwproc.pipeline.product_units import concat_sonic
 
 RATE = 10.0
 

@@ -8,7 +8,7 @@ from pathlib import Path
 from cwproc.config import Config
 from cwproc.errors import CwprocError
 from cwproc.io import Format, detect_format, is_cwproc_product
-from cwproc.pipeline.units import format_mismatch, no_input_of_format, other_formats_note
+from cwproc.pipeline.input_checks import format_mismatch, no_input_of_format, other_formats_note
 
 
 @dataclass

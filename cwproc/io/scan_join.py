@@ -24,15 +24,7 @@ import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.io.schema import with_canonical_attrs
-from cwproc.physics import scan_numbering
 from cwproc.physics.scan_numbering import scan_indices
-
-#: the numbering's names, at their former home
-azimuth_steps = scan_numbering.azimuth_steps  # moved (issue 33): remove in stream D
-declares_conical = scan_numbering.declares_conical  # moved (issue 33): remove in stream D
-rotation_index = scan_numbering.rotation_index  # moved (issue 33): remove in stream D
-scan_indices_of_runs = scan_numbering.scan_indices_of_runs  # moved (issue 33): remove in stream D
-sweep_links = scan_numbering.sweep_links  # moved (issue 33): remove in stream D
 
 
 def assign_scans(
@@ -163,10 +155,6 @@ def source_files(ds: xr.Dataset) -> list[str]:
     if isinstance(files, str):
         files = [f.strip() for f in files.split(",") if f.strip()]
     return [str(f) for f in files]
-
-
-#: the former private name of :func:`source_files`
-_source_files = source_files  # moved (issue 33): remove in stream D
 
 
 def _check_compatible(datasets: Sequence[xr.Dataset]) -> None:

@@ -19,7 +19,7 @@ import xarray as xr
 from cwproc.config import Config
 from cwproc.errors import CwprocError
 from cwproc.io.halo_background import background_time, read_halo_background
-from cwproc.pipeline.units import ProductUnit
+from cwproc.pipeline.product_units import ProductUnit
 from cwproc.stages.background import correct_snr, correction_summary, match_rays
 
 #: file-name pattern of Stream Line background files (any prefix, e.g. a site name)
@@ -127,7 +127,7 @@ class SnrCorrection:
         return SnrCorrection(parts[0].method, files, done, summary)
 
 
-def corrected_snr(
+def snr_corrected_scans(
     scans: xr.Dataset,
     unit: ProductUnit,
     config: Config,
