@@ -35,7 +35,7 @@ FLAG_WIND_FAR = 8
 #: Halo Stream Line pulse repetition frequency (Hz); 10 kHz for the XR
 HALO_PRF_HZ = 15000.0
 #: global attributes of the scans that the stare product keeps (the SNR correction by
-#: the background files, :mod:`cwproc.stages.background`, as the wind product keeps them)
+#: the background files, :mod:`cwproc.stages.snr_correction`, as the wind product keeps them)
 CARRIED_ATTRS = ("snr_correction", "background_files")
 
 
