@@ -31,7 +31,7 @@ from cwproc.physics.correlation import (
     wind_vector,
 )
 from cwproc.physics.cw_probe import cw_probe_quadrature, focal_parameter, probe_grid
-from cwproc.physics.spectra import epsilon_from
+from cwproc.physics.dissipation import epsilon_from_integral_scale
 from cwproc.sim.output import fresh_folder, write_truth
 from cwproc.sim.turbulence import (
     along_beam_fluctuations,
@@ -538,7 +538,7 @@ def write_cw_series(
         "wind_direction_deg": float(wind_direction_deg),
         "velocity_variance_m2_s2": full[1].tolist(),
         "integral_scale_m": full[2].tolist(),
-        "epsilon_m2_s3": epsilon_from(full[1], full[2]).tolist(),
+        "epsilon_m2_s3": epsilon_from_integral_scale(full[1], full[2]).tolist(),
         "correlation_model": "Banakh et al. (1999), eq. 17",
         "n_scans": int(n_scans),
         "scan_period_s": lidar.scan_period_s,

@@ -50,8 +50,9 @@ from cwproc.physics.correlation import (
     wind_vector,
 )
 from cwproc.physics.cw_probe import cw_probe_quadrature, probe_grid
+from cwproc.physics.dissipation import epsilon_from_integral_scale
 from cwproc.physics.exact_lag import fit_correlation_shape
-from cwproc.physics.spectra import epsilon_from, integral_scale_coefficient
+from cwproc.physics.spectra import integral_scale_coefficient
 from cwproc.sim.cw import CWLidar, along_beam_offsets
 from cwproc.sim.turbulence import (
     along_beam_fluctuations,
@@ -255,7 +256,7 @@ def estimate_parameters(
     """
     c = integral_scale_coefficient("exponential")
     sigma2_fit, scale_fit = fit_structure_function(stats["structure"], model.lag_model)
-    epsilon = epsilon_from(np.maximum(sigma2_fit, 0.0), scale_fit)
+    epsilon = epsilon_from_integral_scale(np.maximum(sigma2_fit, 0.0), scale_fit)
     raw = stats["residual_variance"] + width2
     n = np.arange(1, raw.shape[1] + 1)[None, :]
     variance = raw
@@ -352,7 +353,7 @@ def run_study(
     for j, h in progress.track(list(enumerate(heights)), desc="heights", unit="height"):
         sigma2 = float(sim.sigma_v_m_s[j]) ** 2
         scale = float(sim.outer_scale_m[j])
-        eps = float(epsilon_from(sigma2, scale))
+        eps = float(epsilon_from_integral_scale(sigma2, scale))
         truth_eps[j] = eps
         model = height_model(lidar, float(h), sim.max_lag)
         vd, valid, width2 = simulate_height(

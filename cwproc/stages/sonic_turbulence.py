@@ -36,6 +36,7 @@ import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.metadata import described
+from cwproc.physics import dissipation
 from cwproc.physics import sonic_turbulence as st
 from cwproc.stages.sonic_sf import (
     COMPONENTS,
@@ -162,12 +163,14 @@ def _epsilon(
         if not lags.any():
             out["flag"][c] = EPS_NO_INERTIAL_RANGE
             continue
-        e23 = st.epsilon23_from_sf(r[lags], d[c][lags], SF_CONSTANTS[c])
+        e23 = dissipation.epsilon23_from_sf(r[lags], d[c][lags], SF_CONSTANTS[c])
         sub = lags[:sub_lags]
         e23_sub = (
             np.array(
                 [
-                    st.epsilon23_from_sf(r[:sub_lags][sub], d_sub[c, i][sub], SF_CONSTANTS[c])
+                    dissipation.epsilon23_from_sf(
+                        r[:sub_lags][sub], d_sub[c, i][sub], SF_CONSTANTS[c]
+                    )
                     for i in range(n_sub)
                 ]
             )
@@ -175,8 +178,7 @@ def _epsilon(
             else np.full(n_sub, np.nan)
         )
         se23 = np.nanstd(e23_sub, ddof=1) / np.sqrt(np.isfinite(e23_sub).sum())
-        out["eps"][c] = e23**1.5
-        out["err"][c] = 1.5 * e23**0.5 * se23
+        out["eps"][c], out["err"][c] = dissipation.epsilon_from_structure_function_2_3(e23, se23)
         out["r_lo"][c], out["r_hi"][c] = r[lags][0], r[lags][-1]
     return out
 
@@ -411,7 +413,7 @@ def _analyse_window(
         result["eps"][w], result["eps_err"][w] = _combine(e["eps"], e["err"])
         if np.isfinite(e["r_lo"][0]):
             k_range = (2 * np.pi / e["r_hi"][0], 2 * np.pi / e["r_lo"][0])
-            result["eps_spec"][w] = st.epsilon_from_spectrum(
+            result["eps_spec"][w] = dissipation.epsilon_from_inertial_spectrum(
                 st.interpolate_gaps(s["fluct"][0], ~np.isfinite(s["fluct"][0])),
                 rate,
                 s["speed"],

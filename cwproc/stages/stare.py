@@ -20,7 +20,7 @@ import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.metadata import described
-from cwproc.physics import noise, stare
+from cwproc.physics import dissipation, noise, stare
 from cwproc.physics.geometry import height_from_range
 from cwproc.physics.probe_lengths import ProbeLengths, pulsed_probe_lengths
 from cwproc.stages.qc import snr_flags
@@ -420,12 +420,12 @@ def stare_product(
         interval_s=interval,
         lengths=lengths,
     )
-    eps = stare.epsilon_from_variance(var_corr, factor)
+    eps = dissipation.epsilon_from_band_variance(var_corr, factor)
     noise_known = np.where(np.isfinite(noise_var), noise_var, 0.0)
     var_se = variance_se_per_window(time, index, sub, n_win, eps, speed, noise_known)
     with np.errstate(invalid="ignore", divide="ignore"):
         eps = eps / stare.power_bias_divisor(var_se / var_corr)
-    eps_se = stare.epsilon_standard_error(eps, var_corr, var_se, speed, speed_err)
+    eps_se = dissipation.stare_epsilon_standard_error(eps, var_corr, var_se, speed, speed_err)
     # fewest rays: min_samples, or half of what the window holds at this ray rate
     min_rays = min(options.min_samples, max(3, math.ceil(0.5 * options.window_s / interval)))
     flag = stare_flags(count, var, var_corr, speed, far, min_rays)

@@ -7,7 +7,7 @@ import pytest
 from scipy import integrate
 
 from cwproc.physics import correlation as corr
-from cwproc.physics import spectra
+from cwproc.physics import dissipation, spectra
 from cwproc.physics.cw_probe import cw_probe_quadrature
 from cwproc.sim import turbulence as T
 
@@ -31,7 +31,7 @@ def test_von_karman_integral_scale_and_inertial_limit():
     )
     assert val == pytest.approx(100.0, rel=1e-5)
     # D = 2 (sigma^2 - B) -> C_k eps^(2/3) r^(2/3) for r << L with eps = c sigma^3/L
-    eps = spectra.epsilon_from(1.0, 100.0, "von_karman")
+    eps = dissipation.epsilon_from_integral_scale(1.0, 100.0, "von_karman")
     r = 0.01
     d = 2.0 * (1.0 - corr.longitudinal_correlation(r, 1.0, 100.0, "von_karman"))
     assert d == pytest.approx(2.0 * eps ** (2 / 3) * r ** (2 / 3), rel=2e-3)
@@ -40,7 +40,7 @@ def test_von_karman_integral_scale_and_inertial_limit():
 def test_eq19_coefficients():
     assert spectra.integral_scale_coefficient("exponential") == pytest.approx(1.331, abs=1e-3)
     assert spectra.integral_scale_coefficient("von_karman") == pytest.approx(0.6973, abs=1e-3)
-    eps = spectra.epsilon_from(1.23**2, 133.0)
+    eps = dissipation.epsilon_from_integral_scale(1.23**2, 133.0)
     assert eps == pytest.approx(0.018, abs=0.001)  # the table of Banakh et al. (1999)
     assert spectra.variance_from(eps, 133.0) == pytest.approx(1.23**2)
 
