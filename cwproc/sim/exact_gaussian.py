@@ -242,7 +242,7 @@ def structure_functions(
     return np.where(zero, 0.0, par), np.where(zero, 0.0, perp)
 
 
-def range_nodes(delta_p_m: float, delta_r_m: float, step_m: float) -> tuple[np.ndarray, ...]:
+def pulse_range_nodes(delta_p_m: float, delta_r_m: float, step_m: float) -> tuple[np.ndarray, ...]:
     """Nodes (m from the gate centre) and weights (sum 1) of the pulsed range weighting.
 
     Midpoint rule on ``Q(s)`` of :func:`cwproc.sim.pulsed.pulsed_range_weight`, out to
@@ -459,7 +459,7 @@ def block_covariance(
             lower = upper
             if sel.size == 0:
                 continue
-            nodes = range_nodes(delta_p_m, delta_r_m, step)
+            nodes = pulse_range_nodes(delta_p_m, delta_r_m, step)
             # (not beyond 5 L_V, where the covariance has decayed: a stare's transport
             # in a strong wind would otherwise resolve every pair of the block)
             use_sub = sweep & (sub | ((sep[sel] < 20.0 * arc) & (sep[sel] < 5.0 * outer_scale_m)))

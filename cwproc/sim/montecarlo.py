@@ -45,13 +45,13 @@ from cwproc.config import SimulationConfig
 from cwproc.physics.correlation import (
     ProbeQuadrature,
     ScanGeometry,
-    beam_vectors,
     circulant_correlation_row,
     wind_vector,
 )
 from cwproc.physics.cw_probe import cw_probe_quadrature, probe_grid
 from cwproc.physics.dissipation import epsilon_from_integral_scale
 from cwproc.physics.exact_lag import fit_correlation_shape
+from cwproc.physics.geometry import beam_unit_vector_une
 from cwproc.physics.spectra import integral_scale_coefficient
 from cwproc.sim.cw import CWLidar, along_beam_offsets
 from cwproc.sim.turbulence import (
@@ -126,7 +126,7 @@ def height_model(lidar: CWLidar, height_m: float, max_lag: int) -> HeightModel:
     full = circulant_correlation_row(geometry, quad, FACTOR_SCALES)
     spectrum = np.fft.fft(full, axis=1).real
     projected = spectrum[:, 0] + 2.0 * spectrum[:, 1]
-    design = beam_vectors(geometry.azimuth_deg, lidar.elevation_deg)
+    design = beam_unit_vector_une(geometry.azimuth_deg, lidar.elevation_deg)
     return HeightModel(float(height_m), float(focus), geometry, quad, design, lag_model, projected)
 
 
@@ -197,7 +197,7 @@ def cumulative_vad_statistics(
     }
 
 
-def fit_structure_function(
+def fit_correlation_model(
     structure: np.ndarray, lag_model: np.ndarray, scales: np.ndarray = FIT_SCALES
 ) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares fit of D_L(l) = sigma^2 d(l; L) over a grid of outer scales.
@@ -255,7 +255,7 @@ def estimate_parameters(
         ``epsilon``, ``variance``, ``integral_scale``, each (R, N).
     """
     c = integral_scale_coefficient("exponential")
-    sigma2_fit, scale_fit = fit_structure_function(stats["structure"], model.lag_model)
+    sigma2_fit, scale_fit = fit_correlation_model(stats["structure"], model.lag_model)
     epsilon = epsilon_from_integral_scale(np.maximum(sigma2_fit, 0.0), scale_fit)
     raw = stats["residual_variance"] + width2
     n = np.arange(1, raw.shape[1] + 1)[None, :]
@@ -299,7 +299,7 @@ def simulate_height(
     """
     wind = wind_vector(wind_speed, wind_direction_deg)
     factor = scan_cholesky(model.geometry, model.quadrature, float(outer_scale_m), tuple(wind))
-    s = beam_vectors(model.geometry.azimuth_deg, lidar.elevation_deg)
+    s = beam_unit_vector_une(model.geometry.azimuth_deg, lidar.elevation_deg)
     vd = s @ wind + simulate_scan_velocities(rng, factor, sigma2, (realisations, n_scans))
     valid = np.abs(vd) >= min_peak_velocity
     dr, q = probe_grid(model.focus_range_m, lidar.wavelength_m, lidar.beam_radius_m)

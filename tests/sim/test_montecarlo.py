@@ -23,7 +23,7 @@ def test_fit_recovers_variance_and_scale_of_noise_free_model(model_50m):
         model_50m.geometry, model_50m.quadrature, np.array([scale]), lags=np.arange(6)
     )
     structure = 1.7 * 2.0 * (rows[:, :1] - rows[:, 1:])
-    sigma2, fitted = mc.fit_structure_function(structure, model_50m.lag_model)
+    sigma2, fitted = mc.fit_correlation_model(structure, model_50m.lag_model)
     eps_true = dissipation.epsilon_from_integral_scale(1.7, scale)
     eps_fit = dissipation.epsilon_from_integral_scale(sigma2, fitted)
     assert eps_fit[0] == pytest.approx(eps_true, rel=0.01)

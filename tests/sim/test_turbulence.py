@@ -9,6 +9,7 @@ from scipy import integrate
 from cwproc.physics import correlation as corr
 from cwproc.physics import dissipation, spectra
 from cwproc.physics.cw_probe import cw_probe_quadrature
+from cwproc.physics.geometry import beam_unit_vector_une
 from cwproc.sim import turbulence as T
 
 
@@ -111,7 +112,7 @@ def test_point_probe_correlation_is_the_projected_tensor():
     b = corr.azimuth_correlation_matrix(
         geometry, probe, sigma2=1.0, outer_scale=150.0, mean_wind=wind
     )
-    s = corr.beam_vectors(geometry.azimuth_deg, 30.0)
+    s = beam_unit_vector_une(geometry.azimuth_deg, 30.0)
     t = geometry.time_s
     r_vec = 300.0 * s[2] - 300.0 * s[5] - wind * (t[2] - t[5])  # Taylor transport
     assert b[2, 5] == pytest.approx(corr.projected_correlation(r_vec, s[2], s[5], 1.0, 150.0))
