@@ -11,7 +11,8 @@ from types import ModuleType
 import pytest
 
 from cwproc.config import load_config
-from cwproc.stages import sonic_fits, sonic_sf, stare, wind_records
+from cwproc.physics import sonic_fits
+from cwproc.stages import sonic_sf, stare, wind_records
 
 #: parameter name -> dotted key of the configuration it comes from, per module and preset
 SONIC = {

@@ -170,7 +170,7 @@ def sf_summary_tables(products: Sequence[xr.Dataset]) -> tuple[pd.DataFrame, pd.
         Means and medians of the fitted parameters per type and component,
         Gladkikh et al. (2014), Tables 3-5.
     """
-    from cwproc.stages import sonic_sf
+    from cwproc.stages import sonic_sf_tables
 
     joined = xr.concat([p[list(SF_SUMMARY_VARIABLES)] for p in products], dim="window")
-    return sonic_sf.type_occurrence(joined), sonic_sf.parameter_statistics(joined)
+    return sonic_sf_tables.type_occurrence(joined), sonic_sf_tables.parameter_statistics(joined)

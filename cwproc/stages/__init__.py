@@ -37,8 +37,8 @@ _HOMES = {
     "stare_product": "stare",
     "StareOptions": "stare",
     "structure_function_types": "sonic_sf",
-    "type_occurrence": "sonic_sf",
-    "parameter_statistics": "sonic_sf",
+    "type_occurrence": "sonic_sf_tables",
+    "parameter_statistics": "sonic_sf_tables",
     "wind_record_product": "wind_records",
 }
 
@@ -48,6 +48,7 @@ _MODULES = (
     "qc",
     "snr_correction",
     "sonic_sf",
+    "sonic_sf_tables",
     "stare",
     "structure",
     "vad",

@@ -38,11 +38,11 @@ from cwproc.errors import CwprocError
 from cwproc.metadata import described
 from cwproc.physics import dissipation
 from cwproc.physics import sonic_turbulence as st
+from cwproc.physics.structure_functions import structure_function_fft
 from cwproc.stages.sonic_sf import (
     COMPONENTS,
     geographic_wind_direction,
     grid_windows,
-    structure_function_fft,
     structure_function_types,
 )
 
