@@ -36,14 +36,15 @@ from cwproc.errors import CwprocError
 from cwproc.io.scan_join import is_homodyne
 from cwproc.metadata import described
 from cwproc.physics.atable_interp import N_BINS, azimuth_nodes
-from cwproc.physics.geometry import beam_unit_vector, radial_velocity, speed_and_direction
-from cwproc.stages.block_stats import (
+from cwproc.physics.block_stats import (
     WindRefit,
-    _block_sum,
     block_statistics,
+    block_sum,
     finite_columns,
     pair_azimuth_weights,
 )
+from cwproc.physics.geometry import beam_unit_vector, radial_velocity, speed_and_direction
+from cwproc.physics.scan_layout import azimuth_step, wrapped_azimuth_difference
 from cwproc.stages.scan_guard import require_distinct_scans
 
 #: largest relative mismatch (m) between wind-product gate ranges and scan gate ranges
@@ -64,37 +65,6 @@ MIN_LAGS = 3
 #: serves, and the time between the rays (a sixth of a rotation) approaches the block's
 #: stationarity scale; the exact two-beam model (cwproc.physics.two_beam) holds at any lag
 MAX_LAG_LIMIT_DEG = 60.0
-
-
-def wrapped_azimuth_difference(a_deg: np.ndarray, b_deg: np.ndarray) -> np.ndarray:
-    """``a - b`` wrapped into [-180, 180) degrees."""
-    return (np.asarray(a_deg) - np.asarray(b_deg) + 180.0) % 360.0 - 180.0
-
-
-def azimuth_step(azimuth_deg: np.ndarray, scan: np.ndarray) -> tuple[float, float]:
-    """Azimuth step dtheta (deg) and rotation sign from consecutive rays of the same scan.
-
-    The stage's day decision, used by ``ScanChain.decisions``
-    (:mod:`cwproc.pipeline.chain`): a day run in chunks must find the step of the whole day.
-
-    Parameters
-    ----------
-    azimuth_deg : numpy.ndarray
-        Ray azimuths (deg) in time order.
-    scan : numpy.ndarray
-        Scan index of each ray.
-
-    Returns
-    -------
-    (dtheta_deg, sign) : tuple of float
-        Median absolute step (deg) and +1 for clockwise (increasing azimuth), -1 otherwise.
-    """
-    same = scan[1:] == scan[:-1]
-    d = wrapped_azimuth_difference(azimuth_deg[1:], azimuth_deg[:-1])[same]
-    d = d[np.abs(d) > 1e-6]
-    if d.size == 0:
-        raise CwprocError("cannot determine the azimuth step: no scan has two distinct rays")
-    return float(np.median(np.abs(d))), float(np.sign(np.median(d)))
 
 
 def azimuth_index(
@@ -515,8 +485,8 @@ def ray_grid(
 def _block_mean(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
     """Mean over the scans (axis 0) of each block, NaN skipped."""
     ok = np.isfinite(values)
-    total = _block_sum(np.where(ok, values, 0.0), starts)
-    count = _block_sum(ok.astype(float), starts)
+    total = block_sum(np.where(ok, values, 0.0), starts)
+    count = block_sum(ok.astype(float), starts)
     with np.errstate(invalid="ignore", divide="ignore"):
         return total / count
 
@@ -535,7 +505,7 @@ def _block_statistics_by_chunk(
 
     ``scan_wind`` (scan, height, 3) are the scans' VAD winds, whose block means
     ``mean_wind`` are removed: the covariance of the statistics is the jackknife over
-    the scans with that removal redone (:func:`cwproc.stages.block_stats.WindRefit`;
+    the scans with that removal redone (:func:`cwproc.physics.block_stats.WindRefit`;
     homodyne data, whose signs follow the wind, keep the scatter of the scans).
 
     Returns the arrays of :func:`block_statistics` for all blocks (keys ``sf``,
@@ -713,7 +683,7 @@ def _block_times(wind: xr.Dataset, grid: RayGrid, n_scans: int) -> dict[str, np.
         "centre": centre,
         "scan_period": step_time * grid.n_az,
         "scan_interval": scan_interval,
-        "n_scans": _block_sum(np.ones(n_time, dtype=np.int64), starts),
+        "n_scans": block_sum(np.ones(n_time, dtype=np.int64), starts),
         "elevation": _block_mean(wind["elevation"].values.astype(float)[:, None], starts)[:, 0],
     }
 

@@ -24,7 +24,6 @@ attribute, in this order).
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
@@ -39,14 +38,16 @@ from cwproc.physics.geometry import (
     normalise_pointing,
     speed_and_direction,
 )
+from cwproc.physics.scan_layout import (
+    ELEVATION_TOLERANCE_DEG,
+    ScanLayout,
+    scan_layout,
+    select_conical_scans,
+)
 from cwproc.physics.vad_least_squares import fit_scans
 from cwproc.references import VAD_WIND
 from cwproc.stages.scan_guard import require_distinct_scans
 
-#: elevations (deg) that count as conical scans; outside, w or u, v are not determined
-CONICAL_ELEVATION_RANGE_DEG = (1.0, 89.0)
-#: scans whose elevation differs from the selected one by more than this are left out
-ELEVATION_TOLERANCE_DEG = 0.5
 #: budget of (scan x ray x gate) elements per chunk; bounds memory on long days
 CHUNK_ELEMENTS = 4_000_000
 
@@ -60,69 +61,6 @@ BoolArray = NDArray[np.bool_]
 # --------------------------------------------------------------------------------------
 # layout: rays -> (scan, ray in scan)
 # --------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class ScanLayout:
-    """Rays of each scan as rows of a padded index table.
-
-    Attributes
-    ----------
-    scan_ids : ndarray, shape (n_scan,)
-        The scan numbers, increasing.
-    index : ndarray, shape (n_scan, max_rays)
-        Ray indices into the scan dataset; ``-1`` pads scans with fewer rays.
-    """
-
-    scan_ids: NDArray[np.int64]
-    index: NDArray[np.int64]
-
-    @property
-    def present(self) -> BoolArray:
-        """True where ``index`` names a ray (not padding)."""
-        return self.index >= 0
-
-    def take(self, values: np.ndarray, fill: float = np.nan) -> np.ndarray:
-        """Gather ``values[ray, ...]`` into ``(scan, ray in scan, ...)``, padding with fill."""
-        out = np.asarray(values)[np.maximum(self.index, 0)]
-        if out.dtype.kind == "f":
-            pad = ~self.present
-            out[pad] = fill
-        return out
-
-    def subset(self, rows: slice) -> ScanLayout:
-        """The layout of a contiguous block of scans."""
-        return ScanLayout(self.scan_ids[rows], self.index[rows])
-
-
-def scan_layout(scan: np.ndarray, keep: BoolArray | None = None) -> ScanLayout:
-    """Group ray indices by scan number (rays with ``scan < 0`` or ``~keep`` left out).
-
-    The stage's day decision, used by ``ScanChain.decisions`` (:mod:`cwproc.pipeline.chain`).
-
-    Parameters
-    ----------
-    scan : ndarray, shape (n_ray,)
-        Scan index of each ray (``-1`` = no conical scan).
-    keep : ndarray of bool, optional
-        Rays to consider.
-
-    Returns
-    -------
-    ScanLayout
-    """
-    scan = np.asarray(scan).astype(np.int64)
-    use = scan >= 0
-    if keep is not None:
-        use &= keep
-    rays = np.flatnonzero(use)
-    order = rays[np.argsort(scan[rays], kind="stable")]
-    ids, starts, counts = np.unique(scan[order], return_index=True, return_counts=True)
-    index = np.full((ids.size, int(counts.max()) if ids.size else 0), -1, dtype=np.int64)
-    if ids.size:
-        position = np.arange(order.size) - np.repeat(starts, counts)
-        index[np.repeat(np.arange(ids.size), counts), position] = order
-    return ScanLayout(ids.astype(np.int64), index)
 
 
 def scan_chunks(layout: ScanLayout, n_gates: int) -> Iterator[slice]:
@@ -256,50 +194,6 @@ def _require(ds: xr.Dataset, names: tuple[str, ...]) -> None:
             + ", ".join(names)
             + f"; this one lacks {', '.join(missing)}."
         )
-
-
-def select_conical_scans(
-    layout: ScanLayout, elevation_deg: FloatArray
-) -> tuple[ScanLayout, float, FloatArray, int]:
-    """Keep the scans at the most common conical elevation.
-
-    The stage's day decision, used by ``ScanChain.decisions`` (:mod:`cwproc.pipeline.chain`):
-    a day run in chunks must keep the elevation and the scans of the whole day.
-
-    A scan is conical when its median elevation lies in ``CONICAL_ELEVATION_RANGE_DEG``.
-    The most common elevation (rounded to 0.1 deg) is chosen; scans within
-    ``ELEVATION_TOLERANCE_DEG`` of it are kept.
-
-    Returns
-    -------
-    (layout, elevation_deg, scan_elevations_deg, n_other_elevation)
-
-    Raises
-    ------
-    CwprocError
-        No conical scan at all (e.g. a vertical stare file).
-    """
-    per_scan = np.nanmedian(layout.take(elevation_deg), axis=1) if layout.index.size else []
-    per_scan = np.asarray(per_scan, dtype=float)
-    lo, hi = CONICAL_ELEVATION_RANGE_DEG
-    conical = (per_scan >= lo) & (per_scan <= hi)
-    if not conical.any():
-        raise CwprocError(
-            "The input has no conical scan (no 360-degree rotation at an elevation between "
-            f"{lo:g} and {hi:g} degrees), so no wind profile can be fitted; a vertical stare "
-            "or an RHI file cannot give a VAD wind."
-        )
-    values, counts = np.unique(np.round(per_scan[conical], 1), return_counts=True)
-    chosen = float(values[np.argmax(counts)])
-    keep = conical & (np.abs(per_scan - chosen) <= ELEVATION_TOLERANCE_DEG)
-    n_other = int(conical.sum() - keep.sum())
-    rows = np.flatnonzero(keep)
-    return (
-        ScanLayout(layout.scan_ids[rows], layout.index[rows]),
-        chosen,
-        per_scan[rows],
-        n_other,
-    )
 
 
 def _reference_directions(

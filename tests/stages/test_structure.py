@@ -298,7 +298,7 @@ def test_statistics_covariance_is_the_scatter_of_the_scan_means():
 
     Scans with any missing statistic are left out; a block with one scan gets NaN.
     """
-    from cwproc.stages.structure import block_statistics
+    from cwproc.physics.block_stats import block_statistics
 
     rng = np.random.default_rng(4)
     vprime = rng.normal(0.0, 1.0, (13, 36, 2))  # blocks of 6, 6 and 1 scans
@@ -388,7 +388,8 @@ def test_pair_azimuth_weights_of_all_lags_at_once_are_those_lag_by_lag():
     :func:`pair_node_weights` of each lag on its own, to the bit (missing values, a
     block without a start azimuth, a height without a wind direction, both rotations,
     more lags than pair positions)."""
-    from cwproc.stages.structure import pair_azimuth_weights, pair_node_weights
+    from cwproc.physics.block_stats import pair_azimuth_weights
+    from cwproc.stages.structure import pair_node_weights
 
     rng = np.random.default_rng(31)
     vprime = rng.normal(size=(23, 40, 4))

@@ -295,7 +295,7 @@ def dwell_attrs(sf: xr.Dataset, options: dict, prf_hz: float | None) -> dict[str
     rays last their whole period), ``ray_dwell_s`` the dwell pulses per ray / PRF (NaN
     unknown), ``ray_period_s`` the ray period.
     """
-    from cwproc.physics.atable import dwell_fraction
+    from cwproc.physics.atable import table_dwell_step
 
     dwell_s, fraction, tau = stare_dwell(sf, prf_hz)
     if options.get("swept", True):
@@ -303,7 +303,7 @@ def dwell_attrs(sf: xr.Dataset, options: dict, prf_hz: float | None) -> dict[str
     return {
         "swept_rays": 0,
         "ray_dwell_s": dwell_s,
-        "ray_dwell_fraction": dwell_fraction(float(options.get("dwell", fraction))),
+        "ray_dwell_fraction": table_dwell_step(float(options.get("dwell", fraction))),
         "ray_period_s": tau,
     }
 

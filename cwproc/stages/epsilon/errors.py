@@ -68,7 +68,7 @@ def covariance_errors(
     the scatter of the fitted L_V enters the error of eps through the
     A-functions. ``SE(f) = sqrt(g^T C g)``, ``C`` the covariance of ``s`` from the
     jackknife over the block's scans (``statistics_covariance`` of
-    :func:`cwproc.stages.block_stats.block_statistics`) and ``g`` the gradient of ``f`` by
+    :func:`cwproc.physics.block_stats.block_statistics`) and ``g`` the gradient of ``f`` by
     central differences of three tenths of a standard error either side of each
     component (:data:`cwproc.physics.delta_method.STEP_FRACTION`).
 
@@ -148,7 +148,7 @@ def correlated_scans_covariance(
     """``cov`` with the variance's entries scaled for the correlation of consecutive scans.
 
     The refit jackknife of the variance of ``V'_L``
-    (:func:`cwproc.stages.block_stats.jackknife_covariance`) takes the scans as
+    (:func:`cwproc.physics.block_stats.jackknife_covariance`) takes the scans as
     independent. In the field the wind carries, consecutive full circles share eddies
     where the end of one scan and the start of the next see nearly the same air: at ``mu
     = U/V_s`` near 1 the beam moves with the wind at one azimuth (the cusp of its path
