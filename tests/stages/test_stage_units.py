@@ -24,7 +24,7 @@ from cwproc.metadata import INTERMEDIATE_VARIABLES, VARIABLES, product_table
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from test_background_stage import _background, _scans
+from test_snr_correction import _background, _scans
 from test_doppler_lidar import layered
 from test_lidar_sonic import lidar_product, sonic_product
 from test_stare import constant_wind, stare_dataset
