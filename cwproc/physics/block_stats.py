@@ -440,3 +440,21 @@ def pair_azimuth_weights(
     with np.errstate(invalid="ignore", divide="ignore"):
         out[:, :, :lags] = sums.reshape(n_blocks, n_h, lags, N_BINS) / total[..., None]
     return out
+
+
+def group_median(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.ndarray:
+    """Median of the ``values`` (NaN skipped) of each group ``0 .. n_groups - 1`` (NaN: none).
+
+    The middle value, or the mean ``(a + b) / 2`` of the two middle ones, as
+    :func:`numpy.median` and pandas' grouped median form it (the same value); the values
+    sorted by group once and one partition per group present.
+    """
+    out = np.full(n_groups, np.nan)
+    keep = ~np.isnan(values)
+    order = np.argsort(group[keep], kind="stable")
+    values, group = values[keep][order], group[keep][order]
+    ids, starts = np.unique(group, return_index=True)
+    stops = np.append(starts[1:], group.size)[: starts.size]  # none: no group
+    for g, start, stop in zip(ids, starts, stops, strict=True):
+        out[g] = np.median(values[start:stop])
+    return out

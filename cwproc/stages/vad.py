@@ -293,40 +293,14 @@ def fit_vad(
         Missing variables, no conical scan, or homodyne data without any reference
         direction.
     """
-    require_distinct_scans(ds, stage="fit_vad")
-    _require(ds, ("radial_velocity", "azimuth", "elevation", "scan", "time", "range"))
-    if ds["radial_velocity"].dims != ("ray", "range"):
-        raise CwprocError(
-            "The VAD fit needs radial_velocity with dimensions (ray, range); this input has "
-            f"{ds['radial_velocity'].dims}."
-        )
+    _check_scan_dataset(ds)
     azimuth, elevation = pointing(ds)
     layout, phi, scan_elevation, n_other = select_conical_scans(
         scan_layout(ds["scan"].values, np.isfinite(azimuth) & np.isfinite(elevation)),
         elevation,
     )
     homodyne = is_homodyne(ds) if homodyne is None else bool(homodyne)
-    velocity = ds["radial_velocity"].values.astype(float, copy=False)  # not written to
-    valid_all = usable_mask(ds)
-    n_gates = velocity.shape[1]
-    parts: list[dict[str, np.ndarray]] = []
-    for rows in scan_chunks(layout, n_gates):
-        sub = layout.subset(rows)
-        present = sub.present[:, :, None]
-        valid = sub.take(valid_all) & present
-        design = beam_unit_vector(sub.take(azimuth), sub.take(elevation))
-        fit = fit_scans(sub.take(velocity), design, valid, homodyne=homodyne)
-        parts.append(
-            {
-                "beta": fit.beta,
-                "cov": fit.covariance,
-                "n": fit.n_rays,
-                "res": fit.residual_std,
-                "ok": fit.determined & fit.converged,
-                "gap": azimuth_gap(sub.take(azimuth), valid),
-            }
-        )
-    joined = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    joined = _fit_scan_chunks(ds, layout, (azimuth, elevation), homodyne)
     beta = joined["beta"]
     attrs_resolution = "not applicable (heterodyne: signed radial velocities)"
     if homodyne:
@@ -352,6 +326,51 @@ def fit_vad(
             "max_residual_std": max_residual_std,
         },
     )
+
+
+def _check_scan_dataset(ds: xr.Dataset) -> None:
+    """Refuse a dataset the VAD fit cannot take (scan numbers that collide across files,
+    missing variables, radial velocities not on ``(ray, range)``)."""
+    require_distinct_scans(ds, stage="fit_vad")
+    _require(ds, ("radial_velocity", "azimuth", "elevation", "scan", "time", "range"))
+    if ds["radial_velocity"].dims != ("ray", "range"):
+        raise CwprocError(
+            "The VAD fit needs radial_velocity with dimensions (ray, range); this input has "
+            f"{ds['radial_velocity'].dims}."
+        )
+
+
+def _fit_scan_chunks(
+    ds: xr.Dataset,
+    layout: ScanLayout,
+    pointing_deg: tuple[FloatArray, FloatArray],
+    homodyne: bool,
+) -> dict[str, np.ndarray]:
+    """The batched fits of the scans of ``layout`` (:func:`scan_chunks` at a time):
+    ``beta`` (u, v, w), ``cov`` its covariance, ``n`` rays used, ``res`` residual std,
+    ``ok`` determined and converged, ``gap`` the largest azimuth gap (deg), per scan and
+    gate; ``pointing_deg``: the azimuth and elevation of every ray."""
+    azimuth, elevation = pointing_deg
+    velocity = ds["radial_velocity"].values.astype(float, copy=False)  # not written to
+    valid_all = usable_mask(ds)
+    parts: list[dict[str, np.ndarray]] = []
+    for rows in scan_chunks(layout, velocity.shape[1]):
+        sub = layout.subset(rows)
+        present = sub.present[:, :, None]
+        valid = sub.take(valid_all) & present
+        design = beam_unit_vector(sub.take(azimuth), sub.take(elevation))
+        fit = fit_scans(sub.take(velocity), design, valid, homodyne=homodyne)
+        parts.append(
+            {
+                "beta": fit.beta,
+                "cov": fit.covariance,
+                "n": fit.n_rays,
+                "res": fit.residual_std,
+                "ok": fit.determined & fit.converged,
+                "gap": azimuth_gap(sub.take(azimuth), valid),
+            }
+        )
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 
 def _wind_dataset(
