@@ -229,6 +229,57 @@ def table_key(params: dict) -> str:
 _PAIRS_MEMO: dict[str, list[np.ndarray]] = {}
 
 
+def _table_nodes(params: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The height (m), ``mu`` and outer-scale (m; NaN for an inertial table) nodes of a
+    table (ratios :data:`HEIGHT_RATIO`, :data:`OUTER_SCALE_RATIO`)."""
+    heights = _geometric(*params["height_range_m"], HEIGHT_RATIO)
+    mu = default_mu_grid(params["mu_max"])
+    if params["model"] == "inertial":
+        return heights, mu, np.array([np.nan])
+    return heights, mu, _geometric(*params["outer_scale_range_m"], OUTER_SCALE_RATIO)
+
+
+def _height_probes(
+    probe: Probe, params: dict, heights: np.ndarray, swept: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(range, dy, transverse probe size)`` (m) at the height nodes: the probe centre
+    samples the circle of radius R_c cos(phi), R_c = R for a pulsed gate, R/(1 +
+    (R/z_d)^2) for a cw focus (Banakh et al. (1999), Q_s); ``dy = dtheta R_c cos(phi)``;
+    no transverse size for step-stare rays."""
+    phi = params["phi_deg"]
+    ranges = heights / math.sin(math.radians(phi))
+    radius = np.asarray(probe.centre_range(ranges), float) * math.cos(math.radians(phi))
+    dys = math.radians(params["delta_theta_deg"]) * radius
+    perp_size = np.asarray(probe.transverse_size(dys), float) if swept else np.zeros_like(dys)
+    return ranges, dys, perp_size
+
+
+def _curve_kernels(
+    probe: Probe,
+    params: dict,
+    per_height: tuple[np.ndarray, np.ndarray, np.ndarray],
+    largest: float | None,
+) -> list[CurveKernel]:
+    """The A-curve kernel of each height node over the lags of the table
+    (:class:`cwproc.physics.curve_kernel.CurveKernel`, from ``0.02 dy`` to ``L dy (1 +
+    mu_max)``); ``per_height``: :func:`_height_probes`; ``largest``: the largest outer
+    scale (m; None for an inertial table)."""
+    ranges, dys, perp_size = per_height
+    rho_lo = 0.02 * dys
+    rho_hi = params["n_lags"] * dys * (1.0 + params["mu_max"]) * 1.01
+    return [
+        CurveKernel(
+            float(rho_lo[j]),
+            float(rho_hi[j]),
+            probe=probe,
+            dy=float(perp_size[j]),
+            range_m=float(ranges[j]),
+            outer_scale_m=largest,
+        )
+        for j in range(ranges.size)
+    ]
+
+
 def _memo_swept_pairs(
     probe: Probe,
     params: dict,
@@ -407,23 +458,13 @@ def build_a_table(probe: Probe, params: dict, bar: Bar = no_bar) -> ATable:
     """
     phi, n_lags, model = params["phi_deg"], params["n_lags"], params["model"]
     swept = bool(params.get("swept", True))
-    heights = _geometric(*params["height_range_m"], HEIGHT_RATIO)
-    mu = default_mu_grid(params["mu_max"])
-    if model == "inertial":
-        scales = np.array([np.nan])
-    else:
-        scales = _geometric(*params["outer_scale_range_m"], OUTER_SCALE_RATIO)
+    heights, mu, scales = _table_nodes(params)
     lags = np.arange(1, n_lags + 1, dtype=float)
     to_nodes = azimuth_to_nodes(full_circle())
     log_a1 = np.empty((scales.size, heights.size, n_lags))
     log_a2 = np.empty((scales.size, heights.size, n_lags, mu.size))
     bins_a2 = np.empty((scales.size, heights.size, n_lags, mu.size, N_BINS))
-    ranges = heights / math.sin(math.radians(phi))
-    # the probe centre samples the circle of radius R_c cos(phi): R_c = R for a pulsed
-    # gate, R/(1 + (R/z_d)^2) for a cw focus (Banakh et al. (1999), Q_s)
-    radius = np.asarray(probe.centre_range(ranges), float) * math.cos(math.radians(phi))
-    dys = math.radians(params["delta_theta_deg"]) * radius
-    perp_size = np.asarray(probe.transverse_size(dys), float) if swept else np.zeros_like(dys)
+    ranges, dys, perp_size = _height_probes(probe, params, heights, swept)
     # pulsed step-stare rays take the plane A-function too (Stream Line gate: eq. 15's
     # mix was 1.9 % low on the circle at lag 1, mu = 1, and down to 0.82 per azimuth)
     plane_pairs = np.any(perp_size > 0) or isinstance(probe, PulsedProbe)
@@ -431,26 +472,10 @@ def build_a_table(probe: Probe, params: dict, bar: Bar = no_bar) -> ATable:
     # an inertial table of pairs is the pairs alone: no eq.-15 curves, no point ratios
     pairs_only = plane_pairs and model == "inertial"
     same, g1, g2, unif = pair_geometry_terms(probe, params, ranges, mu, swept, not pairs_only)
-    rho_lo = 0.02 * dys
-    rho_hi = n_lags * dys * (1.0 + params["mu_max"]) * 1.01
     swept_pairs: list = [None] * heights.size
     inertial: list = [None] * heights.size
     largest = None if model == "inertial" else float(scales.max())
-    kernels = (
-        []
-        if pairs_only
-        else [
-            CurveKernel(
-                float(rho_lo[j]),
-                float(rho_hi[j]),
-                probe=probe,
-                dy=float(perp_size[j]),
-                range_m=float(ranges[j]),
-                outer_scale_m=largest,
-            )
-            for j in range(heights.size)
-        ]
-    )
+    kernels = [] if pairs_only else _curve_kernels(probe, params, (ranges, dys, perp_size), largest)
     if plane_pairs:
         swept_pairs = _memo_swept_pairs(probe, params, ranges, dys, mu, same, bar)
         if model != "inertial":
