@@ -161,6 +161,7 @@ from cwproc.physics.exact_lag import is_cw_probe
 from cwproc.physics.spectra import Model
 from cwproc.physics.transfer import Probe, PulsedProbe
 from cwproc.stages.epsilon.atable_fit import (
+    TableOptions,
     cell_a_functions,
     stare_dwell,
     table_options_for,
@@ -291,7 +292,7 @@ def estimate_epsilon(
     return out
 
 
-def dwell_attrs(sf: xr.Dataset, options: dict, prf_hz: float | None) -> dict[str, Any]:
+def dwell_attrs(sf: xr.Dataset, options: TableOptions, prf_hz: float | None) -> dict[str, Any]:
     """Product attributes of the rays' accumulation: swept, or step-stare with a dwell.
 
     ``ray_dwell_fraction`` is the dwell over the ray period that the A-tables averaged
@@ -301,13 +302,13 @@ def dwell_attrs(sf: xr.Dataset, options: dict, prf_hz: float | None) -> dict[str
     """
     from cwproc.physics.atable import table_dwell_step
 
-    dwell_s, fraction, tau = stare_dwell(sf, prf_hz)
-    if options.get("swept", True):
+    dwell_s, _, tau = stare_dwell(sf, prf_hz)
+    if options.swept:
         return {"swept_rays": 1, "ray_dwell_fraction": 1.0, "ray_period_s": tau}
     return {
         "swept_rays": 0,
         "ray_dwell_s": dwell_s,
-        "ray_dwell_fraction": table_dwell_step(float(options.get("dwell", fraction))),
+        "ray_dwell_fraction": table_dwell_step(float(options.dwell)),
         "ray_period_s": tau,
     }
 
@@ -372,8 +373,8 @@ class BlockGroupSettings:
     model: Model
     min_pairs: int
     n_outer_scales: int
-    #: the A-table options (:func:`cwproc.stages.epsilon.atable_fit.table_options_for`)
-    options: dict
+    #: the A-table settings (:func:`cwproc.stages.epsilon.atable_fit.table_options_for`)
+    options: TableOptions
     fit_noise: bool
     noise_window_blocks: int
 

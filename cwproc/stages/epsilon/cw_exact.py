@@ -21,7 +21,7 @@ from cwproc.physics.exact_lag import (
     variance_root,
 )
 from cwproc.physics.structure_fit import fit_structure_function
-from cwproc.stages.epsilon.atable_fit import evaluate_table
+from cwproc.stages.epsilon.atable_fit import TableOptions, evaluate_table
 from cwproc.stages.epsilon.cells import Cells
 from cwproc.stages.epsilon.records import CellEstimates, FitSetup
 
@@ -127,7 +127,7 @@ def apply_exact_cells(
     setup: FitSetup,
     res: CellEstimates,
     model: str,
-    options: dict,
+    options: TableOptions,
     fit_noise: bool,
     noise_window: int,
 ) -> CellEstimates:
@@ -145,7 +145,7 @@ def apply_exact_cells(
     )
     a1, a2 = res.a1.copy(), res.a2.copy()
     lags = np.arange(1, cells.n_lags + 1, dtype=float)
-    lo, hi = options.get("outer_scale_range_m", (10.0, 3000.0))
+    lo, hi = options.outer_scale_range_m
     for rows, (_, table) in setup.tables.groups.values():  # A-functions at L_V: method 1, the ratio
         sel = exact & rows[:, None] & np.isfinite(fit["integral_scale"])
         ti, hi_ = np.nonzero(sel)

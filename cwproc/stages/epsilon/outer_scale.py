@@ -32,7 +32,11 @@ from cwproc.physics.removed_share import (
 )
 from cwproc.physics.root_search import Residual, bracket_root, replayed_root
 from cwproc.physics.structure_fit import NOISE_PRIOR_REL_SE, fit_structure_function
-from cwproc.stages.epsilon.atable_fit import EVALUATION_CELLS, outer_scale_sector_factor
+from cwproc.stages.epsilon.atable_fit import (
+    EVALUATION_CELLS,
+    TableOptions,
+    outer_scale_sector_factor,
+)
 from cwproc.stages.epsilon.cells import Cells
 from cwproc.stages.epsilon.records import (
     CellEstimates,
@@ -69,7 +73,7 @@ NEAR_FACTOR = 2.0
 def finite_scale_inputs(
     probe: Any,
     model: str,
-    options: dict,
+    options: TableOptions,
     uniq: np.ndarray,
     inverse: np.ndarray,
     cells: Cells,
@@ -90,7 +94,7 @@ def finite_scale_inputs(
     """
     n_t, n_h = cells.range_m.shape
     scans, radius, mu_eval, weights = cells.scans, cells.radius, cells.mu_eval, cells.weights
-    lo, hi = options.get("outer_scale_range_m", (10.0, 3000.0))
+    lo, hi = options.outer_scale_range_m
     scale_grid = np.geomspace(lo, hi, int(np.ceil(np.log(hi / lo) / np.log(1.1))) + 1)
 
     def passed_per_pair() -> np.ndarray:
@@ -114,7 +118,7 @@ def finite_scale_inputs(
         rows = slice(t0, t0 + step)
         ratio_rl = radius[rows, :, None] / scale_grid[None, None, :]
         share[rows] = mean_removed_share(
-            ratio_rl, phi_med, model, mu_eval[rows, :, None], options.get("cache_dir")
+            ratio_rl, phi_med, model, mu_eval[rows, :, None], options.cache_dir
         )
     share /= n_eff[:, None, None]
     ti, hi_ = np.nonzero(
@@ -415,12 +419,14 @@ TRANSPORT_MU_NODES = np.array([0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 2.5, 3.0, 4.
 TRANSPORT_DY_RATIO = 1.4
 
 
-def transport_loss(probe: Any, cells: Cells, options: dict, memo: FitMemo | None) -> np.ndarray:
+def transport_loss(
+    probe: Any, cells: Cells, options: TableOptions, memo: FitMemo | None
+) -> np.ndarray:
     """``(time, height)`` variance lost to the transport during each ray, per eps^(2/3).
 
     :func:`cwproc.physics.probe_variance.segment_loss` (a swept ray's segment ``dy (e_scan
     - mu e_wind)`` beyond its sweep; a step-stare ray's ``d mu dy e_wind``, ``d =
-    options["dwell"]``) on :data:`TRANSPORT_MU_NODES` and geometric ``dy`` nodes (ratio
+    options.dwell``) on :data:`TRANSPORT_MU_NODES` and geometric ``dy`` nodes (ratio
     :data:`TRANSPORT_DY_RATIO`; a pulsed probe's range weighting does not depend on the
     range), linear in ``mu`` and, as ``loss dy^(-2/3)`` (its inertial scaling), in ``log
     dy`` in between (within 0.5 % of direct evaluation, or 0.1 m^(2/3) where the loss
@@ -432,7 +438,7 @@ def transport_loss(probe: Any, cells: Cells, options: dict, memo: FitMemo | None
     segment) and instantaneous step-stare rays.
     """
     shape = cells.dy.shape
-    swept, dwell = bool(options["swept"]), float(options.get("dwell", 0.0))
+    swept, dwell = bool(options.swept), float(options.dwell)
     dy = cells.dy.ravel()
     ok = np.isfinite(dy) & (dy > 0)
     if is_cw_probe(probe) or (not swept and dwell == 0.0) or not ok.any():
@@ -478,7 +484,7 @@ def fit_setup(
     *,
     probe: Any,
     model: str,
-    options: dict,
+    options: TableOptions,
     valid: np.ndarray,
     exact: np.ndarray,
     prior: NoisePrior,
@@ -508,7 +514,7 @@ def fit_setup(
     a2 = _few_ray_inertial_a2(cells, options, tables.a2, tables.sector)
     # the loss depends on (dy, range) only: compute it once per distinct pair
     # step-stare rays are not swept: no transverse averaging in the variance (eq. 20)
-    dy_filter = dy if options["swept"] else np.where(np.isfinite(dy), 0.0, np.nan)
+    dy_filter = dy if options.swept else np.where(np.isfinite(dy), 0.0, np.nan)
     pairs_dr = np.stack([np.round(dy_filter, 6).ravel(), np.round(cells.range_m, 6).ravel()], 1)
     uniq, inverse = np.unique(np.nan_to_num(pairs_dr, nan=-1.0), axis=0, return_inverse=True)
     loss_u = _remembered(
@@ -549,7 +555,7 @@ def fit_setup(
 
 
 def _few_ray_inertial_a2(
-    cells: Cells, options: dict, a2: np.ndarray, sector: np.ndarray
+    cells: Cells, options: TableOptions, a2: np.ndarray, sector: np.ndarray
 ) -> np.ndarray:
     """The inertial ``A_2`` ``(time, height, lag)`` with the few-ray circles'
     (:func:`few_ray_cells`) from :func:`cwproc.physics.few_ray_sector.sector_a2` (the
@@ -560,7 +566,7 @@ def _few_ray_inertial_a2(
         return a2
     out = a2.copy()
     phi = float(np.nanmedian(cells.phi))
-    dwell = float(options.get("dwell", 0.0))
+    dwell = float(options.dwell)
     for t, h in zip(*np.nonzero(few), strict=True):
         mu, rng = cells.mu_eval[t, h], cells.range_m[t, h]
         if not (np.isfinite(mu) and np.isfinite(rng)):
@@ -580,7 +586,7 @@ def _few_ray_inertial_a2(
 
 
 def _carried_scale_factor(
-    cells: Cells, options: dict, scale_grid: np.ndarray, model: str
+    cells: Cells, options: TableOptions, scale_grid: np.ndarray, model: str
 ) -> np.ndarray:
     """``(time, height, nL)``: the outer scale's factor on the inertial variance lost to
     the transport during the dwell (:func:`transport_loss`), for few-ray circles
@@ -588,7 +594,7 @@ def _carried_scale_factor(
     elsewhere (24- and 36-ray VADs keep the inertial loss)."""
     n_t, n_h = cells.range_m.shape
     out = np.ones((n_t, n_h, scale_grid.size))
-    dwell = float(options.get("dwell", 0.0))
+    dwell = float(options.dwell)
     if dwell <= 0.0:
         return out
     phi = float(np.nanmedian(cells.phi))
@@ -601,16 +607,16 @@ def _carried_scale_factor(
     return out
 
 
-def few_ray_cells(cells: Cells, options: dict) -> np.ndarray:
+def few_ray_cells(cells: Cells, options: TableOptions) -> np.ndarray:
     """``(time, height)``: full circles of step-stare rays at least
     :data:`FEW_RAYS_STEP_DEG` apart (12-ray VADs: two lags, 30 and 60 deg)."""
     n_t, n_h = cells.range_m.shape
     dtheta = np.broadcast_to(np.asarray(cells.dtheta, float)[:, None], (n_t, n_h))
     coarse = np.isfinite(dtheta) & (dtheta >= FEW_RAYS_STEP_DEG - 1e-6)
-    if options.get("swept", True) or not coarse.any():
+    if options.swept or not coarse.any():
         return np.zeros((n_t, n_h), dtype=bool)  # (no partial-circle test of every cell)
     partial = partial_circle(cells.weights, dtheta)
-    stare = not options.get("swept", True)
+    stare = not options.swept
     return stare & ~partial & np.isfinite(dtheta) & (dtheta >= FEW_RAYS_STEP_DEG - 1e-6)
 
 
