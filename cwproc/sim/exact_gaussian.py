@@ -65,7 +65,6 @@ from cwproc.physics.probe_lengths import FALLBACK_PRF_HZ as STREAMLINE_PRF_HZ
 
 __all__ = [
     "ScanPattern",
-    "beam_unit_vector",
     "block_covariance",
     "conical_pattern",
     "covariance_factor",
