@@ -27,8 +27,8 @@ import numpy as np
 
 from cwproc.io import read_file
 from cwproc.io.halo_background import read_halo_background
-from cwproc.physics.background import signal_free_gates
-from cwproc.stages.background import correct_snr
+from cwproc.physics.snr_background import signal_free_gates
+from cwproc.stages.snr_correction import correct_snr
 
 #: (site, stare file, background file) of the real sample set
 CASES = (

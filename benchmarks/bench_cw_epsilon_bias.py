@@ -27,7 +27,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.config import load_config
-from cwproc.physics.spectra import epsilon_from
+from cwproc.physics.dissipation import epsilon_from_integral_scale
 from cwproc.pipeline import probe_from_config
 from cwproc.sim.cw import simulate_cw_scans
 from cwproc.sim.montecarlo import lidar_from_config
@@ -64,8 +64,8 @@ def main() -> None:
     sigma2 = np.array(sim.sigma_v_m_s) ** 2
     scale = np.array(sim.outer_scale_m)
     truth = {
-        "epsilon": epsilon_from(sigma2, scale, "exponential"),
-        "epsilon_fit": epsilon_from(sigma2, scale, "exponential"),
+        "epsilon": epsilon_from_integral_scale(sigma2, scale, "exponential"),
+        "epsilon_fit": epsilon_from_integral_scale(sigma2, scale, "exponential"),
         "velocity_variance": sigma2,
         "integral_scale": scale,
     }

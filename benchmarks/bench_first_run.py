@@ -134,14 +134,14 @@ def time_geometry(geo: Geometry) -> tuple[float, float, list[str]]:
     The CPU seconds (this process, all its threads) are the figure to compare on a
     shared machine: the wall clock also counts the other users' jobs.
     """
-    from cwproc.stages.epsilon.atable_fit import a_tables
+    from cwproc.stages.epsilon.atable_fit import TableOptions, a_tables
     from cwproc.tables.removed_share import mean_removed_share
 
     probe, phi, dtheta, n_lags, model, options = _request(geo)
     parts = []
     started, cpu = time.perf_counter(), time.process_time()
     t0 = time.perf_counter()
-    a_tables(probe, phi, dtheta, n_lags, model, options)
+    a_tables(probe, phi, dtheta, n_lags, model, TableOptions(**options))
     parts.append(f"A-tables (inertial + {model}, {n_lags} lags) {time.perf_counter() - t0:.1f} s")
     if model != "inertial":
         t0 = time.perf_counter()

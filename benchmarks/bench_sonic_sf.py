@@ -25,7 +25,8 @@ import numpy as np
 import xarray as xr
 
 from cwproc.sim.sonic import iter_sonic_chunks
-from cwproc.stages.sonic_sf import parameter_statistics, structure_function_types, type_occurrence
+from cwproc.stages.sonic_sf import structure_function_types
+from cwproc.stages.sonic_sf_tables import parameter_statistics, type_occurrence
 
 PER_LAG = ("lag_distance", "normalised_sf", "normalised_sf_fit", "n_pairs")
 

@@ -35,6 +35,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.physics import stare as ps
+from cwproc.physics.dissipation import epsilon_from_band_variance
 from cwproc.physics.noise import bandwidth_from_resolution, velocity_noise_std
 from cwproc.sim.stare import gaussian_stares, stare_windows_dataset
 from cwproc.stages.stare import StareOptions, noise_std_per_ray, stare_product
@@ -211,7 +212,7 @@ def doppy_real_table() -> None:
         noise_var = np.mean(noise_std_per_ray(ds)[:, both] ** 2, 0)
         var[both] = np.var(w[:, both], axis=0) - share * noise_var
         g = ps.band_variance_factor(5.0 * (span + t_ray), 5.0 * t_ray, 15.3, 18.0)
-        ours = ps.epsilon_from_variance(var, g)
+        ours = epsilon_from_band_variance(var, g)
         ratio = e_d / ours
         ok = np.isfinite(ratio)
         print(

@@ -30,8 +30,8 @@ import numpy as np
 from cwproc.io.halo import read_hpl, write_hpl
 from cwproc.io.halo_background import read_halo_background
 from cwproc.sim.depol import polarised_pair, write_background
-from cwproc.stages.background import correct_snr
 from cwproc.stages.doppler_lidar import doppler_lidar_product
+from cwproc.stages.snr_correction import correct_snr
 
 PAIRS = (
     ("eriswil-2022-12-14-Stare_91_20221214_11.hpl", "eriswil-Background_141222-000013.txt"),

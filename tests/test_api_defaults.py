@@ -11,7 +11,8 @@ from types import ModuleType
 import pytest
 
 from cwproc.config import load_config
-from cwproc.stages import sonic_fits, sonic_sf, stare, zephir
+from cwproc.physics import sonic_fits
+from cwproc.stages import sonic_sf, stare, wind_records
 
 #: parameter name -> dotted key of the configuration it comes from, per module and preset
 SONIC = {
@@ -37,7 +38,7 @@ CASES = [
     (sonic_sf, "meteo2", SONIC),
     (sonic_fits, "meteo2", SONIC),
     (stare, "streamline", STARE),
-    (zephir, "zephir300", ZEPHIR),
+    (wind_records, "zephir300", ZEPHIR),
 ]
 
 
@@ -81,7 +82,7 @@ def test_the_main_stages_have_the_defaults_named():
     assert {p for p in sf if p != "sonic"} == {
         f.name for f in dataclasses.fields(load_config("meteo2").sonic)
     }
-    record = inspect.signature(zephir.wind_record_product).parameters
+    record = inspect.signature(wind_records.wind_record_product).parameters
     assert set(ZEPHIR) <= set(record)
     assert inspect.signature(stare.stare_product).parameters["options"].default is None
     assert {f.name for f in dataclasses.fields(stare.StareOptions)} <= set(STARE)

@@ -62,7 +62,9 @@ def test_only_the_scan_chain_knows_the_stage_order():
     assert SCAN_STAGES <= by_module["scan_chain.py"]
     others = {n: found & SCAN_STAGES for n, found in by_module.items() if n != "scan_chain.py"}
     assert not any(others.values()), others
-    assert {n for n, found in by_module.items() if "background" in found} == {"background_files.py"}
+    assert {n for n, found in by_module.items() if "snr_correction" in found} == {
+        "background_files.py"
+    }
 
 
 def test_no_allocator_tuning_in_library_code():

@@ -143,14 +143,21 @@ def _stare_sf(pulses: int | None) -> xr.Dataset:
 def test_step_stare_tables_get_the_dwell_of_the_header(pulses, prf, fraction):
     """The dwell pulses / PRF over the ray period T_scan dtheta / 360 (2 s) goes to the
     A-tables of step-stare rays; swept rays do not take one."""
-    from cwproc.stages.epsilon.atable_fit import stare_dwell, table_options_for
+    from cwproc.stages.epsilon.atable_fit import (
+        TableOptions,
+        stare_dwell,
+        table_height_range,
+        table_options_for,
+    )
 
     sf = _stare_sf(pulses)
     options = table_options_for(sf, None, prf)
-    assert options["swept"] is False and options["dwell"] == pytest.approx(fraction)
+    assert options.swept is False and options.dwell == pytest.approx(fraction)
     assert stare_dwell(sf, prf)[2] == pytest.approx(2.0)
     swept = sf.assign_attrs(swept_rays=1)
-    assert "dwell" not in table_options_for(swept, None, prf)
+    assert table_options_for(swept, None, prf) == TableOptions(
+        table_height_range(swept["height"].values), True
+    )
 
 
 def test_turbulence_product_records_the_dwell_and_the_prf(monkeypatch):

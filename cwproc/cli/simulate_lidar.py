@@ -323,7 +323,8 @@ def _cw(
     seed: int,
 ) -> list[Path]:
     from cwproc.config import load_config
-    from cwproc.physics.spectra import epsilon_from, variance_from
+    from cwproc.physics.dissipation import epsilon_from_integral_scale
+    from cwproc.physics.spectra import variance_from
     from cwproc.sim.cw import ZEPHIR, write_cw_series
     from cwproc.sim.montecarlo import lidar_from_config
 
@@ -343,7 +344,11 @@ def _cw(
     if wind is not None:
         speed = np.full(heights.size, wind)
     if epsilon is not None or outer_scale is not None:
-        eps = epsilon_from(sigma2, scale) if epsilon is None else np.full(heights.size, epsilon)
+        eps = (
+            epsilon_from_integral_scale(sigma2, scale)
+            if epsilon is None
+            else np.full(heights.size, epsilon)
+        )
         scale = scale if outer_scale is None else np.full(heights.size, outer_scale)
         sigma2 = variance_from(eps, scale)
     n_scans = max(1, round(hours * 3600.0 / lidar.scan_period_s))

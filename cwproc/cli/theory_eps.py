@@ -8,8 +8,8 @@ import click
 import numpy as np
 
 from cwproc.cli._common import require_extra
-from cwproc.physics.afunctions import eps_ratio as eps_ratio_values
-from cwproc.physics.afunctions import q1, q2
+from cwproc.physics.epsilon_bias import epsilon_bias_ratio as eps_ratio_values
+from cwproc.physics.epsilon_bias import q1, q2
 from cwproc.physics.transfer import PulsedProbe
 
 #: default lag number l of Smalikho (2020), eq. 5 (see the command help)

@@ -42,7 +42,7 @@ def ratio_table(
     lines = [head]
     for h in heights:
         row = f"{h:7.1f}{float(va.focus_range(h)):9.1f}"
-        row += f"{float(va.rayleigh_range(h, z_r_coefficient)):9.2f}"
+        row += f"{float(va.zephir_rayleigh_range(h, z_r_coefficient)):9.2f}"
         for t in scan_times:
             ratio, share = va.std_ratio_and_tp_share(
                 h, wind_speed, t, z_r_coefficient=z_r_coefficient, window_s=window_s

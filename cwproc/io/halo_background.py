@@ -4,7 +4,7 @@ The Stream Line measures its detector background (no laser pulse) and writes one
 per range gate to a file named after the UTC time of the measurement. ``.hpl`` files
 give the intensity as SNR + 1 = P / P_bg of this background (Manninen et al. (2016);
 Vakkari et al. (2019)), so the background of the hour lets the SNR be corrected
-(:mod:`cwproc.stages.background`).
+(:mod:`cwproc.stages.snr_correction`).
 
 Two layouts exist (``FORMATS.md`` section 1.7 of the real sample files):
 

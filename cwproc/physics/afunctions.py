@@ -10,7 +10,8 @@ The lidar azimuth structure function is ``D = eps^(2/3) A`` (Smalikho (2020), eq
 - :func:`a2`: Smalikho (2020), eq. 15, the theta-average with wind transport
   (``mu = U / V_s``); the lag is ``l dy sqrt(g)``, ``g = (1 - mu sin th)^2 + (mu cos th)^2``
   (the extraction prints "dtheta"; it is ``dy``), ``H_perp`` keeps the fixed ``dy``.
-- :func:`eps_ratio`: Smalikho (2020), eq. 21; :func:`q1`, :func:`q2`: eqs. 22-23.
+- the ratio of the method-1 and method-2 estimates of eps built on them, Smalikho (2020),
+  eqs. 21-23, is :mod:`cwproc.physics.epsilon_bias`.
 
 Numerics. The double integrals are reduced to nested 1-D integrals: an inner integral of
 the 2-D spectrum against one transfer function, then an outer oscillatory integral
@@ -440,67 +441,3 @@ def a2(
         constant=constant,
     )
     return a2_from_curves(curves, lag_number * dy, mu, phi_deg)
-
-
-def eps_ratio(
-    mu: ArrayLike,
-    phi_deg: float,
-    dy: float,
-    lag_number: int,
-    *,
-    probe: Probe | None,
-    range_m: float | None = None,
-) -> np.ndarray:
-    """Ratio ``eps_1 / eps_2`` of the method-1 and method-2 estimates, Smalikho (2020), eq. 21.
-
-    ``[(A_2(l dy) - A_2(dy)) / (A_1(l dy) - A_1(dy))]^(3/2)``, ``A_1 = A_perp``, inertial
-    spectrum (the constant ``C`` cancels).
-
-    Parameters
-    ----------
-    mu : array_like
-        ``U / V_s`` (1).
-    phi_deg : float
-        Elevation (degrees).
-    dy : float
-        Transverse sampling (m).
-    lag_number : int
-        ``l`` of eq. 5 (>= 2).
-    probe : PulsedProbe or CWProbe or None
-    range_m : float, optional
-        Focus distance (m) of a cw probe.
-    """
-    if int(lag_number) < 2:
-        raise ValueError("lag_number must be >= 2 (Smalikho (2020), eq. 5 needs l > 1)")
-    mu = np.asarray(mu, dtype=float)
-    lmax = float(lag_number)
-    curves = a_curve_splines(
-        0.02 * dy,
-        lmax * dy * (1.0 + float(np.max(mu))) * 1.01,
-        probe=probe,
-        dy=dy,
-        range_m=range_m,
-    )
-    a2_l = a2_from_curves(curves, lag_number * dy, mu, phi_deg)
-    a2_1 = a2_from_curves(curves, dy, mu, phi_deg)
-    a1_l = curves.perp(lag_number * dy)
-    a1_1 = curves.perp(dy)
-    return ((a2_l - a2_1) / (a1_l - a1_1)) ** 1.5
-
-
-def q1(phi_deg: ArrayLike) -> np.ndarray:
-    """``q1(phi) = [sin^2 phi + (7/8) cos^2 phi]^(3/2)``, Smalikho (2020), eq. 22.
-
-    ``eps_1/eps_2 -> q1 mu`` for ``mu >> 1`` when ``l dy >> dz`` (probe length).
-    """
-    p = np.radians(np.asarray(phi_deg, dtype=float))
-    return (np.sin(p) ** 2 + 7.0 / 8.0 * np.cos(p) ** 2) ** 1.5
-
-
-def q2(phi_deg: ArrayLike) -> np.ndarray:
-    """``q2(phi) = [sin^2 phi + cos^2 phi / 2]^(3/2)``, Smalikho (2020), eq. 23.
-
-    ``eps_1/eps_2 -> q2 mu^(5/2)`` for ``mu >> 1`` when ``l dy mu << dz``.
-    """
-    p = np.radians(np.asarray(phi_deg, dtype=float))
-    return (np.sin(p) ** 2 + np.cos(p) ** 2 / 2.0) ** 1.5

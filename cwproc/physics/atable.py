@@ -43,12 +43,12 @@ import numpy as np
 
 from cwproc.physics import afunctions, atable_swept, spectra
 from cwproc.physics.atable_geometry import (
-    _azimuth_to_nodes,
-    _eq15_points,
-    _geometry_terms,
-    _halves,
-    _per_theta_half,
+    azimuth_to_nodes,
+    circle_halves,
+    eq15_points,
     full_circle,
+    pair_geometry_terms,
+    per_theta_half_a2,
 )
 from cwproc.physics.atable_interp import N_BINS, ATable
 from cwproc.physics.canonical_key import parameter_key
@@ -79,7 +79,7 @@ OUTER_SCALE_RATIO = 1.3
 PAIRS_STRIDE = 2
 #: ... except where the probe's range offsets ``sqrt(3) sigma_v / R`` exceed this (1)
 PAIRS_DIRECT_OFFSET = 0.25
-#: step of the dwell fraction of step-stare tables (:func:`dwell_fraction`): a dwell
+#: step of the dwell fraction of step-stare tables (:func:`table_dwell_step`): a dwell
 #: 0.025 off changes D(1) by under 0.3 % at mu = 3 (the largest effect, 15 deg steps)
 DWELL_STEP = 0.05
 
@@ -198,7 +198,7 @@ def table_parameters(
         raise ValueError(f"dwell must be a fraction of the ray period in [0, 1], got {dwell!r}")
     extra = {}
     if not swept and geometry == "two_beam" and isinstance(probe, PulsedProbe):
-        extra["dwell"] = dwell_fraction(dwell)
+        extra["dwell"] = table_dwell_step(dwell)
     return {
         "swept": bool(swept),
         **extra,
@@ -215,7 +215,7 @@ def table_parameters(
     }
 
 
-def dwell_fraction(dwell: float) -> float:
+def table_dwell_step(dwell: float) -> float:
     """The dwell fraction of a table: ``dwell`` rounded to :data:`DWELL_STEP`, in [0, 1]."""
     return float(min(1.0, max(0.0, round(float(dwell) / DWELL_STEP) * DWELL_STEP)))
 
@@ -227,6 +227,57 @@ def table_key(params: dict) -> str:
 
 #: the swept pairs of the last tables built (:func:`_memo_swept_pairs`)
 _PAIRS_MEMO: dict[str, list[np.ndarray]] = {}
+
+
+def _table_nodes(params: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The height (m), ``mu`` and outer-scale (m; NaN for an inertial table) nodes of a
+    table (ratios :data:`HEIGHT_RATIO`, :data:`OUTER_SCALE_RATIO`)."""
+    heights = _geometric(*params["height_range_m"], HEIGHT_RATIO)
+    mu = default_mu_grid(params["mu_max"])
+    if params["model"] == "inertial":
+        return heights, mu, np.array([np.nan])
+    return heights, mu, _geometric(*params["outer_scale_range_m"], OUTER_SCALE_RATIO)
+
+
+def _height_probes(
+    probe: Probe, params: dict, heights: np.ndarray, swept: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(range, dy, transverse probe size)`` (m) at the height nodes: the probe centre
+    samples the circle of radius R_c cos(phi), R_c = R for a pulsed gate, R/(1 +
+    (R/z_d)^2) for a cw focus (Banakh et al. (1999), Q_s); ``dy = dtheta R_c cos(phi)``;
+    no transverse size for step-stare rays."""
+    phi = params["phi_deg"]
+    ranges = heights / math.sin(math.radians(phi))
+    radius = np.asarray(probe.centre_range(ranges), float) * math.cos(math.radians(phi))
+    dys = math.radians(params["delta_theta_deg"]) * radius
+    perp_size = np.asarray(probe.transverse_size(dys), float) if swept else np.zeros_like(dys)
+    return ranges, dys, perp_size
+
+
+def _curve_kernels(
+    probe: Probe,
+    params: dict,
+    per_height: tuple[np.ndarray, np.ndarray, np.ndarray],
+    largest: float | None,
+) -> list[CurveKernel]:
+    """The A-curve kernel of each height node over the lags of the table
+    (:class:`cwproc.physics.curve_kernel.CurveKernel`, from ``0.02 dy`` to ``L dy (1 +
+    mu_max)``); ``per_height``: :func:`_height_probes`; ``largest``: the largest outer
+    scale (m; None for an inertial table)."""
+    ranges, dys, perp_size = per_height
+    rho_lo = 0.02 * dys
+    rho_hi = params["n_lags"] * dys * (1.0 + params["mu_max"]) * 1.01
+    return [
+        CurveKernel(
+            float(rho_lo[j]),
+            float(rho_hi[j]),
+            probe=probe,
+            dy=float(perp_size[j]),
+            range_m=float(ranges[j]),
+            outer_scale_m=largest,
+        )
+        for j in range(ranges.size)
+    ]
 
 
 def _memo_swept_pairs(
@@ -345,26 +396,26 @@ def _height_cell(
     if pairs is None:
         a1 = (curves.perp(lag_m) + s2) * g1 - s2
         out = np.empty((curves.n_curves, *g2.shape))
-        points = _eq15_points(lag_m, mu, phi)
+        points = eq15_points(lag_m, mu, phi)
         for k in range(curves.n_curves):
-            half = _per_theta_half(curves.one(k), lag_m, mu, phi, points)[0]
-            _halves(out[k])[...] = (half[..., None, :] + s2) * _halves(g2) - s2
+            half = per_theta_half_a2(curves.one(k), lag_m, mu, phi, points)[0]
+            circle_halves(out[k])[...] = (half[..., None, :] + s2) * circle_halves(g2) - s2
         return a1, out
     a1 = pairs[:, 0, :].mean(axis=-1)
     if inert is None:
         return a1, pairs
-    points = _eq15_points(lag_m, mu, phi)
-    inert15 = _per_theta_half(inert, lag_m, mu, phi, points)
+    points = eq15_points(lag_m, mu, phi)
+    inert15 = per_theta_half_a2(inert, lag_m, mu, phi, points)
     a1_out = _outer_scale_blend(
         a1, curves.perp(lag_m) - inert.perp(lag_m), g1, curves.perp(lag_m) / inert.perp(lag_m)
     )
     out = np.empty((curves.n_curves, *pairs.shape))
     for k in range(curves.n_curves):
-        model15 = _per_theta_half(curves.one(k), lag_m, mu, phi, points)[0]
-        _halves(out[k])[...] = _outer_scale_blend(
-            _halves(pairs),
+        model15 = per_theta_half_a2(curves.one(k), lag_m, mu, phi, points)[0]
+        circle_halves(out[k])[...] = _outer_scale_blend(
+            circle_halves(pairs),
             (model15 - inert15)[..., None, :],
-            _halves(g2),
+            circle_halves(g2),
             (model15 / inert15)[..., None, :],
         )
     return a1_out, out
@@ -407,50 +458,24 @@ def build_a_table(probe: Probe, params: dict, bar: Bar = no_bar) -> ATable:
     """
     phi, n_lags, model = params["phi_deg"], params["n_lags"], params["model"]
     swept = bool(params.get("swept", True))
-    heights = _geometric(*params["height_range_m"], HEIGHT_RATIO)
-    mu = default_mu_grid(params["mu_max"])
-    if model == "inertial":
-        scales = np.array([np.nan])
-    else:
-        scales = _geometric(*params["outer_scale_range_m"], OUTER_SCALE_RATIO)
+    heights, mu, scales = _table_nodes(params)
     lags = np.arange(1, n_lags + 1, dtype=float)
-    to_nodes = _azimuth_to_nodes(full_circle())
+    to_nodes = azimuth_to_nodes(full_circle())
     log_a1 = np.empty((scales.size, heights.size, n_lags))
     log_a2 = np.empty((scales.size, heights.size, n_lags, mu.size))
     bins_a2 = np.empty((scales.size, heights.size, n_lags, mu.size, N_BINS))
-    ranges = heights / math.sin(math.radians(phi))
-    # the probe centre samples the circle of radius R_c cos(phi): R_c = R for a pulsed
-    # gate, R/(1 + (R/z_d)^2) for a cw focus (Banakh et al. (1999), Q_s)
-    radius = np.asarray(probe.centre_range(ranges), float) * math.cos(math.radians(phi))
-    dys = math.radians(params["delta_theta_deg"]) * radius
-    perp_size = np.asarray(probe.transverse_size(dys), float) if swept else np.zeros_like(dys)
+    ranges, dys, perp_size = _height_probes(probe, params, heights, swept)
     # pulsed step-stare rays take the plane A-function too (Stream Line gate: eq. 15's
     # mix was 1.9 % low on the circle at lag 1, mu = 1, and down to 0.82 per azimuth)
     plane_pairs = np.any(perp_size > 0) or isinstance(probe, PulsedProbe)
     plane_pairs = plane_pairs and params.get("geometry", "two_beam") == "two_beam"
     # an inertial table of pairs is the pairs alone: no eq.-15 curves, no point ratios
     pairs_only = plane_pairs and model == "inertial"
-    same, g1, g2, unif = _geometry_terms(probe, params, ranges, mu, swept, not pairs_only)
-    rho_lo = 0.02 * dys
-    rho_hi = n_lags * dys * (1.0 + params["mu_max"]) * 1.01
+    same, g1, g2, unif = pair_geometry_terms(probe, params, ranges, mu, swept, not pairs_only)
     swept_pairs: list = [None] * heights.size
     inertial: list = [None] * heights.size
     largest = None if model == "inertial" else float(scales.max())
-    kernels = (
-        []
-        if pairs_only
-        else [
-            CurveKernel(
-                float(rho_lo[j]),
-                float(rho_hi[j]),
-                probe=probe,
-                dy=float(perp_size[j]),
-                range_m=float(ranges[j]),
-                outer_scale_m=largest,
-            )
-            for j in range(heights.size)
-        ]
-    )
+    kernels = [] if pairs_only else _curve_kernels(probe, params, (ranges, dys, perp_size), largest)
     if plane_pairs:
         swept_pairs = _memo_swept_pairs(probe, params, ranges, dys, mu, same, bar)
         if model != "inertial":

@@ -38,11 +38,11 @@ def _per_theta_a2(
     curves: afunctions.ACurves, lag_m: np.ndarray, mu: np.ndarray, phi_deg: float
 ) -> np.ndarray:
     """Integrand of Smalikho (2020), eq. 15 on :func:`full_circle`, ``(lags, mu, theta)``."""
-    half = _per_theta_half(curves, lag_m, mu, phi_deg)
+    half = per_theta_half_a2(curves, lag_m, mu, phi_deg)
     return np.concatenate([half, half], axis=-1)  # eq. 15 is even in cos(theta)
 
 
-def _per_theta_half(
+def per_theta_half_a2(
     curves: afunctions.ACurves | CurveStack,
     lag_m: np.ndarray,
     mu: np.ndarray,
@@ -51,15 +51,15 @@ def _per_theta_half(
 ) -> np.ndarray:
     """:func:`_per_theta_a2` on the half circle (the first half of :func:`full_circle`).
 
-    ``points``: :func:`_eq15_points` of ``(lag_m, mu, phi_deg)`` when already computed.
+    ``points``: :func:`eq15_points` of ``(lag_m, mu, phi_deg)`` when already computed.
     """
-    rho, log_rho, wp, wl = points or _eq15_points(lag_m, mu, phi_deg)
+    rho, log_rho, wp, wl = points or eq15_points(lag_m, mu, phi_deg)
     if isinstance(curves, CurveStack):
         return wp[None] * curves.perp(rho, log_rho) + wl[None] * curves.par(rho, log_rho)
     return wp[None] * curves.perp(rho) + wl[None] * curves.par(rho)
 
 
-def _eq15_points(
+def eq15_points(
     lag_m: np.ndarray, mu: np.ndarray, phi_deg: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(rho, log rho)`` ``(lags, mu, theta)`` and the weights ``w_perp``, ``w_par``
@@ -69,7 +69,7 @@ def _eq15_points(
     return rho, np.log(np.maximum(rho, 1e-300)), wp, wl
 
 
-def _halves(a: np.ndarray) -> np.ndarray:
+def circle_halves(a: np.ndarray) -> np.ndarray:
     """``a (..., theta)`` on :func:`full_circle` as ``(..., 2, theta / 2)``: its two halves
     (a view of a contiguous array, so that a half-circle term broadcasts over both)."""
     return a.reshape(*a.shape[:-1], 2, a.shape[-1] // 2)
@@ -153,7 +153,7 @@ def uniform_mode(phi_deg: float, delta_theta_deg: float, n_lags: int, swept: boo
     return np.sum((sa - sb) ** 2, axis=-1)
 
 
-def _azimuth_to_nodes(theta: np.ndarray) -> np.ndarray:
+def azimuth_to_nodes(theta: np.ndarray) -> np.ndarray:
     """``(theta, N_BINS)``: periodic linear interpolation from ``theta`` (rad) to the nodes."""
     order = np.argsort(np.mod(theta, 2 * np.pi))
     th_sorted = np.mod(theta, 2 * np.pi)[order]
@@ -166,7 +166,7 @@ def _azimuth_to_nodes(theta: np.ndarray) -> np.ndarray:
     )
 
 
-def _geometry_terms(
+def pair_geometry_terms(
     probe: Probe,
     params: dict,
     ranges: np.ndarray,

@@ -19,7 +19,7 @@ from typing import Literal
 
 import numpy as np
 
-from cwproc.physics.geometry import beam_unit_vector, wind_components
+from cwproc.physics.geometry import beam_unit_vector_une, wind_components
 from cwproc.physics.spectra import EXPONENTIAL_COEFFICIENT, correlation_functions
 
 CorrelationModel = Literal["exponential", "von_karman"]
@@ -179,23 +179,6 @@ def same_beam_variance(
     return float(w @ b @ w)
 
 
-def beam_vectors(azimuth_deg: np.ndarray, elevation_deg: float | np.ndarray) -> np.ndarray:
-    """Unit beam vectors S(theta) = (sin phi, cos phi cos theta, cos phi sin theta).
-
-    Banakh et al. (1999), eq. 1, in the paper's (up, north, east) order with theta
-    clockwise from north: the components of
-    :func:`cwproc.physics.geometry.beam_unit_vector` (east, north, up), reversed.
-
-    Returns
-    -------
-    numpy.ndarray
-        Shape (M, 3).
-    """
-    th = np.asarray(azimuth_deg, dtype=float)
-    ph = np.broadcast_to(np.asarray(elevation_deg, dtype=float), th.shape)
-    return np.ascontiguousarray(beam_unit_vector(th, ph)[..., ::-1])
-
-
 def wind_vector(speed: float, direction_deg: float, vertical: float = 0.0) -> np.ndarray:
     """Mean wind (up, north, east) components (m s-1) for a wind blowing *from* direction.
 
@@ -277,7 +260,7 @@ def azimuth_correlation_matrix(
     numpy.ndarray
         B_D, shape (M, M) (m2 s-2), symmetric.
     """
-    s = beam_vectors(geometry.azimuth_deg, geometry.elevation_deg)
+    s = beam_unit_vector_une(geometry.azimuth_deg, geometry.elevation_deg)
     t = geometry.time_s
     m_idx, l_idx = np.triu_indices(geometry.n_azimuths)
     wind = np.zeros(3) if mean_wind is None else np.asarray(mean_wind, dtype=float)
@@ -346,8 +329,8 @@ def interpolated_azimuth_correlation_matrix(
     rows = np.full((n_az, n_az), np.nan)  # rows[k, m] = B_D(theta_m, theta_m + k dtheta)
 
     def evaluate(theta: np.ndarray, lag: np.ndarray) -> np.ndarray:
-        s1 = beam_vectors(np.rad2deg(theta), geometry.elevation_deg)
-        s2 = beam_vectors(np.rad2deg(theta + lag * dtheta), geometry.elevation_deg)
+        s1 = beam_unit_vector_une(np.rad2deg(theta), geometry.elevation_deg)
+        s2 = beam_unit_vector_une(np.rad2deg(theta + lag * dtheta), geometry.elevation_deg)
         shift = wind[None, :] * (lag * t0)[:, None]  # -<V>(t_m - t_l), t_l - t_m = k t0
         return _pair_correlations(s1, s2, shift, probe, sigma2, outer_scale, model)
 
@@ -514,8 +497,8 @@ def circulant_correlation_row(
         Shape (K, len(lags)): b_k = B_D(theta_0, theta_k) / sigma_V^2 (dimensionless).
     """
     lags = np.arange(geometry.n_azimuths) if lags is None else np.asarray(lags, dtype=int)
-    s = beam_vectors(geometry.azimuth_deg[lags], geometry.elevation_deg)
-    s0 = beam_vectors(geometry.azimuth_deg[:1], geometry.elevation_deg)[0]
+    s = beam_unit_vector_une(geometry.azimuth_deg[lags], geometry.elevation_deg)
+    s0 = beam_unit_vector_une(geometry.azimuth_deg[:1], geometry.elevation_deg)[0]
     z, w = probe.z, probe.w
     ww = w[:, None] * w[None, :]
     r_vec = z[None, :, None, None] * s0 - z[None, None, :, None] * s[:, None, None, :]

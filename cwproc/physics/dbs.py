@@ -63,7 +63,7 @@ __all__ = [
     "SATHE_2011",
     "SATHE_MANN_2013",
     "along_wind_coefficients",
-    "beam_vector",
+    "dbs_beam_unit_vector",
     "estimator_coefficients",
     "estimator_variance_ratio",
     "noise_variance",
@@ -75,7 +75,7 @@ __all__ = [
 INCLINED = ("0", "90", "180", "270")
 
 
-def beam_vector(beam: str, scan_angle_deg: float) -> np.ndarray:
+def dbs_beam_unit_vector(beam: str, scan_angle_deg: float) -> np.ndarray:
     """Unit vector (east, north, up) of beam ``"0"``...``"270"`` or ``"V"``."""
     if beam == "V":
         return np.array([0.0, 0.0, 1.0])
@@ -158,7 +158,7 @@ def estimator_variance_ratio(
     nodes, weights = range_nodes if range_nodes is not None else (np.zeros(1), np.ones(1))
     theta = np.deg2rad(scan_angle_deg)
     beams = list(coefficients)
-    vectors = {b: beam_vector(b, scan_angle_deg) for b in beams}
+    vectors = {b: dbs_beam_unit_vector(b, scan_angle_deg) for b in beams}
     centre = {b: vectors[b] * (height_m if b == "V" else height_m / np.cos(theta)) for b in beams}
     total = 0.0
     for k in beams:

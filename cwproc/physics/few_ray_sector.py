@@ -15,7 +15,7 @@ mean of 54.2 eps^(2/3)): the fit's lag-2 model 57 % high, eps 0.21 of the truth.
 :func:`cwproc.physics.two_beam.dwell_structure_function` (Banakh et al. (1999), eqs.
 15-16, the rays seen over their dwell in the field the wind carries, Smalikho (2020), eq.
 3) for a pair ``l`` steps apart whose middle is at angle ``theta`` from the direction the
-wind blows to (the convention of :func:`cwproc.stages.block_stats.pair_azimuth_weights`),
+wind blows to (the convention of :func:`cwproc.physics.block_stats.pair_azimuth_weights`),
 with point beams, and :func:`sector_a2` averages it over the pairs present less the
 probe's inertial share. The A-table's finite-outer-scale circle mean is not used
 for these scans: at 60 deg lags, ``mu`` 3, ``L_V`` 100 m it is 35 % above the direct
@@ -151,7 +151,7 @@ def sector_a2(
 
     ``sum_k w_k A_k`` of :func:`node_a2` (point beams) with the node weights ``weights``
     ``(cells, n_lags, N_BINS)`` of each lag's pairs
-    (:func:`cwproc.stages.block_stats.pair_azimuth_weights`), less what the probe takes:
+    (:func:`cwproc.physics.block_stats.pair_azimuth_weights`), less what the probe takes:
     the inertial circle mean of point beams less that of the probe-averaged pairs
     (``probe_circle``, ``(cells, n_lags)``, the inertial A-table, within 0.3 % of the
     direct two-beam average). The probe's share is a difference, not a factor: at

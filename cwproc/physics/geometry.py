@@ -76,6 +76,23 @@ def beam_unit_vector(azimuth_deg: ArrayLike, elevation_deg: ArrayLike) -> FloatA
     )
 
 
+def beam_unit_vector_une(azimuth_deg: ArrayLike, elevation_deg: ArrayLike) -> FloatArray:
+    """Unit vector S of the beam in the (up, north, east) order of Banakh et al. (1999).
+
+    ``S = (sin phi, cos phi cos theta, cos phi sin theta)``, Banakh et al. (1999), eq. 1,
+    with ``theta`` clockwise from north: the components of :func:`beam_unit_vector`
+    (east, north, up), reversed, as the correlation models of
+    :mod:`cwproc.physics.correlation` and :mod:`cwproc.physics.two_beam` use them.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Broadcast shape of the inputs plus a last axis of length 3 (dimensionless),
+        C-contiguous.
+    """
+    return np.ascontiguousarray(beam_unit_vector(azimuth_deg, elevation_deg)[..., ::-1])
+
+
 def radial_velocity(
     u: ArrayLike, v: ArrayLike, w: ArrayLike, azimuth_deg: ArrayLike, elevation_deg: ArrayLike
 ) -> FloatArray:

@@ -2,7 +2,7 @@
 
 The standard errors of the block's statistics ``s = (D_L(1), ..., D_L(L), variance of
 V'_L)`` come from the scatter of their per-scan values over the block's ``N`` scans
-(the jackknife of :func:`cwproc.stages.block_stats.jackknife_covariance`), which counts
+(the jackknife of :func:`cwproc.physics.block_stats.jackknife_covariance`), which counts
 the scans as independent. Scans that see the same eddies are not: in the field the wind
 carries (Taylor's hypothesis, Smalikho (2020), eq. 7) scan ``n + m`` sees the air the
 scan ``n`` saw ``m U T_int`` upstream. A full circle at ``mu = U/V_s`` of 1 is carried
@@ -330,7 +330,7 @@ def refit_variance_moments(blocks: np.ndarray, design: np.ndarray) -> tuple[floa
 
     The statistic is ``s = (1/N) sum_n |V'_n|^2 / M``, ``V'_n = V_n - H <V>`` (the
     block-mean VAD fit, ``H`` the hat of ``design``); the jackknife of
-    :func:`cwproc.stages.block_stats.jackknife_covariance` recomputes it without scan
+    :func:`cwproc.physics.block_stats.jackknife_covariance` recomputes it without scan
     ``k`` with the wind refitted without it, ``theta_k``, and reports ``(N - 1)/N sum_k
     (theta_k - <theta>)^2``. With ``Q`` an orthonormal basis of the fit's columns,
     ``r_n = (I - Q Q^T) V_n`` and ``c_n = Q^T V_n``, ``|V_n - H w|^2 = |r_n|^2 + |c_n -

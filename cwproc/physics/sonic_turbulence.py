@@ -417,45 +417,6 @@ def inertial_lags(slope: np.ndarray, *, tolerance: float, min_points: int) -> np
     return out
 
 
-def epsilon23_from_sf(r: np.ndarray, d: np.ndarray, constant: float) -> float:
-    """eps^(2/3) from D(r) = C eps^(2/3) r^(2/3) over the lags given (m^(4/3) s-2).
-
-    The least-squares fit of lg D with the slope fixed at 2/3: the geometric mean of
-    D / (C r^(2/3)) (Pope (2000), eq. 6.28).
-    """
-    ok = np.isfinite(d) & (d > 0) & (r > 0)
-    if not ok.any():
-        return float("nan")
-    return float(np.exp(np.mean(np.log(d[ok] / (constant * r[ok] ** (2.0 / 3.0))))))
-
-
-def epsilon_from_spectrum(
-    x: np.ndarray, rate_hz: float, speed: float, k_range: tuple[float, float]
-) -> float:
-    """eps (m2 s-3) from the inertial range of the longitudinal spectrum.
-
-    E_11(k) = C_1 eps^(2/3) k^(-5/3) (Pope (2000), eq. 6.246) with k = 2 pi f / U
-    (Taylor), the one-sided periodogram of the detrended series, averaged in lg k over
-    ``k_range`` (rad m-1), cut at a quarter of the Nyquist wavenumber pi f_s / U (above
-    it aliasing lifts the spectrum of a sampled -5/3 process).
-    """
-    x = np.where(np.isfinite(x), x, 0.0)
-    n = x.size
-    if n < 8 or speed <= 0:
-        return float("nan")
-    f = np.fft.rfftfreq(n, 1.0 / rate_hz)[1:]
-    p = (np.abs(np.fft.rfft(x))[1:] ** 2) * 2.0 / (n * rate_hz)  # S(f), m2 s-2 Hz-1
-    k = 2.0 * np.pi * f / speed
-    e = p * speed / (2.0 * np.pi)  # E(k) = S(f) U / (2 pi)
-    k_top = min(k_range[1], 0.25 * np.pi * rate_hz / speed)
-    sel = (k >= k_range[0]) & (k <= k_top)
-    if sel.sum() < 8:
-        return float("nan")
-    e23 = np.exp(np.mean(np.log(e[sel] * k[sel] ** (5.0 / 3.0) / C1_LONGITUDINAL)))
-    # the mean of ln of a chi-square(2) periodogram ordinate is ln(mean) - Euler's gamma
-    return float((e23 * np.exp(np.euler_gamma)) ** 1.5)
-
-
 # --------------------------------------------------------------------------------------
 # Foken & Wichura (1996) tests
 # --------------------------------------------------------------------------------------

@@ -126,17 +126,11 @@ def outer_scale_from(sigma2: ArrayLike, eps: ArrayLike, model: Model) -> np.ndar
 
     Banakh et al. (1999), eq. 19.
     """
-    return epsilon_from(sigma2, eps, model)  # the same relation solved for L_V
-
-
-def epsilon_from(
-    sigma2: ArrayLike, outer_scale_m: ArrayLike, model: Model = "exponential"
-) -> np.ndarray:
-    """``eps = c sigma_V^3 / L_V`` (m2 s-3), Banakh et al. (1999), eq. 19."""
+    # the same relation as dissipation.epsilon_from_integral_scale, solved for L_V
     return (
         integral_scale_coefficient(model)
         * np.asarray(sigma2, float) ** 1.5
-        / np.asarray(outer_scale_m, float)
+        / np.asarray(eps, float)
     )
 
 

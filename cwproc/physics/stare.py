@@ -68,33 +68,6 @@ A_OCONNOR = 0.55
 _NODES_PER_DECADE = 48
 
 
-def oconnor_epsilon(
-    variance: ArrayLike,
-    l1_m: ArrayLike,
-    ln_m: ArrayLike,
-    a: float = A_OCONNOR,
-) -> np.ndarray:
-    """Dissipation rate (m2 s-3) of O'Connor et al. (2010), eq. 4 (sharp band limits).
-
-    ``eps = 2 pi (2/(3a))^(3/2) sigma^3 (L_1^(2/3) - L_N^(2/3))^(-3/2)``; NaN where the
-    variance is not positive or ``L_1 <= L_N``.
-
-    Parameters
-    ----------
-    variance : array_like
-        Variance of w over the window (m2 s-2), noise removed.
-    l1_m, ln_m : array_like
-        ``L_1 = U T`` and ``L_N = U t`` (m).
-    a : float
-        One-sided 1-D spectrum constant (0.55 in O'Connor et al. (2010)).
-    """
-    var = np.asarray(variance, dtype=float)
-    band = np.asarray(l1_m, dtype=float) ** (2 / 3) - np.asarray(ln_m, dtype=float) ** (2 / 3)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        eps = 2 * np.pi * (2 / (3 * a)) ** 1.5 * var**1.5 * band**-1.5
-    return np.where((var > 0) & (band > 0), eps, np.nan)
-
-
 def gate_transfer(kz: np.ndarray, delta_p_m: float, delta_r_m: float) -> np.ndarray:
     """|H(k_z)|^2 of the pulsed range weighting (k_z in rad m-1).
 
@@ -237,18 +210,6 @@ def band_variance_factor(
     return out
 
 
-def epsilon_from_variance(variance: ArrayLike, factor: ArrayLike) -> np.ndarray:
-    """``eps = (sigma_v^2 / G)^(3/2)`` (m2 s-3); NaN where the variance is not positive.
-
-    O'Connor et al. (2010), eq. 4 with ``G`` of :func:`band_variance_factor`.
-    """
-    var = np.asarray(variance, dtype=float)
-    g = np.asarray(factor, dtype=float)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        eps = (var / g) ** 1.5
-    return np.where((var > 0) & (g > 0), eps, np.nan)
-
-
 def window_moments(
     w: np.ndarray, window: np.ndarray, n_windows: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -376,23 +337,3 @@ def power_bias_divisor(relative_variance_se: ArrayLike) -> np.ndarray:
     """
     rel = np.asarray(relative_variance_se, dtype=float)
     return 1.0 + 0.375 * np.where(np.isfinite(rel), rel, 0.0) ** 2
-
-
-def epsilon_standard_error(
-    epsilon: np.ndarray,
-    variance: np.ndarray,
-    variance_se: np.ndarray,
-    wind_speed: np.ndarray,
-    wind_speed_error: np.ndarray,
-) -> np.ndarray:
-    """Standard error of eps (m2 s-3): the variance's and the wind's parts combined.
-
-    ``eps ~ sigma^3 / (U T)`` for ``L_1 >> L_N``, so
-    ``SE(eps)/eps = sqrt((1.5 SE(sigma^2)/sigma^2)^2 + (SE(U)/U)^2)``
-    (O'Connor et al. (2010), section 4, errors of sigma_w and of U propagated).
-    """
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rel_var = 1.5 * np.asarray(variance_se) / np.asarray(variance)
-        rel_wind = np.asarray(wind_speed_error) / np.asarray(wind_speed)
-        rel_wind = np.where(np.isfinite(rel_wind), rel_wind, 0.0)
-        return np.asarray(epsilon) * np.hypot(rel_var, rel_wind)

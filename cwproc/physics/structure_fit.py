@@ -356,24 +356,67 @@ def fit_structure_function(
         fewer than two lags are valid.
     """
     f = _line_fit(d, a, valid)
-    w, n, x, y, det = f["w"], f["n"], f["x"], f["y"], f["det"]
-    sx, sxx, sxy = f["sx"], f["sxx"], f["sxy"]
-    slope, intercept = f["slope"], f["intercept"]
+    n, slope, intercept = f["n"], f["slope"], f["intercept"]
     prior = np.full(slope.shape, np.nan) if noise_prior is None else np.asarray(noise_prior)
     has_prior = np.isfinite(prior)
-    se = np.full(slope.shape, np.nan)
+    se, by_cov = _intercept_error(f, d_cov)
+    fixed = np.where(has_prior, 2.0 * np.nan_to_num(prior) ** 2, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fixed_slope = (f["sxy"] - fixed * f["sx"]) / f["sxx"]
+    significant = _intercept_significant(
+        intercept, (se, by_cov), fixed, fixed_slope > 0, (has_prior, prior_rel_se)
+    )
+    determined = (n >= MIN_NOISE_LAGS) & (intercept > 0) & significant
+    # a noise term far below the smallest structure function cannot be told from the
+    # sampling error of D and the model's shape: the fitted intercept then measures
+    # those, not the noise (24-ray VADs: 6-8 times the true sigma_e)
+    with np.errstate(invalid="ignore"):
+        smallest = functools.reduce(
+            np.minimum, np.moveaxis(np.where(f["w"], d, np.inf), -1, 0), np.full(n.shape, np.inf)
+        )
+        detectable = ~has_prior | (2.0 * prior**2 >= NOISE_DETECTABLE * smallest)
+    determined = determined & detectable
+    slope = np.where(determined, slope, fixed_slope)
+    intercept = np.where(determined, intercept, fixed)
+    ok = (n >= 2) & (slope > 0) & np.isfinite(slope)
+    eps = np.where(ok, np.where(ok, slope, 1.0) ** 1.5, np.nan)
+    noise = np.where(determined, np.sqrt(np.maximum(intercept, 0.0) / 2.0), prior)
+    return eps, np.where(ok, noise, np.nan), determined & ok
+
+
+def _intercept_error(f: dict, d_cov: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """``(standard error of the intercept (m2 s-2), whether from d_cov)`` of the line fit
+    ``f`` (:func:`_line_fit`): from the covariance of D where given and finite
+    (:func:`_intercept_se`), else the residual form ``s sqrt(sum x^2 / (n sum x^2 -
+    (sum x)^2))`` with ``s^2`` the residual variance (``n - 2`` degrees of freedom)."""
+    w, n, x, y, det = f["w"], f["n"], f["x"], f["y"], f["det"]
+    se = np.full(f["slope"].shape, np.nan)
     if d_cov is not None:
-        se = _intercept_se(x, w, sx, sxx, det, d_cov)
+        se = _intercept_se(x, w, f["sx"], f["sxx"], det, d_cov)
     by_cov = np.isfinite(se)
     if not by_cov.all():  # the residual form where the covariance is missing
         with np.errstate(invalid="ignore", divide="ignore"):
-            resid = np.where(w, y - slope[..., None] * x - intercept[..., None], 0.0)
+            resid = np.where(w, y - f["slope"][..., None] * x - f["intercept"][..., None], 0.0)
             s2 = _lag_sum(resid**2) / (n - 2)
-            se = np.where(by_cov, se, np.sqrt(s2 * sxx / det))
-    fixed = np.where(has_prior, 2.0 * np.nan_to_num(prior) ** 2, 0.0)
+            se = np.where(by_cov, se, np.sqrt(s2 * f["sxx"] / det))
+    return se, by_cov
+
+
+def _intercept_significant(
+    intercept: np.ndarray,
+    error: tuple[np.ndarray, np.ndarray],
+    pred2: np.ndarray,
+    turbulent: np.ndarray,
+    prior: tuple[np.ndarray, np.ndarray | float],
+) -> np.ndarray:
+    """Whether the intercept is measured well enough to be kept (the rules of
+    :func:`fit_structure_function`). ``error``: its standard error and whether that is
+    from the covariance of D; ``pred2``: the predicted ``2 sigma_pred^2`` (0 without a
+    prediction); ``turbulent``: the slope with the intercept fixed at ``pred2`` is
+    positive; ``prior``: where there is a prediction and its relative standard error."""
+    se, by_cov = error
+    has_prior, prior_rel_se = prior
     with np.errstate(invalid="ignore", divide="ignore"):
-        fixed_slope = (sxy - fixed * sx) / sxx
-        pred2 = fixed
         # kept on its precision (NOISE_PRECISION), above a factor NOISE_PLAUSIBLE below
         # the prediction (an intercept near 0 with a small error is the model's error at
         # the first lags, not a noise: seen on the sample's gridded field, 0.005 m/s for
@@ -383,7 +426,7 @@ def fit_structure_function(
         precise_cov = (se <= NOISE_PRECISION * pred2) & (intercept >= pred2 / NOISE_PLAUSIBLE**2)
         prior_se = np.asarray(prior_rel_se) * pred2
         contradicts = np.abs(intercept - pred2) > NOISE_CONTRADICTS * np.hypot(se, prior_se)
-        untenable = ~(fixed_slope > 0)
+        untenable = ~turbulent
         significant = np.where(
             has_prior, precise_cov | contradicts | untenable, intercept > 2.0 * se
         )
@@ -396,19 +439,4 @@ def fit_structure_function(
             )
             precise = has_prior & (2.0 * se < pred2) & near_factor
             significant = np.where(by_cov, significant, (intercept > 2.0 * se) | precise)
-    determined = (n >= MIN_NOISE_LAGS) & (intercept > 0) & significant
-    # a noise term far below the smallest structure function cannot be told from the
-    # sampling error of D and the model's shape: the fitted intercept then measures
-    # those, not the noise (24-ray VADs: 6-8 times the true sigma_e)
-    with np.errstate(invalid="ignore"):
-        smallest = functools.reduce(
-            np.minimum, np.moveaxis(np.where(w, d, np.inf), -1, 0), np.full(n.shape, np.inf)
-        )
-        detectable = ~has_prior | (2.0 * prior**2 >= NOISE_DETECTABLE * smallest)
-    determined = determined & detectable
-    slope = np.where(determined, slope, fixed_slope)
-    intercept = np.where(determined, intercept, fixed)
-    ok = (n >= 2) & (slope > 0) & np.isfinite(slope)
-    eps = np.where(ok, np.where(ok, slope, 1.0) ** 1.5, np.nan)
-    noise = np.where(determined, np.sqrt(np.maximum(intercept, 0.0) / 2.0), prior)
-    return eps, np.where(ok, noise, np.nan), determined & ok
+    return significant

@@ -60,6 +60,7 @@ from scipy import special
 
 from cwproc.physics import spectra
 from cwproc.physics.cw_probe import lorentzian_quadrature
+from cwproc.physics.geometry import beam_unit_vector_une
 
 #: nodes of the pulsed pair rule: per half of the range difference u, and along v
 N_U = 40
@@ -168,17 +169,6 @@ def beam_quadrature(probe: Any, range_m: float) -> BeamQuadrature:
     return pulsed_pairs(r, a, float(probe.delta_r_m))
 
 
-def beam_vector(azimuth_deg: ArrayLike, elevation_deg: ArrayLike) -> np.ndarray:
-    """Unit vectors ``(sin phi, cos phi cos theta, cos phi sin theta)`` (up, north, east).
-
-    Banakh et al. (1999), eq. 1; ``theta`` clockwise from north. Shape ``(..., 3)``.
-    """
-    th = np.deg2rad(np.asarray(azimuth_deg, dtype=float))
-    ph = np.deg2rad(np.asarray(elevation_deg, dtype=float))
-    th, ph = np.broadcast_arrays(th, ph)
-    return np.stack([np.sin(ph), np.cos(ph) * np.cos(th), np.cos(ph) * np.sin(th)], axis=-1)
-
-
 def _sweep_offsets(sweep_deg: float, n_sweep: int) -> np.ndarray:
     """Midpoint sub-beam azimuth offsets (deg) across a swept ray."""
     if n_sweep < 1:
@@ -283,8 +273,8 @@ def cross_term(
     for i in range(0, az_a.size, chunk):
         sl = slice(i, i + chunk)
         for o_a, o_b, f_a, f_b in zip(oa, ob, fa, fb, strict=True):  # sub-beam pairs
-            sa = beam_vector(az_a[sl] + o_a, el[sl])[:, None, :]  # (P, 1, 3)
-            sb = beam_vector(az_b[sl] + o_b, el[sl])[:, None, :]
+            sa = beam_unit_vector_une(az_a[sl] + o_a, el[sl])[:, None, :]  # (P, 1, 3)
+            sb = beam_unit_vector_une(az_b[sl] + o_b, el[sl])[:, None, :]
             dd = d[sl] + (f_a - f_b) * shift[sl]
             r_vec = za[None, :, None] * sa - zb[None, :, None] * sb - dd[:, None, :]
             out[sl] += ws * (_contract(r_vec, sa, sb, model, outer_scale_m) @ wq)
@@ -297,7 +287,7 @@ def mean_direction(
     """``S_bar = sum_j w_j S_j`` of a (possibly swept) ray, ``(..., 3)``."""
     offsets = _sweep_offsets(sweep_deg, n_sweep)
     az = np.asarray(azimuth_deg, float)[..., None] + offsets
-    return beam_vector(az, np.asarray(elevation_deg, float)[..., None]).mean(axis=-2)
+    return beam_unit_vector_une(az, np.asarray(elevation_deg, float)[..., None]).mean(axis=-2)
 
 
 @dataclass(frozen=True)
@@ -526,7 +516,7 @@ def dwell_structure_function(
     out = averaged(az_a, az_b, t) - 0.5 * (averaged(az_a, az_a, zero) + averaged(az_b, az_b, zero))
     if model != "inertial":
         sigma2 = spectra.variance_per_eps23(model, float(outer_scale_m))
-        diff = beam_vector(az_a, elevation_deg) - beam_vector(az_b, elevation_deg)
+        diff = beam_unit_vector_une(az_a, elevation_deg) - beam_unit_vector_une(az_b, elevation_deg)
         out = out + sigma2 * np.sum(diff * diff, axis=-1)
     return float(epsilon) ** (2.0 / 3.0) * out
 

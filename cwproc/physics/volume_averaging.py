@@ -75,7 +75,7 @@ def focus_range(height: npt.ArrayLike, cone_half_angle_deg: float = CONE_HALF_AN
     return np.asarray(height, dtype=float) / np.cos(np.radians(cone_half_angle_deg))
 
 
-def rayleigh_range(
+def zephir_rayleigh_range(
     height: npt.ArrayLike,
     z_r_coefficient: float = ZEPHIR_Z_R_COEFFICIENT,
     cone_half_angle_deg: float = CONE_HALF_ANGLE_DEG,
@@ -382,7 +382,7 @@ def std_ratio_and_tp_share(
         raise ValueError("height, wind_speed and scan_time_s must be > 0")
     k = _wavenumbers(height)
     cup = kaimal_spectrum(k, height) * averaging_window_transfer(k, wind_speed, window_s)
-    probe = lorentzian_transfer(k, rayleigh_range(height, z_r_coefficient))
+    probe = lorentzian_transfer(k, zephir_rayleigh_range(height, z_r_coefficient))
     scan = scan_transfer(k, azimuth_length_scale(height, wind_speed, scan_time_s))
     cup_var = _integrate_log(cup, k)
     lidar_var = _integrate_log(cup * probe * scan, k)

@@ -2,7 +2,7 @@
 
 The pipeline finds and reads the background files (``*Background_*.txt``, Manninen et
 al. (2016); Vakkari et al. (2019)) and hands the datasets to the stage
-:func:`cwproc.stages.background.correct_snr`, which does no I/O.
+:func:`cwproc.stages.snr_correction.correct_snr`, which does no I/O.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from cwproc.config import Config
 from cwproc.errors import CwprocError
 from cwproc.io.halo_background import background_time, read_halo_background
 from cwproc.pipeline.product_units import ProductUnit
-from cwproc.stages.background import correct_snr, correction_summary, match_rays
+from cwproc.stages.snr_correction import correct_snr, correction_summary, match_rays
 
 #: file-name pattern of Stream Line background files (any prefix, e.g. a site name)
 BACKGROUND_GLOB = "*Background_*.txt"
@@ -111,7 +111,7 @@ class SnrCorrection:
         """The correction of a day from that of its chunks, in time order (None: none).
 
         One line for the day, as the whole-day run words it
-        (:func:`cwproc.stages.background.correction_summary`): a single chunk's own
+        (:func:`cwproc.stages.snr_correction.correction_summary`): a single chunk's own
         summary, else the rays of all chunks counted again.
         """
         ran = [p for p in parts if p.corrected is not None]

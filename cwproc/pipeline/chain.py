@@ -21,7 +21,7 @@ memory), with the same products.
 
 wind records (ZephIR, WindCube)::
 
-    zephir.wind_record_product (qc, TI corrected for volume averaging) -> wind product
+    wind_records.wind_record_product (qc, TI corrected for volume averaging) -> wind product
 
 sonic data::
 
@@ -115,7 +115,7 @@ def process_wind_record(record: xr.Dataset, config: Config) -> dict[str, xr.Data
     statistics by DBS (:func:`cwproc.stages.dbs.dbs_statistics`, ``[dbs]``): mean wind
     and turbulence intensity measured and corrected.
     """
-    from cwproc.stages import zephir
+    from cwproc.stages import wind_records
 
     if record.attrs.get("format") == "windcube_rtd":
         from cwproc.stages.dbs import dbs_statistics
@@ -123,7 +123,7 @@ def process_wind_record(record: xr.Dataset, config: Config) -> dict[str, xr.Data
         record = dbs_statistics(record, **dataclasses.asdict(config.dbs))
 
     return {
-        "wind": zephir.wind_record_product(
+        "wind": wind_records.wind_record_product(
             record,
             min_packets=config.zephir.min_packets,
             max_rain_percent=config.zephir.max_rain_percent,
@@ -170,7 +170,7 @@ def sf_summary_tables(products: Sequence[xr.Dataset]) -> tuple[pd.DataFrame, pd.
         Means and medians of the fitted parameters per type and component,
         Gladkikh et al. (2014), Tables 3-5.
     """
-    from cwproc.stages import sonic_sf
+    from cwproc.stages import sonic_sf_tables
 
     joined = xr.concat([p[list(SF_SUMMARY_VARIABLES)] for p in products], dim="window")
-    return sonic_sf.type_occurrence(joined), sonic_sf.parameter_statistics(joined)
+    return sonic_sf_tables.type_occurrence(joined), sonic_sf_tables.parameter_statistics(joined)

@@ -338,22 +338,22 @@ class ScanChain:
         """What the whole day decides, from its pointing alone (24 bytes a ray).
 
         The scan numbering (:func:`cwproc.io.scan_join.scan_indices`); with ``wind``, the
-        VAD's conical scans (:func:`cwproc.stages.vad.select_conical_scans`); with
+        VAD's conical scans (:func:`cwproc.physics.scan_layout.select_conical_scans`); with
         ``step``, the azimuth step and rotation of their rays
-        (:func:`cwproc.stages.structure.azimuth_step`).
+        (:func:`cwproc.physics.scan_layout.azimuth_step`).
         """
         from cwproc.io.scan_join import scan_indices
-        from cwproc.stages import structure, vad
+        from cwproc.physics import scan_layout
 
         time, az, el = pointing.time, pointing.azimuth, pointing.elevation
         scan, _ = scan_indices(time, az, el, scan_type=pointing.scan_type)
         if not wind:
             return DayDecisions(scan)
-        layout, phi, _, n_other = vad.select_conical_scans(
-            vad.scan_layout(scan, np.isfinite(az) & np.isfinite(el)), el
+        layout, phi, _, n_other = scan_layout.select_conical_scans(
+            scan_layout.scan_layout(scan, np.isfinite(az) & np.isfinite(el)), el
         )
         rays = np.isin(scan, layout.scan_ids)
-        found = structure.azimuth_step(az[rays], scan[rays]) if step else None
+        found = scan_layout.azimuth_step(az[rays], scan[rays]) if step else None
         return DayDecisions(scan, phi, n_other, layout.scan_ids, found)
 
     def turbulence_note(self, scans: xr.Dataset) -> str:

@@ -27,11 +27,11 @@ from cwproc.io.scan_netcdf import write_scan_netcdf
 from cwproc.physics.correlation import (
     CorrelationModel,
     ScanGeometry,
-    beam_vectors,
     wind_vector,
 )
 from cwproc.physics.cw_probe import cw_probe_quadrature, focal_parameter, probe_grid
-from cwproc.physics.spectra import epsilon_from
+from cwproc.physics.dissipation import epsilon_from_integral_scale
+from cwproc.physics.geometry import beam_unit_vector_une
 from cwproc.sim.output import fresh_folder, write_truth
 from cwproc.sim.turbulence import (
     along_beam_fluctuations,
@@ -354,7 +354,7 @@ def simulate_cw_height(
     wind = wind_vector(wind_speed, wind_direction_deg)
     quad = cw_probe_quadrature(focus, lidar.wavelength_m, lidar.beam_radius_m, quadrature_nodes)
     factor = scan_cholesky(geometry, quad, float(outer_scale_m), tuple(wind), model)
-    s = beam_vectors(geometry.azimuth_deg, lidar.elevation_deg)
+    s = beam_unit_vector_une(geometry.azimuth_deg, lidar.elevation_deg)
     vd = s @ wind + simulate_scan_velocities(rng, factor, sigma2, (n_scans,))
     dr, q = probe_grid(focus, lidar.wavelength_m, lidar.beam_radius_m)
     offsets = along_beam_offsets(focus, lidar.elevation_deg, geometry.n_azimuths, dr)
@@ -538,7 +538,7 @@ def write_cw_series(
         "wind_direction_deg": float(wind_direction_deg),
         "velocity_variance_m2_s2": full[1].tolist(),
         "integral_scale_m": full[2].tolist(),
-        "epsilon_m2_s3": epsilon_from(full[1], full[2]).tolist(),
+        "epsilon_m2_s3": epsilon_from_integral_scale(full[1], full[2]).tolist(),
         "correlation_model": "Banakh et al. (1999), eq. 17",
         "n_scans": int(n_scans),
         "scan_period_s": lidar.scan_period_s,

@@ -18,7 +18,7 @@ Two generators:
   noise, its own background file (the real file's smooth background shape times
   gate-to-gate noise of the real file's level) and a noise floor offset like the real
   one (the background drifts between its measurement and the ray), so that
-  :func:`cwproc.stages.background.correct_snr` has to do on both what it does on a real
+  :func:`cwproc.stages.snr_correction.correct_snr` has to do on both what it does on a real
   instrument's files, and the truth of every gate is known exactly.
 
 Written with :func:`cwproc.io.halo.write_hpl` and :func:`write_background`, a pair is two
@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from cwproc.physics.background import MIN_FIT_RANGE_M, fit_background_shape
+from cwproc.physics.snr_background import MIN_FIT_RANGE_M, fit_background_shape
 
 #: half-width of the Stream Line's velocity search band (m s-1), where a noise gate's
 #: velocity lies
@@ -136,7 +136,7 @@ def background_stripes(
 ) -> tuple[np.ndarray, float]:
     """Smooth shape B_f of a measured background and its gate-to-gate noise level.
 
-    Returns ``B_f`` (:func:`cwproc.physics.background.fit_background_shape`, Vakkari et
+    Returns ``B_f`` (:func:`cwproc.physics.snr_background.fit_background_shape`, Vakkari et
     al. (2019)) and the robust standard deviation of ``B_m / B_f - 1`` beyond
     ``min_range_m`` (1.4826 MAD).
     """

@@ -65,7 +65,6 @@ from cwproc.physics.probe_lengths import FALLBACK_PRF_HZ as STREAMLINE_PRF_HZ
 
 __all__ = [
     "ScanPattern",
-    "beam_unit_vector",
     "block_covariance",
     "conical_pattern",
     "covariance_factor",
@@ -242,7 +241,7 @@ def structure_functions(
     return np.where(zero, 0.0, par), np.where(zero, 0.0, perp)
 
 
-def range_nodes(delta_p_m: float, delta_r_m: float, step_m: float) -> tuple[np.ndarray, ...]:
+def pulse_range_nodes(delta_p_m: float, delta_r_m: float, step_m: float) -> tuple[np.ndarray, ...]:
     """Nodes (m from the gate centre) and weights (sum 1) of the pulsed range weighting.
 
     Midpoint rule on ``Q(s)`` of :func:`cwproc.sim.pulsed.pulsed_range_weight`, out to
@@ -423,71 +422,120 @@ def block_covariance(
         raise ValueError("the field needs a finite variance: model 'von_karman' or 'exponential'")
     wind = np.asarray(mean_wind, dtype=float)
     sigma2 = spectra.variance_per_eps23(model, outer_scale_m)  # per eps^(2/3)
-    m = pattern.n_rays
-    frozen = bool(np.any(wind != 0))
+    beams = _PairBeams(
+        pattern,
+        elevation_deg,
+        range_m,
+        wind,
+        model,
+        outer_scale_m,
+        sweep_nodes,
+        pulse=(delta_p_m, delta_r_m),
+    )
     blocks: dict[int, np.ndarray] = {}
-    ii, kk = (a.ravel() for a in np.meshgrid(np.arange(m), np.arange(m), indexing="ij"))
-    for scan_lag in range(n_scans) if frozen else range(1):
-        # the ray's mean beam (sweep average of the unit vectors) and the centre separation
-        sweep = pattern.averaged
-        delta, mean, weight = sweep_offsets(0, sweep_nodes) if sweep else (*_POINT, np.ones(1))
-        beams_i, _, _ = _point_beams(
-            pattern, elevation_deg, np.arange(m), np.arange(m), (delta, mean), 0
-        )
-        mean_beam = np.einsum("pjc,j->pc", beams_i, weight)
-        dt_c = (np.asarray(pattern.time_s)[ii] - np.asarray(pattern.time_s)[kk]) - (
-            scan_lag * pattern.period_s
-        )
-        sep = np.linalg.norm(
-            range_m * (mean_beam[ii] - mean_beam[kk]) - wind * dt_c[:, None], axis=-1
-        )
-        lag_rays = _ray_lags(pattern, ii, kk, scan_lag)
-        if scan_lag == 0:  # B_D(i, k) = B_D(k, i) within a scan: the upper triangle suffices
-            sep = np.where(ii <= kk, sep, np.nan)
-            # the same or touching rays: the r^(2/3) cusp where the point beams meet
-            # needs the 0.5 m range step
-            sep[(ii == kk) | ((np.abs(lag_rays) <= 1) & (ii <= kk))] = -1.0
-        value = np.full(ii.size, np.nan)
-        lower = -np.inf
-        # the sweep of a ray (its arc, m) and the transport during it matter where they
-        # are not small against the separation; beyond 20 of them (and 100 m) the ray's
-        # mean beam at its centre time stands for it
-        arc = range_m * np.cos(np.deg2rad(elevation_deg)) * np.deg2rad(pattern.sweep_deg)
-        arc += float(np.linalg.norm(wind)) * pattern.accumulation_s
-        for step, upper, sub in _STEPS_M:
-            sel = np.flatnonzero((sep >= lower) & (sep < upper))
-            lower = upper
-            if sel.size == 0:
-                continue
-            nodes = range_nodes(delta_p_m, delta_r_m, step)
-            # (not beyond 5 L_V, where the covariance has decayed: a stare's transport
-            # in a strong wind would otherwise resolve every pair of the block)
-            use_sub = sweep & (sub | ((sep[sel] < 20.0 * arc) & (sep[sel] < 5.0 * outer_scale_m)))
-            key = np.where(use_sub, lag_rays[sel], np.iinfo(np.int64).min)
-            for lag in np.unique(key):
-                grp = sel[key == lag]
-                if lag != np.iinfo(np.int64).min:
-                    delta, mean, weight = sweep_offsets(int(lag), sweep_nodes)
-                else:
-                    delta, mean, weight = *_POINT, np.ones(1)
-                per_pair = delta.size * nodes[0].size ** 2 * 3
-                chunk = max(1, _CHUNK // per_pair)
-                for c0 in range(0, grp.size, chunk):
-                    p = grp[c0 : c0 + chunk]
-                    bi, bk, dtp = _point_beams(
-                        pattern, elevation_deg, ii[p], kk[p], (delta, mean), scan_lag
-                    )
-                    if lag == np.iinfo(np.int64).min:  # the ray's mean beam, centre time
-                        bi, bk = mean_beam[ii[p]][:, None, :], mean_beam[kk[p]][:, None, :]
-                    shift = -wind[None, None, :] * dtp[..., None]
-                    value[p] = _pair_structure(
-                        bi, bk, shift, weight, range_m, nodes, model, outer_scale_m
-                    )
-        value = value.reshape(m, m)
-        if scan_lag == 0:
-            value = np.where(np.isnan(value), value.T, value)
+    for scan_lag in range(n_scans) if bool(np.any(wind != 0)) else range(1):
+        mean_beam, value = _scan_lag_structure(beams, scan_lag)
         blocks[scan_lag] = sigma2 * (mean_beam @ mean_beam.T) - value
     return block_toeplitz(blocks, n_scans) * epsilon ** (2.0 / 3.0)
+
+
+@dataclass(frozen=True)
+class _PairBeams:
+    """The settings of :func:`block_covariance` its pairs of rays are computed with."""
+
+    pattern: ScanPattern
+    elevation_deg: float
+    range_m: float
+    wind: np.ndarray
+    model: str
+    outer_scale_m: float
+    sweep_nodes: int
+    #: (delta_p_m, delta_r_m) of the range weighting (m)
+    pulse: tuple[float, float]
+
+
+def _scan_lag_structure(beams: _PairBeams, scan_lag: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(mean beams (M, 3), D per eps^(2/3) (M, M))`` of the rays of one scan with those
+    ``scan_lag`` scans later: the structure form of :func:`block_covariance` per pair,
+    from the separation of the rays' mean beams at their centre times."""
+    pattern, range_m, wind = beams.pattern, beams.range_m, beams.wind
+    m = pattern.n_rays
+    ii, kk = (a.ravel() for a in np.meshgrid(np.arange(m), np.arange(m), indexing="ij"))
+    # the ray's mean beam (sweep average of the unit vectors) and the centre separation
+    sweep = pattern.averaged
+    delta, mean, weight = sweep_offsets(0, beams.sweep_nodes) if sweep else (*_POINT, np.ones(1))
+    beams_i, _, _ = _point_beams(
+        pattern, beams.elevation_deg, np.arange(m), np.arange(m), (delta, mean), 0
+    )
+    mean_beam = np.einsum("pjc,j->pc", beams_i, weight)
+    dt_c = (np.asarray(pattern.time_s)[ii] - np.asarray(pattern.time_s)[kk]) - (
+        scan_lag * pattern.period_s
+    )
+    sep = np.linalg.norm(range_m * (mean_beam[ii] - mean_beam[kk]) - wind * dt_c[:, None], axis=-1)
+    lag_rays = _ray_lags(pattern, ii, kk, scan_lag)
+    if scan_lag == 0:  # B_D(i, k) = B_D(k, i) within a scan: the upper triangle suffices
+        sep = np.where(ii <= kk, sep, np.nan)
+        # the same or touching rays: the r^(2/3) cusp where the point beams meet
+        # needs the 0.5 m range step
+        sep[(ii == kk) | ((np.abs(lag_rays) <= 1) & (ii <= kk))] = -1.0
+    value = _pair_structures(beams, scan_lag, (ii, kk), mean_beam, sep, lag_rays)
+    value = value.reshape(m, m)
+    if scan_lag == 0:
+        value = np.where(np.isnan(value), value.T, value)
+    return mean_beam, value
+
+
+def _pair_structures(
+    beams: _PairBeams,
+    scan_lag: int,
+    pairs: tuple[np.ndarray, np.ndarray],
+    mean_beam: np.ndarray,
+    sep: np.ndarray,
+    lag_rays: np.ndarray,
+) -> np.ndarray:
+    """D per eps^(2/3) of the ray pairs ``(ii, kk)`` (NaN where ``sep`` is NaN): range steps
+    by the separation (:data:`_STEPS_M`), sweep and transport resolved where they are not
+    small against it."""
+    pattern, range_m, wind = beams.pattern, beams.range_m, beams.wind
+    ii, kk = pairs
+    value = np.full(ii.size, np.nan)
+    lower = -np.inf
+    # the sweep of a ray (its arc, m) and the transport during it matter where they
+    # are not small against the separation; beyond 20 of them (and 100 m) the ray's
+    # mean beam at its centre time stands for it
+    arc = range_m * np.cos(np.deg2rad(beams.elevation_deg)) * np.deg2rad(pattern.sweep_deg)
+    arc += float(np.linalg.norm(wind)) * pattern.accumulation_s
+    for step, upper, sub in _STEPS_M:
+        sel = np.flatnonzero((sep >= lower) & (sep < upper))
+        lower = upper
+        if sel.size == 0:
+            continue
+        nodes = pulse_range_nodes(*beams.pulse, step)
+        # (not beyond 5 L_V, where the covariance has decayed: a stare's transport
+        # in a strong wind would otherwise resolve every pair of the block)
+        near = (sep[sel] < 20.0 * arc) & (sep[sel] < 5.0 * beams.outer_scale_m)
+        use_sub = pattern.averaged & (sub | near)
+        key = np.where(use_sub, lag_rays[sel], np.iinfo(np.int64).min)
+        for lag in np.unique(key):
+            grp = sel[key == lag]
+            if lag != np.iinfo(np.int64).min:
+                delta, mean, weight = sweep_offsets(int(lag), beams.sweep_nodes)
+            else:
+                delta, mean, weight = *_POINT, np.ones(1)
+            per_pair = delta.size * nodes[0].size ** 2 * 3
+            chunk = max(1, _CHUNK // per_pair)
+            for c0 in range(0, grp.size, chunk):
+                p = grp[c0 : c0 + chunk]
+                bi, bk, dtp = _point_beams(
+                    pattern, beams.elevation_deg, ii[p], kk[p], (delta, mean), scan_lag
+                )
+                if lag == np.iinfo(np.int64).min:  # the ray's mean beam, centre time
+                    bi, bk = mean_beam[ii[p]][:, None, :], mean_beam[kk[p]][:, None, :]
+                shift = -wind[None, None, :] * dtp[..., None]
+                value[p] = _pair_structure(
+                    bi, bk, shift, weight, range_m, nodes, beams.model, beams.outer_scale_m
+                )
+    return value
 
 
 def block_toeplitz(blocks: dict[int, np.ndarray], n_scans: int) -> np.ndarray:
@@ -556,40 +604,27 @@ def gaussian_scans(
     ranges = np.asarray(ranges_m, dtype=float)
     u, v = wind_components(wind_speed_m_s, wind_direction_deg)
     wind = np.array([u, v, 0.0])
-    m = pattern.n_rays
-    n = n_scans * m
     rng = np.random.default_rng(seed)
-    velocity = np.empty((n_blocks, n, ranges.size))
-    worst = 0.0
-    for g, range_m in enumerate(ranges):
-        cov = block_covariance(
-            pattern,
-            n_scans,
-            elevation_deg=elevation_deg,
-            range_m=float(range_m),
-            epsilon=epsilon,
-            outer_scale_m=outer_scale_m,
-            model=model,
-            mean_wind=wind,
-            delta_p_m=delta_p_m,
-            delta_r_m=delta_r_m,
-            sweep_nodes=sweep_nodes,
-        )
-        factor, clipped = covariance_factor(cov)
-        worst = max(worst, clipped)
-        velocity[:, :, g] = rng.standard_normal((n_blocks, n)) @ factor.T
+    velocity, worst = _gate_draws(
+        pattern,
+        (n_scans, n_blocks),
+        ranges,
+        rng,
+        elevation_deg=elevation_deg,
+        epsilon=epsilon,
+        outer_scale_m=outer_scale_m,
+        model=model,
+        mean_wind=wind,
+        delta_p_m=delta_p_m,
+        delta_r_m=delta_r_m,
+        sweep_nodes=sweep_nodes,
+    )
     beams = beam_unit_vector(np.asarray(pattern.azimuth_deg), elevation_deg)
     velocity += np.tile(beams @ wind, n_scans)[None, :, None]
     drawn = float(noise_std_m_s) * float(noise_factor)
     velocity += drawn * rng.standard_normal(velocity.shape)
-
-    scan_t = np.arange(n_scans)[:, None] * pattern.period_s + np.asarray(pattern.time_s)
-    block_len = n_scans * pattern.period_s + block_gap_s
-    t = (np.arange(n_blocks)[:, None] * block_len + scan_t.ravel()[None, :]).ravel()
-    times = np.datetime64(start_time, "ns") + np.round(t * 1e9).astype("timedelta64[ns]")
-    n_rays = n_blocks * n
-    azimuth = np.tile(np.asarray(pattern.azimuth_deg), n_blocks * n_scans)
-    scan = np.repeat(np.arange(n_blocks * n_scans), m).astype(np.int64)
+    times, azimuth, scan = _block_rays(pattern, n_scans, n_blocks, start_time, block_gap_s)
+    n_rays = times.size
     ds = streamline_scans(
         velocity.reshape(n_rays, ranges.size),
         times=times,
@@ -603,10 +638,7 @@ def gaussian_scans(
         stepped=pattern.sweep_deg == 0,
         pulses_per_ray=pattern.pulses_per_ray,
         truth={
-            "sim_generator": "exact Gaussian (cwproc.sim.exact_gaussian)",
-            "sim_epsilon": float(epsilon),
-            "sim_integral_scale_m": float(outer_scale_m),
-            "sim_model": model,
+            **_field_truth(epsilon, outer_scale_m, model),
             "sim_noise_std": drawn,
             "sim_noise_std_predicted": float(noise_std_m_s),
             "sim_seed": int(seed),
@@ -618,14 +650,67 @@ def gaussian_scans(
         },
     )
     if snr is None:  # the SNR at which the file's settings predict noise_std_m_s
-        ds["snr"][:] = noise.snr_for_noise_std(
-            float(noise_std_m_s),
-            ds.attrs["points_per_gate"],
-            ds.attrs["pulses_per_ray"],
-            noise.bandwidth_from_resolution(ds.attrs["velocity_resolution_m_s"]),
-        )
+        ds["snr"][:] = _predicting_snr(ds.attrs, float(noise_std_m_s))
     ds["qc_flag_radial"] = (("ray", "range"), np.zeros((n_rays, ranges.size), np.int8))
     return ds
+
+
+def _predicting_snr(attrs: dict, noise_std_m_s: float) -> float:
+    """The SNR at which a Stream Line file of ``attrs`` predicts ``noise_std_m_s`` (m s-1;
+    Pearson et al. (2009), eq. 3, :func:`cwproc.physics.noise.snr_for_noise_std`)."""
+    return noise.snr_for_noise_std(
+        noise_std_m_s,
+        attrs["points_per_gate"],
+        attrs["pulses_per_ray"],
+        noise.bandwidth_from_resolution(attrs["velocity_resolution_m_s"]),
+    )
+
+
+def _field_truth(epsilon: float, outer_scale_m: float, model: str) -> dict[str, object]:
+    """The ``sim_*`` attributes of the field: its generator, eps (m2 s-3), L_V (m) and
+    correlation model."""
+    return {
+        "sim_generator": "exact Gaussian (cwproc.sim.exact_gaussian)",
+        "sim_epsilon": float(epsilon),
+        "sim_integral_scale_m": float(outer_scale_m),
+        "sim_model": model,
+    }
+
+
+def _gate_draws(
+    pattern: ScanPattern,
+    counts: tuple[int, int],
+    ranges: np.ndarray,
+    rng: np.random.Generator,
+    **covariance: object,
+) -> tuple[np.ndarray, float]:
+    """``(velocity (blocks, N M, gate), largest clipped eigenvalue)``: independent blocks
+    of ``counts = (N scans, blocks)`` drawn gate by gate with :func:`block_covariance`
+    (its keyword arguments ``covariance``) through :func:`covariance_factor`."""
+    n_scans, n_blocks = counts
+    n = n_scans * pattern.n_rays
+    velocity = np.empty((n_blocks, n, ranges.size))
+    worst = 0.0
+    for g, range_m in enumerate(ranges):
+        cov = block_covariance(pattern, n_scans, range_m=float(range_m), **covariance)
+        factor, clipped = covariance_factor(cov)
+        worst = max(worst, clipped)
+        velocity[:, :, g] = rng.standard_normal((n_blocks, n)) @ factor.T
+    return velocity, worst
+
+
+def _block_rays(
+    pattern: ScanPattern, n_scans: int, n_blocks: int, start_time: str, block_gap_s: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(times, azimuths (deg), scan numbers)`` of the rays of ``n_blocks`` blocks of
+    ``n_scans`` scans, ``block_gap_s`` (s) between the blocks."""
+    scan_t = np.arange(n_scans)[:, None] * pattern.period_s + np.asarray(pattern.time_s)
+    block_len = n_scans * pattern.period_s + block_gap_s
+    t = (np.arange(n_blocks)[:, None] * block_len + scan_t.ravel()[None, :]).ravel()
+    times = np.datetime64(start_time, "ns") + np.round(t * 1e9).astype("timedelta64[ns]")
+    azimuth = np.tile(np.asarray(pattern.azimuth_deg), n_blocks * n_scans)
+    scan = np.repeat(np.arange(n_blocks * n_scans), pattern.n_rays).astype(np.int64)
+    return times, azimuth, scan
 
 
 def covariance_factor(cov: np.ndarray) -> tuple[np.ndarray, float]:

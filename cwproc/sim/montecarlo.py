@@ -45,13 +45,14 @@ from cwproc.config import SimulationConfig
 from cwproc.physics.correlation import (
     ProbeQuadrature,
     ScanGeometry,
-    beam_vectors,
     circulant_correlation_row,
     wind_vector,
 )
 from cwproc.physics.cw_probe import cw_probe_quadrature, probe_grid
+from cwproc.physics.dissipation import epsilon_from_integral_scale
 from cwproc.physics.exact_lag import fit_correlation_shape
-from cwproc.physics.spectra import epsilon_from, integral_scale_coefficient
+from cwproc.physics.geometry import beam_unit_vector_une
+from cwproc.physics.spectra import integral_scale_coefficient
 from cwproc.sim.cw import CWLidar, along_beam_offsets
 from cwproc.sim.turbulence import (
     along_beam_fluctuations,
@@ -125,7 +126,7 @@ def height_model(lidar: CWLidar, height_m: float, max_lag: int) -> HeightModel:
     full = circulant_correlation_row(geometry, quad, FACTOR_SCALES)
     spectrum = np.fft.fft(full, axis=1).real
     projected = spectrum[:, 0] + 2.0 * spectrum[:, 1]
-    design = beam_vectors(geometry.azimuth_deg, lidar.elevation_deg)
+    design = beam_unit_vector_une(geometry.azimuth_deg, lidar.elevation_deg)
     return HeightModel(float(height_m), float(focus), geometry, quad, design, lag_model, projected)
 
 
@@ -196,7 +197,7 @@ def cumulative_vad_statistics(
     }
 
 
-def fit_structure_function(
+def fit_correlation_model(
     structure: np.ndarray, lag_model: np.ndarray, scales: np.ndarray = FIT_SCALES
 ) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares fit of D_L(l) = sigma^2 d(l; L) over a grid of outer scales.
@@ -254,8 +255,8 @@ def estimate_parameters(
         ``epsilon``, ``variance``, ``integral_scale``, each (R, N).
     """
     c = integral_scale_coefficient("exponential")
-    sigma2_fit, scale_fit = fit_structure_function(stats["structure"], model.lag_model)
-    epsilon = epsilon_from(np.maximum(sigma2_fit, 0.0), scale_fit)
+    sigma2_fit, scale_fit = fit_correlation_model(stats["structure"], model.lag_model)
+    epsilon = epsilon_from_integral_scale(np.maximum(sigma2_fit, 0.0), scale_fit)
     raw = stats["residual_variance"] + width2
     n = np.arange(1, raw.shape[1] + 1)[None, :]
     variance = raw
@@ -298,7 +299,7 @@ def simulate_height(
     """
     wind = wind_vector(wind_speed, wind_direction_deg)
     factor = scan_cholesky(model.geometry, model.quadrature, float(outer_scale_m), tuple(wind))
-    s = beam_vectors(model.geometry.azimuth_deg, lidar.elevation_deg)
+    s = beam_unit_vector_une(model.geometry.azimuth_deg, lidar.elevation_deg)
     vd = s @ wind + simulate_scan_velocities(rng, factor, sigma2, (realisations, n_scans))
     valid = np.abs(vd) >= min_peak_velocity
     dr, q = probe_grid(model.focus_range_m, lidar.wavelength_m, lidar.beam_radius_m)
@@ -352,7 +353,7 @@ def run_study(
     for j, h in progress.track(list(enumerate(heights)), desc="heights", unit="height"):
         sigma2 = float(sim.sigma_v_m_s[j]) ** 2
         scale = float(sim.outer_scale_m[j])
-        eps = float(epsilon_from(sigma2, scale))
+        eps = float(epsilon_from_integral_scale(sigma2, scale))
         truth_eps[j] = eps
         model = height_model(lidar, float(h), sim.max_lag)
         vd, valid, width2 = simulate_height(

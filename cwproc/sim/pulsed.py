@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
@@ -162,16 +163,15 @@ def sample_conical_scans(
     )
     step = field.spacing_m if range_step_m is None else float(range_step_m)
     mean_wind = np.array([*wind_components(wind_speed_m_s, wind_direction_deg), vertical_wind_m_s])
-    sign = 1.0 if clockwise else -1.0
-    n_rays = rays_per_scan * n_scans
-    first_ray = first_scan * rays_per_scan
-    t_centre = (np.arange(first_ray, first_ray + n_rays) + 0.5) * scan_period_s / rays_per_scan
-    sub = ((np.arange(sweep_points) + 0.5) / sweep_points - 0.5) * scan_period_s / rays_per_scan
-    ray_times = t_centre[:, None] + sub[None, :]  # (rays, J): the sweep of each ray
+    rays = _ConicalRays.of(
+        (first_scan, n_scans, rays_per_scan, sweep_points),
+        scan_period_s,
+        (start_time, start_azimuth_deg, 1.0 if clockwise else -1.0),
+    )
     velocity = probe_averaged_velocity(
         field,
-        ray_times,
-        start_azimuth_deg + sign * 360.0 * ray_times / scan_period_s,
+        rays.sweep_times,
+        rays.sweep_azimuths,
         elevation_deg=elevation_deg,
         ranges_m=ranges,
         range_quadrature_nodes=range_quadrature(delta_p_m, delta_r_m, step),
@@ -181,29 +181,67 @@ def sample_conical_scans(
     )
     rng = np.random.default_rng(seed) if noise_rng is None else noise_rng
     velocity += noise_std_m_s * rng.standard_normal(velocity.shape)
-    times = np.datetime64(start_time, "ns") + np.round(t_centre * 1e9).astype("timedelta64[ns]")
-    azimuth = (start_azimuth_deg + sign * 360.0 * t_centre / scan_period_s) % 360.0
-    scan = (first_scan + np.arange(n_rays) // rays_per_scan).astype(np.int64)
+    truth = {
+        **field_truth(field),
+        "sim_noise_std": float(noise_std_m_s),
+        "sim_noise_seed": int(seed),
+        "sim_wind_speed": float(wind_speed_m_s),
+        "sim_wind_direction_deg": float(wind_direction_deg),
+        "sim_vertical_wind": float(vertical_wind_m_s),
+        "sim_scan_period_s": float(scan_period_s),
+    }
     return streamline_scans(
         velocity,
-        times=times,
-        azimuth=azimuth,
+        times=rays.times,
+        azimuth=rays.azimuths,
         elevation_deg=elevation_deg,
         ranges_m=ranges,
-        scan=scan,
+        scan=rays.scan,
         snr=snr,
         delta_p_m=delta_p_m,
         delta_r_m=delta_r_m,
-        truth={
-            **field_truth(field),
-            "sim_noise_std": float(noise_std_m_s),
-            "sim_noise_seed": int(seed),
-            "sim_wind_speed": float(wind_speed_m_s),
-            "sim_wind_direction_deg": float(wind_direction_deg),
-            "sim_vertical_wind": float(vertical_wind_m_s),
-            "sim_scan_period_s": float(scan_period_s),
-        },
+        truth=truth,
     )
+
+
+@dataclass(frozen=True)
+class _ConicalRays:
+    """The rays of continuous rotations (:func:`sample_conical_scans`): the times (s from
+    the series' start) and azimuths (deg) of the ``J`` beam positions across each ray's
+    azimuth step (Smalikho (2020), eq. 20), ``(rays, J)``; each ray's centre time (UTC),
+    azimuth (deg, in [0, 360)) and scan number."""
+
+    sweep_times: np.ndarray
+    sweep_azimuths: np.ndarray
+    times: np.ndarray
+    azimuths: np.ndarray
+    scan: np.ndarray
+
+    @classmethod
+    def of(
+        cls,
+        counts: tuple[int, int, int, int],
+        scan_period_s: float,
+        start: tuple[str | np.datetime64, float, float],
+    ) -> _ConicalRays:
+        """``counts``: first scan, scans, rays per scan and sweep points J; ``start``: the
+        UTC time and azimuth (deg) of the first ray's start and the sense of rotation
+        (+1 clockwise)."""
+        first_scan, n_scans, rays_per_scan, sweep_points = counts
+        start_time, start_azimuth_deg, sign = start
+        n_rays = rays_per_scan * n_scans
+        first_ray = first_scan * rays_per_scan
+        t_centre = (np.arange(first_ray, first_ray + n_rays) + 0.5) * scan_period_s / rays_per_scan
+        sub = ((np.arange(sweep_points) + 0.5) / sweep_points - 0.5) * scan_period_s / rays_per_scan
+        ray_times = t_centre[:, None] + sub[None, :]  # (rays, J): the sweep of each ray
+        return cls(
+            sweep_times=ray_times,
+            sweep_azimuths=start_azimuth_deg + sign * 360.0 * ray_times / scan_period_s,
+            times=np.datetime64(start_time, "ns")
+            + np.round(t_centre * 1e9).astype("timedelta64[ns]"),
+            azimuths=(start_azimuth_deg + sign * 360.0 * t_centre / scan_period_s) % 360.0,
+            scan=(first_scan + np.arange(n_rays) // rays_per_scan).astype(np.int64),
+        )
 
 
 def _check_scan_arguments(

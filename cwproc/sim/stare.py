@@ -18,7 +18,7 @@ from cwproc.io.halo import write_hpl
 from cwproc.physics.constants import STREAMLINE_DELTA_P_M, STREAMLINE_DELTA_R_M
 from cwproc.physics.geometry import wind_components
 from cwproc.physics.noise import bandwidth_from_resolution, velocity_noise_std
-from cwproc.sim.exact_gaussian import range_nodes, structure_functions
+from cwproc.sim.exact_gaussian import pulse_range_nodes, structure_functions
 from cwproc.sim.field3d import FrozenField
 from cwproc.sim.output import fresh_folder, write_truth
 from cwproc.sim.pulsed import range_quadrature, sample_conical_scans, streamline_scans
@@ -238,7 +238,7 @@ def stare_covariance(
 
     ``B(i, k) = B_0 - (1/2) <D_33(U (t_i - t_k + tau - tau'), s - s')>``, averaged over
     ``sub_points`` instants ``tau`` of each ray's dwell (``ray_duration_s``) and the
-    pulsed range weighting ``s`` (:func:`cwproc.sim.exact_gaussian.range_nodes`), rays
+    pulsed range weighting ``s`` (:func:`cwproc.sim.exact_gaussian.pulse_range_nodes`), rays
     ``ray_interval_s`` apart (default: back to back, a sparse stare when longer, e.g.
     one ray every 25 s between VADs); Toeplitz in ``i - k``. The
     constant ``B_0`` (the largest half structure function) keeps the matrix positive
@@ -246,7 +246,7 @@ def stare_covariance(
     field has no finite variance).
     """
 
-    s, ws = range_nodes(delta_p_m, delta_r_m, range_step_m)
+    s, ws = pulse_range_nodes(delta_p_m, delta_r_m, range_step_m)
     tau = ((np.arange(sub_points) + 0.5) / sub_points - 0.5) * ray_duration_s
     dtau = (tau[:, None] - tau[None, :]).ravel()
     ds = (s[:, None] - s[None, :]).ravel()

@@ -25,6 +25,7 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+from scipy.fft import next_fast_len
 
 from cwproc.physics.correlation import (
     CorrelationModel,
@@ -34,27 +35,6 @@ from cwproc.physics.correlation import (
     longitudinal_correlation,
 )
 from cwproc.tables.store import cached_arrays
-
-
-def next_fast_len(target: int, real: bool = False) -> int:
-    """Smallest n >= target whose FFT pocketfft does fast: 2-3-5-7-11-smooth (complex) or
-    2-3-5-smooth (real), as :func:`scipy.fft.next_fast_len`.
-
-    The FFTs here are numpy's (the same pocketfft, one thread; scipy.fft costs 0.3-0.6 s
-    of imports, scipy.special among them, and its second worker gained nothing on two
-    busy cores: 1000 x 4096 points 0.069 s with numpy, 0.079 s with one scipy worker,
-    0.127 s with two).
-    """
-    primes = (2, 3, 5) if real else (2, 3, 5, 7, 11)
-    n = max(1, int(target))
-    while True:
-        m = n
-        for p in primes:
-            while m % p == 0:
-                m //= p
-        if m == 1:
-            return n
-        n += 1
 
 
 def cholesky_factor(b: np.ndarray, jitter: float = 1e-10) -> np.ndarray:

@@ -21,6 +21,7 @@ Writers: :func:`write_rtd` (v1, v2 and v2.1 layouts of :mod:`cwproc.io.windcube_
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -480,7 +481,6 @@ def write_sta(
         ``-`` or nothing).
     """
     heights = np.asarray(heights_m, dtype=float)
-    alt = "\t".join(f"{h:.0f}" for h in heights)
     token = iter(np.resize(np.array(missing_tokens, dtype=object), 10**6))
 
     def cell(value: float, decimals: int) -> str:
@@ -492,71 +492,99 @@ def write_sta(
         u, v = _wc(stats["speed"], stats["direction"])
         stats = {**stats, "u": u, "v": v}
     times = stats["time"].astype("datetime64[s]").astype(object)
-    rows = []
     if layout == "v1":
-        items = [
-            "Version=3.1.66",
-            "ID System=WLS7-099",
-            "Localisation=cwproc virtual site",
-            "Measurements informations :",
-            "********************",
-            f"ScanAngle({_DEG})={scan_angle_deg:.2f}",
-            f"HeadingAngle({_DEG})=0.00",
-            f"Altitudes(m)=\t{alt}",
-            "********************",
-        ]
-        names = ["Date", "WiperCount", "Tm"]
-        for k in range(heights.size):
-            for name, _, _ in _STA_SHORT:
-                indexed = (
-                    name not in ("CNRm", "dCNR", "CNRmax", "CNRmin") and "spectral" not in name
-                )
-                names.append(f"{name}{k + 1}" if indexed else name)
-            names.append("")
-        head = [f"HeaderLength={len(items)}", *items, "\t".join(names)]
-        for r, t in enumerate(times):
-            row = [t.strftime("%d/%m/%Y %H:%M:%S"), "0", "15.00"]
-            for k in range(heights.size):
-                for _, key, dec in _STA_SHORT:
-                    row.append(cell(stats[key][r, k], dec) if key else f"{0.1:.{dec}f}")
-                row.append("")
-            rows.append("\t".join(row))
+        head, rows = _sta_v1(stats, heights, times, scan_angle_deg, cell)
     else:
-        na = layout == "v2.1"
-        items = [
-            f"Version={'WF 2.2.1.99999' if na else '1.1.13'}",
-            f"ID System={'WLS71999' if na else 'WLS7-999'}",
-            "ID Client=",
-            "Location=cwproc virtual site",
-            f"GPS Location=Lat:56.480000{_DEG}N, Long:85.100000{_DEG}E",
-            "Comments=simulated by cwproc.sim.windcube",
-            "FCR Option= OFF",
-            "timezone=UTC+0",
-            "********************",
-            f"Pulses / Line of Sight={'NA' if na else '10000'}",
-            f"Wavelength (nm)={'NA' if na else '1543.000'}",
-            f"ScanAngle ({_DEG})={'NA' if na else f'{scan_angle_deg:.3f}'}",
-            f"DirectionOffset ({_DEG})=0",
-            f"{'Altitudes AGL (m)' if na else 'Altitudes (m)'}=\t{alt}",
-            "********************",
-        ]
-        names = ["Timestamp (end of interval)", f"Int Temp ({_DEG}C)", f"Ext Temp ({_DEG}C)"]
-        names += ["Pressure (hPa)", "Rel Humidity (%)", "Wiper count", "Vbatt (V)"]
-        for h in heights:
-            names += [f"{h:.0f}m {name}" for name, _, _ in _STA_LONG] + [""]
-        head = [f"HeaderSize={len(items)}", *items, "\t".join(names)]
-        for r, t in enumerate(times):
-            row = [t.strftime("%Y/%m/%d %H:%M"), "26.10", "15.00", "1005.0", "60.0", "0"]
-            row.append("NA" if na else "12.1")
-            for k in range(heights.size):
-                for _, key, dec in _STA_LONG:
-                    row.append(cell(stats[key][r, k], dec) if key else f"{1.2:.{dec}f}")
-                row.append("")
-            rows.append("\t".join(row))
+        head, rows = _sta_v2(stats, heights, times, scan_angle_deg, cell, na=layout == "v2.1")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_bytes(("\n".join(head + rows) + "\n").encode("latin-1"))
     return path
+
+
+def _sta_v1(
+    stats: dict[str, np.ndarray],
+    heights: np.ndarray,
+    times: np.ndarray,
+    scan_angle_deg: float,
+    cell: Callable[[float, int], str],
+) -> tuple[list[str], list[str]]:
+    """Header and data lines of a v1 ``.sta`` file (software 3.x: ``HeaderLength``,
+    ``Date`` dd/mm/yyyy HH:MM:SS, short names per height index); ``cell`` writes a value."""
+    alt = "\t".join(f"{h:.0f}" for h in heights)
+    rows = []
+    items = [
+        "Version=3.1.66",
+        "ID System=WLS7-099",
+        "Localisation=cwproc virtual site",
+        "Measurements informations :",
+        "********************",
+        f"ScanAngle({_DEG})={scan_angle_deg:.2f}",
+        f"HeadingAngle({_DEG})=0.00",
+        f"Altitudes(m)=\t{alt}",
+        "********************",
+    ]
+    names = ["Date", "WiperCount", "Tm"]
+    for k in range(heights.size):
+        for name, _, _ in _STA_SHORT:
+            indexed = name not in ("CNRm", "dCNR", "CNRmax", "CNRmin") and "spectral" not in name
+            names.append(f"{name}{k + 1}" if indexed else name)
+        names.append("")
+    head = [f"HeaderLength={len(items)}", *items, "\t".join(names)]
+    for r, t in enumerate(times):
+        row = [t.strftime("%d/%m/%Y %H:%M:%S"), "0", "15.00"]
+        for k in range(heights.size):
+            for _, key, dec in _STA_SHORT:
+                row.append(cell(stats[key][r, k], dec) if key else f"{0.1:.{dec}f}")
+            row.append("")
+        rows.append("\t".join(row))
+    return head, rows
+
+
+def _sta_v2(
+    stats: dict[str, np.ndarray],
+    heights: np.ndarray,
+    times: np.ndarray,
+    scan_angle_deg: float,
+    cell: Callable[[float, int], str],
+    *,
+    na: bool,
+) -> tuple[list[str], list[str]]:
+    """Header and data lines of a v2 ``.sta`` file (software 1.x: ``HeaderSize``, long
+    names); ``na``: the WF 2.x header of v2.1 (``NA`` settings, ``Altitudes AGL (m)``)."""
+    alt = "\t".join(f"{h:.0f}" for h in heights)
+    rows = []
+    items = [
+        f"Version={'WF 2.2.1.99999' if na else '1.1.13'}",
+        f"ID System={'WLS71999' if na else 'WLS7-999'}",
+        "ID Client=",
+        "Location=cwproc virtual site",
+        f"GPS Location=Lat:56.480000{_DEG}N, Long:85.100000{_DEG}E",
+        "Comments=simulated by cwproc.sim.windcube",
+        "FCR Option= OFF",
+        "timezone=UTC+0",
+        "********************",
+        f"Pulses / Line of Sight={'NA' if na else '10000'}",
+        f"Wavelength (nm)={'NA' if na else '1543.000'}",
+        f"ScanAngle ({_DEG})={'NA' if na else f'{scan_angle_deg:.3f}'}",
+        f"DirectionOffset ({_DEG})=0",
+        f"{'Altitudes AGL (m)' if na else 'Altitudes (m)'}=\t{alt}",
+        "********************",
+    ]
+    names = ["Timestamp (end of interval)", f"Int Temp ({_DEG}C)", f"Ext Temp ({_DEG}C)"]
+    names += ["Pressure (hPa)", "Rel Humidity (%)", "Wiper count", "Vbatt (V)"]
+    for h in heights:
+        names += [f"{h:.0f}m {name}" for name, _, _ in _STA_LONG] + [""]
+    head = [f"HeaderSize={len(items)}", *items, "\t".join(names)]
+    for r, t in enumerate(times):
+        row = [t.strftime("%Y/%m/%d %H:%M"), "26.10", "15.00", "1005.0", "60.0", "0"]
+        row.append("NA" if na else "12.1")
+        for k in range(heights.size):
+            for _, key, dec in _STA_LONG:
+                row.append(cell(stats[key][r, k], dec) if key else f"{1.2:.{dec}f}")
+            row.append("")
+        rows.append("\t".join(row))
+    return head, rows
 
 
 def mast_truth(

@@ -29,7 +29,7 @@ __all__ = [
 #: public name -> the stage module that defines it
 _HOMES = {
     "screen_radial_velocity": "qc",
-    "correct_snr": "background",
+    "correct_snr": "snr_correction",
     "fit_vad": "vad",
     "azimuth_structure_function": "structure",
     "estimate_epsilon": "epsilon",
@@ -37,13 +37,23 @@ _HOMES = {
     "stare_product": "stare",
     "StareOptions": "stare",
     "structure_function_types": "sonic_sf",
-    "type_occurrence": "sonic_sf",
-    "parameter_statistics": "sonic_sf",
-    "wind_record_product": "zephir",
+    "type_occurrence": "sonic_sf_tables",
+    "parameter_statistics": "sonic_sf_tables",
+    "wind_record_product": "wind_records",
 }
 
 #: the stage modules, reachable as attributes before they are imported
-_MODULES = ("background", "epsilon", "qc", "sonic_sf", "stare", "structure", "vad", "zephir")
+_MODULES = (
+    "epsilon",
+    "qc",
+    "snr_correction",
+    "sonic_sf",
+    "sonic_sf_tables",
+    "stare",
+    "structure",
+    "vad",
+    "wind_records",
+)
 
 
 def __getattr__(name: str) -> Any:

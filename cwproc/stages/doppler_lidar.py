@@ -39,12 +39,12 @@ import xarray as xr
 from scipy.ndimage import maximum_filter1d, median_filter, uniform_filter
 
 from cwproc.metadata import described
-from cwproc.physics.background import fit_noise_floor
 from cwproc.physics.backscatter import (
     LidarConstants,
     attenuated_backscatter,
     depolarisation_ratio,
 )
+from cwproc.physics.snr_background import fit_noise_floor
 from cwproc.stages.stare import noise_std_per_ray
 
 #: flag bits of ``doppler_lidar_flag``

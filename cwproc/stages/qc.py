@@ -39,6 +39,7 @@ from cwproc.errors import CwprocError
 from cwproc.io.scan_join import is_homodyne
 from cwproc.metadata import described
 from cwproc.physics.geometry import beam_unit_vector
+from cwproc.physics.scan_layout import scan_layout
 from cwproc.physics.vad_least_squares import (
     fit_least_absolute,
     fit_scans,
@@ -48,7 +49,7 @@ from cwproc.physics.vad_least_squares import (
     row_residuals,
 )
 from cwproc.stages.scan_guard import require_distinct_scans
-from cwproc.stages.vad import pointing, scan_chunks, scan_layout
+from cwproc.stages.vad import pointing, scan_chunks
 
 FLAG_LOW_SNR = 1
 FLAG_OUTLIER = 2

@@ -18,7 +18,7 @@ component (longitudinal V_1, transverse V_2, vertical V_3):
    k_d >= k_dL (0.99850);
 6. decide the type with the rules of the paper plus the two rules the paper leaves
    unstated (precedence among nested types; how r_p and r_l are found), which are
-   described in ``docs/sonic.md`` and in :func:`decide_types`.
+   described in ``docs/sonic.md`` and in :func:`cwproc.physics.sonic_fits.decide_types`.
 
 Windows are skipped (``sf_type`` 0, reason in ``window_flag``) when too few valid
 samples remain, when r_min = V_h/f_d > r_N (very strong wind: Gladkikh et al.
@@ -33,20 +33,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.metadata import described
-from cwproc.stages.sonic_fits import (
-    TypeDecision,
-    fit_curves,
-    grow_polynomial_fit,
-    lag_at,
-    precedence_type,
-    running_sums,
-    type3_tail,
-)
+from cwproc.physics.sonic_fits import TypeDecision, decide_types, fit_curves
+from cwproc.physics.structure_functions import remove_running_mean, structure_function_fft
 
 COMPONENTS = ("longitudinal", "transverse", "vertical")
 
@@ -188,219 +180,6 @@ def geographic_wind_direction(
     return np.where(calm, np.nan, np.mod(toward + 180.0, 360.0))
 
 
-def remove_running_mean(x: np.ndarray, width: int) -> np.ndarray:
-    """Subtract a centred running mean of ``width`` samples along the last axis.
-
-    Missing samples (NaN) are left out of the mean and stay NaN; near the ends of the
-    window the mean is taken over the part of the running window that exists.
-    Gladkikh et al. (2014), section 1 (1-min running mean).
-
-    Parameters
-    ----------
-    x : ndarray, shape (..., N)
-    width : int
-        Running-mean width (samples, >= 1).
-
-    Returns
-    -------
-    ndarray, same shape as ``x``.
-    """
-    finite = np.isfinite(x)
-    complete = bool(finite.all())
-    filled = x if complete else np.where(finite, x, 0.0)
-    n = x.shape[-1]
-    csum = np.zeros((*x.shape[:-1], n + 1))
-    np.cumsum(filled, axis=-1, out=csum[..., 1:])
-    idx = np.arange(n)
-    lo = np.clip(idx - width // 2, 0, n)
-    hi = np.clip(idx - width // 2 + width, 0, n)
-    if complete:  # the counts are the window lengths (the same numbers, not summed)
-        cnt = (hi - lo).astype(float)
-    else:
-        ccnt = np.zeros((*x.shape[:-1], n + 1))
-        np.cumsum(finite, axis=-1, out=ccnt[..., 1:])
-        cnt = ccnt[..., hi] - ccnt[..., lo]
-    # in place (a day of windows is ~20 MB per temporary): mean = (csum_hi - csum_lo) / cnt
-    mean = csum[..., hi]
-    mean -= csum[..., lo]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean /= cnt
-    if complete:
-        return np.subtract(x, mean, out=mean)
-    np.subtract(x, mean, out=mean)
-    mean[~finite] = np.nan
-    return mean
-
-
-def next_fast_len(n: int) -> int:
-    """The smallest 5-smooth number (2^a 3^b 5^c) >= n: a fast real FFT length.
-
-    The same length as ``scipy.fft.next_fast_len(n, real=True)``; numpy's FFT (the
-    same pocketfft) is used so that sf-type does not pay scipy's import.
-    """
-    best = 1 << max(int(n - 1).bit_length(), 0)
-    p5 = 1
-    while p5 < best:
-        p35 = p5
-        while p35 < best:
-            p235 = p35 << max(int(-(-n // p35) - 1).bit_length(), 0)  # smallest 2^a p35 >= n
-            best = min(best, p235)
-            p35 *= 3
-        p5 *= 5
-    return best
-
-
-def structure_function_fft(x: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
-    """Structure function D(j) for lags j = 1..max_lag by FFT, missing samples pairwise.
-
-    D(j) = (1/N_j) sum_m [x(m + j) - x(m)]^2 over the N_j pairs in which both samples
-    exist, Gladkikh et al. (2014), eq. 2, evaluated through three correlation sums
-    (each one FFT product), O(N log N).
-
-    Parameters
-    ----------
-    x : ndarray, shape (..., N)
-        Series (m s-1); NaN marks missing samples.
-    max_lag : int
-        Largest lag K (samples).
-
-    Returns
-    -------
-    d : ndarray, shape (..., K)
-        D(j) (m2 s-2), NaN where no pair exists.
-    pairs : ndarray, shape (..., K)
-        N_j, the number of pairs.
-    """
-    n = x.shape[-1]
-    finite = np.isfinite(x)
-    # no sample missing: one transform of the mask serves every series (same values)
-    complete = bool(finite.all())
-    m = finite.astype(float)
-    a = x if complete else np.where(finite, x, 0.0)
-    nfft = next_fast_len(n + max_lag + 1)
-    fm = np.fft.rfft(m[(0,) * (m.ndim - 1)] if complete else m, nfft, axis=-1)
-    fa = np.fft.rfft(a, nfft, axis=-1)
-    fs = np.fft.rfft(a * a, nfft, axis=-1)
-    del m, a
-
-    def corr(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-        # sum_i p_i q_{i+j} for j = 1..max_lag (the lags copied out of the transform)
-        product = np.conj(p)
-        product = np.multiply(product, q, out=product if product.shape == q.shape else None)
-        return np.fft.irfft(product, nfft, axis=-1)[..., 1 : max_lag + 1].copy()
-
-    pairs = np.rint(corr(fm, fm))
-    if complete:
-        pairs = np.broadcast_to(pairs, (*x.shape[:-1], max_lag))
-    squares = corr(fm, fs)
-    squares += corr(fs, fm)
-    del fs
-    cross = corr(fa, fa)
-    del fa
-    cross *= 2.0
-    squares -= cross
-    with np.errstate(invalid="ignore", divide="ignore"):
-        squares /= pairs
-    d = np.where(pairs > 0, np.maximum(squares, 0.0), np.nan)
-    return d, pairs
-
-
-# -- type decision ---------------------------------------------------------------------
-
-
-def decide_types(
-    r: np.ndarray,
-    y: np.ndarray,
-    *,
-    r_norm: float = 1.0,
-    kd_threshold: float = 0.99850,
-    precedence_tolerance: float = 0.05,
-    min_points: int = 5,
-    curvature_tolerance: float = 0.03,
-) -> TypeDecision:
-    """Type 1, 2 or 3 (or 0) of normalised structure functions, Gladkikh et al. (2014).
-
-    Fits (x = lg(r/r_N), y = lg D_n), all grown from r_min (the first lag) with
-    :func:`grow_polynomial_fit`:
-
-    * type 1: line y = b + mu x up to r_max1, eq. 4;
-    * type 2: parabola y = a0 + a1 x + a2 x^2 up to r_max2, eq. 5;
-    * type 3: the parabola up to r_p = r_max2 (the paper does not say how r_p is
-      found: here, the end of the parabola grown from r_min), then a line
-      y = c + gamma x grown from the smallest candidate start r_l >= r_p
-      (:func:`cwproc.stages.sonic_fits.type3_tail`) for which the type-3 rules of the
-      paper hold: Delta_B/Delta_A < 0.25 with Delta_B = r_l - r_p,
-      Delta_A = r_max - r_l + r_p - r_min, and r_p - r_min <= r_max - r_l, eq. 6;
-      otherwise the SF is type 2 with r_max = r_p.
-
-    A type whose r_max < r_N (1 m) is rejected. Precedence (not stated in the paper,
-    whose models are nested): the candidate with the largest r_max wins, except that a
-    simpler type (1 < 2 < 3) is taken whenever lg r_max(simpler) >= lg r_max(best) -
-    ``precedence_tolerance``; and a type-2 decision falls back to type 1 (with the
-    line's own r_max) when the parabola is not significantly curved: its quadratic
-    term changes lg D by less than ``curvature_tolerance`` decades over its range,
-    |a2| (x_max - x_min)^2 / 8 < curvature_tolerance (the largest departure of a
-    parabola from its least-squares line is about that much).
-
-    Parameters
-    ----------
-    r : ndarray, shape (S, K)
-        Lags r_j (m), increasing along the last axis.
-    y : ndarray, shape (S, K)
-        lg of the normalised structure function; NaN where unusable.
-    r_norm : float
-        r_N (m).
-    kd_threshold : float
-        k_dL.
-    precedence_tolerance : float
-        Tolerance in decades of r_max (see above).
-    min_points : int
-        Fewest lags in any fit (and in each part of a type-3 fit).
-    curvature_tolerance : float
-        Decades (see above).
-
-    Returns
-    -------
-    TypeDecision
-    """
-    n_series = r.shape[0]
-    x = np.log10(r / r_norm)
-    sums = running_sums(x, y, 2)
-    zero = np.zeros(n_series, dtype=np.int64)
-    line = grow_polynomial_fit(sums, zero, 1, kd_threshold=kd_threshold, min_points=min_points)
-    para = grow_polynomial_fit(sums, zero, 2, kd_threshold=kd_threshold, min_points=min_points)
-    r_p = lag_at(r, para.end)
-    tail, tail_start = type3_tail(
-        r, sums, para.end, kd_threshold=kd_threshold, min_points=min_points
-    )
-    # candidates, rejection r_max < r_N, precedence
-    r_max = np.stack([lag_at(r, line.end), r_p, lag_at(r, tail.end)], axis=1)  # types 1-3
-    r_max = np.where(r_max >= r_norm, r_max, np.nan)
-    with np.errstate(invalid="ignore"):
-        span = np.log10(r_p / r[:, 0])
-        flat = np.abs(para.coef[:, 2]) * span**2 / 8.0 < curvature_tolerance
-    sf_type = precedence_type(r_max, flat, precedence_tolerance)
-    chosen_rmax = np.where(
-        sf_type > 0, r_max[np.arange(n_series), np.clip(sf_type - 1, 0, 2)], np.nan
-    )
-    kd = np.select(
-        [sf_type == 1, sf_type == 2, sf_type == 3],
-        [line.kd, para.kd, np.fmin(para.kd, tail.kd)],
-        np.nan,
-    )
-    return TypeDecision(
-        sf_type=sf_type,
-        r_max=chosen_rmax,
-        kd=kd,
-        line=line,
-        parabola=para,
-        tail=tail,
-        r_p=r_p,
-        r_l=lag_at(r, tail_start),
-        type3_ok=tail.end >= 0,
-    )
-
-
 # -- the stage -------------------------------------------------------------------------
 
 #: D(r_N) below this (m2 s-2; a 1e-5 m/s rms increment, far below any sonic's
@@ -464,13 +243,15 @@ def structure_function_types(
         r_N (m): normalisation lag of eq. 3, unit of x = lg(r/r_N), smallest accepted
         r_max and largest accepted r_min (1 m in the paper).
     precedence_tolerance : float
-        Decades of r_max within which the simpler type wins (see :func:`decide_types`).
+        Decades of r_max within which the simpler type wins (see
+        :func:`cwproc.physics.sonic_fits.decide_types`).
     min_fit_points : int
         Fewest lags in a fit (and in each part of a type-3 fit).
     min_valid_fraction : float
         Windows with a smaller fraction of valid samples are skipped (window_flag 1).
     curvature_tolerance : float
-        Decades of lg D below which a parabola counts as a line (:func:`decide_types`).
+        Decades of lg D below which a parabola counts as a line
+        (:func:`cwproc.physics.sonic_fits.decide_types`).
     orientation_deg : float
         Azimuth of the +x (u) axis of the instrument frame, degree clockwise from
         north: gives ``wind_direction``, the window-mean wind direction in the
@@ -717,78 +498,3 @@ def _sf_dataset(
         }
     )
     return ds
-
-
-# -- summaries (Gladkikh et al. (2014), Tables 2-5) ------------------------------------
-
-#: parameters summarised per type (Tables 3-5)
-TYPE_PARAMETERS = {
-    1: ("sf_mu", "r_max"),
-    2: ("sf_a1", "sf_a2", "r_max"),
-    3: ("sf_d1", "sf_d2", "sf_gamma", "r_max"),
-}
-
-
-def type_occurrence(sf: xr.Dataset) -> pd.DataFrame:
-    """Occurrence of each type per component (%), Gladkikh et al. (2014), Table 2.
-
-    The denominator is every window with enough valid samples (window_flag without
-    bit 1), i.e. the observation time, as in the paper; windows skipped for strong
-    wind or calm count as observed but untyped.
-
-    Returns
-    -------
-    pandas.DataFrame
-        index component; columns ``windows``, ``all_types_pct``, ``type1_pct``,
-        ``type2_pct``, ``type3_pct``.
-    """
-    observed = (np.asarray(sf["window_flag"].values) & FLAG_FEW_SAMPLES) == 0
-    types = np.asarray(sf["sf_type"].values)[observed]
-    n = int(observed.sum())
-    rows = []
-    for k, comp in enumerate(sf["component"].values):
-        t = types[:, k]
-        share = [100.0 * np.mean(t == m) if n else np.nan for m in (1, 2, 3)]
-        rows.append(
-            {
-                "component": str(comp),
-                "windows": n,
-                "all_types_pct": float(np.nansum(share)) if n else np.nan,
-                "type1_pct": share[0],
-                "type2_pct": share[1],
-                "type3_pct": share[2],
-            }
-        )
-    return pd.DataFrame(rows).set_index("component")
-
-
-def parameter_statistics(sf: xr.Dataset) -> pd.DataFrame:
-    """Means and medians of the fitted parameters per type and component (Tables 3-5).
-
-    Gladkikh et al. (2014), Tables 3 (type 1: mu, r_max), 4 (type 2: a1, a2, r_max)
-    and 5 (type 3: d1, d2, gamma, r_max).
-
-    Returns
-    -------
-    pandas.DataFrame
-        columns ``type``, ``component``, ``parameter``, ``count``, ``mean``, ``median``.
-    """
-    rows = []
-    types = np.asarray(sf["sf_type"].values)
-    for t, names in TYPE_PARAMETERS.items():
-        for k, comp in enumerate(sf["component"].values):
-            sel = types[:, k] == t
-            for name in names:
-                vals = np.asarray(sf[name].values)[sel, k]
-                vals = vals[np.isfinite(vals)]
-                rows.append(
-                    {
-                        "type": t,
-                        "component": str(comp),
-                        "parameter": name,
-                        "count": int(vals.size),
-                        "mean": float(np.mean(vals)) if vals.size else np.nan,
-                        "median": float(np.median(vals)) if vals.size else np.nan,
-                    }
-                )
-    return pd.DataFrame(rows)

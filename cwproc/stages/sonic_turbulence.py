@@ -29,19 +29,22 @@ multiples). Per window:
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.metadata import described
+from cwproc.physics import dissipation
 from cwproc.physics import sonic_turbulence as st
+from cwproc.physics.structure_functions import structure_function_fft
 from cwproc.stages.sonic_sf import (
     COMPONENTS,
     geographic_wind_direction,
     grid_windows,
-    structure_function_fft,
     structure_function_types,
 )
 
@@ -90,11 +93,11 @@ def _typed_slope(sf: xr.Dataset, w: int, c: int, r: np.ndarray) -> np.ndarray:
 
 
 def _window_statistics(
-    x: np.ndarray, temp: np.ndarray | None, rate: float, p: dict
+    x: np.ndarray, temp: np.ndarray | None, rate: float, p: SonicTurbulenceSettings
 ) -> dict[str, object]:
     """Variances, fluxes, u_*, scales and tests of one rotated window x (3, N)."""
     t_avg = x.shape[1] / rate
-    fl = np.stack([st.detrend(x[c], p["detrend"]) for c in range(3)])
+    fl = np.stack([st.detrend(x[c], p.detrend) for c in range(3)])
     var = np.array([np.nanmean(fl[c] ** 2) for c in range(3)])
     t_int = np.array([st.integral_time_scale(fl[c], rate) for c in range(3)])
     var_err = np.array([st.variance_random_error(var[c], t_int[c], t_avg) for c in range(3)])
@@ -104,24 +107,24 @@ def _window_statistics(
     uw_err = st.covariance_random_error(uw, r_uw, max(t_int[0], t_int[2]), t_avg)
     speed = float(np.nanmean(x[0]))
     zl = np.nan
-    if temp is not None and p["height_m"] is not None:
-        tf = st.detrend(temp, p["detrend"])
+    if temp is not None and p.height_m is not None:
+        tf = st.detrend(temp, p.detrend)
         zl = st.obukhov_stability(
-            p["height_m"], ustar, np.nanmean(fl[2] * tf), np.nanmean(temp) + 273.15
+            p.height_m, ustar, np.nanmean(fl[2] * tf), np.nanmean(temp) + 273.15
         )
-    elif p["height_m"] is not None:
+    elif p.height_m is not None:
         zl = 0.0  # no sonic temperature: neutral assumed (documented)
     itc, itc_u = np.nan, np.nan
-    if p["height_m"] is not None and ustar > 0:
+    if p.height_m is not None and ustar > 0:
         itc = st.itc_deviation(
             np.sqrt(var[2]) / ustar,
-            st.itc_model_sigma_w(zl, p["height_m"], p["latitude_deg"], ustar),
+            st.itc_model_sigma_w(zl, p.height_m, p.latitude_deg, ustar),
         )
         # reported, not in the flag (EddyPro's flag of tau takes the worse of the two)
         itc_u = st.itc_deviation(
-            np.sqrt(var[0]) / ustar, st.itc_model_sigma_u(zl, p["latitude_deg"], ustar)
+            np.sqrt(var[0]) / ustar, st.itc_model_sigma_u(zl, p.latitude_deg, ustar)
         )
-    rn = st.stationarity_deviation(fl[0], fl[2], p["n_sub"])
+    rn = st.stationarity_deviation(fl[0], fl[2], p.n_sub)
     return {
         "fluct": fl,
         "variance": var,
@@ -140,12 +143,12 @@ def _window_statistics(
 
 
 def _epsilon(
-    fl: np.ndarray, r: np.ndarray, slopes: list[np.ndarray], p: dict
+    fl: np.ndarray, r: np.ndarray, slopes: list[np.ndarray], p: SonicTurbulenceSettings
 ) -> dict[str, np.ndarray]:
     """eps per component from the inertial lags of the typed fits, errors by batch means."""
     n_lag = r.size
     d, _ = structure_function_fft(fl, n_lag)
-    n_sub = p["n_sub"]
+    n_sub = p.n_sub
     sub_len = fl.shape[1] // n_sub
     sub_lags = min(n_lag, sub_len // 2)
     subs = fl[:, : sub_len * n_sub].reshape(3, n_sub, sub_len)
@@ -157,17 +160,19 @@ def _epsilon(
             out["flag"][c] = EPS_UNTYPED
             continue
         lags = st.inertial_lags(
-            slopes[c], tolerance=p["slope_tolerance"], min_points=p["min_inertial_points"]
+            slopes[c], tolerance=p.slope_tolerance, min_points=p.min_inertial_points
         )
         if not lags.any():
             out["flag"][c] = EPS_NO_INERTIAL_RANGE
             continue
-        e23 = st.epsilon23_from_sf(r[lags], d[c][lags], SF_CONSTANTS[c])
+        e23 = dissipation.epsilon23_from_sf(r[lags], d[c][lags], SF_CONSTANTS[c])
         sub = lags[:sub_lags]
         e23_sub = (
             np.array(
                 [
-                    st.epsilon23_from_sf(r[:sub_lags][sub], d_sub[c, i][sub], SF_CONSTANTS[c])
+                    dissipation.epsilon23_from_sf(
+                        r[:sub_lags][sub], d_sub[c, i][sub], SF_CONSTANTS[c]
+                    )
                     for i in range(n_sub)
                 ]
             )
@@ -175,8 +180,7 @@ def _epsilon(
             else np.full(n_sub, np.nan)
         )
         se23 = np.nanstd(e23_sub, ddof=1) / np.sqrt(np.isfinite(e23_sub).sum())
-        out["eps"][c] = e23**1.5
-        out["err"][c] = 1.5 * e23**0.5 * se23
+        out["eps"][c], out["err"][c] = dissipation.epsilon_from_structure_function_2_3(e23, se23)
         out["r_lo"][c], out["r_hi"][c] = r[lags][0], r[lags][-1]
     return out
 
@@ -246,43 +250,19 @@ def sonic_turbulence(
     -------
     xarray.Dataset
     """
-    rate = float(sonic.attrs.get("sampling_rate_hz", np.nan))
-    if not np.isfinite(rate) or rate <= 0:
-        raise CwprocError("sonic dataset has no valid sampling_rate_hz attribute")
-    if sonic.sizes.get("time", 0) == 0:
-        raise CwprocError("sonic dataset has no samples")
-    if rotation not in ("double", "planar_fit", "none"):
-        raise CwprocError(f"sonic rotation {rotation!r}: use double, planar_fit or none")
-    params = {
-        "detrend": detrend,
-        "height_m": height_m,
-        "latitude_deg": latitude_deg,
-        "slope_tolerance": slope_tolerance,
-        "min_inertial_points": min_inertial_points,
-        "n_sub": n_sub,
-    }
+    rate = _sampling_rate(sonic, rotation)
+    params = SonicTurbulenceSettings(
+        detrend, height_m, latitude_deg, slope_tolerance, min_inertial_points, n_sub
+    )
     starts, grid3, temp_grid, valid_fraction = _gridded(sonic, window_s, rate)
     rotated, spike_fraction, angles, mean_uv = _despiked_rotated(grid3, despike, rotation, rate)
     sf = _typed(rotated, starts, rate, window_s, typing or {})
-    sf_index = {np.datetime64(t, "ns"): i for i, t in enumerate(sf["time"].values)}
-    result = _empty_result(starts.size)
-    for w in range(starts.size):
-        if valid_fraction[w] < min_valid_fraction:
-            result["window_flag"][w] |= FLAG_FEW_SAMPLES
-            continue
-        temp = temp_grid[w] if temp_grid is not None else None
-        _analyse_window(
-            result,
-            w,
-            rotated[w],
-            temp,
-            sf,
-            sf_index.get(np.datetime64(starts[w], "ns")),
-            rate,
-            params,
-        )
-        if np.any(spike_fraction[w] > max_spike_fraction):
-            result["window_flag"][w] |= FLAG_SPIKES
+    analysed = valid_fraction >= min_valid_fraction
+    result = _analyse_windows((starts, rotated, temp_grid), analysed, sf, rate, params)
+    result["window_flag"][~analysed] |= FLAG_FEW_SAMPLES
+    result["window_flag"][analysed & np.any(spike_fraction > max_spike_fraction, axis=1)] |= (
+        FLAG_SPIKES
+    )
     direction = geographic_wind_direction(
         mean_uv[:, 0], mean_uv[:, 1], float(sonic.attrs.get("orientation_deg", 0.0))
     )
@@ -290,17 +270,64 @@ def sonic_turbulence(
         "window_s": window_s,
         "despike": despike,
         "rotation": rotation,
-        "detrend": detrend,
+        **dataclasses.asdict(params),
         "height_m": "unknown" if height_m is None else height_m,
-        "latitude_deg": latitude_deg,
-        "slope_tolerance": slope_tolerance,
-        "min_inertial_points": min_inertial_points,
-        "n_sub": n_sub,
         "sampling_rate_hz": rate,
     }
     return _dataset(
         starts, result, spike_fraction, angles, direction, valid_fraction, settings, sonic
     )
+
+
+@dataclass(frozen=True)
+class SonicTurbulenceSettings:
+    """The settings of the analysis of each window (:func:`sonic_turbulence`, whose
+    parameters of the same names they are)."""
+
+    #: ``"linear"`` or ``"mean"``
+    detrend: str
+    #: measurement height above the displacement height (m); None: no ITC test
+    height_m: float | None
+    #: latitude (degree) for the Coriolis parameter of the ITC model
+    latitude_deg: float
+    #: largest |d lg D/d lg r - 2/3| of an inertial-range lag
+    slope_tolerance: float
+    #: fewest lags of an inertial range
+    min_inertial_points: int
+    #: sub-windows of the steady-state test and of the batch-means error of eps
+    n_sub: int
+
+
+def _sampling_rate(sonic: xr.Dataset, rotation: str) -> float:
+    """The sampling rate (Hz) of ``sonic``, which must have samples; a known rotation."""
+    rate = float(sonic.attrs.get("sampling_rate_hz", np.nan))
+    if not np.isfinite(rate) or rate <= 0:
+        raise CwprocError("sonic dataset has no valid sampling_rate_hz attribute")
+    if sonic.sizes.get("time", 0) == 0:
+        raise CwprocError("sonic dataset has no samples")
+    if rotation not in ("double", "planar_fit", "none"):
+        raise CwprocError(f"sonic rotation {rotation!r}: use double, planar_fit or none")
+    return rate
+
+
+def _analyse_windows(
+    windows: tuple[np.ndarray, np.ndarray, np.ndarray | None],
+    analysed: np.ndarray,
+    sf: xr.Dataset,
+    rate: float,
+    params: SonicTurbulenceSettings,
+) -> dict[str, np.ndarray]:
+    """The rows of every window (:func:`_analyse_window`); ``windows``: the starts, the
+    rotated (W, 3, N) grid and the (W, N) temperature grid (or None); only the windows
+    ``analysed`` (enough valid samples) are filled."""
+    starts, rotated, temp_grid = windows
+    sf_index = {np.datetime64(t, "ns"): i for i, t in enumerate(sf["time"].values)}
+    result = _empty_result(starts.size)
+    for w in np.flatnonzero(analysed).tolist():
+        temp = temp_grid[w] if temp_grid is not None else None
+        i = sf_index.get(np.datetime64(starts[w], "ns"))
+        _analyse_window(result, w, rotated[w], temp, sf, i, rate, params)
+    return result
 
 
 def _gridded(
@@ -388,7 +415,7 @@ def _analyse_window(
     sf: xr.Dataset,
     i: int | None,
     rate: float,
-    params: dict,
+    params: SonicTurbulenceSettings,
 ) -> None:
     """Fill row ``w`` of ``result``: statistics, eps from the typed SF ``i``, flags."""
     s = _window_statistics(x, temp, rate, params)
@@ -411,7 +438,7 @@ def _analyse_window(
         result["eps"][w], result["eps_err"][w] = _combine(e["eps"], e["err"])
         if np.isfinite(e["r_lo"][0]):
             k_range = (2 * np.pi / e["r_hi"][0], 2 * np.pi / e["r_lo"][0])
-            result["eps_spec"][w] = st.epsilon_from_spectrum(
+            result["eps_spec"][w] = dissipation.epsilon_from_inertial_spectrum(
                 st.interpolate_gaps(s["fluct"][0], ~np.isfinite(s["fluct"][0])),
                 rate,
                 s["speed"],

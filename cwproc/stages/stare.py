@@ -20,7 +20,7 @@ import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.metadata import described
-from cwproc.physics import noise, stare
+from cwproc.physics import dissipation, noise, stare
 from cwproc.physics.geometry import height_from_range
 from cwproc.physics.probe_lengths import ProbeLengths, pulsed_probe_lengths
 from cwproc.stages.qc import snr_flags
@@ -35,7 +35,7 @@ FLAG_WIND_FAR = 8
 #: Halo Stream Line pulse repetition frequency (Hz); 10 kHz for the XR
 HALO_PRF_HZ = 15000.0
 #: global attributes of the scans that the stare product keeps (the SNR correction by
-#: the background files, :mod:`cwproc.stages.background`, as the wind product keeps them)
+#: the background files, :mod:`cwproc.stages.snr_correction`, as the wind product keeps them)
 CARRIED_ATTRS = ("snr_correction", "background_files")
 
 
@@ -386,10 +386,7 @@ def stare_product(
     lengths = pulsed_probe_lengths(stares.attrs, options.delta_p_m, options.delta_r_m)
     elevation = float(np.nanmedian(stares["elevation"].values))
     height = height_from_range(stares["range"].values.astype(float), elevation)
-    flag_radial = snr_flags(stares["snr"].values, options.snr_min) if "snr" in stares else 0
-    velocity = stares["radial_velocity"].values.astype(float)
-    w = np.where((flag_radial == 0) & np.isfinite(velocity), velocity, np.nan)
-    w = w * np.sign(np.sin(np.deg2rad(stares["elevation"].values)))[:, None]
+    w = _screened_w(stares, options.snr_min)
     time = stares["time"].values
     t_ray = ray_duration_s(stares, options.prf_hz)
     interval = ray_interval_s(time, t_ray)
@@ -398,11 +395,7 @@ def stare_product(
     )
     index, centre, _ = window_index(time, options.window_s)
     n_win = centre.size
-    # variance windows T inside each product window (O'Connor et al. (2010), eq. 4)
-    sub_raw, _, _ = window_index(time, t_var)
-    sub_ids, sub = np.unique(index * (1 << 32) + sub_raw, return_inverse=True)
-    sub = sub.ravel()
-    sub_window = (sub_ids >> 32).astype(np.int64)
+    sub_ids, sub, sub_window = _variance_windows(time, index, t_var)
     w = np.where(outlier_mask(w, sub, sub_ids.size, options.outlier_threshold), np.nan, w)
     count, mean, _, skew = stare.window_moments(w, index, n_win)
     sigma_e = noise_std_per_ray(stares)
@@ -420,12 +413,9 @@ def stare_product(
         interval_s=interval,
         lengths=lengths,
     )
-    eps = stare.epsilon_from_variance(var_corr, factor)
-    noise_known = np.where(np.isfinite(noise_var), noise_var, 0.0)
-    var_se = variance_se_per_window(time, index, sub, n_win, eps, speed, noise_known)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        eps = eps / stare.power_bias_divisor(var_se / var_corr)
-    eps_se = stare.epsilon_standard_error(eps, var_corr, var_se, speed, speed_err)
+    eps, eps_se = _stare_epsilon(
+        (var_corr, noise_var), factor, (time, index, sub, n_win), (speed, speed_err)
+    )
     # fewest rays: min_samples, or half of what the window holds at this ray rate
     min_rays = min(options.min_samples, max(3, math.ceil(0.5 * options.window_s / interval)))
     flag = stare_flags(count, var, var_corr, speed, far, min_rays)
@@ -457,6 +447,53 @@ def stare_product(
             **lengths.attrs(),
         },
     )
+
+
+def _screened_w(stares: xr.Dataset, snr_min: float) -> np.ndarray:
+    """``(ray, range)`` w (m s-1, upward) of the stares, NaN where the SNR is below
+    ``snr_min`` (:func:`cwproc.stages.qc.snr_flags`) or the velocity is missing."""
+    flag_radial = snr_flags(stares["snr"].values, snr_min) if "snr" in stares else 0
+    velocity = stares["radial_velocity"].values.astype(float)
+    w = np.where((flag_radial == 0) & np.isfinite(velocity), velocity, np.nan)
+    return w * np.sign(np.sin(np.deg2rad(stares["elevation"].values)))[:, None]
+
+
+def _variance_windows(
+    time: np.ndarray, index: np.ndarray, t_var: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The variance windows T inside each product window (O'Connor et al. (2010), eq. 4):
+    ``(ids, window of each ray, product window of each variance window)``; ``index``: the
+    product window of each ray."""
+    sub_raw, _, _ = window_index(time, t_var)
+    sub_ids, sub = np.unique(index * (1 << 32) + sub_raw, return_inverse=True)
+    return sub_ids, sub.ravel(), (sub_ids >> 32).astype(np.int64)
+
+
+def _stare_epsilon(
+    variances: tuple[np.ndarray, np.ndarray],
+    factor: np.ndarray,
+    windows: tuple[np.ndarray, np.ndarray, np.ndarray, int],
+    wind: tuple[np.ndarray, np.ndarray],
+) -> tuple[np.ndarray, np.ndarray]:
+    """eps (m2 s-3) per window and height and its standard error.
+
+    :func:`cwproc.physics.dissipation.epsilon_from_band_variance` of the corrected
+    variance, divided by the bias of the 3/2 power
+    (:func:`cwproc.physics.stare.power_bias_divisor`);
+    :func:`cwproc.physics.dissipation.stare_epsilon_standard_error` with the variance's
+    standard error (:func:`variance_se_per_window`). ``variances``: (corrected, noise)
+    variance; ``windows``: ``(time, product window, variance window of each ray, number
+    of product windows)``; ``wind``: the wind speed and its error (m s-1).
+    """
+    var_corr, noise_var = variances
+    time, index, sub, n_win = windows
+    speed, speed_err = wind
+    eps = dissipation.epsilon_from_band_variance(var_corr, factor)
+    noise_known = np.where(np.isfinite(noise_var), noise_var, 0.0)
+    var_se = variance_se_per_window(time, index, sub, n_win, eps, speed, noise_known)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        eps = eps / stare.power_bias_divisor(var_se / var_corr)
+    return eps, dissipation.stare_epsilon_standard_error(eps, var_corr, var_se, speed, speed_err)
 
 
 def stare_flags(

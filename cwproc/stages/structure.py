@@ -36,14 +36,16 @@ from cwproc.errors import CwprocError
 from cwproc.io.scan_join import is_homodyne
 from cwproc.metadata import described
 from cwproc.physics.atable_interp import N_BINS, azimuth_nodes
-from cwproc.physics.geometry import beam_unit_vector, radial_velocity, speed_and_direction
-from cwproc.stages.block_stats import (
+from cwproc.physics.block_stats import (
     WindRefit,
-    _block_sum,
     block_statistics,
+    block_sum,
     finite_columns,
+    group_median,
     pair_azimuth_weights,
 )
+from cwproc.physics.geometry import beam_unit_vector, radial_velocity, speed_and_direction
+from cwproc.physics.scan_layout import azimuth_step, wrapped_azimuth_difference
 from cwproc.stages.scan_guard import require_distinct_scans
 
 #: largest relative mismatch (m) between wind-product gate ranges and scan gate ranges
@@ -64,37 +66,6 @@ MIN_LAGS = 3
 #: serves, and the time between the rays (a sixth of a rotation) approaches the block's
 #: stationarity scale; the exact two-beam model (cwproc.physics.two_beam) holds at any lag
 MAX_LAG_LIMIT_DEG = 60.0
-
-
-def wrapped_azimuth_difference(a_deg: np.ndarray, b_deg: np.ndarray) -> np.ndarray:
-    """``a - b`` wrapped into [-180, 180) degrees."""
-    return (np.asarray(a_deg) - np.asarray(b_deg) + 180.0) % 360.0 - 180.0
-
-
-def azimuth_step(azimuth_deg: np.ndarray, scan: np.ndarray) -> tuple[float, float]:
-    """Azimuth step dtheta (deg) and rotation sign from consecutive rays of the same scan.
-
-    The stage's day decision, used by ``ScanChain.decisions``
-    (:mod:`cwproc.pipeline.chain`): a day run in chunks must find the step of the whole day.
-
-    Parameters
-    ----------
-    azimuth_deg : numpy.ndarray
-        Ray azimuths (deg) in time order.
-    scan : numpy.ndarray
-        Scan index of each ray.
-
-    Returns
-    -------
-    (dtheta_deg, sign) : tuple of float
-        Median absolute step (deg) and +1 for clockwise (increasing azimuth), -1 otherwise.
-    """
-    same = scan[1:] == scan[:-1]
-    d = wrapped_azimuth_difference(azimuth_deg[1:], azimuth_deg[:-1])[same]
-    d = d[np.abs(d) > 1e-6]
-    if d.size == 0:
-        raise CwprocError("cannot determine the azimuth step: no scan has two distinct rays")
-    return float(np.median(np.abs(d))), float(np.sign(np.median(d)))
 
 
 def azimuth_index(
@@ -515,10 +486,58 @@ def ray_grid(
 def _block_mean(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
     """Mean over the scans (axis 0) of each block, NaN skipped."""
     ok = np.isfinite(values)
-    total = _block_sum(np.where(ok, values, 0.0), starts)
-    count = _block_sum(ok.astype(float), starts)
+    total = block_sum(np.where(ok, values, 0.0), starts)
+    count = block_sum(ok.astype(float), starts)
     with np.errstate(invalid="ignore", divide="ignore"):
         return total / count
+
+
+@dataclass(frozen=True)
+class BlockStatistics:
+    """The statistics of V'_L per block and height (:func:`_block_statistics_by_chunk`).
+
+    ``sf``, ``pairs``, ``variance``, ``sf_se``, ``diff_se``, ``variance_se`` and
+    ``covariance`` as :func:`cwproc.physics.block_stats.block_statistics` returns them
+    (``(block, height[, lag[, lag]])``, m2 s-2); ``weights`` the A-table node weights of
+    the pairs of each lag (:func:`cwproc.physics.block_stats.pair_azimuth_weights`);
+    ``snr_median``; ``wind_to`` the mean wind's direction of motion and ``start_angle``
+    the first ray's azimuth from it in the sense of rotation (deg).
+    """
+
+    sf: np.ndarray
+    pairs: np.ndarray
+    variance: np.ndarray
+    sf_se: np.ndarray
+    diff_se: np.ndarray
+    variance_se: np.ndarray
+    covariance: np.ndarray
+    weights: np.ndarray
+    snr_median: np.ndarray
+    wind_to: np.ndarray
+    start_angle: np.ndarray
+
+    #: the fields :func:`cwproc.physics.block_stats.block_statistics` fills, in its order
+    STATISTICS = ("sf", "pairs", "variance", "sf_se", "diff_se", "variance_se", "covariance")
+
+    @classmethod
+    def empty(
+        cls, shape: tuple[int, int, int], wind_to: np.ndarray, start_angle: np.ndarray
+    ) -> BlockStatistics:
+        """Arrays to fill for ``shape = (blocks, heights, lags)``."""
+        n_blocks, n_h, n_lags = shape
+        return cls(
+            sf=np.empty((n_blocks, n_h, n_lags)),
+            pairs=np.empty((n_blocks, n_h, n_lags), dtype=np.int64),
+            variance=np.empty((n_blocks, n_h)),
+            sf_se=np.empty((n_blocks, n_h, n_lags)),
+            diff_se=np.empty((n_blocks, n_h, n_lags)),
+            variance_se=np.empty((n_blocks, n_h)),
+            covariance=np.empty((n_blocks, n_h, n_lags + 1, n_lags + 1)),
+            weights=np.full((n_blocks, n_h, n_lags, N_BINS), np.nan, dtype=np.float32),
+            snr_median=np.full((n_blocks, n_h), np.nan),
+            wind_to=wind_to,
+            start_angle=start_angle,
+        )
 
 
 def _block_statistics_by_chunk(
@@ -530,101 +549,103 @@ def _block_statistics_by_chunk(
     *,
     n_scans: int,
     homodyne: bool,
-) -> dict[str, np.ndarray]:
+) -> BlockStatistics:
     """V'_L block by block in memory-bounded chunks of blocks, each fully vectorised.
 
     ``scan_wind`` (scan, height, 3) are the scans' VAD winds, whose block means
     ``mean_wind`` are removed: the covariance of the statistics is the jackknife over
-    the scans with that removal redone (:func:`cwproc.stages.block_stats.WindRefit`;
+    the scans with that removal redone (:func:`cwproc.physics.block_stats.WindRefit`;
     homodyne data, whose signs follow the wind, keep the scatter of the scans).
-
-    Returns the arrays of :func:`block_statistics` for all blocks (keys ``sf``,
-    ``pairs``, ``variance``, ``sf_se``, ``diff_se``, ``variance_se``, ``covariance``),
-    the A-table node ``weights``, ``snr_median``, ``wind_to`` and ``start_angle`` (the
-    first ray's azimuth from ``wind_to`` in the sense of rotation; deg).
     """
     u_b, v_b, w_b = mean_wind
     n_blocks, n_h = u_b.shape
-    n_lags, n_az = grid.n_lags, grid.n_az
-    scan_pos, m, uniq, rays = grid.scan_pos, grid.m, grid.uniq, grid.rays
-    block_of_time = np.arange(grid.n_time) // n_scans
-    out = {
-        "sf": np.empty((n_blocks, n_h, n_lags)),
-        "pairs": np.empty((n_blocks, n_h, n_lags), dtype=np.int64),
-        "variance": np.empty((n_blocks, n_h)),
-        "sf_se": np.empty((n_blocks, n_h, n_lags)),
-        "diff_se": np.empty((n_blocks, n_h, n_lags)),
-        "variance_se": np.empty((n_blocks, n_h)),
-        "covariance": np.empty((n_blocks, n_h, n_lags + 1, n_lags + 1)),
-        "weights": np.full((n_blocks, n_h, n_lags, N_BINS), np.nan, dtype=np.float32),
-        "snr_median": np.full((n_blocks, n_h), np.nan),
-    }
-    stat_names = ("sf", "pairs", "variance", "sf_se", "diff_se", "variance_se", "covariance")
-    has_snr = "snr" in screened_ds
     # the mean wind's direction of motion (deg from north, clockwise) per block and height
     wind_to = np.mod(speed_and_direction(u_b, v_b)[1] + 180.0, 360.0)
     first_az = np.where(grid.first_of >= 0, grid.az[np.maximum(grid.first_of, 0)], np.nan)
-    cell_scan = scan_pos[uniq]
+    first_block = first_az[np.arange(n_blocks) * n_scans]
+    # the first ray's azimuth from the wind's direction of motion, in the scan's sense
+    start_angle = np.mod(grid.sign * (first_block[:, None] - wind_to), 360.0)
+    out = BlockStatistics.empty((n_blocks, n_h, grid.n_lags), wind_to, start_angle)
+    cell_scan = grid.scan_pos[grid.uniq]
     order_cells = np.argsort(cell_scan, kind="stable")
     sorted_scan = cell_scan[order_cells]
-    per_chunk = max(1, _CHUNK_VALUES // (n_scans * n_az * n_h))
+    per_chunk = max(1, _CHUNK_VALUES // (n_scans * grid.n_az * n_h))
     for b0 in range(0, n_blocks, per_chunk):
         b1 = min(b0 + per_chunk, n_blocks)
         t0_, t1_ = b0 * n_scans, min(b1 * n_scans, grid.n_time)
         lo, hi = np.searchsorted(sorted_scan, [t0_, t1_])
-        cells = uniq[order_cells[lo:hi]]
-        vr = _rows_at(screened_ds["radial_velocity"].values, rays[cells], gates, float)
-        flag = _rows_at(screened_ds["qc_flag_radial"].values, rays[cells], gates)
-        usable = (flag == 0) & np.isfinite(vr)
-        vr = np.where(usable, vr, np.nan)
-        b = block_of_time[scan_pos[cells]]
-        complete, on_grid = _grid_placer(scan_pos[cells] - t0_, m[cells], t1_ - t0_, n_az)
-        if complete and t1_ - t0_ == (b1 - b0) * n_scans:  # (block, ray, height) broadcast
-            rays_of = (b1 - b0, n_scans * n_az, 1)
-            el = grid.el[cells].reshape(rays_of)
-            if np.all(el == el[:, :1]):  # one elevation per block: w sin(phi) once
-                el = el[:, :1]
-            model = radial_velocity(
-                *(c[b0:b1, None] for c in (u_b, v_b, w_b)),
-                grid.az[cells].reshape(rays_of),
-                el,
-            ).reshape(cells.size, n_h)
-        else:
-            model = radial_velocity(
-                u_b[b], v_b[b], w_b[b], grid.az[cells][:, None], grid.el[cells][:, None]
-            )
-        if homodyne:
-            vr = homodyne_radial_velocity(vr, model, b - b0)
-            usable = np.isfinite(vr)
-        vprime = on_grid(vr - model)
+        cells = grid.uniq[order_cells[lo:hi]]
+        chunk = (b0, b1, t0_, t1_)
+        vprime, usable, on_grid = _chunk_fluctuations(
+            screened_ds, grid, gates, mean_wind, (chunk, cells), n_scans, homodyne
+        )
         refit = None
         if not homodyne:
             beams = on_grid(beam_unit_vector(grid.az[cells], grid.el[cells]))
             block_winds = np.stack([u_b[b0:b1], v_b[b0:b1], w_b[b0:b1]], -1)
             refit = WindRefit(beams, scan_wind[t0_:t1_], block_winds)
         valid = finite_columns(vprime)
-        stats = block_statistics(vprime, n_scans, n_lags, refit, valid)
-        for name, value in zip(stat_names, stats, strict=True):
-            out[name][b0:b1] = value
-        out["weights"][b0:b1] = pair_azimuth_weights(
+        stats = block_statistics(vprime, n_scans, grid.n_lags, refit, valid)
+        for name, value in zip(BlockStatistics.STATISTICS, stats, strict=True):
+            getattr(out, name)[b0:b1] = value
+        out.weights[b0:b1] = pair_azimuth_weights(
             vprime,
             n_scans,
-            first_az[np.arange(b0, b1) * n_scans],
+            first_block[b0:b1],
             grid.dtheta,
             grid.sign,
             wind_to[b0:b1],
-            n_lags,
+            grid.n_lags,
             valid,
         )
-        if has_snr:
-            snr_vals = _rows_at(screened_ds["snr"].values, rays[cells], gates, float)
+        if "snr" in screened_ds:
+            snr_vals = _rows_at(screened_ds["snr"].values, grid.rays[cells], gates, float)
             snr = on_grid(np.where(usable, snr_vals, np.nan))
-            out["snr_median"][b0:b1] = block_median(snr, n_scans)
-    out["wind_to"] = wind_to
-    # the first ray's azimuth from the wind's direction of motion, in the scan's sense
-    first_block = first_az[np.arange(n_blocks) * n_scans]
-    out["start_angle"] = np.mod(grid.sign * (first_block[:, None] - wind_to), 360.0)
+            out.snr_median[b0:b1] = block_median(snr, n_scans)
     return out
+
+
+def _chunk_fluctuations(
+    screened_ds: xr.Dataset,
+    grid: RayGrid,
+    gates: np.ndarray,
+    mean_wind: tuple[np.ndarray, np.ndarray, np.ndarray],
+    chunk_cells: tuple[tuple[int, int, int, int], np.ndarray],
+    n_scans: int,
+    homodyne: bool,
+) -> tuple[np.ndarray, np.ndarray, Callable]:
+    """``(V'_L on the grid (scan, m, height), usable (cell, height), the grid placer)`` of
+    the blocks ``b0 .. b1`` (scans ``t0 .. t1``) of ``chunk_cells = ((b0, b1, t0, t1),
+    cells)``: the radial velocity less the block-mean VAD wind's (Smalikho (2020), eq. 1;
+    homodyne data: :func:`homodyne_radial_velocity`)."""
+    (b0, b1, t0_, t1_), cells = chunk_cells
+    u_b, v_b, w_b = mean_wind
+    n_h = u_b.shape[1]
+    scan_pos, rays = grid.scan_pos, grid.rays
+    vr = _rows_at(screened_ds["radial_velocity"].values, rays[cells], gates, float)
+    flag = _rows_at(screened_ds["qc_flag_radial"].values, rays[cells], gates)
+    usable = (flag == 0) & np.isfinite(vr)
+    vr = np.where(usable, vr, np.nan)
+    b = scan_pos[cells] // n_scans
+    complete, on_grid = _grid_placer(scan_pos[cells] - t0_, grid.m[cells], t1_ - t0_, grid.n_az)
+    if complete and t1_ - t0_ == (b1 - b0) * n_scans:  # (block, ray, height) broadcast
+        rays_of = (b1 - b0, n_scans * grid.n_az, 1)
+        el = grid.el[cells].reshape(rays_of)
+        if np.all(el == el[:, :1]):  # one elevation per block: w sin(phi) once
+            el = el[:, :1]
+        model = radial_velocity(
+            *(c[b0:b1, None] for c in (u_b, v_b, w_b)),
+            grid.az[cells].reshape(rays_of),
+            el,
+        ).reshape(cells.size, n_h)
+    else:
+        model = radial_velocity(
+            u_b[b], v_b[b], w_b[b], grid.az[cells][:, None], grid.el[cells][:, None]
+        )
+    if homodyne:
+        vr = homodyne_radial_velocity(vr, model, b - b0)
+        usable = np.isfinite(vr)
+    return on_grid(vr - model), usable, on_grid
 
 
 def _grid_placer(scans: np.ndarray, m: np.ndarray, n_time: int, n_az: int) -> tuple[bool, Callable]:
@@ -657,25 +678,19 @@ def _rows_at(
     return out if dtype is None else out.astype(dtype, copy=False)
 
 
-def _group_median(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.ndarray:
-    """Median of the ``values`` (NaN skipped) of each group ``0 .. n_groups - 1`` (NaN: none).
+@dataclass(frozen=True)
+class BlockTimes:
+    """Per block: the ``centre`` time, ``scan_period`` and ``scan_interval`` (s),
+    ``n_scans`` and the mean ``elevation`` (deg) (:func:`_block_times`)."""
 
-    The middle value, or the mean ``(a + b) / 2`` of the two middle ones, as
-    :func:`numpy.median` and pandas' grouped median form it (the same value); the values
-    sorted by group once and one partition per group present.
-    """
-    out = np.full(n_groups, np.nan)
-    keep = ~np.isnan(values)
-    order = np.argsort(group[keep], kind="stable")
-    values, group = values[keep][order], group[keep][order]
-    ids, starts = np.unique(group, return_index=True)
-    stops = np.append(starts[1:], group.size)[: starts.size]  # none: no group
-    for g, start, stop in zip(ids, starts, stops, strict=True):
-        out[g] = np.median(values[start:stop])
-    return out
+    centre: np.ndarray
+    scan_period: np.ndarray
+    scan_interval: np.ndarray
+    n_scans: np.ndarray
+    elevation: np.ndarray
 
 
-def _block_times(wind: xr.Dataset, grid: RayGrid, n_scans: int) -> dict[str, np.ndarray]:
+def _block_times(wind: xr.Dataset, grid: RayGrid, n_scans: int) -> BlockTimes:
     """Per block: ``centre`` time, ``scan_period`` and ``scan_interval`` (s), ``n_scans``
     and mean ``elevation`` (deg).
 
@@ -695,7 +710,7 @@ def _block_times(wind: xr.Dataset, grid: RayGrid, n_scans: int) -> dict[str, np.
     dm = (sign * wrapped_azimuth_difference(az[1:], az[:-1]) / dtheta)[same]
     dt = _nanoseconds(np.diff(grid.t_ray))[same] / 1e9
     good = (dm > 0.5) & (dt > 0)
-    step_time = _group_median(
+    step_time = group_median(
         dt[good] / np.rint(dm[good]), block_of_time[scan_pos[1:][same][good]], n_blocks
     )
 
@@ -708,14 +723,14 @@ def _block_times(wind: xr.Dataset, grid: RayGrid, n_scans: int) -> dict[str, np.
     # time between the starts of consecutive scans (a sector scan's return included)
     gaps_s = _nanoseconds(np.diff(wind_time)) / 1e9
     inside = block_of_time[1:] == block_of_time[:-1]
-    scan_interval = _group_median(gaps_s[inside], block_of_time[1:][inside], n_blocks)
-    return {
-        "centre": centre,
-        "scan_period": step_time * grid.n_az,
-        "scan_interval": scan_interval,
-        "n_scans": _block_sum(np.ones(n_time, dtype=np.int64), starts),
-        "elevation": _block_mean(wind["elevation"].values.astype(float)[:, None], starts)[:, 0],
-    }
+    scan_interval = group_median(gaps_s[inside], block_of_time[1:][inside], n_blocks)
+    return BlockTimes(
+        centre=centre,
+        scan_period=step_time * grid.n_az,
+        scan_interval=scan_interval,
+        n_scans=block_sum(np.ones(n_time, dtype=np.int64), starts),
+        elevation=_block_mean(wind["elevation"].values.astype(float)[:, None], starts)[:, 0],
+    )
 
 
 def _nanoseconds(delta: np.ndarray) -> np.ndarray:
@@ -727,43 +742,43 @@ def _structure_dataset(
     wind: xr.Dataset,
     grid: RayGrid,
     mean_wind: tuple[np.ndarray, np.ndarray, np.ndarray],
-    stats: dict[str, np.ndarray],
-    times: dict[str, np.ndarray],
+    stats: BlockStatistics,
+    times: BlockTimes,
 ) -> xr.Dataset:
     """The structure-function dataset of :func:`azimuth_structure_function`."""
     u_b, v_b, _ = mean_wind
     n_blocks = u_b.shape[0]
     return xr.Dataset(
         {
-            "structure_function": (("time", "height", "lag"), stats["sf"]),
-            "n_pairs": (("time", "height", "lag"), stats["pairs"]),
-            "radial_velocity_variance": (("time", "height"), stats["variance"]),
-            "structure_function_se": (("time", "height", "lag"), stats["sf_se"]),
-            "structure_function_difference_se": (("time", "height", "lag"), stats["diff_se"]),
-            "radial_velocity_variance_se": (("time", "height"), stats["variance_se"]),
+            "structure_function": (("time", "height", "lag"), stats.sf),
+            "n_pairs": (("time", "height", "lag"), stats.pairs),
+            "radial_velocity_variance": (("time", "height"), stats.variance),
+            "structure_function_se": (("time", "height", "lag"), stats.sf_se),
+            "structure_function_difference_se": (("time", "height", "lag"), stats.diff_se),
+            "radial_velocity_variance_se": (("time", "height"), stats.variance_se),
             "statistics_covariance": (
                 ("time", "height", "statistic", "statistic_b"),
-                stats["covariance"],
+                stats.covariance,
             ),
             "wind_speed": (("time", "height"), speed_and_direction(u_b, v_b)[0]),
-            "wind_to_direction": (("time", "height"), np.mod(stats["wind_to"], 360.0)),
-            "scan_start_angle": (("time", "height"), stats["start_angle"]),
+            "wind_to_direction": (("time", "height"), np.mod(stats.wind_to, 360.0)),
+            "scan_start_angle": (("time", "height"), stats.start_angle),
             "pair_azimuth_weights": (
                 ("time", "height", "lag", "azimuth_node"),
-                stats["weights"],
+                stats.weights,
             ),
-            "snr_median": (("time", "height"), stats["snr_median"]),
+            "snr_median": (("time", "height"), stats.snr_median),
             "azimuth_step": ("time", np.full(n_blocks, grid.dtheta)),
-            "scan_period": ("time", times["scan_period"]),
-            "scan_interval": ("time", times["scan_interval"]),
-            "n_scans": ("time", times["n_scans"]),
+            "scan_period": ("time", times.scan_period),
+            "scan_interval": ("time", times.scan_interval),
+            "n_scans": ("time", times.n_scans),
         },
         coords={
-            "time": ("time", times["centre"]),
+            "time": ("time", times.centre),
             "height": ("height", wind["height"].values),
             "range": ("height", wind["range"].values),
             "lag": ("lag", np.arange(1, grid.n_lags + 1, dtype=np.int64)),
             "azimuth_node": ("azimuth_node", np.degrees(azimuth_nodes())),
-            "elevation": ("time", times["elevation"]),
+            "elevation": ("time", times.elevation),
         },
     )

@@ -24,7 +24,6 @@ attribute, in this order).
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
@@ -39,14 +38,16 @@ from cwproc.physics.geometry import (
     normalise_pointing,
     speed_and_direction,
 )
+from cwproc.physics.scan_layout import (
+    ELEVATION_TOLERANCE_DEG,
+    ScanLayout,
+    scan_layout,
+    select_conical_scans,
+)
 from cwproc.physics.vad_least_squares import fit_scans
 from cwproc.references import VAD_WIND
 from cwproc.stages.scan_guard import require_distinct_scans
 
-#: elevations (deg) that count as conical scans; outside, w or u, v are not determined
-CONICAL_ELEVATION_RANGE_DEG = (1.0, 89.0)
-#: scans whose elevation differs from the selected one by more than this are left out
-ELEVATION_TOLERANCE_DEG = 0.5
 #: budget of (scan x ray x gate) elements per chunk; bounds memory on long days
 CHUNK_ELEMENTS = 4_000_000
 
@@ -60,69 +61,6 @@ BoolArray = NDArray[np.bool_]
 # --------------------------------------------------------------------------------------
 # layout: rays -> (scan, ray in scan)
 # --------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class ScanLayout:
-    """Rays of each scan as rows of a padded index table.
-
-    Attributes
-    ----------
-    scan_ids : ndarray, shape (n_scan,)
-        The scan numbers, increasing.
-    index : ndarray, shape (n_scan, max_rays)
-        Ray indices into the scan dataset; ``-1`` pads scans with fewer rays.
-    """
-
-    scan_ids: NDArray[np.int64]
-    index: NDArray[np.int64]
-
-    @property
-    def present(self) -> BoolArray:
-        """True where ``index`` names a ray (not padding)."""
-        return self.index >= 0
-
-    def take(self, values: np.ndarray, fill: float = np.nan) -> np.ndarray:
-        """Gather ``values[ray, ...]`` into ``(scan, ray in scan, ...)``, padding with fill."""
-        out = np.asarray(values)[np.maximum(self.index, 0)]
-        if out.dtype.kind == "f":
-            pad = ~self.present
-            out[pad] = fill
-        return out
-
-    def subset(self, rows: slice) -> ScanLayout:
-        """The layout of a contiguous block of scans."""
-        return ScanLayout(self.scan_ids[rows], self.index[rows])
-
-
-def scan_layout(scan: np.ndarray, keep: BoolArray | None = None) -> ScanLayout:
-    """Group ray indices by scan number (rays with ``scan < 0`` or ``~keep`` left out).
-
-    The stage's day decision, used by ``ScanChain.decisions`` (:mod:`cwproc.pipeline.chain`).
-
-    Parameters
-    ----------
-    scan : ndarray, shape (n_ray,)
-        Scan index of each ray (``-1`` = no conical scan).
-    keep : ndarray of bool, optional
-        Rays to consider.
-
-    Returns
-    -------
-    ScanLayout
-    """
-    scan = np.asarray(scan).astype(np.int64)
-    use = scan >= 0
-    if keep is not None:
-        use &= keep
-    rays = np.flatnonzero(use)
-    order = rays[np.argsort(scan[rays], kind="stable")]
-    ids, starts, counts = np.unique(scan[order], return_index=True, return_counts=True)
-    index = np.full((ids.size, int(counts.max()) if ids.size else 0), -1, dtype=np.int64)
-    if ids.size:
-        position = np.arange(order.size) - np.repeat(starts, counts)
-        index[np.repeat(np.arange(ids.size), counts), position] = order
-    return ScanLayout(ids.astype(np.int64), index)
 
 
 def scan_chunks(layout: ScanLayout, n_gates: int) -> Iterator[slice]:
@@ -258,50 +196,6 @@ def _require(ds: xr.Dataset, names: tuple[str, ...]) -> None:
         )
 
 
-def select_conical_scans(
-    layout: ScanLayout, elevation_deg: FloatArray
-) -> tuple[ScanLayout, float, FloatArray, int]:
-    """Keep the scans at the most common conical elevation.
-
-    The stage's day decision, used by ``ScanChain.decisions`` (:mod:`cwproc.pipeline.chain`):
-    a day run in chunks must keep the elevation and the scans of the whole day.
-
-    A scan is conical when its median elevation lies in ``CONICAL_ELEVATION_RANGE_DEG``.
-    The most common elevation (rounded to 0.1 deg) is chosen; scans within
-    ``ELEVATION_TOLERANCE_DEG`` of it are kept.
-
-    Returns
-    -------
-    (layout, elevation_deg, scan_elevations_deg, n_other_elevation)
-
-    Raises
-    ------
-    CwprocError
-        No conical scan at all (e.g. a vertical stare file).
-    """
-    per_scan = np.nanmedian(layout.take(elevation_deg), axis=1) if layout.index.size else []
-    per_scan = np.asarray(per_scan, dtype=float)
-    lo, hi = CONICAL_ELEVATION_RANGE_DEG
-    conical = (per_scan >= lo) & (per_scan <= hi)
-    if not conical.any():
-        raise CwprocError(
-            "The input has no conical scan (no 360-degree rotation at an elevation between "
-            f"{lo:g} and {hi:g} degrees), so no wind profile can be fitted; a vertical stare "
-            "or an RHI file cannot give a VAD wind."
-        )
-    values, counts = np.unique(np.round(per_scan[conical], 1), return_counts=True)
-    chosen = float(values[np.argmax(counts)])
-    keep = conical & (np.abs(per_scan - chosen) <= ELEVATION_TOLERANCE_DEG)
-    n_other = int(conical.sum() - keep.sum())
-    rows = np.flatnonzero(keep)
-    return (
-        ScanLayout(layout.scan_ids[rows], layout.index[rows]),
-        chosen,
-        per_scan[rows],
-        n_other,
-    )
-
-
 def _reference_directions(
     ds: xr.Dataset, layout: ScanLayout, reference_direction_deg: float | None
 ) -> tuple[FloatArray, str]:
@@ -399,40 +293,14 @@ def fit_vad(
         Missing variables, no conical scan, or homodyne data without any reference
         direction.
     """
-    require_distinct_scans(ds, stage="fit_vad")
-    _require(ds, ("radial_velocity", "azimuth", "elevation", "scan", "time", "range"))
-    if ds["radial_velocity"].dims != ("ray", "range"):
-        raise CwprocError(
-            "The VAD fit needs radial_velocity with dimensions (ray, range); this input has "
-            f"{ds['radial_velocity'].dims}."
-        )
+    _check_scan_dataset(ds)
     azimuth, elevation = pointing(ds)
     layout, phi, scan_elevation, n_other = select_conical_scans(
         scan_layout(ds["scan"].values, np.isfinite(azimuth) & np.isfinite(elevation)),
         elevation,
     )
     homodyne = is_homodyne(ds) if homodyne is None else bool(homodyne)
-    velocity = ds["radial_velocity"].values.astype(float, copy=False)  # not written to
-    valid_all = usable_mask(ds)
-    n_gates = velocity.shape[1]
-    parts: list[dict[str, np.ndarray]] = []
-    for rows in scan_chunks(layout, n_gates):
-        sub = layout.subset(rows)
-        present = sub.present[:, :, None]
-        valid = sub.take(valid_all) & present
-        design = beam_unit_vector(sub.take(azimuth), sub.take(elevation))
-        fit = fit_scans(sub.take(velocity), design, valid, homodyne=homodyne)
-        parts.append(
-            {
-                "beta": fit.beta,
-                "cov": fit.covariance,
-                "n": fit.n_rays,
-                "res": fit.residual_std,
-                "ok": fit.determined & fit.converged,
-                "gap": azimuth_gap(sub.take(azimuth), valid),
-            }
-        )
-    joined = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    joined = _fit_scan_chunks(ds, layout, (azimuth, elevation), homodyne)
     beta = joined["beta"]
     attrs_resolution = "not applicable (heterodyne: signed radial velocities)"
     if homodyne:
@@ -458,6 +326,51 @@ def fit_vad(
             "max_residual_std": max_residual_std,
         },
     )
+
+
+def _check_scan_dataset(ds: xr.Dataset) -> None:
+    """Refuse a dataset the VAD fit cannot take (scan numbers that collide across files,
+    missing variables, radial velocities not on ``(ray, range)``)."""
+    require_distinct_scans(ds, stage="fit_vad")
+    _require(ds, ("radial_velocity", "azimuth", "elevation", "scan", "time", "range"))
+    if ds["radial_velocity"].dims != ("ray", "range"):
+        raise CwprocError(
+            "The VAD fit needs radial_velocity with dimensions (ray, range); this input has "
+            f"{ds['radial_velocity'].dims}."
+        )
+
+
+def _fit_scan_chunks(
+    ds: xr.Dataset,
+    layout: ScanLayout,
+    pointing_deg: tuple[FloatArray, FloatArray],
+    homodyne: bool,
+) -> dict[str, np.ndarray]:
+    """The batched fits of the scans of ``layout`` (:func:`scan_chunks` at a time):
+    ``beta`` (u, v, w), ``cov`` its covariance, ``n`` rays used, ``res`` residual std,
+    ``ok`` determined and converged, ``gap`` the largest azimuth gap (deg), per scan and
+    gate; ``pointing_deg``: the azimuth and elevation of every ray."""
+    azimuth, elevation = pointing_deg
+    velocity = ds["radial_velocity"].values.astype(float, copy=False)  # not written to
+    valid_all = usable_mask(ds)
+    parts: list[dict[str, np.ndarray]] = []
+    for rows in scan_chunks(layout, velocity.shape[1]):
+        sub = layout.subset(rows)
+        present = sub.present[:, :, None]
+        valid = sub.take(valid_all) & present
+        design = beam_unit_vector(sub.take(azimuth), sub.take(elevation))
+        fit = fit_scans(sub.take(velocity), design, valid, homodyne=homodyne)
+        parts.append(
+            {
+                "beta": fit.beta,
+                "cov": fit.covariance,
+                "n": fit.n_rays,
+                "res": fit.residual_std,
+                "ok": fit.determined & fit.converged,
+                "gap": azimuth_gap(sub.take(azimuth), valid),
+            }
+        )
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 
 def _wind_dataset(

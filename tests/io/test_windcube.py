@@ -258,7 +258,7 @@ def test_na_header_value_with_a_good_file_body_reads_and_retrieves(tmp_path, rea
     ds, ref = read_windcube_sta(path), read_windcube_sta(real_data / V1)
     assert "scan_angle_deg" not in ds.attrs
     np.testing.assert_array_equal(ds["wind_speed"].values, ref["wind_speed"].values)
-    from cwproc.stages.zephir import wind_record_product
+    from cwproc.stages.wind_records import wind_record_product
 
     product = wind_record_product(ds)
     assert np.isfinite(product["u"].values).sum() == np.isfinite(ref["wind_speed"].values).sum()

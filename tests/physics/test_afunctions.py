@@ -17,10 +17,8 @@ from cwproc.physics.afunctions import (
     a_curves,
     a_par,
     a_perp,
-    eps_ratio,
-    q1,
-    q2,
 )
+from cwproc.physics.epsilon_bias import epsilon_bias_ratio, q1, q2
 from cwproc.physics.transfer import CWProbe, PulsedProbe
 
 PRINTED = PulsedProbe(15.3, 18.0, "printed")
@@ -106,7 +104,7 @@ RATIO_PRINTED = {
     [(lag, phi, dy) for lag, rows in RATIO_PRINTED.items() for (phi, dy) in rows],
 )
 def test_reference_ratio_tables_printed(lag, phi, dy):
-    ratio = eps_ratio(MU, phi, float(dy), lag, probe=PRINTED)
+    ratio = epsilon_bias_ratio(MU, phi, float(dy), lag, probe=PRINTED)
     np.testing.assert_allclose(ratio, RATIO_PRINTED[lag][(phi, dy)], rtol=2e-4)
 
 
@@ -121,16 +119,16 @@ RATIO_PI = {
 
 @pytest.mark.parametrize(("phi", "dy"), list(RATIO_PI))
 def test_reference_ratio_table_physical(phi, dy):
-    ratio = eps_ratio(MU, phi, float(dy), 3, probe=PHYSICAL)
+    ratio = epsilon_bias_ratio(MU, phi, float(dy), 3, probe=PHYSICAL)
     np.testing.assert_allclose(ratio, RATIO_PI[(phi, dy)], rtol=2e-4)
 
 
 def test_paper_figure_claims_with_physical_transfer_and_lag_3():
     # Smalikho (2020), text after eq. 23; REFERENCE_VALUES.md 1.4 ("pi l=3" column)
     mu = np.linspace(0.3, 1.5, 1201)
-    mu_60 = first_exceedance(mu, eps_ratio(mu, 60, 3.0, 3, probe=PHYSICAL))
-    mu_16 = first_exceedance(mu, eps_ratio(mu, 16, 12.0, 3, probe=PHYSICAL))
-    at_24 = float(eps_ratio(np.array([2.4]), 60, 3.0, 3, probe=PHYSICAL)[0])
+    mu_60 = first_exceedance(mu, epsilon_bias_ratio(mu, 60, 3.0, 3, probe=PHYSICAL))
+    mu_16 = first_exceedance(mu, epsilon_bias_ratio(mu, 16, 12.0, 3, probe=PHYSICAL))
+    at_24 = float(epsilon_bias_ratio(np.array([2.4]), 60, 3.0, 3, probe=PHYSICAL)[0])
     assert mu_60 == pytest.approx(0.529, abs=2e-3)
     assert mu_16 == pytest.approx(1.101, abs=2e-3)
     assert at_24 == pytest.approx(4.173, rel=2e-3)
@@ -152,14 +150,14 @@ def test_q_functions():
 def test_asymptote_eq22_large_lags():
     # REFERENCE_VALUES.md 1.4: l = 10, dy = 100 m (l dy >> dz): ratio/(q1 mu) = 0.9939, 0.9923
     mu = np.array([10.0, 30.0])
-    ratio = eps_ratio(mu, 45, 100.0, 10, probe=PRINTED) / (q1(45) * mu)
+    ratio = epsilon_bias_ratio(mu, 45, 100.0, 10, probe=PRINTED) / (q1(45) * mu)
     np.testing.assert_allclose(ratio, [0.9939, 0.9923], atol=2e-4)
     assert np.all(np.abs(ratio - 1) < 0.01)
 
 
 def test_asymptote_eq23_small_lags():
     # REFERENCE_VALUES.md 1.4: l = 2, dy = 0.01 m (l dy mu << dz): ratio/(q2 mu^2.5) at mu = 3
-    ratio = eps_ratio(np.array([3.0]), 45, 0.01, 2, probe=PRINTED) / (q2(45) * 3.0**2.5)
+    ratio = epsilon_bias_ratio(np.array([3.0]), 45, 0.01, 2, probe=PRINTED) / (q2(45) * 3.0**2.5)
     assert float(ratio[0]) == pytest.approx(1.0907, abs=5e-4)
 
 
@@ -255,7 +253,7 @@ def test_spline_curves_match_direct_values():
 
 def test_bad_arguments():
     with pytest.raises(ValueError, match="lag_number"):
-        eps_ratio(MU, 60, 3.0, 1, probe=PHYSICAL)
+        epsilon_bias_ratio(MU, 60, 3.0, 1, probe=PHYSICAL)
     with pytest.raises(ValueError, match="range_m"):
         a_perp(3.0, probe=CWProbe(), dy=1.0)
     with pytest.raises(ValueError, match="outer scale"):

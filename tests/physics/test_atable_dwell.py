@@ -181,7 +181,9 @@ def test_transport_loss_interpolates_the_segment_loss(swept, dwell):
     from types import SimpleNamespace
 
     from cwproc.physics.probe_variance import segment_loss
+    from cwproc.stages.epsilon.atable_fit import TableOptions
     from cwproc.stages.epsilon.outer_scale import transport_loss
+    from cwproc.stages.epsilon.records import FitMemo
 
     rng = np.random.default_rng(5)
     heights = np.geomspace(50.0, 2000.0, 12)
@@ -193,7 +195,7 @@ def test_transport_loss_interpolates_the_segment_loss(swept, dwell):
         phi=np.full(3, 60.0),
         mu_eval=mu,
     )
-    got = transport_loss(PROBE, cells, {"swept": swept, "dwell": dwell}, {})
+    got = transport_loss(PROBE, cells, TableOptions((50.0, 2000.0), swept, dwell), FitMemo())
     direct = np.array(
         [
             segment_loss(PROBE, [d], [300.0], [m], phi_deg=60.0, swept=swept, dwell=dwell)[0, 0]
@@ -201,5 +203,5 @@ def test_transport_loss_interpolates_the_segment_loss(swept, dwell):
         ]
     ).reshape(mu.shape)
     np.testing.assert_allclose(got, direct, rtol=5e-3, atol=0.1)
-    none = transport_loss(PROBE, cells, {"swept": False, "dwell": 0.0}, {})
+    none = transport_loss(PROBE, cells, TableOptions((50.0, 2000.0), False, 0.0), FitMemo())
     assert np.all(none == 0.0)

@@ -64,7 +64,7 @@ def test_along_wind_coefficients_rotate_the_dbs_estimates():
     s = np.sin(np.radians(28.0))
     assert coef["90"] == pytest.approx(0.6 * 0.5 / s) and coef["0"] == pytest.approx(0.8 * 0.5 / s)
     # radial velocities of a uniform wind (3, 4, 0): the estimate is its speed, 5
-    vr = {b: float(dbs.beam_vector(b, 28.0) @ np.array([3.0, 4.0, 0.0])) for b in coef}
+    vr = {b: float(dbs.dbs_beam_unit_vector(b, 28.0) @ np.array([3.0, 4.0, 0.0])) for b in coef}
     assert sum(a * vr[b] for b, a in coef.items()) == pytest.approx(5.0)
 
 

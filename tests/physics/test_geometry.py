@@ -124,7 +124,8 @@ def test_speed_and_direction_inverts_wind_components(speed: float, direction: fl
 def test_other_component_orders_project_the_same_wind() -> None:
     """The (v, u, w) design matrix of the VAD error theory and the (up, north, east) beams
     of Banakh et al. (1999), eq. 1, give the radial velocity of Smalikho (2020), eq. 8."""
-    from cwproc.physics.correlation import beam_vectors, wind_vector
+    from cwproc.physics.correlation import wind_vector
+    from cwproc.physics.geometry import beam_unit_vector_une
     from cwproc.physics.vad_errors import design_matrix
 
     azimuth = np.linspace(0.0, 350.0, 36)
@@ -133,5 +134,7 @@ def test_other_component_orders_project_the_same_wind() -> None:
     expected = g.radial_velocity(u, v, w, azimuth, 35.3)
     np.testing.assert_allclose(design_matrix(azimuth, 35.3) @ [v, u, w], expected, atol=1e-12)
     np.testing.assert_allclose(
-        beam_vectors(azimuth, 35.3) @ wind_vector(7.5, 212.0, w), expected, atol=1e-12
+        beam_unit_vector_une(azimuth, 35.3) @ wind_vector(7.5, 212.0, w),
+        expected,
+        atol=1e-12,
     )

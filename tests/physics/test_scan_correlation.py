@@ -171,8 +171,8 @@ def test_error_bars_of_a_sector_swept_back_to_back_match_the_scatter():
 
 def _refit_jackknife_draws(cov: np.ndarray, design: np.ndarray, n: int, draws: int, seed: int):
     """Block-mean variance statistic and its refit jackknife
-    (:func:`cwproc.stages.block_stats.jackknife_covariance`) over Gaussian draws."""
-    from cwproc.stages.block_stats import WindRefit, jackknife_covariance, wind_refit_terms
+    (:func:`cwproc.physics.block_stats.jackknife_covariance`) over Gaussian draws."""
+    from cwproc.physics.block_stats import WindRefit, jackknife_covariance, wind_refit_terms
 
     m = design.shape[0]
     rng = np.random.default_rng(seed)

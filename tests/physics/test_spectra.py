@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import integrate, special
 
-from cwproc.physics import spectra
+from cwproc.physics import dissipation, spectra
 
 
 def test_exact_plane_constant_matches_reference_formula():
@@ -80,7 +80,9 @@ def test_integral_scale_coefficients():
 def test_eps_sigma_l_relations_round_trip(model):
     eps, big_l = 0.01, 120.0
     s2 = spectra.variance_from(eps, big_l, model)
-    assert spectra.epsilon_from(s2, big_l, model) == pytest.approx(eps, rel=1e-12)
+    assert dissipation.epsilon_from_integral_scale(s2, big_l, model) == pytest.approx(
+        eps, rel=1e-12
+    )
     assert spectra.outer_scale_from(s2, eps, model) == pytest.approx(big_l, rel=1e-12)
     assert s2 == pytest.approx(spectra.variance_per_eps23(model, big_l) * eps ** (2 / 3))
 

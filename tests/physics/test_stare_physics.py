@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cwproc.physics import stare
+from cwproc.physics import dissipation, stare
 
 
 def test_transverse_constant_from_c_k():
@@ -26,8 +26,8 @@ def test_sharp_band_limits_are_oconnor_closed_form():
     # eps of eq. 4 inverts sigma^2 = (3a/2)(eps/2pi)^(2/3)(L1^(2/3) - LN^(2/3))
     l1, ln, eps, a = 1500.0, 6.7, 1e-3, 0.55
     var = 1.5 * a * (eps / (2 * np.pi)) ** (2 / 3) * (l1 ** (2 / 3) - ln ** (2 / 3))
-    assert stare.oconnor_epsilon(var, l1, ln, a)[()] == pytest.approx(eps, rel=1e-12)
-    assert np.isnan(stare.oconnor_epsilon(-1.0, l1, ln)[()])
+    assert dissipation.oconnor_epsilon(var, l1, ln, a)[()] == pytest.approx(eps, rel=1e-12)
+    assert np.isnan(dissipation.oconnor_epsilon(-1.0, l1, ln)[()])
 
 
 def test_gate_transfer_limits():
@@ -66,11 +66,11 @@ def test_window_moments_against_numpy():
 
 
 def test_epsilon_standard_error_combines_variance_and_wind():
-    se = stare.epsilon_standard_error(
+    se = dissipation.stare_epsilon_standard_error(
         np.array([1.0]), np.array([1.0]), np.array([0.2]), np.array([5.0]), np.array([0.0])
     )
     assert se[0] == pytest.approx(0.3)
-    se = stare.epsilon_standard_error(
+    se = dissipation.stare_epsilon_standard_error(
         np.array([1.0]), np.array([1.0]), np.array([0.0]), np.array([5.0]), np.array([1.0])
     )
     assert se[0] == pytest.approx(0.2)

@@ -21,7 +21,7 @@ def test_kaimal_integral_is_analytic():
 def test_focus_range_and_rayleigh_range_of_zephir():
     """R = h/cos30°, Z_R = 0.0013 R² (Wagner et al. (DTU), eq. 2): 100 m -> 115.47 m, 17.33 m."""
     assert va.focus_range(100.0) == pytest.approx(115.4701, rel=1e-6)
-    assert va.rayleigh_range(100.0) == pytest.approx(0.0013 * 115.4701**2, rel=1e-6)
+    assert va.zephir_rayleigh_range(100.0) == pytest.approx(0.0013 * 115.4701**2, rel=1e-6)
 
 
 def test_lorentzian_transfer_is_the_squared_fourier_transform_of_the_weight():

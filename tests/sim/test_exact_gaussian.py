@@ -5,6 +5,7 @@ import pytest
 
 from cwproc.physics import correlation as corr
 from cwproc.physics import spectra
+from cwproc.physics.geometry import beam_unit_vector
 from cwproc.sim import exact_gaussian as eg
 from cwproc.sim.pulsed import range_quadrature
 
@@ -56,7 +57,7 @@ def test_point_probe_is_the_projected_tensor():
         delta_p_m=1e-3,
         delta_r_m=2e-3,
     )
-    beams = eg.beam_unit_vector(np.asarray(pattern.azimuth_deg), PHI)
+    beams = beam_unit_vector(np.asarray(pattern.azimuth_deg), PHI)
     sigma2 = spectra.variance_from(1e-2, L_V, "von_karman")
     r_vec = RANGE * (beams[0] - beams[1:])
     r = np.linalg.norm(r_vec, axis=-1)
@@ -125,7 +126,7 @@ def test_samples_have_the_covariance_and_the_mean_wind():
     assert ds.sizes == {"ray": 4000 * 12, "range": 1}
     assert np.all(ds["qc_flag_radial"] == 0)
     v = ds["radial_velocity"].values[:, 0].reshape(4000, 12)
-    beams = eg.beam_unit_vector(np.asarray(pattern.azimuth_deg), PHI)
+    beams = beam_unit_vector(np.asarray(pattern.azimuth_deg), PHI)
     mean = np.tile(beams @ np.array([5.0, 0.0, 0.0]), 2)
     cov = eg.block_covariance(
         pattern,

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cwproc.config import SimulationConfig
-from cwproc.physics import spectra
+from cwproc.physics import dissipation
 from cwproc.sim import montecarlo as mc
 from cwproc.sim.cw import CWLidar
 
@@ -23,9 +23,9 @@ def test_fit_recovers_variance_and_scale_of_noise_free_model(model_50m):
         model_50m.geometry, model_50m.quadrature, np.array([scale]), lags=np.arange(6)
     )
     structure = 1.7 * 2.0 * (rows[:, :1] - rows[:, 1:])
-    sigma2, fitted = mc.fit_structure_function(structure, model_50m.lag_model)
-    eps_true = spectra.epsilon_from(1.7, scale)
-    eps_fit = spectra.epsilon_from(sigma2, fitted)
+    sigma2, fitted = mc.fit_correlation_model(structure, model_50m.lag_model)
+    eps_true = dissipation.epsilon_from_integral_scale(1.7, scale)
+    eps_fit = dissipation.epsilon_from_integral_scale(sigma2, fitted)
     assert eps_fit[0] == pytest.approx(eps_true, rel=0.01)
     assert fitted[0] == pytest.approx(scale, rel=0.1)
 
@@ -90,7 +90,7 @@ def test_study_is_unbiased_without_exclusion_and_errors_match_reference(height_i
     stats = mc.cumulative_vad_statistics(vd, valid, model.design, sim.max_lag)
     w = np.cumsum(width2.sum(axis=-1), axis=1) / stats["n_valid"]
     est = mc.estimate_parameters(stats, w, model)
-    eps = float(spectra.epsilon_from(sigma2, scale))
+    eps = float(dissipation.epsilon_from_integral_scale(sigma2, scale))
     ratio = est["epsilon"][:, -1] / eps
     se = ratio.std() / np.sqrt(ratio.size)
     assert abs(ratio.mean() - 1.0) < 3 * se + 0.02

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from cwproc.io.meteo2 import read_meteo2
+from cwproc.physics.structure_functions import structure_function_fft
 from cwproc.sim.sonic import (
     METEO2_RATE_HZ,
     SFModel,
@@ -17,7 +18,6 @@ from cwproc.sim.sonic import (
     sonic_truth,
     write_simulation,
 )
-from cwproc.stages.sonic_sf import structure_function_fft
 
 
 def test_model_shapes_follow_eqs_4_to_6():

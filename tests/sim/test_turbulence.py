@@ -7,8 +7,9 @@ import pytest
 from scipy import integrate
 
 from cwproc.physics import correlation as corr
-from cwproc.physics import spectra
+from cwproc.physics import dissipation, spectra
 from cwproc.physics.cw_probe import cw_probe_quadrature
+from cwproc.physics.geometry import beam_unit_vector_une
 from cwproc.sim import turbulence as T
 
 
@@ -31,7 +32,7 @@ def test_von_karman_integral_scale_and_inertial_limit():
     )
     assert val == pytest.approx(100.0, rel=1e-5)
     # D = 2 (sigma^2 - B) -> C_k eps^(2/3) r^(2/3) for r << L with eps = c sigma^3/L
-    eps = spectra.epsilon_from(1.0, 100.0, "von_karman")
+    eps = dissipation.epsilon_from_integral_scale(1.0, 100.0, "von_karman")
     r = 0.01
     d = 2.0 * (1.0 - corr.longitudinal_correlation(r, 1.0, 100.0, "von_karman"))
     assert d == pytest.approx(2.0 * eps ** (2 / 3) * r ** (2 / 3), rel=2e-3)
@@ -40,7 +41,7 @@ def test_von_karman_integral_scale_and_inertial_limit():
 def test_eq19_coefficients():
     assert spectra.integral_scale_coefficient("exponential") == pytest.approx(1.331, abs=1e-3)
     assert spectra.integral_scale_coefficient("von_karman") == pytest.approx(0.6973, abs=1e-3)
-    eps = spectra.epsilon_from(1.23**2, 133.0)
+    eps = dissipation.epsilon_from_integral_scale(1.23**2, 133.0)
     assert eps == pytest.approx(0.018, abs=0.001)  # the table of Banakh et al. (1999)
     assert spectra.variance_from(eps, 133.0) == pytest.approx(1.23**2)
 
@@ -111,7 +112,7 @@ def test_point_probe_correlation_is_the_projected_tensor():
     b = corr.azimuth_correlation_matrix(
         geometry, probe, sigma2=1.0, outer_scale=150.0, mean_wind=wind
     )
-    s = corr.beam_vectors(geometry.azimuth_deg, 30.0)
+    s = beam_unit_vector_une(geometry.azimuth_deg, 30.0)
     t = geometry.time_s
     r_vec = 300.0 * s[2] - 300.0 * s[5] - wind * (t[2] - t[5])  # Taylor transport
     assert b[2, 5] == pytest.approx(corr.projected_correlation(r_vec, s[2], s[5], 1.0, 150.0))

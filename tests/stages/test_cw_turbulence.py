@@ -28,8 +28,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cwproc.physics import exact_lag
+from cwproc.physics.dissipation import epsilon_from_integral_scale
 from cwproc.physics.probe_variance import passed_variance
-from cwproc.physics.spectra import epsilon_from
 from cwproc.physics.transfer import CWProbe
 from cwproc.sim.cw import CWLidar, simulate_cw_scans
 from cwproc.stages import epsilon, qc, structure, vad
@@ -41,7 +41,7 @@ OUTER_SCALE = 500.0
 WIND_SPEED = 5.0
 DIRECTION = 200.0
 N_SCANS = 40
-TRUE_EPSILON = float(epsilon_from(SIGMA2, OUTER_SCALE, "exponential"))
+TRUE_EPSILON = float(epsilon_from_integral_scale(SIGMA2, OUTER_SCALE, "exponential"))
 
 
 def _simulate(homodyne: bool, seed: int) -> tuple[xr.Dataset, np.ndarray, CWLidar]:
@@ -150,7 +150,7 @@ def test_seed000_probe_exact_model_recovers_eps_variance_and_scale(tmp_path):
     u = np.array([9.14, 9.78])
     noise = 0.05
     sigma2 = np.array([1.11, 1.02]) ** 2
-    eps = epsilon_from(sigma2, big_l, "exponential")
+    eps = epsilon_from_integral_scale(sigma2, big_l, "exponential")
     dtheta = 360.0 / 140
     rng_m = heights / np.sin(np.deg2rad(30.0))
     d = np.empty((2, 3))
@@ -162,7 +162,7 @@ def test_seed000_probe_exact_model_recovers_eps_variance_and_scale(tmp_path):
         d[i] = sigma2[i] * lm.structure[k] + 2 * noise**2
         var_raw[i] = sigma2[i] * (lm.passed[k] - lm.removed[k] / 10) + noise**2
         assert lm.passed[k] == pytest.approx([0.44, 0.29][i], abs=0.02)
-    eps = epsilon_from(sigma2, big_l, "exponential")
+    eps = epsilon_from_integral_scale(sigma2, big_l, "exponential")
     sf = xr.Dataset(
         {
             "structure_function": (("time", "height", "lag"), d[None]),
@@ -392,6 +392,6 @@ def test_cw_noise_is_pooled_over_neighbouring_blocks(tmp_path):
     alone = epsilon.estimate_epsilon(sf, noise_window_blocks=1, **kw)
     np.testing.assert_allclose(pooled["noise_std"].values[:, 0], 0.05, rtol=0.02)
     assert alone["noise_std"].values[3, 0] > 0.06  # the raised lag read as noise
-    eps = epsilon_from(sigma2, big_l, "exponential")
+    eps = epsilon_from_integral_scale(sigma2, big_l, "exponential")
     keep = np.arange(7) != 3
     np.testing.assert_allclose(pooled["epsilon"].values[keep, 0], eps[keep], rtol=0.01)

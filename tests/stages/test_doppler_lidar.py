@@ -190,7 +190,7 @@ def test_real_stare_with_its_background_gives_beta_in_the_boundary_layer(real_da
     kilometres, the noise sd 0.0020-0.0025 (1/sqrt(pulses x points) = 0.0018)."""
     from cwproc.io.halo import read_hpl
     from cwproc.io.halo_background import read_halo_background
-    from cwproc.stages.background import correct_snr
+    from cwproc.stages.snr_correction import correct_snr
 
     hpl = Path(real_data) / "hpl" / "eriswil-2022-12-14-Stare_91_20221214_11.hpl"
     bg = Path(real_data) / "hpl" / "background" / "eriswil-Background_141222-000013.txt"
@@ -211,7 +211,7 @@ def _real_layout_depolarisation(real_data, tmp_path, delta: float, n: int = 40):
     from cwproc.io.halo import read_hpl, write_hpl
     from cwproc.io.halo_background import read_halo_background
     from cwproc.sim.depol import polarised_pair, write_background
-    from cwproc.stages.background import correct_snr
+    from cwproc.stages.snr_correction import correct_snr
 
     hpl = Path(real_data) / "hpl" / "eriswil-2022-12-14-Stare_91_20221214_11.hpl"
     bg = read_halo_background(

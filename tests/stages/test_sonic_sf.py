@@ -6,13 +6,16 @@ import numpy as np
 import pandas as pd
 import pytest
 import xarray as xr
+from scipy.fft import next_fast_len
 
 from cwproc.config import load_config
 from cwproc.errors import CwprocError
+from cwproc.physics import sonic_fits
+from cwproc.physics import structure_functions as SF
 from cwproc.pipeline import process_sonic
 from cwproc.sim.sonic import SFModel, default_models, simulate_sonic_dataset
-from cwproc.stages import sonic_fits
 from cwproc.stages import sonic_sf as S
+from cwproc.stages import sonic_sf_tables as tables
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +35,7 @@ def test_fft_structure_function_equals_direct_sum_with_missing_samples():
     rng = np.random.default_rng(1)
     x = np.cumsum(rng.standard_normal((2, 500)), axis=1)
     x[0, rng.choice(500, 60, replace=False)] = np.nan
-    d, pairs = S.structure_function_fft(x, 40)
+    d, pairs = SF.structure_function_fft(x, 40)
     for row in range(2):
         for j in (1, 7, 40):
             diff = x[row, j:] - x[row, :-j]
@@ -44,7 +47,7 @@ def test_fft_structure_function_equals_direct_sum_with_missing_samples():
 def test_running_mean_matches_pandas_centred_rolling():
     rng = np.random.default_rng(2)
     x = rng.standard_normal(300)
-    out = S.remove_running_mean(x[None, :], 21)[0]
+    out = SF.remove_running_mean(x[None, :], 21)[0]
     ref = x - pd.Series(x).rolling(21, center=True, min_periods=1).mean().to_numpy()
     np.testing.assert_allclose(out, ref, atol=1e-12)
 
@@ -69,7 +72,7 @@ def _lags(r_min: float = 0.5, k: int = 200) -> np.ndarray:
 def test_noise_free_power_law_is_type_1_with_its_slope():
     r = _lags()
     y = 0.6 * np.log10(r)
-    dec = S.decide_types(
+    dec = sonic_fits.decide_types(
         r, y, r_norm=1.0, kd_threshold=0.9985, precedence_tolerance=0.05, min_points=5
     )
     assert dec.sf_type[0] == 1
@@ -81,7 +84,7 @@ def test_noise_free_parabola_is_type_2_with_its_coefficients():
     r = _lags()
     x = np.log10(r)
     y = 0.8 * x - 0.25 * x**2
-    dec = S.decide_types(
+    dec = sonic_fits.decide_types(
         r, y, r_norm=1.0, kd_threshold=0.9985, precedence_tolerance=0.05, min_points=5
     )
     assert dec.sf_type[0] == 2
@@ -93,7 +96,7 @@ def test_noise_free_parabola_then_line_is_type_3_with_break_between_r_p_and_r_l(
     x = np.log10(r)
     xs = np.log10(4.0)
     y = np.where(x <= xs, 0.8 * x - 0.5 * x**2, 0.8 * xs - 0.5 * xs**2 + 0.7 * (x - xs))
-    dec = S.decide_types(
+    dec = sonic_fits.decide_types(
         r, y, r_norm=1.0, kd_threshold=0.9985, precedence_tolerance=0.05, min_points=5
     )
     assert dec.sf_type[0] == 3
@@ -108,7 +111,7 @@ def test_fit_range_below_r_n_is_rejected():
     r = _lags(0.05, 200)
     x = np.log10(r)
     y = np.where(r < 0.8, 0.66 * x, 0.66 * np.log10(0.8)) + 0.3 * np.sin(40 * x) * (r > 0.8)
-    dec = S.decide_types(
+    dec = sonic_fits.decide_types(
         r, y, r_norm=1.0, kd_threshold=0.9985, precedence_tolerance=0.05, min_points=5
     )
     assert dec.sf_type[0] == 0
@@ -235,7 +238,7 @@ def test_missing_rate_is_a_clear_error():
 
 def test_summary_tables_count_what_the_product_holds(sims):
     _, sf = sims[3]
-    occ = S.type_occurrence(sf)
+    occ = tables.type_occurrence(sf)
     assert list(occ.index) == list(S.COMPONENTS)
     row = occ.loc["longitudinal"]
     assert row["all_types_pct"] == pytest.approx(
@@ -243,7 +246,7 @@ def test_summary_tables_count_what_the_product_holds(sims):
     )
     n3 = int((sf["sf_type"].sel(component="longitudinal") == 3).sum())
     assert row["type3_pct"] == pytest.approx(100 * n3 / sf.sizes["window"])
-    stats = S.parameter_statistics(sf)
+    stats = tables.parameter_statistics(sf)
     g = stats.query("type == 3 and component == 'longitudinal' and parameter == 'sf_gamma'")
     assert int(g["count"].iloc[0]) == n3
     vals = sf["sf_gamma"].sel(component="longitudinal").values
@@ -295,12 +298,12 @@ def test_grown_fit_in_blocks_equals_one_block(monkeypatch, deg):
     curve = rng.uniform(-1.0, 1.0, (n_series, 1)) * x**2 + rng.uniform(0.5, 1.0, (n_series, 1)) * x
     y = curve + rng.normal(0, rng.uniform(1e-4, 1e-3, (n_series, 1)), x.shape)
     y[rng.random(y.shape) < 0.02] = np.nan
-    sums = S.running_sums(x, y, 2)
+    sums = sonic_fits.running_sums(x, y, 2)
     start = rng.integers(0, 100, n_series)
     args = {"kd_threshold": 0.999, "min_points": 5}
-    blocked = S.grow_polynomial_fit(sums, start, deg, **args)
+    blocked = sonic_fits.grow_polynomial_fit(sums, start, deg, **args)
     monkeypatch.setattr(sonic_fits, "_FIRST_BLOCK", 10 * n_lags)
-    whole = S.grow_polynomial_fit(sums, start, deg, **args)
+    whole = sonic_fits.grow_polynomial_fit(sums, start, deg, **args)
     assert (blocked.end >= 0).sum() > n_series // 4  # many fits grow, some stop early
     assert len(set(blocked.end[blocked.end >= 0])) > 5
     np.testing.assert_array_equal(blocked.end, whole.end)
@@ -313,8 +316,8 @@ def test_structure_function_of_complete_series_equals_the_batched_transform():
     are exactly those of transforming every series' mask (pairs N_j = N - j)."""
     rng = np.random.default_rng(5)
     x = rng.normal(size=(7, 1000))
-    d, pairs = S.structure_function_fft(x, 64)
-    nfft = S.next_fast_len(1000 + 65)
+    d, pairs = SF.structure_function_fft(x, 64)
+    nfft = next_fast_len(1000 + 65, real=True)
     fm, fa, fs = (np.fft.rfft(v, nfft, axis=-1) for v in (np.ones_like(x), x, x * x))
 
     def corr(p, q):
@@ -334,8 +337,8 @@ def test_running_mean_and_grid_shortcuts_equal_the_general_paths():
     x = rng.normal(size=(4, 500))
     gappy = x.copy()
     gappy[0, 0] = np.nan  # another row with a gap sends the call to the general path
-    complete = S.remove_running_mean(x, 61)
-    general = S.remove_running_mean(np.concatenate([x, gappy[:1]]), 61)[:4]
+    complete = SF.remove_running_mean(x, 61)
+    general = SF.remove_running_mean(np.concatenate([x, gappy[:1]]), 61)[:4]
     np.testing.assert_array_equal(complete, general)
     t0 = np.datetime64("2024-06-01T00:00:00", "ns")
     time = t0 + (np.arange(3000) * 1e8).astype("timedelta64[ns]")  # 10 Hz, 5 min

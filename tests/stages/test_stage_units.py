@@ -24,9 +24,9 @@ from cwproc.metadata import INTERMEDIATE_VARIABLES, VARIABLES, product_table
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from test_background_stage import _background, _scans
 from test_doppler_lidar import layered
 from test_lidar_sonic import lidar_product, sonic_product
+from test_snr_correction import _background, _scans
 from test_stare import constant_wind, stare_dataset
 
 REPO = Path(__file__).resolve().parents[2]
@@ -112,7 +112,7 @@ OUTPUTS: dict[str, tuple[str | None, Callable[..., xr.Dataset]]] = {
     "structure:azimuth_structure_function": (None, lambda chain: chain["sf"]),
     "epsilon/__init__:estimate_epsilon": ("turbulence", lambda chain: chain["turbulence"]),
     "stare:stare_product": ("stare", _stare),
-    "zephir:wind_record_product": (
+    "wind_records:wind_record_product": (
         "wind_record",
         _wind_record("zephir", "Wind10_999@Y2024_M06_D01.ZPH.csv"),
     ),
@@ -125,7 +125,7 @@ OUTPUTS: dict[str, tuple[str | None, Callable[..., xr.Dataset]]] = {
     ),
     "sonic_turbulence:sonic_turbulence": ("sonic_turbulence", _sonic_turbulence),
     "doppler_lidar:doppler_lidar_product": ("doppler_lidar", _doppler_lidar),
-    "background:correct_snr": (None, _correct_snr),
+    "snr_correction:correct_snr": (None, _correct_snr),
     "lidar_sonic:compare_lidar_sonic": ("lidar_sonic", _compare),
 }
 

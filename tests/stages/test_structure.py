@@ -298,7 +298,7 @@ def test_statistics_covariance_is_the_scatter_of_the_scan_means():
 
     Scans with any missing statistic are left out; a block with one scan gets NaN.
     """
-    from cwproc.stages.structure import block_statistics
+    from cwproc.physics.block_stats import block_statistics
 
     rng = np.random.default_rng(4)
     vprime = rng.normal(0.0, 1.0, (13, 36, 2))  # blocks of 6, 6 and 1 scans
@@ -365,7 +365,7 @@ def test_group_median_is_the_grouped_median_of_pandas():
     the bit: odd and even counts, one value, an infinite one, a block without any."""
     import pandas as pd
 
-    from cwproc.stages.structure import _group_median
+    from cwproc.physics.block_stats import group_median
 
     rng = np.random.default_rng(12)
     values = np.round(rng.normal(45.0, 0.3, 40), 3)
@@ -375,12 +375,12 @@ def test_group_median_is_the_grouped_median_of_pandas():
     group[group == 2] = 1  # block 2 has no value
     group[-1] = 6  # block 6 has one
     expected = pd.Series(values).groupby(group).median().reindex(np.arange(8)).to_numpy()
-    got = _group_median(values, group, 8)
+    got = group_median(values, group, 8)
     assert np.array_equal(got, expected, equal_nan=True)
     assert np.isnan(got[[2, 5, 7]]).all() and got[6] == values[-1]
-    assert np.isnan(_group_median(np.full(3, np.nan), np.arange(3), 4)).all()
+    assert np.isnan(group_median(np.full(3, np.nan), np.arange(3), 4)).all()
     shuffled = np.random.default_rng(1).permutation(40)  # groups in any order
-    assert np.array_equal(_group_median(values[shuffled], group[shuffled], 8), got, True)
+    assert np.array_equal(group_median(values[shuffled], group[shuffled], 8), got, True)
 
 
 def test_pair_azimuth_weights_of_all_lags_at_once_are_those_lag_by_lag():
@@ -388,7 +388,8 @@ def test_pair_azimuth_weights_of_all_lags_at_once_are_those_lag_by_lag():
     :func:`pair_node_weights` of each lag on its own, to the bit (missing values, a
     block without a start azimuth, a height without a wind direction, both rotations,
     more lags than pair positions)."""
-    from cwproc.stages.structure import pair_azimuth_weights, pair_node_weights
+    from cwproc.physics.block_stats import pair_azimuth_weights
+    from cwproc.stages.structure import pair_node_weights
 
     rng = np.random.default_rng(31)
     vprime = rng.normal(size=(23, 40, 4))

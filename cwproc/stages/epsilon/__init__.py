@@ -147,6 +147,8 @@ sampling geometry and regime of each cell and are auxiliary coordinates
 
 from __future__ import annotations
 
+import dataclasses
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -159,6 +161,7 @@ from cwproc.physics.exact_lag import is_cw_probe
 from cwproc.physics.spectra import Model
 from cwproc.physics.transfer import Probe, PulsedProbe
 from cwproc.stages.epsilon.atable_fit import (
+    TableOptions,
     cell_a_functions,
     stare_dwell,
     table_options_for,
@@ -175,8 +178,9 @@ from cwproc.stages.epsilon.noise_prior import (
     cell_intercepts,
     day_calibration,
 )
-from cwproc.stages.epsilon.outer_scale import fit_setup, retrieve
+from cwproc.stages.epsilon.outer_scale import fit_cells, fit_setup
 from cwproc.stages.epsilon.product import describe, product_arrays, turbulence_dataset
+from cwproc.stages.epsilon.records import CellTables, FitMemo, NoisePrior
 
 #: the Stream Line preset's probe volume (``cwproc/configs/streamline.toml``:
 #: ``pulse_transfer = "physical"``), for data without a range gate length (the pipeline
@@ -254,14 +258,15 @@ def estimate_epsilon(
     if lag_number < 2:
         raise ValueError("lag_number must be >= 2 (Smalikho (2020), eq. 5)")
     options = table_options_for(sf, table_options, prf_hz)  # the A-table of all heights
-    settings = (probe, lag_number, model, min_pairs, n_outer_scales, options, fit_noise)
-    memo: dict = {}  # what the groups share: per distinct (dy, range) pair (fit_setup)
+    settings = BlockGroupSettings(
+        probe, lag_number, model, min_pairs, n_outer_scales, options, fit_noise, noise_window_blocks
+    )
+    memo = FitMemo()  # what the groups share: per distinct (dy, range) pair (fit_setup)
     groups = block_groups(sf, probe)
 
     def run(prior: tuple[float, float]) -> list[tuple]:
         return [
-            _block_group(sf.isel(time=rows), *settings, noise_window_blocks, memo, prior)
-            for rows in groups
+            _block_group(sf.isel(time=rows), settings, memo=memo, prior=prior) for rows in groups
         ]
 
     parts = run((1.0, NOISE_PRIOR_REL_SE))
@@ -287,7 +292,7 @@ def estimate_epsilon(
     return out
 
 
-def dwell_attrs(sf: xr.Dataset, options: dict, prf_hz: float | None) -> dict[str, Any]:
+def dwell_attrs(sf: xr.Dataset, options: TableOptions, prf_hz: float | None) -> dict[str, Any]:
     """Product attributes of the rays' accumulation: swept, or step-stare with a dwell.
 
     ``ray_dwell_fraction`` is the dwell over the ray period that the A-tables averaged
@@ -295,15 +300,15 @@ def dwell_attrs(sf: xr.Dataset, options: dict, prf_hz: float | None) -> dict[str
     rays last their whole period), ``ray_dwell_s`` the dwell pulses per ray / PRF (NaN
     unknown), ``ray_period_s`` the ray period.
     """
-    from cwproc.physics.atable import dwell_fraction
+    from cwproc.physics.atable import table_dwell_step
 
-    dwell_s, fraction, tau = stare_dwell(sf, prf_hz)
-    if options.get("swept", True):
+    dwell_s, _, tau = stare_dwell(sf, prf_hz)
+    if options.swept:
         return {"swept_rays": 1, "ray_dwell_fraction": 1.0, "ray_period_s": tau}
     return {
         "swept_rays": 0,
         "ray_dwell_s": dwell_s,
-        "ray_dwell_fraction": dwell_fraction(float(options.get("dwell", fraction))),
+        "ray_dwell_fraction": table_dwell_step(float(options.dwell)),
         "ray_period_s": tau,
     }
 
@@ -358,17 +363,27 @@ def _join_blocks(parts: list[xr.Dataset]) -> xr.Dataset:
     return joined[list(parts[0].variables)]
 
 
+@dataclass(frozen=True)
+class BlockGroupSettings:
+    """The settings of :func:`estimate_epsilon` every group of blocks is fitted with
+    (:func:`_block_group`; each as the parameter of the same name there)."""
+
+    probe: Probe
+    lag_number: int
+    model: Model
+    min_pairs: int
+    n_outer_scales: int
+    #: the A-table settings (:func:`cwproc.stages.epsilon.atable_fit.table_options_for`)
+    options: TableOptions
+    fit_noise: bool
+    noise_window_blocks: int
+
+
 def _block_group(
     sf: xr.Dataset,
-    probe: Probe,
-    lag_number: int,
-    model: Model,
-    min_pairs: int,
-    n_outer_scales: int,
-    options: dict,
-    fit_noise: bool,
-    noise_window_blocks: int,
-    memo: dict | None = None,
+    settings: BlockGroupSettings,
+    *,
+    memo: FitMemo | None = None,
     prior: tuple[float, float] = (1.0, NOISE_PRIOR_REL_SE),
 ) -> tuple[xr.Dataset, int, int, float, tuple]:
     """The turbulence product of the blocks of ``sf`` (:func:`estimate_epsilon`);
@@ -380,39 +395,45 @@ def _block_group(
     finite-outer-scale and exact cw cells, ``c`` of ``L_V = c sigma_V^3 / eps`` and the
     inputs of the noise calibration (:func:`~cwproc.stages.epsilon.noise_prior.cell_intercepts`).
     """
+    probe, model, options = settings.probe, settings.model, settings.options
     cells = cell_inputs(sf, probe)
-    lag_used = int(min(lag_number, cells.n_lags))
-    valid = cells.pairs >= min_pairs
+    lag_used = int(min(settings.lag_number, cells.n_lags))
+    valid = cells.pairs >= settings.min_pairs
     noise_raw = predicted_noise(sf, probe)
     noise_pred = noise_raw * prior[0]
     exact = exact_cells(probe, cells, model)
-    a_functions = cell_a_functions(probe, cells, model, options)
     cov = statistics_covariance(sf)
-    fixed = fit_setup(
-        probe,
+    setup = fit_setup(
         cells,
-        model,
-        options,
-        a_functions,
-        valid,
-        exact,
-        noise_pred,
-        n_outer_scales,
-        cov,
-        memo,
-        prior[1],
+        CellTables(*cell_a_functions(probe, cells, model, options)),
+        probe=probe,
+        model=model,
+        options=options,
+        valid=valid,
+        exact=exact,
+        prior=NoisePrior(noise_pred, prior[1]),
+        n_outer_scales=settings.n_outer_scales,
+        cov=cov,
+        memo=memo,
     )
-    res = retrieve(fixed, cells.d, cells.var_raw)
-    est = {**res, "sf_model_exact": np.full(cells.d.shape, np.nan)}
+    res = fit_cells(setup, cells.d, cells.var_raw)
+    est = dataclasses.replace(res, sf_model_exact=np.full(cells.d.shape, np.nan))
     if np.any(exact):
         est = apply_exact_cells(
-            probe, cells, fixed, res, model, options, fit_noise, noise_window_blocks
+            probe,
+            cells,
+            setup,
+            res,
+            model,
+            options,
+            settings.fit_noise,
+            settings.noise_window_blocks,
         )
     flag, bad, few_fit = turbulence_flags(cells, valid, lag_used, est, model)
     arrays = product_arrays(est, bad, few_fit, exact)
-    cov_errors = correlated_scans_covariance(sf, cells, cov, res["l_v"], model)
+    cov_errors = correlated_scans_covariance(sf, cells, cov, res.l_v, model)
     eps_se, sigma2_se, scale_se = block_errors(
-        sf, lag_used, fixed, cells.d, cells.var_raw, arrays, est["noise"], res, cov_errors
+        sf, lag_used, setup, cells.d, cells.var_raw, arrays, est.noise, res, cov_errors
     )
     out = turbulence_dataset(
         sf,
@@ -426,5 +447,5 @@ def _block_group(
         },
         flag,
     )
-    intercepts = cell_intercepts(cells, est["a2"], valid, fixed, noise_raw, bad | exact)
-    return out, int(est["finite_used"].sum()), int(exact.sum()), fixed["c_model"], intercepts
+    intercepts = cell_intercepts(cells, est.a2, valid, setup, noise_raw, bad | exact)
+    return out, int(est.finite_used.sum()), int(exact.sum()), setup.c_model, intercepts

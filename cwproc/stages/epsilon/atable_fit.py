@@ -8,7 +8,10 @@ the azimuths of the pairs present (sectors and gaps).
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import os
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -84,8 +87,49 @@ def table_height_range(
     return lo, hi
 
 
+@dataclass(frozen=True)
+class TableOptions:
+    """The A-table settings of a dataset (:func:`table_options_for`): the keyword
+    arguments of :func:`cwproc.tables.atable.get_a_table` besides the scan geometry,
+    with its defaults.
+
+    Attributes
+    ----------
+    height_range_m : tuple of float
+        Heights the tables cover (m).
+    swept : bool
+        Swept rays (continuous scans) or step-stare rays.
+    dwell : float
+        Dwell fraction of step-stare rays (0: instantaneous).
+    mu_max : float
+        Largest ``mu = U / V_s`` of the tables.
+    outer_scale_range_m : tuple of float
+        L_V range (m) of the finite-outer-scale tables and fits.
+    geometry : str or None
+        Pair geometry (None: the tables' default, the exact two-beam one).
+    cache_dir : str or os.PathLike or None
+        Where tables are cached (None: the table store's default).
+    """
+
+    height_range_m: tuple[float, float]
+    swept: bool = True
+    dwell: float = 0.0
+    mu_max: float = 10.0
+    outer_scale_range_m: tuple[float, float] = (10.0, 3000.0)
+    geometry: str | None = None
+    cache_dir: str | os.PathLike | None = None
+
+    def table_kwargs(self, *, finite: bool) -> dict[str, Any]:
+        """The keyword arguments of :func:`cwproc.tables.atable.get_a_table` (an inertial
+        table has no outer-scale range)."""
+        kwargs = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        if not finite:
+            del kwargs["outer_scale_range_m"]
+        return kwargs
+
+
 def a_tables(
-    probe: Any, phi: float, dtheta: float, n_lags: int, model: str, options: dict
+    probe: Any, phi: float, dtheta: float, n_lags: int, model: str, options: TableOptions
 ) -> tuple:
     """The inertial A-table and, for finite-outer-scale models, the model's table."""
     inertial = get_a_table(
@@ -94,12 +138,17 @@ def a_tables(
         delta_theta_deg=dtheta,
         n_lags=n_lags,
         model="inertial",
-        **{k: v for k, v in options.items() if k != "outer_scale_range_m"},
+        **options.table_kwargs(finite=False),
     )
     if model == "inertial":
         return inertial, None
     finite = get_a_table(
-        probe, phi_deg=phi, delta_theta_deg=dtheta, n_lags=n_lags, model=model, **options
+        probe,
+        phi_deg=phi,
+        delta_theta_deg=dtheta,
+        n_lags=n_lags,
+        model=model,
+        **options.table_kwargs(finite=True),
     )
     return inertial, finite
 
@@ -193,12 +242,13 @@ def outer_scale_sector_factor(
 
 def table_options_for(
     sf: xr.Dataset, table_options: dict | None, prf_hz: float | None = None
-) -> dict:
-    """Keyword arguments of :func:`cwproc.tables.atable.get_a_table` for ``sf``.
+) -> TableOptions:
+    """The A-table settings of ``sf`` (:class:`TableOptions`).
 
-    ``table_options`` completed with the height range of the data
-    (:func:`table_height_range`), whether the rays are swept (``swept_rays``) and, for
-    step-stare rays, their dwell fraction (:func:`stare_dwell`).
+    ``table_options`` (keyword arguments of :func:`cwproc.tables.atable.get_a_table`)
+    completed with the height range of the data (:func:`table_height_range`), whether
+    the rays are swept (``swept_rays``) and, for step-stare rays, their dwell fraction
+    (:func:`stare_dwell`).
     """
     options = dict(table_options or {})
     if "height_range_m" not in options:
@@ -206,7 +256,7 @@ def table_options_for(
     options.setdefault("swept", bool(int(sf.attrs.get("swept_rays", 1))))
     if not options["swept"]:
         options.setdefault("dwell", stare_dwell(sf, prf_hz)[1])
-    return options
+    return TableOptions(**options)
 
 
 def stare_dwell(sf: xr.Dataset, prf_hz: float | None = None) -> tuple[float, float, float]:
@@ -233,7 +283,7 @@ def stare_dwell(sf: xr.Dataset, prf_hz: float | None = None) -> tuple[float, flo
     return (np.nan if dwell is None else float(dwell)), fraction, tau
 
 
-def cell_a_functions(probe: Any, cells: Cells, model: str, options: dict) -> tuple:
+def cell_a_functions(probe: Any, cells: Cells, model: str, options: TableOptions) -> tuple:
     """``(A_1, A_2, sector, groups)`` of every cell from the inertial A-tables.
 
     One pair of tables per (elevation, azimuth step) (:func:`a_tables`), evaluated for

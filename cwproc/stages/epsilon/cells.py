@@ -162,7 +162,7 @@ def predicted_noise(sf: xr.Dataset, probe: Any) -> np.ndarray:
 def statistics_covariance(sf: xr.Dataset) -> np.ndarray | None:
     """``(time, height, lag + 1, lag + 1)`` covariance of the block-mean ``D_L`` and variance.
 
-    ``statistics_covariance`` of :func:`cwproc.stages.block_stats.block_statistics`
+    ``statistics_covariance`` of :func:`cwproc.physics.block_stats.block_statistics`
     (m4 s-4; the jackknife over the block's scans), as float64; None when the
     structure function does not carry it.
     """

@@ -8,6 +8,7 @@ fixes ``L_V``: :func:`fit_exact_cells` fits ``2 sigma_V^2 [b_0 - b_l] + 2 sigma_
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
@@ -20,8 +21,9 @@ from cwproc.physics.exact_lag import (
     variance_root,
 )
 from cwproc.physics.structure_fit import fit_structure_function
-from cwproc.stages.epsilon.atable_fit import evaluate_table
+from cwproc.stages.epsilon.atable_fit import TableOptions, evaluate_table
 from cwproc.stages.epsilon.cells import Cells
+from cwproc.stages.epsilon.records import CellEstimates, FitSetup
 
 #: blocks over which the cw fit pools the noise variance (median), see :func:`fit_exact_cells`
 NOISE_WINDOW_BLOCKS = 7
@@ -122,14 +124,14 @@ def exact_cells(probe: Any, cells: Cells, model: str) -> np.ndarray:
 def apply_exact_cells(
     probe: Any,
     cells: Cells,
-    fixed: dict,
-    res: dict,
+    setup: FitSetup,
+    res: CellEstimates,
     model: str,
-    options: dict,
+    options: TableOptions,
     fit_noise: bool,
     noise_window: int,
-) -> dict:
-    """The estimates of :func:`cwproc.stages.epsilon.outer_scale.retrieve` with the cw cells
+) -> CellEstimates:
+    """The estimates of :func:`cwproc.stages.epsilon.outer_scale.fit_cells` with the cw cells
     replaced by those of the exact model (:func:`fit_exact_cells`).
 
     The A-functions of the model's table at the fitted ``L_V`` (clipped to the table's
@@ -137,14 +139,14 @@ def apply_exact_cells(
     ratio; ``sf_model_exact`` is the exact model's structure function (NaN elsewhere).
     A pooled cw intercept of zero means no intercept was fitted: its ``noise`` is NaN.
     """
-    exact = fixed["exact"]
+    exact = setup.exact
     fit = fit_exact_cells(
-        probe, cells, fixed["valid"], exact, model, fixed["c_model"], fit_noise, noise_window
+        probe, cells, setup.valid, exact, model, setup.c_model, fit_noise, noise_window
     )
-    a1, a2 = res["a1"].copy(), res["a2"].copy()
+    a1, a2 = res.a1.copy(), res.a2.copy()
     lags = np.arange(1, cells.n_lags + 1, dtype=float)
-    lo, hi = options.get("outer_scale_range_m", (10.0, 3000.0))
-    for rows, (_, table) in fixed["groups"].values():  # A-functions at L_V: method 1, the ratio
+    lo, hi = options.outer_scale_range_m
+    for rows, (_, table) in setup.tables.groups.values():  # A-functions at L_V: method 1, the ratio
         sel = exact & rows[:, None] & np.isfinite(fit["integral_scale"])
         ti, hi_ = np.nonzero(sel)
         g1, g2 = evaluate_table(
@@ -154,20 +156,20 @@ def apply_exact_cells(
             cells.mu_eval[ti, hi_][:, None],
             np.clip(fit["integral_scale"][ti, hi_], lo, hi)[:, None],
         )
-        a1[ti, hi_], a2[ti, hi_] = g1, g2 * fixed["sector"][ti, hi_]
-    e1, _, _ = fit_structure_function(cells.d, a1, fixed["valid"], fixed["noise_pred"])
-    fitted = np.where(exact, fit["noise_std"] > 0, res["fitted"])
-    noise = np.where(exact, fit["noise_std"], res["noise"])
-    return {
-        **res,
-        "a1": a1,
-        "a2": a2,
-        "e1": e1,
-        "efit": np.where(exact, fit["epsilon"], res["efit"]),
-        "noise": np.where(exact & ~fitted, np.nan, noise),
-        "fitted": fitted,
-        "sigma2": np.where(exact, fit["velocity_variance"], res["sigma2"]),
-        "l_v": np.where(exact, fit["integral_scale"], res["l_v"]),
-        "too_small": res["too_small"] | (exact & fit["below_range"]),
-        "sf_model_exact": fit["structure_function_model"],
-    }
+        a1[ti, hi_], a2[ti, hi_] = g1, g2 * setup.tables.sector[ti, hi_]
+    e1, _, _ = fit_structure_function(cells.d, a1, setup.valid, setup.prior.predicted)
+    fitted = np.where(exact, fit["noise_std"] > 0, res.fitted)
+    noise = np.where(exact, fit["noise_std"], res.noise)
+    return dataclasses.replace(
+        res,
+        a1=a1,
+        a2=a2,
+        e1=e1,
+        efit=np.where(exact, fit["epsilon"], res.efit),
+        noise=np.where(exact & ~fitted, np.nan, noise),
+        fitted=fitted,
+        sigma2=np.where(exact, fit["velocity_variance"], res.sigma2),
+        l_v=np.where(exact, fit["integral_scale"], res.l_v),
+        too_small=res.too_small | (exact & fit["below_range"]),
+        sf_model_exact=fit["structure_function_model"],
+    )

@@ -13,7 +13,8 @@ import xarray as xr
 from cwproc.physics.delta_method import delta_method_errors
 from cwproc.physics.removed_share import MAX_SECTOR_RAYS, partial_circle, transport_mu
 from cwproc.stages.epsilon.cells import Cells
-from cwproc.stages.epsilon.outer_scale import retrieve
+from cwproc.stages.epsilon.outer_scale import fit_cells
+from cwproc.stages.epsilon.records import CellEstimates, FitSetup
 from cwproc.tables.removed_share import mean_removed_share
 from cwproc.tables.scan_factor import circle_variance_factor
 
@@ -58,17 +59,17 @@ def standard_errors(
 
 
 def covariance_errors(
-    fixed: dict, d: np.ndarray, var_raw: np.ndarray, cov: np.ndarray, base: dict
+    setup: FitSetup, d: np.ndarray, var_raw: np.ndarray, cov: np.ndarray, base: CellEstimates
 ) -> tuple[np.ndarray, ...]:
     """Standard errors of eps, sigma_V^2 and L_V by the delta method (m2 s-3, m2 s-2, m).
 
     The estimates are one function ``f(s)``
-    (:func:`cwproc.stages.epsilon.outer_scale.retrieve`) of the block-mean statistics
+    (:func:`cwproc.stages.epsilon.outer_scale.fit_cells`) of the block-mean statistics
     ``s = (D_L(1), ..., D_L(L), variance of V'_L)``: eps and L_V fitted together, so
     the scatter of the fitted L_V enters the error of eps through the
     A-functions. ``SE(f) = sqrt(g^T C g)``, ``C`` the covariance of ``s`` from the
     jackknife over the block's scans (``statistics_covariance`` of
-    :func:`cwproc.stages.block_stats.block_statistics`) and ``g`` the gradient of ``f`` by
+    :func:`cwproc.physics.block_stats.block_statistics`) and ``g`` the gradient of ``f`` by
     central differences of three tenths of a standard error either side of each
     component (:data:`cwproc.physics.delta_method.STEP_FRACTION`).
 
@@ -98,29 +99,31 @@ def covariance_errors(
     stats = np.concatenate([d, var_raw[..., None]], axis=-1)
 
     def estimates(s: np.ndarray) -> dict[str, np.ndarray]:
-        return retrieve(fixed, s[..., :n_l], s[..., n_l], base["root"], False, base["root_slope"])
+        near, slope = base.root, base.root_slope
+        return fit_cells(setup, s[..., :n_l], s[..., n_l], near, False, slope).arrays()
 
-    return delta_method_errors(estimates, stats, cov, base, ("efit", "sigma2", "l_v"))
+    keys = ("efit", "sigma2", "l_v")
+    return delta_method_errors(estimates, stats, cov, base.arrays(), keys)
 
 
 def block_errors(
     sf: xr.Dataset,
     lag_used: int,
-    fixed: dict,
+    setup: FitSetup,
     d: np.ndarray,
     var_raw: np.ndarray,
     arrays: dict[str, np.ndarray],
     noise: np.ndarray,
-    base: dict,
+    base: CellEstimates,
     cov: np.ndarray | None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Standard errors of eps, sigma_V^2 and L_V (m2 s-3, m2 s-2, m) of the product.
 
     :func:`covariance_errors` where ``sf`` carries ``statistics_covariance`` (``cov``,
     :func:`cwproc.stages.epsilon.cells.statistics_covariance`), except
-    in the exact cw cells (``fixed["exact"]``) and where an estimate is NaN, which keep
+    in the exact cw cells (``setup.exact``) and where an estimate is NaN, which keep
     :func:`standard_errors`. ``base`` is the result of
-    :func:`cwproc.stages.epsilon.outer_scale.retrieve` at the measured statistics,
+    :func:`cwproc.stages.epsilon.outer_scale.fit_cells` at the measured statistics,
     ``noise`` the sigma_e of the product (m s-1).
     """
     values = (arrays["epsilon"], arrays["velocity_variance"], arrays["integral_scale"])
@@ -135,9 +138,9 @@ def block_errors(
     )
     if cov is None:
         return first
-    delta = covariance_errors(fixed, d, var_raw, cov, base)
+    delta = covariance_errors(setup, d, var_raw, cov, base)
     return tuple(
-        np.where(fixed["exact"] | ~np.isfinite(v), old, new)
+        np.where(setup.exact | ~np.isfinite(v), old, new)
         for old, new, v in zip(first, delta, values, strict=True)
     )
 
@@ -148,7 +151,7 @@ def correlated_scans_covariance(
     """``cov`` with the variance's entries scaled for the correlation of consecutive scans.
 
     The refit jackknife of the variance of ``V'_L``
-    (:func:`cwproc.stages.block_stats.jackknife_covariance`) takes the scans as
+    (:func:`cwproc.physics.block_stats.jackknife_covariance`) takes the scans as
     independent. In the field the wind carries, consecutive full circles share eddies
     where the end of one scan and the start of the next see nearly the same air: at ``mu
     = U/V_s`` near 1 the beam moves with the wind at one azimuth (the cusp of its path

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from cwproc.stages.epsilon.cells import Cells
+from cwproc.stages.epsilon.records import CellEstimates
 
 #: turbulence_flag bits
 FLAG_TOO_FEW_PAIRS = 1
@@ -35,7 +36,7 @@ def _bit(condition: np.ndarray, bit: int) -> np.ndarray:
 
 
 def turbulence_flags(
-    cells: Cells, valid: np.ndarray, lag_used: int, est: dict, model: str
+    cells: Cells, valid: np.ndarray, lag_used: int, est: CellEstimates, model: str
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(flag, bad, few_fit)`` of every cell ``(time, height)``.
 
@@ -48,7 +49,7 @@ def turbulence_flags(
     lag_used : int
         The lag ``l`` of Smalikho (2020), eq. 5 (flag 1 needs pairs at lags 1 and l;
         the ratio of eq. 21 is taken between them).
-    est : dict
+    est : CellEstimates
         The estimates (``a1``, ``a2``, ``efit``, ``l_v``, ``too_small``, ``fitted``).
     model : str
         Spectrum model; with ``"inertial"`` the largest separation ``L dy (1 + mu)``
@@ -61,7 +62,7 @@ def turbulence_flags(
         and those with fewer than two valid lags.
     """
     n_l = cells.n_lags
-    a1, a2, l_v = est["a1"], est["a2"], est["l_v"]
+    a1, a2, l_v = est.a1, est.a2, est.l_v
     partial = cells.scans < MIN_BLOCK_FRACTION * cells.requested
     flag = np.zeros(l_v.shape, dtype=np.int16)
     flag |= _bit(partial[:, None], FLAG_PARTIAL_BLOCK)
@@ -72,16 +73,16 @@ def turbulence_flags(
     # (2020), after eq. 4). The finite-outer-scale A-functions hold at any separation: a
     # limit on the fitted L_V there only dropped the blocks whose sampling error made
     # L_V small (eps high), and biased the mean eps of 24-ray VADs 8-16 % low
-    beyond = est["too_small"]
+    beyond = est.too_small
     if model == "inertial":
         beyond = beyond | (np.isfinite(l_v) & (n_l * cells.dy * (1 + cells.mu_eval) > l_v))
     flag |= _bit(beyond, FLAG_BEYOND_INERTIAL)
-    failed = ~np.isfinite(est["efit"]) | ~np.isfinite(cells.mu) | (n_l < 2)
+    failed = ~np.isfinite(est.efit) | ~np.isfinite(cells.mu) | (n_l < 2)
     flag |= _bit(failed, FLAG_FIT_FAILED)
     bad = (flag & FLAGS_BAD) > 0
     flag |= _bit(~(ratio <= METHOD1_RATIO_LIMIT) & ~bad, FLAG_METHOD1_INVALID)
     few_fit = valid.sum(axis=-1) < 2
-    flag |= _bit(~est["fitted"] & ~few_fit & ~bad, FLAG_NOISE_PREDICTED)
+    flag |= _bit(~est.fitted & ~few_fit & ~bad, FLAG_NOISE_PREDICTED)
     flag |= _bit(unresolved_scale(l_v, cells.dy) & ~bad, FLAG_UNRESOLVED_SCALE)
     return flag, bad, few_fit
 

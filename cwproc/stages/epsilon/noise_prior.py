@@ -42,6 +42,7 @@ from cwproc.physics.structure_fit import (
 )
 from cwproc.stages.epsilon.cells import Cells
 from cwproc.stages.epsilon.flags import FLAG_NOISE_PREDICTED
+from cwproc.stages.epsilon.records import FitSetup
 
 __all__ = [
     "NOISE_PRIOR_REL_SE",
@@ -86,7 +87,7 @@ def cell_intercepts(
     cells: Cells,
     a2: np.ndarray,
     valid: np.ndarray,
-    fixed: dict,
+    setup: FitSetup,
     predicted: np.ndarray,
     skip: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -112,7 +113,7 @@ def cell_intercepts(
     (the prediction, which may be off, against the smallest D): the calibration's own
     precision rule (:func:`cwproc.physics.noise.noise_calibration`) selects the cells.
     """
-    d_cov = fixed["d_cov"]
+    d_cov = setup.d_cov
     b, se, n = free_intercept(cells.d, a2, valid, d_cov)
     if d_cov is not None and cells.d.ndim == 3:
         every = np.all(valid & np.isfinite(cells.d) & (cells.d > 0) & np.isfinite(a2), axis=-1)

@@ -3,7 +3,7 @@
 For a finite-outer-scale model the least squares of Smalikho (2020), eq. 4 with the
 model's A-functions gives ``eps(L_V)``; the root in ``L_V`` of the variance condition
 (the variance of ``V'_L`` the model predicts equals the measured one) fixes both
-(:func:`outer_scale_root`). :func:`retrieve` is the whole fit of a cell from its
+(:func:`outer_scale_root`). :func:`fit_cells` is the whole fit of a cell from its
 statistics, methods 1 and 2 included, a pure function of ``(D, variance)`` that the
 delta method differentiates (:mod:`cwproc.stages.epsilon.errors`).
 """
@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -31,8 +32,20 @@ from cwproc.physics.removed_share import (
 )
 from cwproc.physics.root_search import Residual, bracket_root, replayed_root
 from cwproc.physics.structure_fit import NOISE_PRIOR_REL_SE, fit_structure_function
-from cwproc.stages.epsilon.atable_fit import EVALUATION_CELLS, outer_scale_sector_factor
+from cwproc.stages.epsilon.atable_fit import (
+    EVALUATION_CELLS,
+    TableOptions,
+    outer_scale_sector_factor,
+)
 from cwproc.stages.epsilon.cells import Cells
+from cwproc.stages.epsilon.records import (
+    CellEstimates,
+    CellTables,
+    FiniteScaleInputs,
+    FitMemo,
+    FitSetup,
+    NoisePrior,
+)
 from cwproc.tables.removed_share import mean_removed_share, stored_dense_grid
 
 #: lengths below this fraction of L_V keep the inertial A-functions (see module doc)
@@ -60,13 +73,13 @@ NEAR_FACTOR = 2.0
 def finite_scale_inputs(
     probe: Any,
     model: str,
-    options: dict,
+    options: TableOptions,
     uniq: np.ndarray,
     inverse: np.ndarray,
     cells: Cells,
     n_outer_scales: int,
-    memo: dict | None = None,
-) -> dict:
+    memo: FitMemo | None = None,
+) -> FiniteScaleInputs:
     """What the finite-outer-scale fit needs besides D and the variance (per cell).
 
     The probe-passed variance per eps^(2/3) of the model on a log grid of L_V (ratio
@@ -75,12 +88,13 @@ def finite_scale_inputs(
     VAD wind removes (:func:`mean_removed_share` at the cell's ``mu``, divided by the scans
     of the block; sectors and gaps (:func:`partial_circle` of the ``weights`` and ``dtheta``
     of the ``cells``): :func:`sector_removed_share` with the scans' ``interval`` over
-    T_scan); the full variance per eps^(2/3) on that grid; the coarse L_V nodes.
+    T_scan); the full variance per eps^(2/3) on that grid; the coarse L_V nodes; the
+    longest length of each cell (its largest lag's separation or its probe length).
     ``memo``: see :func:`fit_setup`.
     """
     n_t, n_h = cells.range_m.shape
     scans, radius, mu_eval, weights = cells.scans, cells.radius, cells.mu_eval, cells.weights
-    lo, hi = options.get("outer_scale_range_m", (10.0, 3000.0))
+    lo, hi = options.outer_scale_range_m
     scale_grid = np.geomspace(lo, hi, int(np.ceil(np.log(hi / lo) / np.log(1.1))) + 1)
 
     def passed_per_pair() -> np.ndarray:
@@ -104,7 +118,7 @@ def finite_scale_inputs(
         rows = slice(t0, t0 + step)
         ratio_rl = radius[rows, :, None] / scale_grid[None, None, :]
         share[rows] = mean_removed_share(
-            ratio_rl, phi_med, model, mu_eval[rows, :, None], options.get("cache_dir")
+            ratio_rl, phi_med, model, mu_eval[rows, :, None], options.cache_dir
         )
     share /= n_eff[:, None, None]
     ti, hi_ = np.nonzero(
@@ -120,18 +134,21 @@ def finite_scale_inputs(
             phi_med,
             model,
         )
-    return {
-        "nodes": np.geomspace(lo, hi, n_outer_scales),
-        "scale_grid": scale_grid,
-        "passed": np.subtract(passed_cell, np.multiply(share, full_var, out=share), out=share),
-        "full_var": full_var,
-    }
+    n_l = cells.d.shape[2]
+    probe_len = np.broadcast_to(np.asarray(probe.length_scale_m(cells.range_m), float), (n_t, n_h))
+    return FiniteScaleInputs(
+        nodes=np.geomspace(lo, hi, n_outer_scales),
+        scale_grid=scale_grid,
+        passed=np.subtract(passed_cell, np.multiply(share, full_var, out=share), out=share),
+        full_var=full_var,
+        longest=np.maximum(n_l * cells.dy * (1 + mu_eval), probe_len),
+    )
 
 
 def variance_residual(
     table: Any,
     table_rows: np.ndarray,
-    finite: dict,
+    finite: FiniteScaleInputs,
     cell_sector: np.ndarray,
     passed: np.ndarray,
     dc: np.ndarray,
@@ -154,7 +171,7 @@ def variance_residual(
     decides whether sigma_e is fitted, ``prior_rel_se`` the relative standard error of
     the predicted ``2 sigma_e^2``.
     """
-    scale_grid = finite["scale_grid"]
+    scale_grid = finite.scale_grid
     cov = None if d_cov is None else d_cov[:, None]
 
     def residual(big_l: np.ndarray) -> np.ndarray:
@@ -174,14 +191,14 @@ def variance_residual(
 
 
 def _cells_residual(
-    index: np.ndarray, cells: tuple, table: Any, finite: dict, statistics: tuple
+    index: np.ndarray, cells: tuple, table: Any, finite: FiniteScaleInputs, statistics: tuple
 ) -> Residual:
     """:func:`variance_residual` of the cells ``index`` of ``cells``.
 
     ``cells``: time and height indices, table rows and passed variances of the cells;
     ``statistics``: the ``(time, height, ...)`` arrays sector factor, D, valid lags,
     variance, noise prediction, covariance of D (or None) and the prediction's relative
-    standard error of :func:`retrieve`.
+    standard error of :func:`fit_cells`.
     """
     ti, hi_, rows, passed = (c[index] for c in cells)
     sector, d, valid, var_raw, prior, d_cov, rel_se = statistics
@@ -233,128 +250,166 @@ def outer_scale_root(
     return root, has_root, below, np.full(n, np.nan)
 
 
-def retrieve(
-    fixed: dict,
+def fit_cells(
+    setup: FitSetup,
     d: np.ndarray,
     var_raw: np.ndarray,
     near: np.ndarray | None = None,
     method1: bool = True,
     near_slope: np.ndarray | None = None,
-) -> dict:
+) -> CellEstimates:
     """eps (methods 1 and 2), sigma_e, sigma_V^2 and L_V of every cell from D and the variance.
 
     The least squares of Smalikho (2020), eq. 4 over all valid lags with the cell's
     A-functions (:func:`cwproc.physics.structure_fit.fit_structure_function`); with a
     finite-outer-scale model, where a length exceeds :data:`INERTIAL_FRACTION` of the
     inertial L_V, the A-functions at the root of the variance condition
-    (:func:`outer_scale_root`). A pure function of ``(d, var_raw)`` given ``fixed`` (the
-    A-functions, tables, noise prediction, ...), so that
-    :func:`cwproc.stages.epsilon.errors.covariance_errors` can differentiate it; ``near``
-    (that function's base roots, NaN where the finite-outer-scale fit was not used) fixes
-    the cells of that fit and starts its root search there, from their slopes
+    (:func:`outer_scale_root`, :func:`_finite_scale_cells`). A pure function of
+    ``(d, var_raw)`` given ``setup`` (the A-functions, tables, noise prediction, ...), so
+    that :func:`cwproc.stages.epsilon.errors.covariance_errors` can differentiate it;
+    ``near`` (that function's base roots, NaN where the finite-outer-scale fit was not
+    used) fixes the cells of that fit and starts its root search there, from their slopes
     ``near_slope`` (the base's ``root_slope``) where given. ``method1=False`` leaves eps
     of method 1 (``e1``) NaN (the delta method does not use it).
     """
-    a1, a2 = fixed["a1"].copy(), fixed["a2"].copy()
-    valid, prior, c_model = fixed["valid"], fixed["noise_pred"], fixed["c_model"]
-    d_cov, rel_se = fixed["d_cov"], fixed.get("prior_rel_se", NOISE_PRIOR_REL_SE)
+    a1, a2 = setup.tables.a1.copy(), setup.tables.a2.copy()
     shape = d.shape[:2]
-
-    def solve() -> tuple:
-        e1 = np.full(shape, np.nan)
-        if method1:
-            e1, _, _ = fit_structure_function(d, a1, valid, prior, d_cov, rel_se)
-        efit, noise, fitted = fit_structure_function(d, a2, valid, prior, d_cov, rel_se)
-        return e1, efit, noise, fitted
-
-    too_small = np.zeros(shape, dtype=bool)
-    finite_used = np.zeros(shape, dtype=bool)
-    root_cell, slope = np.full(shape, np.nan), np.full(shape, np.nan)
-    finite = fixed["finite"]
+    roots = _FiniteRoots.empty(shape)
+    finite = setup.finite
     if finite is None or near is None:  # with both, every fit is redone below
-        e1, efit, noise, fitted = solve()
-        sigma2 = var_raw - np.nan_to_num(noise, nan=0.0) ** 2 + efit ** (2 / 3) * fixed["loss"]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / efit, np.nan)
+        e1, efit, noise, fitted = _fit_lags(setup, d, a1, a2, method1)
+        sigma2 = var_raw - np.nan_to_num(noise, nan=0.0) ** 2 + efit ** (2 / 3) * setup.loss
+        l_v = _integral_scale(setup.c_model, sigma2, efit)
     if finite is not None:
-        passed_fraction = np.full(shape, np.nan)
         if near is None:
-            need = np.isfinite(l_v) & (finite["longest"] > INERTIAL_FRACTION * l_v)
-            need &= ~fixed["exact"]
+            need = np.isfinite(l_v) & (finite.longest > INERTIAL_FRACTION * l_v)
+            need &= ~setup.exact
         else:
             need = np.isfinite(near)
-        sector = fixed["sector"]
-        for key, (rows, _) in fixed["groups"].items():  # one table per configuration
-            ti, hi_ = np.nonzero(need & rows[:, None])
-            if ti.size == 0:
-                continue
-            table, rank = fixed["cell_tables"][key]
-            cells = rank[ti] * shape[1] + hi_
-            passed = finite["passed"][ti, hi_]
-            root, use, below = np.empty(ti.size), np.empty(ti.size, bool), np.empty(ti.size, bool)
-            for lo in range(0, ti.size, ROOT_CELLS):  # bounded working memory
-                at = slice(lo, lo + ROOT_CELLS)
-                t_, h_ = ti[at], hi_[at]
-                residual_of = functools.partial(
-                    _cells_residual,
-                    cells=(t_, h_, cells[at], passed[at]),
-                    table=table,
-                    finite=finite,
-                    statistics=(sector, d, valid, var_raw, prior, d_cov, rel_se),
-                )
-                root[at], use[at], below[at], slope[t_, h_] = outer_scale_root(
-                    residual_of,
-                    t_.size,
-                    finite["nodes"],
-                    None if near is None else near[t_, h_],
-                    None if near_slope is None else near_slope[t_, h_],
-                )
-            if np.any(use):
-                tu, hu = ti[use], hi_[use]
-                g1, g2 = table.evaluate(root[use][:, None], cells[use])
-                a1[tu, hu] = g1[:, 0]
-                a2[tu, hu] = g2[:, 0] * sector[tu, hu]
-                finite_used[tu, hu] = True
-                root_cell[tu, hu] = root[use]
-                scale_grid = finite["scale_grid"]
-                through = interp_log_scale(scale_grid, passed[use], root[use][:, None])[:, 0]
-                total = np.interp(np.log(root[use]), np.log(scale_grid), finite["full_var"])
-                passed_fraction[tu, hu] = through / total
-            too_small[ti[below], hi_[below]] = True
-        e1, efit, noise, fitted = solve()
+        _finite_scale_cells(setup, d, var_raw, need, (near, near_slope), (a1, a2), roots)
+        e1, efit, noise, fitted = _fit_lags(setup, d, a1, a2, method1)
         sigma2 = np.where(
-            finite_used,
-            (var_raw - np.nan_to_num(noise, nan=0.0) ** 2) / passed_fraction,
-            var_raw - np.nan_to_num(noise, nan=0.0) ** 2 + efit ** (2 / 3) * fixed["loss"],
+            roots.used,
+            (var_raw - np.nan_to_num(noise, nan=0.0) ** 2) / roots.passed_fraction,
+            var_raw - np.nan_to_num(noise, nan=0.0) ** 2 + efit ** (2 / 3) * setup.loss,
         )
-        with np.errstate(invalid="ignore", divide="ignore"):
-            l_v = np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / efit, np.nan)
-    return {
-        "a1": a1,
-        "a2": a2,
-        "e1": e1,
-        "efit": efit,
-        "noise": noise,
-        "fitted": fitted,
-        "sigma2": sigma2,
-        "l_v": l_v,
-        "too_small": too_small,
-        "finite_used": finite_used,
-        "root": root_cell,
-        "root_slope": slope,
-    }
+        l_v = _integral_scale(setup.c_model, sigma2, efit)
+    return CellEstimates(
+        a1=a1,
+        a2=a2,
+        e1=e1,
+        efit=efit,
+        noise=noise,
+        fitted=fitted,
+        sigma2=sigma2,
+        l_v=l_v,
+        too_small=roots.too_small,
+        finite_used=roots.used,
+        root=roots.root,
+        root_slope=roots.slope,
+    )
 
 
-def _remembered(memo: dict | None, key: tuple, compute: Callable[[], np.ndarray]) -> np.ndarray:
-    """``compute()``, kept in ``memo`` under ``key`` (whose last item is the array of the
-    distinct (dy, range) pairs) and taken from it for the same key again."""
-    if memo is None:
-        return compute()
-    *head, pairs = key
-    full = (*head, pairs.shape, pairs.tobytes())
-    if full not in memo:
-        memo[full] = compute()
-    return memo[full]
+def _fit_lags(
+    setup: FitSetup, d: np.ndarray, a1: np.ndarray, a2: np.ndarray, method1: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(e1, efit, noise, fitted)``: Smalikho (2020), eq. 4 with ``A_1`` (method 1, NaN
+    without ``method1``) and with ``A_2`` (method 2, sigma_e fitted or predicted)."""
+    prior, rel_se = setup.prior.predicted, setup.prior.rel_se
+    e1 = np.full(d.shape[:2], np.nan)
+    if method1:
+        e1, _, _ = fit_structure_function(d, a1, setup.valid, prior, setup.d_cov, rel_se)
+    efit, noise, fitted = fit_structure_function(d, a2, setup.valid, prior, setup.d_cov, rel_se)
+    return e1, efit, noise, fitted
+
+
+def _integral_scale(c_model: float, sigma2: np.ndarray, efit: np.ndarray) -> np.ndarray:
+    """``L_V = c sigma_V^3 / eps`` (m, Banakh et al. (1999), eq. 19); NaN where
+    ``sigma_V^2 <= 0``."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(sigma2 > 0, c_model * np.abs(sigma2) ** 1.5 / efit, np.nan)
+
+
+@dataclass(frozen=True)
+class _FiniteRoots:
+    """``(time, height)`` outcome of the variance condition per cell (:func:`fit_cells`):
+    its root L_V (m) and the residual's slope there, whether the finite fit was used,
+    whether even the smallest node gave too much variance, and the passed fraction of
+    sigma_V^2 at the root."""
+
+    root: np.ndarray
+    slope: np.ndarray
+    used: np.ndarray
+    too_small: np.ndarray
+    passed_fraction: np.ndarray
+
+    @classmethod
+    def empty(cls, shape: tuple[int, ...]) -> _FiniteRoots:
+        nan = functools.partial(np.full, shape, np.nan)
+        no = functools.partial(np.zeros, shape, dtype=bool)
+        return cls(nan(), nan(), no(), no(), nan())
+
+
+def _finite_scale_cells(
+    setup: FitSetup,
+    d: np.ndarray,
+    var_raw: np.ndarray,
+    need: np.ndarray,
+    start: tuple[np.ndarray | None, np.ndarray | None],
+    a_functions: tuple[np.ndarray, np.ndarray],
+    roots: _FiniteRoots,
+) -> None:
+    """Solve the variance condition of the cells ``need``, one table configuration at a
+    time, and put the model's A-functions at the root into ``a_functions`` (``(a1, a2)``,
+    in place) and the outcome into ``roots``; ``start``: ``(near, near_slope)`` of
+    :func:`fit_cells`."""
+    finite, sector = setup.finite, setup.tables.sector
+    near, near_slope = start
+    a1, a2 = a_functions
+    n_h = d.shape[1]
+    statistics = (sector, d, setup.valid, var_raw, setup.prior.predicted, setup.d_cov)
+    for key, (rows, _) in setup.tables.groups.items():  # one table per configuration
+        ti, hi_ = np.nonzero(need & rows[:, None])
+        if ti.size == 0:
+            continue
+        table, rank = setup.cell_tables[key]
+        cells = rank[ti] * n_h + hi_
+        passed = finite.passed[ti, hi_]
+        root, use, below = np.empty(ti.size), np.empty(ti.size, bool), np.empty(ti.size, bool)
+        for lo in range(0, ti.size, ROOT_CELLS):  # bounded working memory
+            at = slice(lo, lo + ROOT_CELLS)
+            t_, h_ = ti[at], hi_[at]
+            residual_of = functools.partial(
+                _cells_residual,
+                cells=(t_, h_, cells[at], passed[at]),
+                table=table,
+                finite=finite,
+                statistics=(*statistics, setup.prior.rel_se),
+            )
+            root[at], use[at], below[at], roots.slope[t_, h_] = outer_scale_root(
+                residual_of,
+                t_.size,
+                finite.nodes,
+                None if near is None else near[t_, h_],
+                None if near_slope is None else near_slope[t_, h_],
+            )
+        if np.any(use):
+            tu, hu = ti[use], hi_[use]
+            g1, g2 = table.evaluate(root[use][:, None], cells[use])
+            a1[tu, hu] = g1[:, 0]
+            a2[tu, hu] = g2[:, 0] * sector[tu, hu]
+            roots.used[tu, hu] = True
+            roots.root[tu, hu] = root[use]
+            scale_grid = finite.scale_grid
+            through = interp_log_scale(scale_grid, passed[use], root[use][:, None])[:, 0]
+            total = np.interp(np.log(root[use]), np.log(scale_grid), finite.full_var)
+            roots.passed_fraction[tu, hu] = through / total
+        roots.too_small[ti[below], hi_[below]] = True
+
+
+def _remembered(memo: FitMemo | None, key: tuple, compute: Callable[[], np.ndarray]) -> np.ndarray:
+    """``compute()``, kept in ``memo`` (:meth:`FitMemo.remembered`) if there is one."""
+    return compute() if memo is None else memo.remembered(key, compute)
 
 
 #: nodes of ``mu`` of :func:`transport_loss` (linear interpolation in between; beyond
@@ -364,12 +419,14 @@ TRANSPORT_MU_NODES = np.array([0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 2.5, 3.0, 4.
 TRANSPORT_DY_RATIO = 1.4
 
 
-def transport_loss(probe: Any, cells: Cells, options: dict, memo: dict | None) -> np.ndarray:
+def transport_loss(
+    probe: Any, cells: Cells, options: TableOptions, memo: FitMemo | None
+) -> np.ndarray:
     """``(time, height)`` variance lost to the transport during each ray, per eps^(2/3).
 
     :func:`cwproc.physics.probe_variance.segment_loss` (a swept ray's segment ``dy (e_scan
     - mu e_wind)`` beyond its sweep; a step-stare ray's ``d mu dy e_wind``, ``d =
-    options["dwell"]``) on :data:`TRANSPORT_MU_NODES` and geometric ``dy`` nodes (ratio
+    options.dwell``) on :data:`TRANSPORT_MU_NODES` and geometric ``dy`` nodes (ratio
     :data:`TRANSPORT_DY_RATIO`; a pulsed probe's range weighting does not depend on the
     range), linear in ``mu`` and, as ``loss dy^(-2/3)`` (its inertial scaling), in ``log
     dy`` in between (within 0.5 % of direct evaluation, or 0.1 m^(2/3) where the loss
@@ -381,7 +438,7 @@ def transport_loss(probe: Any, cells: Cells, options: dict, memo: dict | None) -
     segment) and instantaneous step-stare rays.
     """
     shape = cells.dy.shape
-    swept, dwell = bool(options["swept"]), float(options.get("dwell", 0.0))
+    swept, dwell = bool(options.swept), float(options.dwell)
     dy = cells.dy.ravel()
     ok = np.isfinite(dy) & (dy > 0)
     if is_cw_probe(probe) or (not swept and dwell == 0.0) or not ok.any():
@@ -422,47 +479,42 @@ def transport_loss(probe: Any, cells: Cells, options: dict, memo: dict | None) -
 
 
 def fit_setup(
-    probe: Any,
     cells: Cells,
+    tables: CellTables,
+    *,
+    probe: Any,
     model: str,
-    options: dict,
-    a_functions: tuple,
+    options: TableOptions,
     valid: np.ndarray,
     exact: np.ndarray,
-    noise_pred: np.ndarray,
+    prior: NoisePrior,
     n_outer_scales: int,
     cov: np.ndarray | None = None,
-    memo: dict | None = None,
-    prior_rel_se: float = NOISE_PRIOR_REL_SE,
-) -> dict:
-    """Everything :func:`retrieve` needs besides ``D`` and the variance of ``V'_L``.
+    memo: FitMemo | None = None,
+) -> FitSetup:
+    """Everything :func:`fit_cells` needs besides ``D`` and the variance of ``V'_L``.
 
-    ``prior_rel_se``: the relative standard error of the predicted ``2 sigma_e^2``
-    (:func:`cwproc.physics.structure_fit.fit_structure_function`).
-
-    The A-functions of the cells (``a_functions`` of
+    The A-functions of the cells (``tables``, of
     :func:`cwproc.stages.epsilon.atable_fit.cell_a_functions`), the valid lags, the
-    predicted noise, the inertial averaging loss per distinct ``(dy, range)``
-    (:func:`cwproc.physics.probe_variance.averaging_loss`), the coefficient ``c`` of
-    ``L_V = c sigma_V^3 / eps`` (Banakh et al. (1999), eq. 19), the cw cells of the
-    exact model (``exact``) and, for finite-outer-scale models, the inputs of the
-    variance condition (:func:`finite_scale_inputs`) and the model's tables at each
-    group's cells (:meth:`cwproc.physics.atable_interp.ATable.at_cells`). ``cov``: the
-    covariance of the block means of ``(D_L(1..L), variance)``
+    predicted noise (``prior``), the inertial averaging loss per distinct ``(dy, range)``
+    (:func:`cwproc.physics.probe_variance.averaging_loss`) and the transport during the
+    ray (:func:`transport_loss`), the coefficient ``c`` of ``L_V = c sigma_V^3 / eps``
+    (Banakh et al. (1999), eq. 19), the cw cells of the exact model (``exact``) and, for
+    finite-outer-scale models, the inputs of the variance condition
+    (:func:`finite_scale_inputs`) and the model's tables at each group's cells
+    (:meth:`cwproc.physics.atable_interp.ATable.at_cells`). ``cov``: the covariance of
+    the block means of ``(D_L(1..L), variance)``
     (:func:`cwproc.stages.epsilon.cells.statistics_covariance`); its ``D_L`` block decides
     where the noise is fitted (:func:`cwproc.physics.structure_fit.fit_structure_function`).
-    ``memo`` (a dict, empty at first) keeps what depends on the distinct (dy, range)
-    pairs only (the averaging loss, the passed variance) for the next group of blocks of
-    the same probe and model, which has the same pairs where
-    :func:`cwproc.stages.epsilon.block_groups` splits a day.
+    ``memo`` keeps what depends on the distinct (dy, range) pairs only (the averaging
+    loss, the passed variance) for the next group of blocks of the same probe and model,
+    which has the same pairs where :func:`cwproc.stages.epsilon.block_groups` splits a day.
     """
-    a1, a2, sector, groups = a_functions
-    n_t, n_h, n_l = cells.d.shape
-    dy, mu_eval = cells.dy, cells.mu_eval
-    a2 = _few_ray_inertial_a2(cells, options, a2, sector)
+    dy = cells.dy
+    a2 = _few_ray_inertial_a2(cells, options, tables.a2, tables.sector)
     # the loss depends on (dy, range) only: compute it once per distinct pair
     # step-stare rays are not swept: no transverse averaging in the variance (eq. 20)
-    dy_filter = dy if options["swept"] else np.where(np.isfinite(dy), 0.0, np.nan)
+    dy_filter = dy if options.swept else np.where(np.isfinite(dy), 0.0, np.nan)
     pairs_dr = np.stack([np.round(dy_filter, 6).ravel(), np.round(cells.range_m, 6).ravel()], 1)
     uniq, inverse = np.unique(np.nan_to_num(pairs_dr, nan=-1.0), axis=0, return_inverse=True)
     loss_u = _remembered(
@@ -477,42 +529,33 @@ def fit_setup(
     carried = transport_loss(probe, cells, options, memo)
     loss = loss + carried
     finite = None
-    if model != "inertial" and groups:
+    if model != "inertial" and tables.groups:
         finite = finite_scale_inputs(
             probe, model, options, uniq, inverse, cells, n_outer_scales, memo
         )
-        finite["passed"] -= carried[..., None] * _carried_scale_factor(
-            cells, options, finite["scale_grid"], model
+        finite.passed[...] -= carried[..., None] * _carried_scale_factor(
+            cells, options, finite.scale_grid, model
         )
-        probe_len = np.asarray(probe.length_scale_m(cells.range_m), float)
-        probe_len = np.broadcast_to(probe_len, (n_t, n_h))
-        finite["longest"] = np.maximum(n_l * dy * (1 + mu_eval), probe_len)
-    lags = np.arange(1, n_l + 1, dtype=float)
-    return {
-        "a1": a1,
-        "a2": a2,
-        "sector": sector,
-        "valid": valid,
-        "noise_pred": noise_pred,
-        "prior_rel_se": prior_rel_se,
-        "d_cov": None if cov is None else cov[..., :-1, :-1],
-        "loss": loss,
-        "c_model": spectra.integral_scale_coefficient(
-            "exponential" if model == "inertial" else model
-        ),
-        "groups": groups,
-        "cell_tables": {  # the model's tables at each group's cells (rows x heights)
-            key: (_sector_cell_table(tables, lags, cells, rows), np.cumsum(rows) - 1)
-            for key, (rows, tables) in groups.items()
+    lags = np.arange(1, cells.d.shape[2] + 1, dtype=float)
+    return FitSetup(
+        tables=dataclasses.replace(tables, a2=a2),
+        valid=valid,
+        prior=prior,
+        d_cov=None if cov is None else cov[..., :-1, :-1],
+        loss=loss,
+        c_model=spectra.integral_scale_coefficient("exponential" if model == "inertial" else model),
+        cell_tables={  # the model's tables at each group's cells (rows x heights)
+            key: (_sector_cell_table(group_tables, lags, cells, rows), np.cumsum(rows) - 1)
+            for key, (rows, group_tables) in tables.groups.items()
             if finite is not None
         },
-        "exact": exact,
-        "finite": finite,
-    }
+        exact=exact,
+        finite=finite,
+    )
 
 
 def _few_ray_inertial_a2(
-    cells: Cells, options: dict, a2: np.ndarray, sector: np.ndarray
+    cells: Cells, options: TableOptions, a2: np.ndarray, sector: np.ndarray
 ) -> np.ndarray:
     """The inertial ``A_2`` ``(time, height, lag)`` with the few-ray circles'
     (:func:`few_ray_cells`) from :func:`cwproc.physics.few_ray_sector.sector_a2` (the
@@ -523,7 +566,7 @@ def _few_ray_inertial_a2(
         return a2
     out = a2.copy()
     phi = float(np.nanmedian(cells.phi))
-    dwell = float(options.get("dwell", 0.0))
+    dwell = float(options.dwell)
     for t, h in zip(*np.nonzero(few), strict=True):
         mu, rng = cells.mu_eval[t, h], cells.range_m[t, h]
         if not (np.isfinite(mu) and np.isfinite(rng)):
@@ -543,7 +586,7 @@ def _few_ray_inertial_a2(
 
 
 def _carried_scale_factor(
-    cells: Cells, options: dict, scale_grid: np.ndarray, model: str
+    cells: Cells, options: TableOptions, scale_grid: np.ndarray, model: str
 ) -> np.ndarray:
     """``(time, height, nL)``: the outer scale's factor on the inertial variance lost to
     the transport during the dwell (:func:`transport_loss`), for few-ray circles
@@ -551,7 +594,7 @@ def _carried_scale_factor(
     elsewhere (24- and 36-ray VADs keep the inertial loss)."""
     n_t, n_h = cells.range_m.shape
     out = np.ones((n_t, n_h, scale_grid.size))
-    dwell = float(options.get("dwell", 0.0))
+    dwell = float(options.dwell)
     if dwell <= 0.0:
         return out
     phi = float(np.nanmedian(cells.phi))
@@ -564,16 +607,16 @@ def _carried_scale_factor(
     return out
 
 
-def few_ray_cells(cells: Cells, options: dict) -> np.ndarray:
+def few_ray_cells(cells: Cells, options: TableOptions) -> np.ndarray:
     """``(time, height)``: full circles of step-stare rays at least
     :data:`FEW_RAYS_STEP_DEG` apart (12-ray VADs: two lags, 30 and 60 deg)."""
     n_t, n_h = cells.range_m.shape
     dtheta = np.broadcast_to(np.asarray(cells.dtheta, float)[:, None], (n_t, n_h))
     coarse = np.isfinite(dtheta) & (dtheta >= FEW_RAYS_STEP_DEG - 1e-6)
-    if options.get("swept", True) or not coarse.any():
+    if options.swept or not coarse.any():
         return np.zeros((n_t, n_h), dtype=bool)  # (no partial-circle test of every cell)
     partial = partial_circle(cells.weights, dtheta)
-    stare = not options.get("swept", True)
+    stare = not options.swept
     return stare & ~partial & np.isfinite(dtheta) & (dtheta >= FEW_RAYS_STEP_DEG - 1e-6)
 
 
@@ -597,7 +640,7 @@ def _few_ray_factor(
     (``(cells, nL, n_lag)``, m^(2/3)) that gives few-ray circles the direct two-beam
     ``A_2`` of their pairs (:func:`cwproc.physics.few_ray_sector.sector_a2`), in place of
     :func:`outer_scale_sector_factor`; over the inertial sector ratio, by which
-    :func:`retrieve` multiplies."""
+    :func:`fit_cells` multiplies."""
     inertial, finite = tables
     params = finite.params
     n_l = lags.size
@@ -628,7 +671,7 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
     :meth:`cwproc.physics.atable_interp.ATable.at_cells` of ``tables[1]``, its ``A_2`` at
     every outer-scale node, for sectors and gaps (:func:`partial_circle`), multiplied by
     :func:`outer_scale_sector_factor` (the sector ratio of the outer scale over the
-    inertial one that :func:`retrieve` applies); less the share of ``D(l)`` the block-mean
+    inertial one that :func:`fit_cells` applies); less the share of ``D(l)`` the block-mean
     VAD wind takes times ``sigma_V^2 / eps^(2/3)`` of the node: :func:`sector_removed_d`
     for sectors and gaps (up to ``MAX_SECTOR_RAYS`` rays per scan), :func:`circle_removed_d`
     for full circles of steps of at least :data:`COARSE_STEP_DEG` (72 rays: from the circle

@@ -12,10 +12,11 @@ from cwproc.stages.epsilon.cells import Cells
 from cwproc.stages.epsilon.cw_exact import CW_EXACT_MU_MAX
 from cwproc.stages.epsilon.flags import METHOD1_RATIO_LIMIT
 from cwproc.stages.epsilon.outer_scale import INERTIAL_FRACTION
+from cwproc.stages.epsilon.records import CellEstimates
 
 
 def product_arrays(
-    est: dict, bad: np.ndarray, few_fit: np.ndarray, exact: np.ndarray
+    est: CellEstimates, bad: np.ndarray, few_fit: np.ndarray, exact: np.ndarray
 ) -> dict[str, np.ndarray]:
     """The estimates as written: NaN where flagged bad, never a 0 as measured noise.
 
@@ -24,8 +25,8 @@ def product_arrays(
     ``edr = eps^(1/3)`` (m^(2/3) s-1); the model structure function
     ``eps_fit^(2/3) A_2 + 2 sigma_e^2`` (the exact model's in cw cells).
     """
-    e1, efit, noise, a2 = est["e1"], est["efit"], est["noise"], est["a2"]
-    sigma2, l_v, sf_model_exact = est["sigma2"], est["l_v"], est["sf_model_exact"]
+    e1, efit, noise, a2 = est.e1, est.efit, est.noise, est.a2
+    sigma2, l_v, sf_model_exact = est.sigma2, est.l_v, est.sf_model_exact
     eps2 = np.where(bad, np.nan, efit)
     eps1 = np.where(bad, np.nan, e1)
     out_noise = np.where(few_fit | ~(noise > 0), np.nan, noise)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cwproc.physics.background import (
+from cwproc.physics.snr_background import (
     corrected_snr,
     fit_background_shape,
     fit_noise_floor,

@@ -1,8 +1,8 @@
-"""Stage ``background``: SNR of Stream Line scans corrected with the background files.
+"""SNR of Stream Line scans corrected with the background files.
 
 Each ray is matched to the background file of its hour: the nearest background measured
 at or before the ray (as the Stream Line measures it at the start of each hour), no older
-than ``max_age_h``. The physics is in :mod:`cwproc.physics.background` (Manninen et al.
+than ``max_age_h``. The physics is in :mod:`cwproc.physics.snr_background` (Manninen et al.
 (2016); Vakkari et al. (2019)); this module matches the rays to the background datasets
 it is given (read by :mod:`cwproc.pipeline.background_files`; a stage does no I/O) and builds
 the dataset. The SNR as the instrument gave it stays in ``snr_uncorrected``.
@@ -16,7 +16,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.metadata import described
-from cwproc.physics.background import MIN_FIT_RANGE_M, corrected_snr, fit_background_shape
+from cwproc.physics.snr_background import MIN_FIT_RANGE_M, corrected_snr, fit_background_shape
 
 METHOD = (
     "Manninen et al. (2016) and Vakkari et al. (2019): background profile of the hour "

@@ -1,4 +1,6 @@
-"""Stage ``zephir``: the wind product of instrument wind records, and the TP of cw scans.
+"""The wind product of instrument wind records (ZephIR, WindCube), and the TP of cw scans.
+
+Configured by the ``[zephir]`` section (also for WindCube).
 
 ``wind_record_product`` turns a wind-record dataset (ZephIR Waltz CSV, WindCube
 ``.sta``; see :mod:`cwproc.io.zephir`, :mod:`cwproc.io.windcube`) into the wind

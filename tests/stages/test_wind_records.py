@@ -9,7 +9,7 @@ import xarray as xr
 
 from cwproc.errors import CwprocError
 from cwproc.physics.volume_averaging import std_ratio_and_tp_share
-from cwproc.stages.zephir import (
+from cwproc.stages.wind_records import (
     FLAG_MISSING,
     FLAG_RAIN,
     FLAG_TOO_FEW_PACKETS,

@@ -35,7 +35,7 @@ class WindRefit:
     block_winds: np.ndarray
 
 
-def _block_sum(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
+def block_sum(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
     """Sum over consecutive scans (axis 0) within blocks starting at ``starts``."""
     return np.add.reduceat(values, starts, axis=0)
 
@@ -140,9 +140,9 @@ def _scan_spread(per_scan: np.ndarray, starts: np.ndarray) -> np.ndarray:
     fewer than two.
     """
     ok = np.isfinite(per_scan)
-    n = _block_sum(ok.astype(float), starts)
-    s1 = _block_sum(np.where(ok, per_scan, 0.0), starts)
-    s2 = _block_sum(np.where(ok, per_scan**2, 0.0), starts)
+    n = block_sum(ok.astype(float), starts)
+    s1 = block_sum(np.where(ok, per_scan, 0.0), starts)
+    s2 = block_sum(np.where(ok, per_scan**2, 0.0), starts)
     with np.errstate(invalid="ignore", divide="ignore"):
         var = (s2 - s1**2 / n) / (n - 1)
         return np.where(n > 1, np.sqrt(np.maximum(var, 0.0) / n), np.nan)
@@ -161,9 +161,9 @@ def _scan_covariance(per_scan: np.ndarray, starts: np.ndarray) -> np.ndarray:
     """
     ok = np.all(np.isfinite(per_scan), axis=-1)
     x = np.where(ok[..., None], per_scan, 0.0)
-    n = _block_sum(ok.astype(float), starts)[..., None, None]
-    s1 = _block_sum(x, starts)
-    s2 = _block_sum(x[..., :, None] * x[..., None, :], starts)
+    n = block_sum(ok.astype(float), starts)[..., None, None]
+    s1 = block_sum(x, starts)
+    s2 = block_sum(x[..., :, None] * x[..., None, :], starts)
     with np.errstate(invalid="ignore", divide="ignore"):
         cov = (s2 - s1[..., :, None] * s1[..., None, :] / n) / (n - 1) / n
     return np.where(n > 1, cov, np.nan)
@@ -223,18 +223,18 @@ def block_statistics(
         gaps[~(valid.masks[:, lag:] & valid.masks[:, :-lag])] = 0.0
         per_total = valid.sum_over_m(d2, gaps)
         per_count = valid.counts(lag)
-        total = _block_sum(per_total, starts)
-        count = _block_sum(per_count, starts)
+        total = block_sum(per_total, starts)
+        count = block_sum(per_count, starts)
         with np.errstate(invalid="ignore", divide="ignore"):
             sf[:, :, lag - 1] = np.where(count > 0, total / count, np.nan)
             per_scan = np.where(per_count > 0, per_total / per_count, np.nan)
         pairs[:, :, lag - 1] = count
         per_stats[:, :, lag - 1] = per_scan
     per_n = valid.counts()
-    n_val = _block_sum(per_n, starts).astype(float)
+    n_val = block_sum(per_n, starts).astype(float)
     per_s2 = valid.sum_over_m(np.square(vprime), np.square(valid.values))
-    s1 = _block_sum(valid.sum_over_m(vprime, valid.values), starts)
-    s2 = _block_sum(per_s2, starts)
+    s1 = block_sum(valid.sum_over_m(vprime, valid.values), starts)
+    s2 = block_sum(per_s2, starts)
     with np.errstate(invalid="ignore", divide="ignore"):
         variance = np.where(n_val > 1, (s2 - s1**2 / n_val) / (n_val - 1), np.nan)
         per_n = per_n.astype(float)
@@ -321,14 +321,14 @@ def jackknife_covariance(
     ok = np.all(np.isfinite(per_scan), axis=-1)
     okf = ok.astype(float)
     x = np.where(ok[..., None], per_scan, 0.0)
-    n = _block_sum(okf, starts)  # (block, height)
+    n = block_sum(okf, starts)  # (block, height)
     sizes = np.diff(np.append(starts, per_scan.shape[0]))
     block = np.repeat(np.arange(starts.size), sizes)
     n_k = n[block]
     g = terms["g"] * okf[..., None]
     m = terms["m"] * okf[..., None, None]
-    g_rest = _block_sum(g, starts)[block] - g
-    m_rest = _block_sum(m, starts)[block] - m
+    g_rest = block_sum(g, starts)[block] - g
+    m_rest = block_sum(m, starts)[block] - m
     delta = terms["delta"]
     shift = np.zeros(n_k.shape)
     for i in range(3):  # 2 delta . g + delta^T M delta, term by term (the same bits in chunks)
@@ -336,12 +336,12 @@ def jackknife_covariance(
         for j in range(3):
             shift += delta[..., i] * m_rest[..., i, j] * delta[..., j]
     with np.errstate(invalid="ignore", divide="ignore"):
-        theta = (_block_sum(x, starts)[block] - x) / (n_k - 1.0)[..., None]
+        theta = (block_sum(x, starts)[block] - x) / (n_k - 1.0)[..., None]
         theta[..., -1] += shift / (n_k - 1.0)
         theta = np.where(ok[..., None], theta, 0.0)
-        mean = _block_sum(theta, starts) / n[..., None]
+        mean = block_sum(theta, starts) / n[..., None]
         dev = np.where(ok[..., None], theta - mean[block], 0.0)
-        cov = _block_sum(dev[..., :, None] * dev[..., None, :], starts)
+        cov = block_sum(dev[..., :, None] * dev[..., None, :], starts)
         cov *= ((n - 1.0) / n)[..., None, None]
     return np.where((n > 1)[..., None, None], cov, np.nan)
 
@@ -439,4 +439,22 @@ def pair_azimuth_weights(
     sums = np.bincount(nodes, shares, minlength=size)
     with np.errstate(invalid="ignore", divide="ignore"):
         out[:, :, :lags] = sums.reshape(n_blocks, n_h, lags, N_BINS) / total[..., None]
+    return out
+
+
+def group_median(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.ndarray:
+    """Median of the ``values`` (NaN skipped) of each group ``0 .. n_groups - 1`` (NaN: none).
+
+    The middle value, or the mean ``(a + b) / 2`` of the two middle ones, as
+    :func:`numpy.median` and pandas' grouped median form it (the same value); the values
+    sorted by group once and one partition per group present.
+    """
+    out = np.full(n_groups, np.nan)
+    keep = ~np.isnan(values)
+    order = np.argsort(group[keep], kind="stable")
+    values, group = values[keep][order], group[keep][order]
+    ids, starts = np.unique(group, return_index=True)
+    stops = np.append(starts[1:], group.size)[: starts.size]  # none: no group
+    for g, start, stop in zip(ids, starts, stops, strict=True):
+        out[g] = np.median(values[start:stop])
     return out

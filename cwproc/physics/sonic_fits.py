@@ -242,13 +242,13 @@ def candidate_offsets(n_lags: int) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------------------
-# parts of the type decision (rules in cwproc.stages.sonic_sf.decide_types)
+# parts of the type decision (rules in decide_types)
 # --------------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
 class TypeDecision:
-    """Per-series type and fit of :func:`cwproc.stages.sonic_sf.decide_types` (arrays)."""
+    """Per-series type and fit of :func:`decide_types` (arrays)."""
 
     sf_type: np.ndarray
     r_max: np.ndarray
@@ -332,7 +332,7 @@ def precedence_type(
 
     The simplest type whose lg r_max is within ``precedence_tolerance`` of the largest
     wins; a type 2 whose parabola is ``flat`` falls back to type 1 when the line has an
-    r_max (:func:`cwproc.stages.sonic_sf.decide_types`).
+    r_max (:func:`decide_types`).
     """
     with np.errstate(invalid="ignore", divide="ignore"):
         lg = np.log10(r_max)
@@ -364,3 +364,96 @@ def fit_curves(
         np.nan,
     )
     return out
+
+
+def decide_types(
+    r: np.ndarray,
+    y: np.ndarray,
+    *,
+    r_norm: float = 1.0,
+    kd_threshold: float = 0.99850,
+    precedence_tolerance: float = 0.05,
+    min_points: int = 5,
+    curvature_tolerance: float = 0.03,
+) -> TypeDecision:
+    """Type 1, 2 or 3 (or 0) of normalised structure functions, Gladkikh et al. (2014).
+
+    Fits (x = lg(r/r_N), y = lg D_n), all grown from r_min (the first lag) with
+    :func:`grow_polynomial_fit`:
+
+    * type 1: line y = b + mu x up to r_max1, eq. 4;
+    * type 2: parabola y = a0 + a1 x + a2 x^2 up to r_max2, eq. 5;
+    * type 3: the parabola up to r_p = r_max2 (the paper does not say how r_p is
+      found: here, the end of the parabola grown from r_min), then a line
+      y = c + gamma x grown from the smallest candidate start r_l >= r_p
+      (:func:`type3_tail`) for which the type-3 rules of the
+      paper hold: Delta_B/Delta_A < 0.25 with Delta_B = r_l - r_p,
+      Delta_A = r_max - r_l + r_p - r_min, and r_p - r_min <= r_max - r_l, eq. 6;
+      otherwise the SF is type 2 with r_max = r_p.
+
+    A type whose r_max < r_N (1 m) is rejected. Precedence (not stated in the paper,
+    whose models are nested): the candidate with the largest r_max wins, except that a
+    simpler type (1 < 2 < 3) is taken whenever lg r_max(simpler) >= lg r_max(best) -
+    ``precedence_tolerance``; and a type-2 decision falls back to type 1 (with the
+    line's own r_max) when the parabola is not significantly curved: its quadratic
+    term changes lg D by less than ``curvature_tolerance`` decades over its range,
+    |a2| (x_max - x_min)^2 / 8 < curvature_tolerance (the largest departure of a
+    parabola from its least-squares line is about that much).
+
+    Parameters
+    ----------
+    r : ndarray, shape (S, K)
+        Lags r_j (m), increasing along the last axis.
+    y : ndarray, shape (S, K)
+        lg of the normalised structure function; NaN where unusable.
+    r_norm : float
+        r_N (m).
+    kd_threshold : float
+        k_dL.
+    precedence_tolerance : float
+        Tolerance in decades of r_max (see above).
+    min_points : int
+        Fewest lags in any fit (and in each part of a type-3 fit).
+    curvature_tolerance : float
+        Decades (see above).
+
+    Returns
+    -------
+    TypeDecision
+    """
+    n_series = r.shape[0]
+    x = np.log10(r / r_norm)
+    sums = running_sums(x, y, 2)
+    zero = np.zeros(n_series, dtype=np.int64)
+    line = grow_polynomial_fit(sums, zero, 1, kd_threshold=kd_threshold, min_points=min_points)
+    para = grow_polynomial_fit(sums, zero, 2, kd_threshold=kd_threshold, min_points=min_points)
+    r_p = lag_at(r, para.end)
+    tail, tail_start = type3_tail(
+        r, sums, para.end, kd_threshold=kd_threshold, min_points=min_points
+    )
+    # candidates, rejection r_max < r_N, precedence
+    r_max = np.stack([lag_at(r, line.end), r_p, lag_at(r, tail.end)], axis=1)  # types 1-3
+    r_max = np.where(r_max >= r_norm, r_max, np.nan)
+    with np.errstate(invalid="ignore"):
+        span = np.log10(r_p / r[:, 0])
+        flat = np.abs(para.coef[:, 2]) * span**2 / 8.0 < curvature_tolerance
+    sf_type = precedence_type(r_max, flat, precedence_tolerance)
+    chosen_rmax = np.where(
+        sf_type > 0, r_max[np.arange(n_series), np.clip(sf_type - 1, 0, 2)], np.nan
+    )
+    kd = np.select(
+        [sf_type == 1, sf_type == 2, sf_type == 3],
+        [line.kd, para.kd, np.fmin(para.kd, tail.kd)],
+        np.nan,
+    )
+    return TypeDecision(
+        sf_type=sf_type,
+        r_max=chosen_rmax,
+        kd=kd,
+        line=line,
+        parabola=para,
+        tail=tail,
+        r_p=r_p,
+        r_l=lag_at(r, tail_start),
+        type3_ok=tail.end >= 0,
+    )

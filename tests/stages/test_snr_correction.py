@@ -7,7 +7,7 @@ import pytest
 import xarray as xr
 
 from cwproc.pipeline.background_files import find_background_files
-from cwproc.stages.background import correct_snr, match_rays
+from cwproc.stages.snr_correction import correct_snr, match_rays
 
 
 def _t(text: str) -> np.datetime64:

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from cwproc.physics.geometry import beam_unit_vector
-from cwproc.stages.block_stats import (
+from cwproc.physics.block_stats import (
     WindRefit,
     _scan_covariance,
     block_statistics,
     jackknife_covariance,
 )
+from cwproc.physics.geometry import beam_unit_vector
 
 
 def test_jackknife_without_a_wind_refit_is_the_scatter_of_the_scans():
@@ -77,7 +77,7 @@ def _noisy_vprime(rng: np.random.Generator) -> np.ndarray:
 
 def test_counts_of_values_and_pairs_from_the_columns_with_a_gap():
     """FiniteColumns counts values and pairs as the finite mask counted in full does."""
-    from cwproc.stages.block_stats import finite_columns
+    from cwproc.physics.block_stats import finite_columns
 
     vprime = _noisy_vprime(np.random.default_rng(21))
     valid = finite_columns(vprime)
@@ -134,7 +134,7 @@ def test_wind_refit_terms_are_the_masked_sums_over_the_rays_to_the_bit():
     """g and M of every (scan, height) equal the sums over the valid rays in azimuth
     order, masked in full: with a scan missing a ray (its beam NaN) and a value left
     where the beam is missing (left out of the sums)."""
-    from cwproc.stages.block_stats import wind_refit_terms
+    from cwproc.physics.block_stats import wind_refit_terms
 
     rng = np.random.default_rng(23)
     vprime = _noisy_vprime(rng)
@@ -165,7 +165,7 @@ def test_angles_modulo_a_turn_are_numpy_mod_to_the_bit():
     """``_mod_turn`` equals ``numpy.mod(x, 2 pi)`` bit for bit: below 4 pi by exact steps
     (multiples of pi/2 and their neighbours, signed zeros, tiny negatives that round up
     to 2 pi), beyond by numpy itself."""
-    from cwproc.stages.block_stats import _mod_turn
+    from cwproc.physics.block_stats import _mod_turn
 
     turn = 2.0 * np.pi
     rng = np.random.default_rng(24)
