@@ -3,7 +3,9 @@ give a clear error."""
 
 from __future__ import annotations
 
+import ast
 import os
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -14,6 +16,8 @@ from click.testing import CliRunner
 from cwproc import plots
 from cwproc.cli import main
 from cwproc.errors import ProductError
+from cwproc.plots.axes import log_tick_values, sci_label
+from cwproc.plots.turbulence import ratio_shown
 from cwproc.products.writer import write_product
 
 pytest.importorskip("matplotlib")
@@ -226,18 +230,18 @@ def test_epsilon_ratio_hidden_where_method1_is_empty():
     ds = turbulence_product()
     ds["epsilon_method1"] = ds["epsilon"] * ds["epsilon_ratio"]
     ds["epsilon_method1"][:, :3] = np.nan  # flag 4: mu beyond method 1
-    shown = plots._ratio_shown(ds)
+    shown = ratio_shown(ds)
     assert np.isnan(shown.values[:, :3]).all()
     assert np.isfinite(shown.values[:, 3:]).all()
 
 
 def test_log_colour_bar_has_enough_ticks():
-    assert plots._log_tick_values(4.1e-3, 1.13e-2).size >= 4
-    assert list(plots._log_tick_values(1e-4, 1e-2)) == pytest.approx(
+    assert log_tick_values(4.1e-3, 1.13e-2).size >= 4
+    assert list(log_tick_values(1e-4, 1e-2)) == pytest.approx(
         [1e-4, 2e-4, 5e-4, 1e-3, 2e-3, 5e-3, 1e-2]
     )
-    assert plots._sci_label(6e-3) == "$6\\times10^{-3}$"
-    assert plots._sci_label(1e-2) == "$10^{-2}$"
+    assert sci_label(6e-3) == "$6\\times10^{-3}$"
+    assert sci_label(1e-2) == "$10^{-2}$"
 
 
 @pytest.mark.parametrize(
@@ -273,7 +277,6 @@ def test_cli_plot_sonic_arguments_checked(tmp_path, args, message):
 
 
 def test_cli_plot_vad_scan_out_of_range(tmp_path):
-    from pathlib import Path
 
     hpl = Path(__file__).parents[1] / "sample_data/streamline/VAD_999_20240601_120000.hpl"
     res = CliRunner().invoke(
@@ -419,3 +422,30 @@ def test_refused_picture_names_the_file(tmp_path):
     assert res.exit_code == 1
     assert "empty.nc: cannot draw 'wind'" in res.output and "no finite value" in res.output
     assert not (tmp_path / "e.png").exists()
+
+
+PLOTS = Path(__file__).resolve().parents[1] / "cwproc" / "plots"
+
+
+def private_imports(source: str) -> list[str]:
+    """``line: module.name`` of every private name ``source`` takes from a cwproc module."""
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("cwproc"):
+            for alias in node.names:
+                if alias.name.startswith("_"):
+                    found.append(f"{node.lineno}: {node.module}.{alias.name}")
+    return found
+
+
+def test_no_plot_module_takes_a_private_name_of_another():
+    """Each module of the package says what it offers: no ``_pyplot`` across modules."""
+    bad = [
+        f"{path.name}:{hit}"
+        for path in sorted(PLOTS.glob("*.py"))
+        for hit in private_imports(path.read_text(encoding="utf-8"))
+    ]
+    assert not bad, "private names imported across plot modules:\n" + "\n".join(bad)
+    assert private_imports("from cwproc.plots.figure import _units\n") == [
+        "1: cwproc.plots.figure._units"
+    ]

@@ -10,7 +10,7 @@ from click.testing import CliRunner
 pytest.importorskip("matplotlib")
 
 from cwproc.cli import main
-from cwproc.plots_l1 import BETA_RANGE, plot_doppler_lidar
+from cwproc.plots.l1 import BETA_RANGE, plot_doppler_lidar
 
 
 def product(with_cross: bool = True) -> xr.Dataset:
@@ -48,3 +48,10 @@ def test_plot_command_recognises_the_l1_product(tmp_path):
     res = CliRunner().invoke(main, ["plot", str(src), "-o", str(tmp_path / "q.png")])
     assert res.exit_code == 0, res.output
     assert (tmp_path / "q.png").stat().st_size > 10_000
+
+
+def test_the_l1_product_is_drawn_as_doppler_lidar_by_default():
+    from cwproc import plots
+
+    assert plots.default_kind(product()) == "doppler-lidar"
+    assert plots.default_kind(product(with_cross=False)) == "doppler-lidar"

@@ -12,6 +12,7 @@ from click.testing import CliRunner
 from cwproc import plots
 from cwproc.cli import main
 from cwproc.errors import ProductError
+from cwproc.plots.stare import w_per_ray
 from cwproc.products.writer import write_product
 
 pytest.importorskip("matplotlib")
@@ -103,12 +104,12 @@ def test_a_day_without_vads_says_why_eps_is_missing(data_pixels):
 
 def test_per_ray_panel_thins_the_rays_and_keeps_the_gaps():
     ds = stare_product()
-    field, step = plots._w_per_ray(ds)
+    field, step = w_per_ray(ds)
     assert step == 1
     assert field.sizes["time"] == ds.sizes["ray"] + 1  # one NaN column in the VAD gap
     assert np.isnan(field.values).all(axis=1).sum() == 1
     many = stare_product(n_windows=120)  # 9000 rays of 4 s over 10 h: one in 5 kept
-    field, step = plots._w_per_ray(many)
+    field, step = w_per_ray(many)
     assert step == 5 and field.sizes["time"] == 9000 // 5 + 1
 
 
@@ -137,3 +138,7 @@ def test_cli_plots_a_stare_product_by_default_and_refuses_an_empty_one(tmp_path)
         main, ["plot", str(path), "-o", str(tmp_path / "x.png"), "--kind", "stare", "--scan", "1"]
     )
     assert res.exit_code == 2 and "--scan is used by --kind vad, not stare" in res.output
+
+
+def test_a_stare_product_is_drawn_as_stare_by_default():
+    assert plots.default_kind(stare_product()) == "stare"

@@ -59,7 +59,7 @@ def compare_command(
     from cwproc.cli._common import output_dir_or_exit
     from cwproc.errors import CwprocError, ProductError
     from cwproc.pipeline.compare import compare_files
-    from cwproc.plots_compare import write_comparison_png
+    from cwproc.plots import write_comparison_png
 
     output_dir_or_exit(outdir)
     try:

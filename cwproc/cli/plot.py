@@ -149,15 +149,8 @@ def _draw(source: str, out: str, kind: str | None, cfg, steps, given: dict[str, 
             ds = read_product(source)
         except (OSError, ValueError) as exc:
             raise CwprocError(f"{source}: not a readable NetCDF product ({exc})") from None
-        from cwproc import plots_l1  # registers the kind "doppler-lidar"
-
         if kind is None:
-            if plots.is_stare_product(ds):
-                kind = "stare"
-            elif plots_l1.is_l1_product(ds):
-                kind = "doppler-lidar"
-            else:
-                kind = plots.default_kind(ds)
+            kind = plots.default_kind(ds)
         _check_applicable(
             kind,
             time_index=time_index,

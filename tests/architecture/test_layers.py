@@ -20,8 +20,7 @@ up:
    configuration (:data:`FORBIDDEN`): their defaults are literals
 5. ``cwproc.products``: the writer, catalogue, Cloudnet files, quality
 6. ``cwproc.pipeline``: the one chain of stages (``run_unit``)
-7. clients of the core: ``cwproc.sim``, ``batch``, ``plots``, ``plots_l1``,
-   ``plots_compare``, ``plot_axes``
+7. clients of the core: ``cwproc.sim``, ``batch``, ``plots``
 8. the user interfaces: ``cwproc.cli``, ``api``, ``reference_docs``, ``__main__`` and
    the package's own ``cwproc/__init__`` (the public API)
 
@@ -63,9 +62,6 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "cwproc.sim",
         "cwproc.batch",
         "cwproc.plots",
-        "cwproc.plots_l1",
-        "cwproc.plots_compare",
-        "cwproc.plot_axes",
     ),
     ("cwproc.cli", "cwproc.api", "cwproc.reference_docs", "cwproc.__main__", "cwproc"),
 )

@@ -2,8 +2,8 @@
 
 Time-height panels as Cloudnet draws its ``doppler-lidar`` files: beta on a **fixed**
 logarithmic range (1e-7 to 1e-4 m-1 sr-1, so that days compare), the depolarisation ratio
-on 0-0.5 and the screened radial velocity on a diverging scale. Importing the module
-registers the kind ``doppler-lidar`` with :data:`cwproc.plots.KINDS` (``cwproc plot``).
+on 0-0.5 and the screened radial velocity on a diverging scale (the kind
+``doppler-lidar`` of ``cwproc plot``).
 """
 
 from __future__ import annotations
@@ -11,23 +11,28 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from cwproc.plots import (
+from cwproc.plots.axes import time_height_mesh
+from cwproc.plots.figure import (
     DIVERGING,
     FIGSIZE,
-    KINDS,
     MISSING,
     SEQUENTIAL,
     SEQUENTIAL_LOG,
-    _pyplot,
-    _time_height_mesh,
+    pyplot,
 )
 
 #: beta colour range of the quicklook (m-1 sr-1), Cloudnet's for Doppler lidars
 BETA_RANGE = (1e-7, 1e-4)
+
+
 #: depolarisation ratio colour range
 DEPOLARISATION_RANGE = (0.0, 0.5)
+
+
 #: velocity colour range (m s-1)
 VELOCITY_RANGE = (-2.0, 2.0)
+
+
 #: variables the quicklook needs
 L1_VARIABLES = ("beta_screened", "radial_velocity_screened", "doppler_lidar_flag")
 
@@ -51,7 +56,7 @@ def plot_doppler_lidar(ds: xr.Dataset):
     """Figure of beta (log, fixed range), depolarisation (when present) and velocity."""
     from matplotlib.colors import LogNorm, Normalize
 
-    plt = _pyplot()
+    plt = pyplot()
     panels = [("beta_screened", "attenuated backscatter (m-1 sr-1)")]
     if "depolarisation_screened" in ds:
         panels.append(("depolarisation_screened", "depolarisation ratio"))
@@ -73,10 +78,7 @@ def plot_doppler_lidar(ds: xr.Dataset):
         else:
             norm, cmap, extend = Normalize(*VELOCITY_RANGE), DIVERGING, "both"
         ax.set_facecolor(MISSING)
-        _time_height_mesh(ax, field, cmap=cmap, norm=norm, label=label, extend=extend)
+        time_height_mesh(ax, field, cmap=cmap, norm=norm, label=label, extend=extend)
         ax.set_title(label)
     fig.suptitle(f"Doppler lidar L1 {ds.attrs.get('id', '')!s}".strip())
     return fig
-
-
-KINDS["doppler-lidar"] = (plot_doppler_lidar, L1_VARIABLES)

@@ -15,7 +15,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.errors import ProductError
-from cwproc.plots import _pyplot, save_png
+from cwproc.plots.figure import pyplot, save_png
 
 
 def plot_comparison(ds: xr.Dataset):
@@ -25,7 +25,7 @@ def plot_comparison(ds: xr.Dataset):
     ok = np.isfinite(eps_l) & np.isfinite(eps_s) & (eps_l > 0) & (eps_s > 0)
     if not ok.any():
         raise ProductError("no window has both a lidar and a sonic dissipation rate")
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(15.0, 5.0))
     ax = axes[0]
     ax.errorbar(
