@@ -38,3 +38,22 @@ def test_stages_example_runs_and_shows_what_it_says(tmp_path, monkeypatch, capsy
     written = sorted(p.name for p in (tmp_path / "stages_products").glob("*.nc"))
     assert written == sorted(p.name for p in ns["written"])
     assert len(written) == 3
+
+
+def test_the_ipynb_holds_the_cells_of_the_script():
+    """``docs/examples/stages.ipynb`` (``tools/percent_to_ipynb.py``) is the script's cells,
+    in order, with their printed outputs: rerun the tool when the script changes."""
+    import json
+    import sys
+
+    sys.path.insert(0, str(EXAMPLES.parents[1] / "tools"))
+    from percent_to_ipynb import percent_cells
+
+    notebook = json.loads((EXAMPLES / "stages.ipynb").read_text())
+    assert notebook["nbformat"] == 4
+    cells = [(c["cell_type"], "".join(c["source"])) for c in notebook["cells"]]
+    assert cells == percent_cells((EXAMPLES / "stages.py").read_text())
+    printed = "".join(
+        "".join(o.get("text", [])) for c in notebook["cells"] for o in c.get("outputs", [])
+    )
+    assert "join the files with cwproc.read([...])" in printed
