@@ -16,6 +16,7 @@ import functools
 
 import numpy as np
 
+from cwproc import progress
 from cwproc.physics.scan_correlation import (
     FACTOR_ANGLES,
     FACTOR_MU,
@@ -110,7 +111,9 @@ def circle_variance_factor(
     no_angle = ~np.isfinite(angle_deg)
     keys = np.stack([n_rays, n_scans, np.round(interval, 2), j], -1)
     uniq, inverse = np.unique(np.where(ok[:, None], keys, -1.0), axis=0, return_inverse=True)
-    for u, key in enumerate(uniq):
+    # a new geometry's first day computes its nodes (about 0.7 s each): a bar on a terminal
+    nodes = progress.track(list(enumerate(uniq)), desc="scan factors (new geometry)")
+    for u, key in nodes:
         at = np.nonzero((inverse.ravel() == u) & ok)[0]
         if at.size == 0:
             continue
