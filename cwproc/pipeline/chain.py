@@ -1,23 +1,10 @@
 """The stage chains of each kind of unit (pure: datasets in, product datasets out).
 
-scan data (Stream Line ``.hpl``, cw line-of-sight NetCDF), :class:`ScanChain`, each
-step with its reach::
-
-    chunk  -> background.correct_snr (per ray, ScanChain.prepare)
-           -> stare.split_stares (per ray, ScanChain.split)
-    others -> qc.screen_radial_velocity -> vad.fit_vad (per scan, ScanChain.fit)
-           -> wind product
-    screened scans + wind -> structure.azimuth_structure_function
-                             (per block of N scans, ScanChain.blocks)
-    the day's blocks -> epsilon.estimate_epsilon -> turbulence product
-    vertical stares -> stare.stare_product (+ the day's VAD wind) -> stare product
-                       (and doppler_lidar.doppler_lidar_product: L1)
-                       (per day, ScanChain.finish)
-
-:class:`~cwproc.pipeline.scan_chain.ScanChain` is the only place that names this
-order and the day's decisions; :func:`cwproc.pipeline.stream.run_scan_chain` runs it
-over one chunk (the whole day: :func:`process_scan_day`) or many (a day in bounded
-memory), with the same products.
+scan data (Stream Line ``.hpl``, cw line-of-sight NetCDF): the steps, their reach and
+the day's decisions are drawn once, in :mod:`cwproc.pipeline.scan_chain`;
+:class:`~cwproc.pipeline.scan_chain.ScanChain` is the only place that names them and
+:func:`cwproc.pipeline.stream.run_scan_chain` runs it over one chunk (the whole day:
+:func:`process_scan_day`) or many (a day in bounded memory), with the same products.
 
 wind records (ZephIR, WindCube)::
 
