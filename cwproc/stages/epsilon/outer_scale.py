@@ -23,14 +23,16 @@ from cwproc.physics.exact_lag import is_cw_probe
 from cwproc.physics.few_ray_sector import FEW_RAYS_STEP_DEG, dwell_loss_ratio, sector_a2
 from cwproc.physics.probe_variance import averaging_loss, passed_variance, segment_loss
 from cwproc.physics.removed_share import (
+    MAX_SECTOR_RAYS,
     circle_removed_d,
+    circle_removed_variance,
     interp_log_scale,
     partial_circle,
     sector_removed_d,
     sector_removed_share,
-    transport_mu,
 )
 from cwproc.physics.root_search import Residual, bracket_root, replayed_root
+from cwproc.physics.scan_transport import transport_mu, transport_weight
 from cwproc.physics.structure_fit import NOISE_PRIOR_REL_SE, fit_structure_function
 from cwproc.stages.epsilon.atable_fit import (
     EVALUATION_CELLS,
@@ -121,9 +123,26 @@ def finite_scale_inputs(
             ratio_rl, phi_med, model, mu_eval[rows, :, None], options.cache_dir
         )
     share /= n_eff[:, None, None]
-    ti, hi_ = np.nonzero(
-        partial_circle(weights, np.broadcast_to(cells.dtheta[:, None], (n_t, n_h)))
-    )
+    partial = partial_circle(weights, np.broadcast_to(cells.dtheta[:, None], (n_t, n_h)))
+    ct, ch = np.nonzero(~partial & (np.rint(360.0 / cells.dtheta) <= MAX_SECTOR_RAYS)[:, None])
+    if ct.size:  # circles of correlated scans: the block mean takes up to N times more
+        ratio_c = radius[ct, ch, None] / scale_grid[None, :]
+        setting = (cells.mu_eval[ct, ch], *_rest_inputs(ratio_c, cells, ct, ch, phi_med, model))
+        carried = circle_removed_variance(
+            np.radians(cells.dtheta[ct]),
+            cells.d.shape[2],
+            ratio_c,
+            transport_mu(*setting, n_eff[ct], phi_med),
+            cells.interval[ct],
+            n_eff[ct],
+            phi_med,
+            model,
+        )
+        weight = transport_weight(*setting, n_eff[ct], phi_med)
+        share[ct, ch] = np.where(
+            np.isfinite(carried), (1.0 - weight) * share[ct, ch] + weight * carried, share[ct, ch]
+        )
+    ti, hi_ = np.nonzero(partial)
     if ti.size:
         share[ti, hi_] = sector_removed_share(
             weights[ti, hi_],
@@ -143,6 +162,16 @@ def finite_scale_inputs(
         full_var=full_var,
         longest=np.maximum(n_l * cells.dy * (1 + mu_eval), probe_len),
     )
+
+
+def _rest_inputs(
+    ratio: np.ndarray, cells: Cells, ct: np.ndarray, ch: np.ndarray, phi: float, model: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(S, var, V_s)`` of the cells ``(ct, ch)`` for :func:`transport_mu`: the share of
+    independent scans at rest at ``ratio`` (``(cells, k)`` of ``R'/L_V``), the variance of
+    V'_L and the scan speed."""
+    rest = mean_removed_share(ratio, phi, model, 0.0)
+    return rest, cells.var_raw[ct, ch], cells.v_s[ct, ch]
 
 
 def variance_residual(
@@ -731,21 +760,29 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
     # its 0.3 s would take the 180-ray day past 1 s)
     circle = np.nonzero(~partial & (dtheta >= COARSE_STEP_DEG))[0]
     if circle.size:
-        # the field's transport between the scans: the measured mu less its turbulent bias
+        # the field's transport between the scans: the measured mu less its turbulent bias,
+        # taken in as the measured wind rises above that scatter (transport_weight)
         var, v_s = cells.var_raw[rows].ravel()[circle], cells.v_s[rows].ravel()[circle]
         rest = mean_removed_share(ratio[circle], phi, model, 0.0)
-        mu_t = transport_mu(mu[circle], rest, var, v_s, scans[circle], phi)
-        removed[circle] = circle_removed_d(
-            np.radians(dtheta[circle]),
-            lags.size,
-            ratio[circle],
-            mu_t,
-            interval[circle],
-            scans[circle],
-            phi,
-            model,
-            dense_reference=stored_dense_grid,
-        )
+        setting = (mu[circle], rest, var, v_s, scans[circle], phi)
+        mu_t, weight = transport_mu(*setting), transport_weight(*setting)[..., None]
+
+        def circle_removal(transport: np.ndarray) -> np.ndarray:
+            return circle_removed_d(
+                np.radians(dtheta[circle]),
+                lags.size,
+                ratio[circle],
+                transport,
+                interval[circle],
+                scans[circle],
+                phi,
+                model,
+                dense_reference=stored_dense_grid,
+            )
+
+        removed[circle] = weight * circle_removal(mu_t)
+        if (weight < 1.0).any():
+            removed[circle] += (1.0 - weight) * circle_removal(np.zeros_like(mu_t))
     full = np.array([spectra.variance_per_eps23(model, x) for x in nodes])
     a2 = np.exp(log_a2) - removed * full[None, :, None]
     log_a2 = np.log(np.maximum(a2, 1e-3 * np.exp(log_a2)))
