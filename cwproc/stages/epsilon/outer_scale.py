@@ -20,7 +20,6 @@ import numpy as np
 
 from cwproc.physics import spectra
 from cwproc.physics.exact_lag import is_cw_probe
-from cwproc.physics.few_ray_sector import FEW_RAYS_STEP_DEG, dwell_loss_ratio, sector_a2
 from cwproc.physics.probe_variance import averaging_loss, passed_variance, segment_loss
 from cwproc.physics.removed_share import (
     circle_removed_d,
@@ -37,6 +36,12 @@ from cwproc.stages.epsilon.atable_fit import (
     outer_scale_sector_factor,
 )
 from cwproc.stages.epsilon.cells import Cells
+from cwproc.stages.epsilon.few_ray import (
+    carried_scale_factor,
+    few_ray_circles,
+    few_ray_factor,
+    few_ray_inertial_a2,
+)
 from cwproc.stages.epsilon.records import (
     CellEstimates,
     CellTables,
@@ -214,36 +219,46 @@ def scale_parts(
 
 def _cells_residual(
     index: np.ndarray,
-    cells: tuple,
     table: Any,
     finite: FiniteScaleInputs,
-    statistics: tuple,
+    chunk: tuple,
+    rel_se: float,
     known: tuple | None = None,
 ) -> Residual:
-    """:func:`variance_residual` of the cells ``index`` of ``cells``.
+    """:func:`variance_residual` of the cells ``index`` of a chunk of cells.
 
-    ``cells``: time and height indices, table rows and passed variances of the cells;
-    ``statistics``: the ``(time, height, ...)`` arrays sector factor, D, valid lags,
-    variance, noise prediction, covariance of D (or None) and the prediction's relative
-    standard error of :func:`fit_cells`; ``known``: :func:`scale_parts` of ``cells`` at
-    some outer scales, with them (``variance_residual``'s ``known``).
+    ``chunk``: the chunk's ``(n, ...)`` table rows, passed variances, sector factors, D,
+    valid lags, variance, noise prediction ``(n, 1)`` and covariance of D (or None) of
+    :func:`fit_cells`; ``rel_se`` the prediction's relative standard error; ``known``:
+    :func:`scale_parts` of the chunk at some outer scales, with them
+    (``variance_residual``'s ``known``).
     """
-    ti, hi_, rows, passed = (c[index] for c in cells)
-    sector, d, valid, var_raw, prior, d_cov, rel_se = statistics
+    rows, passed, sector, d, valid, var_raw, prior, d_cov = (
+        None if c is None else _take(c, index) for c in chunk
+    )
     return variance_residual(
         table,
         rows,
         finite,
-        sector[ti, hi_],
+        sector,
         passed,
-        d[ti, hi_],
-        valid[ti, hi_],
-        var_raw[ti, hi_],
-        prior[ti, hi_][:, None],
-        None if d_cov is None else d_cov[ti, hi_],
+        d,
+        valid,
+        var_raw,
+        prior,
+        d_cov,
         rel_se,
-        None if known is None else tuple(k[index] for k in known),
+        None if known is None else tuple(_take(k, index) for k in known),
     )
+
+
+def _take(values: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """``values[index]``, or ``values`` itself where ``index`` is every row in order."""
+    n = values.shape[0]
+    if index.size == n and (n == 0 or (index[0] == 0 and index[-1] == n - 1)):
+        if np.array_equal(index, np.arange(n)):
+            return values
+    return values[index]
 
 
 def outer_scale_root(
@@ -410,15 +425,12 @@ def _finite_scale_cells(
     finite, sector = setup.finite, setup.tables.sector
     near, near_slope, near_parts = start
     a1, a2 = a_functions
-    n_h = d.shape[1]
-    statistics = (sector, d, setup.valid, var_raw, setup.prior.predicted, setup.d_cov)
     for key, (rows, _) in setup.tables.groups.items():  # one table per configuration
-        ti, hi_ = np.nonzero(need & rows[:, None])
-        if ti.size == 0:
+        cells_of = _group_cells(setup, need, key, rows, near_parts if near is not None else None)
+        if cells_of is None:
             continue
-        table, rank = setup.cell_tables[key]
-        cells = rank[ti] * n_h + hi_
-        passed = finite.passed[ti, hi_]
+        ti, hi_, cells, passed, static = cells_of
+        table = setup.cell_tables[key][0]
         root, use, below = np.empty(ti.size), np.empty(ti.size, bool), np.empty(ti.size, bool)
         for lo in range(0, ti.size, ROOT_CELLS):  # bounded working memory
             at = slice(lo, lo + ROOT_CELLS)
@@ -428,16 +440,18 @@ def _finite_scale_cells(
                 if (key, lo) not in near_parts:
                     l_near = near_nodes(near[t_, h_])
                     parts = scale_parts(
-                        table, cells[at], sector[t_, h_], finite.scale_grid, passed[at], l_near
+                        table, cells[at], static[0][at], finite.scale_grid, passed[at], l_near
                     )
                     near_parts[(key, lo)] = (l_near, *parts)
                 known = near_parts[(key, lo)]
+            sec, valid, prior, d_cov = (None if c is None else c[at] for c in static)
+            chunk = (cells[at], passed[at], sec, d[t_, h_], valid, var_raw[t_, h_], prior, d_cov)
             residual_of = functools.partial(
                 _cells_residual,
-                cells=(t_, h_, cells[at], passed[at]),
                 table=table,
                 finite=finite,
-                statistics=(*statistics, setup.prior.rel_se),
+                chunk=chunk,
+                rel_se=setup.prior.rel_se,
                 known=known,
             )
             root[at], use[at], below[at], roots.slope[t_, h_] = outer_scale_root(
@@ -460,6 +474,33 @@ def _finite_scale_cells(
             total = np.interp(np.log(root[use]), np.log(scale_grid), finite.full_var)
             roots.passed_fraction[tu, hu] = through / total
         roots.too_small[ti[below], hi_[below]] = True
+
+
+def _group_cells(
+    setup: FitSetup, need: np.ndarray, key: tuple, rows: np.ndarray, kept: dict | None
+) -> tuple | None:
+    """``(ti, hi, table rows, passed, (sector, valid, prior, d_cov))`` of the cells
+    ``need`` of the configuration ``key`` (blocks ``rows``) for :func:`_finite_scale_cells`,
+    what does not depend on the statistics gathered once; None without such cells.
+    ``kept``: the ``near_parts`` of :func:`fit_cells` (whose ``need`` is the same at every
+    call), where they are kept."""
+    if kept is not None and ("cells", key) in kept:
+        return kept[("cells", key)]
+    ti, hi_ = np.nonzero(need & rows[:, None])
+    if ti.size == 0:
+        return None
+    cells = setup.cell_tables[key][1][ti] * need.shape[1] + hi_
+    d_cov = setup.d_cov
+    static = (
+        setup.tables.sector[ti, hi_],
+        setup.valid[ti, hi_],
+        setup.prior.predicted[ti, hi_][:, None],
+        None if d_cov is None else d_cov[ti, hi_],
+    )
+    out = (ti, hi_, cells, setup.finite.passed[ti, hi_], static)
+    if kept is not None:
+        kept[("cells", key)] = out
+    return out
 
 
 def _remembered(memo: FitMemo | None, key: tuple, compute: Callable[[], np.ndarray]) -> np.ndarray:
@@ -566,7 +607,7 @@ def fit_setup(
     which has the same pairs where :func:`cwproc.stages.epsilon.block_groups` splits a day.
     """
     dy = cells.dy
-    a2 = _few_ray_inertial_a2(cells, options, tables.a2, tables.sector)
+    a2 = few_ray_inertial_a2(cells, options, tables.a2, tables.sector)
     # the loss depends on (dy, range) only: compute it once per distinct pair
     # step-stare rays are not swept: no transverse averaging in the variance (eq. 20)
     dy_filter = dy if options.swept else np.where(np.isfinite(dy), 0.0, np.nan)
@@ -588,7 +629,7 @@ def fit_setup(
         finite = finite_scale_inputs(
             probe, model, options, uniq, inverse, cells, n_outer_scales, memo
         )
-        finite.passed[...] -= carried[..., None] * _carried_scale_factor(
+        finite.passed[...] -= carried[..., None] * carried_scale_factor(
             cells, options, finite.scale_grid, model
         )
     lags = np.arange(1, cells.d.shape[2] + 1, dtype=float)
@@ -607,117 +648,6 @@ def fit_setup(
         exact=exact,
         finite=finite,
     )
-
-
-def _few_ray_inertial_a2(
-    cells: Cells, options: TableOptions, a2: np.ndarray, sector: np.ndarray
-) -> np.ndarray:
-    """The inertial ``A_2`` ``(time, height, lag)`` with the few-ray circles'
-    (:func:`few_ray_cells`) from :func:`cwproc.physics.few_ray_sector.sector_a2` (the
-    inertial fit and the fallback of the finite-outer-scale one); the table's circle mean
-    ``a2 / sector`` gives the probe's share."""
-    few = few_ray_cells(cells, options) & np.all(np.isfinite(a2), axis=-1)
-    if not few.any():
-        return a2
-    out = a2.copy()
-    phi = float(np.nanmedian(cells.phi))
-    dwell = float(options.dwell)
-    for t, h in zip(*np.nonzero(few), strict=True):
-        mu, rng = cells.mu_eval[t, h], cells.range_m[t, h]
-        if not (np.isfinite(mu) and np.isfinite(rng)):
-            continue
-        out[t, h] = sector_a2(
-            cells.lag_weights[t, h][None],
-            float(cells.dtheta[t]),
-            dwell,
-            np.array([mu]),
-            phi,
-            np.array([rng]),
-            np.array([1.0]),
-            "inertial",
-            (a2[t, h] / sector[t, h])[None],
-        )[0, 0]
-    return out
-
-
-def _carried_scale_factor(
-    cells: Cells, options: TableOptions, scale_grid: np.ndarray, model: str
-) -> np.ndarray:
-    """``(time, height, nL)``: the outer scale's factor on the inertial variance lost to
-    the transport during the dwell (:func:`transport_loss`), for few-ray circles
-    (:func:`few_ray_cells`: :func:`cwproc.physics.few_ray_sector.dwell_loss_ratio`); 1
-    elsewhere (24- and 36-ray VADs keep the inertial loss)."""
-    n_t, n_h = cells.range_m.shape
-    out = np.ones((n_t, n_h, scale_grid.size))
-    dwell = float(options.dwell)
-    if dwell <= 0.0:
-        return out
-    phi = float(np.nanmedian(cells.phi))
-    for t, h in zip(*np.nonzero(few_ray_cells(cells, options)), strict=True):
-        mu, rng = cells.mu_eval[t, h], cells.range_m[t, h]
-        if np.isfinite(mu) and np.isfinite(rng):
-            out[t, h] = dwell_loss_ratio(
-                float(cells.dtheta[t]), dwell, float(mu), phi, float(rng), scale_grid, model
-            )
-    return out
-
-
-def few_ray_cells(cells: Cells, options: TableOptions) -> np.ndarray:
-    """``(time, height)``: full circles of step-stare rays at least
-    :data:`FEW_RAYS_STEP_DEG` apart (12-ray VADs: two lags, 30 and 60 deg)."""
-    n_t, n_h = cells.range_m.shape
-    dtheta = np.broadcast_to(np.asarray(cells.dtheta, float)[:, None], (n_t, n_h))
-    coarse = np.isfinite(dtheta) & (dtheta >= FEW_RAYS_STEP_DEG - 1e-6)
-    if options.swept or not coarse.any():
-        return np.zeros((n_t, n_h), dtype=bool)  # (no partial-circle test of every cell)
-    partial = cells.partial
-    stare = not options.swept
-    return stare & ~partial & np.isfinite(dtheta) & (dtheta >= FEW_RAYS_STEP_DEG - 1e-6)
-
-
-def _few_ray_circles(tables: tuple, partial: np.ndarray, dtheta: np.ndarray) -> np.ndarray:
-    """Full circles of step-stare rays at least :data:`FEW_RAYS_STEP_DEG` apart."""
-    params = tables[1].params
-    stare = not params.get("swept", True)
-    return stare & ~partial & np.isfinite(dtheta) & (dtheta >= FEW_RAYS_STEP_DEG - 1e-6)
-
-
-def _few_ray_factor(
-    tables: tuple,
-    lags: np.ndarray,
-    height: np.ndarray,
-    mu: np.ndarray,
-    weights: np.ndarray,
-    range_m: np.ndarray,
-    circle: np.ndarray,
-) -> np.ndarray:
-    """``(cells, nL, n_lag)``: the factor on the finite table's circle mean ``circle``
-    (``(cells, nL, n_lag)``, m^(2/3)) that gives few-ray circles the direct two-beam
-    ``A_2`` of their pairs (:func:`cwproc.physics.few_ray_sector.sector_a2`), in place of
-    :func:`outer_scale_sector_factor`; over the inertial sector ratio, by which
-    :func:`fit_cells` multiplies."""
-    inertial, finite = tables
-    params = finite.params
-    n_l = lags.size
-    lag_b = np.broadcast_to(lags[None, :], (height.size, n_l))
-    h_b = np.repeat(height[:, None], n_l, 1)
-    mu_b = np.repeat(mu[:, None], n_l, 1)
-    _, probe_circle = inertial.evaluate(lag_b, h_b, mu_b)
-    direct = sector_a2(
-        weights,
-        float(params["delta_theta_deg"]),
-        float(params.get("dwell", 0.0)),
-        mu,
-        float(params["phi_deg"]),
-        range_m,
-        finite.outer_scales_m,
-        finite.model,
-        probe_circle,
-    )
-    base = np.sum(inertial.node_ratio(lag_b, h_b, mu_b) * np.nan_to_num(weights), axis=-1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out = direct / (circle * base[:, None, :])
-    return np.where(np.isfinite(out) & (out > 0), out, 1.0)
 
 
 def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.ndarray) -> Any:
@@ -752,12 +682,12 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
         factor = outer_scale_sector_factor(
             tables, lags, height[coarse], mu[coarse], lag_weights[coarse]
         )
-        few_ray = _few_ray_circles(tables, partial[coarse], dtheta[coarse])
+        few_ray = few_ray_circles(tables, partial[coarse], dtheta[coarse])
         if few_ray.any():
             at = coarse[few_ray]
             cell_range = np.asarray(cells.range_m)[rows].ravel()[at]
             circle_a2 = np.exp(log_a2[at])
-            factor[few_ray] = _few_ray_factor(
+            factor[few_ray] = few_ray_factor(
                 tables, lags, height[at], mu[at], lag_weights[at], cell_range, circle_a2
             )
         log_a2[coarse] += np.log(factor)
@@ -802,6 +732,7 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
             dense_reference=stored_dense_grid,
         )
     full = np.array([spectra.variance_per_eps23(model, x) for x in nodes])
-    a2 = np.exp(log_a2) - removed * full[None, :, None]
-    log_a2 = np.log(np.maximum(a2, 1e-3 * np.exp(log_a2)))
+    circle = np.exp(log_a2)
+    a2 = circle - removed * full[None, :, None]
+    log_a2 = np.log(np.maximum(a2, np.multiply(1e-3, circle, out=circle), out=a2), out=a2)
     return dataclasses.replace(table, log_a2=log_a2)
