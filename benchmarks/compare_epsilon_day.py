@@ -11,7 +11,9 @@ the reference checkout's (``--ref``, default ``/work/main``), each in its own pr
   status is 1 when it exceeds ``--rtol`` (default 0: bit-identical required);
 - with ``--rounds N``, times the warm stage (CPU seconds, ``time.process_time``, best of
   ``--repeat``) of both checkouts alternately ``N`` times, so that the load of a shared
-  box falls on both alike, and prints the ratio of the two.
+  box falls on both alike, and prints the ratio of the two; ``--fresh`` times each run
+  without the per-geometry arrays an earlier call of the process kept (a process's first
+  day of a scan geometry, warm A-tables).
 
 Run::
 
@@ -38,14 +40,16 @@ ROOT = HERE.parent
 DAYS = (("24-ray VAD", 24, 3.0, 3), ("180-ray", 180, 0.2, 4))
 
 
-def _worker(out: Path, cache_dir: str, repeat: int) -> None:
+def _worker(out: Path, cache_dir: str, repeat: int, fresh: bool) -> None:
     """Products of both days (``out``: .npz of every variable and a JSON of attributes)
-    and the best warm CPU time of each day, printed as JSON."""
+    and the best warm CPU time of each day, printed as JSON; ``fresh``: every timed run
+    without the arrays an earlier call of the process kept per scan geometry
+    (:func:`cwproc.stages.epsilon.records.process_memo`, where the checkout has it)."""
     from bench_epsilon_day import synthetic_day
 
     import cwproc
     from cwproc.physics.transfer import PulsedProbe
-    from cwproc.stages.epsilon import estimate_epsilon
+    from cwproc.stages.epsilon import estimate_epsilon, records
 
     probe = PulsedProbe(15.3, 18.0)
     options = {"cache_dir": cache_dir}
@@ -61,6 +65,8 @@ def _worker(out: Path, cache_dir: str, repeat: int) -> None:
         product = run()  # tables warm (built here if the cache is cold)
         best = np.inf
         for _ in range(repeat):
+            if fresh and hasattr(records, "_PROCESS_MEMOS"):
+                records._PROCESS_MEMOS.clear()
             c0 = time.process_time()
             product = run()
             best = min(best, time.process_time() - c0)
@@ -74,9 +80,10 @@ def _worker(out: Path, cache_dir: str, repeat: int) -> None:
     print(json.dumps({"cwproc": str(Path(cwproc.__file__).parent), "cpu": cpu}))
 
 
-def _run(checkout: Path, out: Path, cache_dir: str, repeat: int) -> dict:
+def _run(checkout: Path, out: Path, cache_dir: str, repeat: int, fresh: bool) -> dict:
     env = {**os.environ, "PYTHONPATH": str(checkout), "OMP_NUM_THREADS": "1"}
     args = [sys.executable, str(Path(__file__)), "--worker", str(out), "--cache-dir", cache_dir]
+    args += ["--fresh"] if fresh else []
     done = subprocess.run(
         [*args, "--repeat", str(repeat)], env=env, capture_output=True, text=True, check=False
     )
@@ -139,17 +146,21 @@ def main() -> int:
     parser.add_argument("--rounds", type=int, default=1)
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--rtol", type=float, default=0.0)
+    parser.add_argument(
+        "--fresh", action="store_true", help="time without the per-geometry process memo"
+    )
     parser.add_argument("--worker", type=Path, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker is not None:
-        _worker(args.worker, args.cache_dir, args.repeat)
+        _worker(args.worker, args.cache_dir, args.repeat, args.fresh)
         return 0
     times: dict[str, list[dict]] = {"this": [], "ref": []}
     with tempfile.TemporaryDirectory() as tmp:
         files = {key: Path(tmp) / f"{key}.npz" for key in times}
         for _ in range(args.rounds):
             for key, checkout in (("this", ROOT), ("ref", args.ref)):
-                times[key].append(_run(checkout, files[key], args.cache_dir, args.repeat)["cpu"])
+                run = _run(checkout, files[key], args.cache_dir, args.repeat, args.fresh)
+                times[key].append(run["cpu"])
         same = compare(files["this"], files["ref"], args.rtol)
     load = os.getloadavg()
     print(
