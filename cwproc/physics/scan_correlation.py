@@ -98,6 +98,65 @@ def scan_positions(
     return pos, beam
 
 
+def pair_geometry(
+    pos: np.ndarray, beam: np.ndarray, shift: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Separations and beam projections of the ray pairs of scans ``m`` apart.
+
+    The part of :func:`cross_scan_correlation` that does not depend on ``R'/L_V``: one
+    geometry serves every node of ``R'/L_V``.
+
+    Parameters
+    ----------
+    pos, beam : numpy.ndarray
+        ``(..., M, 3)`` of :func:`scan_positions` (any leading axes: start angles).
+    shift : numpy.ndarray
+        ``(m,)`` transport between the scans (units of ``R'``).
+
+    Returns
+    -------
+    (r, dot, proj) : numpy.ndarray
+        ``(..., m, M, M)`` distance ``|p_i - p_j + shift_m e_x|`` (units of ``R'``),
+        ``(..., 1, M, M)`` ``s_i.s_j`` and ``(..., m, M, M)`` ``(s_i.e)(s_j.e)``
+        (Banakh et al. (1999), eq. 16).
+    """
+    r_vec = pos[..., None, :, None, :] - pos[..., None, None, :, :]
+    r_vec = r_vec + np.asarray(shift, float)[:, None, None, None] * np.array([1.0, 0.0, 0.0])
+    r = np.linalg.norm(r_vec, axis=-1)
+    unit = r_vec / np.where(r > 0, r, 1.0)[..., None]
+    beam_i, beam_j = beam[..., None, :, None, :], beam[..., None, None, :, :]
+    proj = np.sum(unit * beam_i, axis=-1) * np.sum(unit * beam_j, axis=-1)
+    dot = (beam @ np.swapaxes(beam, -1, -2))[..., None, :, :]
+    return r, dot, proj
+
+
+def correlation_at(
+    geometry: tuple[np.ndarray, np.ndarray, np.ndarray], ratio: np.ndarray, model: str
+) -> np.ndarray:
+    """``(X, ..., m, M, M)``: :func:`cross_scan_correlation` at each ``R'/L_V`` of ``ratio``.
+
+    ``g(r) s_i.s_j + [f(r) - g(r)] (s_i.e)(s_j.e)`` (Banakh et al. (1999), eq. 16), ``f,
+    g`` of ``model`` by interpolation in ``ln r`` at ``r`` in units of ``L_V``.
+
+    Parameters
+    ----------
+    geometry : tuple of numpy.ndarray
+        ``(r, dot, proj)`` of :func:`pair_geometry`.
+    ratio : numpy.ndarray
+        ``(X,)`` ``R'/L_V``.
+    model : str
+        ``"von_karman"`` or ``"exponential"``.
+    """
+    r, dot, proj = geometry
+    log_r, f_c, g_c = correlation_curve(model)
+    scale = np.asarray(ratio, float).reshape((-1,) + (1,) * r.ndim)
+    with np.errstate(divide="ignore"):
+        lr = np.log(np.maximum(r * scale, 1e-300))
+    f = np.interp(lr, log_r, f_c, left=1.0)
+    g = np.interp(lr, log_r, g_c, left=1.0)
+    return g * dot + (f - g) * proj
+
+
 def cross_scan_correlation(
     pos: np.ndarray,
     beam: np.ndarray,
@@ -110,7 +169,8 @@ def cross_scan_correlation(
 
     ``g(r) s_i.s_j + [f(r) - g(r)] (s_i.e)(s_j.e)`` (Banakh et al. (1999), eq. 16) at
     ``r = |p_i - p_j + shift_m e_x| ratio`` in units of ``L_V`` (``ratio = R'/L_V``),
-    ``f, g`` of ``model`` by interpolation in ``ln r``.
+    ``f, g`` of ``model`` by interpolation in ``ln r`` (:func:`pair_geometry`,
+    :func:`correlation_at`).
 
     Parameters
     ----------
@@ -123,18 +183,7 @@ def cross_scan_correlation(
     model : str
         ``"von_karman"`` or ``"exponential"``.
     """
-    log_r, f_c, g_c = correlation_curve(model)
-    r_vec = pos[None, :, None, :] - pos[None, None, :, :]
-    r_vec = r_vec + np.asarray(shift, float)[:, None, None, None] * np.array([1.0, 0.0, 0.0])
-    r = np.linalg.norm(r_vec, axis=-1)
-    unit = r_vec / np.where(r > 0, r, 1.0)[..., None]
-    proj = np.einsum("mijc,ic->mij", unit, beam) * np.einsum("mijc,jc->mij", unit, beam)
-    dot = (beam @ beam.T)[None]
-    with np.errstate(divide="ignore"):
-        lr = np.log(np.maximum(r * ratio, 1e-300))
-    f = np.interp(lr, log_r, f_c, left=1.0)
-    g = np.interp(lr, log_r, g_c, left=1.0)
-    return g * dot + (f - g) * proj
+    return correlation_at(pair_geometry(pos, beam, shift), np.array([ratio]), model)[0]
 
 
 def _vad_hat(phase: np.ndarray, offset: float) -> np.ndarray:
@@ -305,7 +354,9 @@ def _scan_blocks(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(N, N, M, M)`` velocity covariances (over sigma_V^2) of a block's scans: with their
     correlation in the frozen field (weighted in up to :data:`MU_FROZEN`), and the same
-    with the scans independent (the cross-scan blocks zero). Module doc."""
+    with the scans independent (the cross-scan blocks zero). Module doc. The direct
+    construction, the reference of :func:`refit_jackknife_factors` (which forms only the
+    ``2 N - 1`` distinct blocks; tests)."""
     weight = min(max(mu, 0.0) / MU_FROZEN, 1.0)
     mu_c = max(min(max(mu, 0.0), 1e6), MU_FROZEN)
     pos, beam = scan_positions(phase, offset, mu_c, phi_deg)
@@ -336,7 +387,8 @@ def refit_variance_moments(blocks: np.ndarray, design: np.ndarray) -> tuple[floa
     ``r_n = (I - Q Q^T) V_n`` and ``c_n = Q^T V_n``, ``|V_n - H w|^2 = |r_n|^2 + |c_n -
     w|^2``: every ``theta_k`` is ``sum_n alpha_kn a_n + c^T (gamma_k x I_3) c / M`` with
     ``a_n = |r_n|^2 / M``, so its moments follow from the Gaussian fourth moments
-    ``cov(x^T A x, x^T B x) = 2 tr(A G B G)`` over blocks of at most ``M x M``.
+    ``cov(x^T A x, x^T B x) = 2 tr(A G B G)`` over blocks of at most ``M x M``
+    (:func:`_jackknife_moments`).
 
     Parameters
     ----------
@@ -350,39 +402,70 @@ def refit_variance_moments(blocks: np.ndarray, design: np.ndarray) -> tuple[floa
     (variance, jackknife) : float
         ``var(s)`` and ``E[jackknife estimate of var(s)]`` (``u^2``).
     """
-    n, m_rays = blocks.shape[0], blocks.shape[2]
+    m_rays = blocks.shape[2]
     q_basis = np.linalg.qr(design)[0]  # (M, p)
     proj = np.eye(m_rays) - q_basis @ q_basis.T
     g_rr = proj @ blocks @ proj  # (N, N, M, M)
     g_rc = proj @ blocks @ q_basis  # (N, N, M, p)
-    p = q_basis.shape[1]
-    g_cc = np.einsum("ia,nmij,jb->namb", q_basis, blocks, q_basis).reshape(n * p, n * p)
+    g_cc = q_basis.T @ blocks @ q_basis  # (N, N, p, p)
     mean_a = np.trace(np.diagonal(g_rr, axis1=0, axis2=1), axis1=0, axis2=1) / m_rays
     cov_a = 2.0 * np.einsum("nmij,nmij->nm", g_rr, g_rr) / m_rays**2
-    w = np.einsum("npij,nqij->npq", g_rc, g_rc)  # tr(G^rc_np G^rc_nq^T)
+    variance, jack = _jackknife_moments(mean_a, cov_a, g_rc, g_cc, m_rays)
+    return float(variance), float(jack)
 
-    g4 = g_cc.reshape(n, p, n, p)
-    trace_cc = np.einsum("aibi->ab", g4)  # tr_p of the block (a, b)
-    four = np.einsum("bicj,djai->bcda", g4, g4)  # tr(G_bc G_da) over the fit's columns
+
+def _jackknife_moments(
+    mean_a: np.ndarray, cov_a: np.ndarray, g_rc: np.ndarray, g_cc: np.ndarray, m_rays: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """``var(s)`` and the expectation of its refit jackknife (:func:`refit_variance_moments`).
+
+    Parameters
+    ----------
+    mean_a : numpy.ndarray
+        ``(..., N)`` ``E a_n`` (``a_n = |r_n|^2 / M``).
+    cov_a : numpy.ndarray
+        ``(..., N, N)`` ``cov(a_n, a_m) = 2 ||G^rr_nm||_F^2 / M^2``.
+    g_rc, g_cc : numpy.ndarray
+        ``(..., N, N, M, p)`` ``(I - Q Q^T) G_nm Q`` and ``(..., N, N, p, p)`` ``Q^T G_nm Q``.
+    m_rays : int
+        Rays per scan ``M``.
+
+    Returns
+    -------
+    (variance, jackknife) : numpy.ndarray
+        ``(...)`` each.
+    """
+    n = mean_a.shape[-1]
+    lead = mean_a.shape[:-1]
+    rc = g_rc.reshape((*lead, n, n, -1))
+    w = (rc @ np.swapaxes(rc, -1, -2)).reshape((*lead, n, n * n))  # tr(G^rc_np G^rc_nq^T)
+    trace_cc = np.trace(g_cc, axis1=-2, axis2=-1)  # (..., a, b): tr_p of the block (a, b)
+    # tr(G_bc G_da) over the fit's columns, as a matrix over (a b) x (c d)
+    four = g_cc.reshape((*lead, n * n, -1)) @ np.swapaxes(g_cc, -1, -2).reshape(
+        (*lead, n * n, -1)
+    ).swapaxes(-1, -2)
+    four = np.moveaxis(four.reshape((*lead, n, n, n, n)), -1, -4).reshape((*lead, n * n, n * n))
+    trace_ba = np.swapaxes(trace_cc, -1, -2).reshape((*lead, n * n))
 
     def moments(alpha: np.ndarray, gamma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Means and variances of ``alpha_k . a + c^T (gamma_k x I) c / M`` (``k``: rows)."""
-        mean = alpha @ mean_a + np.einsum("kab,ba->k", gamma, trace_cc) / m_rays
-        var = np.einsum("kn,nm,km->k", alpha, cov_a, alpha)
-        var += 2.0 * np.einsum("kab,kcd,bcda->k", gamma, gamma, four) / m_rays**2
-        var += 4.0 * np.einsum("kn,kpq,npq->k", alpha, gamma, w) / m_rays**2
+        flat = gamma.reshape(gamma.shape[0], n * n)
+        mean = mean_a @ alpha.T + trace_ba @ flat.T / m_rays
+        var = np.sum((alpha @ cov_a) * alpha, axis=-1)
+        var += 2.0 * np.sum((flat @ four) * flat, axis=-1) / m_rays**2
+        var += 4.0 * np.sum(alpha.T * (w @ flat.T), axis=-2) / m_rays**2
         return mean, var
 
     centre = np.eye(n) - 1.0 / n
-    variance = moments(np.full((1, n), 1.0 / n), centre[None] / n)[1][0]
+    variance = moments(np.full((1, n), 1.0 / n), centre[None] / n)[1][..., 0]
     keep = 1.0 - np.eye(n)  # (k, n): the scans of leave-one-out k
     alphas = keep / (n - 1.0)
     gammas = (keep[:, :, None] * np.eye(n) - keep[:, :, None] * keep[:, None, :] / (n - 1.0)) / (
         n - 1.0
     )
     mean, var = moments(alphas - alphas.mean(0), gammas - gammas.mean(0))
-    jack = np.sum(var + mean**2)
-    return float(variance), float(jack * (n - 1.0) / n)
+    jack = np.sum(var + mean**2, axis=-1)
+    return variance, jack * (n - 1.0) / n
 
 
 #: nodes of ``R'/L_V`` of :func:`circle_variance_factor` (log-linear interpolation,
@@ -403,17 +486,15 @@ def circle_factor_slice(
 ) -> np.ndarray:
     """``(x, angle)``: :func:`refit_jackknife_factor` of a circle of ``n_rays`` rays (first
     ray at scan angle 0, ``n_scans`` scans ``interval`` scan periods apart) at ``mu``, on
-    :data:`FACTOR_X` x :data:`FACTOR_ANGLES` (about 0.7 s for 24 rays and 10 scans)."""
-    out = np.ones((FACTOR_X.size, FACTOR_ANGLES.size))
+    :data:`FACTOR_X` x :data:`FACTOR_ANGLES` (:func:`refit_jackknife_factors`: about 0.07 s
+    of one core for 24 rays and 10 scans, 0.2 s for 36; 1 s and 1.9 s cell by cell)."""
     if mu <= 0.0 or n_scans < 2:
-        return out
+        return np.ones((FACTOR_X.size, FACTOR_ANGLES.size))
     phase = 2.0 * np.pi * np.arange(n_rays) / n_rays
-    for i, x in enumerate(FACTOR_X):
-        for j, angle in enumerate(np.radians(FACTOR_ANGLES)):
-            out[i, j] = refit_jackknife_factor(
-                phase, float(angle), mu, interval, n_scans, float(x), 0.0, phi_deg, model
-            )
-    return out
+    offsets = np.radians(FACTOR_ANGLES)
+    return refit_jackknife_factors(
+        phase, offsets, mu, interval, n_scans, FACTOR_X, 0.0, phi_deg, model
+    )
 
 
 def refit_jackknife_factor(
@@ -432,19 +513,126 @@ def refit_jackknife_factor(
     ``[var(s) / E J]`` with the scans correlated in the frozen field over the same ratio
     with the scans independent (:func:`refit_variance_moments`): 1 for independent scans
     whatever the approximations of the velocity covariance (point beams), larger where
-    consecutive scans see the same eddies. Parameters as :func:`correlation_inflation`.
+    consecutive scans see the same eddies. Parameters as :func:`correlation_inflation`;
+    computed by :func:`refit_jackknife_factors`.
     """
     if n_scans < 2 or not (math.isfinite(mu) and math.isfinite(ratio) and ratio > 0):
         return 1.0
-    if mu <= 0.0:
-        return 1.0
-    model = model if model in ("von_karman", "exponential") else FALLBACK_MODEL
-    beta = offset + np.asarray(phase, float)
-    design = np.stack([np.ones(beta.size), np.cos(beta), np.sin(beta)], -1)
-    blocks, independent = _scan_blocks(
-        phase, offset, mu, interval, n_scans, ratio, noise_ratio, phi_deg, model
+    factors = refit_jackknife_factors(
+        phase,
+        np.array([offset]),
+        mu,
+        interval,
+        n_scans,
+        np.array([ratio]),
+        noise_ratio,
+        phi_deg,
+        model,
     )
-    var_c, jack_c = refit_variance_moments(blocks, design)
-    var_i, jack_i = refit_variance_moments(independent, design)
-    factor = (var_c / jack_c) / (var_i / jack_i)
-    return float(factor) if math.isfinite(factor) and factor > 0 else 1.0
+    return float(factors[0, 0])
+
+
+#: elements of the largest ``(R'/L_V, angle, distinct block, M, M)`` array
+#: :func:`refit_jackknife_factors` builds at once (the start angles are taken in chunks)
+CHUNK_ELEMENTS = 2_000_000
+
+
+def refit_jackknife_factors(
+    phase: np.ndarray,
+    offsets: np.ndarray,
+    mu: float,
+    interval: float,
+    n_scans: int,
+    ratios: np.ndarray,
+    noise_ratio: float,
+    phi_deg: float,
+    model: str,
+) -> np.ndarray:
+    """``(X, A)``: :func:`refit_jackknife_factor` at each ``R'/L_V`` and start angle.
+
+    The same numbers as :func:`_scan_blocks` and :func:`refit_variance_moments` cell by
+    cell (to rounding), reformulated: the velocity covariance of the block is block
+    Toeplitz, ``G_{n+d, n} = w rho_d`` and ``G_{n, n+d} = w rho_d^T`` (``w`` the weight
+    of :data:`MU_FROZEN`), so the projections ``P G_nm P``, ``P G_nm Q`` and ``Q^T G_nm
+    Q`` of the moments are formed once per distinct block (``2 N - 1`` of them instead of
+    ``N^2``), those of the independent scans are the diagonal ones (``w = 0``), the
+    separations of the rays (:func:`pair_geometry`) serve every ``R'/L_V``, and every
+    angle and ``R'/L_V`` go through the moments (:func:`_jackknife_moments`) together.
+
+    Parameters
+    ----------
+    phase : numpy.ndarray
+        ``(M,)`` scan angle of each ray from the first (rad), in time order.
+    offsets : numpy.ndarray
+        ``(A,)`` azimuths of the first ray from the direction the wind blows towards (rad).
+    mu, interval, n_scans, noise_ratio, phi_deg, model
+        As :func:`correlation_inflation`.
+    ratios : numpy.ndarray
+        ``(X,)`` ``R'/L_V``.
+    """
+    offsets = np.atleast_1d(np.asarray(offsets, float))
+    ratios = np.atleast_1d(np.asarray(ratios, float))
+    out = np.ones((ratios.size, offsets.size))
+    good = np.isfinite(ratios) & (ratios > 0)
+    if n_scans < 2 or not math.isfinite(mu) or mu <= 0.0 or not good.any():
+        return out
+    model = model if model in ("von_karman", "exponential") else FALLBACK_MODEL
+    phase = np.asarray(phase, float)
+    per_angle = int(good.sum()) * (2 * n_scans - 1) * phase.size**2
+    step = max(1, CHUNK_ELEMENTS // per_angle)
+    settings = (mu, interval, n_scans, noise_ratio, phi_deg, model)
+    for a0 in range(0, offsets.size, step):
+        chunk = offsets[a0 : a0 + step]
+        out[good, a0 : a0 + chunk.size] = _factor_chunk(phase, chunk, ratios[good], *settings)
+    return out
+
+
+def _factor_chunk(
+    phase: np.ndarray,
+    offsets: np.ndarray,
+    ratios: np.ndarray,
+    mu: float,
+    interval: float,
+    n_scans: int,
+    noise_ratio: float,
+    phi_deg: float,
+    model: str,
+) -> np.ndarray:
+    """``(X, A)`` of :func:`refit_jackknife_factors` for finite ``mu > 0`` and ``ratios > 0``."""
+    weight = min(max(mu, 0.0) / MU_FROZEN, 1.0)
+    mu_c = max(min(max(mu, 0.0), 1e6), MU_FROZEN)
+    placed = [scan_positions(phase, float(offset), mu_c, phi_deg) for offset in offsets]
+    pos, beam = (np.stack(part) for part in zip(*placed, strict=True))  # (A, M, 3)
+    shift = -mu_c * 2.0 * math.pi * interval * np.arange(n_scans)
+    rho = correlation_at(pair_geometry(pos, beam, shift), ratios, model)  # (X, A, N, M, M)
+    m_rays = phase.size
+    own = rho[..., :1, :, :] + max(float(noise_ratio), 0.0) * np.eye(m_rays)
+    lower = weight * rho[..., 1:, :, :]  # G_{n+d, n}; its transpose is G_{n, n+d}
+    distinct = np.concatenate([own, lower, np.swapaxes(lower, -1, -2)], axis=-3)
+    beta = offsets[:, None] + phase
+    design = np.stack([np.ones(beta.shape), np.cos(beta), np.sin(beta)], -1)  # (A, M, 3)
+    q_basis = np.linalg.qr(design)[0][:, None]  # (A, 1, M, p)
+    q_t = np.swapaxes(q_basis, -1, -2)
+    proj = np.eye(m_rays) - q_basis @ q_t
+    left = proj @ distinct
+    g_rr = left @ proj  # (X, A, K, M, M)
+    g_rc = left @ q_basis
+    g_cc = q_t @ distinct @ q_basis
+    norm2 = np.einsum("...kij,...kij->...k", g_rr, g_rr)
+    mean_a = np.trace(g_rr[..., 0, :, :], axis1=-2, axis2=-1) / m_rays  # (X, A)
+    scans = np.arange(n_scans)
+    gap = scans[:, None] - scans[None, :]
+    index = np.where(gap > 0, gap, np.where(gap < 0, n_scans - 1 - gap, 0))  # (N, N)
+    same = (index == 0)[..., None, None]
+    cov_a = 2.0 * norm2[..., index] / m_rays**2
+    g_rc, g_cc = g_rc[..., index, :, :], g_cc[..., index, :, :]
+    stacked = (
+        np.stack([cov_a, np.where(index == 0, cov_a, 0.0)]),
+        np.stack([g_rc, np.where(same, g_rc, 0.0)]),
+        np.stack([g_cc, np.where(same, g_cc, 0.0)]),
+    )
+    mean_n = np.broadcast_to(mean_a[..., None], (2, *mean_a.shape, n_scans))
+    variance, jack = _jackknife_moments(mean_n, *stacked, m_rays)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        factor = (variance[0] / jack[0]) / (variance[1] / jack[1])
+    return np.where(np.isfinite(factor) & (factor > 0), factor, 1.0)
