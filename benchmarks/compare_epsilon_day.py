@@ -2,9 +2,9 @@
 
 Runs :func:`cwproc.stages.epsilon.estimate_epsilon` on the two synthetic days of
 ``bench_epsilon_day.py`` (the 24-ray step-stare VAD, dwell fraction 0.45, and the
-180-ray continuous scan; von Kármán) once with this checkout's ``cwproc`` and once with
-the reference checkout's (``--ref``, default ``/work/main``), each in its own process
-(``PYTHONPATH``), and
+180-ray continuous scan; von Kármán, or ``--model``) once with this checkout's
+``cwproc`` and once with the reference checkout's (``--ref``, default ``/work/main``),
+each in its own process (``PYTHONPATH``), and
 
 - compares every variable, coordinate and attribute of the two products: bit for bit
   (NaN equal to NaN), else the largest relative difference is printed and the exit
@@ -40,7 +40,7 @@ ROOT = HERE.parent
 DAYS = (("24-ray VAD", 24, 3.0, 3), ("180-ray", 180, 0.2, 4))
 
 
-def _worker(out: Path, cache_dir: str, repeat: int, fresh: bool) -> None:
+def _worker(out: Path, cache_dir: str, repeat: int, fresh: bool, model: str) -> None:
     """Products of both days (``out``: .npz of every variable and a JSON of attributes)
     and the best warm CPU time of each day, printed as JSON; ``fresh``: every timed run
     without the arrays an earlier call of the process kept per scan geometry
@@ -59,7 +59,7 @@ def _worker(out: Path, cache_dir: str, repeat: int, fresh: bool) -> None:
 
         def run(sf=sf):
             return estimate_epsilon(
-                sf, probe=probe, lag_number=3, model="von_karman", table_options=options
+                sf, probe=probe, lag_number=3, model=model, table_options=options
             )
 
         product = run()  # tables warm (built here if the cache is cold)
@@ -80,10 +80,10 @@ def _worker(out: Path, cache_dir: str, repeat: int, fresh: bool) -> None:
     print(json.dumps({"cwproc": str(Path(cwproc.__file__).parent), "cpu": cpu}))
 
 
-def _run(checkout: Path, out: Path, cache_dir: str, repeat: int, fresh: bool) -> dict:
+def _run(checkout: Path, out: Path, cache_dir: str, repeat: int, fresh: bool, model: str) -> dict:
     env = {**os.environ, "PYTHONPATH": str(checkout), "OMP_NUM_THREADS": "1"}
     args = [sys.executable, str(Path(__file__)), "--worker", str(out), "--cache-dir", cache_dir]
-    args += ["--fresh"] if fresh else []
+    args += ["--model", model] + (["--fresh"] if fresh else [])
     done = subprocess.run(
         [*args, "--repeat", str(repeat)], env=env, capture_output=True, text=True, check=False
     )
@@ -146,20 +146,23 @@ def main() -> int:
     parser.add_argument("--rounds", type=int, default=1)
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--rtol", type=float, default=0.0)
+    parser.add_argument("--model", default="von_karman")
     parser.add_argument(
         "--fresh", action="store_true", help="time without the per-geometry process memo"
     )
     parser.add_argument("--worker", type=Path, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker is not None:
-        _worker(args.worker, args.cache_dir, args.repeat, args.fresh)
+        _worker(args.worker, args.cache_dir, args.repeat, args.fresh, args.model)
         return 0
     times: dict[str, list[dict]] = {"this": [], "ref": []}
     with tempfile.TemporaryDirectory() as tmp:
         files = {key: Path(tmp) / f"{key}.npz" for key in times}
         for _ in range(args.rounds):
             for key, checkout in (("this", ROOT), ("ref", args.ref)):
-                run = _run(checkout, files[key], args.cache_dir, args.repeat, args.fresh)
+                run = _run(
+                    checkout, files[key], args.cache_dir, args.repeat, args.fresh, args.model
+                )
                 times[key].append(run["cpu"])
         same = compare(files["this"], files["ref"], args.rtol)
     load = os.getloadavg()
