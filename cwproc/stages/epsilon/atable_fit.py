@@ -224,7 +224,8 @@ def outer_scale_sector_factor(
     for start in range(0, lag_k.size, SCALE_POINTS // 4):  # bounded working memory
         q = by_height[start : start + SCALE_POINTS // 4]
         ratio[q] = inertial.node_ratio(lag_k[q], h_k[q], mu_k[q])
-    base = np.sum(ratio * w_k, axis=-1)
+    weighted, circle = ratio * w_k, ratio / N_BINS
+    base = np.sum(weighted, axis=-1)
     chunk = max(1, SCALE_POINTS // scales.size)  # points at once: bounded working memory
     factor = np.empty((lag_k.size, scales.size))
     by_stencil = np.lexsort((mu_k, lag_k))  # chunks of few (lag, mu stencil) groups
@@ -235,7 +236,7 @@ def outer_scale_sector_factor(
             h_k[q],
             mu_k[q],
             scales,
-            np.stack([ratio[q] * w_k[q], ratio[q] / N_BINS], axis=1),
+            np.stack([weighted[q], circle[q]], axis=1),
         )
         with np.errstate(invalid="ignore", divide="ignore"):
             factor[q] = sums[..., 0] / (base[q, None] * sums[..., 1])
