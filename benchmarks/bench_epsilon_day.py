@@ -11,11 +11,15 @@ heights 50-2000 m, 10-min blocks, random wind 1-15 m s-1, eps 1e-4 to 1e-2) for
 each with the spectrum model ``--model`` (default von Karman, the default of the
 configuration). The A-tables are built first (timed separately, cached in a temporary
 directory), then the stage is run ``--repeat`` times on warm tables; the best time is
-printed. Target: under 1 s per day and configuration, error bars included. Measured
-warm on the shared 2-core box (load 0.6-1.2), alternately with the previous round's
-code: 0.16 / 0.22 s inertial, 0.78-0.89 / 0.92-0.97 s von Karman for the 24-ray VAD /
-the 180-ray scan (1.09-1.21 s for the 180-ray scan before the error bars' root searches
-were replayed; ``docs/physics-epsilon.md``, "Speed").
+printed. Target: under 1 s per day and configuration, error bars included (issue 12,
+again in issue 29 with the dwell modelled). Measured warm (CPU s, best of 3) on the
+shared 2-core box at load 3-5, alternately with main 3803fb8 in six rounds
+(``compare_epsilon_day.py``, products bit-identical): von Karman 0.77-1.22 s for the
+24-ray VAD (main 1.10-1.63 s, median ratio 0.72) and 0.73-1.14 s for the 180-ray scan
+(main 1.10-1.30 s, median ratio 0.65); main read 1.25 / 1.39 s on an idle box, so about
+0.90 / 0.90 s there. Inertial 0.23 / 0.20 s (main 0.40 / 0.39 s). A process's first
+day of a scan geometry also computes its averaging, passed and transport losses (about
+0.15 s, kept for the later days); ``docs/physics-epsilon.md``, "Speed".
 
 Run::
 

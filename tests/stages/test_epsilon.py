@@ -1112,7 +1112,7 @@ def test_sector_scans_use_the_sector_vad_removal_in_the_variance_condition(optio
     np.testing.assert_allclose(out["velocity_variance"].values, eps ** (2 / 3) * full, rtol=0.03)
     # the same data with the full circle's share (partial circles not recognised)
     monkeypatch.setattr(
-        "cwproc.stages.epsilon.outer_scale.partial_circle",
+        "cwproc.stages.epsilon.cells.partial_circle",
         lambda w, step: np.zeros(w.shape[:-1], bool),
     )
     circle_only = estimate_epsilon(

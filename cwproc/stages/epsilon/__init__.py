@@ -180,7 +180,7 @@ from cwproc.stages.epsilon.noise_prior import (
 )
 from cwproc.stages.epsilon.outer_scale import fit_cells, fit_setup
 from cwproc.stages.epsilon.product import describe, product_arrays, turbulence_dataset
-from cwproc.stages.epsilon.records import CellTables, FitMemo, NoisePrior
+from cwproc.stages.epsilon.records import CellTables, FitMemo, NoisePrior, process_memo
 
 #: the Stream Line preset's probe volume (``cwproc/configs/streamline.toml``:
 #: ``pulse_transfer = "physical"``), for data without a range gate length (the pipeline
@@ -261,7 +261,8 @@ def estimate_epsilon(
     settings = BlockGroupSettings(
         probe, lag_number, model, min_pairs, n_outer_scales, options, fit_noise, noise_window_blocks
     )
-    memo = FitMemo()  # what the groups share: per distinct (dy, range) pair (fit_setup)
+    # what the groups (and the later days of the process) share: per (dy, range) pair
+    memo = process_memo((probe, model, options))
     groups = block_groups(sf, probe)
 
     def run(prior: tuple[float, float]) -> list[tuple]:

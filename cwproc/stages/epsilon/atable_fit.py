@@ -170,7 +170,9 @@ def sector_evaluate(
         weights = np.broadcast_to(weights[:, :, None, :], (*weights.shape[:2], lags.size, N_BINS))
     known = np.all(np.isfinite(weights), axis=(-2, -1))
     ratio = np.ones(a2_full.shape)
-    all_ti, all_hi = np.nonzero(known)
+    # height by height: each piece interpolates the table's azimuth nodes in height at
+    # its own few heights (in block order, every piece took all the heights of a day)
+    all_hi, all_ti = np.nonzero(known.T)
     for start in range(0, all_ti.size, EVALUATION_CELLS):  # bounded working memory
         ti = all_ti[start : start + EVALUATION_CELLS]
         hi = all_hi[start : start + EVALUATION_CELLS]
@@ -218,10 +220,12 @@ def outer_scale_sector_factor(
     # A_2(w) / A_2(circle) = sum(r w): the inertial node ratio r (once), and per node of
     # L_V the outer scale's factor on it
     ratio = np.empty(w_k.shape)
+    by_height = np.argsort(h_k, kind="stable")  # few heights a piece (sector_evaluate)
     for start in range(0, lag_k.size, SCALE_POINTS // 4):  # bounded working memory
-        q = slice(start, start + SCALE_POINTS // 4)
+        q = by_height[start : start + SCALE_POINTS // 4]
         ratio[q] = inertial.node_ratio(lag_k[q], h_k[q], mu_k[q])
-    base = np.sum(ratio * w_k, axis=-1)
+    weighted, circle = ratio * w_k, ratio / N_BINS
+    base = np.sum(weighted, axis=-1)
     chunk = max(1, SCALE_POINTS // scales.size)  # points at once: bounded working memory
     factor = np.empty((lag_k.size, scales.size))
     by_stencil = np.lexsort((mu_k, lag_k))  # chunks of few (lag, mu stencil) groups
@@ -232,7 +236,7 @@ def outer_scale_sector_factor(
             h_k[q],
             mu_k[q],
             scales,
-            np.stack([ratio[q] * w_k[q], ratio[q] / N_BINS], axis=1),
+            np.stack([weighted[q], circle[q]], axis=1),
         )
         with np.errstate(invalid="ignore", divide="ignore"):
             factor[q] = sums[..., 0] / (base[q, None] * sums[..., 1])

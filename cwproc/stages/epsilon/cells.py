@@ -8,6 +8,7 @@ from the SNR (the prior of the noise term of Smalikho (2020), eq. 4).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,6 +18,7 @@ import xarray as xr
 from cwproc.physics import noise
 from cwproc.physics.atable_interp import N_BINS
 from cwproc.physics.exact_lag import is_cw_probe
+from cwproc.physics.removed_share import partial_circle
 
 
 @dataclass(frozen=True)
@@ -65,6 +67,15 @@ class Cells:
     def n_lags(self) -> int:
         """Lags of the structure function."""
         return self.d.shape[-1]
+
+    @functools.cached_property
+    def partial(self) -> np.ndarray:
+        """``(time, height)``: the cells whose pairs leave out a sector (sector scans and
+        gaps, :func:`cwproc.physics.removed_share.partial_circle` of ``weights`` and
+        ``dtheta``); computed once, for the several parts of the fit that ask."""
+        n_t, n_h = self.range_m.shape
+        dtheta = np.broadcast_to(np.asarray(self.dtheta, float)[:, None], (n_t, n_h))
+        return partial_circle(self.weights, dtheta)
 
 
 def cell_inputs(sf: xr.Dataset, probe: Any) -> Cells:

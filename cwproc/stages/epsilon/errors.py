@@ -11,7 +11,7 @@ import numpy as np
 import xarray as xr
 
 from cwproc.physics.delta_method import delta_method_errors
-from cwproc.physics.removed_share import MAX_SECTOR_RAYS, partial_circle
+from cwproc.physics.removed_share import MAX_SECTOR_RAYS
 from cwproc.physics.scan_transport import transport_mu, transport_weight
 from cwproc.stages.epsilon.cells import Cells
 from cwproc.stages.epsilon.outer_scale import fit_cells
@@ -98,10 +98,12 @@ def covariance_errors(
     """
     n_l = d.shape[-1]
     stats = np.concatenate([d, var_raw[..., None]], axis=-1)
+    near_parts: dict = {}  # the L_V-only parts at the base roots' first nodes, once
 
     def estimates(s: np.ndarray) -> dict[str, np.ndarray]:
         near, slope = base.root, base.root_slope
-        return fit_cells(setup, s[..., :n_l], s[..., n_l], near, False, slope).arrays()
+        fit = fit_cells(setup, s[..., :n_l], s[..., n_l], near, False, slope, near_parts)
+        return fit.arrays()
 
     keys = ("efit", "sigma2", "l_v")
     return delta_method_errors(estimates, stats, cov, base.arrays(), keys)
@@ -176,9 +178,7 @@ def correlated_scans_covariance(
     n_t, n_h = cells.var_raw.shape
     with np.errstate(invalid="ignore", divide="ignore"):
         rays = np.rint(360.0 / cells.dtheta)
-    step = np.repeat(cells.dtheta, n_h)
-    partial = partial_circle(cells.weights.reshape(n_t * n_h, -1), step).reshape(n_t, n_h)
-    circle = ~partial & np.isfinite(rays)[:, None] & (rays <= MAX_SECTOR_RAYS)[:, None]
+    circle = ~cells.partial & np.isfinite(rays)[:, None] & (rays <= MAX_SECTOR_RAYS)[:, None]
     circle &= np.isfinite(l_v) & (l_v > 0)
     if not circle.any():
         return cov

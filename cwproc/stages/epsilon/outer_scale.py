@@ -20,14 +20,12 @@ import numpy as np
 
 from cwproc.physics import spectra
 from cwproc.physics.exact_lag import is_cw_probe
-from cwproc.physics.few_ray_sector import FEW_RAYS_STEP_DEG, dwell_loss_ratio, sector_a2
 from cwproc.physics.probe_variance import averaging_loss, passed_variance, segment_loss
 from cwproc.physics.removed_share import (
     MAX_SECTOR_RAYS,
     circle_removed_d,
     circle_removed_variance,
     interp_log_scale,
-    partial_circle,
     sector_removed_d,
     sector_removed_share,
 )
@@ -40,6 +38,12 @@ from cwproc.stages.epsilon.atable_fit import (
     outer_scale_sector_factor,
 )
 from cwproc.stages.epsilon.cells import Cells
+from cwproc.stages.epsilon.few_ray import (
+    carried_scale_factor,
+    few_ray_circles,
+    few_ray_factor,
+    few_ray_inertial_a2,
+)
 from cwproc.stages.epsilon.records import (
     CellEstimates,
     CellTables,
@@ -88,7 +92,7 @@ def finite_scale_inputs(
     <= 1.1), per distinct (dy, range) cell
     (:func:`cwproc.physics.probe_variance.passed_variance`), less the share the block-mean
     VAD wind removes (:func:`mean_removed_share` at the cell's ``mu``, divided by the scans
-    of the block; sectors and gaps (:func:`partial_circle` of the ``weights`` and ``dtheta``
+    of the block; sectors and gaps (:attr:`Cells.partial`: the ``weights`` and ``dtheta``
     of the ``cells``): :func:`sector_removed_share` with the scans' ``interval`` over
     T_scan); the full variance per eps^(2/3) on that grid; the coarse L_V nodes; the
     longest length of each cell (its largest lag's separation or its probe length).
@@ -123,7 +127,7 @@ def finite_scale_inputs(
             ratio_rl, phi_med, model, mu_eval[rows, :, None], options.cache_dir
         )
     share /= n_eff[:, None, None]
-    partial = partial_circle(weights, np.broadcast_to(cells.dtheta[:, None], (n_t, n_h)))
+    partial = cells.partial
     ct, ch = np.nonzero(~partial & (np.rint(360.0 / cells.dtheta) <= MAX_SECTOR_RAYS)[:, None])
     if ct.size:  # circles of correlated scans: the block mean takes up to N times more
         ratio_c = radius[ct, ch, None] / scale_grid[None, :]
@@ -186,6 +190,7 @@ def variance_residual(
     prior: np.ndarray,
     d_cov: np.ndarray | None = None,
     prior_rel_se: float = NOISE_PRIOR_REL_SE,
+    known: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> Residual:
     """The variance condition of cells ``(n,)``, a function of ``L_V`` ``(n, k)`` (m).
 
@@ -198,19 +203,23 @@ def variance_residual(
     (:meth:`cwproc.physics.atable_interp.ATable.at_cells`), ``table_rows`` the cells'
     rows of it; ``d_cov`` the covariance of D of the cells (``(n, lag, lag)``) that
     decides whether sigma_e is fitted, ``prior_rel_se`` the relative standard error of
-    the predicted ``2 sigma_e^2``.
+    the predicted ``2 sigma_e^2``; ``known``: ``(L_V, A_2, passed)`` of these cells at
+    some ``(n, k)`` outer scales (:func:`scale_parts`), used where the residual is asked
+    there again.
     """
     scale_grid = finite.scale_grid
     cov = None if d_cov is None else d_cov[:, None]
 
     def residual(big_l: np.ndarray) -> np.ndarray:
         k = big_l.shape[1]
-        _, f2 = table.evaluate(np.broadcast_to(big_l, (dc.shape[0], k)), table_rows, a1=False)
-        f2 = f2 * cell_sector[:, None, :]
+        if known is not None and known[0].shape == big_l.shape and np.array_equal(known[0], big_l):
+            f2, through = known[1], known[2]
+        else:
+            big_l = np.broadcast_to(big_l, (dc.shape[0], k))
+            f2, through = scale_parts(table, table_rows, cell_sector, scale_grid, passed, big_l)
         eps_l, noise_l, _ = fit_structure_function(
             dc[:, None, :], f2, vc[:, None, :], prior, cov, prior_rel_se
         )
-        through = interp_log_scale(scale_grid, passed, np.broadcast_to(big_l, (dc.shape[0], k)))
         with np.errstate(invalid="ignore", divide="ignore"):
             model_var = np.log(eps_l ** (2 / 3) * through)
             measured = np.log(var_c[:, None] - np.nan_to_num(noise_l, nan=0.0) ** 2)
@@ -219,31 +228,68 @@ def variance_residual(
     return residual
 
 
-def _cells_residual(
-    index: np.ndarray, cells: tuple, table: Any, finite: FiniteScaleInputs, statistics: tuple
-) -> Residual:
-    """:func:`variance_residual` of the cells ``index`` of ``cells``.
+def scale_parts(
+    table: Any,
+    table_rows: np.ndarray,
+    cell_sector: np.ndarray,
+    scale_grid: np.ndarray,
+    passed: np.ndarray,
+    big_l: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(A_2, passed)`` of cells ``(n,)`` at outer scales ``(n, k)`` (m): what
+    :func:`variance_residual` takes from ``L_V`` alone, apart from ``D`` and the variance.
 
-    ``cells``: time and height indices, table rows and passed variances of the cells;
-    ``statistics``: the ``(time, height, ...)`` arrays sector factor, D, valid lags,
-    variance, noise prediction, covariance of D (or None) and the prediction's relative
-    standard error of :func:`fit_cells`.
+    ``A_2`` (``(n, k, lag)``, m^(2/3)) of the model's table at the cells' rows
+    ``table_rows`` times their sector ratio ``cell_sector`` (``(n, lag)``), and the
+    probe-passed variance per eps^(2/3) (``(n, k)``) interpolated from ``passed``
+    (``(n, scale)`` on ``scale_grid``).
     """
-    ti, hi_, rows, passed = (c[index] for c in cells)
-    sector, d, valid, var_raw, prior, d_cov, rel_se = statistics
+    _, f2 = table.evaluate(big_l, table_rows, a1=False)
+    return f2 * cell_sector[:, None, :], interp_log_scale(scale_grid, passed, big_l)
+
+
+def _cells_residual(
+    index: np.ndarray,
+    table: Any,
+    finite: FiniteScaleInputs,
+    chunk: tuple,
+    rel_se: float,
+    known: tuple | None = None,
+) -> Residual:
+    """:func:`variance_residual` of the cells ``index`` of a chunk of cells.
+
+    ``chunk``: the chunk's ``(n, ...)`` table rows, passed variances, sector factors, D,
+    valid lags, variance, noise prediction ``(n, 1)`` and covariance of D (or None) of
+    :func:`fit_cells`; ``rel_se`` the prediction's relative standard error; ``known``:
+    :func:`scale_parts` of the chunk at some outer scales, with them
+    (``variance_residual``'s ``known``).
+    """
+    rows, passed, sector, d, valid, var_raw, prior, d_cov = (
+        None if c is None else _take(c, index) for c in chunk
+    )
     return variance_residual(
         table,
         rows,
         finite,
-        sector[ti, hi_],
+        sector,
         passed,
-        d[ti, hi_],
-        valid[ti, hi_],
-        var_raw[ti, hi_],
-        prior[ti, hi_][:, None],
-        None if d_cov is None else d_cov[ti, hi_],
+        d,
+        valid,
+        var_raw,
+        prior,
+        d_cov,
         rel_se,
+        None if known is None else tuple(_take(k, index) for k in known),
     )
+
+
+def _take(values: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """``values[index]``, or ``values`` itself where ``index`` is every row in order."""
+    n = values.shape[0]
+    if index.size == n and (n == 0 or (index[0] == 0 and index[-1] == n - 1)):
+        if np.array_equal(index, np.arange(n)):
+            return values
+    return values[index]
 
 
 def outer_scale_root(
@@ -266,17 +312,25 @@ def outer_scale_root(
     ``near``) is given (:func:`cwproc.physics.root_search.replayed_root`, the same
     roots from three evaluations for seven); ``slope`` is then NaN.
     """
-    residual = residual_of(np.arange(n))
     if near is None:
+        residual = residual_of(np.arange(n))
         return bracket_root(residual, np.broadcast_to(nodes, (n, nodes.size)), _BISECTIONS)
     if near_slope is None:
-        brackets = near[:, None] * np.array([1.0 / NEAR_FACTOR, 1.0, NEAR_FACTOR])
-        root, has_root, below, _ = bracket_root(residual, brackets, _BISECTIONS_NEAR)
+        root, has_root, below, _ = bracket_root(
+            residual_of(np.arange(n)), near_nodes(near), _BISECTIONS_NEAR
+        )
     else:
         root, has_root, below = replayed_root(
             residual_of, near, near_slope, NEAR_FACTOR, _BISECTIONS_NEAR
         )
     return root, has_root, below, np.full(n, np.nan)
+
+
+def near_nodes(near: np.ndarray) -> np.ndarray:
+    """``(n, 3)``: the outer scales (m) a root search near the roots ``near`` (``(n,)``, m)
+    starts from, :data:`NEAR_FACTOR` either side of each (:func:`outer_scale_root`; the
+    same as :func:`cwproc.physics.root_search.replayed_root` scans first)."""
+    return near[:, None] * np.array([1.0 / NEAR_FACTOR, 1.0, NEAR_FACTOR])
 
 
 def fit_cells(
@@ -286,6 +340,7 @@ def fit_cells(
     near: np.ndarray | None = None,
     method1: bool = True,
     near_slope: np.ndarray | None = None,
+    near_parts: dict | None = None,
 ) -> CellEstimates:
     """eps (methods 1 and 2), sigma_e, sigma_V^2 and L_V of every cell from D and the variance.
 
@@ -299,9 +354,14 @@ def fit_cells(
     ``near`` (that function's base roots, NaN where the finite-outer-scale fit was not
     used) fixes the cells of that fit and starts its root search there, from their slopes
     ``near_slope`` (the base's ``root_slope``) where given. ``method1=False`` leaves eps
-    of method 1 (``e1``) NaN (the delta method does not use it).
+    of method 1 (``e1``) NaN and ``a1`` the inertial tables' (the delta method uses
+    neither). ``near_parts``: a dict the caller keeps over calls with the same ``near``
+    (the delta method's), in which the parts of the variance condition that depend on
+    ``L_V`` alone (:func:`scale_parts`) at the outer scales the root search near ``near``
+    starts from (:func:`near_nodes`) are computed once and kept.
     """
-    a1, a2 = setup.tables.a1.copy(), setup.tables.a2.copy()
+    a1 = setup.tables.a1.copy() if method1 else setup.tables.a1
+    a2 = setup.tables.a2.copy()
     shape = d.shape[:2]
     roots = _FiniteRoots.empty(shape)
     finite = setup.finite
@@ -315,7 +375,8 @@ def fit_cells(
             need &= ~setup.exact
         else:
             need = np.isfinite(near)
-        _finite_scale_cells(setup, d, var_raw, need, (near, near_slope), (a1, a2), roots)
+        start = (near, near_slope, near_parts)
+        _finite_scale_cells(setup, d, var_raw, need, start, (a1 if method1 else None, a2), roots)
         e1, efit, noise, fitted = _fit_lags(setup, d, a1, a2, method1)
         sigma2 = np.where(
             roots.used,
@@ -384,36 +445,45 @@ def _finite_scale_cells(
     d: np.ndarray,
     var_raw: np.ndarray,
     need: np.ndarray,
-    start: tuple[np.ndarray | None, np.ndarray | None],
-    a_functions: tuple[np.ndarray, np.ndarray],
+    start: tuple[np.ndarray | None, np.ndarray | None, dict | None],
+    a_functions: tuple[np.ndarray | None, np.ndarray],
     roots: _FiniteRoots,
 ) -> None:
     """Solve the variance condition of the cells ``need``, one table configuration at a
     time, and put the model's A-functions at the root into ``a_functions`` (``(a1, a2)``,
-    in place) and the outcome into ``roots``; ``start``: ``(near, near_slope)`` of
-    :func:`fit_cells`."""
+    in place; ``a1`` None: not wanted) and the outcome into ``roots``; ``start``:
+    ``(near, near_slope, near_parts)`` of :func:`fit_cells`."""
     finite, sector = setup.finite, setup.tables.sector
-    near, near_slope = start
+    near, near_slope, near_parts = start
     a1, a2 = a_functions
-    n_h = d.shape[1]
-    statistics = (sector, d, setup.valid, var_raw, setup.prior.predicted, setup.d_cov)
     for key, (rows, _) in setup.tables.groups.items():  # one table per configuration
-        ti, hi_ = np.nonzero(need & rows[:, None])
-        if ti.size == 0:
+        cells_of = _group_cells(setup, need, key, rows, near_parts if near is not None else None)
+        if cells_of is None:
             continue
-        table, rank = setup.cell_tables[key]
-        cells = rank[ti] * n_h + hi_
-        passed = finite.passed[ti, hi_]
+        ti, hi_, cells, passed, static = cells_of
+        table = setup.cell_tables[key][0]
         root, use, below = np.empty(ti.size), np.empty(ti.size, bool), np.empty(ti.size, bool)
         for lo in range(0, ti.size, ROOT_CELLS):  # bounded working memory
             at = slice(lo, lo + ROOT_CELLS)
             t_, h_ = ti[at], hi_[at]
+            known = None
+            if near is not None and near_parts is not None:
+                if (key, lo) not in near_parts:
+                    l_near = near_nodes(near[t_, h_])
+                    parts = scale_parts(
+                        table, cells[at], static[0][at], finite.scale_grid, passed[at], l_near
+                    )
+                    near_parts[(key, lo)] = (l_near, *parts)
+                known = near_parts[(key, lo)]
+            sec, valid, prior, d_cov = (None if c is None else c[at] for c in static)
+            chunk = (cells[at], passed[at], sec, d[t_, h_], valid, var_raw[t_, h_], prior, d_cov)
             residual_of = functools.partial(
                 _cells_residual,
-                cells=(t_, h_, cells[at], passed[at]),
                 table=table,
                 finite=finite,
-                statistics=(*statistics, setup.prior.rel_se),
+                chunk=chunk,
+                rel_se=setup.prior.rel_se,
+                known=known,
             )
             root[at], use[at], below[at], roots.slope[t_, h_] = outer_scale_root(
                 residual_of,
@@ -424,8 +494,9 @@ def _finite_scale_cells(
             )
         if np.any(use):
             tu, hu = ti[use], hi_[use]
-            g1, g2 = table.evaluate(root[use][:, None], cells[use])
-            a1[tu, hu] = g1[:, 0]
+            g1, g2 = table.evaluate(root[use][:, None], cells[use], a1=a1 is not None)
+            if a1 is not None:
+                a1[tu, hu] = g1[:, 0]
             a2[tu, hu] = g2[:, 0] * sector[tu, hu]
             roots.used[tu, hu] = True
             roots.root[tu, hu] = root[use]
@@ -434,6 +505,33 @@ def _finite_scale_cells(
             total = np.interp(np.log(root[use]), np.log(scale_grid), finite.full_var)
             roots.passed_fraction[tu, hu] = through / total
         roots.too_small[ti[below], hi_[below]] = True
+
+
+def _group_cells(
+    setup: FitSetup, need: np.ndarray, key: tuple, rows: np.ndarray, kept: dict | None
+) -> tuple | None:
+    """``(ti, hi, table rows, passed, (sector, valid, prior, d_cov))`` of the cells
+    ``need`` of the configuration ``key`` (blocks ``rows``) for :func:`_finite_scale_cells`,
+    what does not depend on the statistics gathered once; None without such cells.
+    ``kept``: the ``near_parts`` of :func:`fit_cells` (whose ``need`` is the same at every
+    call), where they are kept."""
+    if kept is not None and ("cells", key) in kept:
+        return kept[("cells", key)]
+    ti, hi_ = np.nonzero(need & rows[:, None])
+    if ti.size == 0:
+        return None
+    cells = setup.cell_tables[key][1][ti] * need.shape[1] + hi_
+    d_cov = setup.d_cov
+    static = (
+        setup.tables.sector[ti, hi_],
+        setup.valid[ti, hi_],
+        setup.prior.predicted[ti, hi_][:, None],
+        None if d_cov is None else d_cov[ti, hi_],
+    )
+    out = (ti, hi_, cells, setup.finite.passed[ti, hi_], static)
+    if kept is not None:
+        kept[("cells", key)] = out
+    return out
 
 
 def _remembered(memo: FitMemo | None, key: tuple, compute: Callable[[], np.ndarray]) -> np.ndarray:
@@ -475,20 +573,20 @@ def transport_loss(
     lo, hi = float(dy[ok].min()), float(dy[ok].max())
     n_dy = max(2, int(np.ceil(np.log(hi / lo) / np.log(TRANSPORT_DY_RATIO))) + 1)
     dy_nodes = np.geomspace(lo, hi, n_dy) if hi > lo else np.array([lo, lo * TRANSPORT_DY_RATIO])
-    phi = float(np.nanmedian(cells.phi))
+    phi, range_m = float(np.nanmedian(cells.phi)), float(np.nanmedian(cells.range_m))
     mu = cells.mu_eval.ravel()
     nodes = TRANSPORT_MU_NODES
     if np.nanmax(mu, initial=0.0) > nodes[-1]:
         nodes = np.append(nodes, np.nanmax(mu))
     table = _remembered(
         memo,
-        ("transport", swept, dwell, phi, nodes.tobytes(), dy_nodes),
+        ("transport", swept, dwell, phi, range_m, nodes.tobytes(), dy_nodes),
         lambda: (
             dy_nodes[:, None] ** (-2.0 / 3.0)
             * segment_loss(
                 probe,
                 dy_nodes,
-                np.full(dy_nodes.size, float(np.nanmedian(cells.range_m))),
+                np.full(dy_nodes.size, range_m),
                 nodes,
                 phi_deg=phi,
                 swept=swept,
@@ -540,7 +638,7 @@ def fit_setup(
     which has the same pairs where :func:`cwproc.stages.epsilon.block_groups` splits a day.
     """
     dy = cells.dy
-    a2 = _few_ray_inertial_a2(cells, options, tables.a2, tables.sector)
+    a2 = few_ray_inertial_a2(cells, options, tables.a2, tables.sector)
     # the loss depends on (dy, range) only: compute it once per distinct pair
     # step-stare rays are not swept: no transverse averaging in the variance (eq. 20)
     dy_filter = dy if options.swept else np.where(np.isfinite(dy), 0.0, np.nan)
@@ -562,7 +660,7 @@ def fit_setup(
         finite = finite_scale_inputs(
             probe, model, options, uniq, inverse, cells, n_outer_scales, memo
         )
-        finite.passed[...] -= carried[..., None] * _carried_scale_factor(
+        finite.passed[...] -= carried[..., None] * carried_scale_factor(
             cells, options, finite.scale_grid, model
         )
     lags = np.arange(1, cells.d.shape[2] + 1, dtype=float)
@@ -583,122 +681,11 @@ def fit_setup(
     )
 
 
-def _few_ray_inertial_a2(
-    cells: Cells, options: TableOptions, a2: np.ndarray, sector: np.ndarray
-) -> np.ndarray:
-    """The inertial ``A_2`` ``(time, height, lag)`` with the few-ray circles'
-    (:func:`few_ray_cells`) from :func:`cwproc.physics.few_ray_sector.sector_a2` (the
-    inertial fit and the fallback of the finite-outer-scale one); the table's circle mean
-    ``a2 / sector`` gives the probe's share."""
-    few = few_ray_cells(cells, options) & np.all(np.isfinite(a2), axis=-1)
-    if not few.any():
-        return a2
-    out = a2.copy()
-    phi = float(np.nanmedian(cells.phi))
-    dwell = float(options.dwell)
-    for t, h in zip(*np.nonzero(few), strict=True):
-        mu, rng = cells.mu_eval[t, h], cells.range_m[t, h]
-        if not (np.isfinite(mu) and np.isfinite(rng)):
-            continue
-        out[t, h] = sector_a2(
-            cells.lag_weights[t, h][None],
-            float(cells.dtheta[t]),
-            dwell,
-            np.array([mu]),
-            phi,
-            np.array([rng]),
-            np.array([1.0]),
-            "inertial",
-            (a2[t, h] / sector[t, h])[None],
-        )[0, 0]
-    return out
-
-
-def _carried_scale_factor(
-    cells: Cells, options: TableOptions, scale_grid: np.ndarray, model: str
-) -> np.ndarray:
-    """``(time, height, nL)``: the outer scale's factor on the inertial variance lost to
-    the transport during the dwell (:func:`transport_loss`), for few-ray circles
-    (:func:`few_ray_cells`: :func:`cwproc.physics.few_ray_sector.dwell_loss_ratio`); 1
-    elsewhere (24- and 36-ray VADs keep the inertial loss)."""
-    n_t, n_h = cells.range_m.shape
-    out = np.ones((n_t, n_h, scale_grid.size))
-    dwell = float(options.dwell)
-    if dwell <= 0.0:
-        return out
-    phi = float(np.nanmedian(cells.phi))
-    for t, h in zip(*np.nonzero(few_ray_cells(cells, options)), strict=True):
-        mu, rng = cells.mu_eval[t, h], cells.range_m[t, h]
-        if np.isfinite(mu) and np.isfinite(rng):
-            out[t, h] = dwell_loss_ratio(
-                float(cells.dtheta[t]), dwell, float(mu), phi, float(rng), scale_grid, model
-            )
-    return out
-
-
-def few_ray_cells(cells: Cells, options: TableOptions) -> np.ndarray:
-    """``(time, height)``: full circles of step-stare rays at least
-    :data:`FEW_RAYS_STEP_DEG` apart (12-ray VADs: two lags, 30 and 60 deg)."""
-    n_t, n_h = cells.range_m.shape
-    dtheta = np.broadcast_to(np.asarray(cells.dtheta, float)[:, None], (n_t, n_h))
-    coarse = np.isfinite(dtheta) & (dtheta >= FEW_RAYS_STEP_DEG - 1e-6)
-    if options.swept or not coarse.any():
-        return np.zeros((n_t, n_h), dtype=bool)  # (no partial-circle test of every cell)
-    partial = partial_circle(cells.weights, dtheta)
-    stare = not options.swept
-    return stare & ~partial & np.isfinite(dtheta) & (dtheta >= FEW_RAYS_STEP_DEG - 1e-6)
-
-
-def _few_ray_circles(tables: tuple, partial: np.ndarray, dtheta: np.ndarray) -> np.ndarray:
-    """Full circles of step-stare rays at least :data:`FEW_RAYS_STEP_DEG` apart."""
-    params = tables[1].params
-    stare = not params.get("swept", True)
-    return stare & ~partial & np.isfinite(dtheta) & (dtheta >= FEW_RAYS_STEP_DEG - 1e-6)
-
-
-def _few_ray_factor(
-    tables: tuple,
-    lags: np.ndarray,
-    height: np.ndarray,
-    mu: np.ndarray,
-    weights: np.ndarray,
-    range_m: np.ndarray,
-    circle: np.ndarray,
-) -> np.ndarray:
-    """``(cells, nL, n_lag)``: the factor on the finite table's circle mean ``circle``
-    (``(cells, nL, n_lag)``, m^(2/3)) that gives few-ray circles the direct two-beam
-    ``A_2`` of their pairs (:func:`cwproc.physics.few_ray_sector.sector_a2`), in place of
-    :func:`outer_scale_sector_factor`; over the inertial sector ratio, by which
-    :func:`fit_cells` multiplies."""
-    inertial, finite = tables
-    params = finite.params
-    n_l = lags.size
-    lag_b = np.broadcast_to(lags[None, :], (height.size, n_l))
-    h_b = np.repeat(height[:, None], n_l, 1)
-    mu_b = np.repeat(mu[:, None], n_l, 1)
-    _, probe_circle = inertial.evaluate(lag_b, h_b, mu_b)
-    direct = sector_a2(
-        weights,
-        float(params["delta_theta_deg"]),
-        float(params.get("dwell", 0.0)),
-        mu,
-        float(params["phi_deg"]),
-        range_m,
-        finite.outer_scales_m,
-        finite.model,
-        probe_circle,
-    )
-    base = np.sum(inertial.node_ratio(lag_b, h_b, mu_b) * np.nan_to_num(weights), axis=-1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out = direct / (circle * base[:, None, :])
-    return np.where(np.isfinite(out) & (out > 0), out, 1.0)
-
-
 def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.ndarray) -> Any:
     """The finite table at the cells ``rows x heights`` with its own sector ratio.
 
     :meth:`cwproc.physics.atable_interp.ATable.at_cells` of ``tables[1]``, its ``A_2`` at
-    every outer-scale node, for sectors and gaps (:func:`partial_circle`), multiplied by
+    every outer-scale node, for sectors and gaps (:attr:`Cells.partial`), multiplied by
     :func:`outer_scale_sector_factor` (the sector ratio of the outer scale over the
     inertial one that :func:`fit_cells` applies); less the share of ``D(l)`` the block-mean
     VAD wind takes times ``sigma_V^2 / eps^(2/3)`` of the node: :func:`sector_removed_d`
@@ -712,7 +699,7 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
     weights = cells.weights[rows].reshape(-1, cells.weights.shape[-1])
     n_h = cells.height.size
     dtheta = np.repeat(cells.dtheta[rows], n_h)
-    partial = partial_circle(weights, dtheta)
+    partial = cells.partial[rows].ravel()
     part = np.nonzero(partial)[0]
     log_a2 = table.log_a2.copy()
     # the outer scale's own ratio over the azimuths of each lag's pairs (uniform weights:
@@ -726,12 +713,12 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
         factor = outer_scale_sector_factor(
             tables, lags, height[coarse], mu[coarse], lag_weights[coarse]
         )
-        few_ray = _few_ray_circles(tables, partial[coarse], dtheta[coarse])
+        few_ray = few_ray_circles(tables, partial[coarse], dtheta[coarse])
         if few_ray.any():
             at = coarse[few_ray]
             cell_range = np.asarray(cells.range_m)[rows].ravel()[at]
             circle_a2 = np.exp(log_a2[at])
-            factor[few_ray] = _few_ray_factor(
+            factor[few_ray] = few_ray_factor(
                 tables, lags, height[at], mu[at], lag_weights[at], cell_range, circle_a2
             )
         log_a2[coarse] += np.log(factor)
@@ -784,6 +771,7 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
         if (weight < 1.0).any():
             removed[circle] += (1.0 - weight) * circle_removal(np.zeros_like(mu_t))
     full = np.array([spectra.variance_per_eps23(model, x) for x in nodes])
-    a2 = np.exp(log_a2) - removed * full[None, :, None]
-    log_a2 = np.log(np.maximum(a2, 1e-3 * np.exp(log_a2)))
+    circle = np.exp(log_a2)
+    a2 = circle - removed * full[None, :, None]
+    log_a2 = np.log(np.maximum(a2, np.multiply(1e-3, circle, out=circle), out=a2), out=a2)
     return dataclasses.replace(table, log_a2=log_a2)

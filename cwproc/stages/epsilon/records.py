@@ -27,6 +27,7 @@ __all__ = [
     "FitMemo",
     "FitSetup",
     "NoisePrior",
+    "process_memo",
 ]
 
 
@@ -75,20 +76,53 @@ class FitMemo:
 
     :func:`remembered` computes an array once per key: the averaging loss and the
     passed variance depend on the distinct ``(dy, range)`` pairs only, which are the
-    same in every group where :func:`cwproc.stages.epsilon.block_groups` splits a day.
+    same in every group where :func:`cwproc.stages.epsilon.block_groups` splits a day,
+    and in every day of the same scan geometry (:func:`process_memo`). At most
+    :data:`MEMO_ARRAYS` arrays are kept (the oldest go first).
     """
 
     def __init__(self) -> None:
         self._arrays: dict[tuple, np.ndarray] = {}
 
     def remembered(self, key: tuple, compute: Callable[[], np.ndarray]) -> np.ndarray:
-        """``compute()``, kept under ``key`` (whose last item is the array of the distinct
-        (dy, range) pairs) and taken from the memo for the same key again."""
+        """``compute()``, kept under ``key`` (whose last item is an array, e.g. of the
+        distinct (dy, range) pairs) and taken from the memo for the same key again
+        (read-only: it is shared)."""
         *head, pairs = key
         full = (*head, pairs.shape, pairs.tobytes())
         if full not in self._arrays:
-            self._arrays[full] = compute()
+            value = np.asarray(compute())
+            value.flags.writeable = False
+            self._arrays[full] = value
+            while len(self._arrays) > MEMO_ARRAYS:
+                del self._arrays[next(iter(self._arrays))]
         return self._arrays[full]
+
+
+#: arrays one :class:`FitMemo` keeps (a day's take a few, of at most a few MB each)
+MEMO_ARRAYS = 32
+#: :class:`FitMemo` objects :func:`process_memo` keeps (one per probe, model and tables)
+PROCESS_MEMOS = 8
+_PROCESS_MEMOS: dict[tuple, FitMemo] = {}
+
+
+def process_memo(scope: tuple) -> FitMemo:
+    """The :class:`FitMemo` of ``scope`` (the probe, model and A-table settings of a
+    call of :func:`cwproc.stages.epsilon.estimate_epsilon`), kept for the later calls of
+    the process: the per-geometry arrays of :func:`cwproc.stages.epsilon.outer_scale.fit_setup`
+    (averaging loss, passed variance, transport loss; about 0.15 s a day of 100 heights)
+    are then computed once per scan geometry, as the A-tables are loaded once. Keys
+    carry everything else the arrays depend on; an unhashable ``scope`` gets a new memo.
+    At most :data:`PROCESS_MEMOS` are kept (the least recently used go first).
+    """
+    try:
+        memo = _PROCESS_MEMOS.pop(scope, None)
+    except TypeError:  # an unhashable probe: nothing kept
+        return FitMemo()
+    _PROCESS_MEMOS[scope] = memo = memo or FitMemo()
+    while len(_PROCESS_MEMOS) > PROCESS_MEMOS:
+        del _PROCESS_MEMOS[next(iter(_PROCESS_MEMOS))]
+    return memo
 
 
 @dataclass(frozen=True)
