@@ -24,7 +24,6 @@ from cwproc.physics.probe_variance import averaging_loss, passed_variance, segme
 from cwproc.physics.removed_share import (
     MAX_SECTOR_RAYS,
     circle_removed_d,
-    circle_removed_variance,
     interp_log_scale,
     sector_removed_d,
     sector_removed_share,
@@ -38,6 +37,7 @@ from cwproc.stages.epsilon.atable_fit import (
     outer_scale_sector_factor,
 )
 from cwproc.stages.epsilon.cells import Cells
+from cwproc.stages.epsilon.circle_share import correlated_circle_share
 from cwproc.stages.epsilon.few_ray import (
     carried_scale_factor,
     few_ray_circles,
@@ -130,21 +130,8 @@ def finite_scale_inputs(
     partial = cells.partial
     ct, ch = np.nonzero(~partial & (np.rint(360.0 / cells.dtheta) <= MAX_SECTOR_RAYS)[:, None])
     if ct.size:  # circles of correlated scans: the block mean takes up to N times more
-        ratio_c = radius[ct, ch, None] / scale_grid[None, :]
-        setting = (cells.mu_eval[ct, ch], *_rest_inputs(ratio_c, cells, ct, ch, phi_med, model))
-        carried = circle_removed_variance(
-            np.radians(cells.dtheta[ct]),
-            cells.d.shape[2],
-            ratio_c,
-            transport_mu(*setting, n_eff[ct], phi_med),
-            cells.interval[ct],
-            n_eff[ct],
-            phi_med,
-            model,
-        )
-        weight = transport_weight(*setting, n_eff[ct], phi_med)
-        share[ct, ch] = np.where(
-            np.isfinite(carried), (1.0 - weight) * share[ct, ch] + weight * carried, share[ct, ch]
+        share[ct, ch] = correlated_circle_share(
+            share[ct, ch], cells, ct, ch, scale_grid, n_eff[ct], phi_med, model
         )
     ti, hi_ = np.nonzero(partial)
     if ti.size:
@@ -166,16 +153,6 @@ def finite_scale_inputs(
         full_var=full_var,
         longest=np.maximum(n_l * cells.dy * (1 + mu_eval), probe_len),
     )
-
-
-def _rest_inputs(
-    ratio: np.ndarray, cells: Cells, ct: np.ndarray, ch: np.ndarray, phi: float, model: str
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(S, var, V_s)`` of the cells ``(ct, ch)`` for :func:`transport_mu`: the share of
-    independent scans at rest at ``ratio`` (``(cells, k)`` of ``R'/L_V``), the variance of
-    V'_L and the scan speed."""
-    rest = mean_removed_share(ratio, phi, model, 0.0)
-    return rest, cells.var_raw[ct, ch], cells.v_s[ct, ch]
 
 
 def variance_residual(
@@ -752,24 +729,31 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
         var, v_s = cells.var_raw[rows].ravel()[circle], cells.v_s[rows].ravel()[circle]
         rest = mean_removed_share(ratio[circle], phi, model, 0.0)
         setting = (mu[circle], rest, var, v_s, scans[circle], phi)
-        mu_t, weight = transport_mu(*setting), transport_weight(*setting)[..., None]
+        mu_t, weight = transport_mu(*setting), transport_weight(*setting)
 
-        def circle_removal(transport: np.ndarray) -> np.ndarray:
+        def circle_removal(at: np.ndarray, transport: np.ndarray) -> np.ndarray:
+            c = circle[at]
             return circle_removed_d(
-                np.radians(dtheta[circle]),
+                np.radians(dtheta[c]),
                 lags.size,
-                ratio[circle],
+                ratio[c],
                 transport,
-                interval[circle],
-                scans[circle],
+                interval[c],
+                scans[c],
                 phi,
                 model,
                 dense_reference=stored_dense_grid,
             )
 
-        removed[circle] = weight * circle_removal(mu_t)
-        if (weight < 1.0).any():
-            removed[circle] += (1.0 - weight) * circle_removal(np.zeros_like(mu_t))
+        # each part where it counts: most cells are wholly carried or wholly at rest
+        moving = np.nonzero((weight > 0.0).any(axis=-1))[0]
+        resting = np.nonzero((weight < 1.0).any(axis=-1))[0]
+        if moving.size:
+            removed[circle[moving]] = weight[moving, :, None] * circle_removal(moving, mu_t[moving])
+        if resting.size:
+            removed[circle[resting]] += (1.0 - weight[resting, :, None]) * circle_removal(
+                resting, np.zeros_like(mu_t[resting])
+            )
     full = np.array([spectra.variance_per_eps23(model, x) for x in nodes])
     circle = np.exp(log_a2)
     a2 = circle - removed * full[None, :, None]
