@@ -17,15 +17,14 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from swept_reference import estimator_a2, tables, within_rotation_weights  # noqa: E402
+from swept_reference import estimator_a2, tables, within_rotation_weights
 
-from cwproc.physics.geometry import wind_components  # noqa: E402
-from cwproc.physics.transfer import PulsedProbe  # noqa: E402
-from cwproc.sim import exact_gaussian as eg  # noqa: E402
+from cwproc.physics.geometry import wind_components
+from cwproc.physics.transfer import PulsedProbe
+from cwproc.sim import exact_gaussian as eg
 
 PHI, EPS, L_V = 35.3, 0.01, 150.0
 
