@@ -54,8 +54,12 @@ VAD removal in D of circles of more than 60 rays and the outer scale's node rati
     72 rays x0.5   3   0.989 / 1.102 / 2.204   0.999 / 1.075 / 2.149
     72 rays x1.5   3   0.989 / 1.499 / 0.505   0.997 / 1.498 / 0.481
 
-(at mu 3 the free intercepts read sigma_e^2 about half of itself, the swept tables'
-1.2-1.6 % error there; the calibration is not applied and x1.5 keeps the prediction.)
+(at mu 3 the free intercepts read sigma_e^2 about half of itself; the calibration is not
+applied and x1.5 keeps the prediction. Not the swept tables: since issue 29's swept29
+they are within 0.05 % of the exact generator there and read the same, 0.985 / 1.498 /
+0.475; at mu 3 ``2 sigma_e^2`` is 4 % of D(1), a cell's intercept scatters by 1.5-1.8
+times itself and 100 blocks' mean D moves it by +-0.5 of itself: seed 100 reads k 1.945
+(x0.5) and 0.760 (x1.5), both not applied. docs/physics-epsilon.md, noise section.)
 """
 
 from __future__ import annotations

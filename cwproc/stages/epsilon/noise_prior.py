@@ -73,8 +73,10 @@ CALIBRATION_MAX_REL_SE = 0.1
 CALIBRATION_MAX_DISPERSION = 3.0
 #: relative error of the model's structure function that the intercept of a cell carries
 #: whatever the number of cells (systematic, not averaged away): the swept-ray tables'
-#: ``D(l)`` are 1.2-1.6 % off the exact expectation at mu 3 (72 rays,
-#: benchmarks/bench_reference_72ray.py) and the step-stare dwell tables up to 2.4 %; at
+#: ``D(l)`` were 1.2-1.6 % off the reference at mu 3 (72 rays,
+#: benchmarks/bench_reference_72ray.py; 0.05 % off the exact generator since the outer
+#: scale's difference takes the sweep kernel, issue 29) and the step-stare dwell tables
+#: are up to 2.4 % off; at
 #: mu 1 a 72-ray day with sigma_e = 0.05 m s-1 (``2 sigma_e^2`` 3 % of ``D(1)``) read
 #: ``k`` = 1.24 from intercepts moved by 1.3 % of ``D(1)`` and applied it
 CALIBRATION_MODEL_REL = 0.02
