@@ -39,6 +39,7 @@ Run (about 10-20 min on 2 cores; the 180-ray covariances take most of it)::
     python benchmarks/bench_epsilon_accuracy.py --case "180 rays cont" --noise 0.3  # fitted
     python benchmarks/bench_epsilon_accuracy.py --case dwell --mu 1 --blocks 20
     python benchmarks/bench_epsilon_accuracy.py --case sector --sector-fly-back 0  # back to back
+    python benchmarks/bench_epsilon_accuracy.py --case "36 rays step 3s" --mu 0.1  # light wind
 
 ``--case`` and ``--mu`` select cases of the full list; every case keeps the seed it has
 in the full run (``--seed`` plus its index), so a selected case repeats its row.
@@ -151,6 +152,21 @@ def dwell_cases() -> list[dict]:
     return out
 
 
+def with_extra_mu(listed: list[dict], wanted: list[float] | None) -> list[dict]:
+    """``listed`` and, after them, each case at the ``wanted`` mu it does not list.
+
+    ``--mu 0.1`` runs the cases at a mu of their own; the listed cases keep their index,
+    hence their seed, and the added ones take theirs after them.
+    """
+    out = list(listed)
+    for m in wanted or ():
+        for label in dict.fromkeys(c["label"] for c in listed):
+            same = [c for c in listed if c["label"] == label]
+            if not any(abs(c["mu"] - m) < 1e-9 for c in same):
+                out.append(same[0] | {"mu": m})
+    return out
+
+
 def scan_speed(pattern: eg.ScanPattern) -> float:
     """V_s = 2 pi R' / T (m s-1) of the full-circle rate of the pattern (Smalikho (2020), eq. 3)."""
     radius = HEIGHT / np.tan(np.deg2rad(PHI))
@@ -205,7 +221,9 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="a few cases only")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--case", action="append", help="cases whose label contains this")
-    parser.add_argument("--mu", type=float, action="append", help="only these mu")
+    parser.add_argument(
+        "--mu", type=float, action="append", help="only these mu (cases added at a mu they lack)"
+    )
     parser.add_argument("--model", action="append", help="only these retrieval models")
     parser.add_argument(
         "--noise", type=float, default=NOISE, help=f"sigma_e of the scans, m/s ({NOISE})"
@@ -232,7 +250,7 @@ def main() -> None:
     header += f" {'L_se':>6s} {'lnse':>6s} {'in1':>6s} {'fit':>5s} {'sig_fit':>7s} {'ok':>5s}"
     header += f" {'s':>5s}"
     print(header)
-    for i, case in enumerate(cases(args.quick, args.sector_fly_back)):
+    for i, case in enumerate(with_extra_mu(cases(args.quick, args.sector_fly_back), args.mu)):
         pattern, mu = case["pattern"], case["mu"]
         if args.case and not any(c in case["label"] for c in args.case):
             continue

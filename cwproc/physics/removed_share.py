@@ -15,6 +15,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -402,25 +403,33 @@ def _block_correlation(
 
 
 def _lag_shares(hat: np.ndarray, rho: np.ndarray, n_lags: int) -> np.ndarray:
-    """``(x, n_lags)``: ``(2 C - Q)/sigma_V^2`` averaged over the pairs ``l`` rays apart.
+    """``(x, 1 + n_lags)``: the variance's share, then ``(2 C - Q)/sigma_V^2`` of each lag.
 
     ``C = E[(V_a - V_b)(P_a - P_b)]``, ``Q = E[(P_a - P_b)^2]`` with ``P = H <V>_N`` the
     block-mean VAD wind at the rays (``hat`` the projection of one scan, ``rho`` of
-    :func:`_block_correlation`); pairs within a scan, not wrapping round.
+    :func:`_block_correlation`), averaged over the pairs ``l`` rays apart within a scan
+    (not wrapping round). Column 0: ``E[2 V_a P_a - P_a^2]/sigma_V^2`` over the rays,
+    ``tr(H rho)/M`` (``H`` a symmetric projection, ``rho`` symmetric).
     """
-    out = np.zeros((rho.shape[-1], n_lags))
+    out = np.zeros((rho.shape[-1], n_lags + 1))
+    out[:, 0] = np.einsum("ij,jix->x", hat, rho) / hat.shape[0]
     for li in range(min(n_lags, hat.shape[0] - 1)):
         a = np.arange(hat.shape[0] - li - 1)
         b = a + li + 1
         u = hat[a] - hat[b]  # (pairs, j): P_a - P_b per V_j
         cross = np.einsum("pj,pjx->px", u, rho[a] - rho[b])
         quad = np.einsum("pj,pk,jkx->px", u, u, rho)
-        out[:, li] = np.mean(2.0 * cross - quad, axis=0)
+        out[:, li + 1] = np.mean(2.0 * cross - quad, axis=0)
     return out
 
 
+def _removed_d_grid(*configuration: Any) -> np.ndarray:
+    """``(mu, x, n_lags)``: the removal in D(l) of :func:`_removed_grids`."""
+    return _removed_grids(*configuration)[..., 1:]
+
+
 @functools.lru_cache(maxsize=256)
-def _removed_d_grid(
+def _removed_grids(
     phase: tuple[float, ...],
     offsets: tuple[float, ...],
     n_lags: int,
@@ -430,7 +439,7 @@ def _removed_d_grid(
     model: str,
     frozen_at_rest: bool,
 ) -> np.ndarray:
-    """``(mu, x, n_lags)``: the removal in D(l) of one configuration on the nodes.
+    """``(mu, x, 1 + n_lags)``: removal in the variance, then in D(l), of one configuration.
 
     :data:`REMOVED_D_MU` x :data:`REMOVED_D_X`; rays at scan angles ``phase`` (rad from the
     first ray), whose azimuth from the wind-to direction is each of ``offsets`` (averaged:
@@ -494,46 +503,6 @@ def _configurations(keys: np.ndarray) -> list[tuple[tuple, np.ndarray]]:
     ]
 
 
-def transport_mu(
-    mu: np.ndarray,
-    share: np.ndarray,
-    variance: np.ndarray,
-    v_s: np.ndarray,
-    n_scans: np.ndarray,
-    phi_deg: float,
-) -> np.ndarray:
-    """``(cells, k)``: ``U/V_s`` of the field's transport, the measured ``mu`` less its bias.
-
-    The block-mean VAD wind of turbulence at rest is not zero: the fit of one full circle
-    takes the share ``S`` of sigma_V^2 (:func:`share_on_curve` at ``mu = 0``), nearly
-    all of it in the horizontal wind, so each horizontal component of the mean of N
-    independent scans scatters with ``S sigma_V^2 / (N cos^2 phi)`` and ``|U|^2`` is biased
-    by twice that. ``mu_t = sqrt(max(mu^2 - 2 S var / (N cos^2 phi V_s^2), 0))``, ``var``
-    the variance of V'_L standing for sigma_V^2. On exact 24-ray statistics of a field at
-    rest (``R'/L_V`` 0.71) the measured ``mu`` was 0.006-0.038 (5-95 %), the bias
-    ``sqrt(2 S var/N)/(V_s cos phi)`` 0.027 (exact: 0.025): without the correction the
-    frozen transport between the scans made them nearly the same field, and eps 4-7 % high
-    (36 and 24 rays).
-
-    Parameters
-    ----------
-    mu : numpy.ndarray
-        ``(cells,)`` measured ``U/V_s``.
-    share : numpy.ndarray
-        ``(cells, k)`` share ``S`` at the values of ``R'/L_V`` (``mu = 0``,
-        :func:`cwproc.tables.removed_share.mean_removed_share`).
-    variance, v_s, n_scans : numpy.ndarray
-        ``(cells,)`` variance of V'_L (m2 s-2), ``V_s`` (m s-1), scans per block.
-    phi_deg : float
-        Elevation (degrees).
-    """
-    cos2 = math.cos(math.radians(phi_deg)) ** 2
-    with np.errstate(invalid="ignore", divide="ignore"):
-        bias = 2.0 * share * (variance / (n_scans * cos2 * v_s**2))[:, None]
-    mu_t = np.sqrt(np.maximum(np.asarray(mu, float)[:, None] ** 2 - np.nan_to_num(bias), 0.0))
-    return np.nan_to_num(mu_t, nan=0.0)
-
-
 def circle_removed_d(
     step_rad: np.ndarray,
     n_lags: int,
@@ -593,6 +562,40 @@ def circle_removed_d(
         phase = tuple(2.0 * np.pi * np.arange(int(rays)) / rays)
         grid = _removed_d_grid(phase, offsets, n_lags, *setting, False)
         out[at] = _grid_at(grid, mu[at], ratio[at])
+    return out
+
+
+def circle_removed_variance(
+    step_rad: np.ndarray,
+    n_lags: int,
+    ratio: np.ndarray,
+    mu: np.ndarray,
+    interval: np.ndarray,
+    n_scans: np.ndarray,
+    phi_deg: float,
+    model: str,
+) -> np.ndarray:
+    """``(cells, k)``: share of sigma_V^2 the block-mean VAD wind takes from V'_L of a circle.
+
+    ``tr(H rho)/M`` of the rays of a full circle of at most :data:`MAX_SECTOR_RAYS` rays,
+    each at its own time, the scans ``T_int`` apart in the field the wind carries
+    (:func:`_block_correlation`): scans carried less than ``L_V`` from one another are
+    nearly the same field, and the block mean then takes up to N times the share of
+    independent scans (:func:`share_on_curve` over N), which is its value at ``mu = 0``.
+    NaN for denser circles. Arguments as :func:`circle_removed_d`, whose grid of ``n_lags``
+    lags holds this share too (computed once for both).
+    """
+    out = np.full(ratio.shape, np.nan)
+    n_rays = np.rint(2.0 * np.pi / np.asarray(step_rad, float))
+    keys = np.stack([n_rays, np.rint(n_scans), np.round(interval, 2)], -1)
+    offsets = tuple(2.0 * np.pi * np.arange(CIRCLE_DIRECTIONS) / CIRCLE_DIRECTIONS)
+    for (rays, scans, inter), at in _configurations(keys):
+        if rays < 3 or scans < 1 or rays > MAX_SECTOR_RAYS:
+            continue
+        phase = tuple(2.0 * np.pi * np.arange(int(rays)) / rays)
+        setting = (int(scans), float(inter), round(float(phi_deg), 2), model)
+        grid = _removed_grids(phase, offsets, int(n_lags), *setting, False)[..., :1]
+        out[at] = _grid_at(grid, mu[at], ratio[at])[..., 0]
     return out
 
 

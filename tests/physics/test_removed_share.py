@@ -14,7 +14,8 @@ import pytest
 
 from cwproc.physics import spectra
 from cwproc.physics.geometry import beam_unit_vector, wind_components
-from cwproc.physics.removed_share import circle_removed_d, transport_mu
+from cwproc.physics.removed_share import circle_removed_d, circle_removed_variance
+from cwproc.physics.scan_transport import transport_mu, transport_weight
 from cwproc.sim import exact_gaussian as eg
 from cwproc.tables.removed_share import mean_removed_share
 
@@ -210,3 +211,43 @@ def test_dense_circles_share_one_reference_and_scale_with_the_angle_squared():
     coarse = circle_removed_d(np.radians([5.0]), 2, *common, *rest)[0, 0]
     assert fine[4] == pytest.approx(coarse[1], rel=1e-6)
     np.testing.assert_allclose(fine[:4] / fine[0], [1.0, 4.0, 9.0, 16.0], rtol=0.01)
+
+
+@pytest.mark.parametrize("mu, rtol", [(0.0, 0.04), (0.1, 0.04), (0.3, 0.05), (1.0, 0.07)])
+def test_circle_removal_in_the_variance_matches_exact_block_statistics(mu, rtol):
+    """The block-mean VAD of 10 scans of a 24-ray VAD takes ``tr(H rho)/M`` of sigma_V^2
+    from the variance: at mu 0.1 the scans are carried 0.1 of a circle apart, nearly the
+    same field, and the exact removal is four times that of independent scans."""
+    stats = block_statistics(mu)
+    var = spectra.variance_from(EPS, SCALE, "von_karman")
+    exact = (np.mean(np.diag(stats["cov"])) - np.mean(np.diag(stats["res"]))) / var
+    ratio = np.array([[RADIUS / SCALE]])
+    one = np.array([1.0])
+    model_share = circle_removed_variance(
+        np.radians([15.0]), 3, ratio, np.array([mu]), one, one * N_SCANS, PHI, "von_karman"
+    )[0, 0]
+    assert model_share == pytest.approx(exact, rel=rtol)
+    independent = mean_removed_share(ratio, PHI, "von_karman", mu)[0, 0] / N_SCANS
+    if mu == 0.1:
+        assert exact > 3.0 * independent
+    if mu == 0.0:
+        assert model_share == pytest.approx(independent, rel=0.02)
+
+
+def test_transport_weight_keeps_a_field_at_rest_independent():
+    # the block-mean wind of a field at rest, drawn from its exact covariance
+    stats = block_statistics(0.0)
+    wind_cov = (stats["mean_fit"] @ stats["cov"] @ stats["mean_fit"].T)[:2, :2]
+    rng = np.random.default_rng(3)
+    wind = rng.multivariate_normal(np.zeros(2), wind_cov, size=20000)
+    mu = np.hypot(wind[:, 0], wind[:, 1]) / V_S
+    variance = np.trace(stats["res"]) / stats["res"].shape[0]
+    share = mean_removed_share(np.array([[RADIUS / SCALE]]), PHI, "von_karman", 0.0)
+    n = mu.size
+    args = (np.repeat(share, n, 0), np.full(n, variance), np.full(n, V_S), np.full(n, 10.0))
+    weight = transport_weight(mu, *args, PHI)[:, 0]
+    # exp(-2) = 14 % of the blocks above twice the scatter, with small weights
+    assert 0.05 < np.mean(weight > 0) < 0.2
+    assert np.mean(weight) < 0.03
+    # a real wind of 0.3 V_s is taken whole
+    assert transport_weight(np.array([0.3]), *(a[:1] for a in args), PHI)[0, 0] == 1.0

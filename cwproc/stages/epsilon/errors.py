@@ -11,7 +11,8 @@ import numpy as np
 import xarray as xr
 
 from cwproc.physics.delta_method import delta_method_errors
-from cwproc.physics.removed_share import MAX_SECTOR_RAYS, transport_mu
+from cwproc.physics.removed_share import MAX_SECTOR_RAYS
+from cwproc.physics.scan_transport import transport_mu, transport_weight
 from cwproc.stages.epsilon.cells import Cells
 from cwproc.stages.epsilon.outer_scale import fit_cells
 from cwproc.stages.epsilon.records import CellEstimates, FitSetup
@@ -193,11 +194,7 @@ def correlated_scans_covariance(
     # from 2 to 4 of those
     share = mean_removed_share(np.clip(ratio, 1e-3, None)[:, None], phi, model_t, 0.0)
     mu_t = transport_mu(mu_m, share, var, v_s, scans, phi)[:, 0]
-    share = share[:, 0]
-    cos2 = np.cos(np.radians(phi)) ** 2
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rest = np.sqrt(share * var / (scans * cos2 * v_s**2))
-        weight = np.clip(np.nan_to_num(mu_m / rest - 2.0, nan=0.0) / 2.0, 0.0, 1.0)
+    weight = transport_weight(mu_m, share, var, v_s, scans, phi)[:, 0]
     angle = np.full(t_idx.size, np.nan)
     if "scan_start_angle" in sf:
         angle = sf["scan_start_angle"].transpose("time", "height").values[t_idx, h_idx]

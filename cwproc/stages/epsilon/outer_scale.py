@@ -22,13 +22,14 @@ from cwproc.physics import spectra
 from cwproc.physics.exact_lag import is_cw_probe
 from cwproc.physics.probe_variance import averaging_loss, passed_variance, segment_loss
 from cwproc.physics.removed_share import (
+    MAX_SECTOR_RAYS,
     circle_removed_d,
     interp_log_scale,
     sector_removed_d,
     sector_removed_share,
-    transport_mu,
 )
 from cwproc.physics.root_search import Residual, bracket_root, replayed_root
+from cwproc.physics.scan_transport import transport_mu, transport_weight
 from cwproc.physics.structure_fit import NOISE_PRIOR_REL_SE, fit_structure_function
 from cwproc.stages.epsilon.atable_fit import (
     EVALUATION_CELLS,
@@ -36,6 +37,7 @@ from cwproc.stages.epsilon.atable_fit import (
     outer_scale_sector_factor,
 )
 from cwproc.stages.epsilon.cells import Cells
+from cwproc.stages.epsilon.circle_share import correlated_circle_share
 from cwproc.stages.epsilon.few_ray import (
     carried_scale_factor,
     few_ray_circles,
@@ -125,7 +127,13 @@ def finite_scale_inputs(
             ratio_rl, phi_med, model, mu_eval[rows, :, None], options.cache_dir
         )
     share /= n_eff[:, None, None]
-    ti, hi_ = np.nonzero(cells.partial)
+    partial = cells.partial
+    ct, ch = np.nonzero(~partial & (np.rint(360.0 / cells.dtheta) <= MAX_SECTOR_RAYS)[:, None])
+    if ct.size:  # circles of correlated scans: the block mean takes up to N times more
+        share[ct, ch] = correlated_circle_share(
+            share[ct, ch], cells, ct, ch, scale_grid, n_eff[ct], phi_med, model
+        )
+    ti, hi_ = np.nonzero(partial)
     if ti.size:
         share[ti, hi_] = sector_removed_share(
             weights[ti, hi_],
@@ -716,21 +724,36 @@ def _sector_cell_table(tables: tuple, lags: np.ndarray, cells: Cells, rows: np.n
     # its 0.3 s would take the 180-ray day past 1 s)
     circle = np.nonzero(~partial & (dtheta >= COARSE_STEP_DEG))[0]
     if circle.size:
-        # the field's transport between the scans: the measured mu less its turbulent bias
+        # the field's transport between the scans: the measured mu less its turbulent bias,
+        # taken in as the measured wind rises above that scatter (transport_weight)
         var, v_s = cells.var_raw[rows].ravel()[circle], cells.v_s[rows].ravel()[circle]
         rest = mean_removed_share(ratio[circle], phi, model, 0.0)
-        mu_t = transport_mu(mu[circle], rest, var, v_s, scans[circle], phi)
-        removed[circle] = circle_removed_d(
-            np.radians(dtheta[circle]),
-            lags.size,
-            ratio[circle],
-            mu_t,
-            interval[circle],
-            scans[circle],
-            phi,
-            model,
-            dense_reference=stored_dense_grid,
-        )
+        setting = (mu[circle], rest, var, v_s, scans[circle], phi)
+        mu_t, weight = transport_mu(*setting), transport_weight(*setting)
+
+        def circle_removal(at: np.ndarray, transport: np.ndarray) -> np.ndarray:
+            c = circle[at]
+            return circle_removed_d(
+                np.radians(dtheta[c]),
+                lags.size,
+                ratio[c],
+                transport,
+                interval[c],
+                scans[c],
+                phi,
+                model,
+                dense_reference=stored_dense_grid,
+            )
+
+        # each part where it counts: most cells are wholly carried or wholly at rest
+        moving = np.nonzero((weight > 0.0).any(axis=-1))[0]
+        resting = np.nonzero((weight < 1.0).any(axis=-1))[0]
+        if moving.size:
+            removed[circle[moving]] = weight[moving, :, None] * circle_removal(moving, mu_t[moving])
+        if resting.size:
+            removed[circle[resting]] += (1.0 - weight[resting, :, None]) * circle_removal(
+                resting, np.zeros_like(mu_t[resting])
+            )
     full = np.array([spectra.variance_per_eps23(model, x) for x in nodes])
     circle = np.exp(log_a2)
     a2 = circle - removed * full[None, :, None]
