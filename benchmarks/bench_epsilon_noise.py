@@ -19,6 +19,11 @@ at 100 m height, 10 scans per block, ``--blocks`` independent blocks per row. Co
 - ``e/sd``, ``v/sd``, ``L/sd``: mean reported standard error over the scatter of the
   estimates (eps, sigma_V^2, L_V); ``ok``: share of blocks with a good eps.
 
+The rows ``mu1+3`` are a windy day: its first half of the blocks at ``mu`` 1, the second
+(an hour later) at ``mu`` 3, retrieved as one product, so that the SNR calibration the
+stage learns from the day reaches the blocks at ``mu`` 3, where ``2 sigma_e^2`` is 4 % of
+D(1) and no block determines sigma_e by itself; the columns are of the ``mu`` 3 half.
+
 Run (the covariances take most of it: 3-8 min per 72-ray row at mu 1 on a loaded
 2-core box, the 180-ray rows longer; ``--cache`` keeps the scans for the next run)::
 
@@ -74,6 +79,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from cwproc import concat_scans
 from cwproc.config import load_config
 from cwproc.physics import spectra
 from cwproc.pipeline import process_scans
@@ -96,6 +102,8 @@ class Row:
     pattern: eg.ScanPattern
     mu: float
     ratio: float = 1.0
+    #: a windy day: the second half of the blocks at this mu (the first half at ``mu``)
+    mu_late: float | None = None
 
 
 def rows() -> list[Row]:
@@ -124,6 +132,8 @@ def rows() -> list[Row]:
         Row(" 72 rays, mu 0, x1.0", c72, 0.0, 1.0),
         Row(" 72 rays, mu 3, x0.5", c72, 3.0, 0.5),
         Row(" 72 rays, mu 3, x1.5", c72, 3.0, 1.5),
+        Row(" 72 rays, mu1+3 x1.5", c72, 1.0, 1.5, mu_late=3.0),
+        Row(" 72 rays, mu1+3 x0.5", c72, 1.0, 0.5, mu_late=3.0),
     ]
 
 
@@ -154,6 +164,13 @@ def simulate(row: Row, blocks: int, seed: int, cache: Path | None = None) -> xr.
 
 
 def _generate(row: Row, blocks: int, seed: int) -> xr.Dataset:
+    if row.mu_late is not None:  # the day's first half, then its second, later in time
+        early = _generate(dataclasses.replace(row, mu_late=None), blocks // 2, seed)
+        late_row = dataclasses.replace(row, mu=row.mu_late, mu_late=None)
+        late = _generate(late_row, blocks - blocks // 2, seed + 1000)
+        shift = early["time"].values[-1] - late["time"].values[0] + np.timedelta64(1, "h")
+        late = late.assign_coords(time=late["time"] + shift)
+        return concat_scans([early, late])
     return eg.gaussian_scans(
         pattern=row.pattern,
         n_scans=N_SCANS,
@@ -234,13 +251,17 @@ def main() -> None:
         if args.row and not any(r in row.label for r in args.row):
             continue
         t0 = time.perf_counter()
-        r = summarise(retrieve(simulate(row, args.blocks, args.seed + i, args.cache)))
+        turb = retrieve(simulate(row, args.blocks, args.seed + i, args.cache))
+        if row.mu_late is not None:  # the windy half, with the calibration of the whole day
+            turb = turb.isel(time=slice(turb.sizes["time"] // 2, None))
+        r = summarise(turb)
 
         def f(key: str, width: int = 6, r: dict = r) -> str:
             return f"{r.get(key, np.nan):{width}.3f}"
 
+        mu = row.mu if row.mu_late is None else row.mu_late
         print(
-            f"{row.label:20s} {row.mu:4.1f} {f('eps', 6)}±{f('eps_se', 5)}"
+            f"{row.label:20s} {mu:4.1f} {f('eps', 6)}±{f('eps_se', 5)}"
             f" {f('sig', 6)}±{f('sig_se', 5)} {f('fit', 5)} {f('cal')} {f('vel')} {f('int')}"
             f" {f('e/sd', 5)} {f('v/sd', 5)} {f('L/sd', 5)} {f('ok', 5)}"
             f" {time.perf_counter() - t0:5.1f}",
