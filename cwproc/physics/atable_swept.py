@@ -358,6 +358,42 @@ def dwell_kernel(lags: np.ndarray, dwell: float) -> tuple[np.ndarray, np.ndarray
     return x_scan, x_wind, weights
 
 
+def dwell_difference_kernel(
+    lags: np.ndarray, dwell: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`dwell_kernel` for a smooth ``D0``: three nodes of ``tri_d`` per lag, one own.
+
+    The finite outer scale's part of ``D0`` (eq. 15's difference of a model's and the
+    inertial curves, Smalikho (2020)) is smooth in the separation (it starts as its
+    square), so ``int tri_d(u) D0(l, l + u) du`` takes the three-point rule of the
+    density ``tri_d`` itself: ``u = 0``, ``+-d sqrt(2/5)`` with weights 14/24, 5/24,
+    5/24 (its moments 1, ``d^2/6``, ``d^4/15``: exact for polynomials of ``u`` up to
+    degree 5), and the own term, even in ``u`` and zero at ``u = 0``, the node ``u = d
+    sqrt(2/5)`` with weight 10/24 (``D0(0, 0) = 0`` left out). The von Kármán table's
+    ``log A_2`` is within 2e-4 of the graded rule of :func:`dwell_kernel` at ``L_V`` >=
+    170 m and 1e-3 at 80 m (36 rays, ``d`` 0.75, ``mu`` <= 3, h 80-125 m), with a
+    third of its nodes.
+    """
+    lags = np.asarray(lags, dtype=float)
+    dwell = float(dwell)
+    if not 0.0 <= dwell <= 1.0:
+        raise ValueError(f"the dwell fraction must be in [0, 1], got {dwell!r}")
+    if dwell == 0.0:
+        x, weights = stare_kernel(lags)
+        return x, x.copy(), weights
+    s = dwell * math.sqrt(0.4)
+    u = np.array([-s, 0.0, s])
+    tri = np.array([5.0, 14.0, 5.0]) / 24.0
+    n = lags.size
+    x_scan = np.concatenate([np.repeat(lags, 3), [0.0]])
+    x_wind = np.concatenate([(lags[:, None] + u[None, :]).ravel(), [s]])
+    weights = np.zeros((n, x_scan.size))
+    for i in range(n):
+        weights[i, 3 * i : 3 * i + 3] = tri
+    weights[:, -1] = -10.0 / 24.0
+    return x_scan, x_wind, weights
+
+
 def kernel_nodes(
     kernel: tuple[np.ndarray, ...],
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
