@@ -549,20 +549,36 @@ def circle_removed_d(
     """
     reference = dense_reference_grid if dense_reference is None else dense_reference
     out = np.zeros((*ratio.shape, n_lags))
-    n_rays = np.rint(2.0 * np.pi / np.asarray(step_rad, float))
-    keys = np.stack([n_rays, np.rint(n_scans), np.round(interval, 2)], -1)
-    offsets = tuple(2.0 * np.pi * np.arange(CIRCLE_DIRECTIONS) / CIRCLE_DIRECTIONS)
-    for (rays, scans, inter), at in _configurations(keys):
-        if rays < 2 or scans < 1:
-            continue
-        setting = (int(scans), float(inter), round(float(phi_deg), 2), model)
+    for rays, setting, at in _circles(step_rad, n_scans, interval, phi_deg, model):
         if rays > MAX_SECTOR_RAYS:
-            out[at] = _dense_circle(int(rays), n_lags, setting, mu[at], ratio[at], reference)
+            out[at] = _dense_circle(rays, n_lags, setting, mu[at], ratio[at], reference)
             continue
-        phase = tuple(2.0 * np.pi * np.arange(int(rays)) / rays)
-        grid = _removed_d_grid(phase, offsets, n_lags, *setting, False)
+        grid = _removed_d_grid(_circle_phase(rays), _CIRCLE_OFFSETS, n_lags, *setting, False)
         out[at] = _grid_at(grid, mu[at], ratio[at])
     return out
+
+
+#: the wind directions (rad from a circle's first ray) the circles' removal averages over
+_CIRCLE_OFFSETS = tuple(2.0 * np.pi * np.arange(CIRCLE_DIRECTIONS) / CIRCLE_DIRECTIONS)
+
+
+def _circle_phase(rays: int) -> tuple[float, ...]:
+    """Scan angles (rad from the first ray) of the ``rays`` rays of a full circle."""
+    return tuple(2.0 * np.pi * np.arange(rays) / rays)
+
+
+def _circles(
+    step_rad: np.ndarray, n_scans: np.ndarray, interval: np.ndarray, phi_deg: float, model: str
+) -> list[tuple[int, tuple, np.ndarray]]:
+    """``(rays, setting, cells)`` of each distinct full circle of the cells (at least two
+    rays, one scan): ``setting`` = scans, ``T_int/T_scan``, elevation and model."""
+    n_rays = np.rint(2.0 * np.pi / np.asarray(step_rad, float))
+    keys = np.stack([n_rays, np.rint(n_scans), np.round(interval, 2)], -1)
+    return [
+        (int(rays), (int(scans), float(inter), round(float(phi_deg), 2), model), at)
+        for (rays, scans, inter), at in _configurations(keys)
+        if rays >= 2 and scans >= 1
+    ]
 
 
 def circle_removed_variance(
@@ -586,16 +602,11 @@ def circle_removed_variance(
     lags holds this share too (computed once for both).
     """
     out = np.full(ratio.shape, np.nan)
-    n_rays = np.rint(2.0 * np.pi / np.asarray(step_rad, float))
-    keys = np.stack([n_rays, np.rint(n_scans), np.round(interval, 2)], -1)
-    offsets = tuple(2.0 * np.pi * np.arange(CIRCLE_DIRECTIONS) / CIRCLE_DIRECTIONS)
-    for (rays, scans, inter), at in _configurations(keys):
-        if rays < 3 or scans < 1 or rays > MAX_SECTOR_RAYS:
-            continue
-        phase = tuple(2.0 * np.pi * np.arange(int(rays)) / rays)
-        setting = (int(scans), float(inter), round(float(phi_deg), 2), model)
-        grid = _removed_grids(phase, offsets, int(n_lags), *setting, False)[..., :1]
-        out[at] = _grid_at(grid, mu[at], ratio[at])[..., 0]
+    for rays, setting, at in _circles(step_rad, n_scans, interval, phi_deg, model):
+        if 3 <= rays <= MAX_SECTOR_RAYS:
+            phase = _circle_phase(rays)
+            grid = _removed_grids(phase, _CIRCLE_OFFSETS, int(n_lags), *setting, False)
+            out[at] = _grid_at(grid[..., :1], mu[at], ratio[at])[..., 0]
     return out
 
 
@@ -619,10 +630,8 @@ def dense_reference_grid(ref_lags: int, setting: tuple) -> np.ndarray:
     :data:`REMOVED_D_MU` x :data:`REMOVED_D_X` x ``ref_lags`` lags: 3-6 s of correlations
     per ``(lags, N, T_int/T_scan, phi, model)``, kept in memory here and on disk by the
     table store (:func:`cwproc.tables.removed_share.stored_dense_grid`)."""
-    ref = MAX_SECTOR_RAYS
-    phase = tuple(2.0 * np.pi * np.arange(ref) / ref)
-    offsets = tuple(2.0 * np.pi * np.arange(CIRCLE_DIRECTIONS) / CIRCLE_DIRECTIONS)
-    return _removed_d_grid(phase, offsets, ref_lags, *setting, False)
+    phase = _circle_phase(MAX_SECTOR_RAYS)
+    return _removed_d_grid(phase, _CIRCLE_OFFSETS, ref_lags, *setting, False)
 
 
 #: fewest lags of the reference circle of :func:`_dense_circle` (6 deg steps: 60 deg,
