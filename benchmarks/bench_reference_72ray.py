@@ -45,19 +45,23 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import sys
 import warnings
+from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "physics"))
+
+from swept_reference import estimator_a2, within_rotation_weights
+from swept_reference import tables as reference_tables
+
 from cwproc.config import load_config
-from cwproc.physics import atable
-from cwproc.physics.atable_interp import azimuth_bin_weights
 from cwproc.physics.geometry import wind_components
 from cwproc.physics.probe_variance import passed_variance, segment_loss
 from cwproc.physics.transfer import PulsedProbe
 from cwproc.pipeline import process_scans
 from cwproc.sim import exact_gaussian as eg
-from cwproc.stages.epsilon.atable_fit import outer_scale_sector_factor
 
 PHI, EPS, L_V, NOISE = 35.3, 0.01, 150.0, 0.1
 RANGES = (165.0, 195.0, 225.0)
@@ -78,65 +82,13 @@ REFERENCE = {
 }
 
 
-def within_rotation_weights(n_rays: int, wind_to_deg: float, n_lags: int = 4) -> np.ndarray:
-    """``(lags, N_BINS)`` azimuth-node weights of the pairs of one rotation.
-
-    The ``n_rays - l`` pairs of lag ``l`` (rays ``m`` and ``m + l`` of one scan, the first
-    ray centred on half a step from north, clockwise) at the angle of the wind's
-    direction of motion from their middle's azimuth, as the structure stage gives them
-    (:func:`cwproc.physics.block_stats.pair_azimuth_weights`): the pairs do not wrap
-    from the last ray to the first, which the reference's average "within a rotation"
-    also leaves out.
-    """
-    step = 360.0 / n_rays
-    out = []
-    for lag in range(1, n_lags + 1):
-        middle = step * (np.arange(n_rays - lag) + 0.5 + 0.5 * lag)
-        out.append(azimuth_bin_weights(np.radians(wind_to_deg - middle)))
-    return np.array(out)
-
-
-def estimator_a2(
-    tables: tuple, height_m: float, mu: float, outer_scale_m: float, weights: np.ndarray
-) -> np.ndarray:
-    """``A_2(l)`` (m^(2/3)), ``l = 1..4``, averaged over the pairs of ``weights``.
-
-    As the ε stage forms it (:mod:`cwproc.stages.epsilon`): the finite table's circle
-    mean times the inertial table's sector ratio (:meth:`ATable.evaluate` with
-    ``weights``) times the outer scale's own sector factor
-    (:func:`outer_scale_sector_factor`, linear in ``log L_V`` between its nodes).
-    """
-    inertial, finite = tables
-    lags = np.arange(1, 5)
-    h, m = np.full(4, height_m), np.full(4, mu)
-    full = finite.evaluate(lags, h, m, outer_scale_m)[1]
-    ratio = inertial.evaluate(lags, h, m, weights=weights)[1] / inertial.evaluate(lags, h, m)[1]
-    factor = outer_scale_sector_factor(
-        tables, lags.astype(float), np.array([height_m]), np.array([mu]), weights[None]
-    )[0]
-    log_nodes = np.log(finite.outer_scales_m)
-    own = [np.interp(math.log(outer_scale_m), log_nodes, factor[:, j]) for j in range(4)]
-    return full * ratio * np.asarray(own)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--gate", type=float, default=18.0, choices=sorted(REFERENCE))
     parser.add_argument("--blocks", type=int, default=0, help="exact-statistics blocks (0: none)")
     args = parser.parse_args()
     probe = PulsedProbe(15.3, args.gate)
-    common = dict(phi_deg=PHI, delta_theta_deg=5.0, n_lags=4, height_range_m=(80.0, 150.0))
-    tables = (
-        atable.build_a_table(
-            probe, atable.table_parameters(probe, model="inertial", mu_max=4.0, **common)
-        ),
-        atable.build_a_table(
-            probe,
-            atable.table_parameters(
-                probe, model="von_karman", outer_scale_range_m=(100.0, 250.0), mu_max=4.0, **common
-            ),
-        ),
-    )
+    tables = reference_tables(probe, PHI, 72, (80.0, 150.0), 4.0)
     weights = within_rotation_weights(72, 60.0)
     e23 = EPS ** (2.0 / 3.0)
     config = load_config("streamline")

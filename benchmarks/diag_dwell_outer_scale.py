@@ -18,60 +18,14 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "physics"))
 
-from swept_reference import estimator_a2, within_rotation_weights
+from swept_reference import estimator_a2, exact_d, tables, within_rotation_weights
 
-from cwproc.physics import atable
-from cwproc.physics.geometry import wind_components
 from cwproc.physics.transfer import PulsedProbe
 from cwproc.sim import exact_gaussian as eg
 
 PHI, HEIGHT, L_V, GATE, PRF = 35.0, 100.0, 200.0, 18.0, 15000.0
-
-
-def step_tables(probe: PulsedProbe, rays: int, dwell: float, mu_max: float) -> tuple:
-    """The inertial and von Kármán step-stare tables of a ``rays`` scan with ``dwell``."""
-    common = dict(
-        phi_deg=PHI,
-        delta_theta_deg=360.0 / rays,
-        n_lags=4,
-        height_range_m=(0.8 * HEIGHT, 1.25 * HEIGHT),
-        mu_max=mu_max,
-        swept=False,
-        dwell=dwell,
-    )
-    inertial = atable.build_a_table(
-        probe, atable.table_parameters(probe, model="inertial", **common)
-    )
-    finite = atable.build_a_table(
-        probe,
-        atable.table_parameters(
-            probe, model="von_karman", outer_scale_range_m=(80.0, 1000.0), **common
-        ),
-    )
-    return inertial, finite
-
-
-def exact_d(pattern: eg.ScanPattern, range_m: float, speed: float, scale: float) -> np.ndarray:
-    """The generator's exact von Kármán ``D(0..4)`` per eps^(2/3) (0: the variance) within
-    one scan, ``L_V = scale`` (m)."""
-    u, v = wind_components(speed, 240.0)
-    cov = eg.block_covariance(
-        pattern,
-        1,
-        elevation_deg=PHI,
-        range_m=range_m,
-        epsilon=1.0,
-        outer_scale_m=scale,
-        mean_wind=(u, v, 0.0),
-        delta_r_m=GATE,
-    )
-    diag = np.diag(cov)
-    d = [np.mean(diag[k:] + diag[:-k] - 2 * np.diag(cov, k)) for k in (1, 2, 3, 4)]
-    return np.array([float(np.mean(diag)), *d])
 
 
 def main() -> None:
@@ -90,7 +44,9 @@ def main() -> None:
         for period, dwell_s in zip(args.ray_period or [2.0], args.dwell_s or [1.0], strict=True):
             frac = dwell_s / period
             t0 = time.perf_counter()
-            pair = step_tables(probe, rays, frac, max(mus) + 0.5)
+            heights = (0.8 * HEIGHT, 1.25 * HEIGHT)
+            step_stare = {"swept": False, "dwell": frac}
+            pair = tables(probe, PHI, rays, heights, max(mus) + 0.5, (80.0, 1000.0), **step_stare)
             built = time.perf_counter() - t0
             weights = within_rotation_weights(rays, 60.0)
             pattern = eg.conical_pattern(
@@ -99,7 +55,7 @@ def main() -> None:
             v_s = 2 * math.pi * range_m * math.cos(math.radians(PHI)) / (rays * period)
             for mu in mus:
                 model = estimator_a2(pair, HEIGHT, mu, args.scale, weights)
-                exact = exact_d(pattern, range_m, mu * v_s, args.scale)
+                exact = exact_d(pattern, PHI, range_m, mu * v_s, args.scale, GATE)
                 ratio = " ".join(f"{r:.4f}" for r in model / exact[1:])
                 print(
                     f"rays {rays} dwell {dwell_s:g}/{period:g} s (d {frac:.3f}) mu {mu:g}: "

@@ -7,25 +7,39 @@ Not a test module: ``test_atable_swept_transport.py`` imports it (the tests fold
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
 from cwproc.physics import atable
 from cwproc.physics.atable_interp import azimuth_bin_weights
+from cwproc.physics.geometry import wind_components
 from cwproc.physics.transfer import PulsedProbe
+from cwproc.sim import exact_gaussian as eg
 from cwproc.stages.epsilon.atable_fit import outer_scale_sector_factor
 
 
 def tables(
-    probe: PulsedProbe, phi_deg: float, rays: int, heights_m: tuple[float, float], mu_max: float
+    probe: PulsedProbe,
+    phi_deg: float,
+    rays: int,
+    heights_m: tuple[float, float],
+    mu_max: float,
+    outer_scale_range_m: tuple[float, float] = (100.0, 250.0),
+    **scan: Any,
 ) -> tuple:
-    """The inertial and von Kármán (``L_V`` 100-250 m) tables of a continuous scan, 4 lags."""
+    """The inertial and von Kármán tables of a ``rays``-ray scan, 4 lags.
+
+    ``scan``: further :func:`cwproc.physics.atable.table_parameters` of the scan's rays
+    (``swept=False, dwell=d`` for step-stare rays; continuous scans by default).
+    """
     common = dict(
         phi_deg=phi_deg,
         delta_theta_deg=360.0 / rays,
         n_lags=4,
         height_range_m=heights_m,
         mu_max=mu_max,
+        **scan,
     )
     inertial = atable.build_a_table(
         probe, atable.table_parameters(probe, model="inertial", **common)
@@ -33,10 +47,39 @@ def tables(
     finite = atable.build_a_table(
         probe,
         atable.table_parameters(
-            probe, model="von_karman", outer_scale_range_m=(100.0, 250.0), **common
+            probe, model="von_karman", outer_scale_range_m=outer_scale_range_m, **common
         ),
     )
     return inertial, finite
+
+
+def exact_d(
+    pattern: eg.ScanPattern,
+    phi_deg: float,
+    range_m: float,
+    speed: float,
+    outer_scale_m: float,
+    gate_m: float,
+    **options: Any,
+) -> np.ndarray:
+    """The generator's exact von Kármán ``D(0..4)`` per eps^(2/3) within one scan (0: the
+    variance of V_r), the wind (``speed``, m s-1) towards 60 deg; ``options`` of
+    :func:`cwproc.sim.exact_gaussian.block_covariance` (e.g. ``sweep_nodes``)."""
+    u, v = wind_components(speed, 240.0)
+    cov = eg.block_covariance(
+        pattern,
+        1,
+        elevation_deg=phi_deg,
+        range_m=range_m,
+        epsilon=1.0,
+        outer_scale_m=outer_scale_m,
+        mean_wind=(u, v, 0.0),
+        delta_r_m=gate_m,
+        **options,
+    )
+    diag = np.diag(cov)
+    d = [np.mean(diag[k:] + diag[:-k] - 2 * np.diag(cov, k)) for k in (1, 2, 3, 4)]
+    return np.array([float(np.mean(diag)), *d])
 
 
 def within_rotation_weights(rays: int, wind_to_deg: float) -> np.ndarray:

@@ -21,10 +21,9 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from swept_reference import estimator_a2, within_rotation_weights
+from swept_reference import estimator_a2, exact_d, tables, within_rotation_weights
 
-from cwproc.physics import atable, atable_swept
-from cwproc.physics.geometry import wind_components
+from cwproc.physics import atable_swept
 from cwproc.physics.transfer import PulsedProbe
 from cwproc.sim import exact_gaussian as eg
 
@@ -49,28 +48,6 @@ def test_dwell_difference_kernel_against_sub_beam_sums(dwell):
     assert np.array_equal(x, lags) and np.array_equal(eye, np.eye(4))
 
 
-def _tables(probe: PulsedProbe, rays: int, dwell: float) -> tuple:
-    common = dict(
-        phi_deg=PHI,
-        delta_theta_deg=360.0 / rays,
-        n_lags=4,
-        height_range_m=(0.8 * HEIGHT, 1.25 * HEIGHT),
-        mu_max=3.5,
-        swept=False,
-        dwell=dwell,
-    )
-    inertial = atable.build_a_table(
-        probe, atable.table_parameters(probe, model="inertial", **common)
-    )
-    finite = atable.build_a_table(
-        probe,
-        atable.table_parameters(
-            probe, model="von_karman", outer_scale_range_m=(100.0, 400.0), **common
-        ),
-    )
-    return inertial, finite
-
-
 def test_dwell_von_karman_tables_match_the_exact_generator_at_mu_3(monkeypatch):
     # 24 rays, 3 s dwell in a 4 s ray period, mu = 3, h 100 m, L_V 200 m: exact D(1-4)
     # of cwproc.sim.exact_gaussian (coarse range steps: within 0.1 % of its default).
@@ -85,19 +62,9 @@ def test_dwell_von_karman_tables_match_the_exact_generator_at_mu_3(monkeypatch):
         rays, rays * ray_period, continuous=False, pulses_per_ray=round(dwell_s * 15000)
     )
     speed = 3.0 * 2 * math.pi * range_m * math.cos(math.radians(PHI)) / (rays * ray_period)
-    u, v = wind_components(speed, 240.0)
-    cov = eg.block_covariance(
-        pattern,
-        1,
-        elevation_deg=PHI,
-        range_m=range_m,
-        epsilon=1.0,
-        outer_scale_m=L_V,
-        mean_wind=(u, v, 0.0),
-        delta_r_m=GATE,
-    )
-    diag = np.diag(cov)
-    exact = np.array([np.mean(diag[k:] + diag[:-k] - 2 * np.diag(cov, k)) for k in (1, 2, 3)])
-    pair = _tables(probe, rays, dwell_s / ray_period)
+    exact = exact_d(pattern, PHI, range_m, speed, L_V, GATE)[1:4]
+    heights = (0.8 * HEIGHT, 1.25 * HEIGHT)
+    dwell = dwell_s / ray_period
+    pair = tables(probe, PHI, rays, heights, 3.5, (100.0, 400.0), swept=False, dwell=dwell)
     model = estimator_a2(pair, HEIGHT, 3.0, L_V, within_rotation_weights(rays, 60.0))[:3]
     np.testing.assert_allclose(model / exact, 1.0, atol=4e-3)

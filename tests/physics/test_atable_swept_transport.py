@@ -20,31 +20,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from swept_reference import estimator_a2, tables, within_rotation_weights
+from swept_reference import estimator_a2, exact_d, tables, within_rotation_weights
 
-from cwproc.physics.geometry import wind_components
 from cwproc.physics.transfer import PulsedProbe
 from cwproc.sim import exact_gaussian as eg
 
 PHI, EPS, L_V = 35.3, 0.01, 150.0
-
-
-def _exact_d(pattern, range_m: float, speed: float, gate: float) -> np.ndarray:
-    """The generator's exact ``D(1..4)`` per eps^(2/3) of the pairs within one scan."""
-    u, v = wind_components(speed, 240.0)
-    cov = eg.block_covariance(
-        pattern,
-        1,
-        elevation_deg=PHI,
-        range_m=range_m,
-        epsilon=1.0,
-        outer_scale_m=L_V,
-        mean_wind=(u, v, 0.0),
-        delta_r_m=gate,
-        sweep_nodes=4,
-    )
-    diag = np.diag(cov)
-    return np.array([np.mean(diag[k:] + diag[:-k] - 2 * np.diag(cov, k)) for k in (1, 2, 3, 4)])
 
 
 def test_swept_von_karman_tables_match_the_exact_generator_at_mu_3(monkeypatch):
@@ -59,7 +40,8 @@ def test_swept_von_karman_tables_match_the_exact_generator_at_mu_3(monkeypatch):
     height = range_m * math.sin(math.radians(PHI))
     pair = tables(probe, PHI, rays, (0.8 * height, 1.25 * height), 3.5)
     speed = 3.0 * 2 * math.pi * range_m * math.cos(math.radians(PHI)) / period
-    exact = _exact_d(eg.conical_pattern(rays, period, continuous=True), range_m, speed, 18.0)
+    pattern = eg.conical_pattern(rays, period, continuous=True)
+    exact = exact_d(pattern, PHI, range_m, speed, L_V, 18.0, sweep_nodes=4)[1:]
     model = estimator_a2(pair, height, 3.0, L_V, within_rotation_weights(rays, 60.0))
     np.testing.assert_allclose(model / exact, 1.0, atol=7e-3)
 
